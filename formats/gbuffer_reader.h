@@ -1,0 +1,90 @@
+// Reading a frame's G-buffer from an EXR file into the kernels' conventions.
+//
+// Channel profiles (detected automatically, or overridden by an explicit mapping):
+// - "blender": Blender/Cycles multilayer names <ViewLayer>.Depth.Z, .Normal.XYZ (world),
+//   .Position.XYZ (world), .DiffCol.RGB, .AO.RGB, .DiffDir.RGB, .DiffInd.RGB, ...
+// - "generic": single-layer names Z | depth.Z, N.XYZ | N.RGB | N.xyz, P.XYZ,
+//   albedo.RGB | diffuse_albedo.RGB (Arnold-style AOVs).
+// - "mapping": every channel named by the caller (ChannelMapping).
+// Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an
+// explicit path), the OpenEXR header attributes worldToCamera + worldToNDC, or
+// intrinsics given by the caller (fov_x_deg).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kernels/gbuffer.h"
+
+namespace ssdo {
+
+enum class DepthKind { automatic, planar, radial };
+enum class Space { automatic, world, view };
+
+// Explicit channel names, for renderers no profile knows. A name is either a full
+// channel ("ViewLayer.Depth.Z") or a layer prefix whose components are found by suffix
+// ("N" -> N.X N.Y N.Z | N.R N.G N.B | N.x N.y N.z). Empty = use the detected profile.
+struct ChannelMapping {
+  std::string depth;
+  std::string normal;
+  std::string position;
+  std::string albedo;
+  std::string lighting;
+  std::map<std::string, std::string> references;  // name -> channel or layer
+  Space normal_space = Space::automatic;
+  Space position_space = Space::automatic;
+};
+
+struct ReadOptions {
+  ChannelMapping mapping;
+  std::string camera_json;              // explicit sidecar path; empty = look beside the frame
+  std::optional<float> fov_x_deg;       // intrinsics when the file has no camera, degrees
+  DepthKind depth_kind = DepthKind::automatic;  // automatic: sidecar/header says, else planar
+  std::string part;                     // multi-part file: the part that holds depth (and the rest)
+  bool read_positions = false;          // positions pass, when present (else computed from depth)
+  bool read_albedo = true;
+  bool read_lighting = true;
+  bool read_references = true;          // e.g. the AO / DiffDir / DiffInd passes
+  int64_t max_pixels = int64_t(1) << 28;  // refuse larger data windows before allocating
+  int threads = 0;                      // OpenEXR decoding threads (0 = its global pool)
+};
+
+struct ChannelUse {
+  std::string input;     // "depth", "normal", "albedo", "reference:AO", ...
+  std::string channels;  // e.g. "ViewLayer.Normal.{X,Y,Z}"
+  std::string space;     // "world" | "view" | "" (not spatial)
+};
+
+struct FrameInfo {
+  std::string path;
+  int width_px = 0, height_px = 0;
+  int data_x = 0, data_y = 0;                 // data window origin
+  std::vector<std::string> parts;             // part names (one entry "" for single part)
+  std::vector<std::string> channels;          // every channel of the chosen part, with type
+  std::string profile;                        // "blender" | "generic" | "mapping"
+  std::vector<ChannelUse> uses;
+  std::string camera_source;                  // "sidecar PATH" | "header worldToCamera/worldToNDC" | "--fov"
+  std::string depth_kind;                     // "planar" | "radial", as converted
+  bool normals_reconstructed = false;
+  std::optional<float> ao_distance_world;     // AO radius of the reference pass, if known
+  float depth_min_view = 0, depth_max_view = 0;  // foreground depth range
+  int64_t foreground_pixels = 0, masked_pixels = 0, nonfinite_pixels = 0;
+};
+
+struct ReadResult {
+  GBuffer gbuffer;
+  FrameInfo info;
+  std::string error;  // empty on success; else a message naming file, part, channel or field
+  bool ok() const { return error.empty(); }
+};
+
+// Reads a frame. Never throws; every failure is an error message.
+ReadResult read_gbuffer(const std::string& path, const ReadOptions& options = {});
+
+// Reads only the header: profile, channels, camera source (info.* filled, gbuffer empty).
+ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options = {});
+
+}  // namespace ssdo

@@ -1,0 +1,83 @@
+// Ambient occlusion: the settings, presets and entry point shared by every method.
+// A method is a value of AoSettings::method, not a separate code path to copy; each
+// method's core lives in its own file (ao_hemisphere.cpp, ao_hbao.cpp, ao_gtao.cpp,
+// ao_raymarch.cpp) behind compute_ao().
+//
+// Convention: AO in [0, 1], 1 = unoccluded; the cosine-weighted fraction of the
+// normal's hemisphere that is free of occluders within radius_world (as Cycles' AO pass).
+#pragma once
+
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <opencv2/core.hpp>
+
+#include "kernels/camera.h"
+
+namespace ssdo {
+
+enum class AoMethod { hemisphere, hbao, gtao, raymarch };
+enum class Preset { low, medium, high, ultra };
+
+std::string_view to_string(AoMethod m);
+std::string_view to_string(Preset p);
+std::optional<AoMethod> parse_ao_method(std::string_view s);
+std::optional<Preset> parse_preset(std::string_view s);
+
+struct AoSettings {
+  AoMethod method = AoMethod::gtao;
+  // Radius of the occlusion sphere, scene units, (0, inf). Occluders farther than this
+  // from the shaded point do not count. 1.0 matches the Cycles AO distance default.
+  float radius_world = 1.0f;
+  // Largest projected radius, pixels, [2, 4096]: bounds the cost of close-up pixels.
+  float max_radius_px = 256.0f;
+  // Hemisphere: samples per pixel, [1, 1024].
+  int samples = 16;
+  // HBAO directions / GTAO slices (each slice = 2 directions) / raymarch directions, [1, 4096].
+  int directions = 4;
+  // Steps per direction (HBAO, GTAO, raymarch), [1, 1024].
+  int steps = 8;
+  // Assumed thickness of every surface seen in the depth buffer, scene units, (0, inf]:
+  // a tap farther than this behind the stored depth does not occlude (infinity = height field).
+  float thickness_world = std::numeric_limits<float>::infinity();
+  // Fraction of the radius over which occluders fade out, [0, 1] (0 = hard cut like Cycles).
+  float falloff_fraction = 0.2f;
+  // Depth bias relative to the pixel's depth, [0, 0.1]: rejects self-occlusion from depth
+  // quantisation (a relative bias holds for float and half-float depth alike).
+  float depth_bias_relative = 1e-3f;
+  // Multi-bounce approximation (Jimenez et al. 2016, eq. 10) when albedo is given.
+  bool multibounce = false;
+  // Noise seed: outputs are a pure function of (inputs, settings, seed).
+  uint32_t seed = 0;
+};
+
+// The named presets of each method (values of AoSettings).
+AoSettings ao_preset(AoMethod method, Preset preset);
+
+// Returns an empty string when the settings are valid, else what is wrong (field, value,
+// range). Called once at the boundary; kernels only assert.
+std::string validate(const AoSettings& s);
+
+struct AoInputs {
+  const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
+  const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals
+  const cv::Mat& position_view;  // CV_32FC3 view-space positions (view_positions_from_depth)
+  const cv::Mat& mask;           // CV_8UC1, 255 = foreground
+  const Camera& camera;
+  const cv::Mat* albedo = nullptr;  // CV_32FC3 or null (multi-bounce only)
+};
+
+struct AoOutput {
+  cv::Mat ao;                // CV_32FC1 in [0,1], 1 = unoccluded; 1 on background
+  cv::Mat bent_normal_view;  // CV_32FC3 unit view-space bent normal, or empty when the
+                             // method has none; (0,0,0) on background
+};
+
+// Computes AO for the pixels of `roi` (empty = all) with the method in settings.
+// Output images are allocated at the input size when empty; only roi is written.
+void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out,
+                cv::Rect roi = {}, int nthreads = 0);
+
+}  // namespace ssdo

@@ -1,0 +1,14 @@
+// Internal: the per-method cores behind compute_ao(). Each is defined in its own file
+// (ao_<method>.cpp); inputs and settings are already validated, outputs allocated.
+#pragma once
+
+#include "kernels/ao.h"
+
+namespace ssdo::detail {
+
+void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads);
+void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads);
+void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads);
+void ao_raymarch(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads);
+
+}  // namespace ssdo::detail

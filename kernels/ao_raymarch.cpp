@@ -1,0 +1,10 @@
+// Placeholder until the method lands: refuses to run rather than return a fake result.
+#include "kernels/ao_methods.h"
+
+namespace ssdo::detail {
+
+void ao_raymarch(const AoInputs&, const AoSettings&, AoOutput&, const cv::Rect&, int) {
+  CV_Error(cv::Error::StsNotImplemented, "AO method 'raymarch' is not implemented yet");
+}
+
+}  // namespace ssdo::detail

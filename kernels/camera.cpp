@@ -1,0 +1,73 @@
+#include "kernels/camera.h"
+
+#include <cmath>
+#include <limits>
+
+namespace ssdo {
+
+Camera Camera::from_fov_x(int width_px, int height_px, float fov_x_deg, float near_view,
+                          float far_view) {
+  Camera c;
+  c.width_px = width_px;
+  c.height_px = height_px;
+  c.near_view = near_view;
+  c.far_view = far_view;
+  const float sx = 1.0f / std::tan(0.5f * glm::radians(fov_x_deg));
+  const float sy = sx * float(width_px) / float(height_px);  // square pixels
+  glm::mat4 p(0.0f);
+  p[0][0] = sx;
+  p[1][1] = sy;
+  p[2][2] = -(far_view + near_view) / (far_view - near_view);
+  p[2][3] = -1.0f;
+  p[3][2] = -2.0f * far_view * near_view / (far_view - near_view);
+  c.view_to_clip = p;
+  return c;
+}
+
+float Camera::fov_x_deg() const { return glm::degrees(2.0f * std::atan(1.0f / view_to_clip[0][0])); }
+float Camera::fov_y_deg() const { return glm::degrees(2.0f * std::atan(1.0f / view_to_clip[1][1])); }
+
+glm::vec2 Camera::ndc_from_pixel(glm::vec2 pixel) const {
+  return {2.0f * pixel.x / float(width_px) - 1.0f, 1.0f - 2.0f * pixel.y / float(height_px)};
+}
+
+glm::vec2 Camera::pixel_from_ndc(glm::vec2 ndc) const {
+  return {0.5f * (ndc.x + 1.0f) * float(width_px), 0.5f * (1.0f - ndc.y) * float(height_px)};
+}
+
+glm::vec2 Camera::pixel_from_view(const glm::vec3& p_view) const {
+  const glm::vec4 clip = view_to_clip * glm::vec4(p_view, 1.0f);
+  if (!(clip.w > 0.0f)) {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    return {nan, nan};
+  }
+  return pixel_from_ndc(glm::vec2(clip.x, clip.y) / clip.w);
+}
+
+glm::vec3 Camera::view_from_pixel_depth(glm::vec2 pixel, float depth_view) const {
+  const glm::vec2 ndc = ndc_from_pixel(pixel);
+  const glm::mat4& m = view_to_clip;  // m[col][row]
+  const float z = -depth_view;
+  // Row r of the projection: clip_r = m[0][r] x + m[1][r] y + m[2][r] z + m[3][r].
+  // ndc_r * clip_w = clip_r for r = 0, 1  ->  A [x y]^T = b.
+  const float a00 = m[0][0] - ndc.x * m[0][3], a01 = m[1][0] - ndc.x * m[1][3];
+  const float a10 = m[0][1] - ndc.y * m[0][3], a11 = m[1][1] - ndc.y * m[1][3];
+  const float b0 = ndc.x * (m[2][3] * z + m[3][3]) - (m[2][0] * z + m[3][0]);
+  const float b1 = ndc.y * (m[2][3] * z + m[3][3]) - (m[2][1] * z + m[3][1]);
+  const float det = a00 * a11 - a01 * a10;
+  return {(b0 * a11 - a01 * b1) / det, (a00 * b1 - b0 * a10) / det, z};
+}
+
+glm::vec3 Camera::view_ray_direction(glm::vec2 pixel) const {
+  if (!is_perspective()) return {0.0f, 0.0f, -1.0f};
+  return glm::normalize(view_from_pixel_depth(pixel, 1.0f));
+}
+
+glm::vec2 Camera::pixels_per_unit(float depth_view) const {
+  // clip.w at planar depth d for a point on the axis: w = m[2][3] * (-d) + m[3][3].
+  const float w = view_to_clip[2][3] * (-depth_view) + view_to_clip[3][3];
+  return {0.5f * float(width_px) * std::abs(view_to_clip[0][0]) / w,
+          0.5f * float(height_px) * std::abs(view_to_clip[1][1]) / w};
+}
+
+}  // namespace ssdo

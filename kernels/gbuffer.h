@@ -1,0 +1,54 @@
+// A frame's geometry and shading inputs in the kernels' internal conventions.
+// formats/ fills it (converting spaces and depth conventions once); kernels read it.
+//
+// Every image is a cv::Mat of the data window's size (height_px rows x width_px cols),
+// float32, row 0 = top scanline. Three-channel images store (x, y, z) or (R, G, B) in
+// that order (never OpenCV's BGR).
+#pragma once
+
+#include <map>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "kernels/camera.h"
+
+namespace ssdo {
+
+struct GBuffer {
+  Camera camera;
+
+  // CV_32FC1. Planar view-space depth (= -z_view), scene units, > 0 on foreground.
+  // Background and invalid pixels hold +infinity: test `mask` before doing arithmetic
+  // with a tap's depth.
+  cv::Mat depth_view;
+
+  // CV_8UC1. 255 = foreground geometry, 0 = background, non-finite or otherwise unusable.
+  cv::Mat mask;
+
+  // CV_32FC3. Unit view-space normals (x, y, z), facing the camera side of the surface.
+  // Always filled after reading: reconstructed from depth when the frame has none.
+  // (0, 0, 0) where mask is 0.
+  cv::Mat normal_view;
+
+  // CV_32FC3, optional (empty when absent). View-space positions (x, y, z).
+  cv::Mat position_view;
+
+  // CV_32FC3, optional. Linear diffuse albedo (R, G, B) in [0, 1].
+  cv::Mat albedo;
+
+  // CV_32FC3, optional. Outgoing diffuse radiance of each pixel from the renderer's own
+  // direct lighting (R, G, B): the sender light of the SSDO bounce.
+  cv::Mat lighting;
+
+  // Named reference images from the frame (e.g. "AO": CV_32FC1 ray-traced ambient
+  // occlusion; "DiffDir", "DiffInd": CV_32FC3 light passes). Same size as depth.
+  std::map<std::string, cv::Mat> references;
+
+  int width_px() const { return depth_view.cols; }
+  int height_px() const { return depth_view.rows; }
+  bool has_normals() const { return !normal_view.empty(); }
+  bool has_albedo() const { return !albedo.empty(); }
+};
+
+}  // namespace ssdo

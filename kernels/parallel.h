@@ -1,0 +1,25 @@
+// The one parallel helper of the kernels: splits a row range into strips and runs a
+// body over them with cv::parallel_for_. Kernels call it; nothing else in kernels/
+// calls cv::parallel_for_ directly.
+//
+// OpenCV runs a nested or concurrent second parallel_for_ serially (a process-wide
+// flag), so the caller decides where parallelism lives: inside a frame (nthreads != 1)
+// or across frames (nthreads = 1 per frame). Results never depend on the split.
+#pragma once
+
+#include <functional>
+
+#include <opencv2/core.hpp>
+
+namespace ssdo {
+
+// Rows of `roi` to process; an empty roi means the whole image of the given size.
+cv::Rect resolve_roi(const cv::Rect& roi, cv::Size image);
+
+// Runs body(rows) over strips covering [rows.start, rows.end).
+// nthreads: 1 = serially in the calling thread; 0 = OpenCV's thread pool as configured
+// (cv::setNumThreads); N > 1 = the pool, with at most N threads used for this call.
+void parallel_rows(const cv::Range& rows, int nthreads,
+                   const std::function<void(const cv::Range&)>& body);
+
+}  // namespace ssdo

@@ -1,0 +1,32 @@
+#include "kernels/positions.h"
+
+#include "kernels/parallel.h"
+
+namespace ssdo {
+
+void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
+                               const Camera& camera, cv::Mat& position_view, cv::Rect roi,
+                               int nthreads) {
+  CV_Assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 &&
+            mask.size() == depth_view.size());
+  if (position_view.size() != depth_view.size() || position_view.type() != CV_32FC3)
+    position_view.create(depth_view.size(), CV_32FC3);
+  const cv::Rect r = resolve_roi(roi, depth_view.size());
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* depth = depth_view.ptr<float>(y);
+      const uint8_t* m = mask.ptr<uint8_t>(y);
+      cv::Vec3f* out = position_view.ptr<cv::Vec3f>(y);
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        if (!m[x]) {
+          out[x] = cv::Vec3f(0, 0, 0);
+          continue;
+        }
+        const glm::vec3 p = camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, depth[x]);
+        out[x] = cv::Vec3f(p.x, p.y, p.z);
+      }
+    }
+  });
+}
+
+}  // namespace ssdo
