@@ -1,0 +1,120 @@
+// `ssdo eval`: AO against a reference pass of the same frame, over foreground pixels.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include <nlohmann/json.hpp>
+
+#include "kernels/metrics.h"
+#include "service/commands.h"
+
+namespace ssdo {
+
+namespace {
+
+cv::Mat to_single_channel(const cv::Mat& m) {
+  if (m.channels() == 1) return m;
+  cv::Mat out;
+  cv::transform(m, out, cv::Matx<float, 1, 3>(1.0f / 3, 1.0f / 3, 1.0f / 3));
+  return out;
+}
+
+// Signed error as colour: red where the estimate is too open (bright), blue where it is
+// too dark; full intensity at |error| >= 0.25. Background black.
+cv::Mat error_heatmap(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask) {
+  cv::Mat heat(estimate.size(), CV_32FC3, cv::Scalar::all(0));
+  for (int y = 0; y < estimate.rows; ++y)
+    for (int x = 0; x < estimate.cols; ++x) {
+      if (!mask.at<uint8_t>(y, x)) continue;
+      const float e = std::clamp((estimate.at<float>(y, x) - reference.at<float>(y, x)) * 4.0f, -1.0f, 1.0f);
+      heat.at<cv::Vec3f>(y, x) = e > 0 ? cv::Vec3f(e, 0, 0) : cv::Vec3f(0, 0, -e);
+    }
+  return heat;
+}
+
+nlohmann::json stats_json(const ErrorStats& s) {
+  return {{"mae", s.mae}, {"rmse", s.rmse}, {"bias", s.bias}, {"p95", s.p95}, {"max", s.max_abs},
+          {"pixels", s.pixels}};
+}
+
+}  // namespace
+
+int run_eval(const EvalArgs& args) {
+  ErrorAccumulator overall;
+  double overall_ms = 0;
+  int failed = 0;
+  nlohmann::json files = nlohmann::json::array();
+  const std::string method(to_string(args.request.ao.method));
+  if (!args.heatmap_dir.empty()) std::filesystem::create_directories(args.heatmap_dir);
+
+  for (const std::string& file : args.files) {
+    ReadOptions read = args.request.read;
+    read.read_references = true;
+    ReadResult frame = read_gbuffer(file, read);
+    if (!frame.ok()) {
+      std::cerr << "ssdo eval: " << frame.error << "\n";
+      ++failed;
+      continue;
+    }
+    const auto ref_it = frame.gbuffer.references.find(args.reference);
+    if (ref_it == frame.gbuffer.references.end()) {
+      std::string present;
+      for (const auto& [name, img] : frame.gbuffer.references) present += (present.empty() ? "" : ", ") + name;
+      std::cerr << "ssdo eval: " << file << ": no reference pass '" << args.reference
+                << "' (reference passes present: " << (present.empty() ? "none" : present) << ")\n";
+      ++failed;
+      continue;
+    }
+    FrameRequest request = args.request;
+    if (args.radius_from_frame && frame.info.ao_distance_world)
+      request.ao.radius_world = *frame.info.ao_distance_world;
+
+    const auto t0 = std::chrono::steady_clock::now();
+    const ComputedFrame computed = compute_frame(frame.gbuffer, request);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const cv::Mat estimate = *computed.find("ao_denoised");
+    const cv::Mat reference = to_single_channel(ref_it->second);
+    const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
+    overall.add(estimate, reference, frame.gbuffer.mask);
+    overall_ms += ms;
+
+    nlohmann::json j = stats_json(s);
+    j["file"] = file;
+    j["method"] = method;
+    j["preset"] = args.preset;
+    j["radius"] = request.ao.radius_world;
+    j["ms"] = ms;
+    files.push_back(j);
+    if (!args.json) {
+      std::printf("%s: %s r=%.3g  MAE %.4f  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
+                  file.c_str(), method.c_str(), request.ao.radius_world, s.mae, s.rmse, s.bias,
+                  s.p95, int(s.pixels), ms);
+    }
+    if (!args.heatmap_dir.empty()) {
+      const std::string stem = std::filesystem::path(file).stem().string();
+      const std::string out = (std::filesystem::path(args.heatmap_dir) / (stem + ".error.exr")).string();
+      WriteOptions w;
+      w.png_previews = true;
+      const std::string err = write_outputs(
+          out, {{"error", error_heatmap(estimate, reference, frame.gbuffer.mask), SampleType::half, false},
+                {"ao", estimate, SampleType::float32, false},
+                {"reference", reference, SampleType::float32, false}},
+          frame.gbuffer.camera, w);
+      if (!err.empty()) std::cerr << "ssdo eval: " << err << "\n";
+    }
+  }
+  const ErrorStats all = overall.result();
+  if (args.json) {
+    nlohmann::json o = stats_json(all);
+    o["ms"] = overall_ms;
+    o["files"] = int(files.size());
+    std::cout << nlohmann::json{{"files", files}, {"overall", o}}.dump(2) << "\n";
+  } else if (args.files.size() > 1) {
+    std::printf("overall: MAE %.4f  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n", all.mae,
+                all.rmse, all.bias, all.p95, int(all.pixels), overall_ms);
+  }
+  return failed ? 1 : 0;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,66 @@
+// One frame's way through the product: read (formats) -> compute (kernels) -> write
+// (formats). A request is a value; `process`, `eval` and `serve` all build one.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "formats/gbuffer_reader.h"
+#include "formats/output_writer.h"
+#include "kernels/ao.h"
+#include "kernels/denoise.h"
+#include "kernels/gbuffer.h"
+
+namespace ssdo {
+
+// Which terms a request computes. Names as on the command line (--terms):
+//   ao          AO, its denoised version and the bent normal (when the method has one)
+//   ssdo        SSDO direct and indirect light, raw and denoised
+//   composite   the composited image of the selected terms
+struct TermSelection {
+  bool ao = true;
+  bool ssdo = false;
+  bool composite = true;
+};
+
+// Parses "ao,ssdo,composite" (also "all"); on error returns false and says why.
+bool parse_terms(const std::string& list, TermSelection& terms, std::string& error);
+std::string to_string(const TermSelection& terms);
+
+struct FrameRequest {
+  std::string input_path;
+  std::string output_path;    // the EXR to write; empty = compute only (eval)
+  ReadOptions read;
+  TermSelection terms;
+  AoSettings ao;
+  DenoiseSettings denoise;
+  WriteOptions write;
+  int threads = 0;            // kernels' thread budget (0 = OpenCV's pool, 1 = serial)
+};
+
+struct StageTimes {
+  double read_ms = 0, compute_ms = 0, write_ms = 0;
+};
+
+struct FrameResult {
+  std::string input_path, output_path;
+  std::string error;          // empty on success
+  StageTimes times;
+  FrameInfo info;
+  std::vector<std::string> terms_written;
+  bool ok() const { return error.empty(); }
+};
+
+// The computed images of a frame, by output name, in the order they are written.
+struct ComputedFrame {
+  std::vector<OutputTerm> terms;
+  const cv::Mat* find(const std::string& name) const;
+};
+
+// Computes the selected terms for a frame already in memory (no I/O).
+ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request);
+
+// Reads, computes and writes one frame. Never throws: failures are in result.error.
+FrameResult process_frame(const FrameRequest& request);
+
+}  // namespace ssdo

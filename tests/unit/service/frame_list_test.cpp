@@ -1,0 +1,63 @@
+#include "service/frame_list.h"
+
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+namespace ssdo {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() / ("ssdo_frames_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  void touch(const std::string& name) const { std::ofstream(path / name) << "x"; }
+};
+
+TEST(FrameList, FolderGivesSortedExrFramesWithoutOutputsOrHiddenFiles) {
+  TempDir d;
+  for (const char* n : {"b.exr", "a.exr", "c.EXR", "a.ssdo.exr", ".tmp.exr", "notes.txt"}) d.touch(n);
+  std::vector<std::string> frames;
+  std::string error;
+  ASSERT_TRUE(expand_inputs({d.path.string()}, frames, error)) << error;
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(fs::path(frames[0]).filename(), "a.exr");
+  EXPECT_EQ(fs::path(frames[1]).filename(), "b.exr");
+  EXPECT_EQ(fs::path(frames[2]).filename(), "c.EXR");
+}
+
+TEST(FrameList, MissingInputIsNamed) {
+  std::vector<std::string> frames;
+  std::string error;
+  EXPECT_FALSE(expand_inputs({"/nonexistent/frame.exr"}, frames, error));
+  EXPECT_NE(error.find("/nonexistent/frame.exr"), std::string::npos);
+}
+
+TEST(FrameList, OutputPathReplacesExtension) {
+  EXPECT_EQ(output_path_for("/a/b/shot_0001.exr", "/out"), "/out/shot_0001.ssdo.exr");
+  EXPECT_EQ(output_path_for("frame.EXR", "o"), "o/frame.ssdo.exr");
+}
+
+TEST(FrameList, UpToDateComparesModificationTimes) {
+  TempDir d;
+  d.touch("in.exr");
+  const std::string in = (d.path / "in.exr").string(), out = (d.path / "out.exr").string();
+  EXPECT_FALSE(output_up_to_date(in, out));  // no output yet
+  d.touch("out.exr");
+  fs::last_write_time(out, fs::last_write_time(in) + std::chrono::seconds(1));
+  EXPECT_TRUE(output_up_to_date(in, out));
+  fs::last_write_time(in, fs::last_write_time(out) + std::chrono::seconds(1));
+  EXPECT_FALSE(output_up_to_date(in, out));
+}
+
+}  // namespace
+}  // namespace ssdo
