@@ -1,0 +1,120 @@
+// The real binary on real files: exit codes, messages, outputs.
+#include <filesystem>
+#include <fstream>
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "run_binary.h"
+
+namespace ssdo::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string example(const std::string& name) { return (source_dir() / "examples" / "frames" / name).string(); }
+
+std::vector<std::string> channel_names(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return {};
+  return in->spec().channelnames;
+}
+
+TEST(Cli, HelpListsCommandsAndExamples) {
+  const RunResult r = run_ssdo("--help");
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* word : {"info", "process", "eval", "Examples", "--fov"})
+    EXPECT_NE(r.output.find(word), std::string::npos) << word;
+}
+
+TEST(Cli, NoCommandIsAnError) { EXPECT_NE(run_ssdo("").exit_code, 0); }
+
+TEST(Cli, InfoNamesBlenderProfileAndSidecarCamera) {
+  SSDO_REQUIRE_SHARED();
+  const RunResult info = run_ssdo("info " + (shared_dir() / "gbuffers" / "cornell.exr").string());
+  ASSERT_EQ(info.exit_code, 0) << info.output;
+  EXPECT_NE(info.output.find("blender"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("sidecar"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("640"), std::string::npos) << info.output;
+}
+
+TEST(Cli, InfoJsonIsParseable) {
+  const RunResult r = run_ssdo("info --json " + example("cornell.exr") + " 2>/dev/null");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.output;
+  EXPECT_NE(r.output.find("\"blender\""), std::string::npos);
+}
+
+TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {
+  ScratchDir out;
+  RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() +
+                         " --terms ao --method gtao --preset low");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string written = out / "cornell.ssdo.exr";
+  ASSERT_TRUE(fs::exists(written)) << r.output;
+  const auto names = channel_names(written);
+  EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "ao_denoised"), names.end());
+  EXPECT_NE(r.output.find("done 1, skipped 0, failed 0"), std::string::npos) << r.output;
+  // No temporary file is left beside the output.
+  for (const auto& e : fs::directory_iterator(out.path))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+
+  r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --terms ao");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.output.find("done 0, skipped 1, failed 0"), std::string::npos) << r.output;
+  r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --terms ao --force");
+  EXPECT_NE(r.output.find("done 1, skipped 0, failed 0"), std::string::npos) << r.output;
+}
+
+TEST(Cli, BadFrameFailsItsFrameNotTheBatch) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  fs::copy_file(example("cornell.exr"), dir.path / "in" / "a.exr");
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "a.camera.json");
+  std::ofstream(dir.path / "in" / "b.exr") << "not an exr";
+  const RunResult r = run_ssdo("process " + (dir.path / "in").string() + " -o " + dir / "out" + " --terms ao");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("b.exr"), std::string::npos);
+  EXPECT_NE(r.output.find("done 1, skipped 0, failed 1"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "a.ssdo.exr"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "b.ssdo.exr"));
+}
+
+TEST(Cli, UsageErrorsExitWithTwo) {
+  ScratchDir out;
+  EXPECT_EQ(run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --terms fog").exit_code, 2);
+  EXPECT_EQ(run_ssdo("process /nonexistent.exr -o " + out.path.string()).exit_code, 2);
+  EXPECT_EQ(run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --method magic").exit_code, 2);
+  const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --chunk 0/4");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("count from 1"), std::string::npos) << r.output;
+}
+
+TEST(Cli, PatternsFramesAndChunksSelectFrames) {
+  ScratchDir dir;
+  for (int f : {1, 2, 3, 4, 5, 6}) {
+    char name[32];
+    std::snprintf(name, sizeof name, "shot.%04d", f);
+    fs::copy_file(example("cornell.exr"), dir.path / (std::string(name) + ".exr"));
+    fs::copy_file(example("cornell.camera.json"), dir.path / (std::string(name) + ".camera.json"));
+  }
+  const std::string pattern = dir / "shot.####.exr";
+  RunResult r = run_ssdo("process '" + pattern + "' --frames 1-6x2 --chunk 2/2 -o " + dir / "out" +
+                         " --terms ao --preset low");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // 1-6x2 = 1,3,5; chunk 2 of 2 = the slice [1, 3) of 3 frames = 3, 5.
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "shot.0001.ssdo.exr"));
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "shot.0003.ssdo.exr"));
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "shot.0005.ssdo.exr"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "shot.0002.ssdo.exr"));
+  // A requested frame that does not exist is that frame's failure.
+  r = run_ssdo("process '" + pattern + "' --frames 6-7 -o " + dir / "out" + " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("shot.0007.exr"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace ssdo::test
