@@ -1,0 +1,320 @@
+#include "kernels/environment.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace ssdo {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Rows of the grid the analytic kinds are tabulated on for their SH projection: the
+// midpoint rule on 256 rows integrates the piecewise-linear sky to ~1e-5.
+constexpr int kAnalyticGridHeightPx = 256;
+// Rows of the source the cone filter averages: 64 rows = 2.8 deg per texel, fine against
+// cones of ~10-30 deg, and keeps the one-off filtering cost at a few tens of ms.
+constexpr int kFilterSourceHeightPx = 64;
+
+// Solid angle of a pixel of row j in an equirect of size W x H (exact: the band between
+// two elevations has area 2 pi (sin theta_top - sin theta_bottom)).
+double equirect_pixel_solid_angle(int j, cv::Size size) {
+  const double theta_top = kPi * (0.5 - double(j) / size.height);
+  const double theta_bottom = kPi * (0.5 - double(j + 1) / size.height);
+  return (2.0 * kPi / size.width) * (std::sin(theta_top) - std::sin(theta_bottom));
+}
+
+glm::vec3 bilinear_equirect(const cv::Mat& image, const glm::vec3& d_env) {
+  const cv::Size size = image.size();
+  const glm::vec2 p = Environment::equirect_from_direction(d_env, size) - glm::vec2(0.5f);
+  const float x0f = std::floor(p.x), y0f = std::floor(p.y);
+  const float fx = p.x - x0f, fy = p.y - y0f;
+  const int x0 = int(x0f), y0 = int(y0f);
+  auto wrap_x = [&](int x) { return ((x % size.width) + size.width) % size.width; };
+  auto clamp_y = [&](int y) { return std::clamp(y, 0, size.height - 1); };
+  const int xa = wrap_x(x0), xb = wrap_x(x0 + 1), ya = clamp_y(y0), yb = clamp_y(y0 + 1);
+  const cv::Vec3f* ra = image.ptr<cv::Vec3f>(ya);
+  const cv::Vec3f* rb = image.ptr<cv::Vec3f>(yb);
+  const cv::Vec3f v = (ra[xa] * (1.0f - fx) + ra[xb] * fx) * (1.0f - fy) +
+                      (rb[xa] * (1.0f - fx) + rb[xb] * fx) * fy;
+  return {v[0], v[1], v[2]};
+}
+
+}  // namespace
+
+float filter_cone_half_angle_for_samples(int samples) {
+  // Cone solid angle 2 pi (1 - cos a) = 2 pi / N  ->  cos a = 1 - 1 / N.
+  if (samples < 1) return 90.0f;
+  return float(std::acos(std::clamp(1.0 - 1.0 / samples, 0.0, 1.0)) * 180.0 / kPi);
+}
+
+std::string validate(const EnvironmentSettings& s) {
+  if (!(s.filter_cone_half_angle_deg >= 0.0f && s.filter_cone_half_angle_deg <= 90.0f))
+    return "filter_cone_half_angle_deg = " + std::to_string(s.filter_cone_half_angle_deg) +
+           " is out of range [0, 90]";
+  if (s.filtered_height_px < 8 || s.filtered_height_px > 512)
+    return "filtered_height_px = " + std::to_string(s.filtered_height_px) + " is out of range [8, 512]";
+  return {};
+}
+
+Environment::Environment() { build(); }
+
+Environment Environment::constant(const glm::vec3& radiance_rgb, const EnvironmentSettings& s) {
+  CV_Assert(validate(s).empty());
+  Environment e;
+  e.kind_ = EnvironmentKind::constant;
+  e.settings_ = s;
+  e.constant_ = radiance_rgb;
+  e.build();
+  return e;
+}
+
+Environment Environment::sky(const SkyGradient& sky, const EnvironmentSettings& s) {
+  CV_Assert(validate(s).empty());
+  CV_Assert(sky.up_begin < sky.up_end);
+  Environment e;
+  e.kind_ = EnvironmentKind::sky;
+  e.settings_ = s;
+  e.sky_ = sky;
+  e.build();
+  return e;
+}
+
+Environment Environment::equirect(const cv::Mat& radiance_rgb, const EnvironmentSettings& s) {
+  CV_Assert(validate(s).empty());
+  CV_Assert(radiance_rgb.type() == CV_32FC3 && radiance_rgb.rows >= 1 && radiance_rgb.cols >= 1);
+  Environment e;
+  e.kind_ = EnvironmentKind::equirect;
+  e.settings_ = s;
+  e.image_ = radiance_rgb;
+  e.build();
+  return e;
+}
+
+glm::vec3 Environment::env_from_world(const glm::vec3& d) const {
+  if (settings_.up == UpAxis::z) return d;
+  return {d.x, -d.z, d.y};
+}
+
+glm::mat3 Environment::env_from_world_matrix() const {
+  if (settings_.up == UpAxis::z) return glm::mat3(1.0f);
+  // Columns are the images of the world axes: x -> x, y -> +z, z -> -y.
+  return glm::mat3(glm::vec3(1, 0, 0), glm::vec3(0, 0, 1), glm::vec3(0, -1, 0));
+}
+
+glm::vec3 Environment::direction_from_equirect(glm::vec2 pixel, cv::Size size) {
+  const double theta = kPi * (0.5 - double(pixel.y) / size.height);
+  const double phi = kPi * (1.0 - 2.0 * double(pixel.x) / size.width);
+  const double c = std::cos(theta);
+  return glm::vec3(float(-c * std::sin(phi)), float(c * std::cos(phi)), float(std::sin(theta)));
+}
+
+glm::vec2 Environment::equirect_from_direction(const glm::vec3& d, cv::Size size) {
+  // Inverse of direction_from_equirect: theta = asin(z), phi = atan2(-x, y).
+  const float theta = std::asin(std::clamp(d.z, -1.0f, 1.0f));
+  const float phi = std::atan2(-d.x, d.y);
+  const float kPif = float(kPi);
+  return {0.5f * float(size.width) * (1.0f - phi / kPif),
+          float(size.height) * (0.5f - theta / kPif)};
+}
+
+std::array<float, 9> Environment::sh_basis(const glm::vec3& d) {
+  // Real SH, Ramamoorthi and Hanrahan 2001, eq. 3 (constants are the normalisations).
+  const float x = d.x, y = d.y, z = d.z;
+  return {0.282095f,
+          0.488603f * y, 0.488603f * z, 0.488603f * x,
+          1.092548f * x * y, 1.092548f * y * z, 0.315392f * (3.0f * z * z - 1.0f),
+          1.092548f * x * z, 0.546274f * (x * x - y * y)};
+}
+
+glm::vec3 Environment::radiance_env(const glm::vec3& d) const {
+  switch (kind_) {
+    case EnvironmentKind::constant: return constant_;
+    case EnvironmentKind::sky: {
+      const float t = std::clamp((d.z - sky_.up_begin) / (sky_.up_end - sky_.up_begin), 0.0f, 1.0f);
+      return (1.0f - t) * sky_.bottom + t * sky_.top;
+    }
+    case EnvironmentKind::equirect: return bilinear_equirect(image_, d);
+  }
+  return constant_;
+}
+
+glm::vec3 Environment::radiance_filtered_env(const glm::vec3& d) const {
+  if (kind_ == EnvironmentKind::constant) return constant_;
+  return bilinear_equirect(filtered_, d);
+}
+
+glm::vec3 Environment::irradiance_over_pi_env(const glm::vec3& n) const {
+  // E(n) / pi = sum_lm (A_l / pi) L_lm Y_lm(n), A_l / pi = 1, 2/3, 1/4 (R&H 2001, eq. 8).
+  const std::array<float, 9> y = sh_basis(n);
+  constexpr float kBand[9] = {1.0f, 2.0f / 3.0f, 2.0f / 3.0f, 2.0f / 3.0f,
+                              0.25f, 0.25f, 0.25f, 0.25f, 0.25f};
+  glm::vec3 e(0.0f);
+  for (int k = 0; k < 9; ++k) e += (kBand[k] * y[k]) * sh_[k];
+  return e;
+}
+
+void Environment::build() {
+  if (kind_ == EnvironmentKind::constant) {
+    // Exact: only L_00 = L * Y_00 * 4 pi is non-zero.
+    sh_.fill(glm::vec3(0.0f));
+    sh_[0] = constant_ * float(0.28209479177387814 * 4.0 * kPi);
+    filtered_ = cv::Mat(settings_.filtered_height_px, 2 * settings_.filtered_height_px, CV_32FC3,
+                        cv::Scalar(constant_.x, constant_.y, constant_.z));
+    return;
+  }
+
+  // The radiance on an equirect grid: the image itself, or the analytic sky at texel centres.
+  cv::Mat grid = image_;
+  if (kind_ == EnvironmentKind::sky) {
+    const cv::Size size(2 * kAnalyticGridHeightPx, kAnalyticGridHeightPx);
+    grid.create(size, CV_32FC3);
+    for (int j = 0; j < size.height; ++j) {
+      cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
+      for (int i = 0; i < size.width; ++i) {
+        const glm::vec3 l = radiance_env(direction_from_equirect({i + 0.5f, j + 0.5f}, size));
+        row[i] = cv::Vec3f(l.x, l.y, l.z);
+      }
+    }
+  }
+
+  // SH projection: L_lm = sum over pixels of L_pixel x (integral of Y_lm over the pixel).
+  // The integrals are exact (each Y_lm is a polynomial in z = sin(elevation), sqrt(1 - z^2)
+  // and sin/cos of the azimuth, integrated in closed form over the pixel's band and
+  // column), so a piecewise-constant image is projected without quadrature error: a
+  // constant image gives L_00 to float precision and every other coefficient 0.
+  {
+    const cv::Size size = grid.size();
+    // Per row: moments of z over [z_bottom, z_top] (dw = dz dphi).
+    struct RowMoments { double m0, mz, mzz, mc, mzc; };
+    std::vector<RowMoments> rows(size_t(size.height));
+    auto z_antiderivatives = [](double z, double out[5]) {
+      const double c2 = std::max(0.0, 1.0 - z * z), c = std::sqrt(c2);
+      out[0] = z;                              // 1
+      out[1] = 0.5 * z * z;                    // z
+      out[2] = z * z * z / 3.0;                // z^2
+      out[3] = 0.5 * (z * c + std::asin(std::clamp(z, -1.0, 1.0)));  // sqrt(1 - z^2)
+      out[4] = -c2 * c / 3.0;                  // z sqrt(1 - z^2)
+    };
+    for (int j = 0; j < size.height; ++j) {
+      double top[5], bottom[5];
+      z_antiderivatives(std::sin(kPi * (0.5 - double(j) / size.height)), top);
+      z_antiderivatives(std::sin(kPi * (0.5 - double(j + 1) / size.height)), bottom);
+      rows[j] = {top[0] - bottom[0], top[1] - bottom[1], top[2] - bottom[2], top[3] - bottom[3],
+                 top[4] - bottom[4]};
+    }
+    // Per column: moments of the azimuth over [phi(i + 1), phi(i)].
+    struct ColumnMoments { double p0, ps, pc, psc, pcos2; };
+    std::vector<ColumnMoments> cols(size_t(size.width));
+    for (int i = 0; i < size.width; ++i) {
+      const double hi = kPi * (1.0 - 2.0 * double(i) / size.width);
+      const double lo = kPi * (1.0 - 2.0 * double(i + 1) / size.width);
+      cols[i] = {hi - lo,
+                 -(std::cos(hi) - std::cos(lo)),                                  // sin
+                 std::sin(hi) - std::sin(lo),                                     // cos
+                 0.5 * (std::sin(hi) * std::sin(hi) - std::sin(lo) * std::sin(lo)),  // sin cos
+                 0.5 * (std::sin(2.0 * hi) - std::sin(2.0 * lo))};                // cos 2phi
+    }
+    // d = (-c sin(phi), c cos(phi), z), c = sqrt(1 - z^2); basis constants as sh_basis().
+    std::array<double, 27> acc{};
+    for (int j = 0; j < size.height; ++j) {
+      const RowMoments& m = rows[j];
+      const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
+      for (int i = 0; i < size.width; ++i) {
+        const ColumnMoments& p = cols[i];
+        const double y[9] = {
+            0.28209479177387814 * m.m0 * p.p0,
+            0.4886025119029199 * m.mc * p.pc,                   // y
+            0.4886025119029199 * m.mz * p.p0,                   // z
+            -0.4886025119029199 * m.mc * p.ps,                  // x
+            -1.0925484305920792 * (m.m0 - m.mzz) * p.psc,        // x y
+            1.0925484305920792 * m.mzc * p.pc,                  // y z
+            0.31539156525252005 * (3.0 * m.mzz - m.m0) * p.p0,  // 3 z^2 - 1
+            -1.0925484305920792 * m.mzc * p.ps,                 // x z
+            -0.5462742152960396 * (m.m0 - m.mzz) * p.pcos2,     // x^2 - y^2 = -c^2 cos 2phi
+        };
+        for (int k = 0; k < 9; ++k)
+          for (int c = 0; c < 3; ++c) acc[3 * k + c] += double(row[i][c]) * y[k];
+      }
+    }
+    for (int k = 0; k < 9; ++k)
+      sh_[k] = glm::vec3(float(acc[3 * k]), float(acc[3 * k + 1]), float(acc[3 * k + 2]));
+  }
+
+  // Filter source: the grid box-averaged (solid-angle weighted) down to at most
+  // kFilterSourceHeightPx rows.
+  cv::Mat source = grid;
+  if (grid.rows > kFilterSourceHeightPx) {
+    const cv::Size ssize(2 * kFilterSourceHeightPx, kFilterSourceHeightPx);
+    std::vector<double> sum(size_t(ssize.area()) * 3, 0.0), weight(size_t(ssize.area()), 0.0);
+    for (int j = 0; j < grid.rows; ++j) {
+      const double d_omega = equirect_pixel_solid_angle(j, grid.size());
+      const int tj = int(int64_t(j) * ssize.height / grid.rows);
+      const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
+      for (int i = 0; i < grid.cols; ++i) {
+        const int ti = int(int64_t(i) * ssize.width / grid.cols);
+        const size_t t = size_t(tj) * ssize.width + ti;
+        for (int c = 0; c < 3; ++c) sum[3 * t + c] += row[i][c] * d_omega;
+        weight[t] += d_omega;
+      }
+    }
+    source.create(ssize, CV_32FC3);
+    for (int tj = 0; tj < ssize.height; ++tj)
+      for (int ti = 0; ti < ssize.width; ++ti) {
+        const size_t t = size_t(tj) * ssize.width + ti;
+        cv::Vec3f& v = source.at<cv::Vec3f>(tj, ti);
+        if (weight[t] > 0.0) {
+          for (int c = 0; c < 3; ++c) v[c] = float(sum[3 * t + c] / weight[t]);
+        } else {  // a source narrower than the target leaves gaps: sample at the centre
+          const glm::vec3 l = bilinear_equirect(grid, direction_from_equirect({ti + 0.5f, tj + 0.5f}, ssize));
+          v = cv::Vec3f(l.x, l.y, l.z);
+        }
+      }
+  }
+
+  // Cone filter: each target texel is the solid-angle weighted mean of the source texels
+  // whose centre lies within the cone around the target's centre direction.
+  const cv::Size tsize(2 * settings_.filtered_height_px, settings_.filtered_height_px);
+  filtered_.create(tsize, CV_32FC3);
+  const double cone = settings_.filter_cone_half_angle_deg * kPi / 180.0;
+  const float cos_cone = float(std::cos(cone));
+  const cv::Size ssize = source.size();
+  std::vector<glm::vec3> source_dir(size_t(ssize.area()));
+  std::vector<double> row_solid_angle(size_t(ssize.height));
+  for (int j = 0; j < ssize.height; ++j) {
+    row_solid_angle[j] = equirect_pixel_solid_angle(j, ssize);
+    for (int i = 0; i < ssize.width; ++i)
+      source_dir[size_t(j) * ssize.width + i] = direction_from_equirect({i + 0.5f, j + 0.5f}, ssize);
+  }
+  const double row_step = kPi / ssize.height;
+  for (int tj = 0; tj < tsize.height; ++tj) {
+    const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
+    for (int ti = 0; ti < tsize.width; ++ti) {
+      const glm::vec3 c = direction_from_equirect({ti + 0.5f, tj + 0.5f}, tsize);
+      double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
+      for (int j = 0; j < ssize.height; ++j) {
+        // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
+        // a texel centre inside it.
+        const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
+        if (std::abs(theta_s - theta_t) > cone + 0.5 * row_step) continue;
+        const cv::Vec3f* row = source.ptr<cv::Vec3f>(j);
+        const glm::vec3* dirs = &source_dir[size_t(j) * ssize.width];
+        for (int i = 0; i < ssize.width; ++i) {
+          if (glm::dot(dirs[i], c) < cos_cone) continue;
+          for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * row_solid_angle[j];
+          weight += row_solid_angle[j];
+        }
+      }
+      cv::Vec3f& v = filtered_.at<cv::Vec3f>(tj, ti);
+      if (weight > 0.0) {
+        for (int k = 0; k < 3; ++k) v[k] = float(sum[k] / weight);
+      } else {  // cone narrower than a source texel: the point value
+        const glm::vec3 l = bilinear_equirect(source, c);
+        v = cv::Vec3f(l.x, l.y, l.z);
+      }
+    }
+  }
+}
+
+}  // namespace ssdo

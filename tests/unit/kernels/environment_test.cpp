@@ -1,0 +1,178 @@
+// Environment light: SH projection, cosine-convolved irradiance, equirect layout, up axis,
+// cone-filtered lookups. Everything is built in memory (no file I/O in kernels tests).
+#include "kernels/environment.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+namespace ssdo {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+glm::vec3 dir_from_angles(double elevation, double azimuth) {
+  return glm::vec3(float(std::cos(elevation) * std::cos(azimuth)),
+                   float(std::cos(elevation) * std::sin(azimuth)), float(std::sin(elevation)));
+}
+
+// (1/pi) integral of L(w) max(0, n.w) dw, midpoint rule on a fine lat-long grid (double).
+template <class F>
+glm::dvec3 numeric_irradiance_over_pi(F radiance, const glm::vec3& n) {
+  const int rows = 1024, cols = 2048;
+  glm::dvec3 sum(0.0);
+  for (int j = 0; j < rows; ++j) {
+    const double el_top = kPi * (0.5 - double(j) / rows), el_bottom = kPi * (0.5 - double(j + 1) / rows);
+    const double d_omega = (2.0 * kPi / cols) * (std::sin(el_top) - std::sin(el_bottom));
+    const double el = 0.5 * (el_top + el_bottom);
+    for (int i = 0; i < cols; ++i) {
+      const glm::vec3 w = dir_from_angles(el, 2.0 * kPi * (i + 0.5) / cols);
+      const double c = glm::dot(n, w);
+      if (c > 0.0) sum += glm::dvec3(radiance(w)) * (c * d_omega);
+    }
+  }
+  return sum / kPi;
+}
+
+TEST(Environment, ConstantProjectsExactly) {
+  const glm::vec3 l(0.3f, 1.0f, 2.5f);
+  const Environment env = Environment::constant(l);
+  const auto& sh = env.sh_radiance();
+  const float l00_per_unit = float(0.28209479177387814 * 4.0 * kPi);  // Y00 x 4 pi
+  for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(sh[0][c], l[c] * l00_per_unit);
+  for (int k = 1; k < 9; ++k) EXPECT_EQ(sh[k], glm::vec3(0.0f)) << k;
+  for (const glm::vec3& n : {glm::vec3(0, 0, 1), glm::vec3(0, 0, -1), glm::normalize(glm::vec3(1, -2, 0.5f))}) {
+    const glm::vec3 e = env.irradiance_over_pi(n);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(e[c], l[c], 1e-6f * l[c]);
+    EXPECT_EQ(env.radiance(n), l);
+    EXPECT_EQ(env.radiance_filtered(n), l);
+  }
+}
+
+TEST(Environment, ConstantEquirectProjectsExactly) {
+  // A constant image: the exact pixel solid angles sum to 4 pi, so L00 is exact to float.
+  cv::Mat img(64, 128, CV_32FC3, cv::Scalar(2.0, 2.0, 2.0));
+  const Environment env = Environment::equirect(img);
+  EXPECT_NEAR(env.sh_radiance()[0].x, 2.0 * 0.28209479177387814 * 4.0 * kPi, 1e-5);
+  for (int k = 1; k < 9; ++k) EXPECT_NEAR(env.sh_radiance()[k].x, 0.0f, 1e-5f) << k;
+  EXPECT_NEAR(env.irradiance_over_pi(glm::vec3(0, 0, 1)).y, 2.0f, 1e-5f);
+}
+
+TEST(Environment, CyclesSkyIrradianceMatchesIntegrationWithinOnePercent) {
+  const SkyGradient sky;  // defaults = the Cycles world of the shared dumps
+  const Environment env = Environment::sky(sky);
+  auto formula = [](const glm::vec3& d) {  // README "Environment", verbatim
+    const float t = std::clamp((d.z + 0.4f) / 0.8f, 0.0f, 1.0f);
+    return (1.0f - t) * glm::vec3(1.0f, 0.35f, 0.08f) + t * glm::vec3(0.25f, 0.5f, 1.0f);
+  };
+  double worst = 0.0;
+  for (double el_deg : {90.0, 60.0, 30.0, 10.0, 0.0, -20.0, -45.0, -90.0}) {
+    const glm::vec3 n = dir_from_angles(el_deg * kPi / 180.0, 0.7);
+    const glm::dvec3 ref = numeric_irradiance_over_pi(formula, n);
+    const glm::vec3 sh = env.irradiance_over_pi(n);
+    for (int c = 0; c < 3; ++c) {
+      const double rel = std::abs(sh[c] - ref[c]) / ref[c];
+      worst = std::max(worst, rel);
+      EXPECT_LT(rel, 0.01) << "elevation " << el_deg << " channel " << c << " sh " << sh[c] << " ref " << ref[c];
+    }
+    EXPECT_EQ(env.radiance(n), formula(n));
+  }
+  RecordProperty("worst_relative_error", std::to_string(worst));
+  std::printf("[ info ] Cycles sky: SH irradiance worst relative error %.4f%%\n", 100.0 * worst);
+}
+
+TEST(Environment, EquirectLayoutMatchesCyclesConvention) {
+  const cv::Size size(512, 256);
+  auto dir = [&](float i, float j) { return Environment::direction_from_equirect({i, j}, size); };
+  auto near = [](const glm::vec3& a, const glm::vec3& b) { return glm::length(a - b) < 1e-5f; };
+  EXPECT_TRUE(near(dir(256.0f, 128.0f), glm::vec3(0, 1, 0)));   // centre column looks at +Y
+  EXPECT_TRUE(near(dir(128.0f, 128.0f), glm::vec3(-1, 0, 0)));  // quarter: -X
+  EXPECT_TRUE(near(dir(384.0f, 128.0f), glm::vec3(1, 0, 0)));   // three quarters: +X
+  EXPECT_TRUE(near(dir(0.0f, 128.0f), glm::vec3(0, -1, 0)));    // left edge: -Y
+  EXPECT_TRUE(near(dir(77.0f, 0.0f), glm::vec3(0, 0, 1)));      // top edge: straight up
+  EXPECT_TRUE(near(dir(300.0f, 256.0f), glm::vec3(0, 0, -1)));  // bottom edge: straight down
+  // Pixel centre elevations: theta = pi (0.5 - (j + 0.5) / H).
+  EXPECT_NEAR(std::asin(dir(10.5f, 0.5f).z), kPi * (0.5 - 0.5 / 256), 1e-5);
+  // Round trip.
+  for (float i : {3.2f, 100.0f, 255.9f, 400.1f, 511.0f})
+    for (float j : {1.0f, 64.3f, 128.0f, 200.7f, 255.0f}) {
+      const glm::vec2 p = Environment::equirect_from_direction(dir(i, j), size);
+      EXPECT_NEAR(p.x, i, 2e-3f);
+      EXPECT_NEAR(p.y, j, 2e-3f);
+    }
+}
+
+// f(d) = 0.5 + 0.5 d per channel (R <- x, G <- y, B <- z): linear, so its SH irradiance is
+// exact, E/pi = 0.5 + (2/3) 0.5 n, and bilinear lookups are accurate to O(texel^2).
+cv::Mat linear_equirect(cv::Size size) {
+  cv::Mat img(size, CV_32FC3);
+  for (int j = 0; j < size.height; ++j)
+    for (int i = 0; i < size.width; ++i) {
+      const glm::vec3 d = Environment::direction_from_equirect({i + 0.5f, j + 0.5f}, size);
+      img.at<cv::Vec3f>(j, i) = cv::Vec3f(0.5f + 0.5f * d.x, 0.5f + 0.5f * d.y, 0.5f + 0.5f * d.z);
+    }
+  return img;
+}
+
+TEST(Environment, EquirectLookupsFollowTheDirection) {
+  const Environment env = Environment::equirect(linear_equirect({512, 256}));
+  float worst_radiance = 0.0f, worst_irradiance = 0.0f;
+  for (int k = 0; k < 200; ++k) {
+    // A spread of directions (golden-angle spiral).
+    const double z = 1.0 - 2.0 * (k + 0.5) / 200.0, az = k * 2.399963229728653;
+    const glm::vec3 d = dir_from_angles(std::asin(z), az);
+    const glm::vec3 expect = glm::vec3(0.5f) + 0.5f * d;
+    const glm::vec3 got = env.radiance(d);
+    worst_radiance = std::max(worst_radiance, glm::length(got - expect));
+    const glm::vec3 e_expect = glm::vec3(0.5f) + (2.0f / 3.0f) * 0.5f * d;
+    worst_irradiance = std::max(worst_irradiance, glm::length(env.irradiance_over_pi(d) - e_expect));
+  }
+  EXPECT_LT(worst_radiance, 2e-3f);
+  EXPECT_LT(worst_irradiance, 1e-3f);
+}
+
+TEST(Environment, UpAxisYRotatesWorldYToZenith) {
+  EnvironmentSettings s;
+  s.up = UpAxis::y;
+  SkyGradient sky;
+  const Environment env = Environment::sky(sky, s);
+  EXPECT_EQ(env.radiance(glm::vec3(0, 1, 0)), sky.top);
+  EXPECT_EQ(env.radiance(glm::vec3(0, -1, 0)), sky.bottom);
+  EXPECT_EQ(env.radiance(glm::vec3(0, 0, 1)), 0.5f * (sky.top + sky.bottom));
+  // The rotation is proper (det +1) and agrees with the matrix form.
+  const glm::mat3 m = env.env_from_world_matrix();
+  EXPECT_NEAR(glm::determinant(m), 1.0f, 1e-6f);
+  const glm::vec3 d = glm::normalize(glm::vec3(0.3f, -0.8f, 0.5f));
+  EXPECT_LT(glm::length(m * d - env.env_from_world(d)), 1e-6f);
+  // Y-up equirect: world +Y is the image's top row.
+  cv::Mat img(32, 64, CV_32FC3, cv::Scalar(0, 0, 0));
+  img.row(0).setTo(cv::Scalar(1, 1, 1));
+  const Environment eq = Environment::equirect(img, s);
+  EXPECT_NEAR(eq.radiance(glm::vec3(0, 1, 0)).x, 1.0f, 1e-6f);
+  EXPECT_NEAR(eq.radiance(glm::vec3(0, 0, 1)).x, 0.0f, 1e-6f);
+}
+
+TEST(Environment, FilteredLookupAveragesOverTheCone) {
+  EnvironmentSettings s;
+  s.filter_cone_half_angle_deg = 15.0f;
+  const SkyGradient sky;
+  const Environment env = Environment::sky(sky, s);
+  // Straight up the cone (z >= cos 15 deg = 0.97) lies entirely in the top colour.
+  const glm::vec3 up = env.radiance_filtered(glm::vec3(0, 0, 1));
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(up[c], sky.top[c], 1e-4f);
+  // At the horizon the ramp is symmetric about the cone's axis: the mean is the midpoint.
+  const glm::vec3 h = env.radiance_filtered(glm::vec3(1, 0, 0));
+  const glm::vec3 mid = 0.5f * (sky.top + sky.bottom);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(h[c], mid[c], 0.01f * mid[c] + 2e-3f);
+  // A sharp feature is spread: a one-row bright band at the zenith of an equirect image.
+  cv::Mat img(128, 256, CV_32FC3, cv::Scalar(0, 0, 0));
+  img.rowRange(0, 2).setTo(cv::Scalar(1, 1, 1));
+  const Environment eq = Environment::equirect(img, s);
+  const float at_zenith = eq.radiance_filtered(glm::vec3(0, 0, 1)).x;
+  EXPECT_GT(at_zenith, 0.0f);
+  EXPECT_LT(at_zenith, 0.5f);
+  EXPECT_NEAR(filter_cone_half_angle_for_samples(30), 14.8f, 0.1f);
+}
+
+}  // namespace
+}  // namespace ssdo
