@@ -1,0 +1,49 @@
+// Edge-aware denoising of screen-space terms (AO, SSDO light) and the plain box blur of
+// the seed projects, for comparison.
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace ssdo {
+
+struct DenoiseSettings {
+  // Half width of the kernel, pixels, [0, 32]: each pass reads 2 * radius_px + 1 taps.
+  // 4 covers a 4x4 noise tile plus a pixel either side.
+  int radius_px = 4;
+  // Standard deviation of the Gaussian spatial weight, pixels, (0, inf). 2.5 keeps the
+  // outermost tap of radius 4 at weight exp(-16 / 12.5) = 0.28.
+  float sigma_px = 2.5f;
+  // Depth tolerance relative to the centre's depth, (0, inf): a tap whose depth differs
+  // by |d_tap - d| >= depth_tolerance_relative * d gets weight 0 (hard cut, so nothing
+  // crosses a silhouette); below it the weight falls linearly from 1. 0.05 is ~5x the
+  // depth change across 4 px of a surface at 80 deg from the view at 640 px.
+  float depth_tolerance_relative = 0.05f;
+  // Exponent of the normal weight max(0, dot(n, n_tap))^normal_power, [0, 256]. 16 halves
+  // the weight at ~17 deg and cuts creases of 45 deg and more to < 0.004.
+  float normal_power = 16.0f;
+};
+
+// Returns an empty string when valid, else the field, value and range.
+std::string validate(const DenoiseSettings& s);
+
+// Depth- and normal-aware separable bilateral blur (a horizontal pass, then a vertical
+// pass over its result) of a CV_32FC1 or CV_32FC3 image. Tap weight:
+//   g(k) * max(0, 1 - |d_tap - d| / (tol * d)) * max(0, n . n_tap)^power,
+// g the Gaussian of sigma_px; taps outside the image or with mask 0 weigh 0. The centre
+// always weighs g(0) > 0, so the weight sum is never 0. Pixels with mask 0 are copied
+// unchanged. depth_view CV_32FC1 planar (> 0 on foreground), normal_view CV_32FC3 unit,
+// mask CV_8UC1 (255 = foreground). dst is allocated like src when needed and only roi
+// (empty = all) is written; dst must not share memory with src.
+void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
+                       const cv::Mat& mask, const DenoiseSettings& settings, cv::Mat& dst,
+                       cv::Rect roi = {}, int nthreads = 0);
+
+// The SSAO blur of the seed projects: each pixel becomes the mean of the 4x4 block of
+// pixels at offsets [-2, 1] x [-2, 1] around it (matching a 4x4 noise tile), counting only
+// taps inside the image. Ignores depth, normals and mask. CV_32FC1 or CV_32FC3; dst as
+// above.
+void box_blur_4x4(const cv::Mat& src, cv::Mat& dst, cv::Rect roi = {}, int nthreads = 0);
+
+}  // namespace ssdo
