@@ -38,6 +38,8 @@ struct ChannelMapping {
   Space position_space = Space::automatic;
 };
 
+// Defaults read the depth, normals, albedo, lighting and reference passes of the chosen
+// part with OpenEXR's global thread pool.
 struct ReadOptions {
   ChannelMapping mapping;
   std::string camera_json;              // explicit sidecar path; empty = look beside the frame
@@ -49,7 +51,8 @@ struct ReadOptions {
   bool read_lighting = true;
   bool read_references = true;          // e.g. the AO / DiffDir / DiffInd passes
   int64_t max_pixels = int64_t(1) << 28;  // refuse larger data windows before allocating
-  int threads = 0;                      // OpenEXR decoding threads (0 = its global pool)
+  int threads = 0;                      // OpenEXR decoding threads (0 = its global pool) and
+                                        // conversion strips (0 = OpenCV's pool, 1 = serial)
 };
 
 struct ChannelUse {
@@ -60,18 +63,28 @@ struct ChannelUse {
 
 struct FrameInfo {
   std::string path;
-  int width_px = 0, height_px = 0;
+  int width_px = 0, height_px = 0;            // data window size (= the pixel grid)
   int data_x = 0, data_y = 0;                 // data window origin
+  int display_width_px = 0, display_height_px = 0;  // display window size
+  int display_x = 0, display_y = 0;                 // display window origin
   std::vector<std::string> parts;             // part names (one entry "" for single part)
+  std::string part;                           // the part depth was read from ("" = single part)
   std::vector<std::string> channels;          // every channel of the chosen part, with type
   std::string profile;                        // "blender" | "generic" | "mapping"
+  std::string layer;                          // blender view layer prefix, e.g. "ViewLayer"
   std::vector<ChannelUse> uses;
   std::string camera_source;                  // "sidecar PATH" | "header worldToCamera/worldToNDC" | "--fov"
+  float fov_x_deg = 0, fov_y_deg = 0;         // full fields of view of the camera, degrees
+  float near_view = 0, far_view = 0;          // clip distances, scene units (0 = unknown)
   std::string depth_kind;                     // "planar" | "radial", as converted
   bool normals_reconstructed = false;
   std::optional<float> ao_distance_world;     // AO radius of the reference pass, if known
   float depth_min_view = 0, depth_max_view = 0;  // foreground depth range
   int64_t foreground_pixels = 0, masked_pixels = 0, nonfinite_pixels = 0;
+  // Foreground pixels whose normal was (0, 0, 0) in the file and was replaced by the
+  // normal reconstructed from depth.
+  int64_t repaired_normal_pixels = 0;
+  std::vector<std::string> notes;             // assumptions made while converting
 };
 
 struct ReadResult {

@@ -1,0 +1,232 @@
+#include "formats/camera_io.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+namespace ssdo {
+
+namespace {
+
+// Defaults for the OpenGL depth row when the source gives no clip distances; they match
+// Camera::from_fov_x and only affect clip z, which no kernel reads.
+constexpr float kDefaultNear = 0.05f;
+constexpr float kDefaultFar = 1000.0f;
+
+bool all_finite(const glm::mat4& m) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r)
+      if (!std::isfinite(m[c][r])) return false;
+  return true;
+}
+
+// A row-major 4x4 JSON array -> glm (column-major, m[col][row]).
+bool matrix_from_json(const nlohmann::json& j, glm::mat4& out) {
+  if (!j.is_array() || j.size() != 4) return false;
+  for (int r = 0; r < 4; ++r) {
+    if (!j[r].is_array() || j[r].size() != 4) return false;
+    for (int c = 0; c < 4; ++c) {
+      if (!j[r][c].is_number()) return false;
+      out[c][r] = j[r][c].get<float>();
+    }
+  }
+  return all_finite(out);
+}
+
+}  // namespace
+
+std::string sidecar_path_for(const std::string& exr_path) {
+  std::filesystem::path p(exr_path);
+  p.replace_extension(".camera.json");
+  return p.string();
+}
+
+std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::string* error) {
+  std::ifstream in(path);
+  if (!in) {
+    *error = "cannot open camera sidecar " + path;
+    return std::nullopt;
+  }
+  nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object()) {
+    *error = "camera sidecar " + path + " is not a JSON object";
+    return std::nullopt;
+  }
+  auto fail = [&](const std::string& what) {
+    *error = "camera sidecar " + path + ": " + what;
+    return std::nullopt;
+  };
+  SidecarCamera s;
+  if (!j.contains("projection") || !matrix_from_json(j["projection"], s.camera.view_to_clip))
+    return fail("missing or malformed \"projection\" (row-major 4x4 numbers)");
+  if (!j.contains("world_to_camera") ||
+      !matrix_from_json(j["world_to_camera"], s.camera.world_to_view))
+    return fail("missing or malformed \"world_to_camera\" (row-major 4x4 numbers)");
+  if (j.contains("camera_to_world")) {
+    if (!matrix_from_json(j["camera_to_world"], s.camera.view_to_world))
+      return fail("malformed \"camera_to_world\" (row-major 4x4 numbers)");
+  } else {
+    s.camera.view_to_world = glm::inverse(s.camera.world_to_view);
+  }
+  if (!j.contains("width") || !j["width"].is_number_integer() || !j.contains("height") ||
+      !j["height"].is_number_integer())
+    return fail("missing integer \"width\" / \"height\"");
+  s.width_px = j["width"].get<int>();
+  s.height_px = j["height"].get<int>();
+  if (s.width_px <= 0 || s.height_px <= 0) return fail("\"width\" and \"height\" must be > 0");
+  s.camera.width_px = s.width_px;
+  s.camera.height_px = s.height_px;
+  auto number = [&](const char* key) -> std::optional<float> {
+    if (j.contains(key) && j[key].is_number()) return j[key].get<float>();
+    return std::nullopt;
+  };
+  auto text = [&](const char* key) -> std::optional<std::string> {
+    if (j.contains(key) && j[key].is_string()) return j[key].get<std::string>();
+    return std::nullopt;
+  };
+  s.camera.near_view = number("clip_near").value_or(0.0f);
+  s.camera.far_view = number("clip_far").value_or(0.0f);
+  s.ao_distance_world = number("ao_distance");
+  s.background_depth = number("background_depth");
+  s.depth_kind = text("depth_kind");
+  if (s.depth_kind && *s.depth_kind != "planar" && *s.depth_kind != "radial")
+    return fail("\"depth_kind\" must be \"planar\" or \"radial\", not \"" + *s.depth_kind + "\"");
+  s.normal_space = text("normal_space");
+  s.position_space = text("position_space");
+  if (s.camera.view_to_clip[2][3] == 0.0f && s.camera.view_to_clip[3][3] == 0.0f)
+    return fail("\"projection\" has a zero w row");
+  return s;
+}
+
+glm::mat4 projection_for_data_window(const glm::mat4& view_to_clip_display,
+                                     const PixelBox& display, const PixelBox& data) {
+  if (display == data) return view_to_clip_display;
+  // Continuous absolute pixel x of display NDC x: disp.min_x + (ndc_x + 1) / 2 * disp_w;
+  // data NDC: 2 (x_abs - data.min_x) / data_w - 1. Both maps are affine, so they compose
+  // into one affine map of clip x (and y, with the row axis pointing down), applied to
+  // the projection's x and y rows.
+  const double disp_w = double(display.width()), disp_h = double(display.height());
+  const double data_w = double(data.width()), data_h = double(data.height());
+  const double sx = disp_w / data_w;
+  const double tx = (2.0 * (display.min_x - data.min_x) + disp_w) / data_w - 1.0;
+  const double sy = disp_h / data_h;
+  const double ty = 1.0 - (2.0 * (display.min_y - data.min_y) + disp_h) / data_h;
+  glm::mat4 a(1.0f);  // clip_data = A clip_display
+  a[0][0] = float(sx);
+  a[3][0] = float(tx);
+  a[1][1] = float(sy);
+  a[3][1] = float(ty);
+  return a * view_to_clip_display;
+}
+
+void set_gl_depth_row(glm::mat4& p, float n, float f) {
+  const bool perspective = p[2][3] != 0.0f;
+  p[0][2] = 0.0f;
+  p[1][2] = 0.0f;
+  if (perspective) {
+    p[2][2] = -(f + n) / (f - n);
+    p[3][2] = -2.0f * f * n / (f - n);
+  } else {
+    p[2][2] = -2.0f / (f - n);
+    p[3][2] = -(f + n) / (f - n);
+  }
+}
+
+std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
+                                               const PixelBox& display, const PixelBox& data,
+                                               float near_view, float far_view,
+                                               std::string* error, std::string* note) {
+  auto fail = [&](const std::string& what) {
+    *error = "header camera (worldToCamera/worldToNDC): " + what;
+    return std::nullopt;
+  };
+  if (!all_finite(m.world_to_camera) || !all_finite(m.world_to_ndc))
+    return fail("matrices are not finite");
+  const double det = glm::determinant(glm::dmat4(m.world_to_camera));
+  if (!(std::abs(det) > 1e-12)) return fail("worldToCamera is singular");
+  const glm::dmat4 camera_to_ndc =
+      glm::dmat4(m.world_to_ndc) * glm::inverse(glm::dmat4(m.world_to_camera));
+  // NDC w row, as a function of camera-space (x, y, z, 1).
+  const glm::dvec4 w_row(camera_to_ndc[0][3], camera_to_ndc[1][3], camera_to_ndc[2][3],
+                         camera_to_ndc[3][3]);
+  const bool perspective = std::abs(w_row.z) > 1e-6 * std::abs(w_row.w) && w_row.z != 0.0;
+  if (!perspective && w_row.w == 0.0) return fail("worldToNDC has a zero w row");
+  const double forward_z = perspective ? (w_row.z > 0.0 ? 1.0 : -1.0) : 1.0;
+  std::string assumed;
+  if (!perspective)
+    assumed = "orthographic header camera: viewing direction assumed +Z (OpenEXR convention)";
+  else if (forward_z > 0.0)
+    assumed = "header camera looks down +Z (OpenEXR/RenderMan convention): z negated";
+  else
+    assumed = "header camera looks down -Z (right-handed, Blender/Arnold style)";
+
+  auto ndc_of = [&](glm::dvec3 p) {
+    const glm::dvec4 q = camera_to_ndc * glm::dvec4(p, 1.0);
+    return glm::dvec2(q.x, q.y) / q.w;
+  };
+  // Steps of 0.1 units at a distance of 1: inside any reasonable frustum, and the sign of
+  // the NDC motion is all that is used.
+  const glm::dvec2 c = ndc_of({0.0, 0.0, forward_z});
+  const glm::dvec2 cx = ndc_of({0.1, 0.0, forward_z});
+  const glm::dvec2 cy = ndc_of({0.0, 0.1, forward_z});
+  if (!std::isfinite(c.x + c.y + cx.x + cy.y) || cx.x == c.x || cy.y == c.y)
+    return fail("worldToNDC does not project camera-space x and y");
+  const double sign_x = cx.x > c.x ? 1.0 : -1.0;  // NDC x grows to the right
+  const double sign_y = cy.y < c.y ? 1.0 : -1.0;  // NDC y grows downwards
+  if (sign_x < 0.0) assumed += "; camera x points left: x negated";
+  if (sign_y < 0.0) assumed += "; camera y points down: y negated";
+  glm::dmat4 d(1.0);  // camera -> view, its own inverse
+  d[0][0] = sign_x;
+  d[1][1] = sign_y;
+  d[2][2] = -forward_z;
+
+  // OpenEXR NDC (u right, v down, [0, 1] over the display window) -> OpenGL NDC of the
+  // display window: x = 2u - 1, y = 1 - 2v, applied to homogeneous coordinates.
+  glm::dmat4 gl_from_uv(1.0);
+  gl_from_uv[0][0] = 2.0;
+  gl_from_uv[3][0] = -1.0;
+  gl_from_uv[1][1] = -2.0;
+  gl_from_uv[3][1] = 1.0;
+  glm::dmat4 view_to_clip = gl_from_uv * camera_to_ndc * d;
+  // Normalise the projective scale: w = -z_view (perspective) or w = 1 (orthographic).
+  const double scale = perspective ? -view_to_clip[2][3] : view_to_clip[3][3];
+  if (!(scale > 0.0) && !(scale < 0.0)) return fail("degenerate worldToNDC");
+  view_to_clip = view_to_clip * (1.0 / scale);
+  if (perspective && !(view_to_clip[2][3] < 0.0))
+    return fail("inconsistent viewing direction in worldToNDC");
+
+  Camera cam;
+  cam.width_px = int(data.width());
+  cam.height_px = int(data.height());
+  cam.world_to_view = glm::mat4(d * glm::dmat4(m.world_to_camera));
+  cam.view_to_world = glm::mat4(glm::inverse(d * glm::dmat4(m.world_to_camera)));
+  cam.view_to_clip = projection_for_data_window(glm::mat4(view_to_clip), display, data);
+  cam.near_view = near_view > 0.0f ? near_view : 0.0f;
+  cam.far_view = far_view > 0.0f ? far_view : 0.0f;
+  set_gl_depth_row(cam.view_to_clip, near_view > 0.0f ? near_view : kDefaultNear,
+                   far_view > near_view && far_view > 0.0f ? far_view : kDefaultFar);
+  if (!all_finite(cam.view_to_clip) || !all_finite(cam.view_to_world))
+    return fail("matrices do not give a finite camera");
+  if (note) *note = assumed;
+  return cam;
+}
+
+ExrCameraMatrices exr_matrices_from_camera(const Camera& camera) {
+  // Our view space -> OpenEXR camera space: negate z (left-handed, +Z forward).
+  glm::mat4 flip_z(1.0f);
+  flip_z[2][2] = -1.0f;
+  // OpenGL NDC -> OpenEXR NDC over the same grid: u = (x + 1) / 2, v = (1 - y) / 2.
+  glm::mat4 uv_from_gl(1.0f);
+  uv_from_gl[0][0] = 0.5f;
+  uv_from_gl[3][0] = 0.5f;
+  uv_from_gl[1][1] = -0.5f;
+  uv_from_gl[3][1] = 0.5f;
+  ExrCameraMatrices m;
+  m.world_to_camera = flip_z * camera.world_to_view;
+  m.world_to_ndc = uv_from_gl * camera.view_to_clip * camera.world_to_view;
+  return m;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,253 @@
+#include "formats/channel_profiles.h"
+
+#include <algorithm>
+
+namespace ssdo {
+
+namespace {
+
+// Component suffixes tried for a 3-vector layer, in order of preference.
+const std::vector<std::vector<std::string>> kVectorSuffixes = {
+    {"X", "Y", "Z"}, {"R", "G", "B"}, {"x", "y", "z"}, {"r", "g", "b"}};
+// Component suffixes tried for a 1-channel layer named by its prefix ("depth" -> depth.Z).
+const std::vector<std::string> kScalarSuffixes = {"Z", "z", "R", "r", "Y", "y", "V", "v"};
+
+bool has(const PartChannels& p, const std::string& name) {
+  return std::find(p.channels.begin(), p.channels.end(), name) != p.channels.end();
+}
+
+// Part indices to search: `preferred` first, then the others in file order.
+std::vector<int> search_order(int n_parts, int preferred) {
+  std::vector<int> order{preferred};
+  for (int i = 0; i < n_parts; ++i)
+    if (i != preferred) order.push_back(i);
+  return order;
+}
+
+std::optional<ResolvedInput> find_scalar(const std::vector<PartChannels>& parts, int preferred,
+                                         const std::string& input, const std::string& name,
+                                         bool allow_suffix) {
+  for (int p : search_order(int(parts.size()), preferred)) {
+    if (has(parts[p], name)) return ResolvedInput{input, {name}, p, Space::automatic};
+    if (!allow_suffix) continue;
+    for (const auto& s : kScalarSuffixes)
+      if (has(parts[p], name + "." + s))
+        return ResolvedInput{input, {name + "." + s}, p, Space::automatic};
+  }
+  return std::nullopt;
+}
+
+std::optional<ResolvedInput> find_vector(const std::vector<PartChannels>& parts, int preferred,
+                                         const std::string& input, const std::string& prefix,
+                                         Space space = Space::automatic) {
+  for (int p : search_order(int(parts.size()), preferred)) {
+    for (const auto& suffixes : kVectorSuffixes) {
+      std::vector<std::string> names;
+      for (const auto& s : suffixes) names.push_back(prefix.empty() ? s : prefix + "." + s);
+      if (std::all_of(names.begin(), names.end(),
+                      [&](const std::string& n) { return has(parts[p], n); }))
+        return ResolvedInput{input, names, p, space};
+    }
+  }
+  return std::nullopt;
+}
+
+// Blender view layer prefix of the first "<Layer>.Depth.Z" channel of a part.
+std::optional<std::string> blender_layer(const PartChannels& p) {
+  const std::string suffix = ".Depth.Z";
+  for (const auto& c : p.channels)
+    if (c.size() > suffix.size() && c.compare(c.size() - suffix.size(), suffix.size(), suffix) == 0)
+      return c.substr(0, c.size() - suffix.size());
+  return std::nullopt;
+}
+
+std::optional<std::string> generic_depth(const PartChannels& p) {
+  for (const char* name : {"Z", "depth.Z"})
+    if (has(p, name)) return std::string(name);
+  return std::nullopt;
+}
+
+bool mapping_is_empty(const ChannelMapping& m) {
+  return m.depth.empty() && m.normal.empty() && m.position.empty() && m.albedo.empty() &&
+         m.lighting.empty() && m.references.empty();
+}
+
+}  // namespace
+
+std::string join_names(const std::vector<std::string>& names, size_t limit) {
+  std::string s;
+  for (size_t i = 0; i < names.size() && i < limit; ++i) {
+    if (i) s += ", ";
+    s += names[i];
+  }
+  if (names.size() > limit) s += ", ... (" + std::to_string(names.size() - limit) + " more)";
+  return s;
+}
+
+std::string ResolvedInput::describe() const {
+  if (channels.size() == 1) return channels[0];
+  // Common prefix up to the last '.', then the component suffixes in braces.
+  const std::string& first = channels[0];
+  const size_t dot = first.rfind('.');
+  const std::string prefix = dot == std::string::npos ? "" : first.substr(0, dot + 1);
+  std::string s = prefix + "{";
+  for (size_t i = 0; i < channels.size(); ++i) {
+    if (i) s += ',';
+    s.append(channels[i], prefix.size(), std::string::npos);
+  }
+  s += '}';
+  return s;
+}
+
+const ResolvedInput* ChannelResolution::find(const std::string& input) const {
+  for (const auto& r : inputs)
+    if (r.input == input) return &r;
+  return nullptr;
+}
+
+std::optional<ChannelResolution> resolve_channels(const std::string& path,
+                                                  const std::vector<PartChannels>& parts,
+                                                  const ReadOptions& options,
+                                                  std::string* error) {
+  const ChannelMapping& map = options.mapping;
+  ChannelResolution res;
+  if (parts.empty()) {
+    *error = path + ": the file has no parts";
+    return std::nullopt;
+  }
+  auto part_label = [&](int p) {
+    return parts.size() == 1 ? std::string() : " (part \"" + parts[p].name + "\")";
+  };
+
+  // 1. The part holding depth.
+  int part = -1;
+  if (!options.part.empty()) {
+    for (size_t i = 0; i < parts.size(); ++i)
+      if (parts[i].name == options.part) part = int(i);
+    if (part < 0) {
+      std::vector<std::string> names;
+      for (const auto& p : parts) names.push_back("\"" + p.name + "\"");
+      *error = path + ": no part named \"" + options.part + "\"; parts: " + join_names(names);
+      return std::nullopt;
+    }
+  } else {
+    for (size_t i = 0; i < parts.size() && part < 0; ++i) {
+      const bool found = !map.depth.empty()
+                             ? find_scalar({parts[i]}, 0, "depth", map.depth, true).has_value()
+                             : blender_layer(parts[i]) || generic_depth(parts[i]);
+      if (found) part = int(i);
+    }
+    if (part < 0) part = 0;
+  }
+  res.part = part;
+  const PartChannels& pc = parts[part];
+
+  // 2. Profile of that part.
+  if (auto layer = blender_layer(pc)) {
+    res.profile = "blender";
+    res.layer = *layer;
+    const std::string L = *layer + ".";
+    res.inputs.push_back({"depth", {L + "Depth.Z"}, part, Space::automatic});
+    if (auto r = find_vector(parts, part, "normal", L + "Normal", Space::world))
+      res.inputs.push_back(*r);
+    if (auto r = find_vector(parts, part, "position", L + "Position", Space::world))
+      res.inputs.push_back(*r);
+    if (auto r = find_vector(parts, part, "albedo", L + "DiffCol")) res.inputs.push_back(*r);
+    if (auto r = find_vector(parts, part, "diffdir", L + "DiffDir")) res.inputs.push_back(*r);
+    if (auto r = find_scalar(parts, part, "reference:AO", L + "AO.R", false))
+      res.inputs.push_back(*r);
+    for (const char* name : {"DiffDir", "DiffInd"})
+      if (auto r = find_vector(parts, part, std::string("reference:") + name, L + name))
+        res.inputs.push_back(*r);
+  } else if (auto depth = generic_depth(pc)) {
+    res.profile = "generic";
+    res.inputs.push_back({"depth", {*depth}, part, Space::automatic});
+    if (auto r = find_vector(parts, part, "normal", "N")) res.inputs.push_back(*r);
+    if (auto r = find_vector(parts, part, "position", "P")) res.inputs.push_back(*r);
+    for (const char* name : {"albedo", "diffuse_albedo"}) {
+      if (auto r = find_vector(parts, part, "albedo", name)) {
+        res.inputs.push_back(*r);
+        break;
+      }
+    }
+  }
+
+  // 3. The explicit mapping replaces what it names.
+  if (!mapping_is_empty(map)) {
+    res.profile = "mapping";
+    auto all_channels = [&]() {
+      std::vector<std::string> all;
+      for (size_t i = 0; i < parts.size(); ++i)
+        for (const auto& c : parts[i].channels)
+          all.push_back(parts.size() == 1 ? c : parts[i].name + ":" + c);
+      return join_names(all);
+    };
+    auto replace = [&](const ResolvedInput& r) {
+      std::erase_if(res.inputs, [&](const ResolvedInput& x) { return x.input == r.input; });
+      res.inputs.push_back(r);
+    };
+    auto map_scalar = [&](const std::string& input, const std::string& name) -> bool {
+      auto r = find_scalar(parts, part, input, name, true);
+      if (!r) {
+        *error = path + part_label(part) + ": mapped " + input + " channel \"" + name +
+                 "\" not found (tried " + name + " and " + name + ".{Z,R,Y,V}); channels present: " +
+                 all_channels();
+        return false;
+      }
+      replace(*r);
+      return true;
+    };
+    auto map_vector = [&](const std::string& input, const std::string& name, Space space) -> bool {
+      auto r = find_vector(parts, part, input, name, space);
+      if (!r) {
+        *error = path + part_label(part) + ": mapped " + input + " layer \"" + name +
+                 "\" not found (tried " + name + ".{X,Y,Z}, .{R,G,B}, .{x,y,z}); channels present: " +
+                 all_channels();
+        return false;
+      }
+      replace(*r);
+      return true;
+    };
+    if (!map.depth.empty() && !map_scalar("depth", map.depth)) return std::nullopt;
+    if (!map.normal.empty() && !map_vector("normal", map.normal, map.normal_space))
+      return std::nullopt;
+    if (!map.position.empty() && !map_vector("position", map.position, map.position_space))
+      return std::nullopt;
+    if (!map.albedo.empty() && !map_vector("albedo", map.albedo, Space::automatic))
+      return std::nullopt;
+    if (!map.lighting.empty()) {
+      if (!map_vector("lighting", map.lighting, Space::automatic)) return std::nullopt;
+      std::erase_if(res.inputs, [](const ResolvedInput& x) { return x.input == "diffdir"; });
+    }
+    for (const auto& [name, channel] : map.references) {
+      const std::string input = "reference:" + name;
+      if (auto r = find_vector(parts, part, input, channel)) {
+        replace(*r);
+      } else if (!map_scalar(input, channel)) {
+        return std::nullopt;
+      }
+    }
+    // Explicit spaces apply to detected channels too.
+    for (auto& r : res.inputs) {
+      if (r.input == "normal" && map.normal_space != Space::automatic) r.space = map.normal_space;
+      if (r.input == "position" && map.position_space != Space::automatic)
+        r.space = map.position_space;
+    }
+  }
+
+  // 4. Depth is the one required input.
+  auto depth = std::find_if(res.inputs.begin(), res.inputs.end(),
+                            [](const ResolvedInput& r) { return r.input == "depth"; });
+  if (depth == res.inputs.end()) {
+    *error = path + part_label(part) +
+             ": required depth channel not found (looked for <Layer>.Depth.Z [blender], "
+             "Z or depth.Z [generic]; give one with a channel mapping); channels present: " +
+             join_names(pc.channels);
+    return std::nullopt;
+  }
+  res.part = depth->part;  // a mapped depth may live in another part
+  std::rotate(res.inputs.begin(), depth, depth + 1);  // depth first
+  return res;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,590 @@
+#include "formats/gbuffer_reader.h"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <sstream>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFloatAttribute.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputPart.h>
+#include <OpenEXR/ImfMultiPartInputFile.h>
+#include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfTestFile.h>
+#include <OpenEXR/ImfThreading.h>
+
+#include "formats/camera_io.h"
+#include "formats/channel_profiles.h"
+#include "kernels/normals.h"
+#include "kernels/parallel.h"
+#include "kernels/positions.h"
+
+namespace ssdo {
+
+namespace {
+
+// Depth at or beyond this is background: renderers write "no hit" as a huge finite value
+// (Cycles: 1e10, see /work/shared/gbuffers/README.md) rather than +inf.
+constexpr float kBackgroundDepth = 1e9f;
+// A stored normal shorter than this is "no normal" (Cycles writes (0, 0, 0) where it has
+// none); unit normals in half precision are ~1 +- 1e-3.
+constexpr float kMinNormalLength = 1e-6f;
+// Non-standard header attributes carrying the clip distances next to worldToCamera /
+// worldToNDC (written by write_outputs; OpenEXR has no standard attribute for them).
+constexpr const char* kClipNearAttribute = "clipNear";
+constexpr const char* kClipFarAttribute = "clipFar";
+
+std::string type_name(Imf::PixelType t) {
+  switch (t) {
+    case Imf::HALF: return "half";
+    case Imf::FLOAT: return "float";
+    case Imf::UINT: return "uint";
+    default: return "unknown";
+  }
+}
+
+PixelBox box_of(const Imath::Box2i& b) { return {b.min.x, b.min.y, b.max.x, b.max.y}; }
+
+std::string describe_box(const PixelBox& b) {
+  std::ostringstream s;
+  s << b.width() << "x" << b.height() << " at (" << b.min_x << ", " << b.min_y << ")";
+  return s.str();
+}
+
+std::string space_name(Space s) {
+  switch (s) {
+    case Space::world: return "world";
+    case Space::view: return "view";
+    default: return "";
+  }
+}
+
+// Everything known once the headers are read: the file, the channels to read, the pixel
+// grid and the camera.
+struct Prepared {
+  std::unique_ptr<Imf::MultiPartInputFile> file;
+  std::vector<PartChannels> parts;
+  ChannelResolution channels;
+  PixelBox data, display;
+  Camera camera;
+  bool camera_has_world = false;  // sidecar or header: world_to_view is meaningful
+  bool radial_depth = false;
+  std::optional<float> background_depth;
+  std::optional<std::string> sidecar_normal_space, sidecar_position_space;
+};
+
+// Which resolved inputs the options ask to read.
+bool wanted(const ResolvedInput& r, const ReadOptions& o, bool lighting_from_passes) {
+  if (r.input == "depth" || r.input == "normal") return true;
+  if (r.input == "position") return o.read_positions;
+  if (r.input == "albedo") return o.read_albedo || (o.read_lighting && lighting_from_passes);
+  if (r.input == "lighting") return o.read_lighting;
+  if (r.input == "diffdir") return o.read_lighting && lighting_from_passes;
+  if (r.input.rfind("reference:", 0) == 0) return o.read_references;
+  return false;
+}
+
+Space decide_space(Space resolved, const std::optional<std::string>& sidecar_says,
+                   bool camera_has_world) {
+  if (resolved != Space::automatic) return resolved;
+  if (sidecar_says) return *sidecar_says == "world" ? Space::world : Space::view;
+  // Generic N / P: world space when the camera knows where the world is (sidecar or
+  // header matrices), view space under a bare --fov camera (whose world is the view).
+  return camera_has_world ? Space::world : Space::view;
+}
+
+bool prepare(const std::string& path, const ReadOptions& options, ReadResult& result,
+             Prepared& prep) {
+  FrameInfo& info = result.info;
+  info.path = path;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    result.error = path + ": no such file";
+    return false;
+  }
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    result.error = path + ": not a regular file";
+    return false;
+  }
+  if (!Imf::isOpenExrFile(path.c_str())) {
+    result.error = path + ": not an OpenEXR file (no EXR magic number)";
+    return false;
+  }
+  const int threads = options.threads > 0 ? options.threads : Imf::globalThreadCount();
+  // OpenEXR decodes on its process-wide pool; asking for N threads makes sure it has N.
+  if (options.threads > 1 && Imf::globalThreadCount() < options.threads)
+    Imf::setGlobalThreadCount(options.threads);
+  try {
+    prep.file = std::make_unique<Imf::MultiPartInputFile>(path.c_str(), threads);
+  } catch (const std::exception& e) {
+    result.error = path + ": cannot read the EXR header (damaged or truncated file): " + e.what();
+    return false;
+  }
+  const int n_parts = prep.file->parts();
+  for (int i = 0; i < n_parts; ++i) {
+    const Imf::Header& h = prep.file->header(i);
+    PartChannels pc;
+    pc.name = h.hasName() ? h.name() : std::string();
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
+      pc.channels.push_back(it.name());
+    info.parts.push_back(pc.name);
+    prep.parts.push_back(std::move(pc));
+  }
+
+  // Channels.
+  std::string error;
+  auto resolved = resolve_channels(path, prep.parts, options, &error);
+  if (!resolved) {
+    result.error = error;
+    return false;
+  }
+  prep.channels = *resolved;
+  const int part = prep.channels.part;
+  const Imf::Header& header = prep.file->header(part);
+  info.part = prep.parts[part].name;
+  info.profile = prep.channels.profile;
+  info.layer = prep.channels.layer;
+  for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
+    info.channels.push_back(std::string(it.name()) + " (" + type_name(it.channel().type) + ")");
+  prep.data = box_of(header.dataWindow());
+  prep.display = box_of(header.displayWindow());
+  info.width_px = int(std::min<int64_t>(prep.data.width(), INT_MAX));
+  info.height_px = int(std::min<int64_t>(prep.data.height(), INT_MAX));
+  info.data_x = prep.data.min_x;
+  info.data_y = prep.data.min_y;
+  info.display_width_px = int(std::min<int64_t>(prep.display.width(), INT_MAX));
+  info.display_height_px = int(std::min<int64_t>(prep.display.height(), INT_MAX));
+  info.display_x = prep.display.min_x;
+  info.display_y = prep.display.min_y;
+  const std::string part_label =
+      prep.parts.size() > 1 ? " (part \"" + prep.parts[part].name + "\")" : "";
+
+  // Absurd sizes are refused before anything is allocated.
+  if (prep.data.width() <= 0 || prep.data.height() <= 0 || prep.data.width() > INT_MAX / 16 ||
+      prep.data.height() > INT_MAX / 16 ||
+      prep.data.width() * prep.data.height() > options.max_pixels) {
+    result.error = path + part_label + ": data window " + describe_box(prep.data) +
+                   " refused (limit " + std::to_string(options.max_pixels) + " pixels)";
+    return false;
+  }
+
+  // Every part a used channel comes from must share the depth part's pixel grid.
+  const bool lighting_from_passes =
+      !prep.channels.find("lighting") && prep.channels.find("albedo") &&
+      prep.channels.find("diffdir");
+  for (const auto& r : prep.channels.inputs) {
+    if (!wanted(r, options, lighting_from_passes)) continue;
+    const Imf::Header& h = prep.file->header(r.part);
+    if (h.type() == Imf::DEEPSCANLINE || h.type() == Imf::DEEPTILE) {
+      result.error = path + ": part \"" + prep.parts[r.part].name +
+                     "\" holds deep data, which a G-buffer cannot use";
+      return false;
+    }
+    if (box_of(h.dataWindow()) != prep.data) {
+      result.error = path + ": parts of different sizes: " + r.input + " channels in part \"" +
+                     prep.parts[r.part].name + "\" have data window " +
+                     describe_box(box_of(h.dataWindow())) + ", depth in part \"" +
+                     prep.parts[part].name + "\" has " + describe_box(prep.data);
+      return false;
+    }
+    for (const auto& c : r.channels) {
+      const Imf::Channel* ch = h.channels().findChannel(c);
+      if (ch && (ch->xSampling != 1 || ch->ySampling != 1)) {
+        result.error = path + part_label + ": channel " + c + " is subsampled (" +
+                       std::to_string(ch->xSampling) + "x" + std::to_string(ch->ySampling) +
+                       "), which a G-buffer cannot use";
+        return false;
+      }
+    }
+  }
+
+  // Camera: sidecar, then header matrices, then --fov.
+  const std::string sidecar =
+      options.camera_json.empty() ? sidecar_path_for(path) : options.camera_json;
+  std::optional<SidecarCamera> side;
+  if (!options.camera_json.empty() || std::filesystem::exists(sidecar, ec)) {
+    side = read_camera_sidecar(sidecar, &error);
+    if (!side) {
+      result.error = path + ": " + error;
+      return false;
+    }
+    const PixelBox grid{0, 0, side->width_px - 1, side->height_px - 1};
+    if (side->width_px == prep.display.width() && side->height_px == prep.display.height()) {
+      prep.camera = side->camera;
+      prep.camera.view_to_clip =
+          projection_for_data_window(side->camera.view_to_clip, prep.display, prep.data);
+    } else if (side->width_px == prep.data.width() && side->height_px == prep.data.height()) {
+      prep.camera = side->camera;
+      info.notes.push_back("sidecar size matches the data window, not the display window");
+    } else {
+      result.error = path + ": camera sidecar " + sidecar + " is for " +
+                     std::to_string(side->width_px) + "x" + std::to_string(side->height_px) +
+                     " pixels, but the frame's display window is " + describe_box(prep.display) +
+                     " and its data window " + describe_box(prep.data);
+      return false;
+    }
+    (void)grid;
+    prep.camera.width_px = int(prep.data.width());
+    prep.camera.height_px = int(prep.data.height());
+    prep.camera_has_world = true;
+    info.camera_source = "sidecar " + sidecar;
+    info.ao_distance_world = side->ao_distance_world;
+    prep.background_depth = side->background_depth;
+    prep.sidecar_normal_space = side->normal_space;
+    prep.sidecar_position_space = side->position_space;
+    if (options.depth_kind == DepthKind::automatic && side->depth_kind)
+      prep.radial_depth = *side->depth_kind == "radial";
+  } else {
+    // The depth part's header first, then any other part's.
+    std::vector<int> order{part};
+    for (int i = 0; i < n_parts; ++i)
+      if (i != part) order.push_back(i);
+    bool found = false;
+    for (int i : order) {
+      const Imf::Header& h = prep.file->header(i);
+      if (!Imf::hasWorldToCamera(h) || !Imf::hasWorldToNDC(h)) continue;
+      ExrCameraMatrices m;
+      const Imath::M44f& w2c = Imf::worldToCamera(h);
+      const Imath::M44f& w2n = Imf::worldToNDC(h);
+      // Same 16 floats in the same order: Imath row-vector == glm column-vector form.
+      std::copy(&w2c.x[0][0], &w2c.x[0][0] + 16, &m.world_to_camera[0][0]);
+      std::copy(&w2n.x[0][0], &w2n.x[0][0] + 16, &m.world_to_ndc[0][0]);
+      float near_view = 0.0f, far_view = 0.0f;
+      if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipNearAttribute))
+        near_view = a->value();
+      if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipFarAttribute))
+        far_view = a->value();
+      std::string note;
+      // The matrices refer to this part's display window; the grid is the depth part's.
+      auto cam = camera_from_exr_matrices(m, box_of(h.displayWindow()), prep.data, near_view,
+                                          far_view, &error, &note);
+      if (!cam) {
+        result.error = path + ": " + error;
+        return false;
+      }
+      prep.camera = *cam;
+      prep.camera_has_world = true;
+      info.camera_source = "header worldToCamera/worldToNDC";
+      if (n_parts > 1) info.camera_source += " (part \"" + prep.parts[i].name + "\")";
+      info.notes.push_back(note);
+      found = true;
+      break;
+    }
+    if (!found) {
+      if (!options.fov_x_deg) {
+        result.error =
+            path + ": no camera: give a JSON sidecar (" + sidecar +
+            " or an explicit camera JSON path), store worldToCamera and worldToNDC "
+            "attributes in the EXR header, or pass a horizontal field of view (--fov DEGREES)";
+        return false;
+      }
+      const float fov = *options.fov_x_deg;
+      if (!(fov > 0.0f && fov < 180.0f)) {
+        result.error = path + ": field of view " + std::to_string(fov) +
+                       " degrees is outside (0, 180)";
+        return false;
+      }
+      // The field of view spans the display window (the full image), like a sidecar.
+      Camera cam = Camera::from_fov_x(int(prep.display.width()), int(prep.display.height()), fov);
+      cam.view_to_clip = projection_for_data_window(cam.view_to_clip, prep.display, prep.data);
+      cam.width_px = int(prep.data.width());
+      cam.height_px = int(prep.data.height());
+      cam.near_view = cam.far_view = 0.0f;  // defaults of from_fov_x, not known clips
+      prep.camera = cam;
+      info.camera_source = "--fov " + std::to_string(fov);
+    }
+  }
+  if (options.depth_kind != DepthKind::automatic)
+    prep.radial_depth = options.depth_kind == DepthKind::radial;
+  else if (!side || !side->depth_kind)
+    info.notes.push_back("depth kind not stated by the file or sidecar: planar assumed");
+  info.depth_kind = prep.radial_depth ? "radial" : "planar";
+  info.fov_x_deg = prep.camera.fov_x_deg();
+  info.fov_y_deg = prep.camera.fov_y_deg();
+  info.near_view = prep.camera.near_view;
+  info.far_view = prep.camera.far_view;
+
+  // What became what.
+  for (auto& r : prep.channels.inputs) {
+    if (r.input == "normal")
+      r.space = decide_space(r.space, prep.sidecar_normal_space, prep.camera_has_world);
+    if (r.input == "position")
+      r.space = decide_space(r.space, prep.sidecar_position_space, prep.camera_has_world);
+  }
+  for (const auto& r : prep.channels.inputs) {
+    if (!wanted(r, options, lighting_from_passes) || r.input == "diffdir") continue;
+    if (r.input == "albedo" && !options.read_albedo) continue;
+    std::string channels = r.describe();
+    if (prep.parts.size() > 1) channels = prep.parts[r.part].name + ":" + channels;
+    info.uses.push_back({r.input, channels, space_name(r.space)});
+  }
+  if (options.read_lighting && lighting_from_passes)
+    info.uses.push_back({"lighting",
+                         prep.channels.find("albedo")->describe() + " * " +
+                             prep.channels.find("diffdir")->describe() +
+                             " (albedo x direct irradiance = sender radiance)",
+                         ""});
+  if (!prep.channels.find("normal")) info.normals_reconstructed = true;
+  return true;
+}
+
+struct Images {
+  cv::Mat depth, normal, position, albedo, diffdir, lighting;
+  std::map<std::string, cv::Mat> references;
+};
+
+// Reads the wanted channels of each part straight into the float images: one slice per
+// channel, interleaved by the slice strides; OpenEXR converts half to float.
+void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_passes,
+                 Images& img, cv::Size size) {
+  std::map<int, Imf::FrameBuffer> buffers;
+  std::map<std::string, cv::Mat*> read_into;
+  std::vector<std::pair<cv::Mat*, cv::Mat*>> aliases;  // (alias, image read)
+  const Imath::Box2i window(Imath::V2i(prep.data.min_x, prep.data.min_y),
+                            Imath::V2i(prep.data.max_x, prep.data.max_y));
+  for (const auto& r : prep.channels.inputs) {
+    if (!wanted(r, options, lighting_from_passes)) continue;
+    cv::Mat* target = nullptr;
+    if (r.input == "depth") target = &img.depth;
+    else if (r.input == "normal") target = &img.normal;
+    else if (r.input == "position") target = &img.position;
+    else if (r.input == "albedo") target = &img.albedo;
+    else if (r.input == "diffdir") target = &img.diffdir;
+    else if (r.input == "lighting") target = &img.lighting;
+    else target = &img.references[r.input.substr(std::string("reference:").size())];
+    // Two inputs on the same channels (DiffDir as lighting factor and as reference) share
+    // one image: OpenEXR takes one slice per channel name.
+    const std::string key = std::to_string(r.part) + ":" + join_names(r.channels);
+    if (auto it = read_into.find(key); it != read_into.end()) {
+      aliases.emplace_back(target, it->second);
+      continue;
+    }
+    read_into[key] = target;
+    const int n = int(r.channels.size());
+    target->create(size, CV_32FC(n));
+    for (int c = 0; c < n; ++c)
+      buffers[r.part].insert(r.channels[c],
+                             Imf::Slice::Make(Imf::FLOAT, target->ptr<float>() + c, window,
+                                              sizeof(float) * n, target->step[0]));
+  }
+  for (auto& [part, fb] : buffers) {
+    if (!prep.file->partComplete(part))
+      throw std::runtime_error("incomplete or truncated file: part \"" + prep.parts[part].name +
+                               "\" is missing pixel data");
+    Imf::InputPart in(*prep.file, part);
+    in.setFrameBuffer(fb);
+    in.readPixels(prep.data.min_y, prep.data.max_y);
+  }
+  for (auto& [alias, source] : aliases) *alias = *source;
+}
+
+void set_nonfinite_to_zero(cv::Mat& m) {
+  if (m.empty()) return;
+  float* p = m.ptr<float>();
+  const size_t n = m.total() * m.channels();
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isfinite(p[i])) p[i] = 0.0f;
+}
+
+}  // namespace
+
+ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options) {
+  ReadResult result;
+  try {
+    Prepared prep;
+    if (prepare(path, options, result, prep)) result.gbuffer.camera = prep.camera;
+  } catch (const std::exception& e) {
+    result.error = path + ": " + e.what();
+  } catch (...) {
+    result.error = path + ": unknown error while reading the header";
+  }
+  return result;
+}
+
+ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
+  ReadResult result;
+  try {
+    Prepared prep;
+    if (!prepare(path, options, result, prep)) return result;
+    FrameInfo& info = result.info;
+    GBuffer& g = result.gbuffer;
+    g.camera = prep.camera;
+    const Camera& camera = prep.camera;
+    const cv::Size size(int(prep.data.width()), int(prep.data.height()));
+    const bool lighting_from_passes =
+        !prep.channels.find("lighting") && prep.channels.find("albedo") &&
+        prep.channels.find("diffdir");
+    Images img;
+    try {
+      read_pixels(prep, options, lighting_from_passes, img, size);
+    } catch (const std::exception& e) {
+      result.error = path + ": cannot read pixels (damaged or truncated file): " + e.what();
+      return result;
+    }
+
+    const ResolvedInput* normal_in = prep.channels.find("normal");
+    const ResolvedInput* position_in = prep.channels.find("position");
+    const bool normals_world = normal_in && normal_in->space == Space::world;
+    const bool positions_world = position_in && position_in->space == Space::world;
+    // Normals transform with the inverse transpose (equal to the rotation for a rigid
+    // world_to_view, right for any affine one); they are renormalised afterwards.
+    const glm::mat3 normal_to_view = glm::transpose(glm::inverse(glm::mat3(camera.world_to_view)));
+    const bool has_normals = !img.normal.empty();
+
+    g.depth_view = img.depth;
+    g.mask.create(size, CV_8UC1);
+    cv::Mat repair;  // foreground pixels whose stored normal is (0, 0, 0)
+    if (has_normals) repair = cv::Mat::zeros(size, CV_8UC1);
+    std::vector<int64_t> fg_rows(size.height, 0), nonfinite_rows(size.height, 0),
+        repair_rows(size.height, 0);
+    std::vector<float> min_rows(size.height, std::numeric_limits<float>::infinity()),
+        max_rows(size.height, -std::numeric_limits<float>::infinity());
+    const float far_view = camera.far_view;
+    const std::optional<float> background = prep.background_depth;
+    const bool radial = prep.radial_depth;
+    const float inf = std::numeric_limits<float>::infinity();
+
+    parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
+      for (int y = rows.start; y < rows.end; ++y) {
+        float* depth = g.depth_view.ptr<float>(y);
+        uint8_t* mask = g.mask.ptr<uint8_t>(y);
+        cv::Vec3f* normal = has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr;
+        uint8_t* rep = has_normals ? repair.ptr<uint8_t>(y) : nullptr;
+        for (int x = 0; x < size.width; ++x) {
+          float d = depth[x];
+          bool nonfinite = !std::isfinite(d);
+          glm::vec3 n(0.0f);
+          if (normal) {
+            n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
+            if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z))
+              nonfinite = true;
+          }
+          glm::vec3 ray(0.0f, 0.0f, -1.0f);
+          if (!nonfinite && (radial || normal))
+            ray = camera.view_ray_direction({x + 0.5f, y + 0.5f});
+          // Radial distance from the eye -> planar depth along -Z: d_planar = d * (-ray.z).
+          if (radial && !nonfinite) d *= -ray.z;
+          const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
+                                  !(far_view > 0.0f && d > far_view) &&
+                                  !(background && depth[x] == *background);
+          if (!foreground) {
+            nonfinite_rows[y] += nonfinite ? 1 : 0;
+            depth[x] = inf;
+            mask[x] = 0;
+            if (normal) normal[x] = cv::Vec3f(0, 0, 0);
+            continue;
+          }
+          depth[x] = d;
+          mask[x] = 255;
+          ++fg_rows[y];
+          min_rows[y] = std::min(min_rows[y], d);
+          max_rows[y] = std::max(max_rows[y], d);
+          if (normal) {
+            if (normals_world) n = normal_to_view * n;
+            const float len = glm::length(n);
+            if (!(len > kMinNormalLength)) {
+              rep[x] = 1;
+              ++repair_rows[y];
+              normal[x] = cv::Vec3f(0, 0, 0);
+              continue;
+            }
+            n /= len;
+            // Face the camera: a normal pointing away from the eye (back face, or a
+            // renderer that does not flip shading normals) is turned around, since the
+            // kernels integrate over the visible side's hemisphere.
+            if (glm::dot(n, ray) > 0.0f) n = -n;
+            normal[x] = cv::Vec3f(n.x, n.y, n.z);
+          }
+        }
+      }
+    });
+
+    for (int y = 0; y < size.height; ++y) {
+      info.foreground_pixels += fg_rows[y];
+      info.nonfinite_pixels += nonfinite_rows[y];
+      info.repaired_normal_pixels += repair_rows[y];
+      if (fg_rows[y]) {
+        info.depth_min_view = info.foreground_pixels == fg_rows[y]
+                                  ? min_rows[y]
+                                  : std::min(info.depth_min_view, min_rows[y]);
+        info.depth_max_view = std::max(info.depth_max_view, max_rows[y]);
+      }
+    }
+    info.masked_pixels = int64_t(size.area()) - info.foreground_pixels;
+
+    if (has_normals) {
+      g.normal_view = img.normal;
+      if (info.repaired_normal_pixels > 0) {
+        cv::Mat rebuilt;
+        reconstruct_normals_from_depth(g.depth_view, g.mask, camera, rebuilt, {},
+                                       options.threads);
+        rebuilt.copyTo(g.normal_view, repair);
+        info.notes.push_back(std::to_string(info.repaired_normal_pixels) +
+                             " foreground pixels had a zero normal: reconstructed from depth");
+      }
+    } else {
+      reconstruct_normals_from_depth(g.depth_view, g.mask, camera, g.normal_view, {},
+                                     options.threads);
+      info.normals_reconstructed = true;
+    }
+
+    if (options.read_positions) {
+      if (!img.position.empty()) {
+        g.position_view = img.position;
+        parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
+          for (int y = rows.start; y < rows.end; ++y) {
+            cv::Vec3f* p = g.position_view.ptr<cv::Vec3f>(y);
+            const uint8_t* m = g.mask.ptr<uint8_t>(y);
+            for (int x = 0; x < size.width; ++x) {
+              if (!m[x] || !std::isfinite(p[x][0] + p[x][1] + p[x][2])) {
+                p[x] = cv::Vec3f(0, 0, 0);
+                continue;
+              }
+              if (positions_world) {
+                const glm::vec3 v = camera.view_from_world_point({p[x][0], p[x][1], p[x][2]});
+                p[x] = cv::Vec3f(v.x, v.y, v.z);
+              }
+            }
+          }
+        });
+      } else {
+        view_positions_from_depth(g.depth_view, g.mask, camera, g.position_view, {},
+                                  options.threads);
+        info.uses.push_back({"position", "computed from depth", "view"});
+      }
+    }
+
+    // Kernels multiply with albedo and lighting: non-finite values become 0 (the
+    // reference passes are left as the renderer wrote them).
+    set_nonfinite_to_zero(img.albedo);
+    if (options.read_lighting) {
+      if (!img.lighting.empty()) {
+        g.lighting = img.lighting;
+      } else if (!img.albedo.empty() && !img.diffdir.empty()) {
+        // Sender radiance of a Lambertian pixel under the renderer's direct light:
+        // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, see README).
+        g.lighting = img.albedo.mul(img.diffdir);
+      }
+      set_nonfinite_to_zero(g.lighting);
+    }
+    if (options.read_albedo) g.albedo = img.albedo;
+    if (options.read_references) {
+      for (auto& [name, m] : img.references) g.references[name] = m;
+    }
+    return result;
+  } catch (const std::exception& e) {
+    result.error = path + ": " + e.what();
+  } catch (...) {
+    result.error = path + ": unknown error while reading";
+  }
+  result.gbuffer = GBuffer{};
+  return result;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,87 @@
+#include "kernels/normals.h"
+
+#include <cmath>
+
+#include "kernels/parallel.h"
+
+namespace ssdo {
+
+namespace {
+
+// Chooses the side of pixel `c` along one axis: returns -1 (previous), +1 (next) or 0
+// (no valid neighbour). q[k] is the screen-affine depth quantity at offset k - 2, valid[k]
+// says whether that tap is in the image and in the mask.
+int choose_side(const float q[5], const bool valid[5]) {
+  const bool prev1 = valid[1], next1 = valid[3];
+  if (!prev1 && !next1) return 0;
+  if (!prev1) return +1;
+  if (!next1) return -1;
+  if (valid[0] && valid[4]) {
+    const float err_prev = std::abs(2.0f * q[1] - q[0] - q[2]);
+    const float err_next = std::abs(2.0f * q[3] - q[4] - q[2]);
+    return err_next <= err_prev ? +1 : -1;
+  }
+  return std::abs(q[3] - q[2]) <= std::abs(q[1] - q[2]) ? +1 : -1;
+}
+
+}  // namespace
+
+void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
+                                    const Camera& camera, cv::Mat& normal_view, cv::Rect roi,
+                                    int nthreads) {
+  CV_Assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 &&
+            mask.size() == depth_view.size());
+  if (normal_view.size() != depth_view.size() || normal_view.type() != CV_32FC3)
+    normal_view.create(depth_view.size(), CV_32FC3);
+  const cv::Rect r = resolve_roi(roi, depth_view.size());
+  const int width = depth_view.cols, height = depth_view.rows;
+  const bool perspective = camera.is_perspective();
+  // 1/depth is affine in screen space over a plane seen in perspective; depth itself is,
+  // orthographically. Masked taps are never read (background depth is +inf).
+  auto screen_affine = [perspective](float d) { return perspective ? 1.0f / d : d; };
+  auto tap_valid = [&](int x, int y) {
+    return x >= 0 && y >= 0 && x < width && y < height && mask.at<uint8_t>(y, x) != 0;
+  };
+  auto position = [&](int x, int y) {
+    return camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, depth_view.at<float>(y, x));
+  };
+
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* m = mask.ptr<uint8_t>(y);
+      cv::Vec3f* out = normal_view.ptr<cv::Vec3f>(y);
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        if (!m[x]) {
+          out[x] = cv::Vec3f(0, 0, 0);
+          continue;
+        }
+        float qx[5], qy[5];
+        bool vx[5], vy[5];
+        for (int k = 0; k < 5; ++k) {
+          vx[k] = tap_valid(x + k - 2, y);
+          qx[k] = vx[k] ? screen_affine(depth_view.at<float>(y, x + k - 2)) : 0.0f;
+          vy[k] = tap_valid(x, y + k - 2);
+          qy[k] = vy[k] ? screen_affine(depth_view.at<float>(y + k - 2, x)) : 0.0f;
+        }
+        const int side_x = choose_side(qx, vx);
+        const int side_y = choose_side(qy, vy);
+        const glm::vec3 p = position(x, y);
+        const glm::vec3 eye_ray =
+            perspective ? glm::normalize(p) : glm::vec3(0.0f, 0.0f, -1.0f);
+        glm::vec3 n = -eye_ray;
+        if (side_x != 0 && side_y != 0) {
+          // Tangents oriented along +x and +y pixel directions (+y = down the image).
+          const glm::vec3 t_x = float(side_x) * (position(x + side_x, y) - p);
+          const glm::vec3 t_y = float(side_y) * (position(x, y + side_y) - p);
+          const glm::vec3 c = glm::cross(t_y, t_x);
+          const float len = glm::length(c);
+          if (len > 0.0f && std::isfinite(len)) n = c / len;
+        }
+        if (glm::dot(n, eye_ray) > 0.0f) n = -n;  // face the camera
+        out[x] = cv::Vec3f(n.x, n.y, n.z);
+      }
+    }
+  });
+}
+
+}  // namespace ssdo
