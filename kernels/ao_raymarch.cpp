@@ -1,10 +1,203 @@
-// Placeholder until the method lands: refuses to run rather than return a fake result.
+// The raymarch AO oracle: slow on purpose, the best a screen-space method can do with the
+// frame's information. Per pixel, `directions` cosine-weighted rays around the normal
+// (the same R2 + concentric-map directions as the reference ray caster, raycast.cpp), each
+// marched in `steps` view-space steps up to radius_world. A step is projected to the
+// screen and tested against the surface stored at the pixel it lands in:
+//
+//   blocked  <=>  depth(q) > d_ref + bias   and   depth(q) - d_ref <= thickness_world
+//
+// where depth(q) is the step's planar depth and d_ref the stored surface's depth on the
+// view ray through q (see below). Visibility is binary with no falloff (Cycles' AO pass:
+// settings.falloff_fraction is not used), so AO = fraction of unblocked rays; with
+// cosine-weighted directions that is the cosine-weighted open fraction of the hemisphere.
+// Steps landing off-screen, behind the eye or on masked pixels never occlude (nothing is
+// known there); they are counted into the confidence output (ao_raymarch.h).
+//
+// d_ref: the stored depth is a sample at the pixel centre, while q projects anywhere inside
+// the pixel. On a surface seen at angle theta to the view ray the depth changes by up to
+// (0.5 px footprint) * tan(theta) within half a pixel, far above any sensible bias at
+// grazing angles, so a plain nearest read makes even an open plane occlude itself. The tap
+// pixel's stored position and normal define its tangent plane; d_ref is where the view
+// ray through q meets that plane (first order in the sub-pixel offset: exact on planes,
+// error O(offset^2 / curvature radius) on curved surfaces). When that ray is within
+// kMinTangentCos of parallel to the plane (silhouette taps) the extrapolation is
+// ill-conditioned and the plain stored depth is used.
+//
+// max_radius_px is not applied: the oracle's cost is set by directions x steps, and
+// clamping the radius would change the answer it exists to give.
+#include "kernels/ao_raymarch.h"
+
+#include <cmath>
+
+#include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
+#include "kernels/hemisphere_sampling.h"
+#include "kernels/noise.h"
+#include "kernels/parallel.h"
 
-namespace ssdo::detail {
+namespace ssdo {
+namespace {
 
-void ao_raymarch(const AoInputs&, const AoSettings&, AoOutput&, const cv::Rect&, int) {
-  CV_Error(cv::Error::StsNotImplemented, "AO method 'raymarch' is not implemented yet");
+// Below this |cos| between the view ray through a step and the tap's normal, the tangent
+// plane is not used for d_ref (the plain stored depth is). On a plane the extrapolation is
+// exact at any angle; its error comes from the stored normal's rounding (~1e-7) amplified
+// by 1 / cos, i.e. ~1e-4 of the sub-pixel offset at this threshold: negligible. Below it
+// the tap is a silhouette (the tangent plane nearly contains the view ray), where the
+// extrapolated depth runs off to 0 or infinity. 1e-3 = 89.94 degrees keeps the plane exact
+// down to the horizon rows of a plane viewed at a few degrees of elevation.
+constexpr float kMinTangentCos = 1e-3f;
+
+struct Constants {
+  int directions;
+  int steps;
+  float radius_world;
+  float thickness_world;
+  float bias_relative;
+  uint32_t seed;
+  bool perspective;
+  bool multibounce;
+  float width_px, height_px;
+};
+
+void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Mat* confidence,
+                   const cv::Rect& roi, int nthreads) {
+  const Camera& cam = in.camera;
+  const glm::mat4& proj = cam.view_to_clip;
+  const int width = in.depth_view.cols, height = in.depth_view.rows;
+  parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+      float* ao_row = out.ao.ptr<float>(y);
+      cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
+      float* conf_row = confidence ? confidence->ptr<float>(y) : nullptr;
+      for (int x = roi.x; x < roi.x + roi.width; ++x) {
+        if (mask_row[x] == 0) {
+          ao_row[x] = 1.0f;
+          bent_row[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+          if (conf_row) conf_row[x] = 1.0f;
+          continue;
+        }
+        const float depth = in.depth_view.ptr<float>(y)[x];
+        const glm::vec3 p = detail::load3(in.position_view, x, y);
+        const glm::vec3 n = detail::load3(in.normal_view, x, y);
+        // Start offset along the normal, relative to depth like the bias: the first steps
+        // land in the pixel's own footprint, and its reconstructed position carries the
+        // depth's relative rounding error.
+        const glm::vec3 origin = detail::biased_origin(p, n, depth, k.bias_relative);
+        const glm::vec4 clip_origin = proj * glm::vec4(origin, 1.0f);
+        glm::vec3 t, b;
+        sampling::orthonormal_basis(n, t, b);
+        const float shift_u = noise01(x, y, 0, k.seed), shift_v = noise01(x, y, 1, k.seed);
+        const uint32_t jitter_key = hash_pixel(x, y, 2, k.seed);
+        int open = 0, resolved = 0;
+        glm::vec3 bent(0.0f);
+        for (int i = 0; i < k.directions; ++i) {
+          float u, v;
+          r2_point(uint32_t(i), shift_u, shift_v, u, v);
+          const glm::vec3 w = sampling::cosine_hemisphere(n, t, b, u, v);
+          // clip(origin + s w) = clip(origin) + s P [w, 0]: the projection is linear in s.
+          const glm::vec4 clip_w = proj * glm::vec4(w, 0.0f);
+          // Step s_j = radius (j + 1 - jitter) / steps, jitter in [0, 1): one sample in each
+          // of the `steps` equal segments of (0, radius], the last at most radius.
+          const float jitter = unit_float(hash_u32(jitter_key + uint32_t(i)));
+          bool blocked = false, unknown = false;
+          for (int j = 0; j < k.steps && !blocked; ++j) {
+            const float s = k.radius_world * (float(j) + 1.0f - jitter) / float(k.steps);
+            const glm::vec4 clip = clip_origin + s * clip_w;
+            if (!(clip.w > 0.0f)) {  // behind the eye (perspective)
+              unknown = true;
+              continue;
+            }
+            const float inv_w = 1.0f / clip.w;
+            const float px = 0.5f * (clip.x * inv_w + 1.0f) * k.width_px;
+            const float py = 0.5f * (1.0f - clip.y * inv_w) * k.height_px;
+            if (!(px >= 0.0f && px < k.width_px && py >= 0.0f && py < k.height_px)) {
+              unknown = true;
+              continue;
+            }
+            const int tx = std::min(int(px), width - 1), ty = std::min(int(py), height - 1);
+            if (in.mask.ptr<uint8_t>(ty)[tx] == 0) {
+              unknown = true;
+              continue;
+            }
+            const glm::vec3 q = origin + s * w;
+            const float depth_q = -q.z;
+            const float depth_tap = in.depth_view.ptr<float>(ty)[tx];
+            // d_ref: the tap's tangent plane on the view ray through q (top of this file).
+            const glm::vec3 n_tap = detail::load3(in.normal_view, tx, ty);
+            const glm::vec3 p_tap = detail::load3(in.position_view, tx, ty);
+            const glm::vec3 ray_origin = k.perspective ? glm::vec3(0.0f) : glm::vec3(q.x, q.y, 0.0f);
+            const glm::vec3 ray_dir = k.perspective ? q : glm::vec3(0.0f, 0.0f, -1.0f);
+            const float denom = glm::dot(n_tap, ray_dir);
+            float depth_ref = depth_tap;
+            if (std::abs(denom) >= kMinTangentCos * glm::length(ray_dir)) {
+              const float along = glm::dot(n_tap, p_tap - ray_origin) / denom;
+              const float d = -(ray_origin.z + along * ray_dir.z);
+              if (d > 0.0f) depth_ref = d;
+            }
+            // Bias relative to the stored depth: its rounding error is relative (float:
+            // 6e-8, half: 4.9e-4 of the value), so a fixed bias would be too large near
+            // the camera and too small far away. The default 1e-3 covers half-float depth.
+            const float bias = k.bias_relative * depth_tap;
+            blocked = depth_q > depth_ref + bias && depth_q - depth_ref <= k.thickness_world;
+          }
+          if (!blocked) {
+            ++open;
+            bent += w;
+          }
+          if (blocked || !unknown) ++resolved;
+        }
+        float ao = float(open) / float(k.directions);
+        if (k.multibounce)
+          ao = detail::multibounce(ao, detail::albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
+        ao_row[x] = ao;
+        const float len = glm::length(bent);
+        const glm::vec3 bn = len > 0.0f ? bent / len : n;
+        bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
+        if (conf_row) conf_row[x] = float(resolved) / float(k.directions);
+      }
+    }
+  });
 }
 
-}  // namespace ssdo::detail
+Constants make_constants(const AoInputs& in, const AoSettings& s) {
+  return {s.directions,
+          s.steps,
+          s.radius_world,
+          s.thickness_world,
+          s.depth_bias_relative,
+          s.seed,
+          in.camera.is_perspective(),
+          s.multibounce && in.albedo != nullptr && !in.albedo->empty(),
+          float(in.camera.width_px),
+          float(in.camera.height_px)};
+}
+
+}  // namespace
+
+void compute_ao_raymarch(const AoInputs& in, const AoSettings& s, AoOutput& out,
+                         cv::Mat& confidence, cv::Rect roi, int nthreads) {
+  CV_Assert(s.method == AoMethod::raymarch && validate(s).empty());
+  CV_Assert(in.depth_view.type() == CV_32FC1);
+  const cv::Size size = in.depth_view.size();
+  CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == size);
+  CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
+  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
+  CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
+  if (out.ao.size() != size || out.ao.type() != CV_32FC1) out.ao.create(size, CV_32FC1);
+  if (out.bent_normal_view.size() != size || out.bent_normal_view.type() != CV_32FC3)
+    out.bent_normal_view.create(size, CV_32FC3);
+  if (confidence.size() != size || confidence.type() != CV_32FC1) confidence.create(size, CV_32FC1);
+  raymarch_rows(in, make_constants(in, s), out, &confidence, resolve_roi(roi, size), nthreads);
+}
+
+namespace detail {
+
+void ao_raymarch(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi,
+                 int nthreads) {
+  CV_Assert(in.camera.width_px == in.depth_view.cols && in.camera.height_px == in.depth_view.rows);
+  raymarch_rows(in, make_constants(in, s), out, nullptr, roi, nthreads);
+}
+
+}  // namespace detail
+}  // namespace ssdo

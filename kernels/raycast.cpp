@@ -3,8 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include <glm/gtc/constants.hpp>
-
+#include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
 
@@ -85,41 +84,8 @@ inline bool intersect_box(const Box& bx, const glm::vec3& o, const glm::vec3& d,
   return true;
 }
 
-// Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis,
-// Revisited", JCGT 6(1), listing 3): branchless apart from the sign, no normalisation.
-inline void basis_from_normal(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
-  const float sign = std::copysign(1.0f, n.z);
-  const float a = -1.0f / (sign + n.z);
-  const float c = n.x * n.y * a;
-  t = glm::vec3(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
-  b = glm::vec3(c, sign + n.y * n.y * a, -n.y);
-}
-
-// Cosine-weighted direction (local z = normal) from a point of [0,1)^2: Shirley & Chiu's
-// concentric square-to-disk map (1997, "A Low Distortion Map Between Disk and Square"),
-// which keeps the sequence's stratification, lifted to the hemisphere by Malley's method
-// (pdf = cos(theta) / pi).
-inline glm::vec3 cosine_direction_local(float u, float v) {
-  const float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
-  float r = 0.0f, phi = 0.0f;
-  if (a == 0.0f && b == 0.0f) {
-    r = 0.0f;
-  } else if (std::abs(a) > std::abs(b)) {
-    r = a;
-    phi = glm::quarter_pi<float>() * (b / a);
-  } else {
-    r = b;
-    phi = glm::half_pi<float>() - glm::quarter_pi<float>() * (a / b);
-  }
-  const float x = r * std::cos(phi), y = r * std::sin(phi);
-  return {x, y, std::sqrt(std::max(0.0f, 1.0f - x * x - y * y))};
-}
-
-inline glm::vec3 cosine_direction(const glm::vec3& n, const glm::vec3& t, const glm::vec3& b,
-                                  float u, float v) {
-  const glm::vec3 l = cosine_direction_local(u, v);
-  return glm::normalize(l.x * t + l.y * b + l.z * n);
-}
+using sampling::cosine_hemisphere;
+using sampling::orthonormal_basis;
 
 inline float ray_offset(const glm::vec3& p_world, float depth_view) {
   const float scale = std::max({1.0f, std::abs(p_world.x), std::abs(p_world.y),
@@ -281,13 +247,13 @@ float ao_estimate(const Scene& scene, const glm::vec3& p_world, const glm::vec3&
                   float radius_world, int samples, float shift_u, float shift_v,
                   float offset_world) {
   glm::vec3 t, b;
-  basis_from_normal(n_world, t, b);
+  orthonormal_basis(n_world, t, b);
   const glm::vec3 origin = p_world + offset_world * n_world;
   int open = 0;
   for (int k = 0; k < samples; ++k) {
     float u, v;
     r2_point(uint32_t(k), shift_u, shift_v, u, v);
-    if (!occluded(scene, origin, cosine_direction(n_world, t, b, u, v), radius_world)) ++open;
+    if (!occluded(scene, origin, cosine_hemisphere(n_world, t, b, u, v), radius_world)) ++open;
   }
   return float(open) / float(samples);
 }
@@ -297,13 +263,13 @@ LightSample light_estimate(const Scene& scene, const glm::vec3& p_world, const g
                            float shift_u, float shift_v, uint32_t secondary_seed,
                            float offset_world) {
   glm::vec3 t, b;
-  basis_from_normal(n_world, t, b);
+  orthonormal_basis(n_world, t, b);
   const glm::vec3 origin = p_world + offset_world * n_world;
   glm::dvec3 direct(0.0), indirect(0.0);  // double sums: no float drift over thousands of samples
   for (int k = 0; k < samples; ++k) {
     float u, v;
     r2_point(uint32_t(k), shift_u, shift_v, u, v);
-    const glm::vec3 w = cosine_direction(n_world, t, b, u, v);
+    const glm::vec3 w = cosine_hemisphere(n_world, t, b, u, v);
     const Hit hit = intersect(scene, origin, w, radius_world);
     if (!hit.valid()) {
       direct += glm::dvec3(env(w));
@@ -315,10 +281,10 @@ LightSample light_estimate(const Scene& scene, const glm::vec3& p_world, const g
     glm::vec3 n_hit = hit.normal_world;
     if (glm::dot(n_hit, w) > 0.0f) n_hit = -n_hit;
     glm::vec3 t_hit, b_hit;
-    basis_from_normal(n_hit, t_hit, b_hit);
+    orthonormal_basis(n_hit, t_hit, b_hit);
     const float u2 = unit_float(hash_u32(secondary_seed + 2u * uint32_t(k)));
     const float v2 = unit_float(hash_u32(secondary_seed + 2u * uint32_t(k) + 1u));
-    const glm::vec3 w2 = cosine_direction(n_hit, t_hit, b_hit, u2, v2);
+    const glm::vec3 w2 = cosine_hemisphere(n_hit, t_hit, b_hit, u2, v2);
     const glm::vec3 origin2 = x_world + ray_offset(x_world, 0.0f) * n_hit;
     if (!occluded(scene, origin2, w2, radius_world))
       indirect += glm::dvec3(hit.albedo * env(w2));
@@ -478,7 +444,7 @@ Camera open_plane_camera(glm::vec3 normal_world, float elevation_deg, int width_
                          int height_px) {
   const glm::vec3 n = glm::normalize(normal_world);
   glm::vec3 t, b;
-  basis_from_normal(n, t, b);
+  orthonormal_basis(n, t, b);
   const float e = glm::radians(elevation_deg);
   const glm::vec3 eye = 4.0f * (std::sin(e) * n - std::cos(e) * t);
   // Head-on views need an up vector that is not the normal.
