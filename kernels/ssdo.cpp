@@ -1,0 +1,371 @@
+#include "kernels/ssdo.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "kernels/noise.h"
+#include "kernels/parallel.h"
+
+namespace ssdo {
+
+std::string_view to_string(SsdoMethod m) {
+  switch (m) {
+    case SsdoMethod::ssdo: return "ssdo";
+    case SsdoMethod::oracle: return "oracle";
+  }
+  return "?";
+}
+
+std::optional<SsdoMethod> parse_ssdo_method(std::string_view s) {
+  for (SsdoMethod m : {SsdoMethod::ssdo, SsdoMethod::oracle})
+    if (s == to_string(m)) return m;
+  return std::nullopt;
+}
+
+SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
+  SsdoSettings s;
+  s.method = method;
+  const int level = int(preset);  // 0 low .. 3 ultra
+  constexpr int kSamples[] = {8, 16, 32, 64};
+  constexpr int kOracleGrid[] = {8, 12, 16, 32};
+  constexpr int kOracleSteps[] = {32, 48, 64, 128};
+  s.samples = kSamples[level];
+  s.oracle_grid = kOracleGrid[level];
+  s.oracle_steps = kOracleSteps[level];
+  return s;
+}
+
+std::string validate(const SsdoSettings& s) {
+  auto bad = [](const char* field, double value, const char* range) {
+    return std::string(field) + " = " + std::to_string(value) + " is out of range " + range;
+  };
+  if (!(s.radius_world > 0.0f) || !std::isfinite(s.radius_world))
+    return bad("radius_world", s.radius_world, "(0, inf)");
+  if (!(s.max_radius_px >= 2.0f && s.max_radius_px <= 4096.0f))
+    return bad("max_radius_px", s.max_radius_px, "[2, 4096]");
+  if (s.samples < 1 || s.samples > 1024) return bad("samples", s.samples, "[1, 1024]");
+  if (!(s.thickness_world > 0.0f)) return bad("thickness_world", s.thickness_world, "(0, inf]");
+  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
+    return bad("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (!(s.indirect_strength >= 0.0f && s.indirect_strength <= 16.0f))
+    return bad("indirect_strength", s.indirect_strength, "[0, 16]");
+  if (!(s.sender_distance_min_world >= 0.0f) || !std::isfinite(s.sender_distance_min_world))
+    return bad("sender_distance_min_world", s.sender_distance_min_world, "[0, inf)");
+  if (s.oracle_grid < 1 || s.oracle_grid > 256) return bad("oracle_grid", s.oracle_grid, "[1, 256]");
+  if (s.oracle_steps < 1 || s.oracle_steps > 4096) return bad("oracle_steps", s.oracle_steps, "[1, 4096]");
+  return {};
+}
+
+namespace {
+
+constexpr float kPi = 3.14159265358979323846f;
+
+// Largest relative change of the surface depth that q's tangent plane may apply at a
+// sub-pixel offset of at most half a pixel. A plane seen at an angle a from grazing changes
+// depth by ~(pixel angle) / tan(a) per pixel: at 160 px and 60 deg (pixel angle 0.0065 rad)
+// that is 4.7% at 8 deg and 19% at 2 deg, so half a pixel stays below 25% down to ~1.5 deg.
+// The bound keeps silhouette pixels of curved surfaces (tangent plane almost parallel to the
+// ray) from extrapolating far beyond the pixel.
+constexpr float kPlaneCorrectionMaxRelative = 0.25f;
+
+// Per-frame constants: the views, the camera folded into matrices, the settings.
+struct Constants {
+  const cv::Mat* depth;
+  const cv::Mat* normal;
+  const cv::Mat* position;
+  const cv::Mat* mask;
+  const cv::Mat* albedo;    // may be null
+  const cv::Mat* lighting;  // may be null
+  const Camera* camera;
+  const Environment* env;
+  glm::mat4 clip_from_view;
+  glm::mat3 env_from_view;  // = env_from_world * world_from_view (Camera::world_from_view_direction)
+  float width_px, height_px;
+  bool perspective;
+  SsdoSettings s;
+};
+
+// Orthonormal tangent frame about unit n (Duff et al. 2017, "Building an Orthonormal Basis,
+// Revisited", JCGT 6(1), listing 3).
+inline void tangent_frame(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
+  const float sign = std::copysign(1.0f, n.z);
+  const float a = -1.0f / (sign + n.z);
+  const float c = n.x * n.y * a;
+  t = glm::vec3(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
+  b = glm::vec3(c, sign + n.y * n.y * a, -n.y);
+}
+
+// Cosine-distributed direction (pdf cos / pi) from (u, v) in [0, 1)^2 (Malley's method).
+inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const glm::vec3& b,
+                                  const glm::vec3& n) {
+  const float radius = std::sqrt(u);
+  const float phi = 2.0f * kPi * v;
+  return t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u));
+}
+
+enum class Tap { visible, occluded };
+
+// Occlusion test of view-space point S whose clip coordinates are `clip` (see ssdo.h). On
+// `occluded` the pixel (qx, qy) is the sender.
+inline Tap classify(const Constants& c, const glm::vec3& s_view, const glm::vec4& clip, int& qx, int& qy) {
+  if (!(clip.w > 0.0f)) return Tap::visible;  // behind the eye: off screen
+  const float px = 0.5f * (clip.x / clip.w + 1.0f) * c.width_px;
+  const float py = 0.5f * (1.0f - clip.y / clip.w) * c.height_px;
+  if (!(px >= 0.0f && px < c.width_px && py >= 0.0f && py < c.height_px)) return Tap::visible;
+  qx = int(px);
+  qy = int(py);
+  if (c.mask->at<uint8_t>(qy, qx) == 0) return Tap::visible;  // background: nothing there
+  const float depth_q = c.depth->at<float>(qy, qx);
+  const float depth_s = -s_view.z;
+  float depth_surface = depth_q;
+  if (c.perspective) {
+    // q's tangent plane n_q . (X - P_q) = 0 met by the eye ray X = k S: k = n_q.P_q / n_q.S.
+    const cv::Vec3f& pq = c.position->at<cv::Vec3f>(qy, qx);
+    const cv::Vec3f& nq = c.normal->at<cv::Vec3f>(qy, qx);
+    const float den = nq[0] * s_view.x + nq[1] * s_view.y + nq[2] * s_view.z;
+    const float num = nq[0] * pq[0] + nq[1] * pq[1] + nq[2] * pq[2];
+    if (den != 0.0f) {
+      const float k = num / den;
+      const float limit = kPlaneCorrectionMaxRelative * depth_q;
+      if (k > 0.0f) depth_surface = std::clamp(k * depth_s, depth_q - limit, depth_q + limit);
+    }
+  }
+  const float behind = depth_s - depth_surface;
+  if (behind > c.s.depth_bias_relative * depth_s && behind < c.s.thickness_world) return Tap::occluded;
+  return Tap::visible;
+}
+
+// Outgoing radiance of sender pixel q (see ssdo.h).
+inline glm::vec3 sender_radiance(const Constants& c, const cv::Mat& sender_direct, int qx, int qy) {
+  if (c.lighting) {
+    const cv::Vec3f& l = c.lighting->at<cv::Vec3f>(qy, qx);
+    return {l[0], l[1], l[2]};
+  }
+  const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(qy, qx);
+  glm::vec3 l(d[0], d[1], d[2]);
+  if (c.albedo) {
+    const cv::Vec3f& a = c.albedo->at<cv::Vec3f>(qy, qx);
+    l *= glm::vec3(a[0], a[1], a[2]);
+  }
+  return l;
+}
+
+inline glm::vec3 to_glm(const cv::Vec3f& v) { return {v[0], v[1], v[2]}; }
+
+// The effective radius at P: radius_world, shrunk so that it spans at most max_radius_px.
+inline float effective_radius(const Constants& c, float depth_view) {
+  const glm::vec2 ppu = c.camera->pixels_per_unit(depth_view);
+  const float ppu_max = std::max(ppu.x, ppu.y);
+  return std::min(c.s.radius_world, c.s.max_radius_px / ppu_max);
+}
+
+// One pixel of the SSDO estimator (method ssdo). want_direct / want_indirect select the
+// terms; sender_direct is the first pass (used only without `lighting`).
+void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
+                const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
+  const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
+  const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
+  const float r = effective_radius(c, c.depth->at<float>(y, x));
+  glm::vec3 t, b;
+  tangent_frame(n, t, b);
+  const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
+  const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
+  const int n_samples = c.s.samples;
+  const bool bent = c.s.direct_estimator == SsdoDirectEstimator::bent_normal;
+  const bool form_factor = c.s.indirect_estimator == SsdoIndirectEstimator::form_factor;
+  const float d_min2 = c.s.sender_distance_min_world * c.s.sender_distance_min_world;
+
+  glm::vec3 direct_sum(0.0f), indirect_sum(0.0f), bent_sum(0.0f);
+  int visible = 0;
+  for (int i = 0; i < n_samples; ++i) {
+    float u, v;
+    r2_point(uint32_t(i), shift_u, shift_v, u, v);
+    const glm::vec3 w = cosine_direction(u, v, t, b, n);
+    // lambda in (0, r]: 1 - [0, 1) never gives 0.
+    const float lambda = r * (1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed));
+    const glm::vec3 s_view = p + lambda * w;
+    const glm::vec4 clip = clip_p + lambda * (c.clip_from_view * glm::vec4(w, 0.0f));
+    int qx = 0, qy = 0;
+    if (classify(c, s_view, clip, qx, qy) == Tap::visible) {
+      if (want_direct) {
+        if (bent) bent_sum += w;
+        else direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
+      }
+      ++visible;
+      continue;
+    }
+    if (!want_indirect) continue;
+    const glm::vec3 pq = to_glm(c.position->at<cv::Vec3f>(qy, qx));
+    const glm::vec3 nq = to_glm(c.normal->at<cv::Vec3f>(qy, qx));
+    const glm::vec3 to_receiver = p - pq;
+    const float d2 = glm::dot(to_receiver, to_receiver);
+    // A sender at P itself has no defined direction (a zero-area coincidence).
+    if (!(d2 > 0.0f)) continue;
+    const float cos_s = glm::dot(nq, to_receiver);  // x d
+    if (!(cos_s > 0.0f)) continue;                  // back-facing sender
+    if (form_factor) {
+      const float cos_r = -glm::dot(n, to_receiver);  // x d
+      if (!(cos_r > 0.0f)) continue;
+      const float cos_cos = cos_s * cos_r / d2;
+      indirect_sum += sender_radiance(c, sender_direct, qx, qy) * (cos_cos / std::max(d2, d_min2));
+    } else {
+      indirect_sum += sender_radiance(c, sender_direct, qx, qy);
+    }
+  }
+  const float inv_n = 1.0f / float(n_samples);
+  if (want_direct) {
+    if (bent) {
+      const float len = glm::length(bent_sum);
+      direct = len > 0.0f ? c.env->irradiance_over_pi_env(c.env_from_view * (bent_sum / len)) *
+                                (float(visible) * inv_n)
+                          : glm::vec3(0.0f);
+    } else {
+      direct = direct_sum * inv_n;
+    }
+  }
+  if (want_indirect) {
+    // form factor: (A_s / pi) sum = (r^2 / N) sum; solid angle: (1 / N) sum.
+    const float scale = form_factor ? r * r * inv_n : inv_n;
+    indirect = indirect_sum * (scale * c.s.indirect_strength);
+  }
+}
+
+// One pixel of the oracle (method oracle).
+void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
+                  const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
+  const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
+  const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
+  const float r = effective_radius(c, c.depth->at<float>(y, x));
+  glm::vec3 t, b;
+  tangent_frame(n, t, b);
+  const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
+  // Cranley-Patterson rotation of the stratified grid and of the step positions, per pixel.
+  const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
+  const float step_jitter = noise01(x, y, 2, c.s.seed);
+  const int g = c.s.oracle_grid, steps = c.s.oracle_steps;
+  const float step = r / float(steps);
+
+  glm::vec3 direct_sum(0.0f), indirect_sum(0.0f);
+  for (int a = 0; a < g; ++a) {
+    for (int bb = 0; bb < g; ++bb) {
+      float u = (float(a) + 0.5f) / float(g) + shift_u;
+      float v = (float(bb) + 0.5f) / float(g) + shift_v;
+      u -= std::floor(u);
+      v -= std::floor(v);
+      const glm::vec3 w = cosine_direction(u, v, t, b, n);
+      const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
+      bool hit = false;
+      int qx = 0, qy = 0;
+      for (int k = 0; k < steps; ++k) {
+        const float lambda = (float(k) + step_jitter) * step + 1e-7f * r;  // > 0 always
+        const glm::vec4 clip = clip_p + lambda * clip_w;
+        if (!(clip.w > 0.0f)) break;
+        if (classify(c, p + lambda * w, clip, qx, qy) == Tap::occluded) {
+          hit = true;
+          break;
+        }
+      }
+      if (!hit) {
+        if (want_direct) direct_sum += c.env->radiance_env(c.env_from_view * w);
+        continue;
+      }
+      if (!want_indirect) continue;
+      const glm::vec3 pq = to_glm(c.position->at<cv::Vec3f>(qy, qx));
+      const glm::vec3 nq = to_glm(c.normal->at<cv::Vec3f>(qy, qx));
+      if (glm::dot(nq, p - pq) > 0.0f) indirect_sum += sender_radiance(c, sender_direct, qx, qy);
+    }
+  }
+  const float inv_k = 1.0f / float(g * g);
+  if (want_direct) direct = direct_sum * inv_k;
+  if (want_indirect) indirect = indirect_sum * (inv_k * c.s.indirect_strength);
+}
+
+void light_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
+                 const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
+  if (c.s.method == SsdoMethod::oracle)
+    oracle_pixel(c, x, y, want_direct, want_indirect, sender_direct, direct, indirect);
+  else
+    ssdo_pixel(c, x, y, want_direct, want_indirect, sender_direct, direct, indirect);
+}
+
+}  // namespace
+
+void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out, cv::Rect roi,
+                  int nthreads) {
+  const cv::Size size = in.depth_view.size();
+  CV_Assert(in.depth_view.type() == CV_32FC1);
+  CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == size);
+  CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
+  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
+  CV_Assert(!in.albedo || (in.albedo->type() == CV_32FC3 && in.albedo->size() == size));
+  CV_Assert(!in.lighting || (in.lighting->type() == CV_32FC3 && in.lighting->size() == size));
+  CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
+  CV_Assert(validate(settings).empty());
+  if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);
+  if (out.indirect.size() != size || out.indirect.type() != CV_32FC3) out.indirect.create(size, CV_32FC3);
+
+  Constants c{};
+  c.depth = &in.depth_view;
+  c.normal = &in.normal_view;
+  c.position = &in.position_view;
+  c.mask = &in.mask;
+  c.albedo = in.albedo && !in.albedo->empty() ? in.albedo : nullptr;
+  c.lighting = in.lighting && !in.lighting->empty() ? in.lighting : nullptr;
+  c.camera = &in.camera;
+  c.env = &in.environment;
+  c.clip_from_view = in.camera.view_to_clip;
+  c.env_from_view = in.environment.env_from_world_matrix() * glm::mat3(in.camera.view_to_world);
+  c.width_px = float(size.width);
+  c.height_px = float(size.height);
+  c.perspective = in.camera.is_perspective();
+  c.s = settings;
+
+  const bool want_indirect = settings.indirect_strength > 0.0f;
+  // First pass (no `lighting`): direct everywhere, the senders' light.
+  cv::Mat sender_direct;
+  if (want_indirect && !c.lighting) {
+    sender_direct.create(size, CV_32FC3);
+    parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
+      glm::vec3 direct(0.0f), unused(0.0f);
+      for (int y = rows.start; y < rows.end; ++y) {
+        const uint8_t* m = in.mask.ptr<uint8_t>(y);
+        cv::Vec3f* d = sender_direct.ptr<cv::Vec3f>(y);
+        for (int x = 0; x < size.width; ++x) {
+          if (!m[x]) {
+            d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+            continue;
+          }
+          light_pixel(c, x, y, true, false, sender_direct, direct, unused);
+          d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
+        }
+      }
+    });
+  }
+
+  const cv::Rect r = resolve_roi(roi, size);
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* m = in.mask.ptr<uint8_t>(y);
+      cv::Vec3f* od = out.direct.ptr<cv::Vec3f>(y);
+      cv::Vec3f* oi = out.indirect.ptr<cv::Vec3f>(y);
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        if (!m[x]) {
+          od[x] = oi[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+          continue;
+        }
+        glm::vec3 direct(0.0f), indirect(0.0f);
+        if (!sender_direct.empty()) {
+          const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
+          direct = glm::vec3(d[0], d[1], d[2]);
+          light_pixel(c, x, y, false, true, sender_direct, direct, indirect);
+        } else {
+          light_pixel(c, x, y, true, want_indirect, sender_direct, direct, indirect);
+        }
+        od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
+        oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
+      }
+    }
+  });
+}
+
+}  // namespace ssdo

@@ -1,0 +1,138 @@
+// Screen-space directional occlusion (Ritschel, Grosch and Seidel 2009, "Approximating
+// Dynamic Global Illumination in Image Space", I3D): directional environment light with
+// screen-space visibility (direct) and one diffuse bounce between the surfaces the depth
+// buffer shows (indirect).
+//
+// Light units (the Cycles light-pass convention, DESIGN.md "Light terms"):
+//   direct(P)   = E_env(P) / pi   = (1/pi) integral over the hemisphere of L_env(w) V(w) cos dw
+//   indirect(P) = E_bounce(P) / pi = (1/pi) integral of L_sender(w) cos dw
+// i.e. irradiance over pi, "divided by albedo": a white unoccluded surface under a uniform
+// environment of radiance 1 has direct = 1, and the outgoing diffuse radiance of P is
+// albedo(P) x (direct + indirect). Both are CV_32FC3 RGB in the environment's radiance units.
+//
+// Estimators (method = ssdo; N samples P + lambda_i w_i, w_i cosine-distributed about the
+// normal n, pdf cos/pi, lambda_i uniform in (0, r], r = radius_world clamped to
+// max_radius_px on screen):
+//   direct   = (1/N) sum_{i visible} L_env,filtered(w_i)
+//     (the Monte-Carlo estimate of E/pi with pdf cos/pi: the cos and the pi cancel;
+//     paper eq. 1 with the solid angle 2 pi / N of uniform sampling replaced by
+//     cosine-weighted sampling). A white surface under L = 1 with no occluder gets exactly 1.
+//   indirect, form factor (paper eq. 2): each occluded sample i projects to a pixel q whose
+//     surface point P_q (normal n_q, outgoing radiance L_q) is a patch of area
+//     A_s = pi r^2 / N sending towards P:
+//       E_bounce = sum_i L_q A_s cos(theta_s) cos(theta_r) / max(d^2, d_min^2)
+//       indirect = E_bounce / pi = (r^2 / N) sum_i L_q cos(theta_s) cos(theta_r) / max(d^2, d_min^2)
+//     with d = |P - P_q|, cos(theta_s) = n_q . (P - P_q) / d (<= 0: back-facing, no
+//     contribution), cos(theta_r) = n . (P_q - P) / d, d_min = sender_distance_min_world
+//     (the paper clamps d to 1 to bound the singularity of the point-to-patch form factor).
+//   indirect, solid angle: the radiance arriving from an occluded direction w_i is that of
+//     the occluder, so with the same cosine-distributed directions
+//       indirect = (1/N) sum_{i occluded, sender facing P} L_q
+//     (no area or distance heuristic; converges to the screen-space best case as N grows).
+// Sender radiance L_q: `lighting` when given (outgoing diffuse radiance, e.g. Cycles
+// DiffCol x DiffDir); otherwise a first pass of this kernel over the whole image,
+// L_q = albedo_q x direct_q (albedo white when absent), so the bounce needs only depth,
+// normals and albedo.
+//
+// Oracle (method = oracle): g x g stratified cosine-distributed directions, each marched in
+// `oracle_steps` steps up to r; the first step behind the depth buffer (same occlusion test)
+// ends the ray: it gives the sender pixel, the direction contributes its sender's radiance
+// to indirect (if the sender faces P) and nothing to direct; a ray that leaves the radius,
+// the screen or meets only background contributes the unfiltered L_env(w) to direct. This is
+// the screen-space best case of both terms, to separate estimator error from what the
+// screen lacks (hidden surfaces, off-screen geometry, occluders farther than r).
+//
+// Occlusion test of a point S seen at pixel q: S is occluded when it lies behind the
+// surface stored at q by more than depth_bias_relative x depth(S) and by less than
+// thickness_world. The surface depth at S's exact sub-pixel position is taken from q's
+// tangent plane (position_view and normal_view of q) for perspective cameras, so flat
+// surfaces do not shadow themselves at grazing angles; the pixel's stored depth otherwise.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <opencv2/core.hpp>
+
+#include "kernels/ao.h"  // Preset
+#include "kernels/camera.h"
+#include "kernels/environment.h"
+
+namespace ssdo {
+
+enum class SsdoMethod { ssdo, oracle };
+enum class SsdoDirectEstimator {
+  per_sample,   // (1/N) sum over visible samples of the cone-filtered radiance (paper)
+  bent_normal,  // visible fraction x E_SH(bent normal) / pi: smooth, biased in corners
+};
+enum class SsdoIndirectEstimator { form_factor, solid_angle };
+
+std::string_view to_string(SsdoMethod m);
+std::optional<SsdoMethod> parse_ssdo_method(std::string_view s);
+
+struct SsdoSettings {
+  SsdoMethod method = SsdoMethod::ssdo;
+  // r_max: radius of the sampled hemisphere, scene units, (0, inf). Occluders and senders
+  // farther than this from P are not seen. 1.0 = the Cycles AO distance of the reference dumps.
+  float radius_world = 1.0f;
+  // Largest projected radius, pixels, [2, 4096]: close to the camera r shrinks so that
+  // r x pixels_per_unit <= max_radius_px (bounds the spread of the taps in memory).
+  float max_radius_px = 256.0f;
+  // N: samples per pixel (method ssdo), [1, 1024].
+  int samples = 16;
+  // Assumed thickness of every surface in the depth buffer, scene units, (0, inf]: a point
+  // farther than this behind the stored depth is not occluded (avoids dark halos around
+  // foreground objects in front of a distant background; inf = height field).
+  float thickness_world = 1.0f;
+  // Depth bias relative to the sample's depth, [0, 0.1]: rejects self-occlusion from depth
+  // quantisation (relative, so it holds for float and half-float depth alike).
+  float depth_bias_relative = 1e-3f;
+  // Multiplier of the indirect term, [0, 16]. 1 = physically based.
+  float indirect_strength = 1.0f;
+  // d_min of the form-factor estimator, scene units, [0, inf): distances below it are
+  // clamped (paper: 1). Unused by the solid-angle estimator and the oracle.
+  float sender_distance_min_world = 1.0f;
+  SsdoDirectEstimator direct_estimator = SsdoDirectEstimator::per_sample;
+  SsdoIndirectEstimator indirect_estimator = SsdoIndirectEstimator::form_factor;
+  // Oracle: g, the directions per axis of the stratified grid (g^2 directions), [1, 256],
+  // and the steps per direction, [1, 4096].
+  int oracle_grid = 16;
+  int oracle_steps = 64;
+  // Noise seed: outputs are a pure function of (inputs, settings, seed).
+  uint32_t seed = 0;
+};
+
+// The named presets (values of SsdoSettings) of each method.
+SsdoSettings ssdo_preset(SsdoMethod method, Preset preset);
+
+// Returns an empty string when the settings are valid, else what is wrong (field, value,
+// range). Called once at the boundary; the kernel only asserts.
+std::string validate(const SsdoSettings& s);
+
+struct SsdoInputs {
+  const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
+  const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals
+  const cv::Mat& position_view;  // CV_32FC3 view-space positions (view_positions_from_depth)
+  const cv::Mat& mask;           // CV_8UC1, 255 = foreground
+  const Camera& camera;
+  const Environment& environment;
+  const cv::Mat* albedo = nullptr;    // CV_32FC3 or null (= white): sender albedo
+  const cv::Mat* lighting = nullptr;  // CV_32FC3 or null: sender outgoing radiance
+};
+
+struct SsdoOutput {
+  cv::Mat direct;    // CV_32FC3, E_env / pi (see above); 0 on background
+  cv::Mat indirect;  // CV_32FC3, E_bounce / pi x indirect_strength; 0 on background
+};
+
+// Computes direct and indirect for the pixels of `roi` (empty = all). Outputs are allocated
+// at the input size when empty or of another size/type; only roi is written. Without
+// `lighting` a first pass computes direct over the whole image (the senders of roi may lie
+// anywhere on screen). The result does not depend on nthreads or roi.
+void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out,
+                  cv::Rect roi = {}, int nthreads = 0);
+
+}  // namespace ssdo
