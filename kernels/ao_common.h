@@ -107,6 +107,27 @@ inline Slice make_slice(const glm::vec3& screen_dir_view, const glm::vec3& view,
   return s;
 }
 
+// Cosine-weighted slice measure of [0, h] (h signed; the weight of the side h lies on):
+// GTAO eq. 10's inner integral, written with cos h = c (s = sin h, sign of h).
+inline float inner_integral(float h, float c, float s, float cos_n, float sin_n) {
+  // cos(2h - n) = cos 2h cos n + sin 2h sin n.
+  const float cos_2h_n = (2.0f * c * c - 1.0f) * cos_n + 2.0f * s * c * sin_n;
+  return 0.25f * (cos_n + 2.0f * h * sin_n - cos_2h_n);
+}
+
+inline float inner_integral(float h, float cos_n, float sin_n) {
+  return inner_integral(h, std::cos(h), std::sin(h), cos_n, sin_n);
+}
+
+// Antiderivatives of cos(t - n)|sin t| cos t (A) and cos(t - n)|sin t| sin t (B) on t >= 0
+// (the same expressions give the t < 0 side's integrals from 0, see the bent normal).
+inline float bent_a(float c, float s, float cos_n, float sin_n) {
+  return (-cos_n * c * c * c + sin_n * s * s * s) * (1.0f / 3.0f);
+}
+inline float bent_b(float c, float s, float cos_n, float sin_n) {
+  return (cos_n * s * s * s + sin_n * (c * c * c - 3.0f * c)) * (1.0f / 3.0f);
+}
+
 // acos with absolute error < 7e-5 rad on [-1, 1] (Abramowitz & Stegun 4.4.45, the
 // third-order polynomial in sqrt(1 - |x|)); the horizon loops call it once per tap.
 inline float fast_acos(float x) {

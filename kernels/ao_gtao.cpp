@@ -43,27 +43,6 @@
 namespace ssdo::detail {
 namespace {
 
-// Cosine-weighted slice measure of [0, h] (h signed; the weight of the side h lies on):
-// GTAO eq. 10's inner integral, written with cos h = c (s = sin h, sign of h).
-inline float inner_integral(float h, float c, float s, float cos_n, float sin_n) {
-  // cos(2h - n) = cos 2h cos n + sin 2h sin n.
-  const float cos_2h_n = (2.0f * c * c - 1.0f) * cos_n + 2.0f * s * c * sin_n;
-  return 0.25f * (cos_n + 2.0f * h * sin_n - cos_2h_n);
-}
-
-inline float inner_integral(float h, float cos_n, float sin_n) {
-  return inner_integral(h, std::cos(h), std::sin(h), cos_n, sin_n);
-}
-
-// Antiderivatives of cos(t - n)|sin t| cos t (A) and cos(t - n)|sin t| sin t (B) on t >= 0
-// (the same expressions give the t < 0 side's integrals from 0, see the bent normal).
-inline float bent_a(float c, float s, float cos_n, float sin_n) {
-  return (-cos_n * c * c * c + sin_n * s * s * s) * (1.0f / 3.0f);
-}
-inline float bent_b(float c, float s, float cos_n, float sin_n) {
-  return (cos_n * s * s * s + sin_n * (c * c * c - 3.0f * c)) * (1.0f / 3.0f);
-}
-
 constexpr int kSectors = 64;
 
 // Sets the sectors whose centres lie in [u0, u1] (fractions of the slice measure).
@@ -171,9 +150,18 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
               if (!in.mask.ptr<uint8_t>(sy)[sx]) continue;  // background: no occluder
               const glm::vec3 tap = load3(in.position_view, sx, sy);
               const glm::vec3 delta = tap - origin;
+              // A tap on or below the tangent plane cannot occlude the hemisphere (nor can
+              // the rest of its segment, which runs away from the eye, i.e. further down).
+              // Testing in 3D first matters: rounding taps to pixel centres moves them off
+              // the slice, and their slice angle alone would put tilted planes above
+              // their own tangent line.
+              if (!(glm::dot(delta, normal) > 0.0f)) continue;
               const float dist = glm::length(delta);
-              if (!(dist > 0.0f)) continue;
-              const float tap_cos = glm::dot(delta, view) / dist;
+              // The tap's angle in the slice: of its projection onto the slice plane.
+              const glm::vec3 delta_slice = delta - sl.axis * glm::dot(delta, sl.axis);
+              const float dist_slice = glm::length(delta_slice);
+              if (!(dist_slice > 0.0f)) continue;
+              const float tap_cos = glm::dot(delta_slice, view) / dist_slice;
               // Height-field horizon (also the bent normal's horizon in the mask model).
               const float w = falloff(dist);
               float& horizon_cos = side == 0 ? horizon_cos_pos : horizon_cos_neg;
@@ -193,7 +181,9 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
               const float t1 = std::min(k.thickness_world, -b + root);
               if (t1 < t0) continue;
               // Angles (unsigned, from the view vector) of the segment's two ends.
-              const glm::vec3 e0 = delta + t0 * ray, e1 = delta + t1 * ray;
+              glm::vec3 e0 = delta + t0 * ray, e1 = delta + t1 * ray;
+              e0 -= sl.axis * glm::dot(e0, sl.axis);
+              e1 -= sl.axis * glm::dot(e1, sl.axis);
               const float c0 = std::clamp(glm::dot(e0, view) / glm::length(e0), -1.0f, 1.0f);
               const float c1 = std::clamp(glm::dot(e1, view) / glm::length(e1), -1.0f, 1.0f);
               // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the

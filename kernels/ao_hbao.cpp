@@ -8,23 +8,25 @@
 // plane, taken from the normal (HBAO's tangent angle t is then 0: sin(t) = 0).
 //
 // Cosine weighting. HBAO's per-direction term sin(h) - sin(t) is the uniform solid-angle
-// measure of the occluded elevations (HBAO eq. 3). Under the cosine weight around the
-// normal, the measure of elevations [0, h] at one azimuth is
-//   int_0^h sin(e) cos(e) de / int_0^{pi/2} sin(e) cos(e) de = sin^2(h),
-// so the term becomes sin^2(h) - sin^2(t) with t = 0, accumulated per tap with the
-// distance falloff as in HBAO's attenuated form (HBAO eq. 4 with W(r) = falloff(r)):
-//   occlusion(dir) = sum_i W(r_i) (sin^2 h_i - sin^2 h_{i-1}) over taps raising the horizon.
-// The directions are uniform in screen angle phi, but the integral runs over the tangent-
-// plane azimuth psi of each direction. With gamma the angle between normal and view and
-// phi measured from the projected normal's direction in the image plane,
-// tan(psi) = cos(gamma) tan(phi), so each direction is weighted by
-//   J = d psi / d phi = cos(gamma) / (cos^2(phi) + cos^2(gamma) sin^2(phi))
-// and AO = 1 - sum J occlusion / sum J (a ratio estimator: open surfaces give exactly 1).
+// measure of the occluded elevations (HBAO eq. 3) in a direction's vertical plane. The
+// taps of a screen direction do not lie in a vertical plane, though: they lie in the plane
+// through the eye that contains the screen line (the GTAO slice; Jimenez et al. 2016,
+// Alg. 1), whose highest direction is the projected normal, not the zenith. So each
+// direction here is a half slice, and the occluded measure of slice angles beyond the
+// horizon h (from the view vector) is the cosine-weighted slice measure of GTAO eq. 10:
+//   m(h) = |pn| (cos n + 2 h sin n - cos(2 h - n)) / 4,  occluded = m(n + pi/2) - m(h),
+// the analogue of sin(h) - sin(t) with the tangent t = n + pi/2 (the tangent plane from the
+// normal). It is accumulated per tap with HBAO's attenuation (HBAO eq. 4, W = falloff):
+//   occlusion(dir) = sum_i W(r_i) (m(h_{i-1}) - m(h_i)) over taps that raise the horizon,
+// and AO = 1 - sum occlusion / sum m(n + pi/2) over directions (the half-slice weights
+// |pn| also account for screen directions covering unequal azimuths around the normal;
+// the ratio makes open surfaces exactly 1). Steps are uniform in distance (HBAO), with
+// per-pixel jitter; directions cover [0, 2 pi) independently (no paired sides).
 // The occluders are a height field (no thickness): gaps under floating objects count as
 // occluded, as in the original method.
 //
-// Bent normal: the J-weighted mean of each direction's unoccluded mid direction (halfway
-// in elevation between its horizon and the normal), normalised.
+// Bent normal: each half slice's cosine-weighted mean visible direction between its view
+// vector and its horizon (closed forms, as GTAO), weighted by |pn|, normalised.
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
 #include "kernels/noise.h"
@@ -64,16 +66,6 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
           continue;
         }
         const glm::vec3 origin = biased_origin(p, normal, depth, s.depth_bias_relative);
-        // Tilt of the tangent plane seen from the eye: cos(gamma) and the image-plane
-        // direction of the projected normal (phi is measured from it).
-        const float cos_gamma = std::clamp(glm::dot(normal, view), 0.0f, 1.0f);
-        // Back-facing normals (dot < 0) cannot be seen; clamp keeps J finite. A floor of
-        // 1e-3 (grazing beyond 89.9 deg) bounds J's peak at 1e3, far above any weight ratio
-        // that changes a result, without an infinity.
-        const float cg = std::max(cos_gamma, 1e-3f);
-        const glm::vec3 tilt = normal - glm::dot(normal, view) * view;
-        const float tilt_len = glm::length(tilt);
-        const glm::vec3 tilt_dir = tilt_len > 1e-6f ? tilt / tilt_len : glm::vec3(0.0f);
         const float angle_noise = noise01(x, y, 0, s.seed);
         const float step_noise = noise01(x, y, 1, s.seed);
 
@@ -82,13 +74,13 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
         for (int i = 0; i < directions; ++i) {
           const float phi = (float(i) + angle_noise) / float(directions) * (2.0f * kPi);
           const float dx = std::cos(phi), dy = -std::sin(phi);  // screen px, y down
-          glm::vec3 dir_view = screen_to_view(dx, dy);
-          dir_view = glm::normalize(dir_view - glm::dot(dir_view, view) * view);
-          const float cos_phi = glm::dot(dir_view, tilt_dir);  // 0 when facing the eye
-          const float sin2_phi = 1.0f - cos_phi * cos_phi;
-          const float jacobian = cg / (cos_phi * cos_phi + cg * cg * sin2_phi);
-
-          float sin2_horizon = 0.0f;  // the tangent plane: sin^2(t) = 0
+          const Slice sl = make_slice(screen_to_view(dx, dy), view, normal);
+          const float cos_n = sl.cos_n, sin_n = std::sin(sl.n);
+          const float tangent = sl.n + kHalfPi;  // tangent-plane angle on this side
+          const float m_tangent = inner_integral(tangent, cos_n, sin_n);
+          float horizon_cos = std::cos(tangent);
+          float m_horizon = m_tangent;
+          float horizon = tangent;
           float occlusion = 0.0f;
           for (int j = 0; j < steps; ++j) {
             float t = step_noise + float(j) * 0.618033988749895f;  // R1 offsets per step
@@ -100,26 +92,29 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
             if (sx < 0 || sy < 0 || sx >= width || sy >= height) break;  // left the image
             if (!in.mask.ptr<uint8_t>(sy)[sx]) continue;  // background: no occluder
             const glm::vec3 delta = load3(in.position_view, sx, sy) - origin;
-            const float dist2 = glm::dot(delta, delta);
-            if (!(dist2 > 0.0f)) continue;
-            const float elevation_dot = glm::dot(delta, normal);
-            if (elevation_dot <= 0.0f) continue;  // below the tangent plane
-            const float sin2 = elevation_dot * elevation_dot / dist2;
-            if (sin2 > sin2_horizon) {
-              occlusion += falloff(std::sqrt(dist2)) * (sin2 - sin2_horizon);
-              sin2_horizon = sin2;
-            }
+            // On or below the tangent plane: cannot occlude (tested in 3D: rounding to
+            // pixel centres moves taps off the slice, see ao_gtao.cpp).
+            if (!(glm::dot(delta, normal) > 0.0f)) continue;
+            const glm::vec3 delta_slice = delta - sl.axis * glm::dot(delta, sl.axis);
+            const float len = glm::length(delta_slice);
+            if (!(len > 0.0f)) continue;
+            const float c = glm::dot(delta_slice, view) / len;
+            if (c <= horizon_cos) continue;
+            horizon_cos = c;
+            const float h = fast_acos(c);
+            const float m = inner_integral(h, c, std::sqrt(std::max(0.0f, 1.0f - c * c)), cos_n, sin_n);
+            occlusion += falloff(glm::length(delta)) * (m_horizon - m);
+            m_horizon = m;
+            horizon = h;
           }
-          occlusion_sum += jacobian * occlusion;
-          weight_sum += jacobian;
-          // Unoccluded mid direction: elevation halfway between the horizon and the zenith.
-          const glm::vec3 along = dir_view - glm::dot(dir_view, normal) * normal;
-          const float along_len = glm::length(along);
-          // A direction along the normal (edge-on surface) has no tangent azimuth.
-          const glm::vec3 tangent = along_len > 1e-6f ? along / along_len : glm::vec3(0.0f);
-          const float h = std::asin(std::sqrt(std::min(sin2_horizon, 1.0f)));
-          const float e = 0.5f * (h + kHalfPi);
-          bent += jacobian * (1.0f - occlusion) * (std::cos(e) * tangent + std::sin(e) * normal);
+          const float pn_len = sl.projected_normal_length;
+          occlusion_sum += pn_len * occlusion;
+          weight_sum += pn_len * m_tangent;
+          // Bent normal over the visible part [0, horizon] of this half slice.
+          const float ch = std::cos(horizon), sh = std::sin(horizon);
+          const float along_view = bent_a(ch, sh, cos_n, sin_n) - bent_a(1.0f, 0.0f, cos_n, sin_n);
+          const float along_dir = bent_b(ch, sh, cos_n, sin_n) - bent_b(1.0f, 0.0f, cos_n, sin_n);
+          bent += pn_len * (along_view * view + along_dir * sl.direction);
         }
         float ao = weight_sum > 0.0f ? 1.0f - occlusion_sum / weight_sum : 1.0f;
         ao = std::clamp(ao, 0.0f, 1.0f);
