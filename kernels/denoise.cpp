@@ -22,6 +22,19 @@ void bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& nor
   float g[2 * kMaxRadiusPx + 1];
   for (int k = -R; k <= R; ++k) g[k + R] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
   const float power = s.normal_power;
+  // Integer powers (the default 16) by repeated squaring: std::pow per tap costs more than
+  // the rest of the weight together.
+  const bool integer_power = power == std::floor(power);
+  const unsigned ipower = integer_power ? unsigned(power) : 0u;
+  auto lobe = [&](float c) -> float {
+    if (!integer_power) return std::pow(c, power);
+    float result = 1.0f, base = c;
+    for (unsigned e = ipower; e; e >>= 1) {
+      if (e & 1u) result *= base;
+      base *= base;
+    }
+    return result;
+  };
   const float inv_tol = 1.0f / s.depth_tolerance_relative;
 
   // Range weight of a tap against a centre (depth d, normal n): hard-cut linear depth
@@ -33,7 +46,7 @@ void bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& nor
     if (!(wd > 0.0f)) return 0.0f;
     const float cosn = n.dot(normal_view.ptr<cv::Vec3f>(ty)[tx]);
     if (!(cosn > 0.0f)) return 0.0f;
-    return wd * (power == 0.0f ? 1.0f : std::pow(cosn, power));
+    return wd * lobe(cosn);
   };
 
   // Pass 1 (horizontal) over the rows the vertical pass reads, roi columns only.
