@@ -346,6 +346,14 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
   std::map<int, Imf::FrameBuffer> buffers;
   std::map<std::string, cv::Mat*> read_into;
   std::vector<std::pair<cv::Mat*, cv::Mat*>> aliases;  // (alias, image read)
+  std::map<std::string, std::pair<cv::Mat*, int>> first_use;  // "part:channel" -> image, component
+  struct Copy {
+    cv::Mat* from;
+    int from_component;
+    cv::Mat* to;
+    int to_component;
+  };
+  std::vector<Copy> copies;
   const Imath::Box2i window(Imath::V2i(prep.data.min_x, prep.data.min_y),
                             Imath::V2i(prep.data.max_x, prep.data.max_y));
   for (const auto& r : prep.channels.inputs) {
@@ -368,10 +376,19 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
     read_into[key] = target;
     const int n = int(r.channels.size());
     target->create(size, CV_32FC(n));
-    for (int c = 0; c < n; ++c)
+    for (int c = 0; c < n; ++c) {
+      // A channel already read for another input (a mapped reference on one component of
+      // the lighting layer, say) is copied after reading.
+      const std::string channel_key = std::to_string(r.part) + ":" + r.channels[c];
+      if (auto it = first_use.find(channel_key); it != first_use.end()) {
+        copies.push_back({it->second.first, it->second.second, target, c});
+        continue;
+      }
+      first_use[channel_key] = {target, c};
       buffers[r.part].insert(r.channels[c],
                              Imf::Slice::Make(Imf::FLOAT, target->ptr<float>() + c, window,
                                               sizeof(float) * n, target->step[0]));
+    }
   }
   for (auto& [part, fb] : buffers) {
     if (!prep.file->partComplete(part))
@@ -380,6 +397,10 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
     Imf::InputPart in(*prep.file, part);
     in.setFrameBuffer(fb);
     in.readPixels(prep.data.min_y, prep.data.max_y);
+  }
+  for (const Copy& c : copies) {
+    const int pair[2] = {c.from_component, c.to_component};
+    cv::mixChannels(c.from, 1, c.to, 1, pair, 1);
   }
   for (auto& [alias, source] : aliases) *alias = *source;
 }

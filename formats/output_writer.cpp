@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <random>
 #include <optional>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -16,6 +16,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
+#include <Imath/half.h>
 #include <OpenImageIO/imageio.h>
 
 #include "formats/camera_io.h"
@@ -166,12 +167,26 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
     if (camera.far_view > 0.0f)
       header.insert(kClipFarAttribute, Imf::FloatAttribute(camera.far_view));
 
+    // OpenEXR writes a slice only into a channel of the same pixel type, so half terms are
+    // converted into an interleaved half buffer first; float terms are written in place.
     Imf::FrameBuffer fb;
+    std::vector<std::vector<half>> half_buffers;
     for (const auto& t : terms) {
       const auto channels = channel_names(t);
       const int n = t.image.channels();
+      if (t.type == SampleType::half) {
+        std::vector<half>& buffer = half_buffers.emplace_back(size_t(size.area()) * n);
+        for (int y = 0; y < size.height; ++y) {
+          const float* row = t.image.ptr<float>(y);
+          half* out = buffer.data() + size_t(y) * size.width * n;
+          for (int i = 0; i < size.width * n; ++i) out[i] = half(row[i]);
+        }
+        for (int c = 0; c < n; ++c)
+          fb.insert(channels[c], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(buffer.data() + c),
+                                            sizeof(half) * n, sizeof(half) * n * size.width));
+        continue;
+      }
       for (int c = 0; c < n; ++c)
-        // OpenEXR converts the float slices to half for half channels.
         fb.insert(channels[c],
                   Imf::Slice(Imf::FLOAT,
                              const_cast<char*>(reinterpret_cast<const char*>(

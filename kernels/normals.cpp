@@ -8,20 +8,31 @@ namespace ssdo {
 
 namespace {
 
-// Chooses the side of pixel `c` along one axis: returns -1 (previous), +1 (next) or 0
-// (no valid neighbour). q[k] is the screen-affine depth quantity at offset k - 2, valid[k]
-// says whether that tap is in the image and in the mask.
-int choose_side(const float q[5], const bool valid[5]) {
+// What a pixel's tangent along one axis is built from.
+enum Side { kNone = 0, kPrevious = -1, kNext = +1, kCentral = 2 };
+
+// Chooses the difference for pixel `c` along one axis. q[k] is the screen-affine depth
+// quantity at offset k - 2, valid[k] says whether that tap is in the image and in the mask.
+Side choose_side(const float q[5], const bool valid[5]) {
   const bool prev1 = valid[1], next1 = valid[3];
-  if (!prev1 && !next1) return 0;
-  if (!prev1) return +1;
-  if (!next1) return -1;
+  if (!prev1 && !next1) return kNone;
+  if (!prev1) return kNext;
+  if (!next1) return kPrevious;
   if (valid[0] && valid[4]) {
     const float err_prev = std::abs(2.0f * q[1] - q[0] - q[2]);
     const float err_next = std::abs(2.0f * q[3] - q[4] - q[2]);
-    return err_next <= err_prev ? +1 : -1;
+    // Both sides continue the surface equally well (a plane, or a smooth curved surface
+    // whose two extrapolation errors are both curvature terms of similar size): the
+    // central difference is second-order accurate there. Across a depth edge or a crease
+    // one error is far larger than the other and the one-sided difference on the good
+    // side is taken. kRoundoff covers float rounding of q on planes (errors ~1e-7 q).
+    constexpr float kAgreement = 2.0f;
+    const float roundoff = 1e-5f * std::abs(q[2]);
+    if (err_prev <= kAgreement * err_next + roundoff && err_next <= kAgreement * err_prev + roundoff)
+      return kCentral;
+    return err_next <= err_prev ? kNext : kPrevious;
   }
-  return std::abs(q[3] - q[2]) <= std::abs(q[1] - q[2]) ? +1 : -1;
+  return std::abs(q[3] - q[2]) <= std::abs(q[1] - q[2]) ? kNext : kPrevious;
 }
 
 }  // namespace
@@ -63,16 +74,20 @@ void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& ma
           vy[k] = tap_valid(x, y + k - 2);
           qy[k] = vy[k] ? screen_affine(depth_view.at<float>(y + k - 2, x)) : 0.0f;
         }
-        const int side_x = choose_side(qx, vx);
-        const int side_y = choose_side(qy, vy);
+        const Side side_x = choose_side(qx, vx);
+        const Side side_y = choose_side(qy, vy);
         const glm::vec3 p = position(x, y);
         const glm::vec3 eye_ray =
             perspective ? glm::normalize(p) : glm::vec3(0.0f, 0.0f, -1.0f);
         glm::vec3 n = -eye_ray;
-        if (side_x != 0 && side_y != 0) {
-          // Tangents oriented along +x and +y pixel directions (+y = down the image).
-          const glm::vec3 t_x = float(side_x) * (position(x + side_x, y) - p);
-          const glm::vec3 t_y = float(side_y) * (position(x, y + side_y) - p);
+        if (side_x != kNone && side_y != kNone) {
+          // Tangents oriented along the +x and +y pixel directions (+y = down the image).
+          const glm::vec3 t_x = side_x == kCentral
+                                    ? position(x + 1, y) - position(x - 1, y)
+                                    : float(side_x) * (position(x + side_x, y) - p);
+          const glm::vec3 t_y = side_y == kCentral
+                                    ? position(x, y + 1) - position(x, y - 1)
+                                    : float(side_y) * (position(x, y + side_y) - p);
           const glm::vec3 c = glm::cross(t_y, t_x);
           const float len = glm::length(c);
           if (len > 0.0f && std::isfinite(len)) n = c / len;

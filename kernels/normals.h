@@ -19,7 +19,10 @@ namespace ssdo {
 // |2 q(+-1) - q(+-2) - q(0)| (second-order extrapolation error, as in "accurate view-space
 // normal reconstruction" by comparing one-sided slopes), where q = 1/depth for perspective
 // cameras (1/depth is affine in screen space over a plane, so a plane scores exactly 0)
-// and q = depth for orthographic ones. Where a side lacks its second neighbour, the
+// and q = depth for orthographic ones. When the two errors agree within a factor of 2
+// (a plane, or a smooth surface where both are curvature terms) the central difference is
+// used instead: second-order accurate, and it cannot straddle an edge, since an edge makes
+// one error far larger than the other. Where a side lacks its second neighbour, the
 // smaller first difference |q(+-1) - q(0)| decides. n = cross(t_y, t_x), flipped to face
 // the eye. A pixel with no valid neighbour on an axis gets the normal facing the eye
 // (-view ray), the only unbiased guess.

@@ -1,0 +1,150 @@
+// Camera sources: sidecar parsing, data window re-targeting, OpenEXR header matrices in
+// both camera conventions.
+#include "formats/camera_io.h"
+
+#include "formats_test_util.h"
+
+namespace ssdo::test {
+namespace {
+
+void expect_mat_near(const glm::mat4& a, const glm::mat4& b, float tol) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) EXPECT_NEAR(a[c][r], b[c][r], tol) << "[" << c << "][" << r << "]";
+}
+
+Camera posed_camera(int w, int h, float fov) {
+  Camera cam = Camera::from_fov_x(w, h, fov, 0.05f, 1000.0f);
+  glm::mat4 v2w(1.0f);
+  const float a = glm::radians(-20.0f);  // pitch down 20 degrees
+  v2w[1] = glm::vec4(0, std::cos(a), std::sin(a), 0);
+  v2w[2] = glm::vec4(0, -std::sin(a), std::cos(a), 0);
+  v2w[3] = glm::vec4(1, 2, 3, 1);
+  cam.view_to_world = v2w;
+  cam.world_to_view = glm::inverse(v2w);
+  return cam;
+}
+
+TEST(CameraSidecar, CornellMatchesTheJsonRowMajorMatrices) {
+  const fs::path path = gbuffer_dir() / "cornell.camera.json";
+  SSDO_SKIP_WITHOUT(path);
+  std::string error;
+  const auto s = read_camera_sidecar(path.string(), &error);
+  ASSERT_TRUE(s) << error;
+  EXPECT_EQ(s->width_px, 640);
+  EXPECT_EQ(s->height_px, 360);
+  // JSON projection[0][0] = 1.5697 (row 0, col 0); [2][3] = -0.100005 is row 2, column 3,
+  // i.e. glm m[3][2].
+  EXPECT_FLOAT_EQ(s->camera.view_to_clip[0][0], 1.569685459136963f);
+  EXPECT_FLOAT_EQ(s->camera.view_to_clip[3][2], -0.10000500082969666f);
+  EXPECT_FLOAT_EQ(s->camera.view_to_clip[2][3], -1.0f);
+  // world_to_camera row 1 column 3 (translation y) = -1.4569944.
+  EXPECT_FLOAT_EQ(s->camera.world_to_view[3][1], -1.4569944143295288f);
+  EXPECT_FLOAT_EQ(s->camera.view_to_world[3][1], -3.0f);
+  EXPECT_FLOAT_EQ(s->camera.near_view, 0.05f);
+  EXPECT_FLOAT_EQ(s->camera.far_view, 1000.0f);
+  EXPECT_EQ(s->depth_kind.value_or(""), "planar");
+  EXPECT_FLOAT_EQ(s->ao_distance_world.value_or(0), 1.0f);
+  EXPECT_FLOAT_EQ(s->background_depth.value_or(0), 1e10f);
+  // The camera at (0, -3, 1.5) maps to the view-space origin.
+  const glm::vec3 eye = s->camera.view_from_world_point({0.0f, -3.0f, 1.5f});
+  EXPECT_NEAR(glm::length(eye), 0.0f, 1e-5f);
+}
+
+TEST(CameraSidecar, MalformedSidecarsNameTheField) {
+  ScratchDir dir;
+  std::string error;
+  EXPECT_FALSE(read_camera_sidecar((dir / "none.json").string(), &error));
+  EXPECT_NE(error.find("none.json"), std::string::npos);
+  std::ofstream(dir / "bad.json") << "{ not json";
+  EXPECT_FALSE(read_camera_sidecar((dir / "bad.json").string(), &error));
+  EXPECT_NE(error.find("not a JSON object"), std::string::npos) << error;
+  std::ofstream(dir / "noproj.json") << R"({"width": 4, "height": 4})";
+  EXPECT_FALSE(read_camera_sidecar((dir / "noproj.json").string(), &error));
+  EXPECT_NE(error.find("\"projection\""), std::string::npos) << error;
+  std::ofstream(dir / "short.json")
+      << R"({"projection": [[1,0,0],[0,1,0],[0,0,1]], "world_to_camera": [], "width": 4, "height": 4})";
+  EXPECT_FALSE(read_camera_sidecar((dir / "short.json").string(), &error));
+  EXPECT_NE(error.find("\"projection\""), std::string::npos) << error;
+}
+
+TEST(CameraSidecar, PathBesideTheFrame) {
+  EXPECT_EQ(sidecar_path_for("/a/b/shot.0001.exr"), "/a/b/shot.0001.camera.json");
+  EXPECT_EQ(sidecar_path_for("cornell.exr"), "cornell.camera.json");
+}
+
+TEST(ProjectionForDataWindow, IdentityAndCropKeepRays) {
+  const Camera full = Camera::from_fov_x(100, 80, 60.0f);
+  const PixelBox display{0, 0, 99, 79};
+  expect_mat_near(projection_for_data_window(full.view_to_clip, display, display), full.view_to_clip, 0);
+  // A crop 30 x 20 at (50, 10) and an overscan 120 x 100 at (-10, -10).
+  for (const PixelBox data : {PixelBox{50, 10, 79, 29}, PixelBox{-10, -10, 109, 89}}) {
+    Camera crop = full;
+    crop.width_px = int(data.width());
+    crop.height_px = int(data.height());
+    crop.view_to_clip = projection_for_data_window(full.view_to_clip, display, data);
+    for (const glm::vec2 px : {glm::vec2(0.5f, 0.5f), glm::vec2(13.25f, 7.75f)}) {
+      const glm::vec3 a = crop.view_from_pixel_depth(px, 2.0f);
+      const glm::vec3 b = full.view_from_pixel_depth(px + glm::vec2(data.min_x, data.min_y), 2.0f);
+      EXPECT_NEAR(glm::length(a - b), 0.0f, 1e-5f);
+    }
+  }
+}
+
+TEST(HeaderMatrices, WrittenMatricesReadBackToTheSameCamera) {
+  const Camera cam = posed_camera(64, 48, 70.0f);
+  const ExrCameraMatrices m = exr_matrices_from_camera(cam);
+  // The OpenEXR convention: a point in front of the camera has positive camera z.
+  const glm::vec3 front_world = cam.world_from_view_direction({0, 0, -1}) * 5.0f +
+                                glm::vec3(cam.view_to_world[3]);
+  EXPECT_GT((m.world_to_camera * glm::vec4(front_world, 1.0f)).z, 0.0f);
+  // NDC (0, 0) is the upper-left corner: the top-left pixel centre projects near it.
+  const glm::vec3 p = glm::vec3(cam.view_to_world * glm::vec4(cam.view_from_pixel_depth({0.5f, 0.5f}, 3.0f), 1.0f));
+  const glm::vec4 q = m.world_to_ndc * glm::vec4(p, 1.0f);
+  EXPECT_NEAR(q.x / q.w, 0.5f / 64.0f, 1e-5f);
+  EXPECT_NEAR(q.y / q.w, 0.5f / 48.0f, 1e-5f);
+
+  const PixelBox box{0, 0, 63, 47};
+  std::string error, note;
+  const auto back = camera_from_exr_matrices(m, box, box, 0.05f, 1000.0f, &error, &note);
+  ASSERT_TRUE(back) << error;
+  EXPECT_NE(note.find("+Z"), std::string::npos) << note;
+  expect_mat_near(back->view_to_clip, cam.view_to_clip, 1e-5f);
+  expect_mat_near(back->world_to_view, cam.world_to_view, 1e-5f);
+}
+
+TEST(HeaderMatrices, MinusZCameraAndMirroredAxesAreDetected) {
+  const Camera cam = posed_camera(64, 48, 50.0f);
+  const ExrCameraMatrices exr = exr_matrices_from_camera(cam);
+  const PixelBox box{0, 0, 63, 47};
+  // -Z camera (our view space stored as is), and one with camera y pointing down.
+  glm::mat4 flip_y(1.0f);
+  flip_y[1][1] = -1.0f;
+  for (const glm::mat4& camera_from_view : {glm::mat4(1.0f), flip_y}) {
+    ExrCameraMatrices m = exr;
+    m.world_to_camera = camera_from_view * cam.world_to_view;
+    std::string error, note;
+    const auto back = camera_from_exr_matrices(m, box, box, 0.0f, 0.0f, &error, &note);
+    ASSERT_TRUE(back) << error;
+    EXPECT_NE(note.find("-Z"), std::string::npos) << note;
+    expect_mat_near(back->world_to_view, cam.world_to_view, 1e-5f);
+    for (int c = 0; c < 4; ++c)
+      for (int r : {0, 1, 3}) EXPECT_NEAR(back->view_to_clip[c][r], cam.view_to_clip[c][r], 1e-5f);
+    EXPECT_EQ(back->near_view, 0.0f);  // unknown clips stay unknown
+  }
+}
+
+TEST(HeaderMatrices, SingularMatricesAreErrors) {
+  ExrCameraMatrices m;
+  m.world_to_camera = glm::mat4(0.0f);
+  const PixelBox box{0, 0, 9, 9};
+  std::string error, note;
+  EXPECT_FALSE(camera_from_exr_matrices(m, box, box, 0, 0, &error, &note));
+  EXPECT_NE(error.find("singular"), std::string::npos) << error;
+  m.world_to_camera = glm::mat4(1.0f);
+  m.world_to_ndc = glm::mat4(1.0f);
+  m.world_to_ndc[3][3] = 0.0f;  // w = 0 everywhere
+  EXPECT_FALSE(camera_from_exr_matrices(m, box, box, 0, 0, &error, &note));
+}
+
+}  // namespace
+}  // namespace ssdo::test

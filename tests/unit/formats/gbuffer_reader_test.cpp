@@ -1,0 +1,721 @@
+// read_gbuffer / inspect_gbuffer on the shared Cycles dumps, on frames written here, on the
+// OpenEXR conformance files and on every kind of bad input.
+#include "formats/gbuffer_reader.h"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+#include "formats_test_util.h"
+#include "kernels/positions.h"
+
+namespace ssdo::test {
+namespace {
+
+bool contains(const std::string& s, const std::string& part) {
+  return s.find(part) != std::string::npos;
+}
+
+// Largest relative error |a - b| / |b| over foreground pixels, and how many pixels exceed
+// `limit`.
+struct RelError {
+  double max = 0;
+  int64_t over = 0, checked = 0;
+};
+RelError compare_positions(const cv::Mat& a, const cv::Mat& b, const cv::Mat& mask, double limit) {
+  RelError e;
+  for (int y = 0; y < a.rows; ++y)
+    for (int x = 0; x < a.cols; ++x) {
+      if (!mask.at<uint8_t>(y, x)) continue;
+      const cv::Vec3f pa = a.at<cv::Vec3f>(y, x), pb = b.at<cv::Vec3f>(y, x);
+      const double rel = cv::norm(pa - pb) / std::max(1e-12, cv::norm(pb));
+      e.max = std::max(e.max, rel);
+      e.over += rel > limit ? 1 : 0;
+      ++e.checked;
+    }
+  return e;
+}
+
+// Positions from the frame's world-space Position pass, to view space with the sidecar's
+// world_to_camera (read here, independently of the reader).
+cv::Mat file_positions_view(const fs::path& exr, const glm::mat4& world_to_camera,
+                            const std::string& prefix) {
+  int w = 0, h = 0;
+  const auto p = read_channels_oiio(exr, {prefix + "X", prefix + "Y", prefix + "Z"}, 0, &w, &h);
+  cv::Mat out(h, w, CV_32FC3);
+  for (int i = 0; i < w * h; ++i) {
+    const glm::vec4 v = world_to_camera * glm::vec4(p[3 * i], p[3 * i + 1], p[3 * i + 2], 1.0f);
+    out.at<cv::Vec3f>(i / w, i % w) = cv::Vec3f(v.x, v.y, v.z);
+  }
+  return out;
+}
+
+std::vector<fs::path> shared_frames() {
+  std::vector<fs::path> frames;
+  for (const auto& e : fs::directory_iterator(gbuffer_dir()))
+    if (e.path().extension() == ".exr") frames.push_back(e.path());
+  std::sort(frames.begin(), frames.end());
+  return frames;
+}
+
+// ---------------------------------------------------------------------------------------
+// The shared Cycles dumps.
+
+TEST(SharedFrames, EveryFrameReadsAsBlenderWithSidecarCameraAndPositionsMatchDepth) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir());
+  int frames_checked = 0;
+  for (const fs::path& exr : shared_frames()) {
+    SCOPED_TRACE(exr.string());
+    fs::path sidecar = exr;
+    sidecar.replace_extension(".camera.json");
+    ReadOptions options;
+    options.read_positions = true;
+    const ReadResult r = read_gbuffer(exr.string(), options);
+    if (!fs::exists(sidecar)) {
+      // env_equirect.exr: an environment map, no G-buffer. The error names what is missing.
+      ASSERT_FALSE(r.ok());
+      EXPECT_TRUE(contains(r.error, exr.string())) << r.error;
+      EXPECT_TRUE(contains(r.error, "depth")) << r.error;
+      EXPECT_TRUE(contains(r.error, "R, G, B") || contains(r.error, "B, G, R")) << r.error;
+      continue;
+    }
+    ASSERT_TRUE(r.ok()) << r.error;
+    const nlohmann::json side = read_json(sidecar);
+    const GBuffer& g = r.gbuffer;
+    EXPECT_EQ(r.info.profile, "blender");
+    EXPECT_EQ(r.info.layer, "ViewLayer");
+    EXPECT_EQ(r.info.camera_source, "sidecar " + sidecar.string());
+    EXPECT_EQ(r.info.depth_kind, "planar");
+    EXPECT_FALSE(r.info.normals_reconstructed);
+    EXPECT_EQ(g.width_px(), side["width"].get<int>());
+    EXPECT_EQ(g.height_px(), side["height"].get<int>());
+    EXPECT_NEAR(g.camera.fov_x_deg(), side["fov_x_deg"].get<double>(), 1e-3);
+    EXPECT_NEAR(g.camera.fov_y_deg(), side["fov_y_deg"].get<double>(), 1e-3);
+    ASSERT_TRUE(r.info.ao_distance_world.has_value());
+    EXPECT_FLOAT_EQ(*r.info.ao_distance_world, 1.0f);
+
+    // Background (depth 1e10) is masked, never geometry; the counts add up.
+    const int64_t background = side["verification"]["background_pixels"].get<int64_t>();
+    EXPECT_EQ(r.info.foreground_pixels + r.info.masked_pixels, int64_t(g.width_px()) * g.height_px());
+    EXPECT_EQ(r.info.foreground_pixels, cv::countNonZero(g.mask));
+    // Masked: exactly the pixels with background depth (1e10; anything beyond clip_far would
+    // be masked too, there is none). The sidecar's own count differs by a few pixels.
+    const auto raw_depth = read_channels_oiio(exr, {"ViewLayer.Depth.Z"});
+    const float clip_far = side["clip_far"].get<float>();
+    int64_t beyond_far = 0, exactly_background = 0;
+    for (float d : raw_depth) {
+      beyond_far += d > clip_far ? 1 : 0;
+      exactly_background += d == 1e10f ? 1 : 0;
+    }
+    EXPECT_EQ(r.info.masked_pixels, exactly_background);
+    EXPECT_EQ(r.info.masked_pixels, beyond_far);
+    EXPECT_NEAR(double(r.info.masked_pixels), double(background), raw_depth.size() / 1000.0);
+    EXPECT_EQ(r.info.nonfinite_pixels, 0);
+    const auto range = side["verification"]["depth_range_valid"];
+    EXPECT_NEAR(r.info.depth_min_view, range[0].get<float>(), 1e-4);
+    EXPECT_NEAR(r.info.depth_max_view, range[1].get<float>(), 1e-4);
+
+    // Acceptance: view positions from depth + camera equal the Position pass in view space
+    // (sidecar world_to_camera) within 1e-3 relative on every foreground pixel.
+    cv::Mat from_depth;
+    view_positions_from_depth(g.depth_view, g.mask, g.camera, from_depth);
+    const cv::Mat from_file =
+        file_positions_view(exr, json_matrix(side["world_to_camera"]), "ViewLayer.Position.");
+    const RelError e = compare_positions(from_depth, from_file, g.mask, 1e-3);
+    EXPECT_GT(e.checked, 1000);
+    EXPECT_EQ(e.over, 0) << "max relative error " << e.max;
+    // The reader's own conversion of the Position pass agrees too.
+    const RelError e2 = compare_positions(g.position_view, from_file, g.mask, 1e-5);
+    EXPECT_EQ(e2.over, 0) << "max relative error " << e2.max;
+
+    // Normals: unit, facing the camera, zero on the background.
+    int64_t bad_normals = 0;
+    for (int y = 0; y < g.height_px(); ++y)
+      for (int x = 0; x < g.width_px(); ++x) {
+        const cv::Vec3f n = g.normal_view.at<cv::Vec3f>(y, x);
+        if (!g.mask.at<uint8_t>(y, x)) {
+          bad_normals += cv::norm(n) != 0.0 ? 1 : 0;
+          continue;
+        }
+        const cv::Vec3f p = from_depth.at<cv::Vec3f>(y, x);
+        bad_normals += std::abs(cv::norm(n) - 1.0) > 1e-4 || n.dot(p) > 0.0f ? 1 : 0;
+        EXPECT_TRUE(std::isinf(g.depth_view.at<float>(y, x)) == false);
+      }
+    EXPECT_EQ(bad_normals, 0);
+    ++frames_checked;
+  }
+  EXPECT_GE(frames_checked, 4);
+}
+
+TEST(SharedFrames, LightingIsAlbedoTimesDirectAndReferencesAreRead) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.exr");
+  const fs::path exr = gbuffer_dir() / "cornell.exr";
+  const ReadResult r = read_gbuffer(exr.string());
+  ASSERT_TRUE(r.ok()) << r.error;
+  const GBuffer& g = r.gbuffer;
+  ASSERT_EQ(g.albedo.type(), CV_32FC3);
+  ASSERT_EQ(g.lighting.type(), CV_32FC3);
+  ASSERT_EQ(g.references.count("AO"), 1u);
+  ASSERT_EQ(g.references.count("DiffDir"), 1u);
+  ASSERT_EQ(g.references.count("DiffInd"), 1u);
+  EXPECT_EQ(g.references.at("AO").type(), CV_32FC1);
+  EXPECT_EQ(g.references.at("DiffInd").type(), CV_32FC3);
+  const auto col = read_channels_oiio(exr, {"ViewLayer.DiffCol.R", "ViewLayer.DiffCol.G", "ViewLayer.DiffCol.B"});
+  const auto dir = read_channels_oiio(exr, {"ViewLayer.DiffDir.R", "ViewLayer.DiffDir.G", "ViewLayer.DiffDir.B"});
+  const auto ao = read_channels_oiio(exr, {"ViewLayer.AO.R"});
+  for (int i : {0, 1000, 640 * 180 + 320, 640 * 300 + 100}) {
+    const int y = i / 640, x = i % 640;
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_FLOAT_EQ(g.albedo.at<cv::Vec3f>(y, x)[c], col[3 * i + c]);
+      EXPECT_FLOAT_EQ(g.references.at("DiffDir").at<cv::Vec3f>(y, x)[c], dir[3 * i + c]);
+      EXPECT_FLOAT_EQ(g.lighting.at<cv::Vec3f>(y, x)[c], col[3 * i + c] * dir[3 * i + c]);
+    }
+    EXPECT_FLOAT_EQ(g.references.at("AO").at<float>(y, x), ao[i]);
+  }
+  bool lighting_listed = false;
+  for (const auto& u : r.info.uses) lighting_listed |= u.input == "lighting";
+  EXPECT_TRUE(lighting_listed);
+}
+
+TEST(SharedFrames, InspectReadsTheHeaderOnly) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "greeble.exr");
+  const ReadResult r = inspect_gbuffer((gbuffer_dir() / "greeble.exr").string());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.gbuffer.depth_view.empty());
+  EXPECT_EQ(r.info.width_px, 640);
+  EXPECT_EQ(r.info.height_px, 360);
+  EXPECT_EQ(r.info.profile, "blender");
+  EXPECT_EQ(r.info.channels.size(), 26u);
+  EXPECT_TRUE(contains(r.info.channels[0], "(half)")) << r.info.channels[0];
+  EXPECT_NEAR(r.info.fov_x_deg, 50.0, 1e-3);
+  EXPECT_EQ(r.gbuffer.camera.width_px, 640);
+  ASSERT_FALSE(r.info.uses.empty());
+  EXPECT_EQ(r.info.uses[0].input, "depth");
+  EXPECT_EQ(r.info.uses[0].channels, "ViewLayer.Depth.Z");
+  EXPECT_EQ(r.info.uses[1].channels, "ViewLayer.Normal.{X,Y,Z}");
+  EXPECT_EQ(r.info.uses[1].space, "world");
+}
+
+TEST(SharedFrames, ReadTimeOfPerf1080) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "perf1080.exr");
+  const std::string path = (gbuffer_dir() / "perf1080.exr").string();
+  ReadOptions lean;  // depth + normals + albedo
+  lean.read_lighting = false;
+  lean.read_references = false;
+  lean.threads = 2;
+  ReadOptions all;
+  all.read_positions = true;
+  all.threads = 2;
+  for (const auto& [name, options] : {std::pair{"depth+normals+albedo", lean}, std::pair{"all passes", all}}) {
+    double best_ms = 1e9;
+    for (int k = 0; k < 3; ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const ReadResult r = read_gbuffer(path, options);
+      const auto t1 = std::chrono::steady_clock::now();
+      ASSERT_TRUE(r.ok()) << r.error;
+      best_ms = std::min(best_ms, std::chrono::duration<double, std::milli>(t1 - t0).count());
+    }
+    RecordProperty(std::string("read_ms_") + (name[0] == 'd' ? "lean" : "all"), int(best_ms));
+    std::printf("perf1080.exr %s: %.1f ms (best of 3, 2 threads)\n", name, best_ms);
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Camera from worldToCamera / worldToNDC header attributes only.
+
+// Rewrites a shared frame as generic channels Z + P.{X,Y,Z} (world) with the camera only in
+// the header. camera_looks_down_plus_z: OpenEXR/RenderMan convention (left-handed camera
+// space) or the right-handed -Z convention Blender- and Arnold-style writers use.
+void check_header_camera_frame(const std::string& scene, bool camera_looks_down_plus_z) {
+  const fs::path exr = gbuffer_dir() / (scene + ".exr");
+  fs::path sidecar = exr;
+  sidecar.replace_extension(".camera.json");
+  const nlohmann::json side = read_json(sidecar);
+  const glm::mat4 world_to_camera = json_matrix(side["world_to_camera"]);
+  const glm::mat4 projection = json_matrix(side["projection"]);
+  int w = 0, h = 0;
+  const auto depth = read_channels_oiio(exr, {"ViewLayer.Depth.Z"}, 0, &w, &h);
+  const auto pos = read_channels_oiio(exr, {"ViewLayer.Position.X", "ViewLayer.Position.Y", "ViewLayer.Position.Z"});
+  TestExr t;
+  t.width = w;
+  t.height = h;
+  t.channels = {{"Z", OIIO::TypeDesc::FLOAT, depth},
+                {"P.X", OIIO::TypeDesc::FLOAT, {}},
+                {"P.Y", OIIO::TypeDesc::FLOAT, {}},
+                {"P.Z", OIIO::TypeDesc::FLOAT, {}}};
+  for (int i = 0; i < w * h; ++i)
+    for (int c = 0; c < 3; ++c) t.channels[1 + c].values.push_back(pos[3 * i + c]);
+  // OpenGL NDC -> OpenEXR NDC (u right, v down, [0, 1] over the display window).
+  glm::mat4 uv_from_gl(1.0f);
+  uv_from_gl[0][0] = 0.5f;
+  uv_from_gl[3][0] = 0.5f;
+  uv_from_gl[1][1] = -0.5f;
+  uv_from_gl[3][1] = 0.5f;
+  glm::mat4 to_exr_camera(1.0f);
+  if (camera_looks_down_plus_z) to_exr_camera[2][2] = -1.0f;
+  t.matrices = {{"worldToCamera", to_exr_camera * world_to_camera},
+                {"worldToNDC", uv_from_gl * projection * world_to_camera}};
+  ScratchDir dir;
+  const fs::path path = dir / (scene + "_header_camera.exr");
+  std::string error;
+  ASSERT_TRUE(t.write(path, &error)) << error;
+
+  ReadOptions options;
+  options.read_positions = true;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.profile, "generic");
+  EXPECT_EQ(r.info.camera_source, "header worldToCamera/worldToNDC");
+  ASSERT_FALSE(r.info.notes.empty());
+  EXPECT_TRUE(contains(r.info.notes[0], camera_looks_down_plus_z ? "+Z" : "-Z")) << r.info.notes[0];
+  const Camera& cam = r.gbuffer.camera;
+  for (int c = 0; c < 4; ++c)
+    for (int row : {0, 1, 3})
+      EXPECT_NEAR(cam.view_to_clip[c][row], projection[c][row], 1e-4) << c << "," << row;
+  for (int c = 0; c < 4; ++c)
+    for (int row = 0; row < 4; ++row)
+      EXPECT_NEAR(cam.world_to_view[c][row], world_to_camera[c][row], 1e-5);
+
+  cv::Mat from_depth;
+  view_positions_from_depth(r.gbuffer.depth_view, r.gbuffer.mask, cam, from_depth);
+  const cv::Mat from_file = file_positions_view(path, world_to_camera, "P.");
+  const RelError e = compare_positions(from_depth, from_file, r.gbuffer.mask, 1e-3);
+  EXPECT_GT(e.checked, 1000);
+  EXPECT_EQ(e.over, 0) << "max relative error " << e.max;
+  // Generic P is world space under a header camera (stated in info) and converted.
+  const RelError e2 = compare_positions(r.gbuffer.position_view, from_file, r.gbuffer.mask, 1e-5);
+  EXPECT_EQ(e2.over, 0) << "max relative error " << e2.max;
+}
+
+TEST(HeaderCamera, OpenExrConventionCameraLooksDownPlusZ) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.exr");
+  check_header_camera_frame("cornell", true);
+}
+
+TEST(HeaderCamera, RightHandedCameraLooksDownMinusZ) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "depthgap.exr");
+  check_header_camera_frame("depthgap", false);
+}
+
+// ---------------------------------------------------------------------------------------
+// Small frames written here.
+
+TestExr generic_frame(int w, int h, float depth) {
+  TestExr t;
+  t.width = w;
+  t.height = h;
+  t.channels = {{"Z", OIIO::TypeDesc::FLOAT, std::vector<float>(size_t(w) * h, depth)}};
+  return t;
+}
+
+TEST(ReadErrors, MissingFile) {
+  const ReadResult r = read_gbuffer("/nonexistent/folder/frame.exr");
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "/nonexistent/folder/frame.exr")) << r.error;
+  EXPECT_TRUE(contains(r.error, "no such file")) << r.error;
+}
+
+TEST(ReadErrors, TextFileIsNotAnExr) {
+  ScratchDir dir;
+  const fs::path path = dir / "notes.exr";
+  std::ofstream(path) << "this is not an image\n";
+  const ReadResult r = read_gbuffer(path.string(), {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, path.string())) << r.error;
+  EXPECT_TRUE(contains(r.error, "not an OpenEXR file")) << r.error;
+}
+
+TEST(ReadErrors, TruncatedExr) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.exr");
+  ScratchDir dir;
+  std::ifstream in(gbuffer_dir() / "cornell.exr", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // Inside the header, inside the offset table, and halfway through the pixel data.
+  for (size_t n : {size_t(200), size_t(1500), bytes.size() / 2}) {
+    SCOPED_TRACE(n);
+    const fs::path path = dir / ("cornell_" + std::to_string(n) + ".exr");
+    fs::copy_file(gbuffer_dir() / "cornell.camera.json",
+                  dir / ("cornell_" + std::to_string(n) + ".camera.json"));
+    std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(n));
+    const ReadResult r = read_gbuffer(path.string());
+    ASSERT_FALSE(r.ok());
+    EXPECT_TRUE(contains(r.error, path.string())) << r.error;
+    EXPECT_TRUE(contains(r.error, "truncated")) << r.error;
+  }
+}
+
+TEST(ReadErrors, MissingDepthChannelIsNamedAndPresentChannelsListed) {
+  ScratchDir dir;
+  TestExr t;
+  t.width = t.height = 4;
+  for (const char* c : {"R", "G", "B"}) t.channels.push_back({c, OIIO::TypeDesc::HALF, std::vector<float>(16, 0.5f)});
+  const fs::path path = dir / "rgb.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, path.string())) << r.error;
+  EXPECT_TRUE(contains(r.error, "depth")) << r.error;
+  EXPECT_TRUE(contains(r.error, "Depth.Z")) << r.error;
+  EXPECT_TRUE(contains(r.error, "channels present: B, G, R")) << r.error;
+}
+
+TEST(ReadErrors, MissingMappedChannelIsNamed) {
+  ScratchDir dir;
+  const fs::path path = dir / "z.exr";
+  ASSERT_TRUE(generic_frame(4, 4, 2.0f).write(path));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  options.mapping.normal = "Nrm";
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "\"Nrm\"")) << r.error;
+  EXPECT_TRUE(contains(r.error, "channels present: Z")) << r.error;
+}
+
+TEST(ReadErrors, NoCameraNamesTheThreeWays) {
+  ScratchDir dir;
+  const fs::path path = dir / "nocam.exr";
+  ASSERT_TRUE(generic_frame(8, 4, 2.0f).write(path));
+  const ReadResult r = read_gbuffer(path.string(), {});
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, path.string())) << r.error;
+  EXPECT_TRUE(contains(r.error, "nocam.camera.json")) << r.error;
+  EXPECT_TRUE(contains(r.error, "worldToCamera and worldToNDC")) << r.error;
+  EXPECT_TRUE(contains(r.error, "--fov")) << r.error;
+  // Header-only inspection reports the same.
+  EXPECT_FALSE(inspect_gbuffer(path.string(), {}).ok());
+}
+
+TEST(ReadErrors, ExplicitSidecarThatDoesNotExist) {
+  ScratchDir dir;
+  const fs::path path = dir / "frame.exr";
+  ASSERT_TRUE(generic_frame(8, 4, 2.0f).write(path));
+  ReadOptions options;
+  options.camera_json = (dir / "missing.camera.json").string();
+  options.fov_x_deg = 60.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "missing.camera.json")) << r.error;
+}
+
+TEST(ReadErrors, SidecarOfAnotherResolution) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.camera.json");
+  ScratchDir dir;
+  const fs::path path = dir / "small.exr";
+  ASSERT_TRUE(generic_frame(8, 4, 2.0f).write(path));
+  ReadOptions options;
+  options.camera_json = (gbuffer_dir() / "cornell.camera.json").string();
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "640x360")) << r.error;
+}
+
+TEST(ReadErrors, AbsurdDimensionsRefusedBeforeAllocating) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.exr");
+  ReadOptions options;
+  options.max_pixels = 640 * 360 - 1;
+  const ReadResult r = read_gbuffer((gbuffer_dir() / "cornell.exr").string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "refused")) << r.error;
+  EXPECT_TRUE(contains(r.error, "640x360")) << r.error;
+}
+
+TEST(ReadErrors, HugeDataWindowInHeaderRefused) {
+  // A valid 4x4 file whose dataWindow attribute is patched to 200000 x 200000 pixels: the
+  // header is all the reader looks at before refusing.
+  ScratchDir dir;
+  const fs::path path = dir / "huge.exr";
+  TestExr t = generic_frame(4, 4, 2.0f);
+  t.compression = "none";
+  ASSERT_TRUE(t.write(path));
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string key = std::string("dataWindow") + '\0' + "box2i" + '\0';
+  const size_t at = bytes.find(key);
+  ASSERT_NE(at, std::string::npos);
+  const int32_t box[4] = {0, 0, 199999, 199999};
+  f.seekp(std::streamoff(at + key.size() + 4));  // after the 4-byte attribute size
+  f.write(reinterpret_cast<const char*>(box), sizeof box);
+  f.close();
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, path.string())) << r.error;
+  EXPECT_TRUE(contains(r.error, "refused") || contains(r.error, "truncated")) << r.error;
+}
+
+TEST(ReadErrors, UnknownPartIsNamedWithTheParts) {
+  const fs::path mp = conformance_dir() / "valid" / "Beachball" / "multipart.0001.exr";
+  SSDO_SKIP_WITHOUT(mp);
+  ReadOptions options;
+  options.part = "depth_centre";
+  options.fov_x_deg = 40.0f;
+  const ReadResult r = read_gbuffer(mp.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "depth_centre")) << r.error;
+  EXPECT_TRUE(contains(r.error, "\"depth_left\"")) << r.error;
+}
+
+TEST(ReadErrors, ChannelsFromPartsOfDifferentSizes) {
+  const fs::path mp = conformance_dir() / "valid" / "Beachball" / "multipart.0001.exr";
+  SSDO_SKIP_WITHOUT(mp);
+  ReadOptions options;
+  options.part = "depth_left";  // 877 x 876 at (688, 245)
+  options.fov_x_deg = 40.0f;
+  options.mapping.references["mask"] = "whitebarmask.mask";  // whitebarmask_left: 385 x 769
+  const ReadResult r = read_gbuffer(mp.string(), options);
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "parts of different sizes")) << r.error;
+  EXPECT_TRUE(contains(r.error, "whitebarmask_left")) << r.error;
+}
+
+TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
+  ScratchDir dir;
+  const int w = 8, h = 4;
+  TestExr t = generic_frame(w, h, 3.0f);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  auto& z = t.channels[0].values;
+  z[1] = nan;
+  z[2] = inf;
+  z[3] = -inf;
+  z[4] = 1e10f;  // background
+  z[5] = 0.0f;   // background
+  z[6] = -2.0f;  // background
+  for (const char* c : {"N.X", "N.Y", "N.Z"}) t.channels.push_back({c, OIIO::TypeDesc::HALF, std::vector<float>(w * h, 0.0f)});
+  for (int i = 0; i < w * h; ++i) t.channels[3].values[i] = 1.0f;  // N.Z = +1, facing the camera
+  t.channels[1].values[10] = nan;  // N.X
+  t.channels[2].values[11] = inf;  // N.Y
+  t.channels[3].values[12] = 0.0f;  // zero normal: rebuilt from depth, not masked
+  const fs::path path = dir / "nonfinite.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  const GBuffer& g = r.gbuffer;
+  EXPECT_EQ(r.info.nonfinite_pixels, 5);
+  EXPECT_EQ(r.info.masked_pixels, 8);
+  EXPECT_EQ(r.info.foreground_pixels, w * h - 8);
+  EXPECT_EQ(r.info.repaired_normal_pixels, 1);
+  for (int i : {1, 2, 3, 4, 5, 6, 10, 11}) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(g.mask.at<uint8_t>(i / w, i % w), 0);
+    EXPECT_TRUE(std::isinf(g.depth_view.at<float>(i / w, i % w)));
+    EXPECT_EQ(g.normal_view.at<cv::Vec3f>(i / w, i % w), cv::Vec3f(0, 0, 0));
+  }
+  // Under a --fov camera generic N is view space; (0, 0, 1) faces the camera everywhere.
+  EXPECT_EQ(g.normal_view.at<cv::Vec3f>(3, 7), cv::Vec3f(0, 0, 1));
+  // The rebuilt normal of a fronto-parallel plane is (0, 0, 1) too.
+  const cv::Vec3f rebuilt = g.normal_view.at<cv::Vec3f>(12 / w, 12 % w);
+  EXPECT_NEAR(rebuilt[2], 1.0f, 1e-4);
+  EXPECT_FLOAT_EQ(r.info.depth_min_view, 3.0f);
+  EXPECT_FLOAT_EQ(r.info.depth_max_view, 3.0f);
+  EXPECT_EQ(r.info.uses[1].space, "view");
+}
+
+TEST(ReadConversions, NormalsFacingAwayAreFlippedAndWorldNormalsRotated) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.camera.json");
+  // A 640x360 frame with the cornell sidecar: generic N in world space (sidecar camera).
+  ScratchDir dir;
+  const fs::path path = dir / "flip.exr";
+  TestExr t = generic_frame(640, 360, 4.0f);
+  // World +Y is (almost) the camera's viewing direction: the normal -Y faces the camera,
+  // +Y faces away and must be flipped.
+  const std::vector<float> ny(640 * 360, 1.0f);
+  t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 0.0f)});
+  t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, ny});
+  t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 0.0f)});
+  ASSERT_TRUE(t.write(path));
+  fs::copy_file(gbuffer_dir() / "cornell.camera.json", dir / "flip.camera.json");
+  const ReadResult r = read_gbuffer(path.string());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.uses[1].space, "world");
+  const glm::mat4 w2c = json_matrix(read_json(gbuffer_dir() / "cornell.camera.json")["world_to_camera"]);
+  const glm::vec3 expected = -glm::normalize(glm::vec3(w2c * glm::vec4(0, 1, 0, 0)));
+  const cv::Vec3f n = r.gbuffer.normal_view.at<cv::Vec3f>(180, 320);
+  EXPECT_NEAR(n[0], expected.x, 1e-5);
+  EXPECT_NEAR(n[1], expected.y, 1e-5);
+  EXPECT_NEAR(n[2], expected.z, 1e-5);
+  EXPECT_GT(n[2], 0.9f);
+}
+
+TEST(ReadConversions, RadialDepthBecomesPlanar) {
+  ScratchDir dir;
+  const int w = 64, h = 48;
+  const float fov = 70.0f;
+  const Camera cam = Camera::from_fov_x(w, h, fov);
+  // A fronto-parallel plane at planar depth 5, stored as distance from the eye.
+  TestExr t = generic_frame(w, h, 0.0f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      t.channels[0].values[y * w + x] = glm::length(cam.view_from_pixel_depth({x + 0.5f, y + 0.5f}, 5.0f));
+  const fs::path path = dir / "radial.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = fov;
+  options.depth_kind = DepthKind::radial;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.depth_kind, "radial");
+  double max_err = 0;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) max_err = std::max(max_err, std::abs(r.gbuffer.depth_view.at<float>(y, x) - 5.0));
+  EXPECT_LT(max_err, 1e-5);
+  // Reconstructed normals of that plane face the camera.
+  EXPECT_TRUE(r.info.normals_reconstructed);
+  EXPECT_NEAR(r.gbuffer.normal_view.at<cv::Vec3f>(20, 30)[2], 1.0f, 1e-4);
+}
+
+TEST(ReadConversions, HalfDepthIsReadAsFloat) {
+  ScratchDir dir;
+  TestExr t = generic_frame(4, 4, 2.5f);
+  t.channels[0].type = OIIO::TypeDesc::HALF;
+  t.channels[0].values[5] = 1.0009765625f;  // 1 + 2^-10: exact in half
+  const fs::path path = dir / "half.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 45.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.gbuffer.depth_view.type(), CV_32FC1);
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(1, 1), 1.0009765625f);
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(0, 0), 2.5f);
+  EXPECT_TRUE(contains(r.info.channels[0], "Z (half)"));
+}
+
+TEST(ReadConversions, DataWindowOffsetIsThePixelGrid) {
+  // Data window 32 x 16 at (10, 20) inside a 64 x 48 display window; depth encodes the
+  // absolute pixel position, so row 0 / column 0 must be the data window's top-left.
+  ScratchDir dir;
+  TestExr t;
+  t.width = 32;
+  t.height = 16;
+  t.data_x = 10;
+  t.data_y = 20;
+  t.display_width = 64;
+  t.display_height = 48;
+  std::vector<float> z;
+  for (int y = 0; y < t.height; ++y)
+    for (int x = 0; x < t.width; ++x) z.push_back(float(1000 * (y + t.data_y) + (x + t.data_x)));
+  t.channels = {{"depth.Z", OIIO::TypeDesc::FLOAT, z}};
+  const fs::path path = dir / "offset.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.data_x, 10);
+  EXPECT_EQ(r.info.data_y, 20);
+  EXPECT_EQ(r.info.display_width_px, 64);
+  EXPECT_EQ(r.gbuffer.width_px(), 32);
+  EXPECT_EQ(r.gbuffer.height_px(), 16);
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(0, 0), 20010.0f);
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(15, 31), 35041.0f);
+  // The camera's field of view spans the display window: data pixel (0, 0) sees the ray of
+  // display pixel (10, 20).
+  const Camera display = Camera::from_fov_x(64, 48, 60.0f);
+  const glm::vec3 a = r.gbuffer.camera.view_from_pixel_depth({0.5f, 0.5f}, 3.0f);
+  const glm::vec3 b = display.view_from_pixel_depth({10.5f, 20.5f}, 3.0f);
+  EXPECT_NEAR(glm::length(a - b), 0.0f, 1e-5f);
+}
+
+TEST(ReadConversions, ConformanceDisplayWindowFilesShareTheirPixels) {
+  // t01: data window = display window; t08: the same 400 x 300 pixels with the data window
+  // at (30, 40) inside a 501 x 401 display window.
+  const fs::path t01 = conformance_dir() / "valid" / "DisplayWindow" / "t01.exr";
+  const fs::path t08 = conformance_dir() / "valid" / "DisplayWindow" / "t08.exr";
+  SSDO_SKIP_WITHOUT(t08);
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  options.mapping.depth = "G";  // any channel serves as depth for the grid check
+  const ReadResult a = read_gbuffer(t01.string(), options);
+  const ReadResult b = read_gbuffer(t08.string(), options);
+  ASSERT_TRUE(a.ok()) << a.error;
+  ASSERT_TRUE(b.ok()) << b.error;
+  EXPECT_EQ(a.info.profile, "mapping");
+  EXPECT_EQ(b.info.data_x, 30);
+  EXPECT_EQ(b.info.data_y, 40);
+  ASSERT_EQ(a.gbuffer.depth_view.size(), b.gbuffer.depth_view.size());
+  EXPECT_EQ(cv::countNonZero(a.gbuffer.mask != b.gbuffer.mask), 0);
+  cv::Mat diff;
+  cv::absdiff(a.gbuffer.depth_view, b.gbuffer.depth_view, diff);
+  diff.setTo(0, a.gbuffer.mask == 0);
+  double max_diff = 0;
+  cv::minMaxLoc(diff, nullptr, &max_diff);
+  EXPECT_EQ(max_diff, 0.0);
+  EXPECT_GT(a.info.foreground_pixels, 1000);
+}
+
+TEST(ReadConversions, MultipartDepthOnlyPartWithFov) {
+  const fs::path mp = conformance_dir() / "valid" / "Beachball" / "multipart.0001.exr";
+  SSDO_SKIP_WITHOUT(mp);
+  ReadOptions options;
+  options.part = "depth_left";
+  options.fov_x_deg = 40.0f;
+  const ReadResult r = read_gbuffer(mp.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.parts.size(), 10u);
+  EXPECT_EQ(r.info.part, "depth_left");
+  EXPECT_EQ(r.info.profile, "generic");
+  EXPECT_EQ(r.info.width_px, 877);
+  EXPECT_EQ(r.info.height_px, 876);
+  EXPECT_EQ(r.info.data_x, 688);
+  EXPECT_EQ(r.info.data_y, 245);
+  EXPECT_TRUE(r.info.normals_reconstructed);
+  EXPECT_GT(r.info.foreground_pixels, 0);
+  // Same samples as OpenImageIO reads from that part (subimage).
+  int subimage = -1;
+  {
+    auto in = OIIO::ImageInput::open(mp.string());
+    ASSERT_TRUE(in);
+    for (int s = 0; in->seek_subimage(s, 0); ++s)
+      if (in->spec().get_string_attribute("name") == "depth_left") subimage = s;
+  }
+  ASSERT_GE(subimage, 0);
+  int w = 0, h = 0;
+  const auto z = read_channels_oiio(mp, {"Z"}, subimage, &w, &h);
+  ASSERT_EQ(w, 877);
+  int64_t compared = 0;
+  for (int i = 0; i < w * h; i += 97) {
+    const int y = i / w, x = i % w;
+    if (!r.gbuffer.mask.at<uint8_t>(y, x)) continue;
+    EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(y, x), z[i]);
+    ++compared;
+  }
+  EXPECT_GT(compared, 100);
+  // Without --part the first part with depth is chosen: depth_left comes before depth_right.
+  ReadOptions no_part;
+  no_part.fov_x_deg = 40.0f;
+  const ReadResult first = inspect_gbuffer(mp.string(), no_part);
+  ASSERT_TRUE(first.ok()) << first.error;
+  EXPECT_EQ(first.info.part, "depth_left");
+}
+
+TEST(ReadConversions, ExplicitMappingOverridesDetection) {
+  ScratchDir dir;
+  TestExr t = generic_frame(8, 8, 2.0f);
+  t.channels.push_back({"dist", OIIO::TypeDesc::FLOAT, std::vector<float>(64, 7.0f)});
+  for (const char* c : {"shade.R", "shade.G", "shade.B"})
+    t.channels.push_back({c, OIIO::TypeDesc::HALF, std::vector<float>(64, 0.25f)});
+  const fs::path path = dir / "mapped.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 50.0f;
+  options.mapping.depth = "dist";
+  options.mapping.lighting = "shade";
+  options.mapping.references["occlusion"] = "shade.G";
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.profile, "mapping");
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(3, 3), 7.0f);
+  ASSERT_FALSE(r.gbuffer.lighting.empty());
+  EXPECT_FLOAT_EQ(r.gbuffer.lighting.at<cv::Vec3f>(2, 2)[1], 0.25f);
+  ASSERT_EQ(r.gbuffer.references.count("occlusion"), 1u);
+  EXPECT_EQ(r.gbuffer.references.at("occlusion").type(), CV_32FC1);
+}
+
+}  // namespace
+}  // namespace ssdo::test

@@ -1,0 +1,228 @@
+// write_outputs: channel names and types, values after a round trip, camera attributes read
+// back by the reader, compression rules, temp file + rename, PNG previews.
+#include "formats/output_writer.h"
+
+#include <cmath>
+
+#include "formats/gbuffer_reader.h"
+#include "formats_test_util.h"
+
+namespace ssdo::test {
+namespace {
+
+cv::Mat ramp(int w, int h, int channels, float scale, float offset) {
+  cv::Mat m(h, w, CV_32FC(channels));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int c = 0; c < channels; ++c)
+        m.ptr<float>(y)[x * channels + c] = offset + scale * float(y * w * channels + x * channels + c);
+  return m;
+}
+
+Camera test_camera(int w, int h) {
+  Camera cam = Camera::from_fov_x(w, h, 55.0f, 0.1f, 500.0f);
+  // A rotated and translated camera: about 30 degrees around Y, then up 1.5 and back 4.
+  const float a = glm::radians(30.0f);
+  glm::mat4 view_to_world(1.0f);
+  view_to_world[0] = glm::vec4(std::cos(a), 0, -std::sin(a), 0);
+  view_to_world[2] = glm::vec4(std::sin(a), 0, std::cos(a), 0);
+  view_to_world[3] = glm::vec4(0.5f, 1.5f, 4.0f, 1);
+  cam.view_to_world = view_to_world;
+  cam.world_to_view = glm::inverse(view_to_world);
+  return cam;
+}
+
+std::vector<std::string> channel_names(const fs::path& path, std::vector<OIIO::TypeDesc>* types = nullptr) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) return {};
+  if (types) {
+    types->clear();
+    for (int c = 0; c < in->spec().nchannels; ++c) types->push_back(in->spec().channelformat(c));
+  }
+  return in->spec().channelnames;
+}
+
+size_t files_in(const fs::path& dir) {
+  size_t n = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++n;
+  return n;
+}
+
+TEST(WriteOutputs, EveryKindOfTermRoundTrips) {
+  ScratchDir dir;
+  const int w = 40, h = 24;
+  const Camera cam = test_camera(w, h);
+  std::vector<OutputTerm> terms = {
+      {"ao", ramp(w, h, 1, 1.0f / 960.0f, 0.0f), SampleType::half, false},
+      {"Z", ramp(w, h, 1, 0.37f, 1.0f), SampleType::float32, false},
+      {"ssdo_direct", ramp(w, h, 3, 0.001f, 0.1f), SampleType::half, false},
+      {"bent_normal", ramp(w, h, 3, -0.0005f, 0.9f), SampleType::float32, true},
+  };
+  const fs::path path = dir / "out.exr";
+  ASSERT_EQ(write_outputs(path.string(), terms, cam), "");
+  std::vector<OIIO::TypeDesc> types;
+  auto names = channel_names(path, &types);
+  // OpenEXR stores channels sorted by name (OpenImageIO lists R, G, B in that order).
+  const std::vector<std::string> expected = {"Z", "ao", "bent_normal.X", "bent_normal.Y", "bent_normal.Z",
+                                             "ssdo_direct.B", "ssdo_direct.G", "ssdo_direct.R"};
+  ASSERT_EQ(names.size(), expected.size());
+  for (size_t i = 0; i < names.size(); ++i) {
+    const bool is_half = names[i] == "ao" || names[i].rfind("ssdo_direct.", 0) == 0;
+    EXPECT_EQ(types[i], is_half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT) << names[i];
+  }
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, expected);
+  for (const auto& t : terms) {
+    SCOPED_TRACE(t.name);
+    std::vector<std::string> ch;
+    if (t.image.channels() == 1) ch = {t.name};
+    else if (t.vector) ch = {t.name + ".X", t.name + ".Y", t.name + ".Z"};
+    else ch = {t.name + ".R", t.name + ".G", t.name + ".B"};
+    const auto values = read_channels_oiio(path, ch);
+    ASSERT_EQ(values.size(), size_t(w * h * t.image.channels()));
+    double max_rel = 0;
+    for (int i = 0; i < w * h * t.image.channels(); ++i) {
+      const float v = t.image.ptr<float>()[i];
+      max_rel = std::max(max_rel, std::abs(double(values[i]) - v) / std::max(1e-3, std::abs(double(v))));
+    }
+    // Half keeps 11 significant bits: relative error <= 2^-11.
+    EXPECT_LE(max_rel, t.type == SampleType::half ? 4.9e-4 : 0.0);
+  }
+  // No temp file left behind.
+  EXPECT_EQ(files_in(dir.path), 1u);
+
+  // The camera comes back through the reader's header path ("Z" makes it a generic frame).
+  const ReadResult r = inspect_gbuffer(path.string());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.camera_source, "header worldToCamera/worldToNDC");
+  const Camera& back = r.gbuffer.camera;
+  EXPECT_EQ(back.width_px, w);
+  EXPECT_EQ(back.height_px, h);
+  EXPECT_FLOAT_EQ(back.near_view, 0.1f);
+  EXPECT_FLOAT_EQ(back.far_view, 500.0f);
+  for (int c = 0; c < 4; ++c)
+    for (int row = 0; row < 4; ++row) {
+      EXPECT_NEAR(back.view_to_clip[c][row], cam.view_to_clip[c][row], 1e-5) << c << "," << row;
+      EXPECT_NEAR(back.world_to_view[c][row], cam.world_to_view[c][row], 1e-5) << c << "," << row;
+      EXPECT_NEAR(back.view_to_world[c][row], cam.view_to_world[c][row], 1e-5) << c << "," << row;
+    }
+}
+
+TEST(WriteOutputs, NonContiguousImagesAreWrittenRowByRow) {
+  ScratchDir dir;
+  const cv::Mat big = ramp(64, 32, 1, 1.0f, 0.0f);
+  const cv::Mat view = big(cv::Rect(8, 4, 16, 8));  // a ROI: row step != width
+  const fs::path path = dir / "roi.exr";
+  ASSERT_EQ(write_outputs(path.string(), {{"v", view, SampleType::float32}}, Camera::from_fov_x(16, 8, 60.0f)), "");
+  const auto values = read_channels_oiio(path, {"v"});
+  ASSERT_EQ(values.size(), 128u);
+  EXPECT_EQ(values[0], big.at<float>(4, 8));
+  EXPECT_EQ(values[127], big.at<float>(11, 23));
+}
+
+TEST(WriteOutputs, DwaaOnlyForColourTerms) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
+  WriteOptions dwaa;
+  dwaa.compression = "dwaa";
+  const fs::path path = dir / "dwaa.exr";
+  std::string e = write_outputs(path.string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, dwaa);
+  EXPECT_NE(e.find("dwaa"), std::string::npos) << e;
+  EXPECT_NE(e.find("\"ao\""), std::string::npos) << e;
+  EXPECT_NE(e.find("numeric"), std::string::npos) << e;
+  e = write_outputs(path.string(), {{"bent_normal", ramp(16, 8, 3, 0.01f, 0.0f), SampleType::half, true}}, cam, dwaa);
+  EXPECT_NE(e.find("vector"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_EQ(write_outputs(path.string(), {{"composite", ramp(16, 8, 3, 0.01f, 0.0f)}}, cam, dwaa), "");
+  EXPECT_TRUE(fs::exists(path));
+}
+
+TEST(WriteOutputs, CompressionsAndUnknownCompression) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
+  for (const char* c : {"zip", "zips", "piz", "none"}) {
+    WriteOptions o;
+    o.compression = c;
+    const fs::path path = dir / (std::string(c) + ".exr");
+    EXPECT_EQ(write_outputs(path.string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o), "") << c;
+    auto in = OIIO::ImageInput::open(path.string());
+    ASSERT_TRUE(in);
+    EXPECT_EQ(in->spec().get_string_attribute("compression"), c);
+  }
+  WriteOptions bad;
+  bad.compression = "lzma";
+  const std::string e = write_outputs((dir / "bad.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, bad);
+  EXPECT_NE(e.find("unknown compression \"lzma\""), std::string::npos) << e;
+}
+
+TEST(WriteOutputs, InvalidTermsAreRefused) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
+  const std::string p = (dir / "x.exr").string();
+  EXPECT_NE(write_outputs(p, {}, cam), "");
+  EXPECT_NE(write_outputs(p, {{"ao", cv::Mat(8, 16, CV_8UC1)}}, cam).find("CV_32FC1"), std::string::npos);
+  EXPECT_NE(write_outputs(p, {{"ao", ramp(16, 8, 1, 1, 0)}, {"ao", ramp(16, 8, 1, 1, 0)}}, cam).find("twice"),
+            std::string::npos);
+  EXPECT_NE(write_outputs(p, {{"a", ramp(16, 8, 1, 1, 0)}, {"b", ramp(8, 8, 1, 1, 0)}}, cam), "");
+  EXPECT_NE(write_outputs(p, {{"a", ramp(20, 8, 1, 1, 0)}}, cam).find("camera grid"), std::string::npos);
+  EXPECT_EQ(files_in(dir.path), 0u);
+}
+
+TEST(WriteOutputs, FailureLeavesNoTempFileAndTheFinalNameUntouched) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
+  // The final name is taken by a folder: the rename fails after the EXR was written.
+  const fs::path target = dir / "taken.exr";
+  fs::create_directories(target / "inside");
+  const std::string e = write_outputs(target.string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam);
+  EXPECT_NE(e, "");
+  EXPECT_NE(e.find(target.string()), std::string::npos) << e;
+  EXPECT_TRUE(fs::is_directory(target / "inside"));
+  EXPECT_EQ(files_in(dir.path), 1u);  // only the folder: the temp file was removed
+  // A folder that does not exist.
+  EXPECT_NE(write_outputs((dir / "no" / "such" / "out.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam)
+                .find("folder does not exist"),
+            std::string::npos);
+  // An existing output is replaced whole on success.
+  const fs::path out = dir / "out.exr";
+  std::ofstream(out) << "old";
+  EXPECT_EQ(write_outputs(out.string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam), "");
+  EXPECT_EQ(channel_names(out), std::vector<std::string>{"ao"});
+}
+
+TEST(WriteOutputs, PngPreviewsAreSrgbClampedEightBit) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(4, 2, 60.0f);
+  cv::Mat ao(2, 4, CV_32FC1, cv::Scalar(0.5f));
+  ao.at<float>(0, 1) = 2.0f;   // clamped to 1
+  ao.at<float>(0, 2) = -1.0f;  // clamped to 0
+  ao.at<float>(0, 3) = 0.0021973f;  // linear segment: 12.92 v
+  cv::Mat normal(2, 4, CV_32FC3, cv::Scalar(0.0f, 0.0f, 1.0f));
+  WriteOptions o;
+  o.png_previews = true;
+  ASSERT_EQ(write_outputs((dir / "frame.exr").string(),
+                          {{"ao", ao}, {"bent_normal", normal, SampleType::half, true}}, cam, o),
+            "");
+  ASSERT_TRUE(fs::exists(dir / "frame.ao.png"));
+  ASSERT_TRUE(fs::exists(dir / "frame.bent_normal.png"));
+  EXPECT_EQ(files_in(dir.path), 3u);
+  auto in = OIIO::ImageInput::open((dir / "frame.ao.png").string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().nchannels, 1);
+  EXPECT_EQ(in->spec().format, OIIO::TypeDesc::UINT8);
+  std::vector<uint8_t> px(8);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 1, OIIO::TypeDesc::UINT8, px.data()));
+  EXPECT_EQ(px[0], 188);  // sRGB(0.5) = 0.7354 -> 188
+  EXPECT_EQ(px[1], 255);
+  EXPECT_EQ(px[2], 0);
+  EXPECT_EQ(px[3], 7);  // 12.92 * 0.0021973 * 255 = 7.24
+  auto nin = OIIO::ImageInput::open((dir / "frame.bent_normal.png").string());
+  ASSERT_TRUE(nin);
+  std::vector<uint8_t> npx(24);
+  ASSERT_TRUE(nin->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, npx.data()));
+  EXPECT_EQ(npx[0], 128);  // 0.5 * 0 + 0.5
+  EXPECT_EQ(npx[2], 255);  // 0.5 * 1 + 0.5
+}
+
+}  // namespace
+}  // namespace ssdo::test
