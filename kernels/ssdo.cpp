@@ -27,9 +27,11 @@ SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
   s.method = method;
   const int level = int(preset);  // 0 low .. 3 ultra
   constexpr int kSamples[] = {8, 16, 32, 64};
+  constexpr int kSampleSteps[] = {2, 4, 4, 8};
   constexpr int kOracleGrid[] = {8, 12, 16, 32};
   constexpr int kOracleSteps[] = {32, 48, 64, 128};
   s.samples = kSamples[level];
+  s.sample_steps = kSampleSteps[level];
   s.oracle_grid = kOracleGrid[level];
   s.oracle_steps = kOracleSteps[level];
   return s;
@@ -44,6 +46,7 @@ std::string validate(const SsdoSettings& s) {
   if (!(s.max_radius_px >= 2.0f && s.max_radius_px <= 4096.0f))
     return bad("max_radius_px", s.max_radius_px, "[2, 4096]");
   if (s.samples < 1 || s.samples > 1024) return bad("samples", s.samples, "[1, 1024]");
+  if (s.sample_steps < 1 || s.sample_steps > 64) return bad("sample_steps", s.sample_steps, "[1, 64]");
   if (!(s.thickness_world > 0.0f)) return bad("thickness_world", s.thickness_world, "(0, inf]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
     return bad("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
@@ -103,15 +106,17 @@ inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const gl
   return t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u));
 }
 
-enum class Tap { visible, occluded };
+// off_screen: the point projects outside the frame (or behind the eye); a straight ray
+// whose point has left the frame does not come back, so marches stop there.
+enum class Tap { visible, occluded, off_screen };
 
 // Occlusion test of view-space point S whose clip coordinates are `clip` (see ssdo.h). On
 // `occluded` the pixel (qx, qy) is the sender.
 inline Tap classify(const Constants& c, const glm::vec3& s_view, const glm::vec4& clip, int& qx, int& qy) {
-  if (!(clip.w > 0.0f)) return Tap::visible;  // behind the eye: off screen
+  if (!(clip.w > 0.0f)) return Tap::off_screen;  // behind the eye
   const float px = 0.5f * (clip.x / clip.w + 1.0f) * c.width_px;
   const float py = 0.5f * (1.0f - clip.y / clip.w) * c.height_px;
-  if (!(px >= 0.0f && px < c.width_px && py >= 0.0f && py < c.height_px)) return Tap::visible;
+  if (!(px >= 0.0f && px < c.width_px && py >= 0.0f && py < c.height_px)) return Tap::off_screen;
   qx = int(px);
   qy = int(py);
   if (c.mask->at<uint8_t>(qy, qx) == 0) return Tap::visible;  // background: nothing there
@@ -171,6 +176,8 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
   const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
   const int n_samples = c.s.samples;
+  const int steps = c.s.sample_steps;
+  const float inv_steps = 1.0f / float(steps);
   const bool bent = c.s.direct_estimator == SsdoDirectEstimator::bent_normal;
   const bool form_factor = c.s.indirect_estimator == SsdoIndirectEstimator::form_factor;
   const float d_min2 = c.s.sender_distance_min_world * c.s.sender_distance_min_world;
@@ -181,12 +188,20 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     float u, v;
     r2_point(uint32_t(i), shift_u, shift_v, u, v);
     const glm::vec3 w = cosine_direction(u, v, t, b, n);
-    // lambda in (0, r]: 1 - [0, 1) never gives 0.
-    const float lambda = r * (1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed));
-    const glm::vec3 s_view = p + lambda * w;
-    const glm::vec4 clip = clip_p + lambda * (c.clip_from_view * glm::vec4(w, 0.0f));
+    // Points along w at lambda_ij = r (j + xi_i) / k, j = 0..k-1, xi_i in (0, 1]: k = 1 is the
+    // paper's single point at a uniform distance in (0, r]; k > 1 marches the whole radius
+    // (stratified), so an occluder anywhere within r is found. The first point behind the
+    // depth buffer decides.
+    const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
+    const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
+    Tap tap = Tap::visible;
     int qx = 0, qy = 0;
-    if (classify(c, s_view, clip, qx, qy) == Tap::visible) {
+    for (int j = 0; j < steps; ++j) {
+      const float lambda = r * (float(j) + xi) * inv_steps;
+      tap = classify(c, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
+      if (tap != Tap::visible) break;
+    }
+    if (tap != Tap::occluded) {
       if (want_direct) {
         if (bent) bent_sum += w;
         else direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
@@ -260,7 +275,9 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
         const float lambda = (float(k) + step_jitter) * step + 1e-7f * r;  // > 0 always
         const glm::vec4 clip = clip_p + lambda * clip_w;
         if (!(clip.w > 0.0f)) break;
-        if (classify(c, p + lambda * w, clip, qx, qy) == Tap::occluded) {
+        const Tap tap = classify(c, p + lambda * w, clip, qx, qy);
+        if (tap == Tap::off_screen) break;
+        if (tap == Tap::occluded) {
           hit = true;
           break;
         }

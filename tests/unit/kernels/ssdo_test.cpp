@@ -111,13 +111,16 @@ TEST(Ssdo, OpenPlaneUnderUniformSkyHasDirectOne) {
 
 // A 90-degree corner under uniform radiance 1 (raycast.h corner_scene()). In the
 // projected-disk picture of cosine-weighted directions (uniform on the unit disk, u = the
-// component towards the wall), a floor point at distance d from the wall, a = d / r:
-//  - ray visibility within r (the oracle, Cycles with AO distance r): the wall blocks the
-//    segment u > a, direct = 1 - (acos(a) - a sqrt(1 - a^2)) / pi;
-//  - the SSDO point test (paper): a sample at distance lambda ~ U(0, r] is occluded iff it
-//    lies behind the wall, lambda u > d, with probability 1 - a / u, so
-//    direct = 1 - (1/pi) [acos(a) - a sqrt(1 - a^2) - 2 a (ln((1 + sqrt(1 - a^2)) / a) - sqrt(1 - a^2))].
-// Both are 0.5 on the corner line (a -> 0).
+// component towards the wall), a floor point at distance d from the wall, a = d / r, has
+// its ray towards the wall hit it at t = d / u:
+//  - ray visibility within r (the oracle; Cycles with AO distance r): the wall blocks the
+//    disk segment u > a, direct = 1 - (acos(a) - a sqrt(1 - a^2)) / pi;
+//  - the SSDO test with k points lambda_j = r (j + xi) / k: the wall (thick) hides w when the
+//    last point lies behind it, r (k - 1 + xi) / k > t, probability min(1, k (1 - a / u)), so
+//    direct = 1 - (1/pi) integral_a^1 2 sqrt(1 - u^2) min(1, k (1 - a / u)) du;
+//    k = 1 (the paper's single point) has the closed form
+//    1 - (1/pi) [acos(a) - a sqrt(1 - a^2) - 2 a (ln((1 + sqrt(1 - a^2)) / a) - sqrt(1 - a^2))].
+// All are 0.5 on the corner line (a -> 0).
 double corner_direct_ray(double d, double radius) {
   const double a = std::min(d / radius, 1.0);
   return 1.0 - (std::acos(a) - a * std::sqrt(1.0 - a * a)) / kPi;
@@ -127,6 +130,22 @@ double corner_direct_point_test(double d, double radius) {
   if (a <= 0.0) return 0.5;
   const double s = std::sqrt(1.0 - a * a);
   return 1.0 - (std::acos(a) - a * s - 2.0 * a * (std::log((1.0 + s) / a) - s)) / kPi;
+}
+double corner_direct_march(double d, double radius, int k) {
+  const double a = std::min(d / radius, 1.0);
+  const int n = 20000;  // midpoint rule; the integrand is bounded and piecewise smooth
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i) {
+    const double u = a + (1.0 - a) * (i + 0.5) / n;
+    sum += 2.0 * std::sqrt(1.0 - u * u) * std::min(1.0, k * (1.0 - a / u));
+  }
+  return 1.0 - sum * (1.0 - a) / n / kPi;
+}
+
+TEST(Ssdo, CornerClosedFormsAgree) {
+  for (double a : {0.01, 0.1, 0.3, 0.7})
+    EXPECT_NEAR(corner_direct_march(a, 1.0, 1), corner_direct_point_test(a, 1.0), 1e-6);
+  EXPECT_NEAR(corner_direct_march(0.3, 1.0, 100000), corner_direct_ray(0.3, 1.0), 1e-4);
 }
 
 // Looks at the corner line along the bisector; the frame has an odd height, so the centre
@@ -154,10 +173,12 @@ TEST(Ssdo, CornerDirectMatchesClosedForms) {
       return d >= lo * radius && d < hi * radius;
     };
   };
-  for (int variant = 0; variant < 3; ++variant) {
-    SsdoSettings s = variant == 2 ? ssdo_preset(SsdoMethod::oracle, Preset::medium)
+  for (int variant = 0; variant < 4; ++variant) {
+    // 0: the paper's point test (k = 1); 1: the default march (k = 4); 2: bent normal; 3: oracle.
+    SsdoSettings s = variant == 3 ? ssdo_preset(SsdoMethod::oracle, Preset::medium)
                                   : ssdo_preset(SsdoMethod::ssdo, Preset::high);
-    if (variant == 1) s.direct_estimator = SsdoDirectEstimator::bent_normal;
+    s.sample_steps = variant == 0 ? 1 : 4;
+    if (variant == 2) s.direct_estimator = SsdoDirectEstimator::bent_normal;
     s.radius_world = radius;
     s.indirect_strength = 0.0f;
     // The ray caster's depth is float (relative precision 6e-8): a 1e-5 bias suffices. The
@@ -165,7 +186,8 @@ TEST(Ssdo, CornerDirectMatchesClosedForms) {
     // which moves the point test on the line from 0.5 to ~0.512 (a = 0.003 in its closed form).
     s.depth_bias_relative = 1e-5f;
     const SsdoOutput out = run(f, s);
-    const char* name = variant == 0 ? "ssdo per-sample" : variant == 1 ? "ssdo bent-normal" : "oracle";
+    const char* names[] = {"ssdo k=1", "ssdo k=4", "ssdo k=4 bent-normal", "oracle"};
+    const char* name = names[variant];
     // On the corner line: 0.5 within 3%.
     int count = 0;
     const double on_line = mean_where(out.direct, 0, band(0.0f, 2e-3f), &count);
@@ -174,7 +196,7 @@ TEST(Ssdo, CornerDirectMatchesClosedForms) {
     std::printf("[ info ] corner line (%d px), %s: direct %.4f (closed form 0.5)\n", count,
                 name, on_line);
     // Away from it: the estimator's own closed form, mean over bands of d.
-    if (variant == 1) continue;  // the bent-normal variant has no simple closed form
+    if (variant == 2) continue;  // the bent-normal variant has no simple closed form
     for (float lo : {0.05f, 0.2f, 0.35f}) {
       const auto pick = band(lo, lo + 0.05f);
       double closed = 0.0;
@@ -183,7 +205,8 @@ TEST(Ssdo, CornerDirectMatchesClosedForms) {
         for (int x = 0; x < out.direct.cols; ++x)
           if (pick(x, y)) {
             const double d = distance_to_other_plane(x, y);
-            closed += variant == 2 ? corner_direct_ray(d, radius) : corner_direct_point_test(d, radius);
+            closed += variant == 3 ? corner_direct_ray(d, radius)
+                                   : corner_direct_march(d, radius, s.sample_steps);
             ++n;
           }
       ASSERT_GT(n, 50);
@@ -268,7 +291,7 @@ TEST(Ssdo, IndirectUnitsWithKnownSenderRadiance) {
   const cv::Rect floor_roi(60, 90, 201, 91);  // the floor near the centre, below the line
   const SsdoOutput out = run(f, s, 0, floor_roi, &lighting);
   const SsdoOutput out_fast = run(f, fast, 0, floor_roi, &lighting);
-  double sum_abs = 0.0, sum_fast = 0.0, sum_closed_ray = 0.0, sum_closed_point = 0.0;
+  double sum_abs = 0.0, sum_fast = 0.0, sum_closed_ray = 0.0, sum_closed_march = 0.0;
   int count = 0;
   for (int y = floor_roi.y; y < floor_roi.br().y; ++y)
     for (int x = floor_roi.x; x < floor_roi.br().x; ++x) {
@@ -276,7 +299,7 @@ TEST(Ssdo, IndirectUnitsWithKnownSenderRadiance) {
       if (!(n.z > 0.99f && p.x > 0.02f && p.x < 0.6f && std::abs(p.y) < 0.3f)) continue;
       // The occluded (= sender) fraction is 1 - direct of the closed forms above.
       const double occluded_ray = 1.0 - corner_direct_ray(p.x, kCornerRadius);
-      const double occluded_point = 1.0 - corner_direct_point_test(p.x, kCornerRadius);
+      const double occluded_march = 1.0 - corner_direct_march(p.x, kCornerRadius, fast.sample_steps);
       const glm::vec3 ind = at(out.indirect, x, y);
       sum_abs += std::abs(ind.y - 0.6 * occluded_ray);
       if (ind.z > 0.0f) {
@@ -284,16 +307,16 @@ TEST(Ssdo, IndirectUnitsWithKnownSenderRadiance) {
       }
       sum_fast += at(out_fast.indirect, x, y).y;
       sum_closed_ray += 0.6 * occluded_ray;
-      sum_closed_point += 0.6 * occluded_point;
+      sum_closed_march += 0.6 * occluded_march;
       ++count;
     }
   ASSERT_GT(count, 1000);
   const double oracle_mae = sum_abs / count;
   EXPECT_LT(oracle_mae, 0.008);  // of a mean 0.6 x occluded fraction ~0.085
-  EXPECT_NEAR(sum_fast / count, sum_closed_point / count, 0.03 * sum_closed_point / count);
+  EXPECT_NEAR(sum_fast / count, sum_closed_march / count, 0.03 * sum_closed_march / count);
   std::printf("[ info ] indirect units (L_sender G = 0.6, %d floor px): oracle MAE %.5f vs ray closed form "
-              "(mean %.4f); solid-angle mean %.4f vs point-test closed form %.4f\n", count, oracle_mae,
-              sum_closed_ray / count, sum_fast / count, sum_closed_point / count);
+              "(mean %.4f); solid-angle k=%d mean %.4f vs its closed form %.4f\n", count, oracle_mae,
+              sum_closed_ray / count, fast.sample_steps, sum_fast / count, sum_closed_march / count);
 }
 
 }  // namespace
