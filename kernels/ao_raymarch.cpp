@@ -28,6 +28,7 @@
 #include "kernels/ao_raymarch.h"
 
 #include <cmath>
+#include <vector>
 
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
@@ -59,11 +60,44 @@ struct Constants {
   float width_px, height_px;
 };
 
+// What a step needs from the pixel it lands in, packed so one 32-byte read serves it:
+// the tangent plane dot(n_view, x) = plane_c of the stored surface, and the stored depth
+// (negative = masked: unknown, never occludes).
+struct Tap {
+  float nx, ny, nz, plane_c;
+  float depth_view;
+  float pad[3];
+};
+
+void build_taps(const AoInputs& in, std::vector<Tap>& taps, int nthreads) {
+  const int width = in.depth_view.cols;
+  taps.resize(size_t(width) * size_t(in.depth_view.rows));  // before the parallel loop
+  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+      const float* depth_row = in.depth_view.ptr<float>(y);
+      for (int x = 0; x < width; ++x) {
+        Tap& t = taps[size_t(y) * size_t(width) + size_t(x)];
+        if (mask_row[x] == 0) {
+          t = Tap{0.0f, 0.0f, 0.0f, 0.0f, -1.0f, {0.0f, 0.0f, 0.0f}};
+          continue;
+        }
+        const glm::vec3 n = detail::load3(in.normal_view, x, y);
+        const glm::vec3 p = detail::load3(in.position_view, x, y);
+        t = Tap{n.x, n.y, n.z, glm::dot(n, p), depth_row[x], {0.0f, 0.0f, 0.0f}};
+      }
+    }
+  });
+}
+
 void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Mat* confidence,
                    const cv::Rect& roi, int nthreads) {
   const Camera& cam = in.camera;
   const glm::mat4& proj = cam.view_to_clip;
   const int width = in.depth_view.cols, height = in.depth_view.rows;
+  std::vector<Tap> taps;
+  build_taps(in, taps, nthreads);
+  const float min_cos2 = kMinTangentCos * kMinTangentCos;
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
@@ -100,45 +134,53 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
           // Step s_j = radius (j + 1 - jitter) / steps, jitter in [0, 1): one sample in each
           // of the `steps` equal segments of (0, radius], the last at most radius.
           const float jitter = unit_float(hash_u32(jitter_key + uint32_t(i)));
-          bool blocked = false, unknown = false;
+          bool blocked = false, unknown = false, entered = false;
           for (int j = 0; j < k.steps && !blocked; ++j) {
             const float s = k.radius_world * (float(j) + 1.0f - jitter) / float(k.steps);
             const glm::vec4 clip = clip_origin + s * clip_w;
-            if (!(clip.w > 0.0f)) {  // behind the eye (perspective)
+            // Off-screen and behind-the-eye steps are unknown. Both are final once the ray
+            // has been on screen: clip.w is linear in s (once <= 0, it stays so), and the
+            // screen path of a segment in front of the eye is a segment, which leaves the
+            // convex screen rectangle at most once.
+            if (!(clip.w > 0.0f)) {
               unknown = true;
-              continue;
+              break;
             }
             const float inv_w = 1.0f / clip.w;
             const float px = 0.5f * (clip.x * inv_w + 1.0f) * k.width_px;
             const float py = 0.5f * (1.0f - clip.y * inv_w) * k.height_px;
             if (!(px >= 0.0f && px < k.width_px && py >= 0.0f && py < k.height_px)) {
               unknown = true;
+              if (entered) break;
               continue;
             }
+            entered = true;
             const int tx = std::min(int(px), width - 1), ty = std::min(int(py), height - 1);
-            if (in.mask.ptr<uint8_t>(ty)[tx] == 0) {
+            const Tap& tap = taps[size_t(ty) * size_t(width) + size_t(tx)];
+            if (tap.depth_view < 0.0f) {  // masked
               unknown = true;
               continue;
             }
             const glm::vec3 q = origin + s * w;
             const float depth_q = -q.z;
-            const float depth_tap = in.depth_view.ptr<float>(ty)[tx];
-            // d_ref: the tap's tangent plane on the view ray through q (top of this file).
-            const glm::vec3 n_tap = detail::load3(in.normal_view, tx, ty);
-            const glm::vec3 p_tap = detail::load3(in.position_view, tx, ty);
-            const glm::vec3 ray_origin = k.perspective ? glm::vec3(0.0f) : glm::vec3(q.x, q.y, 0.0f);
-            const glm::vec3 ray_dir = k.perspective ? q : glm::vec3(0.0f, 0.0f, -1.0f);
-            const float denom = glm::dot(n_tap, ray_dir);
-            float depth_ref = depth_tap;
-            if (std::abs(denom) >= kMinTangentCos * glm::length(ray_dir)) {
-              const float along = glm::dot(n_tap, p_tap - ray_origin) / denom;
-              const float d = -(ray_origin.z + along * ray_dir.z);
+            // d_ref: the tap's tangent plane dot(n, x) = c on the view ray through q (top of
+            // this file). Perspective: x = a q, a = c / dot(n, q). Orthographic: x = (q.x,
+            // q.y, -d), d = (n.x q.x + n.y q.y - c) / n.z.
+            float depth_ref = tap.depth_view;
+            if (k.perspective) {
+              const float denom = tap.nx * q.x + tap.ny * q.y + tap.nz * q.z;
+              if (denom * denom >= min_cos2 * glm::dot(q, q)) {
+                const float d = tap.plane_c / denom * depth_q;
+                if (d > 0.0f) depth_ref = d;
+              }
+            } else if (std::abs(tap.nz) >= kMinTangentCos) {
+              const float d = (tap.nx * q.x + tap.ny * q.y - tap.plane_c) / tap.nz;
               if (d > 0.0f) depth_ref = d;
             }
             // Bias relative to the stored depth: its rounding error is relative (float:
             // 6e-8, half: 4.9e-4 of the value), so a fixed bias would be too large near
             // the camera and too small far away. The default 1e-3 covers half-float depth.
-            const float bias = k.bias_relative * depth_tap;
+            const float bias = k.bias_relative * tap.depth_view;
             blocked = depth_q > depth_ref + bias && depth_q - depth_ref <= k.thickness_world;
           }
           if (!blocked) {
