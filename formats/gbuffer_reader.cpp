@@ -214,7 +214,6 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
       result.error = path + ": " + error;
       return false;
     }
-    const PixelBox grid{0, 0, side->width_px - 1, side->height_px - 1};
     if (side->width_px == prep.display.width() && side->height_px == prep.display.height()) {
       prep.camera = side->camera;
       prep.camera.view_to_clip =
@@ -229,7 +228,6 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
                      " and its data window " + describe_box(prep.data);
       return false;
     }
-    (void)grid;
     prep.camera.width_px = int(prep.data.width());
     prep.camera.height_px = int(prep.data.height());
     prep.camera_has_world = true;
@@ -297,9 +295,16 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
       cam.height_px = int(prep.data.height());
       cam.near_view = cam.far_view = 0.0f;  // defaults of from_fov_x, not known clips
       prep.camera = cam;
-      info.camera_source = "--fov " + std::to_string(fov);
+      std::ostringstream source;
+      source << "--fov " << fov;
+      info.camera_source = source.str();
+      if (prep.display != prep.data)
+        info.notes.push_back("field of view spans the display window; the data window sees a part of it");
     }
   }
+  if (options.fov_x_deg && prep.camera_has_world)
+    info.notes.push_back("the given field of view is ignored: the frame's camera (" +
+                         info.camera_source + ") takes precedence");
   if (options.depth_kind != DepthKind::automatic)
     prep.radial_depth = options.depth_kind == DepthKind::radial;
   else if (!side || !side->depth_kind)
@@ -470,6 +475,13 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     const std::optional<float> background = prep.background_depth;
     const bool radial = prep.radial_depth;
     const float inf = std::numeric_limits<float>::infinity();
+    // The view-space point at planar depth 1 is affine in the pixel coordinates for every
+    // projection whose clip.w does not depend on x and y (see Camera::view_from_pixel_depth),
+    // so rays are stepped across the image instead of solved per pixel.
+    const bool perspective = camera.is_perspective();
+    const glm::vec3 ray_origin = camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
+    const glm::vec3 ray_step_x = camera.view_from_pixel_depth({1.5f, 0.5f}, 1.0f) - ray_origin;
+    const glm::vec3 ray_step_y = camera.view_from_pixel_depth({0.5f, 1.5f}, 1.0f) - ray_origin;
 
     parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
       for (int y = rows.start; y < rows.end; ++y) {
@@ -477,6 +489,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
         uint8_t* mask = g.mask.ptr<uint8_t>(y);
         cv::Vec3f* normal = has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr;
         uint8_t* rep = has_normals ? repair.ptr<uint8_t>(y) : nullptr;
+        const glm::vec3 ray_row = ray_origin + float(y) * ray_step_y;
         for (int x = 0; x < size.width; ++x) {
           float d = depth[x];
           bool nonfinite = !std::isfinite(d);
@@ -486,11 +499,12 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
             if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z))
               nonfinite = true;
           }
-          glm::vec3 ray(0.0f, 0.0f, -1.0f);
-          if (!nonfinite && (radial || normal))
-            ray = camera.view_ray_direction({x + 0.5f, y + 0.5f});
-          // Radial distance from the eye -> planar depth along -Z: d_planar = d * (-ray.z).
-          if (radial && !nonfinite) d *= -ray.z;
+          // The eye ray through the pixel centre (length arbitrary, z = -1 in perspective).
+          const glm::vec3 ray = perspective ? ray_row + float(x) * ray_step_x
+                                            : glm::vec3(0.0f, 0.0f, -1.0f);
+          // Radial distance from the eye -> planar depth along -Z: d_planar = d cos(angle
+          // to the axis) = d / |ray| for a ray with z = -1.
+          if (radial && !nonfinite && perspective) d /= glm::length(ray);
           const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
                                   !(far_view > 0.0f && d > far_view) &&
                                   !(background && depth[x] == *background);

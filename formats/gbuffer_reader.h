@@ -2,13 +2,38 @@
 //
 // Channel profiles (detected automatically, or overridden by an explicit mapping):
 // - "blender": Blender/Cycles multilayer names <ViewLayer>.Depth.Z, .Normal.XYZ (world),
-//   .Position.XYZ (world), .DiffCol.RGB, .AO.RGB, .DiffDir.RGB, .DiffInd.RGB, ...
+//   .Position.XYZ (world), .DiffCol.RGB (albedo), .AO.R (reference "AO", CV_32FC1),
+//   .DiffDir.RGB / .DiffInd.RGB (references "DiffDir" / "DiffInd", CV_32FC3).
+//   lighting = DiffCol * DiffDir: the outgoing diffuse radiance of each pixel under the
+//   renderer's direct light (DiffDir is irradiance-like, divided by albedo; see
+//   /work/shared/gbuffers/README.md), i.e. the sender radiance of the SSDO bounce.
 // - "generic": single-layer names Z | depth.Z, N.XYZ | N.RGB | N.xyz, P.XYZ,
-//   albedo.RGB | diffuse_albedo.RGB (Arnold-style AOVs).
-// - "mapping": every channel named by the caller (ChannelMapping).
-// Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an
-// explicit path), the OpenEXR header attributes worldToCamera + worldToNDC, or
-// intrinsics given by the caller (fov_x_deg).
+//   albedo.RGB | diffuse_albedo.RGB (Arnold-style AOVs). N and P are taken as world space
+//   when the camera has a world transform (sidecar or header), as view space under a bare
+//   --fov camera; a sidecar's "normal_space" / "position_space" or the mapping overrides.
+// - "mapping": channels named by the caller (ChannelMapping); inputs it leaves empty keep
+//   what the detected profile found.
+// In a multi-part file, depth comes from ReadOptions::part or the first part holding a
+// depth channel; other inputs from that part, else from another part of the same size.
+//
+// Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an explicit
+// path), the OpenEXR header attributes worldToCamera + worldToNDC (either camera
+// convention, detected: see formats/camera_io.h; optional float attributes clipNear /
+// clipFar), or a horizontal field of view given by the caller. Sidecar and field of view
+// refer to the display window; the projection is re-targeted to the data window, which is
+// the pixel grid (row 0 = its top scanline).
+//
+// Conversions, done once here:
+// - depth: radial -> planar along the eye ray. Background = non-finite, <= 0, >= 1e9,
+//   beyond the far clip or equal to the sidecar's background_depth: mask 0, depth +inf.
+// - normals: world -> view with the inverse transpose of world_to_view's 3x3, renormalised,
+//   and flipped to face the camera when they point away from the eye (back faces or
+//   unflipped shading normals; the kernels integrate over the visible hemisphere).
+//   A foreground normal of (0, 0, 0) is rebuilt from depth; a frame without normals gets
+//   all its normals from kernels/normals.h.
+// - NaN / Inf in depth or normals: the pixel is masked and counted (nonfinite_pixels);
+//   NaN / Inf in albedo or lighting become 0; reference passes are left as stored.
+// - Half channels are read as float.
 #pragma once
 
 #include <cstdint>

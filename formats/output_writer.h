@@ -27,9 +27,18 @@ struct WriteOptions {
   bool png_previews = false;        // NAME.<term>.png beside the EXR
 };
 
-// Writes all terms into one EXR at `path` (written as a temp file in the same folder,
-// then renamed), with the camera carried over as worldToCamera/worldToNDC attributes.
-// Returns an empty string on success, else the error.
+// Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<pid>-<random>"
+// in the same folder and renamed into place, so the file is complete or absent (on failure
+// the temp file is removed and an existing `path` is left as it was). All terms must share
+// one size, equal to the camera grid when camera.width_px > 0. Compression "dwaa" is lossy
+// and refused for 1-channel (numeric) and vector terms.
+// The camera is carried over as worldToCamera (OpenEXR convention: camera looks down +Z,
+// i.e. our view space with z negated) and worldToNDC (display window = the terms' grid),
+// plus float attributes clipNear / clipFar when known: read_gbuffer reads them back.
+// png_previews: "DIR/STEM.<term>.png" beside "DIR/STEM.exr", 8-bit, clamped to [0, 1]
+// and sRGB-encoded; vector terms are shown as 0.5 v + 0.5 without sRGB encoding (the usual
+// normal-map colours). Previews are written through temp files too.
+// Returns an empty string on success, else the error (naming the file).
 std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
                           const Camera& camera, const WriteOptions& options = {});
 
