@@ -1,5 +1,10 @@
 #include "service/cli_options.h"
 
+#include <cmath>
+#include <sstream>
+
+#include "formats/env_map.h"
+
 namespace ssdo {
 
 void add_read_options(CLI::App& app, ReadOptionArgs& a) {
@@ -45,10 +50,131 @@ void add_compute_options(CLI::App& app, ComputeOptionArgs& a, bool with_terms) {
   app.add_option("--threads", a.threads, "Threads for the kernels (0 = all cores)")
       ->check(CLI::Range(0, 1024))
       ->group("Compute");
-  if (with_terms)
-    app.add_option("--terms", a.terms, "Terms to compute and write: ao, ssdo, composite, all")
-        ->capture_default_str()
-        ->group("Compute");
+  if (!with_terms) return;
+  app.add_option("--terms", a.terms, "Terms to compute and write: ao, ssdo, composite, all")
+      ->capture_default_str()
+      ->group("Compute");
+  app.add_option("--ssdo-method", a.ssdo_method,
+                 "SSDO method: ssdo (fast) or oracle (slow screen-space best case)")
+      ->check(CLI::IsMember({"ssdo", "oracle"}))
+      ->capture_default_str()
+      ->group("SSDO");
+  app.add_option("--ssdo-preset", a.ssdo_preset, "SSDO quality preset (default: --preset)")
+      ->check(CLI::IsMember({"low", "medium", "high", "ultra"}))
+      ->group("SSDO");
+  app.add_option("--env", a.env_path,
+                 "Environment light: an equirectangular radiance map (EXR; row 0 = straight up, "
+                 "centre column = +Y world as Blender/Cycles writes it)")
+      ->check(CLI::ExistingFile)
+      ->group("SSDO");
+  app.add_option("--sky", a.sky,
+                 "Environment light: a two-colour sky TOP,BOTTOM, each a grey level or R:G:B, "
+                 "e.g. --sky 0.25:0.5:1,1:0.35:0.08")
+      ->group("SSDO");
+  app.add_option("--env-constant", a.env_constant, "Environment light: uniform radiance (default 1)")
+      ->check(CLI::NonNegativeNumber)
+      ->group("SSDO");
+  app.add_option("--env-up", a.env_up, "World up axis of the environment: z (Blender) or y")
+      ->check(CLI::IsMember({"z", "y"}))
+      ->capture_default_str()
+      ->group("SSDO");
+  app.add_option("--composite", a.composite,
+                 "Composite terms: a mode (off, ssao, ssdo, ssao+ssdo) or a weighted list of "
+                 "ambient, ambient_ao, ssdo_direct, ssdo_indirect, lighting, e.g. "
+                 "ambient_ao:0.5,ssdo_direct,ssdo_indirect (default: ssdo when SSDO is "
+                 "computed, else ssao)")
+      ->group("Compute");
+}
+
+bool parse_sky(const std::string& spec, glm::vec3& top, glm::vec3& bottom, std::string& error) {
+  // Tokenise on ',' ':' and whitespace, keeping where the commas were.
+  std::vector<std::vector<float>> groups(1);
+  std::string token;
+  auto flush = [&]() {
+    if (token.empty()) return true;
+    try {
+      size_t used = 0;
+      const float v = std::stof(token, &used);
+      if (used != token.size() || !(v >= 0.0f) || !std::isfinite(v)) throw std::invalid_argument(token);
+      groups.back().push_back(v);
+    } catch (const std::exception&) {
+      error = "--sky '" + spec + "': '" + token + "' is not a non-negative number";
+      return false;
+    }
+    token.clear();
+    return true;
+  };
+  for (char c : spec) {
+    if (c == ',' || c == ':' || std::isspace(static_cast<unsigned char>(c))) {
+      if (!flush()) return false;
+      if (c == ',') groups.emplace_back();
+    } else {
+      token += c;
+    }
+  }
+  if (!flush()) return false;
+  std::vector<float> all;
+  for (const auto& g : groups) all.insert(all.end(), g.begin(), g.end());
+  auto colour = [](const std::vector<float>& v, size_t at, size_t n) {
+    return n == 1 ? glm::vec3(v[at]) : glm::vec3(v[at], v[at + 1], v[at + 2]);
+  };
+  if (groups.size() == 2 && (groups[0].size() == 1 || groups[0].size() == 3) &&
+      (groups[1].size() == 1 || groups[1].size() == 3)) {
+    top = colour(groups[0], 0, groups[0].size());
+    bottom = colour(groups[1], 0, groups[1].size());
+    return true;
+  }
+  if (all.size() == 6) {
+    top = colour(all, 0, 3);
+    bottom = colour(all, 3, 3);
+    return true;
+  }
+  error = "--sky '" + spec + "': expected TOP,BOTTOM with each a grey level or R:G:B";
+  return false;
+}
+
+bool parse_composite(const std::string& spec, std::vector<WeightedTerm>& terms, std::string& error) {
+  if (const auto mode = parse_composite_mode(spec)) {
+    terms = composite_mode_terms(*mode);
+    return true;
+  }
+  terms.clear();
+  std::stringstream ss(spec);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (item.empty()) continue;
+    const size_t colon = item.find(':');
+    const std::string name = item.substr(0, colon);
+    const auto term = parse_composite_term(name);
+    if (!term) {
+      error = "--composite: unknown term '" + name +
+              "' (modes: off, ssao, ssdo, ssao+ssdo; terms: ambient, ambient_ao, ssdo_direct, "
+              "ssdo_indirect, lighting)";
+      return false;
+    }
+    WeightedTerm w{*term, 1.0f};
+    if (colon != std::string::npos) {
+      try {
+        size_t used = 0;
+        const std::string value = item.substr(colon + 1);
+        w.weight = std::stof(value, &used);
+        if (used != value.size()) throw std::invalid_argument(value);
+      } catch (const std::exception&) {
+        error = "--composite: the weight in '" + item + "' is not a number";
+        return false;
+      }
+      if (!(w.weight >= 0.0f && w.weight <= 16.0f)) {
+        error = "--composite: the weight in '" + item + "' is out of range [0, 16]";
+        return false;
+      }
+    }
+    terms.push_back(w);
+  }
+  if (terms.empty()) {
+    error = "--composite: no term given";
+    return false;
+  }
+  return true;
 }
 
 bool resolve_read_options(const ReadOptionArgs& a, ReadOptions& read, std::string& error) {
@@ -111,6 +237,46 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
     error = "AO settings: " + e;
     return false;
   }
+
+  const auto ssdo_method = parse_ssdo_method(a.ssdo_method);
+  const auto ssdo_level = parse_preset(a.ssdo_preset.empty() ? a.preset : a.ssdo_preset);
+  if (!ssdo_method || !ssdo_level) {
+    error = "unknown SSDO method or preset: " + a.ssdo_method + " / " + a.ssdo_preset;
+    return false;
+  }
+  request.ssdo = ssdo_preset(*ssdo_method, *ssdo_level);
+  if (a.radius_world > 0) request.ssdo.radius_world = a.radius_world;
+  if (a.thickness_world > 0) request.ssdo.thickness_world = a.thickness_world;
+  if (const std::string e = validate(request.ssdo); !e.empty()) {
+    error = "SSDO settings: " + e;
+    return false;
+  }
+
+  const int env_sources = int(!a.env_path.empty()) + int(!a.sky.empty()) + int(a.env_constant > 0);
+  if (env_sources > 1) {
+    error = "give one environment: --env, --sky or --env-constant";
+    return false;
+  }
+  EnvironmentSettings env_settings;
+  env_settings.up = a.env_up == "y" ? UpAxis::y : UpAxis::z;
+  env_settings.filter_cone_half_angle_deg = filter_cone_half_angle_for_samples(request.ssdo.samples);
+  if (!a.env_path.empty()) {
+    EnvMapResult env = read_env_map(a.env_path);
+    if (!env.ok()) {
+      error = env.error;
+      return false;
+    }
+    request.environment = std::make_shared<const Environment>(Environment::equirect(env.radiance_rgb, env_settings));
+  } else if (!a.sky.empty()) {
+    SkyGradient sky;
+    if (!parse_sky(a.sky, sky.top, sky.bottom, error)) return false;
+    request.environment = std::make_shared<const Environment>(Environment::sky(sky, env_settings));
+  } else if (a.env_constant > 0) {
+    request.environment =
+        std::make_shared<const Environment>(Environment::constant(glm::vec3(a.env_constant), env_settings));
+  }
+
+  if (!a.composite.empty() && !parse_composite(a.composite, request.composite_terms, error)) return false;
   return true;
 }
 

@@ -28,6 +28,14 @@ struct ComputeOptionArgs {
   float thickness_world = 0;
   int threads = 0;
   std::string terms = "ao,composite";
+  // SSDO and the environment
+  std::string ssdo_method = "ssdo";
+  std::string ssdo_preset;        // empty = --preset
+  std::string env_path;           // equirect radiance map
+  std::string sky;                // "TOP,BOTTOM" two-colour sky
+  float env_constant = 0;         // uniform radiance (0 = unset)
+  std::string env_up = "z";
+  std::string composite;          // mode or weighted term list
 };
 
 void add_read_options(CLI::App& app, ReadOptionArgs& args);
@@ -35,6 +43,14 @@ void add_compute_options(CLI::App& app, ComputeOptionArgs& args, bool with_terms
 
 // Fill the request; on a bad value return false with a message naming the option.
 bool resolve_read_options(const ReadOptionArgs& args, ReadOptions& read, std::string& error);
+// Also loads the environment map (once) when one is named.
 bool resolve_compute_options(const ComputeOptionArgs& args, FrameRequest& request, std::string& error);
+
+// "0.25 0.5 1, 1 0.35 0.08" / "0.25:0.5:1,1:0.35:0.08" / "0.25,0.5,1,1,0.35,0.08" / "1,0.2"
+// (grey levels) -> top and bottom colours. False with a message on error.
+bool parse_sky(const std::string& spec, glm::vec3& top, glm::vec3& bottom, std::string& error);
+
+// "ssdo" | "ssao" | "off" | "ssao+ssdo" or "ambient_ao:0.5,ssdo_direct,ssdo_indirect:2".
+bool parse_composite(const std::string& spec, std::vector<WeightedTerm>& terms, std::string& error);
 
 }  // namespace ssdo

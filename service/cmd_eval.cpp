@@ -67,13 +67,24 @@ int run_eval(const EvalArgs& args) {
       continue;
     }
     FrameRequest request = args.request;
+    // The frame's AO distance is the AO reference's radius; light passes (DiffDir,
+    // DiffInd) see occluders at any distance, so the SSDO radius stays as requested.
     if (args.radius_from_frame && frame.info.ao_distance_world)
       request.ao.radius_world = *frame.info.ao_distance_world;
 
     const auto t0 = std::chrono::steady_clock::now();
     const ComputedFrame computed = compute_frame(frame.gbuffer, request);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-    const cv::Mat estimate = *computed.find("ao_denoised");
+    const std::string name = args.term + (args.raw ? "" : "_denoised");
+    const cv::Mat* found = computed.find(name);
+    if (!found) {
+      std::cerr << "ssdo eval: " << file << ": term '" << name << "' was not computed\n";
+      ++failed;
+      continue;
+    }
+    // Scalar terms (AO) compare with a scalar reference (Cycles' AO is R = G = B);
+    // colour terms compare the channel mean of each pixel.
+    const cv::Mat estimate = found->channels() == 1 ? *found : to_single_channel(*found);
     const cv::Mat reference = to_single_channel(ref_it->second);
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
     overall.add(estimate, reference, frame.gbuffer.mask);
@@ -81,15 +92,18 @@ int run_eval(const EvalArgs& args) {
 
     nlohmann::json j = stats_json(s);
     j["file"] = file;
-    j["method"] = method;
+    j["method"] = args.term == "ao" ? method : std::string(to_string(request.ssdo.method));
+    j["term"] = args.term;
+    j["relative_mae"] = s.mean_reference > 0 ? s.mae / s.mean_reference : 0.0;
     j["preset"] = args.preset;
     j["radius"] = request.ao.radius_world;
     j["ms"] = ms;
     files.push_back(j);
     if (!args.json) {
-      std::printf("%s: %s r=%.3g  MAE %.4f  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
-                  file.c_str(), method.c_str(), request.ao.radius_world, s.mae, s.rmse, s.bias,
-                  s.p95, int(s.pixels), ms);
+      std::printf("%s: %s %s r=%.3g  MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
+                  file.c_str(), args.term.c_str(), j["method"].get<std::string>().c_str(),
+                  request.ao.radius_world, s.mae, 100.0 * j["relative_mae"].get<double>(), s.rmse,
+                  s.bias, s.p95, int(s.pixels), ms);
     }
     if (!args.heatmap_dir.empty()) {
       const std::string stem = std::filesystem::path(file).stem().string();
@@ -109,10 +123,12 @@ int run_eval(const EvalArgs& args) {
     nlohmann::json o = stats_json(all);
     o["ms"] = overall_ms;
     o["files"] = int(files.size());
+    o["relative_mae"] = all.mean_reference > 0 ? all.mae / all.mean_reference : 0.0;
     std::cout << nlohmann::json{{"files", files}, {"overall", o}}.dump(2) << "\n";
   } else if (args.files.size() > 1) {
-    std::printf("overall: MAE %.4f  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n", all.mae,
-                all.rmse, all.bias, all.p95, int(all.pixels), overall_ms);
+    std::printf("overall: MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
+                all.mae, all.mean_reference > 0 ? 100.0 * all.mae / all.mean_reference : 0.0, all.rmse,
+                all.bias, all.p95, int(all.pixels), overall_ms);
   }
   return failed ? 1 : 0;
 }

@@ -73,7 +73,8 @@ int run_process(const ProcessArgs& args) {
     FrameRequest request = args.request;
     request.input_path = frames[i];
     request.output_path = output_path_for(frames[i], args.output_dir);
-    const std::string counter = "[" + std::to_string(i + 1) + "/" + std::to_string(total) + "] ";
+    char counter[48];
+    std::snprintf(counter, sizeof counter, "[%d/%d] ", i + 1, total);
     if (!args.force && output_up_to_date(request.input_path, request.output_path)) {
       ++skipped;
       std::cout << counter << request.input_path << ": skipped (output up to date: "

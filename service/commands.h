@@ -38,6 +38,8 @@ struct EvalArgs {
   std::vector<std::string> files;
   std::string reference = "AO";     // reference channel/pass name in the frame
   std::string preset = "high";      // preset name, for the report
+  std::string term = "ao";          // ao | ssdo_direct | ssdo_indirect (denoised output compared)
+  bool raw = false;                 // compare the raw term instead of the denoised one
   FrameRequest request;             // method, preset, read options
   bool radius_from_frame = true;    // AO radius from the frame's sidecar when known
   bool json = false;

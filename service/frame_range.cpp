@@ -1,5 +1,6 @@
 #include "service/frame_range.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cstdio>
 #include <sstream>
@@ -103,9 +104,11 @@ bool has_frame_pattern(const std::string& path) { return find_pattern(path).pos 
 std::string expand_frame_pattern(const std::string& path, int frame) {
   const Pattern p = find_pattern(path);
   if (p.pos == std::string::npos) return path;
-  char digits[64];
-  if (frame < 0) std::snprintf(digits, sizeof digits, "-%0*d", std::max(p.digits - 1, 0), -frame);
-  else std::snprintf(digits, sizeof digits, "%0*d", p.digits, frame);
+  // Zero-pad the magnitude to the pattern's width (the sign, if any, counts in it).
+  std::string digits = std::to_string(frame < 0 ? -static_cast<long long>(frame) : frame);
+  const size_t width = size_t(std::clamp(p.digits - (frame < 0 ? 1 : 0), 0, 32));
+  if (digits.size() < width) digits.insert(0, width - digits.size(), '0');
+  if (frame < 0) digits.insert(0, 1, '-');
   return path.substr(0, p.pos) + digits + path.substr(p.pos + p.length);
 }
 

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
       "  ssdo process frames/ -o out/                AO + composite for every frame in a folder\n"
       "  ssdo process f.exr -o out/ --terms all --env sky.exr\n"
       "  ssdo eval f.exr --reference AO --method gtao --preset high\n"
+      "  ssdo eval f.exr --term ssdo_direct --reference DiffDir --env sky.exr\n"
       "Camera: a NAME.camera.json sidecar, the EXR attributes worldToCamera + worldToNDC, or --fov.\n"
       "Run 'ssdo COMMAND --help' for a command's options.");
 
@@ -76,10 +77,16 @@ int main(int argc, char** argv) {
   eval_cmd->add_option("files", eval.files, "EXR frames holding the reference pass")->required();
   eval_cmd->add_option("--reference", eval.reference, "Reference pass name (AO for Cycles dumps)")
       ->capture_default_str();
+  eval_cmd->add_option("--term", eval.term,
+                       "Term to compare: ao (with --reference AO), ssdo_direct (--reference DiffDir) "
+                       "or ssdo_indirect (--reference DiffInd)")
+      ->check(CLI::IsMember({"ao", "ssdo_direct", "ssdo_indirect"}))
+      ->capture_default_str();
+  eval_cmd->add_flag("--raw", eval.raw, "Compare the raw term instead of the denoised one");
   eval_cmd->add_flag("--json", eval.json, "Print JSON");
   eval_cmd->add_option("--heatmap", eval.heatmap_dir, "Write an error image per file into DIR");
   add_read_options(*eval_cmd, eval_read);
-  add_compute_options(*eval_cmd, eval_compute, false);
+  add_compute_options(*eval_cmd, eval_compute, true);
 
   CLI11_PARSE(app, argc, argv);
 
@@ -102,7 +109,7 @@ int main(int argc, char** argv) {
     if (!resolve_read_options(eval_read, eval.request.read, error) ||
         !resolve_compute_options(eval_compute, eval.request, error))
       return usage_error(error);
-    eval.request.terms = {true, false, false};
+    eval.request.terms = {eval.term == "ao", eval.term != "ao", false};
     eval.radius_from_frame = eval_compute.radius_world <= 0;
     eval.preset = eval_compute.preset;
     return run_eval(eval);

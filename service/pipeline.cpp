@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <exception>
+#include <stdexcept>
 #include <sstream>
 
 #include "kernels/positions.h"
@@ -63,22 +64,83 @@ const cv::Mat* ComputedFrame::find(const std::string& name) const {
 ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const int threads = request.threads;
+  const TermSelection& terms = request.terms;
   cv::Mat position_view = g.position_view;
   if (position_view.empty())
     view_positions_from_depth(g.depth_view, g.mask, g.camera, position_view, {}, threads);
+  auto denoised = [&](const cv::Mat& src) {
+    cv::Mat dst;
+    denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, request.denoise, dst, {}, threads);
+    return dst;
+  };
 
-  if (request.terms.ao || request.terms.composite) {
+  const std::vector<WeightedTerm> composite_terms =
+      !request.composite_terms.empty() ? request.composite_terms
+      : terms.ssdo ? composite_mode_terms(CompositeMode::ssdo)
+                   : composite_mode_terms(CompositeMode::ssao);
+  auto composite_uses = [&](CompositeTerm t) {
+    if (!terms.composite) return false;
+    for (const WeightedTerm& w : composite_terms)
+      if (w.term == t) return true;
+    return false;
+  };
+
+  cv::Mat ao_denoised;
+  if (terms.ao || composite_uses(CompositeTerm::ambient_ao)) {
     const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera,
                       g.has_albedo() ? &g.albedo : nullptr};
     AoOutput ao;
     compute_ao(in, request.ao, ao, {}, threads);
-    cv::Mat ao_denoised;
-    denoise_bilateral(ao.ao, g.depth_view, g.normal_view, g.mask, request.denoise, ao_denoised, {},
-                      threads);
-    frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
-    frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});
-    if (!ao.bent_normal_view.empty())
-      frame.terms.push_back({"bent_normal", ao.bent_normal_view, SampleType::half, true});
+    ao_denoised = denoised(ao.ao);
+    if (terms.ao) {
+      frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
+      frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});
+      if (!ao.bent_normal_view.empty())
+        frame.terms.push_back({"bent_normal", ao.bent_normal_view, SampleType::half, true});
+    }
+  }
+
+  static const Environment kWhite;  // constant radiance 1
+  const Environment& environment = request.environment ? *request.environment : kWhite;
+  cv::Mat direct_denoised, indirect_denoised;
+  if (terms.ssdo || composite_uses(CompositeTerm::ssdo_direct) ||
+      composite_uses(CompositeTerm::ssdo_indirect)) {
+    const SsdoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera, environment,
+                        g.has_albedo() ? &g.albedo : nullptr,
+                        g.lighting.empty() ? nullptr : &g.lighting};
+    SsdoOutput out;
+    compute_ssdo(in, request.ssdo, out, {}, threads);
+    direct_denoised = denoised(out.direct);
+    indirect_denoised = denoised(out.indirect);
+    if (terms.ssdo) {
+      frame.terms.push_back({"ssdo_direct", out.direct, SampleType::half, false});
+      frame.terms.push_back({"ssdo_direct_denoised", direct_denoised, SampleType::half, false});
+      frame.terms.push_back({"ssdo_indirect", out.indirect, SampleType::half, false});
+      frame.terms.push_back({"ssdo_indirect_denoised", indirect_denoised, SampleType::half, false});
+    }
+  }
+
+  if (terms.composite) {
+    CompositeSettings settings;
+    settings.terms = composite_terms;
+    const auto* background = [&]() -> const cv::Mat* {
+      const auto it = g.references.find("Env");
+      return it != g.references.end() && it->second.type() == CV_32FC3 ? &it->second : nullptr;
+    }();
+    const CompositeInputs in{g.mask,
+                             g.has_albedo() ? &g.albedo : nullptr,
+                             ao_denoised.empty() ? nullptr : &ao_denoised,
+                             direct_denoised.empty() ? nullptr : &direct_denoised,
+                             indirect_denoised.empty() ? nullptr : &indirect_denoised,
+                             g.lighting.empty() ? nullptr : &g.lighting,
+                             background,
+                             &environment,
+                             &g.camera};
+    if (const std::string e = validate(in, settings); !e.empty())
+      throw std::invalid_argument("composite: " + e);
+    cv::Mat composite;
+    compute_composite(in, settings, composite, {}, threads);
+    frame.terms.push_back({"composite", composite, SampleType::half, false});
   }
   return frame;
 }

@@ -2,14 +2,18 @@
 // (formats). A request is a value; `process`, `eval` and `serve` all build one.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "formats/gbuffer_reader.h"
 #include "formats/output_writer.h"
 #include "kernels/ao.h"
+#include "kernels/composite.h"
 #include "kernels/denoise.h"
+#include "kernels/environment.h"
 #include "kernels/gbuffer.h"
+#include "kernels/ssdo.h"
 
 namespace ssdo {
 
@@ -33,7 +37,14 @@ struct FrameRequest {
   ReadOptions read;
   TermSelection terms;
   AoSettings ao;
+  SsdoSettings ssdo;
   DenoiseSettings denoise;
+  // The environment light of the SSDO terms and the composite's background (world space,
+  // built once per batch and shared by its frames). Null = constant radiance 1.
+  std::shared_ptr<const Environment> environment;
+  // Composite terms; empty = the default for the selected terms: SSDO direct + indirect
+  // when SSDO is computed (Cycles' DiffCol x (DiffDir + DiffInd)), else albedo x AO.
+  std::vector<WeightedTerm> composite_terms;
   WriteOptions write;
   int threads = 0;            // kernels' thread budget (0 = OpenCV's pool, 1 = serial)
 };

@@ -78,3 +78,64 @@ TEST(ComputeOptionArgs, PresetThenOverrides) {
 
 }  // namespace
 }  // namespace ssdo
+
+namespace ssdo {
+namespace {
+
+TEST(Sky, AcceptsGreyAndColourSpellings) {
+  glm::vec3 top, bottom;
+  std::string error;
+  ASSERT_TRUE(parse_sky("0.25:0.5:1,1:0.35:0.08", top, bottom, error)) << error;
+  EXPECT_EQ(top, glm::vec3(0.25f, 0.5f, 1.0f));
+  EXPECT_EQ(bottom, glm::vec3(1.0f, 0.35f, 0.08f));
+  ASSERT_TRUE(parse_sky("0.25 0.5 1, 1 0.35 0.08", top, bottom, error)) << error;
+  EXPECT_EQ(bottom, glm::vec3(1.0f, 0.35f, 0.08f));
+  ASSERT_TRUE(parse_sky("0.25,0.5,1,1,0.35,0.08", top, bottom, error)) << error;
+  EXPECT_EQ(top, glm::vec3(0.25f, 0.5f, 1.0f));
+  ASSERT_TRUE(parse_sky("1,0.2", top, bottom, error)) << error;
+  EXPECT_EQ(top, glm::vec3(1.0f));
+  EXPECT_EQ(bottom, glm::vec3(0.2f));
+}
+
+TEST(Sky, RejectsMalformedColours) {
+  glm::vec3 top, bottom;
+  std::string error;
+  for (const char* bad : {"", "1", "1,2,3", "red,blue", "1,-1", "1:2,3"}) {
+    EXPECT_FALSE(parse_sky(bad, top, bottom, error)) << bad;
+    EXPECT_NE(error.find("--sky"), std::string::npos) << bad;
+  }
+}
+
+TEST(Composite, ModesAndWeightedLists) {
+  std::vector<WeightedTerm> terms;
+  std::string error;
+  ASSERT_TRUE(parse_composite("ssao+ssdo", terms, error)) << error;
+  EXPECT_EQ(terms.size(), composite_mode_terms(CompositeMode::ssao_ssdo).size());
+  ASSERT_TRUE(parse_composite("ambient_ao:0.5,ssdo_indirect:2", terms, error)) << error;
+  ASSERT_EQ(terms.size(), 2u);
+  EXPECT_EQ(terms[0].term, CompositeTerm::ambient_ao);
+  EXPECT_FLOAT_EQ(terms[0].weight, 0.5f);
+  EXPECT_EQ(terms[1].term, CompositeTerm::ssdo_indirect);
+  EXPECT_FLOAT_EQ(terms[1].weight, 2.0f);
+  EXPECT_FALSE(parse_composite("glow", terms, error));
+  EXPECT_NE(error.find("glow"), std::string::npos);
+  EXPECT_FALSE(parse_composite("ambient:x", terms, error));
+  EXPECT_FALSE(parse_composite("ambient:99", terms, error));
+}
+
+TEST(ComputeOptionArgs, OneEnvironmentAtATime) {
+  ComputeOptionArgs a;
+  a.sky = "1,0.5";
+  a.env_constant = 2.0f;
+  FrameRequest req;
+  std::string error;
+  EXPECT_FALSE(resolve_compute_options(a, req, error));
+  EXPECT_NE(error.find("one environment"), std::string::npos);
+  a.env_constant = 0;
+  ASSERT_TRUE(resolve_compute_options(a, req, error)) << error;
+  ASSERT_TRUE(req.environment);
+  EXPECT_EQ(req.environment->kind(), EnvironmentKind::sky);
+}
+
+}  // namespace
+}  // namespace ssdo

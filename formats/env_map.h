@@ -1,0 +1,23 @@
+// Reading an environment map (equirectangular latitude-longitude radiance image, any
+// format OpenImageIO reads; EXR for HDR) into the CV_32FC3 RGB image kernels/environment.h
+// takes.
+#pragma once
+
+#include <string>
+
+#include <opencv2/core.hpp>
+
+namespace ssdo {
+
+struct EnvMapResult {
+  cv::Mat radiance_rgb;  // CV_32FC3 (R, G, B), linear, row 0 = top (straight up)
+  std::string error;     // empty on success, else names the file and the problem
+  bool ok() const { return error.empty(); }
+};
+
+// Reads the first three channels (R, G, B; a single channel is replicated). Refuses
+// images larger than max_pixels before allocating; non-finite or negative radiance is
+// clamped to 0.
+EnvMapResult read_env_map(const std::string& path, long long max_pixels = 1ll << 26);
+
+}  // namespace ssdo
