@@ -516,6 +516,54 @@ TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
   EXPECT_EQ(r.info.uses[1].space, "view");
 }
 
+TEST(ReadConversions, ConformanceNanInfImageIsMaskedAndCounted) {
+  // BrightRingsNanInf.exr: half RGB with NaN and Inf samples; R serves as depth here.
+  const fs::path path = conformance_dir() / "valid" / "TestImages" / "BrightRingsNanInf.exr";
+  SSDO_SKIP_WITHOUT(path);
+  ReadOptions options;
+  options.fov_x_deg = 40.0f;
+  options.mapping.depth = "R";
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  const auto red = read_channels_oiio(path, {"R"});
+  int64_t nonfinite = 0, background = 0;
+  for (float v : red) {
+    nonfinite += std::isfinite(v) ? 0 : 1;
+    background += std::isfinite(v) && !(v > 0.0f && v < 1e9f) ? 1 : 0;
+  }
+  ASSERT_GT(nonfinite, 0);
+  EXPECT_EQ(r.info.nonfinite_pixels, nonfinite);
+  EXPECT_EQ(r.info.masked_pixels, nonfinite + background);
+  for (int y = 0; y < r.gbuffer.height_px(); ++y)
+    for (int x = 0; x < r.gbuffer.width_px(); ++x) {
+      const float d = r.gbuffer.depth_view.at<float>(y, x);
+      if (r.gbuffer.mask.at<uint8_t>(y, x)) {
+        ASSERT_TRUE(std::isfinite(d));
+        ASSERT_TRUE(std::isfinite(cv::norm(r.gbuffer.normal_view.at<cv::Vec3f>(y, x))));
+      } else {
+        ASSERT_TRUE(std::isinf(d));
+      }
+    }
+}
+
+TEST(ReadConversions, TiledMipmappedFileReadsItsFullResolutionLevel) {
+  const fs::path path = conformance_dir() / "valid" / "MultiResolution" / "ColorCodedLevels.exr";
+  SSDO_SKIP_WITHOUT(path);
+  ReadOptions options;
+  options.fov_x_deg = 40.0f;
+  options.mapping.depth = "G";
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  int w = 0, h = 0;
+  const auto g = read_channels_oiio(path, {"G"}, 0, &w, &h);
+  ASSERT_EQ(r.gbuffer.width_px(), w);
+  ASSERT_EQ(r.gbuffer.height_px(), h);
+  for (int i = 0; i < w * h; i += 131) {
+    if (!r.gbuffer.mask.at<uint8_t>(i / w, i % w)) continue;
+    EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(i / w, i % w), g[i]);
+  }
+}
+
 TEST(ReadConversions, NormalsFacingAwayAreFlippedAndWorldNormalsRotated) {
   SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.camera.json");
   // A 640x360 frame with the cornell sidecar: generic N in world space (sidecar camera).
