@@ -115,10 +115,8 @@ std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   return commit(temp, final_path);
 }
 
-}  // namespace
-
-std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
-                          const Camera& camera, const WriteOptions& options) {
+std::string write_outputs_unguarded(const std::string& path, const std::vector<OutputTerm>& terms,
+                                    const Camera& camera, const WriteOptions& options) {
   const fs::path final_path(path);
   if (terms.empty()) return path + ": no output terms to write";
   const auto compression = parse_compression(options.compression);
@@ -212,6 +210,21 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
     }
   }
   return {};
+}
+
+}  // namespace
+
+std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
+                          const Camera& camera, const WriteOptions& options) {
+  // Nothing throws across the API: file-system, OpenCV or allocation failures outside the
+  // EXR writing itself end up here as messages too.
+  try {
+    return write_outputs_unguarded(path, terms, camera, options);
+  } catch (const std::exception& e) {
+    return path + ": cannot write outputs: " + e.what();
+  } catch (...) {
+    return path + ": cannot write outputs: unknown error";
+  }
 }
 
 }  // namespace ssdo

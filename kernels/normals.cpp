@@ -50,16 +50,39 @@ void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& ma
   // 1/depth is affine in screen space over a plane seen in perspective; depth itself is,
   // orthographically. Masked taps are never read (background depth is +inf).
   auto screen_affine = [perspective](float d) { return perspective ? 1.0f / d : d; };
-  auto tap_valid = [&](int x, int y) {
-    return x >= 0 && y >= 0 && x < width && y < height && mask.at<uint8_t>(y, x) != 0;
+  // view_from_pixel_depth(pixel, d) = origin(pixel) + d * ray(pixel), both affine in the
+  // pixel coordinates for every projection whose clip.w does not depend on x and y (the
+  // camera's own assumption): precomputed once, stepped per pixel instead of solving the
+  // 2x2 system for each of the up to five taps.
+  struct Affine {
+    glm::vec3 base, dx, dy;
+    glm::vec3 at(int x, int y) const { return base + float(x) * dx + float(y) * dy; }
   };
+  auto affine_at_depth = [&](float d) {
+    const glm::vec3 b = camera.view_from_pixel_depth({0.5f, 0.5f}, d);
+    return Affine{b, camera.view_from_pixel_depth({1.5f, 0.5f}, d) - b,
+                  camera.view_from_pixel_depth({0.5f, 1.5f}, d) - b};
+  };
+  const Affine origin = affine_at_depth(0.0f);
+  const Affine at_one = affine_at_depth(1.0f);
+  const Affine ray{at_one.base - origin.base, at_one.dx - origin.dx, at_one.dy - origin.dy};
   auto position = [&](int x, int y) {
-    return camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, depth_view.at<float>(y, x));
+    return origin.at(x, y) + depth_view.ptr<float>(y)[x] * ray.at(x, y);
   };
 
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* m = mask.ptr<uint8_t>(y);
+      const float* depth_row = depth_view.ptr<float>(y);
+      // Rows y-2 .. y+2 (nullptr outside the image).
+      const uint8_t* mask_rows[5];
+      const float* depth_rows[5];
+      for (int k = 0; k < 5; ++k) {
+        const int yy = y + k - 2;
+        const bool inside = yy >= 0 && yy < height;
+        mask_rows[k] = inside ? mask.ptr<uint8_t>(yy) : nullptr;
+        depth_rows[k] = inside ? depth_view.ptr<float>(yy) : nullptr;
+      }
       cv::Vec3f* out = normal_view.ptr<cv::Vec3f>(y);
       for (int x = r.x; x < r.x + r.width; ++x) {
         if (!m[x]) {
@@ -69,10 +92,11 @@ void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& ma
         float qx[5], qy[5];
         bool vx[5], vy[5];
         for (int k = 0; k < 5; ++k) {
-          vx[k] = tap_valid(x + k - 2, y);
-          qx[k] = vx[k] ? screen_affine(depth_view.at<float>(y, x + k - 2)) : 0.0f;
-          vy[k] = tap_valid(x, y + k - 2);
-          qy[k] = vy[k] ? screen_affine(depth_view.at<float>(y + k - 2, x)) : 0.0f;
+          const int xx = x + k - 2;
+          vx[k] = xx >= 0 && xx < width && m[xx] != 0;
+          qx[k] = vx[k] ? screen_affine(depth_row[xx]) : 0.0f;
+          vy[k] = mask_rows[k] != nullptr && mask_rows[k][x] != 0;
+          qy[k] = vy[k] ? screen_affine(depth_rows[k][x]) : 0.0f;
         }
         const Side side_x = choose_side(qx, vx);
         const Side side_y = choose_side(qy, vy);
