@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
 
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
@@ -71,8 +73,29 @@ constexpr float kPi = 3.14159265358979323846f;
 // ray) from extrapolating far beyond the pixel.
 constexpr float kPlaneCorrectionMaxRelative = 0.25f;
 
+// What a tap reads of a pixel: one 16-byte record (taps scatter over up to max_radius_px
+// around the pixel, and memory, not arithmetic, bounds the kernel). For a plane seen in
+// perspective, 1 / depth is an affine function of the pixel coordinates, so the pixel's
+// tangent plane gives the surface depth anywhere in the pixel from 1 / depth at the centre
+// and its two screen gradients.
+struct TapTexel {
+  float depth_view;      // planar depth at the centre; +inf where mask = 0 (nothing there)
+  float inv_depth;       // 1 / depth_view
+  float inv_depth_dx;    // d(1 / depth) / d(pixel x) of the tangent plane (0: not used)
+  float inv_depth_dy;    // d(1 / depth) / d(pixel y)
+};
+static_assert(sizeof(TapTexel) == 16);
+
+// What a sender contributes needs its position and normal: read only for occluded samples.
+struct SenderTexel {
+  glm::vec3 position_view;
+  glm::vec3 normal_view;
+};
+
 // Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {
+  const TapTexel* taps;        // row-major, width_px per row
+  const SenderTexel* senders;  // row-major, width_px per row
   const cv::Mat* depth;
   const cv::Mat* normal;
   const cv::Mat* position;
@@ -119,22 +142,15 @@ inline Tap classify(const Constants& c, const glm::vec3& s_view, const glm::vec4
   if (!(px >= 0.0f && px < c.width_px && py >= 0.0f && py < c.height_px)) return Tap::off_screen;
   qx = int(px);
   qy = int(py);
-  if (c.mask->at<uint8_t>(qy, qx) == 0) return Tap::visible;  // background: nothing there
-  const float depth_q = c.depth->at<float>(qy, qx);
+  const TapTexel& t = c.taps[size_t(qy) * size_t(c.width_px) + size_t(qx)];
+  const float depth_q = t.depth_view;
+  if (!(depth_q < std::numeric_limits<float>::infinity())) return Tap::visible;  // background
   const float depth_s = -s_view.z;
-  float depth_surface = depth_q;
-  if (c.perspective) {
-    // q's tangent plane n_q . (X - P_q) = 0 met by the eye ray X = k S: k = n_q.P_q / n_q.S.
-    const cv::Vec3f& pq = c.position->at<cv::Vec3f>(qy, qx);
-    const cv::Vec3f& nq = c.normal->at<cv::Vec3f>(qy, qx);
-    const float den = nq[0] * s_view.x + nq[1] * s_view.y + nq[2] * s_view.z;
-    const float num = nq[0] * pq[0] + nq[1] * pq[1] + nq[2] * pq[2];
-    if (den != 0.0f) {
-      const float k = num / den;
-      const float limit = kPlaneCorrectionMaxRelative * depth_q;
-      if (k > 0.0f) depth_surface = std::clamp(k * depth_s, depth_q - limit, depth_q + limit);
-    }
-  }
+  // The surface depth on S's own ray: q's tangent plane at S's sub-pixel offset.
+  const float inv = t.inv_depth + t.inv_depth_dx * (px - float(qx) - 0.5f) +
+                    t.inv_depth_dy * (py - float(qy) - 0.5f);
+  const float limit = kPlaneCorrectionMaxRelative * depth_q;
+  const float depth_surface = inv > 0.0f ? std::clamp(1.0f / inv, depth_q - limit, depth_q + limit) : depth_q;
   const float behind = depth_s - depth_surface;
   if (behind > c.s.depth_bias_relative * depth_s && behind < c.s.thickness_world) return Tap::occluded;
   return Tap::visible;
@@ -166,8 +182,12 @@ inline float effective_radius(const Constants& c, float depth_view) {
 
 // One pixel of the SSDO estimator (method ssdo). want_direct / want_indirect select the
 // terms; sender_direct is the first pass (used only without `lighting`).
+// record (may be null): receives, per sample, the sender's pixel index y W + x, or -1 when
+// the sample is visible. recorded (may be null): such a record from an earlier pass with
+// the same inputs and settings; the samples are then not marched again.
 void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
-                const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
+                const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded,
+                glm::vec3& direct, glm::vec3& indirect) {
   const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
   const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
   const float r = effective_radius(c, c.depth->at<float>(y, x));
@@ -184,34 +204,44 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
 
   glm::vec3 direct_sum(0.0f), indirect_sum(0.0f), bent_sum(0.0f);
   int visible = 0;
+  const int width = int(c.width_px);
   for (int i = 0; i < n_samples; ++i) {
-    float u, v;
-    r2_point(uint32_t(i), shift_u, shift_v, u, v);
-    const glm::vec3 w = cosine_direction(u, v, t, b, n);
-    // Points along w at lambda_ij = r (j + xi_i) / k, j = 0..k-1, xi_i in (0, 1]: k = 1 is the
-    // paper's single point at a uniform distance in (0, r]; k > 1 marches the whole radius
-    // (stratified), so an occluder anywhere within r is found. The first point behind the
-    // depth buffer decides.
-    const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
-    const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
-    Tap tap = Tap::visible;
     int qx = 0, qy = 0;
-    for (int j = 0; j < steps; ++j) {
-      const float lambda = r * (float(j) + xi) * inv_steps;
-      tap = classify(c, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
-      if (tap != Tap::visible) break;
-    }
-    if (tap != Tap::occluded) {
-      if (want_direct) {
-        if (bent) bent_sum += w;
-        else direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
+    if (recorded) {
+      if (recorded[i] < 0) continue;
+      qx = recorded[i] % width;
+      qy = recorded[i] / width;
+    } else {
+      float u, v;
+      r2_point(uint32_t(i), shift_u, shift_v, u, v);
+      const glm::vec3 w = cosine_direction(u, v, t, b, n);
+      // Points along w at lambda_ij = r (j + xi_i) / k, j = 0..k-1, xi_i in (0, 1]: k = 1 is
+      // the paper's single point at a uniform distance in (0, r]; k > 1 marches the whole
+      // radius (stratified), so an occluder anywhere within r is found. The first point
+      // behind the depth buffer decides.
+      const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
+      const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
+      Tap tap = Tap::visible;
+      for (int j = 0; j < steps; ++j) {
+        const float lambda = r * (float(j) + xi) * inv_steps;
+        tap = classify(c, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
+        if (tap != Tap::visible) break;
       }
-      ++visible;
-      continue;
+      if (tap != Tap::occluded) {
+        if (want_direct) {
+          if (bent) bent_sum += w;
+          else direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
+        }
+        ++visible;
+        if (record) record[i] = -1;
+        continue;
+      }
+      if (record) record[i] = qy * width + qx;
     }
     if (!want_indirect) continue;
-    const glm::vec3 pq = to_glm(c.position->at<cv::Vec3f>(qy, qx));
-    const glm::vec3 nq = to_glm(c.normal->at<cv::Vec3f>(qy, qx));
+    const SenderTexel& sender = c.senders[size_t(qy) * size_t(width) + size_t(qx)];
+    const glm::vec3& pq = sender.position_view;
+    const glm::vec3& nq = sender.normal_view;
     const glm::vec3 to_receiver = p - pq;
     const float d2 = glm::dot(to_receiver, to_receiver);
     // A sender at P itself has no defined direction (a zero-area coincidence).
@@ -287,9 +317,8 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
         continue;
       }
       if (!want_indirect) continue;
-      const glm::vec3 pq = to_glm(c.position->at<cv::Vec3f>(qy, qx));
-      const glm::vec3 nq = to_glm(c.normal->at<cv::Vec3f>(qy, qx));
-      if (glm::dot(nq, p - pq) > 0.0f) indirect_sum += sender_radiance(c, sender_direct, qx, qy);
+      const SenderTexel& sender = c.senders[size_t(qy) * size_t(c.width_px) + size_t(qx)];
+      if (glm::dot(sender.normal_view, p - sender.position_view) > 0.0f) indirect_sum += sender_radiance(c, sender_direct, qx, qy);
     }
   }
   const float inv_k = 1.0f / float(g * g);
@@ -298,11 +327,12 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
 }
 
 void light_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
-                 const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
+                 const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded,
+                 glm::vec3& direct, glm::vec3& indirect) {
   if (c.s.method == SsdoMethod::oracle)
     oracle_pixel(c, x, y, want_direct, want_indirect, sender_direct, direct, indirect);
   else
-    ssdo_pixel(c, x, y, want_direct, want_indirect, sender_direct, direct, indirect);
+    ssdo_pixel(c, x, y, want_direct, want_indirect, sender_direct, record, recorded, direct, indirect);
 }
 
 }  // namespace
@@ -321,7 +351,47 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);
   if (out.indirect.size() != size || out.indirect.type() != CV_32FC3) out.indirect.create(size, CV_32FC3);
 
+  // The packed per-pixel records the taps and senders read (allocated once per call,
+  // outside the per-pixel loops). Tangent plane n . X = n . P of pixel q met by the eye ray
+  // through pixel (u, v), X = depth ray(u, v) with ray(u, v) the view point at depth 1
+  // (affine in u, v for a perspective camera): 1 / depth = n . ray(u, v) / (n . P), so its
+  // gradients are n . ray_du / (n . P) and n . ray_dv / (n . P).
+  const bool perspective = in.camera.is_perspective();
+  const glm::vec3 ray_00 = in.camera.view_from_pixel_depth({0.0f, 0.0f}, 1.0f);
+  const glm::vec3 ray_du = in.camera.view_from_pixel_depth({1.0f, 0.0f}, 1.0f) - ray_00;
+  const glm::vec3 ray_dv = in.camera.view_from_pixel_depth({0.0f, 1.0f}, 1.0f) - ray_00;
+  std::vector<TapTexel> taps(size_t(size.area()));
+  std::vector<SenderTexel> senders(size_t(size.area()));
+  parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* m = in.mask.ptr<uint8_t>(y);
+      const float* d = in.depth_view.ptr<float>(y);
+      const cv::Vec3f* nrm = in.normal_view.ptr<cv::Vec3f>(y);
+      const cv::Vec3f* pos = in.position_view.ptr<cv::Vec3f>(y);
+      TapTexel* t = &taps[size_t(y) * size_t(size.width)];
+      SenderTexel* snd = &senders[size_t(y) * size_t(size.width)];
+      for (int x = 0; x < size.width; ++x) {
+        snd[x].position_view = glm::vec3(pos[x][0], pos[x][1], pos[x][2]);
+        snd[x].normal_view = glm::vec3(nrm[x][0], nrm[x][1], nrm[x][2]);
+        const bool foreground = m[x] != 0 && d[x] > 0.0f && d[x] < std::numeric_limits<float>::infinity();
+        t[x].depth_view = foreground ? d[x] : std::numeric_limits<float>::infinity();
+        t[x].inv_depth = foreground ? 1.0f / d[x] : 0.0f;
+        t[x].inv_depth_dx = t[x].inv_depth_dy = 0.0f;
+        const float plane = glm::dot(snd[x].normal_view, snd[x].position_view);
+        // A plane through the eye (plane ~ 0) is seen edge-on: no usable gradient. The
+        // threshold is relative to the depth (|n . P| = depth x |cos| of the view angle),
+        // i.e. views within ~0.06 deg of grazing keep the centre depth.
+        if (foreground && perspective && std::abs(plane) > 1e-3f * d[x]) {
+          t[x].inv_depth_dx = glm::dot(snd[x].normal_view, ray_du) / plane;
+          t[x].inv_depth_dy = glm::dot(snd[x].normal_view, ray_dv) / plane;
+        }
+      }
+    }
+  });
+
   Constants c{};
+  c.taps = taps.data();
+  c.senders = senders.data();
   c.depth = &in.depth_view;
   c.normal = &in.normal_view;
   c.position = &in.position_view;
@@ -338,8 +408,20 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   c.s = settings;
 
   const bool want_indirect = settings.indirect_strength > 0.0f;
-  // First pass (no `lighting`): direct everywhere, the senders' light.
+  // First pass (no `lighting`): direct everywhere, the senders' light. Method ssdo also
+  // records each sample's sender so that the second pass need not march again, when the
+  // record fits the budget (N x 4 bytes per pixel; above it the second pass re-marches:
+  // same result, more time).
+  constexpr size_t kRecordBudgetBytes = size_t(256) << 20;
   cv::Mat sender_direct;
+  std::vector<int32_t> record;
+  const size_t record_size = size_t(size.area()) * size_t(settings.samples);
+  if (want_indirect && !c.lighting && settings.method == SsdoMethod::ssdo &&
+      record_size * sizeof(int32_t) <= kRecordBudgetBytes)
+    record.resize(record_size);
+  auto record_at = [&](int x, int y) -> int32_t* {
+    return record.empty() ? nullptr : &record[(size_t(y) * size_t(size.width) + size_t(x)) * size_t(settings.samples)];
+  };
   if (want_indirect && !c.lighting) {
     sender_direct.create(size, CV_32FC3);
     parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
@@ -352,7 +434,7 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
             d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
             continue;
           }
-          light_pixel(c, x, y, true, false, sender_direct, direct, unused);
+          light_pixel(c, x, y, true, false, sender_direct, record_at(x, y), nullptr, direct, unused);
           d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
         }
       }
@@ -374,9 +456,9 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
         if (!sender_direct.empty()) {
           const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
           direct = glm::vec3(d[0], d[1], d[2]);
-          light_pixel(c, x, y, false, true, sender_direct, direct, indirect);
+          light_pixel(c, x, y, false, true, sender_direct, nullptr, record_at(x, y), direct, indirect);
         } else {
-          light_pixel(c, x, y, true, want_indirect, sender_direct, direct, indirect);
+          light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, direct, indirect);
         }
         od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
         oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
