@@ -88,7 +88,12 @@ int main(int argc, char** argv) {
   add_read_options(*eval_cmd, eval_read);
   add_compute_options(*eval_cmd, eval_compute, true);
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; every other parse error is a usage error (2).
+    return app.exit(e) == 0 ? 0 : 2;
+  }
 
   std::string error;
   auto usage_error = [&](const std::string& msg) {
