@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -93,8 +94,26 @@ struct SenderTexel {
 };
 
 // Per-frame constants: the views, the camera folded into matrices, the settings.
+// Taps far from the receiver read a coarser level of a pyramid of TapTexels (McGuire et
+// al. 2012, "Scalable Ambient Obscurance", sec. 4.3): nearby texels of one level share
+// cache lines, which the scattered far taps of a large radius otherwise miss. Level l has
+// ceil(size / 2^l) texels; each is one full-resolution pixel of its 2x2 children (the
+// rotated-grid choice of SAO, no averaging across depth edges), whose tangent plane is
+// kept and whose pixel is the sender. A tap at a distance rho from the receiver's pixel
+// reads level floor(log2(rho / kMipStartPx)) + 1 when rho >= kMipStartPx, else level 0:
+// the contact region, where occlusion changes fastest, is always read at full resolution.
+constexpr float kMipStartPx = 16.0f;
+constexpr int kMaxLevels = 8;
+
+struct TapLevel {
+  const TapTexel* taps = nullptr;
+  const uint32_t* source = nullptr;  // full-resolution pixel x | y << 16 (null at level 0)
+  int width = 0, height = 0;
+};
+
 struct Constants {
-  const TapTexel* taps;        // row-major, width_px per row
+  TapLevel levels[kMaxLevels];
+  int n_levels;                // 1 = no pyramid (the oracle reads full resolution only)
   const SenderTexel* senders;  // row-major, width_px per row
   const cv::Mat* depth;
   const cv::Mat* normal;
@@ -133,16 +152,32 @@ inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const gl
 // whose point has left the frame does not come back, so marches stop there.
 enum class Tap { visible, occluded, off_screen };
 
-// Occlusion test of view-space point S whose clip coordinates are `clip` (see ssdo.h). On
-// `occluded` the pixel (qx, qy) is the sender.
-inline Tap classify(const Constants& c, const glm::vec3& s_view, const glm::vec4& clip, int& qx, int& qy) {
+// Occlusion test of view-space point S whose clip coordinates are `clip` (see ssdo.h), for
+// the receiver at pixel coordinates origin_px. On `occluded` the pixel (qx, qy) is the sender.
+inline Tap classify(const Constants& c, const glm::vec2& origin_px, const glm::vec3& s_view,
+                    const glm::vec4& clip, int& qx, int& qy) {
   if (!(clip.w > 0.0f)) return Tap::off_screen;  // behind the eye
-  const float px = 0.5f * (clip.x / clip.w + 1.0f) * c.width_px;
-  const float py = 0.5f * (1.0f - clip.y / clip.w) * c.height_px;
+  const float inv_w = 1.0f / clip.w;
+  const float px = 0.5f * (clip.x * inv_w + 1.0f) * c.width_px;
+  const float py = 0.5f * (1.0f - clip.y * inv_w) * c.height_px;
   if (!(px >= 0.0f && px < c.width_px && py >= 0.0f && py < c.height_px)) return Tap::off_screen;
   qx = int(px);
   qy = int(py);
-  const TapTexel& t = c.taps[size_t(qy) * size_t(c.width_px) + size_t(qx)];
+  int level = 0;
+  if (c.n_levels > 1) {
+    const float dx = px - origin_px.x, dy = py - origin_px.y;
+    const float rho2 = (dx * dx + dy * dy) * (1.0f / (kMipStartPx * kMipStartPx));
+    // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
+    if (rho2 >= 1.0f) level = std::min(c.n_levels - 1, (std::ilogb(rho2) >> 1) + 1);
+  }
+  const TapLevel& lv = c.levels[level];
+  const size_t texel = size_t(qy >> level) * size_t(lv.width) + size_t(qx >> level);
+  const TapTexel& t = lv.taps[texel];
+  if (level > 0) {
+    const uint32_t source = lv.source[texel];
+    qx = int(source & 0xFFFFu);
+    qy = int(source >> 16);
+  }
   const float depth_q = t.depth_view;
   if (!(depth_q < std::numeric_limits<float>::infinity())) return Tap::visible;  // background
   const float depth_s = -s_view.z;
@@ -194,6 +229,7 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   glm::vec3 t, b;
   tangent_frame(n, t, b);
   const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
+  const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
   const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
   const int n_samples = c.s.samples;
   const int steps = c.s.sample_steps;
@@ -224,7 +260,7 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       Tap tap = Tap::visible;
       for (int j = 0; j < steps; ++j) {
         const float lambda = r * (float(j) + xi) * inv_steps;
-        tap = classify(c, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
+        tap = classify(c, origin_px, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
         if (tap != Tap::visible) break;
       }
       if (tap != Tap::occluded) {
@@ -284,6 +320,7 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
   glm::vec3 t, b;
   tangent_frame(n, t, b);
   const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
+  const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
   // Cranley-Patterson rotation of the stratified grid and of the step positions, per pixel.
   const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
   const float step_jitter = noise01(x, y, 2, c.s.seed);
@@ -305,7 +342,7 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
         const float lambda = (float(k) + step_jitter) * step + 1e-7f * r;  // > 0 always
         const glm::vec4 clip = clip_p + lambda * clip_w;
         if (!(clip.w > 0.0f)) break;
-        const Tap tap = classify(c, p + lambda * w, clip, qx, qy);
+        const Tap tap = classify(c, origin_px, p + lambda * w, clip, qx, qy);
         if (tap == Tap::off_screen) break;
         if (tap == Tap::occluded) {
           hit = true;
@@ -389,8 +426,40 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     }
   });
 
+  // The pyramid (method ssdo only; the oracle is the full-resolution best case).
+  std::vector<std::vector<TapTexel>> level_taps;
+  std::vector<std::vector<uint32_t>> level_source;
+  CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
   Constants c{};
-  c.taps = taps.data();
+  c.levels[0] = {taps.data(), nullptr, size.width, size.height};
+  c.n_levels = 1;
+  if (settings.method == SsdoMethod::ssdo) {
+    // Levels until one covers the largest tap distance (~2 max_radius_px: a sample point
+    // nearer the camera than P projects farther out) or the image is one texel wide.
+    const float max_rho_px = 2.0f * settings.max_radius_px;
+    level_taps.reserve(kMaxLevels);
+    level_source.reserve(kMaxLevels);
+    while (c.n_levels < kMaxLevels && kMipStartPx * float(1 << (c.n_levels - 1)) < max_rho_px) {
+      const TapLevel& prev = c.levels[c.n_levels - 1];
+      if (prev.width <= 1 && prev.height <= 1) break;
+      const int w = (prev.width + 1) / 2, h = (prev.height + 1) / 2;
+      level_taps.emplace_back(size_t(w) * size_t(h));
+      level_source.emplace_back(size_t(w) * size_t(h));
+      TapTexel* lt = level_taps.back().data();
+      uint32_t* ls = level_source.back().data();
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          // SAO's rotated grid: child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)), clamped to the image.
+          const int cx = std::min(2 * x + ((y & 1) ^ 1), prev.width - 1);
+          const int cy = std::min(2 * y + ((x & 1) ^ 1), prev.height - 1);
+          const size_t child = size_t(cy) * size_t(prev.width) + size_t(cx);
+          lt[size_t(y) * size_t(w) + size_t(x)] = prev.taps[child];
+          ls[size_t(y) * size_t(w) + size_t(x)] =
+              prev.source ? prev.source[child] : uint32_t(cx) | (uint32_t(cy) << 16);
+        }
+      c.levels[c.n_levels++] = {lt, ls, w, h};
+    }
+  }
   c.senders = senders.data();
   c.depth = &in.depth_view;
   c.normal = &in.normal_view;
