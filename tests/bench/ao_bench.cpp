@@ -1,18 +1,41 @@
-// Timings of the screen-space AO methods per preset and of the denoisers, on a G-buffer of
-// the Cornell-like reference scene at 640x360 and 1920x1080 (2 threads).
+// Timings of the screen-space AO methods per preset and of the denoisers, at 640x360 (the
+// shared cornell dump) and 1920x1080 (the shared perf1080 dump), with 1 and 2 threads.
+// Without ../shared the Cornell-like scene of the reference ray caster is rendered at both
+// sizes instead. Args: width, method, preset, threads.
 #include <benchmark/benchmark.h>
 
+#include <filesystem>
+
+#include "formats/gbuffer_reader.h"
 #include "kernels/ao.h"
 #include "kernels/denoise.h"
+#include "kernels/positions.h"
 #include "kernels/raycast.h"
 
 namespace {
 
+ssdo::GBuffer load(int width) {
+  const std::filesystem::path dir = std::filesystem::path(SSDO_SHARED_DIR) / "gbuffers";
+  const std::filesystem::path file = dir / (width == 640 ? "cornell.exr" : "perf1080.exr");
+  if (std::filesystem::exists(file)) {
+    ssdo::ReadOptions options;
+    options.read_references = false;
+    ssdo::ReadResult r = ssdo::read_gbuffer(file.string(), options);
+    if (r.ok()) {
+      ssdo::GBuffer g = std::move(r.gbuffer);
+      if (g.position_view.empty())
+        ssdo::view_positions_from_depth(g.depth_view, g.mask, g.camera, g.position_view);
+      return g;
+    }
+  }
+  const int height = width * 9 / 16;
+  return ssdo::raycast::render_gbuffer(ssdo::raycast::cornell_scene(),
+                                       ssdo::raycast::cornell_camera(width, height), 2);
+}
+
 const ssdo::GBuffer& frame(int width) {
-  static const ssdo::GBuffer small = ssdo::raycast::render_gbuffer(
-      ssdo::raycast::cornell_scene(), ssdo::raycast::cornell_camera(640, 360), 2);
-  static const ssdo::GBuffer large = ssdo::raycast::render_gbuffer(
-      ssdo::raycast::cornell_scene(), ssdo::raycast::cornell_camera(1920, 1080), 2);
+  static const ssdo::GBuffer small = load(640);
+  static const ssdo::GBuffer large = load(1920);
   return width == 640 ? small : large;
 }
 
@@ -20,11 +43,13 @@ void BM_Ao(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   const auto method = ssdo::AoMethod(state.range(1));
   const auto preset = ssdo::Preset(state.range(2));
+  const int threads = int(state.range(3));
   const ssdo::AoSettings s = ssdo::ao_preset(method, preset);
   const ssdo::AoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, nullptr};
   ssdo::AoOutput out;
-  for (auto _ : state) ssdo::compute_ao(in, s, out, {}, 2);
-  state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)));
+  for (auto _ : state) ssdo::compute_ao(in, s, out, {}, threads);
+  state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
+                 " " + std::to_string(threads) + "t");
 }
 
 void BM_Denoise(benchmark::State& state) {
@@ -32,25 +57,31 @@ void BM_Denoise(benchmark::State& state) {
   cv::Mat src(g.depth_view.size(), CV_32FC1), dst;
   cv::randu(src, 0.0f, 1.0f);
   for (auto _ : state)
-    ssdo::denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, {}, dst, {}, 2);
+    ssdo::denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, {}, dst, {}, int(state.range(1)));
 }
 
 void BM_BoxBlur(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   cv::Mat src(g.depth_view.size(), CV_32FC1), dst;
   cv::randu(src, 0.0f, 1.0f);
-  for (auto _ : state) ssdo::box_blur_4x4(src, dst, {}, 2);
+  for (auto _ : state) ssdo::box_blur_4x4(src, dst, {}, int(state.range(1)));
 }
 
 void ao_args(benchmark::internal::Benchmark* b) {
   for (int w : {640, 1920})
     for (int m : {0, 1, 2})
-      for (int p : {0, 1, 2, 3}) b->Args({w, m, p});
+      for (int p : {0, 1, 2, 3})
+        for (int t : {1, 2}) b->Args({w, m, p, t});
+}
+
+void image_args(benchmark::internal::Benchmark* b) {
+  for (int w : {640, 1920})
+    for (int t : {1, 2}) b->Args({w, t});
 }
 
 }  // namespace
 
 BENCHMARK(BM_Ao)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_Denoise)->Arg(640)->Arg(1920)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_BoxBlur)->Arg(640)->Arg(1920)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();
