@@ -1,13 +1,22 @@
-// `ssdo process`: a batch over frames. A bad frame is reported and the batch goes on;
-// exit code 1 if any frame failed, 0 otherwise (2 for usage errors, before any work).
-#include <chrono>
-#include <cstdio>
+// `ssdo process`: a batch over frames, each decoded and computed in a worker process
+// (service/worker_process.h). A bad frame is reported and the batch goes on; exit code 1
+// if any frame failed (or the batch was interrupted), 0 otherwise (2 for usage errors,
+// before any work). SIGINT / SIGTERM: no new frame starts, frames in flight finish.
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
 #include <filesystem>
 #include <iostream>
+#include <thread>
 
+#include "service/batch_progress.h"
 #include "service/commands.h"
 #include "service/frame_list.h"
 #include "service/frame_range.h"
+#include "service/parallelism.h"
+#include "service/request_options.h"
 
 namespace ssdo {
 
@@ -55,64 +64,68 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: " << error << "\n";
     return 2;
   }
-  if (frames.empty()) {
-    std::cerr << "ssdo process: no frames to process (an empty folder or chunk)\n";
-  }
+  if (frames.empty()) std::cerr << "ssdo process: no frames to process (an empty folder or chunk)\n";
   std::error_code ec;
   std::filesystem::create_directories(args.output_dir, ec);
   if (ec) {
-    std::cerr << "ssdo process: cannot create output folder " << args.output_dir << ": "
-              << ec.message() << "\n";
+    std::cerr << "ssdo process: cannot create output folder " << args.output_dir << ": " << ec.message() << "\n";
     return 2;
   }
+  if (const int n = remove_stale_temp_files(args.output_dir); n > 0)
+    std::cerr << "ssdo process: removed " << n << " temp files of an interrupted run in " << args.output_dir << "\n";
 
-  const auto t_start = std::chrono::steady_clock::now();
-  int done = 0, skipped = 0, failed = 0;
-  const int total = int(frames.size());
-  for (int i = 0; i < total; ++i) {
-    FrameRequest request = args.request;
-    request.input_path = frames[i];
-    request.output_path = output_path_for(frames[i], args.output_dir);
-    char counter[48];
-    std::snprintf(counter, sizeof counter, "[%d/%d] ", i + 1, total);
-    if (!args.force && output_up_to_date(request.input_path, request.output_path)) {
-      ++skipped;
-      std::cout << counter << request.input_path << ": skipped (output up to date: "
-                << request.output_path << ")\n" << std::flush;
-      continue;
-    }
-    const FrameResult r = process_frame(request);
-    const double elapsed_s =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-    const int finished = done + failed + 1;
-    const double fps = finished / std::max(elapsed_s, 1e-9);
-    const double eta_s = (total - i - 1) / std::max(fps, 1e-9);
-    if (r.ok()) {
-      ++done;
-      std::cout << counter << request.input_path << " -> " << r.output_path << ": ok";
-    } else {
-      ++failed;
-      std::cout << counter << request.input_path << ": FAILED: " << r.error;
-    }
-    char rate[96];
-    std::snprintf(rate, sizeof rate, " (%.0f ms; %.2f frames/s, ETA %.0f s)",
-                  r.times.read_ms + r.times.compute_ms + r.times.write_ms, fps, eta_s);
-    std::cout << rate;
-    if (args.verbose) {
-      char stages[128];
-      std::snprintf(stages, sizeof stages, " read %.1f ms, compute %.1f ms, write %.1f ms",
-                    r.times.read_ms, r.times.compute_ms, r.times.write_ms);
-      std::cout << stages;
-    }
-    std::cout << "\n" << std::flush;
+  const bool bar = ::isatty(STDERR_FILENO) == 1;
+  std::vector<std::string> todo, up_to_date;
+  for (const std::string& f : frames)
+    (!args.force && output_up_to_date(f, output_path_for(f, args.output_dir)) ? up_to_date : todo).push_back(f);
+  BatchProgress progress(int(frames.size()), int(todo.size()), bar, args.verbose);
+  for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
+
+  const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, todo.size());
+  WorkerLimits limits = args.limits;
+  limits.threads = plan.threads_per_frame;
+  if (args.verbose)
+    std::cerr << "ssdo process: " << todo.size() << " frames, " << plan.workers << " worker processes x "
+              << plan.threads_per_frame << " threads\n";
+  const nlohmann::json options = to_json(args.options);
+
+  // SIGINT / SIGTERM are taken by this thread with sigtimedwait (blocked everywhere, so
+  // no handler and no global flag); the worker threads check `stop` between frames.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  ::pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  ::signal(SIGPIPE, SIG_IGN);
+
+  std::atomic<size_t> next{0};
+  std::atomic<bool> stop{false};
+  std::atomic<int> running{0};
+  std::vector<std::thread> threads;
+  const int n_threads = int(std::min<size_t>(size_t(plan.workers), todo.size()));
+  for (int t = 0; t < n_threads; ++t) {
+    ++running;
+    threads.emplace_back([&]() {
+      {
+        WorkerProcess worker(limits);
+        for (size_t i; !stop && (i = next.fetch_add(1)) < todo.size();) {
+          WorkerJob job{todo[i], output_path_for(todo[i], args.output_dir), options};
+          progress.finished(job.input_path, job.output_path, worker.run(job));
+        }
+      }  // the worker ends with the thread that started it
+      --running;
+    });
   }
-  const double total_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  char summary[160];
-  std::snprintf(summary, sizeof summary, "done %d, skipped %d, failed %d, %.2f s", done, skipped,
-                failed, total_s);
-  std::cout << summary << "\n";
-  return failed > 0 ? 1 : 0;
+  const timespec tick{0, 100 * 1000 * 1000};
+  while (running > 0) {
+    if (::sigtimedwait(&stop_signals, nullptr, &tick) > 0 && !stop) {
+      stop = true;
+      std::cerr << "\nssdo process: stopping: frames in flight finish, no new frame starts\n";
+    }
+  }
+  for (std::thread& t : threads) t.join();
+  const int failed = progress.summary(stop);
+  return failed > 0 || stop ? 1 : 0;
 }
 
 }  // namespace ssdo

@@ -20,6 +20,8 @@ int run_info(const InfoArgs& args);
 }  // namespace ssdo
 
 #include "service/pipeline.h"
+#include "service/request_options.h"
+#include "service/worker_process.h"
 
 namespace ssdo {
 
@@ -28,9 +30,11 @@ struct ProcessArgs {
   std::string frames;               // --frames "1-100x2,200": numbers for the patterns
   std::string chunk;                // --chunk "I/N": the I-th of N slices of the frame list
   std::string output_dir;
-  FrameRequest request;             // template: input/output paths filled per frame
+  FrameOptionArgs options;          // every frame's options (checked by the caller)
   bool force = false;               // recompute frames whose output is up to date
   bool verbose = false;             // per-stage timings per frame
+  int jobs = 0;                     // worker processes (frames in parallel); 0 = plan_parallelism
+  WorkerLimits limits;              // memory and time per frame (threads: from the plan)
 };
 int run_process(const ProcessArgs& args);
 
@@ -46,5 +50,39 @@ struct EvalArgs {
   std::string heatmap_dir;
 };
 int run_eval(const EvalArgs& args);
+
+}  // namespace ssdo
+
+#include "service/protocol.h"
+
+namespace ssdo {
+
+struct ServeArgs {
+  std::string watch_dir;             // --watch: frames dropped here are processed
+  std::string out_dir;               // --out: OUT/NAME.ssdo.exr, OUT/NAME.error.json
+  std::string socket_path;           // --socket: Unix domain socket for requests
+  std::string socket_mode = "0600";  // its permissions (octal)
+  std::vector<std::string> allow;    // --allow: roots socket requests may read from (default: --watch)
+  double poll_s = 0;                 // --poll: also rescan the watch folder every N s (0 = off)
+  FrameOptionArgs options;           // options of watched frames; defaults of socket requests
+  int jobs = 0;                      // worker processes; 0 = one per core
+  WorkerLimits limits;
+  size_t queue_capacity = 64;        // socket requests waiting; beyond: "busy"
+  int max_clients = 64;              // socket connections at once
+  double client_timeout_s = 30;      // to send a whole request / receive a reply
+  ProtocolLimits protocol;
+};
+int run_serve(const ServeArgs& args);
+
+struct ClientArgs {
+  std::string socket_path;
+  std::string action;                // ping | stats | process
+  std::vector<std::string> files;    // process: input frames
+  bool inline_data = false;          // send the EXR bytes and receive the output's bytes
+  std::string out_dir = ".";         // --inline: where outputs are written
+  nlohmann::json options = nlohmann::json::object();  // only the flags given
+  double timeout_s = 600;            // per request, queueing included
+};
+int run_client(const ClientArgs& args);
 
 }  // namespace ssdo

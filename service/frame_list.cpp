@@ -1,6 +1,10 @@
 #include "service/frame_list.h"
 
+#include <signal.h>
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <filesystem>
 
 namespace ssdo {
@@ -13,14 +17,15 @@ bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
-bool is_frame_file(const fs::path& p) {
-  std::string name = p.filename().string();
+}  // namespace
+
+bool is_frame_file(const std::string& path) {
+  const std::string name = fs::path(path).filename().string();
+  if (name.empty()) return false;
   std::string lower = name;
   std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
   return ends_with(lower, ".exr") && !ends_with(lower, ".ssdo.exr") && name[0] != '.';
 }
-
-}  // namespace
 
 bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& frames,
                    std::string& error) {
@@ -34,7 +39,7 @@ bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::stri
     if (fs::is_directory(st)) {
       std::vector<std::string> found;
       for (const fs::directory_entry& e : fs::directory_iterator(input, ec))
-        if (e.is_regular_file(ec) && is_frame_file(e.path())) found.push_back(e.path().string());
+        if (e.is_regular_file(ec) && is_frame_file(e.path().string())) found.push_back(e.path().string());
       if (ec) {
         error = input + ": cannot list the folder: " + ec.message();
         return false;
@@ -57,11 +62,44 @@ std::string output_path_for(const std::string& input, const std::string& output_
   return (fs::path(output_dir) / (stem + ".ssdo.exr")).string();
 }
 
+std::string error_path_for(const std::string& input, const std::string& output_dir) {
+  std::string out = output_path_for(input, output_dir);
+  out.resize(out.size() - std::string(".ssdo.exr").size());
+  return out + ".error.json";
+}
+
 bool output_up_to_date(const std::string& input, const std::string& output) {
-  std::error_code ec1, ec2;
-  const auto t_out = fs::last_write_time(output, ec1);
-  const auto t_in = fs::last_write_time(input, ec2);
-  return !ec1 && !ec2 && t_out >= t_in;
+  struct stat in {}, out {};
+  if (::stat(input.c_str(), &in) != 0 || ::stat(output.c_str(), &out) != 0) return false;
+  auto later = [](const timespec& a, const timespec& b) {
+    return a.tv_sec != b.tv_sec ? a.tv_sec > b.tv_sec : a.tv_nsec > b.tv_nsec;
+  };
+  const timespec& changed = later(in.st_ctim, in.st_mtim) ? in.st_ctim : in.st_mtim;
+  return !later(changed, out.st_mtim);
+}
+
+int remove_stale_temp_files(const std::string& dir) {
+  int removed = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    const size_t at = name.rfind(".tmp-");
+    if (name.empty() || name[0] != '.' || at == std::string::npos) continue;
+    // ".NAME.tmp-PID-RANDOM" (formats/output_writer.cpp)
+    const size_t dash = name.find('-', at + 5);
+    if (dash == std::string::npos) continue;
+    long pid = 0;
+    try {
+      pid = std::stol(name.substr(at + 5, dash - at - 5));
+    } catch (const std::exception&) {
+      continue;
+    }
+    if (pid <= 0 || (::kill(pid_t(pid), 0) == -1 && errno == ESRCH)) {
+      std::error_code rm;
+      if (fs::remove(e.path(), rm)) ++removed;
+    }
+  }
+  return removed;
 }
 
 }  // namespace ssdo

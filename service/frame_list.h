@@ -13,10 +13,23 @@ namespace ssdo {
 bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& frames,
                    std::string& error);
 
+// True for a name a frame can have: *.exr (any case), not an ssdo output (*.ssdo.exr),
+// not hidden (".NAME", which is also how temp files are named).
+bool is_frame_file(const std::string& path);
+
 // OUT_DIR/STEM.ssdo.exr for INPUT = .../STEM.exr.
 std::string output_path_for(const std::string& input, const std::string& output_dir);
 
-// True when `output` exists and is at least as new as `input`.
+// OUT_DIR/STEM.error.json: where the service records why a frame failed.
+std::string error_path_for(const std::string& input, const std::string& output_dir);
+
+// True when `output` exists and is at least as new as `input`'s last change: the later
+// of its modification and status-change times, so a file renamed into place (whose
+// mtime may be old) still counts as new.
 bool output_up_to_date(const std::string& input, const std::string& output);
+
+// Removes the temp files of output writers that no longer run (".NAME.tmp-PID-*" in
+// `dir` with no process PID: left by a kill -9). Returns how many were removed.
+int remove_stale_temp_files(const std::string& dir);
 
 }  // namespace ssdo

@@ -6,7 +6,64 @@
 
 #include "service/cli_options.h"
 #include "service/commands.h"
+#include "service/request_options.h"
 #include "service/version.h"
+
+namespace {
+
+using namespace ssdo;
+
+// True when the command line gave the option named by a schema key.
+bool given(const CLI::App& cmd, const std::string& key) {
+  const CLI::Option* opt = cmd.get_option_no_throw("--" + key);
+  return opt != nullptr && opt->count() > 0;
+}
+
+// Output options of the schema (request_options.h) on a command.
+void add_output_options(CLI::App& cmd, FrameOptionArgs& o) {
+  cmd.add_flag("--png", o.png, "Also write an sRGB PNG preview per term");
+  cmd.add_option("--compression", o.compression, "EXR compression: zip, zips, piz, none; dwaa (colour terms only)")
+      ->check(CLI::IsMember({"zip", "zips", "piz", "none", "dwaa"}))
+      ->capture_default_str();
+}
+
+// The frame options of a command: its flags over its --config file.
+bool frame_options(const CLI::App& cmd, const std::string& config, FrameOptionArgs& options, std::string& error) {
+  if (!config.empty()) {
+    nlohmann::json j;
+    if (!load_json_file(config, j, error)) return false;
+    if (!apply_json(j, options, error, [&](const std::string& key) { return given(cmd, key); })) {
+      error = config + ": " + error;
+      return false;
+    }
+  }
+  FrameRequest check;  // every value checked (and the environment map read) before any work
+  return resolve_frame_options(options, check, error);
+}
+
+// Limits of the worker processes (memory, time, image size).
+void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
+  cmd.add_option("-j,--jobs", jobs,
+                 "Worker processes = frames computed at once (0 = one per core, each with cores/jobs "
+                 "threads; see also --threads)")
+      ->check(CLI::Range(0, 256))
+      ->group("Workers");
+  cmd.add_option("--frame-timeout", limits.frame_timeout_s,
+                 "Seconds a frame may take (read + compute + write) before its worker is killed")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str()
+      ->group("Workers");
+  cmd.add_option("--memory-limit", limits.memory_limit_mb, "Address-space limit of each worker, MiB")
+      ->check(CLI::Range(int64_t(256), int64_t(1) << 22))
+      ->capture_default_str()
+      ->group("Workers");
+  cmd.add_option("--max-pixels", limits.max_pixels, "Largest frame (width x height) a worker decodes")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 34))
+      ->capture_default_str()
+      ->group("Workers");
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace ssdo;
@@ -22,6 +79,8 @@ int main(int argc, char** argv) {
       "  ssdo info frame.exr                         what the frame holds and how it will be read\n"
       "  ssdo process frames/ -o out/                AO + composite for every frame in a folder\n"
       "  ssdo process f.exr -o out/ --terms all --env sky.exr\n"
+      "  ssdo serve --watch in/ -o out/ --socket /tmp/ssdo.sock   a service (see README)\n"
+      "  ssdo client --socket /tmp/ssdo.sock process in/f.exr\n"
       "  ssdo eval f.exr --reference AO --method gtao --preset high\n"
       "  ssdo eval f.exr --term ssdo_direct --reference DiffDir --env sky.exr\n"
       "Camera: a NAME.camera.json sidecar, the EXR attributes worldToCamera + worldToNDC, or --fov.\n"
@@ -39,8 +98,6 @@ int main(int argc, char** argv) {
 
   // process
   ProcessArgs process;
-  ReadOptionArgs process_read;
-  ComputeOptionArgs process_compute;
   CLI::App* process_cmd = app.add_subcommand(
       "process", "Compute the selected terms for frames and write one EXR per frame "
                  "(OUT/NAME.ssdo.exr). Frames whose output is newer than the input are skipped.");
@@ -56,15 +113,86 @@ int main(int argc, char** argv) {
                           "one task of a farm job");
   process_cmd->add_option("-o,--out", process.output_dir, "Output folder")->required();
   process_cmd->add_flag("--force", process.force, "Recompute frames whose output is up to date");
-  process_cmd->add_flag("--png", process.request.write.png_previews,
-                        "Also write an sRGB PNG preview per term");
-  process_cmd->add_option("--compression", process.request.write.compression,
-                          "EXR compression: zip, zips, piz, none; dwaa (colour terms only)")
-      ->check(CLI::IsMember({"zip", "zips", "piz", "none", "dwaa"}))
+  std::string process_config;
+  process_cmd->add_option("--config", process_config,
+                          "JSON file of options: the long flag names without '--' as keys, e.g. "
+                          "{\"method\": \"hbao\", \"terms\": \"all\"}; flags given override it")
+      ->check(CLI::ExistingFile);
+  add_output_options(*process_cmd, process.options);
+  process_cmd->add_flag("-v,--verbose", process.verbose,
+                        "Per-stage timings (read, compute, write, isolation) and the worker plan");
+  add_read_options(*process_cmd, process.options.read);
+  add_compute_options(*process_cmd, process.options.compute, true);
+  add_worker_limits(*process_cmd, process.jobs, process.limits);
+
+  // serve
+  ServeArgs serve;
+  std::string serve_config;
+  CLI::App* serve_cmd = app.add_subcommand(
+      "serve", "Run as a service: compute every frame dropped into --watch (and those already there "
+               "without output) and answer requests on --socket; SIGTERM/SIGINT stop it gracefully");
+  serve_cmd->add_option("--watch", serve.watch_dir, "Folder to watch for frames (*.exr)")->check(CLI::ExistingDirectory);
+  serve_cmd->add_option("-o,--out", serve.out_dir, "Output folder: NAME.ssdo.exr, or NAME.error.json")->required();
+  serve_cmd->add_option("--poll", serve.poll_s,
+                        "Also rescan --watch every SECONDS (network file systems, where inotify sees nothing)")
+      ->check(CLI::NonNegativeNumber);
+  serve_cmd->add_option("--socket", serve.socket_path, "Unix domain socket to serve requests on");
+  serve_cmd->add_option("--socket-mode", serve.socket_mode, "Permissions of the socket (octal)")->capture_default_str();
+  serve_cmd->add_option("--allow", serve.allow,
+                        "Folder socket requests may read frames (and camera/environment files) from; "
+                        "repeatable (default: the --watch folder)")
+      ->check(CLI::ExistingDirectory);
+  serve_cmd->add_option("--queue", serve.queue_capacity, "Socket requests waiting at most; beyond: busy")
+      ->check(CLI::Range(1, 100000))
       ->capture_default_str();
-  process_cmd->add_flag("-v,--verbose", process.verbose, "Per-stage timings (read, compute, write)");
-  add_read_options(*process_cmd, process_read);
-  add_compute_options(*process_cmd, process_compute, true);
+  serve_cmd->add_option("--max-clients", serve.max_clients, "Socket connections at once; beyond: busy")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
+  serve_cmd->add_option("--client-timeout", serve.client_timeout_s,
+                        "Seconds a client has to send a whole request (inline frame included) or take a reply")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  serve_cmd->add_option("--max-request-bytes", serve.protocol.max_header_bytes, "Largest JSON request header")
+      ->check(CLI::Range(size_t(64), size_t(1) << 30))
+      ->capture_default_str();
+  size_t max_inline_mb = serve.protocol.max_inline_bytes >> 20;
+  serve_cmd->add_option("--max-inline-mb", max_inline_mb, "Largest inline frame, MiB")
+      ->check(CLI::Range(size_t(1), size_t(1) << 16))
+      ->capture_default_str();
+  serve_cmd->add_option("--config", serve_config, "JSON file of frame options (as for process)")->check(CLI::ExistingFile);
+  add_output_options(*serve_cmd, serve.options);
+  add_read_options(*serve_cmd, serve.options.read);
+  add_compute_options(*serve_cmd, serve.options.compute, true);
+  add_worker_limits(*serve_cmd, serve.jobs, serve.limits);
+
+  // client
+  ClientArgs client;
+  FrameOptionArgs client_options;
+  CLI::App* client_cmd = app.add_subcommand(
+      "client", "Talk to a running 'ssdo serve --socket': ping, stats, or process FILE... (one JSON "
+                "response per line)");
+  client_cmd->add_option("--socket", client.socket_path, "The service's socket")->required();
+  client_cmd->add_option("action", client.action, "ping, stats or process")
+      ->required()
+      ->check(CLI::IsMember({"ping", "stats", "process"}));
+  client_cmd->add_option("files", client.files, "process: frames (paths the service may read, or sent with --inline)");
+  client_cmd->add_flag("--inline", client.inline_data,
+                       "Send the frames' bytes (and NAME.camera.json) and receive the outputs' bytes");
+  client_cmd->add_option("-o,--out", client.out_dir, "--inline: folder for the outputs")->capture_default_str();
+  client_cmd->add_option("--timeout", client.timeout_s, "Seconds to wait for each response")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  add_output_options(*client_cmd, client_options);
+  add_read_options(*client_cmd, client_options.read);
+  add_compute_options(*client_cmd, client_options.compute, true);
+
+  // worker (internal: started by process and serve)
+  WorkerArgs worker;
+  CLI::App* worker_cmd = app.add_subcommand("worker", "Internal: a frame worker process")->group("");
+  worker_cmd->add_option("--threads", worker.threads)->check(CLI::Range(1, 1024));
+  worker_cmd->add_option("--memory-limit", worker.memory_limit_mb);
+  worker_cmd->add_option("--max-pixels", worker.max_pixels);
+  worker_cmd->add_option("--parent", worker.parent_pid);
 
   // eval
   EvalArgs eval;
@@ -105,11 +233,19 @@ int main(int argc, char** argv) {
     return run_info(info);
   }
   if (*process_cmd) {
-    if (!resolve_read_options(process_read, process.request.read, error) ||
-        !resolve_compute_options(process_compute, process.request, error))
-      return usage_error(error);
+    if (!frame_options(*process_cmd, process_config, process.options, error)) return usage_error(error);
     return run_process(process);
   }
+  if (*serve_cmd) {
+    serve.protocol.max_inline_bytes = max_inline_mb << 20;
+    if (!frame_options(*serve_cmd, serve_config, serve.options, error)) return usage_error(error);
+    return run_serve(serve);
+  }
+  if (*client_cmd) {
+    client.options = to_json(client_options, [&](const std::string& key) { return given(*client_cmd, key); });
+    return run_client(client);
+  }
+  if (*worker_cmd) return run_worker(worker);
   if (*eval_cmd) {
     if (!resolve_read_options(eval_read, eval.request.read, error) ||
         !resolve_compute_options(eval_compute, eval.request, error))

@@ -1,0 +1,95 @@
+#include "service/batch_progress.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+
+namespace ssdo {
+
+BatchProgress::BatchProgress(int total, int to_compute, bool bar, bool verbose)
+    : total_(total), to_compute_(to_compute), bar_(bar), verbose_(verbose) {}
+
+double BatchProgress::elapsed_s() const {
+  return std::chrono::duration<double>(Clock::now() - start_).count();
+}
+
+std::string BatchProgress::counter() {
+  char s[48];
+  std::snprintf(s, sizeof s, "[%d/%d] ", done_ + skipped_ + failed_, total_);
+  return s;
+}
+
+void BatchProgress::draw_bar() {
+  const int finished = done_ + skipped_ + failed_;
+  const int computed = done_ + failed_;
+  const double fps = computed / std::max(elapsed_s(), 1e-9);
+  const int remaining = to_compute_ - computed;
+  constexpr int kWidth = 30;
+  const int filled = total_ > 0 ? kWidth * finished / total_ : kWidth;
+  std::string bar(size_t(filled), '=');
+  bar.resize(kWidth, ' ');
+  char eta[32] = "--";
+  if (computed > 0) {
+    const int s = int(remaining / std::max(fps, 1e-9) + 0.5);
+    std::snprintf(eta, sizeof eta, "%d:%02d", s / 60, s % 60);
+  }
+  char line[192];
+  std::snprintf(line, sizeof line, "\r\033[K[%s] %d/%d  %.2f frames/s  ETA %s%s", bar.c_str(), finished, total_,
+                fps, eta, failed_ ? ("  failed " + std::to_string(failed_)).c_str() : "");
+  std::cerr << line << std::flush;
+}
+
+void BatchProgress::skipped(const std::string& input, const std::string& output) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ++skipped_;
+  if (bar_) {
+    draw_bar();
+    return;
+  }
+  std::cout << counter() << input << ": skipped (output up to date: " << output << ")\n" << std::flush;
+}
+
+void BatchProgress::finished(const std::string& input, const std::string& output, const WorkerResult& r) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  (r.ok() ? done_ : failed_) += 1;
+  const double stages_ms = r.times.read_ms + r.times.compute_ms + r.times.write_ms;
+  if (r.ok()) isolation_ms_ += std::max(0.0, r.wall_ms - stages_ms);
+  const int computed = done_ + failed_;
+  const double fps = computed / std::max(elapsed_s(), 1e-9);
+  const double eta_s = (to_compute_ - computed) / std::max(fps, 1e-9);
+  std::string line = counter() + input;
+  line += r.ok() ? " -> " + output + ": ok" : ": FAILED: " + r.error;
+  char rate[96];
+  std::snprintf(rate, sizeof rate, " (%.0f ms; %.2f frames/s, ETA %.0f s)", r.wall_ms, fps, eta_s);
+  line += rate;
+  if (verbose_) {
+    char stages[160];
+    std::snprintf(stages, sizeof stages, " read %.1f ms, compute %.1f ms, write %.1f ms, isolation %.1f ms",
+                  r.times.read_ms, r.times.compute_ms, r.times.write_ms, std::max(0.0, r.wall_ms - stages_ms));
+    line += stages;
+  }
+  if (!bar_) {
+    std::cout << line << "\n" << std::flush;
+    return;
+  }
+  if (!r.ok() || verbose_) std::cerr << "\r\033[K" << line << "\n";
+  draw_bar();
+}
+
+int BatchProgress::summary(bool interrupted) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (bar_) std::cerr << "\r\033[K" << std::flush;
+  char s[256];
+  std::snprintf(s, sizeof s, "done %d, skipped %d, failed %d, %.2f s", done_, skipped_, failed_, elapsed_s());
+  std::cout << s;
+  if (interrupted)
+    std::cout << "; interrupted: " << (total_ - done_ - skipped_ - failed_) << " frames not started";
+  if (verbose_ && done_ > 0) {
+    std::snprintf(s, sizeof s, "; isolation %.2f ms per frame", isolation_ms_ / done_);
+    std::cout << s;
+  }
+  std::cout << "\n" << std::flush;
+  return failed_;
+}
+
+}  // namespace ssdo

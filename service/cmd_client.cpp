@@ -1,0 +1,165 @@
+// `ssdo client`: speaks the service's socket protocol (README.md, "Socket protocol"), for
+// shell pipelines and tests. Prints one JSON response per line; exit 0 when every
+// request succeeded, 1 when any failed, 2 when the service cannot be reached.
+#include <fcntl.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "service/commands.h"
+#include "service/frame_list.h"
+
+namespace ssdo {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+int connect_to(const std::string& path, std::string& error) {
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  if (path.size() >= sizeof addr.sun_path) {
+    error = path + ": socket path too long";
+    return -1;
+  }
+  std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0 || ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof addr) != 0) {
+    error = path + ": cannot connect: " + std::strerror(errno);
+    if (fd >= 0) ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Sends `request` (+ the bytes of `payload_file`) and reads the response (+ its inline
+// bytes into `inline_out`). False with a message on a transport failure.
+bool exchange(int fd, json request, const std::string& payload_file, json& response, std::string& inline_out,
+              Deadline deadline, std::string& error) {
+  std::string payload;
+  if (!payload_file.empty()) {
+    std::ifstream in(payload_file, std::ios::binary);
+    payload.assign(std::istreambuf_iterator<char>(in), {});
+    if (!in.good() && !in.eof()) {
+      error = payload_file + ": cannot read";
+      return false;
+    }
+    request["inline_size"] = payload.size();
+  }
+  IoStatus s = write_message(fd, request.dump(), deadline);
+  if (s == IoStatus::ok && !payload.empty()) s = write_all(fd, payload.data(), payload.size(), deadline);
+  std::string header;
+  // Read the reply even when sending failed: the service may have refused early.
+  const IoStatus r = read_message(fd, header, size_t(1) << 20, deadline);
+  if (r != IoStatus::ok) {
+    error = std::string("no response: ") + to_string(r != IoStatus::ok ? r : s);
+    return false;
+  }
+  response = json::parse(header, nullptr, false);
+  if (response.is_discarded() || !response.is_object()) {
+    error = "malformed response";
+    return false;
+  }
+  if (const auto n = response.value("inline_size", uint64_t(0)); n > 0) {
+    inline_out.resize(n);
+    if (read_exact(fd, inline_out.data(), n, deadline) != IoStatus::ok) {
+      error = "the output's bytes were cut short";
+      return false;
+    }
+  }
+  return true;
+}
+
+// Writes `bytes` to `path` through a temp file and rename (complete or absent).
+bool write_file_atomically(const std::string& path, const std::string& bytes) {
+  const std::string temp = (fs::path(path).parent_path() / ("." + fs::path(path).filename().string() + ".tmp-" +
+                                                            std::to_string(::getpid()) + "-client"))
+                               .string();
+  {
+    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), std::streamsize(bytes.size()));
+    if (!out) return false;
+  }
+  std::error_code ec;
+  fs::rename(temp, path, ec);
+  return !ec;
+}
+
+}  // namespace
+
+int run_client(const ClientArgs& args) {
+  if (args.action != "process" && !args.files.empty()) {
+    std::cerr << "ssdo client: " << args.action << " takes no files\n";
+    return 2;
+  }
+  if (args.action == "process" && args.files.empty()) {
+    std::cerr << "ssdo client: process needs at least one FILE\n";
+    return 2;
+  }
+  std::string error;
+  const int fd = connect_to(args.socket_path, error);
+  if (fd < 0) {
+    std::cerr << "ssdo client: " << error << "\n";
+    return 2;
+  }
+  int failed = 0;
+  std::vector<json> requests;
+  std::vector<std::string> payloads;
+  if (args.action != "process") {
+    requests.push_back({{"op", args.action}});
+    payloads.emplace_back();
+  }
+  for (const std::string& file : args.files) {
+    json r{{"op", "process"}, {"options", args.options}};
+    if (args.inline_data) {
+      const fs::path p(file);
+      r["name"] = p.stem().string();
+      r["reply"] = "inline";
+      const fs::path sidecar = p.parent_path() / (p.stem().string() + ".camera.json");
+      std::ifstream in(sidecar);
+      if (in) {
+        const json s = json::parse(in, nullptr, false);
+        if (s.is_object()) r["sidecar"] = s;
+      }
+      payloads.push_back(file);
+    } else {
+      r["input"] = fs::absolute(file).string();
+      payloads.emplace_back();
+    }
+    requests.push_back(r);
+  }
+  if (args.inline_data) fs::create_directories(args.out_dir);
+  for (size_t i = 0; i < requests.size(); ++i) {
+    json response;
+    std::string bytes;
+    if (!exchange(fd, requests[i], payloads[i], response, bytes, deadline_in(args.timeout_s), error)) {
+      std::cerr << "ssdo client: " << (i < args.files.size() ? args.files[i] + ": " : "") << error << "\n";
+      ::close(fd);
+      return 2;
+    }
+    if (!bytes.empty()) {
+      const std::string out = output_path_for(args.files[i], args.out_dir);
+      if (!write_file_atomically(out, bytes)) {
+        response["ok"] = false;
+        response["error"] = out + ": cannot write";
+      } else {
+        response["output"] = out;
+      }
+      response.erase("inline_size");
+    }
+    if (!response.value("ok", false)) ++failed;
+    std::cout << response.dump() << "\n" << std::flush;
+    if (!response.value("ok", false) && response.value("code", "") == "bad_request") break;  // closed by the service
+  }
+  ::close(fd);
+  return failed > 0 ? 1 : 0;
+}
+
+}  // namespace ssdo

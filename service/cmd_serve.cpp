@@ -1,0 +1,133 @@
+// `ssdo serve`: a long-running service. Frames dropped into --watch and frames asked for
+// on --socket are computed by worker processes (service/frame_service.h); SIGTERM or
+// SIGINT stop it gracefully (no new work, frames in flight finish, exit 0).
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "service/commands.h"
+#include "service/frame_list.h"
+#include "service/frame_service.h"
+#include "service/parallelism.h"
+#include "service/path_policy.h"
+#include "service/socket_server.h"
+#include "service/watcher.h"
+
+namespace ssdo {
+
+namespace fs = std::filesystem;
+
+int run_serve(const ServeArgs& args) {
+  auto usage = [](const std::string& message) {
+    std::cerr << "ssdo serve: " << message << "\n";
+    return 2;
+  };
+  if (args.watch_dir.empty() && args.socket_path.empty()) return usage("give --watch DIR, --socket PATH or both");
+  std::error_code ec;
+  fs::create_directories(args.out_dir, ec);
+  std::string out_dir, error;
+  if (ec || !canonical_path(args.out_dir, out_dir, error))
+    return usage("cannot create the output folder " + args.out_dir + (ec ? ": " + ec.message() : ""));
+  std::string watch_dir;
+  if (!args.watch_dir.empty() && (!canonical_path(args.watch_dir, watch_dir, error) || !fs::is_directory(watch_dir)))
+    return usage("--watch " + args.watch_dir + ": not a folder");
+  std::vector<std::string> allow;
+  for (const std::string& root : args.allow) {
+    std::string canonical;
+    if (!canonical_path(root, canonical, error)) return usage("--allow " + error);
+    allow.push_back(canonical);
+  }
+  if (allow.empty() && !watch_dir.empty()) allow.push_back(watch_dir);
+  mode_t mode = 0;
+  try {
+    size_t used = 0;
+    mode = mode_t(std::stoul(args.socket_mode, &used, 8));
+    if (used != args.socket_mode.size() || mode > 0777) throw std::invalid_argument(args.socket_mode);
+  } catch (const std::exception&) {
+    return usage("--socket-mode " + args.socket_mode + ": expected octal permissions such as 0600");
+  }
+
+  // Inline frames are spooled here; leftovers of a killed run are removed.
+  const std::string spool = (fs::path(out_dir) / ".ssdo-spool").string();
+  fs::remove_all(spool, ec);
+  fs::create_directory(spool, ec);
+  fs::permissions(spool, fs::perms::owner_all, ec);
+  if (const int n = remove_stale_temp_files(out_dir); n > 0)
+    std::cout << "removed " << n << " temp files of an interrupted run in " << out_dir << "\n";
+
+  // SIGINT / SIGTERM are taken by this thread with sigwait: blocked before any thread
+  // starts, so every thread inherits the mask; no handler, no global flag.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGINT);
+  sigaddset(&stop_signals, SIGTERM);
+  ::pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  ::signal(SIGPIPE, SIG_IGN);
+
+  const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, 0);
+  FrameServiceOptions service_options;
+  service_options.out_dir = out_dir;
+  service_options.watch_options = to_json(args.options);
+  service_options.workers = plan.workers;
+  service_options.limits = args.limits;
+  service_options.limits.threads = plan.threads_per_frame;
+  service_options.queue_capacity = args.queue_capacity;
+  FrameService frames(service_options);
+
+  std::unique_ptr<SocketServer> server;
+  if (!args.socket_path.empty()) {
+    SocketServerOptions o;
+    o.path = args.socket_path;
+    o.mode = mode;
+    o.allow_roots = allow;
+    o.out_dir = out_dir;
+    o.spool_dir = spool;
+    o.limits = args.protocol;
+    o.client_timeout_s = args.client_timeout_s;
+    o.frame_timeout_s = args.limits.frame_timeout_s;
+    o.max_clients = args.max_clients;
+    o.default_options = to_json(args.options);
+    server = std::make_unique<SocketServer>(o, frames);
+    if (!server->bind(error)) return usage(error);
+  }
+  frames.start();
+  if (server) server->start();
+  std::unique_ptr<DirectoryWatcher> watcher;
+  if (!watch_dir.empty()) {
+    watcher = std::make_unique<DirectoryWatcher>(
+        watch_dir, args.poll_s, [&](const std::string& path) { frames.enqueue_watched(path); },
+        [](const std::string& line) { std::cout << line << "\n" << std::flush; });
+    if (!watcher->start(error)) {
+      if (server) server->stop();
+      frames.stop();
+      std::cerr << "ssdo serve: " << error << "\n";
+      return 1;
+    }
+  }
+  std::cout << "ssdo serve: ready" << (watch_dir.empty() ? "" : "; watching " + watch_dir)
+            << (args.socket_path.empty() ? "" : "; socket " + args.socket_path) << "; output " << out_dir << "; "
+            << plan.workers << " workers x " << plan.threads_per_frame << " threads\n"
+            << std::flush;
+
+  int sig = 0;
+  while (::sigwait(&stop_signals, &sig) != 0) {
+  }
+  std::cout << "ssdo serve: " << (sig == SIGINT ? "SIGINT" : "SIGTERM")
+            << ": stopping (no new frames; frames in flight finish)\n"
+            << std::flush;
+  if (server) server->stop_accepting();
+  if (watcher) watcher->stop();
+  frames.stop();
+  if (server) server->stop();
+  fs::remove_all(spool, ec);
+  const ServiceStats s = frames.stats();
+  std::cout << "ssdo serve: stopped; done " << s.frames_done << ", failed " << s.frames_failed << ", skipped "
+            << s.frames_skipped << "\n"
+            << std::flush;
+  return 0;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,252 @@
+#include "service/frame_service.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include "service/frame_list.h"
+
+namespace ssdo {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// What identifies one version of an input file.
+struct FileVersion {
+  bool exists = false;
+  dev_t dev = 0;
+  ino_t ino = 0;
+  off_t size = 0;
+  timespec mtime{}, ctime{};
+  bool operator==(const FileVersion& o) const {
+    return exists == o.exists && dev == o.dev && ino == o.ino && size == o.size && mtime.tv_sec == o.mtime.tv_sec &&
+           mtime.tv_nsec == o.mtime.tv_nsec && ctime.tv_sec == o.ctime.tv_sec && ctime.tv_nsec == o.ctime.tv_nsec;
+  }
+};
+
+FileVersion version_of(const std::string& path) {
+  FileVersion v;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return v;
+  v.exists = true;
+  v.dev = st.st_dev;
+  v.ino = st.st_ino;
+  v.size = st.st_size;
+  v.mtime = st.st_mtim;
+  v.ctime = st.st_ctim;
+  return v;
+}
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  std::tm tm{};
+  ::gmtime_r(&t, &tm);
+  char s[32];
+  std::strftime(s, sizeof s, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return s;
+}
+
+std::string timing(const WorkerResult& r) {
+  char s[128];
+  std::snprintf(s, sizeof s, "%.0f ms: read %.0f, compute %.0f, write %.0f", r.wall_ms, r.times.read_ms,
+                r.times.compute_ms, r.times.write_ms);
+  return s;
+}
+
+}  // namespace
+
+bool write_error_file(const std::string& path, const std::string& input, const std::string& error) {
+  const std::string temp = (fs::path(path).parent_path() / ("." + fs::path(path).filename().string() + ".tmp-" +
+                                                            std::to_string(::getpid()) + "-err"))
+                               .string();
+  {
+    std::ofstream out(temp, std::ios::trunc);
+    out << nlohmann::json{{"input", input}, {"error", error}, {"time", utc_now()}}.dump(2) << "\n";
+    if (!out) return false;
+  }
+  std::error_code ec;
+  fs::rename(temp, path, ec);
+  if (ec) fs::remove(temp, ec);
+  return !ec;
+}
+
+FrameService::FrameService(FrameServiceOptions options) : options_(std::move(options)) {}
+
+FrameService::~FrameService() { stop(); }
+
+void FrameService::start() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (started_) return;
+  started_ = true;
+  started_at_ = Clock::now();
+  for (int i = 0; i < options_.workers; ++i) dispatchers_.emplace_back([this] { dispatch_loop(); });
+}
+
+bool FrameService::submit(FrameTask task) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_ || tasks_.size() >= options_.queue_capacity) return false;
+    task.queued_at = Clock::now();
+    tasks_.push_back(std::move(task));
+  }
+  wake_.notify_one();
+  return true;
+}
+
+void FrameService::enqueue_watched(const std::string& input) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_ || watched_.count(input)) return;
+    if (watched_in_flight_.count(input)) {  // look again when its dispatcher is done
+      watched_again_.insert(input);
+      return;
+    }
+    watched_.emplace(input, false);
+    watched_order_.push_back(input);
+  }
+  wake_.notify_one();
+}
+
+void FrameService::stop() {
+  std::deque<FrameTask> abandoned;
+  std::vector<std::thread> threads;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+    abandoned.swap(tasks_);
+    threads.swap(dispatchers_);
+  }
+  wake_.notify_all();
+  WorkerResult stopping;
+  stopping.error = "the service is stopping; the frame was not started";
+  for (FrameTask& t : abandoned)
+    if (t.done) t.done(stopping);
+  for (std::thread& t : threads) t.join();
+}
+
+ServiceStats FrameService::stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  ServiceStats s;
+  s.frames_done = done_;
+  s.frames_failed = failed_;
+  s.frames_skipped = skipped_;
+  s.queue_depth = tasks_.size() + watched_.size();
+  s.in_flight = in_flight_;
+  s.queue_capacity = options_.queue_capacity;
+  s.mean_frame_ms = done_ > 0 ? done_ms_ / double(done_) : 0;
+  s.workers = options_.workers;
+  s.workers_replaced = replaced_;
+  s.uptime_s = std::chrono::duration<double>(Clock::now() - started_at_).count();
+  return s;
+}
+
+void FrameService::log(const std::string& line) {
+  std::lock_guard<std::mutex> lock(log_mutex_);
+  std::cout << line << "\n" << std::flush;
+}
+
+void FrameService::record(const WorkerResult& r) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (r.ok()) {
+    ++done_;
+    done_ms_ += r.wall_ms;
+  } else {
+    ++failed_;
+  }
+  if (r.worker_replaced) ++replaced_;
+}
+
+void FrameService::dispatch_loop() {
+  WorkerProcess worker(options_.limits);
+  if (std::string error; !worker.start(error)) log("worker: " + error);
+  for (;;) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    wake_.wait(lock, [&] { return stopping_ || !tasks_.empty() || !watched_order_.empty(); });
+    if (stopping_) return;
+    if (!tasks_.empty()) {
+      FrameTask task = std::move(tasks_.front());
+      tasks_.pop_front();
+      ++in_flight_;
+      lock.unlock();
+      run_task(worker, task);
+    } else {
+      const std::string input = watched_order_.front();
+      watched_order_.pop_front();
+      const bool force = watched_[input];
+      watched_.erase(input);
+      watched_in_flight_.insert(input);
+      ++in_flight_;
+      lock.unlock();
+      const bool changed = run_watched(worker, input, force);
+      lock.lock();
+      watched_in_flight_.erase(input);
+      const bool again = watched_again_.erase(input) > 0;
+      if ((changed || again) && !stopping_ && !watched_.count(input)) {
+        watched_[input] = changed;
+        watched_order_.push_back(input);
+        wake_.notify_one();
+      }
+    }
+    if (!lock.owns_lock()) lock.lock();
+    --in_flight_;
+  }
+}
+
+void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
+  const WorkerResult r = worker.run({task.input, task.output, task.options});
+  record(r);
+  if (!task.error_path.empty()) {
+    std::error_code ec;
+    if (r.ok()) fs::remove(task.error_path, ec);
+    else write_error_file(task.error_path, task.input, r.error);
+  }
+  log(r.ok() ? "ok " + task.input + " -> " + task.output + " (" + timing(r) + ")"
+             : "FAILED " + task.input + ": " + r.error);
+  if (task.done) task.done(r);
+}
+
+bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, bool force) {
+  const std::string output = output_path_for(input, options_.out_dir);
+  const std::string error_path = error_path_for(input, options_.out_dir);
+  if (!force && (output_up_to_date(input, output) || output_up_to_date(input, error_path))) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++skipped_;
+    return false;
+  }
+  const FileVersion before = version_of(input);
+  WorkerResult r;
+  if (!before.exists) {
+    // Gone between its event and now: deleted, or renamed away.
+    r.error = input + ": the file was deleted or renamed while queued";
+  } else if (before.size == 0) {
+    r.error = input + ": empty file (0 bytes)";
+  } else {
+    r = worker.run({input, output, options_.watch_options});
+    const FileVersion after = version_of(input);
+    if (after.exists && !(after == before)) {
+      // Replaced or rewritten while computed: the result is of an old version.
+      log("changed while processing, queued again: " + input);
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (r.worker_replaced) ++replaced_;
+      return true;
+    }
+  }
+  record(r);
+  std::error_code ec;
+  if (r.ok()) {
+    fs::remove(error_path, ec);
+    log("ok " + input + " -> " + output + " (" + timing(r) + ")");
+  } else {
+    write_error_file(error_path, input, r.error);
+    log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
+  }
+  return false;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,102 @@
+// The core of `ssdo serve`: a bounded queue of frames, a fixed set of dispatcher threads
+// each owning one worker process (service/worker_process.h), the bookkeeping that makes
+// watched frames processed exactly once, and the service's statistics.
+//
+// Two sources feed it:
+// - the socket: submit() puts a task in a queue of `queue_capacity` entries or refuses
+//   (the client is answered "busy"); its callback gets the result;
+// - the watcher: enqueue_watched() records a path in a set (one entry per file, however
+//   often it is reported). A watched frame is computed when neither its output nor its
+//   error file is at least as new as its last change, checked when a dispatcher takes it,
+//   so rescans and events never compute a frame twice, and restarts skip finished frames.
+// Socket tasks go first (someone is waiting for them). Failed frames get
+// OUT/NAME.error.json (written through a temp file); a later success removes it.
+#pragma once
+
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "service/protocol.h"
+#include "service/worker_process.h"
+
+namespace ssdo {
+
+struct FrameServiceOptions {
+  std::string out_dir;                   // canonical output folder
+  nlohmann::json watch_options = nlohmann::json::object();  // options of watched frames
+  int workers = 1;                       // worker processes (dispatcher threads)
+  WorkerLimits limits;
+  size_t queue_capacity = 64;            // socket tasks waiting; beyond: "busy"
+};
+
+// One frame asked for over the socket.
+struct FrameTask {
+  std::string input, output;             // resolved paths
+  std::string error_path;                // NAME.error.json to write on failure; empty = none
+  nlohmann::json options = nlohmann::json::object();
+  std::function<void(const WorkerResult&)> done;  // called once, from a dispatcher thread
+  Clock::time_point queued_at = Clock::now();
+};
+
+struct ServiceStats {
+  long frames_done = 0, frames_failed = 0, frames_skipped = 0;
+  size_t queue_depth = 0, in_flight = 0, queue_capacity = 0;
+  double mean_frame_ms = 0;              // wall time of successful frames
+  int workers = 0;
+  long workers_replaced = 0;
+  double uptime_s = 0;
+};
+
+class FrameService {
+ public:
+  explicit FrameService(FrameServiceOptions options);
+  ~FrameService();  // stop()
+
+  void start();
+  // False when the queue is full or the service is stopping (the task is not run).
+  bool submit(FrameTask task);
+  // Considers a watched input (see above).
+  void enqueue_watched(const std::string& input);
+  // No new task starts; queued socket tasks are answered "service stopping"; frames in
+  // flight finish; dispatchers and workers end. Idempotent.
+  void stop();
+  ServiceStats stats() const;
+
+ private:
+  void dispatch_loop();
+  // True when the input changed while it was computed (to be computed again).
+  bool run_watched(WorkerProcess& worker, const std::string& input, bool force);
+  void run_task(WorkerProcess& worker, FrameTask& task);
+  void record(const WorkerResult& r);
+  void log(const std::string& line);
+
+  const FrameServiceOptions options_;
+  mutable std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<FrameTask> tasks_;
+  std::deque<std::string> watched_order_;
+  std::map<std::string, bool> watched_;  // pending watched input -> forced (changed while computed)
+  std::set<std::string> watched_in_flight_;
+  std::set<std::string> watched_again_;  // reported again while in flight
+  bool stopping_ = false, started_ = false;
+  std::vector<std::thread> dispatchers_;
+  size_t in_flight_ = 0;
+  long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0;
+  double done_ms_ = 0;
+  Clock::time_point started_at_ = Clock::now();
+  std::mutex log_mutex_;
+};
+
+// Writes NAME.error.json ({"input", "error", "time"}) through a temp file and rename.
+bool write_error_file(const std::string& path, const std::string& input, const std::string& error);
+
+}  // namespace ssdo

@@ -1,0 +1,32 @@
+#include "service/parallelism.h"
+
+#include <sched.h>
+
+#include <algorithm>
+#include <thread>
+
+namespace ssdo {
+
+int available_cores() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (::sched_getaffinity(0, sizeof set, &set) == 0) return std::max(1, CPU_COUNT(&set));
+  return std::max(1u, std::thread::hardware_concurrency());
+}
+
+Parallelism plan_parallelism(int jobs, int threads, size_t frames) {
+  const int cores = available_cores();
+  Parallelism p;
+  if (jobs > 0) {
+    p.workers = jobs;
+  } else {
+    p.workers = cores;
+    if (frames > 0) p.workers = int(std::min<size_t>(size_t(cores), frames));
+    if (threads > 0) p.workers = std::max(1, std::min(p.workers, cores / threads));
+  }
+  p.workers = std::max(1, p.workers);
+  p.threads_per_frame = threads > 0 ? threads : std::max(1, cores / p.workers);
+  return p;
+}
+
+}  // namespace ssdo

@@ -1,0 +1,54 @@
+// One schema for a frame's options, shared by the command line, the JSON config file
+// (--config), the worker requests and the socket requests: the keys are the long flag
+// names without "--" and the values are what the flag takes, e.g.
+//   {"method": "gtao", "preset": "high", "terms": "ao,ssdo", "map": ["depth=Z"], "png": true}
+// Keys: map, camera, fov, depth-kind, part (reading); method, preset, radius, thickness,
+// threads, terms, ssdo-method, ssdo-preset, env, sky, env-constant, env-up, composite
+// (computing); compression, png (writing).
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "service/cli_options.h"
+
+namespace ssdo {
+
+// Everything that decides one frame's output, as typed (strings and numbers).
+struct FrameOptionArgs {
+  ReadOptionArgs read;
+  ComputeOptionArgs compute;
+  std::string compression = "zip";  // zip | zips | piz | none | dwaa
+  bool png = false;                  // sRGB PNG previews beside the EXR
+};
+
+// The schema's keys, in the order above.
+const std::vector<std::string>& frame_option_keys();
+
+// Every key with its value; with `given`, only the keys it returns true for.
+nlohmann::json to_json(const FrameOptionArgs& args);
+nlohmann::json to_json(const FrameOptionArgs& args, const std::function<bool(const std::string& key)>& given);
+
+// Sets the keys present in `j` (an object) on `args`, except those `keep` returns true
+// for (flags given on the command line win over a config file). Checks types and the
+// value sets the command line checks; an unknown key is an error. False with a message
+// naming the key.
+bool apply_json(const nlohmann::json& j, FrameOptionArgs& args, std::string& error,
+                const std::function<bool(const std::string& key)>& keep = {});
+
+// Reads a JSON object from a file. False with a message naming the file (and the line
+// of a syntax error).
+bool load_json_file(const std::string& path, nlohmann::json& j, std::string& error);
+
+// Turns typed options into a request (resolve_read_options + resolve_compute_options +
+// write options): loads the environment map when one is named.
+bool resolve_frame_options(const FrameOptionArgs& args, FrameRequest& request, std::string& error);
+
+// The paths an options object names (camera, env): the service checks them against its
+// allowed roots before a worker opens them.
+std::vector<std::string> option_paths(const FrameOptionArgs& args);
+
+}  // namespace ssdo

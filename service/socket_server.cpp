@@ -1,0 +1,382 @@
+#include "service/socket_server.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+
+#include "service/frame_list.h"
+#include "service/path_policy.h"
+#include "service/request_options.h"
+#include "service/version.h"
+
+namespace ssdo {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+// How long an over-limit client gets to read its "busy" answer before it is closed.
+constexpr double kBusyReplySeconds = 0.5;
+// How long stop() waits for connections to finish their request, beyond the deadlines
+// they already have.
+constexpr double kStopMarginSeconds = 5;
+
+bool stream_to_file(int socket_fd, const std::string& path, size_t size, Deadline deadline, std::string& error) {
+  const int out = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+  if (out < 0) {
+    error = "cannot create a spool file: " + std::string(std::strerror(errno));
+    return false;
+  }
+  std::vector<char> buffer(std::min<size_t>(size, size_t(1) << 20));
+  bool ok = true;
+  while (size > 0 && ok) {
+    const size_t n = std::min(size, buffer.size());
+    const IoStatus s = read_exact(socket_fd, buffer.data(), n, deadline);
+    if (s != IoStatus::ok) {
+      error = std::string("inline frame: ") + to_string(s == IoStatus::closed ? IoStatus::truncated : s);
+      ok = false;
+      break;
+    }
+    for (size_t done = 0; done < n;) {
+      const ssize_t w = ::write(out, buffer.data() + done, n - done);
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) {
+        error = "cannot write a spool file: " + std::string(std::strerror(errno));
+        ok = false;
+        break;
+      }
+      done += size_t(w);
+    }
+    size -= n;
+  }
+  ::close(out);
+  return ok;
+}
+
+json stats_json(const ServiceStats& s, int clients) {
+  return json{{"ok", true},
+              {"op", "stats"},
+              {"frames_done", s.frames_done},
+              {"frames_failed", s.frames_failed},
+              {"frames_skipped", s.frames_skipped},
+              {"queue_depth", s.queue_depth},
+              {"queue_capacity", s.queue_capacity},
+              {"in_flight", s.in_flight},
+              {"mean_frame_ms", s.mean_frame_ms},
+              {"workers", s.workers},
+              {"workers_replaced", s.workers_replaced},
+              {"clients", clients},
+              {"uptime_s", s.uptime_s}};
+}
+
+}  // namespace
+
+SocketServer::SocketServer(SocketServerOptions options, FrameService& frames)
+    : options_(std::move(options)), frames_(frames) {}
+
+SocketServer::~SocketServer() { stop(); }
+
+bool SocketServer::bind(std::string& error) {
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  if (options_.path.empty() || options_.path.size() >= sizeof addr.sun_path) {
+    error = "--socket " + options_.path + ": the path must be 1 to " + std::to_string(sizeof addr.sun_path - 1) +
+            " bytes long";
+    return false;
+  }
+  std::memcpy(addr.sun_path, options_.path.c_str(), options_.path.size() + 1);
+  struct stat st {};
+  if (::lstat(options_.path.c_str(), &st) == 0) {
+    if (!S_ISSOCK(st.st_mode)) {
+      error = "--socket " + options_.path + ": exists and is not a socket";
+      return false;
+    }
+    const int probe = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    const bool live = ::connect(probe, reinterpret_cast<sockaddr*>(&addr), sizeof addr) == 0;
+    ::close(probe);
+    if (live) {
+      error = "--socket " + options_.path + ": another service is listening on it";
+      return false;
+    }
+    ::unlink(options_.path.c_str());  // stale: its service is gone
+  }
+  listen_fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+  if (listen_fd_ < 0) {
+    error = std::string("socket: ") + std::strerror(errno);
+    return false;
+  }
+  // Created without group/other access, then set to the requested mode: no moment where
+  // others could connect. (umask is process-wide: this runs before any other thread.)
+  const mode_t old_mask = ::umask(0177);
+  const int rc = ::bind(listen_fd_, reinterpret_cast<sockaddr*>(&addr), sizeof addr);
+  const int bind_errno = errno;
+  ::umask(old_mask);
+  if (rc != 0) {
+    error = "--socket " + options_.path + ": " + std::strerror(bind_errno);
+    return false;
+  }
+  if (::chmod(options_.path.c_str(), options_.mode) != 0 || ::listen(listen_fd_, 128) != 0 ||
+      ::pipe2(stop_pipe_, O_CLOEXEC | O_NONBLOCK) != 0) {
+    error = "--socket " + options_.path + ": " + std::strerror(errno);
+    ::unlink(options_.path.c_str());
+    return false;
+  }
+  return true;
+}
+
+void SocketServer::start() { accept_thread_ = std::thread([this] { accept_loop(); }); }
+
+void SocketServer::stop_accepting() {
+  if (accept_thread_.joinable()) {
+    const char c = 's';
+    (void)!::write(stop_pipe_[1], &c, 1);
+    accept_thread_.join();
+  }
+  if (listen_fd_ >= 0) {
+    ::close(listen_fd_);
+    listen_fd_ = -1;
+    ::unlink(options_.path.c_str());
+  }
+}
+
+void SocketServer::stop() {
+  stop_accepting();
+  std::unique_lock<std::mutex> lock(mutex_);
+  stopping_ = true;
+  // Wake connections waiting for a request; one inside a request finishes it (its reply
+  // can still be written) and then sees the end of its input.
+  for (int fd : connections_) ::shutdown(fd, SHUT_RD);
+  all_closed_.wait_for(lock, std::chrono::duration<double>(options_.client_timeout_s + kStopMarginSeconds),
+                       [&] { return connections_.empty(); });
+  lock.unlock();
+  for (int* fd : {&stop_pipe_[0], &stop_pipe_[1]})
+    if (*fd >= 0) {
+      ::close(*fd);
+      *fd = -1;
+    }
+}
+
+void SocketServer::accept_loop() {
+  for (;;) {
+    pollfd fds[2] = {{listen_fd_, POLLIN, 0}, {stop_pipe_[0], POLLIN, 0}};
+    if (::poll(fds, 2, -1) < 0 && errno != EINTR) return;
+    if (fds[1].revents) return;
+    if (!(fds[0].revents & POLLIN)) continue;
+    const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+    if (fd < 0) continue;
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_ || int(connections_.size()) >= options_.max_clients) {
+      const json busy = error_response(
+          "busy", stopping_ ? "the service is stopping"
+                            : "too many clients (" + std::to_string(options_.max_clients) + "); try again later");
+      write_message(fd, busy.dump(), deadline_in(kBusyReplySeconds));
+      ::close(fd);
+      continue;
+    }
+    connections_.insert(fd);
+    ++clients_;
+    std::thread([this, fd] { serve_connection(fd); }).detach();
+  }
+}
+
+void SocketServer::serve_connection(int fd) {
+  for (;;) {
+    std::string header;
+    const IoStatus s = read_message(fd, header, options_.limits.max_header_bytes, deadline_in(options_.client_timeout_s));
+    if (s == IoStatus::timeout) {
+      reply(fd, error_response("timeout", "no complete request within " +
+                                              std::to_string(int(options_.client_timeout_s)) + " s (--client-timeout)"));
+      break;
+    }
+    if (s == IoStatus::too_large) {
+      reply(fd, error_response("too_large", "the request header exceeds " +
+                                                std::to_string(options_.limits.max_header_bytes) +
+                                                " bytes (--max-request-bytes)"));
+      break;
+    }
+    if (s != IoStatus::ok || !handle_request(fd, header)) break;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  connections_.erase(fd);
+  ::close(fd);
+  --clients_;
+  all_closed_.notify_all();
+  // The thread is detached; stop() waits on all_closed_ for the set to empty.
+}
+
+bool SocketServer::reply(int fd, const json& response, const std::string& inline_file) {
+  const Deadline deadline = deadline_in(options_.client_timeout_s);
+  if (inline_file.empty()) return write_message(fd, response.dump(), deadline) == IoStatus::ok;
+  const int in = ::open(inline_file.c_str(), O_RDONLY | O_CLOEXEC);
+  struct stat st {};
+  if (in < 0 || ::fstat(in, &st) != 0) {
+    if (in >= 0) ::close(in);
+    return write_message(fd, error_response("internal", "the output vanished before it was sent", response.value("id", json())).dump(),
+                         deadline) == IoStatus::ok;
+  }
+  json header = response;
+  header["inline_size"] = uint64_t(st.st_size);
+  bool ok = write_message(fd, header.dump(), deadline) == IoStatus::ok;
+  std::vector<char> buffer(size_t(1) << 20);
+  for (off_t left = st.st_size; ok && left > 0;) {
+    const ssize_t n = ::read(in, buffer.data(), size_t(std::min<off_t>(left, off_t(buffer.size()))));
+    if (n <= 0) {
+      ok = false;  // the peer sees a truncated message: better than a wrong one
+      break;
+    }
+    ok = write_all(fd, buffer.data(), size_t(n), deadline) == IoStatus::ok;
+    left -= n;
+  }
+  ::close(in);
+  return ok;
+}
+
+bool SocketServer::handle_request(int fd, const std::string& header) {
+  SocketRequest request;
+  std::string error;
+  if (!parse_socket_request(header, options_.limits, request, error)) {
+    // The stream may hold a payload of unknown size: answer and close.
+    const json j = json::parse(header, nullptr, false);
+    const json id = j.is_object() && j.contains("id") ? j["id"] : json();
+    reply(fd, error_response("bad_request", error, id));
+    return false;
+  }
+  if (request.op == "ping") {
+    json pong{{"ok", true}, {"op", "ping"}, {"version", version_string()}};
+    if (!request.id.is_null()) pong["id"] = request.id;
+    return reply(fd, pong);
+  }
+  if (request.op == "stats") {
+    json stats = stats_json(frames_.stats(), clients_);
+    if (!request.id.is_null()) stats["id"] = request.id;
+    return reply(fd, stats);
+  }
+  return handle_process(fd, request);
+}
+
+bool SocketServer::handle_process(int fd, SocketRequest& request) {
+  const json& id = request.id;
+  // Refuses the request; a pending inline payload makes the connection close.
+  auto refuse = [&](const std::string& code, const std::string& message) {
+    reply(fd, error_response(code, message, id));
+    return request.inline_size == 0;
+  };
+  FrameOptionArgs options;
+  std::string error;
+  if (!apply_json(options_.default_options, options, error) || !apply_json(request.options, options, error))
+    return refuse("bad_request", "options: " + error);
+  for (std::string* path : {&options.read.camera_json, &options.compute.env_path}) {
+    if (path->empty()) continue;
+    std::string resolved;
+    if (!resolve_allowed_input(*path, options_.allow_roots, resolved, error)) return refuse("forbidden", error);
+    *path = resolved;
+  }
+
+  // Where the frame comes from and where its output goes.
+  const unsigned long spool_id = ++next_spool_id_;
+  const fs::path spool = fs::path(options_.spool_dir) / ("r" + std::to_string(spool_id));
+  struct SpoolGuard {
+    fs::path dir;
+    bool used = false;
+    ~SpoolGuard() {
+      std::error_code ec;
+      if (used) fs::remove_all(dir, ec);
+    }
+  } guard{spool};
+  std::string input;
+  if (request.inline_size > 0) {
+    std::error_code ec;
+    fs::create_directory(spool, ec);
+    guard.used = true;
+    if (ec) return refuse("internal", "cannot create a spool folder: " + ec.message());
+    input = (spool / (request.name + ".exr")).string();
+    if (!stream_to_file(fd, input, request.inline_size, deadline_in(options_.client_timeout_s), error)) {
+      reply(fd, error_response("bad_request", error, id));
+      return false;
+    }
+    request.inline_size = 0;  // consumed: the stream is in step again
+    if (request.sidecar.is_object()) {
+      FILE* f = std::fopen((spool / (request.name + ".camera.json")).c_str(), "w");
+      if (!f) return refuse("internal", "cannot write the sidecar to the spool folder");
+      const std::string text = request.sidecar.dump();
+      std::fwrite(text.data(), 1, text.size(), f);
+      std::fclose(f);
+    }
+  } else {
+    if (!resolve_allowed_input(request.input, options_.allow_roots, input, error)) return refuse("forbidden", error);
+    std::error_code ec;
+    if (!fs::is_regular_file(input, ec)) return refuse("bad_request", request.input + ": not a regular file");
+  }
+  std::string output, error_path;
+  if (request.reply_inline) {
+    std::error_code ec;
+    fs::create_directory(spool, ec);
+    guard.used = true;
+    output = (spool / (fs::path(input).stem().string() + ".ssdo.exr")).string();
+  } else if (!request.output.empty()) {
+    if (!resolve_allowed_output(request.output, options_.out_dir, output, error)) return refuse("forbidden", error);
+    error_path = (fs::path(output).parent_path() / (fs::path(output).stem().string() + ".error.json")).string();
+  } else {
+    output = output_path_for(input, options_.out_dir);
+    error_path = error_path_for(input, options_.out_dir);
+  }
+
+  // Queue it and wait for the result (a dispatcher always calls back: with the frame's
+  // result, or "stopping" for a queued frame when the service stops).
+  struct Outcome {
+    std::mutex mutex;
+    std::condition_variable cv;
+    bool done = false;
+    WorkerResult result;
+  };
+  auto outcome = std::make_shared<Outcome>();
+  FrameTask task;
+  task.input = input;
+  task.output = output;
+  task.error_path = error_path;
+  task.options = to_json(options);
+  task.done = [outcome](const WorkerResult& r) {
+    std::lock_guard<std::mutex> lock(outcome->mutex);
+    outcome->result = r;
+    outcome->done = true;
+    outcome->cv.notify_all();
+  };
+  const auto t0 = Clock::now();
+  if (!frames_.submit(std::move(task))) {
+    const ServiceStats s = frames_.stats();
+    return refuse("busy", "the queue is full (" + std::to_string(s.queue_capacity) + " frames); try again later");
+  }
+  std::unique_lock<std::mutex> lock(outcome->mutex);
+  outcome->cv.wait(lock, [&] { return outcome->done; });
+  const WorkerResult r = outcome->result;
+  lock.unlock();
+
+  const double total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  json times{{"read_ms", r.times.read_ms},
+             {"compute_ms", r.times.compute_ms},
+             {"write_ms", r.times.write_ms},
+             {"worker_ms", r.wall_ms},
+             {"total_ms", total_ms}};
+  if (!r.ok()) {
+    json response = error_response("frame_failed", r.error, id);
+    response["times"] = times;
+    if (!error_path.empty()) response["error_file"] = error_path;
+    return reply(fd, response);
+  }
+  json response{{"ok", true}, {"terms", r.terms}, {"width", r.width_px}, {"height", r.height_px}, {"times", times}};
+  if (!id.is_null()) response["id"] = id;
+  if (request.reply_inline) return reply(fd, response, output);
+  response["output"] = output;
+  return reply(fd, response);
+}
+
+}  // namespace ssdo

@@ -1,0 +1,126 @@
+#include "service/watcher.h"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/inotify.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <vector>
+
+#include "service/frame_list.h"
+
+namespace ssdo {
+
+namespace fs = std::filesystem;
+
+DirectoryWatcher::DirectoryWatcher(std::string dir, double poll_s, Report report, Log log)
+    : dir_(std::move(dir)), poll_s_(poll_s), report_(std::move(report)), log_(std::move(log)) {}
+
+DirectoryWatcher::~DirectoryWatcher() { stop(); }
+
+bool DirectoryWatcher::start(std::string& error) {
+  inotify_fd_ = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+  if (inotify_fd_ < 0) {
+    error = std::string("inotify: ") + std::strerror(errno);
+    return false;
+  }
+  if (::inotify_add_watch(inotify_fd_, dir_.c_str(), IN_CLOSE_WRITE | IN_MOVED_TO | IN_ONLYDIR) < 0) {
+    error = dir_ + ": cannot watch: " + std::strerror(errno);
+    return false;
+  }
+  if (::pipe2(stop_pipe_, O_CLOEXEC | O_NONBLOCK) != 0) {
+    error = std::string("pipe: ") + std::strerror(errno);
+    return false;
+  }
+  scan(false);
+  thread_ = std::thread([this] { run(); });
+  return true;
+}
+
+void DirectoryWatcher::stop() {
+  if (thread_.joinable()) {
+    const char c = 's';
+    (void)!::write(stop_pipe_[1], &c, 1);
+    thread_.join();
+  }
+  for (int* fd : {&inotify_fd_, &stop_pipe_[0], &stop_pipe_[1]})
+    if (*fd >= 0) {
+      ::close(*fd);
+      *fd = -1;
+    }
+}
+
+void DirectoryWatcher::scan(bool stable_only) {
+  std::vector<std::string> frames;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir_, ec))
+    if (e.is_regular_file(ec) && is_frame_file(e.path().string())) frames.push_back(e.path().string());
+  if (ec) log_("watch: cannot list " + dir_ + ": " + ec.message());
+  std::sort(frames.begin(), frames.end());
+  std::map<std::string, std::pair<off_t, timespec>> seen;
+  for (const std::string& f : frames) {
+    struct stat st {};
+    if (::stat(f.c_str(), &st) != 0) continue;
+    seen[f] = {st.st_size, st.st_mtim};
+    if (stable_only) {
+      const auto it = last_seen_.find(f);
+      if (it == last_seen_.end() || it->second.first != st.st_size ||
+          it->second.second.tv_sec != st.st_mtim.tv_sec || it->second.second.tv_nsec != st.st_mtim.tv_nsec)
+        continue;  // new or still changing: look again at the next scan
+    }
+    report_(f);
+  }
+  last_seen_.swap(seen);
+}
+
+void DirectoryWatcher::run() {
+  alignas(inotify_event) char buffer[64 * 1024];
+  auto next_poll = std::chrono::steady_clock::now() + std::chrono::duration<double>(poll_s_);
+  for (;;) {
+    int timeout_ms = -1;
+    if (poll_s_ > 0) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(next_poll - std::chrono::steady_clock::now());
+      timeout_ms = int(std::max<long long>(0, left.count()));
+    }
+    pollfd fds[2] = {{inotify_fd_, POLLIN, 0}, {stop_pipe_[0], POLLIN, 0}};
+    const int n = ::poll(fds, 2, timeout_ms);
+    if (n < 0 && errno != EINTR) {
+      log_(std::string("watch: poll: ") + std::strerror(errno));
+      return;
+    }
+    if (fds[1].revents) return;
+    if (poll_s_ > 0 && std::chrono::steady_clock::now() >= next_poll) {
+      scan(true);
+      next_poll = std::chrono::steady_clock::now() + std::chrono::duration<double>(poll_s_);
+    }
+    if (!(fds[0].revents & POLLIN)) continue;
+    bool rescan = false;
+    for (;;) {
+      const ssize_t len = ::read(inotify_fd_, buffer, sizeof buffer);
+      if (len <= 0) break;
+      for (ssize_t at = 0; at < len;) {
+        const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
+        at += ssize_t(sizeof(inotify_event) + event->len);
+        if (event->mask & IN_Q_OVERFLOW) {
+          rescan = true;
+        } else if (event->mask & IN_IGNORED) {
+          log_("watch: " + dir_ + " is no longer watched (removed or unmounted)");
+        } else if (event->len > 0 && !(event->mask & IN_ISDIR)) {
+          const std::string path = (fs::path(dir_) / event->name).string();
+          if (is_frame_file(path)) report_(path);
+        }
+      }
+    }
+    if (rescan) {
+      log_("watch: event queue overflowed; scanning " + dir_);
+      scan(false);
+    }
+  }
+}
+
+}  // namespace ssdo

@@ -1,0 +1,223 @@
+#include "service/worker_process.h"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <thread>
+
+#include "service/protocol.h"
+
+extern char** environ;
+
+namespace ssdo {
+
+namespace {
+
+// Responses are small JSON objects; anything larger is a broken worker.
+constexpr size_t kMaxResponseBytes = size_t(1) << 20;
+// Time a worker gets to write its request's response once it is past its deadline
+// (none) and to exit after its request pipe closes, before it is killed.
+constexpr double kExitGraceSeconds = 2.0;
+
+// Moves `fd` to a number >= 10 with close-on-exec, so posix_spawn's dup2 onto 3 and 4
+// never has source == target (which would keep close-on-exec set on some C libraries).
+int high_fd(int fd) {
+  const int moved = ::fcntl(fd, F_DUPFD_CLOEXEC, 10);
+  ::close(fd);
+  return moved;
+}
+
+void set_nonblocking(int fd) { ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK); }
+
+}  // namespace
+
+std::string signal_description(int sig) {
+  const char* abbrev = ::sigabbrev_np(sig);
+  const char* text = ::sigdescr_np(sig);
+  std::string s = abbrev ? std::string("SIG") + abbrev : "signal " + std::to_string(sig);
+  if (text) s += std::string(" (") + text + ")";
+  return s;
+}
+
+WorkerProcess::WorkerProcess(WorkerLimits limits, std::string executable)
+    : limits_(limits), executable_(std::move(executable)) {}
+
+WorkerProcess::~WorkerProcess() { stop(false); }
+
+bool WorkerProcess::start(std::string& error) { return pid_ > 0 || spawn(error); }
+
+bool WorkerProcess::spawn(std::string& error) {
+  int req[2], resp[2];
+  if (::pipe2(req, O_CLOEXEC) != 0) {
+    error = std::string("cannot create a pipe for a worker: ") + std::strerror(errno);
+    return false;
+  }
+  if (::pipe2(resp, O_CLOEXEC) != 0) {
+    error = std::string("cannot create a pipe for a worker: ") + std::strerror(errno);
+    ::close(req[0]);
+    ::close(req[1]);
+    return false;
+  }
+  for (int* fd : {&req[0], &req[1], &resp[0], &resp[1]}) *fd = high_fd(*fd);
+
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+  posix_spawn_file_actions_adddup2(&actions, 2, 1);  // stray library prints go to stderr
+  posix_spawn_file_actions_adddup2(&actions, req[0], 3);
+  posix_spawn_file_actions_adddup2(&actions, resp[1], 4);
+  posix_spawnattr_t attr;
+  posix_spawnattr_init(&attr);
+  sigset_t none, defaults;
+  sigemptyset(&none);
+  sigemptyset(&defaults);
+  for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGCHLD}) sigaddset(&defaults, s);
+  posix_spawnattr_setsigmask(&attr, &none);        // the parent blocks SIGINT/SIGTERM for sigwait
+  posix_spawnattr_setsigdefault(&attr, &defaults);  // and ignores SIGPIPE
+  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+
+  const std::string threads = std::to_string(limits_.threads);
+  const std::string memory = std::to_string(limits_.memory_limit_mb);
+  const std::string pixels = std::to_string(limits_.max_pixels);
+  const std::string parent = std::to_string(::getpid());
+  const char* argv[] = {"ssdo",       "worker",       "--threads", threads.c_str(), "--memory-limit",
+                        memory.c_str(), "--max-pixels", pixels.c_str(), "--parent", parent.c_str(),
+                        nullptr};
+  pid_t pid = -1;
+  const int rc = ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, const_cast<char**>(argv), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  posix_spawnattr_destroy(&attr);
+  ::close(req[0]);
+  ::close(resp[1]);
+  if (rc != 0) {
+    ::close(req[1]);
+    ::close(resp[0]);
+    error = "cannot start a worker (" + executable_ + "): " + std::strerror(rc);
+    return false;
+  }
+  pid_ = pid;
+  to_worker_ = req[1];
+  from_worker_ = resp[0];
+  set_nonblocking(to_worker_);
+  set_nonblocking(from_worker_);
+  ++spawns_;
+  return true;
+}
+
+std::string WorkerProcess::reap_reason() {
+  if (pid_ <= 0) return "no worker";
+  int status = 0;
+  // The worker closed its pipe: it is exiting or has exited. Wait briefly, then kill.
+  const Deadline give_up = deadline_in(kExitGraceSeconds);
+  pid_t r = 0;
+  while ((r = ::waitpid(pid_, &status, WNOHANG)) == 0 && Clock::now() < give_up)
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  if (r == 0) {
+    ::kill(pid_, SIGKILL);
+    r = ::waitpid(pid_, &status, 0);
+  }
+  std::string reason;
+  if (r != pid_) reason = "worker lost";
+  else if (WIFSIGNALED(status)) reason = "worker killed by " + signal_description(WTERMSIG(status));
+  else if (WIFEXITED(status)) reason = "worker exited with status " + std::to_string(WEXITSTATUS(status));
+  else reason = "worker ended";
+  ::close(to_worker_);
+  ::close(from_worker_);
+  to_worker_ = from_worker_ = -1;
+  pid_ = -1;
+  return reason;
+}
+
+void WorkerProcess::stop(bool kill_now) {
+  if (pid_ <= 0) return;
+  if (kill_now) ::kill(pid_, SIGKILL);
+  ::close(to_worker_);  // end of requests: an idle worker exits
+  to_worker_ = -1;
+  int status = 0;
+  const Deadline give_up = deadline_in(kExitGraceSeconds);
+  while (::waitpid(pid_, &status, WNOHANG) == 0) {
+    if (Clock::now() >= give_up) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, &status, 0);
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ::close(from_worker_);
+  from_worker_ = -1;
+  pid_ = -1;
+}
+
+WorkerResult WorkerProcess::run(const WorkerJob& job) {
+  WorkerResult result;
+  const auto t0 = Clock::now();
+  const std::string request =
+      nlohmann::json{{"input", job.input_path}, {"output", job.output_path}, {"options", job.options}}.dump();
+  const Deadline deadline = deadline_in(limits_.frame_timeout_s);
+  // A worker may have died while idle; then the request cannot be written: start a new
+  // one and send again (once).
+  for (int attempt = 0;; ++attempt) {
+    std::string error;
+    if (pid_ <= 0 && !spawn(error)) {
+      result.error = error;
+      return result;
+    }
+    const IoStatus s = write_message(to_worker_, request, deadline);
+    if (s == IoStatus::ok) break;
+    const std::string reason = reap_reason();
+    result.worker_replaced = true;
+    if (attempt == 1) {
+      result.error = "cannot send the frame to a worker: " + std::string(to_string(s)) + "; " + reason;
+      return result;
+    }
+  }
+
+  std::string response;
+  const IoStatus s = read_message(from_worker_, response, kMaxResponseBytes, deadline);
+  result.wall_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  if (s == IoStatus::timeout) {
+    ::kill(pid_, SIGKILL);
+    reap_reason();
+    result.worker_replaced = true;
+    char text[128];
+    std::snprintf(text, sizeof text, "timed out after %.0f s (worker killed and replaced; see --frame-timeout)",
+                  limits_.frame_timeout_s);
+    result.error = text;
+    return result;
+  }
+  if (s != IoStatus::ok) {
+    result.error = reap_reason() + " while processing the frame";
+    result.worker_replaced = true;
+    return result;
+  }
+  const nlohmann::json j = nlohmann::json::parse(response, nullptr, false);
+  if (j.is_discarded() || !j.is_object()) {
+    ::kill(pid_, SIGKILL);
+    reap_reason();
+    result.worker_replaced = true;
+    result.error = "the worker sent a malformed response (worker replaced)";
+    return result;
+  }
+  result.error = j.value("error", std::string());
+  if (!j.value("ok", false) && result.error.empty()) result.error = "the worker reported a failure";
+  result.times.read_ms = j.value("read_ms", 0.0);
+  result.times.compute_ms = j.value("compute_ms", 0.0);
+  result.times.write_ms = j.value("write_ms", 0.0);
+  result.width_px = j.value("width", 0);
+  result.height_px = j.value("height", 0);
+  if (j.contains("terms") && j["terms"].is_array())
+    for (const auto& t : j["terms"])
+      if (t.is_string()) result.terms.push_back(t.get<std::string>());
+  if (j.value("exiting", false)) {  // the worker's last words (an uncaught exception)
+    reap_reason();
+    result.worker_replaced = true;
+  }
+  return result;
+}
+
+}  // namespace ssdo

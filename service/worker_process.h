@@ -1,0 +1,96 @@
+// Frames are decoded and computed in worker processes, never in the process that must
+// survive (the batch, the service): a frame that crashes, stalls or exhausts its worker
+// becomes that frame's error and the worker is replaced.
+//
+// A worker is `ssdo worker` started with posix_spawn from /proc/self/exe, with a request
+// pipe on its fd 3 and a response pipe on its fd 4 (length-prefixed JSON, see
+// service/protocol.h). A request names the input and output paths (frame data never
+// crosses a pipe) and carries the frame options (service/request_options.h); the response
+// gives the error or the terms written and the per-stage times. The worker lives across
+// requests: spawning is paid once, not per frame. Inside the worker: RLIMIT_AS (memory),
+// no core files, its own thread budget, and it dies with its parent (PR_SET_PDEATHSIG).
+#pragma once
+
+#include <sys/types.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "service/pipeline.h"
+#include "service/protocol.h"
+
+namespace ssdo {
+
+struct WorkerLimits {
+  int threads = 1;                    // kernel and decoder threads of the worker
+  int64_t memory_limit_mb = 4096;     // address-space limit of the worker (RLIMIT_AS), MiB;
+                                      // a 1080p frame with every term peaks near 1.3 GiB
+  double frame_timeout_s = 300;       // wall time of one frame (read + compute + write)
+  int64_t max_pixels = int64_t(1) << 26;  // larger data windows are refused before decoding (8K x 8K)
+};
+
+struct WorkerJob {
+  std::string input_path;
+  std::string output_path;
+  nlohmann::json options = nlohmann::json::object();  // service/request_options.h keys
+};
+
+struct WorkerResult {
+  std::string error;                  // empty on success; else the reason (signal, timeout, memory, ...)
+  StageTimes times;                   // as measured inside the worker
+  double wall_ms = 0;                 // request sent -> response read, as the parent saw it
+  std::vector<std::string> terms;     // terms written
+  int width_px = 0, height_px = 0;
+  bool worker_replaced = false;       // the worker died or was killed during this frame
+  bool ok() const { return error.empty(); }
+};
+
+// One worker process, started on first use and restarted after it dies. Not thread-safe:
+// one owner thread (the batch and the service run one thread per worker).
+class WorkerProcess {
+ public:
+  explicit WorkerProcess(WorkerLimits limits, std::string executable = "/proc/self/exe");
+  ~WorkerProcess();  // closes the pipes (the worker exits), then reaps it
+  WorkerProcess(const WorkerProcess&) = delete;
+  WorkerProcess& operator=(const WorkerProcess&) = delete;
+
+  // Starts the worker now (a service warms its workers up before the first request:
+  // loading the executable's libraries takes a few hundred ms). False with a message.
+  bool start(std::string& error);
+
+  // Runs one frame. Never throws; every failure is in the result.
+  WorkerResult run(const WorkerJob& job);
+
+  pid_t pid() const { return pid_; }
+  int spawn_count() const { return spawns_; }
+
+ private:
+  bool spawn(std::string& error);
+  void stop(bool kill_now);
+  // Reaps the (dead or killed) worker and describes how it ended.
+  std::string reap_reason();
+
+  WorkerLimits limits_;
+  std::string executable_;
+  pid_t pid_ = -1;
+  int to_worker_ = -1, from_worker_ = -1;
+  int spawns_ = 0;
+};
+
+// Arguments of the hidden `ssdo worker` subcommand.
+struct WorkerArgs {
+  int request_fd = 3, response_fd = 4;
+  int threads = 1;
+  int64_t memory_limit_mb = 4096;
+  int64_t max_pixels = int64_t(1) << 26;
+  int64_t parent_pid = 0;  // exit at once when the parent is already gone
+};
+int run_worker(const WorkerArgs& args);
+
+// "SIGSEGV (Segmentation fault)" for 11.
+std::string signal_description(int signal);
+
+}  // namespace ssdo
