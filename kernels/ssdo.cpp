@@ -126,7 +126,6 @@ struct Constants {
   glm::mat4 clip_from_view;
   glm::mat3 env_from_view;  // = env_from_world * world_from_view (Camera::world_from_view_direction)
   float width_px, height_px;
-  bool perspective;
   SsdoSettings s;
 };
 
@@ -238,7 +237,8 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   const bool form_factor = c.s.indirect_estimator == SsdoIndirectEstimator::form_factor;
   const float d_min2 = c.s.sender_distance_min_world * c.s.sender_distance_min_world;
 
-  glm::vec3 direct_sum(0.0f), indirect_sum(0.0f), bent_sum(0.0f);
+  const bool control_variate = c.s.direct_estimator == SsdoDirectEstimator::open_minus_occluded;
+  glm::vec3 direct_sum(0.0f), indirect_sum(0.0f), bent_sum(0.0f), occluded_sum(0.0f);
   int visible = 0;
   const int width = int(c.width_px);
   for (int i = 0; i < n_samples; ++i) {
@@ -266,13 +266,14 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       if (tap != Tap::occluded) {
         if (want_direct) {
           if (bent) bent_sum += w;
-          else direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
+          else if (!control_variate) direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
         }
         ++visible;
         if (record) record[i] = -1;
         continue;
       }
       if (record) record[i] = qy * width + qx;
+      if (want_direct && control_variate) occluded_sum += c.env->radiance_filtered_env(c.env_from_view * w);
     }
     if (!want_indirect) continue;
     const SenderTexel& sender = c.senders[size_t(qy) * size_t(width) + size_t(qx)];
@@ -300,6 +301,10 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       direct = len > 0.0f ? c.env->irradiance_over_pi_env(c.env_from_view * (bent_sum / len)) *
                                 (float(visible) * inv_n)
                           : glm::vec3(0.0f);
+    } else if (control_variate) {
+      // E_SH(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
+      // clamp removes negative values that noise can give where almost all is occluded.
+      direct = glm::max(c.env->irradiance_over_pi_env(c.env_from_view * n) - occluded_sum * inv_n, glm::vec3(0.0f));
     } else {
       direct = direct_sum * inv_n;
     }
@@ -473,7 +478,6 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   c.env_from_view = in.environment.env_from_world_matrix() * glm::mat3(in.camera.view_to_world);
   c.width_px = float(size.width);
   c.height_px = float(size.height);
-  c.perspective = in.camera.is_perspective();
   c.s = settings;
 
   const bool want_indirect = settings.indirect_strength > 0.0f;
