@@ -75,7 +75,7 @@ constexpr float kPi = 3.14159265358979323846f;
 constexpr float kPlaneCorrectionMaxRelative = 0.25f;
 
 // What a tap reads of a pixel: one 16-byte record (taps scatter over up to max_radius_px
-// around the pixel, and memory, not arithmetic, bounds the kernel). For a plane seen in
+// around the pixel, and their cache misses are a large part of the kernel's cost). For a plane seen in
 // perspective, 1 / depth is an affine function of the pixel coordinates, so the pixel's
 // tangent plane gives the surface depth anywhere in the pixel from 1 / depth at the centre
 // and its two screen gradients.
@@ -93,7 +93,6 @@ struct SenderTexel {
   glm::vec3 normal_view;
 };
 
-// Per-frame constants: the views, the camera folded into matrices, the settings.
 // Taps far from the receiver read a coarser level of a pyramid of TapTexels (McGuire et
 // al. 2012, "Scalable Ambient Obscurance", sec. 4.3): nearby texels of one level share
 // cache lines, which the scattered far taps of a large radius otherwise miss. Level l has
@@ -111,6 +110,7 @@ struct TapLevel {
   int width = 0, height = 0;
 };
 
+// Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {
   TapLevel levels[kMaxLevels];
   int n_levels;                // 1 = no pyramid (the oracle reads full resolution only)
