@@ -1,0 +1,113 @@
+// Timings of SSDO (direct + indirect) per preset, of building an environment, and of the
+// composite, at 640x360 (the shared cornell dump) and 1920x1080 (the shared perf1080 dump),
+// with 1 and 2 threads. The environment is the shared env_equirect.exr's procedural sky as
+// a 512x256 equirect built in memory (same layout), so no environment file is read. Without
+// ../shared the Cornell-like scene of the reference ray caster is rendered instead.
+// Args: width, preset, threads, sender light (0 = first pass of the kernel, 1 = the frame's
+// lighting pass when it has one).
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <filesystem>
+
+#include "formats/gbuffer_reader.h"
+#include "kernels/composite.h"
+#include "kernels/environment.h"
+#include "kernels/positions.h"
+#include "kernels/raycast.h"
+#include "kernels/ssdo.h"
+
+namespace {
+
+ssdo::GBuffer load(int width) {
+  const std::filesystem::path dir = std::filesystem::path(SSDO_SHARED_DIR) / "gbuffers";
+  const std::filesystem::path file = dir / (width == 640 ? "cornell.exr" : "perf1080.exr");
+  if (std::filesystem::exists(file)) {
+    ssdo::ReadOptions options;
+    options.read_references = false;
+    ssdo::ReadResult r = ssdo::read_gbuffer(file.string(), options);
+    if (r.ok()) {
+      ssdo::GBuffer g = std::move(r.gbuffer);
+      if (g.position_view.empty())
+        ssdo::view_positions_from_depth(g.depth_view, g.mask, g.camera, g.position_view);
+      return g;
+    }
+  }
+  const int height = width * 9 / 16;
+  return ssdo::raycast::render_gbuffer(ssdo::raycast::cornell_scene(),
+                                       ssdo::raycast::cornell_camera(width, height), 2);
+}
+
+const ssdo::GBuffer& frame(int width) {
+  static const ssdo::GBuffer small = load(640);
+  static const ssdo::GBuffer large = load(1920);
+  return width == 640 ? small : large;
+}
+
+// The README's world: t = clamp((d.z + 0.4) / 0.8, 0, 1), L = (1 - t) bottom + t top.
+cv::Mat sky_equirect() {
+  const cv::Size size(512, 256);
+  const ssdo::SkyGradient sky;
+  cv::Mat img(size, CV_32FC3);
+  for (int j = 0; j < size.height; ++j)
+    for (int i = 0; i < size.width; ++i) {
+      const glm::vec3 d = ssdo::Environment::direction_from_equirect({i + 0.5f, j + 0.5f}, size);
+      const float t = std::clamp((d.z - sky.up_begin) / (sky.up_end - sky.up_begin), 0.0f, 1.0f);
+      const glm::vec3 l = (1.0f - t) * sky.bottom + t * sky.top;
+      img.at<cv::Vec3f>(j, i) = cv::Vec3f(l.x, l.y, l.z);
+    }
+  return img;
+}
+
+const ssdo::Environment& environment() {
+  static const ssdo::Environment env = ssdo::Environment::equirect(sky_equirect());
+  return env;
+}
+
+void BM_Ssdo(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const auto preset = ssdo::Preset(state.range(1));
+  const int threads = int(state.range(2));
+  const bool with_lighting = state.range(3) != 0 && !g.lighting.empty();
+  const ssdo::SsdoSettings s = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, preset);
+  const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera,
+                            environment(), &g.albedo, with_lighting ? &g.lighting : nullptr};
+  ssdo::SsdoOutput out;
+  for (auto _ : state) ssdo::compute_ssdo(in, s, out, {}, threads);
+  state.SetLabel(std::string(ssdo::to_string(preset)) + " N=" + std::to_string(s.samples) +
+                 " k=" + std::to_string(s.sample_steps) + " " + std::to_string(threads) + "t" +
+                 (with_lighting ? " lighting" : " own pass"));
+}
+
+void BM_EnvironmentBuild(benchmark::State& state) {
+  const cv::Mat img = sky_equirect();
+  for (auto _ : state) benchmark::DoNotOptimize(ssdo::Environment::equirect(img));
+}
+
+void BM_Composite(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const cv::Mat light(g.depth_view.size(), CV_32FC3, cv::Scalar(0.5, 0.5, 0.5));
+  const ssdo::CompositeInputs in{g.mask, &g.albedo, nullptr, &light, &light};
+  cv::Mat out;
+  for (auto _ : state) ssdo::compute_composite(in, {}, out, {}, int(state.range(1)));
+}
+
+void ssdo_args(benchmark::internal::Benchmark* b) {
+  for (int w : {640, 1920})
+    for (int p : {0, 1, 2, 3})
+      for (int t : {1, 2}) b->Args({w, p, t, 0});
+  for (int w : {640, 1920}) b->Args({w, 1, 2, 1});
+}
+
+void image_args(benchmark::internal::Benchmark* b) {
+  for (int w : {640, 1920})
+    for (int t : {1, 2}) b->Args({w, t});
+}
+
+}  // namespace
+
+BENCHMARK(BM_Ssdo)->Apply(ssdo_args)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+BENCHMARK(BM_EnvironmentBuild)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_Composite)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+BENCHMARK_MAIN();
