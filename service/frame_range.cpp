@@ -99,6 +99,42 @@ bool parse_frame_ranges(const std::string& spec, std::vector<int>& frames, std::
   return true;
 }
 
+std::string format_frame_ranges(const std::vector<int>& frames) {
+  std::string out;
+  for (size_t i = 0; i < frames.size();) {
+    if (!out.empty()) out += ',';
+    const long long first = frames[i];
+    const long long step = i + 1 < frames.size() ? frames[i + 1] - first : 0;
+    size_t j = i + 1;  // one past the run [i, j) with a constant, non-zero step
+    while (step != 0 && j < frames.size() && frames[j] - (long long)frames[j - 1] == step) ++j;
+    // A run of two is worth a range only with step 1 ("4-5" rather than "4,5").
+    const bool range = j - i >= 3 || (j - i == 2 && (step == 1 || step == -1));
+    if (!range) {
+      out += std::to_string(first);
+      ++i;
+      continue;
+    }
+    out += std::to_string(first) + '-' + std::to_string(frames[j - 1]);
+    if (step != 1 && step != -1) out += 'x' + std::to_string(step < 0 ? -step : step);
+    i = j;
+  }
+  return out;
+}
+
+bool clip_frame_ranges(const std::string& spec, const std::string& shot, std::string& clipped,
+                       std::string& error, size_t* dropped) {
+  std::vector<int> wanted, in_shot;
+  if (!parse_frame_ranges(spec, wanted, error)) return false;
+  if (!parse_frame_ranges(shot, in_shot, error)) return false;
+  std::sort(in_shot.begin(), in_shot.end());
+  std::vector<int> kept;
+  for (int f : wanted)
+    if (std::binary_search(in_shot.begin(), in_shot.end(), f)) kept.push_back(f);
+  clipped = format_frame_ranges(kept);
+  if (dropped) *dropped = wanted.size() - kept.size();
+  return true;
+}
+
 bool has_frame_pattern(const std::string& path) { return find_pattern(path).pos != std::string::npos; }
 
 std::string expand_frame_pattern(const std::string& path, int frame) {

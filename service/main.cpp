@@ -6,6 +6,7 @@
 
 #include "service/cli_options.h"
 #include "service/commands.h"
+#include "service/frame_range.h"
 #include "service/request_options.h"
 #include "service/version.h"
 
@@ -124,6 +125,11 @@ int main(int argc, char** argv) {
   add_read_options(*process_cmd, process.options.read);
   add_compute_options(*process_cmd, process.options.compute, true);
   add_worker_limits(*process_cmd, process.jobs, process.limits);
+  std::string process_shot_frames;  // --frames outside the shot are dropped (farm overshoot)
+  process_cmd->add_option("--shot-frames", process_shot_frames,
+                          "The shot's frames, e.g. 1-240: --frames outside them are dropped (a farm's "
+                          "last task may ask for frames past the shot's end); a missing frame inside "
+                          "them still fails");
 
   // serve
   ServeArgs serve;
@@ -211,6 +217,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"ao", "ssdo_direct", "ssdo_indirect"}))
       ->capture_default_str();
   eval_cmd->add_flag("--raw", eval.raw, "Compare the raw term instead of the denoised one");
+  eval_cmd->add_option("--against-oracle", eval.oracle_preset,
+                       "Compare with the screen-space oracle at this preset (raymarch for AO, the "
+                       "SSDO oracle for light terms; same radius and thickness) instead of a pass: "
+                       "the method's estimator error alone")
+      ->check(CLI::IsMember({"low", "medium", "high", "ultra"}));
   eval_cmd->add_flag("--json", eval.json, "Print JSON");
   eval_cmd->add_option("--heatmap", eval.heatmap_dir, "Write an error image per file into DIR");
   add_read_options(*eval_cmd, eval_read);
@@ -234,6 +245,18 @@ int main(int argc, char** argv) {
   }
   if (*process_cmd) {
     if (!frame_options(*process_cmd, process_config, process.options, error)) return usage_error(error);
+    if (!process_shot_frames.empty()) {
+      if (process.frames.empty()) return usage_error("--shot-frames needs --frames");
+      std::string clipped;
+      size_t dropped = 0;
+      if (!clip_frame_ranges(process.frames, process_shot_frames, clipped, error, &dropped))
+        return usage_error("--frames " + process.frames + " --shot-frames " + process_shot_frames + ": " + error);
+      if (dropped > 0)
+        std::cerr << "ssdo process: --frames " << process.frames << " within the shot's frames "
+                  << process_shot_frames << ": " << (clipped.empty() ? "none, nothing to do" : clipped) << "\n";
+      if (clipped.empty()) return 0;
+      process.frames = clipped;
+    }
     return run_process(process);
   }
   if (*serve_cmd) {
