@@ -137,6 +137,12 @@ inline float fast_acos(float x) {
   return x >= 0.0f ? r : kPi - r;
 }
 
+// Nearest integer, halves away from zero (std::lround's rule), without the library call
+// std::lround is: truncation of v + 0.5 sign(v). Exact for |v| < 2^22 except within one
+// float step below a half, where the sum rounds up (a tap offset then moves by one pixel,
+// as a different jitter would). Tap offsets are a few thousand pixels at most.
+inline int round_to_int(float v) { return int(v + std::copysign(0.5f, v)); }
+
 // Multi-bounce fit (Jimenez et al. 2016, eq. 10): the visibility with interreflections
 // for albedo rho, a cubic in the one-bounce visibility, never below it.
 inline float multibounce(float visibility, float albedo) {

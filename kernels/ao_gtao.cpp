@@ -207,6 +207,12 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
           const float weight_total = cos_n + sl.n * sin_n;
           const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
           const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
+          // The slice's orthonormal frame and the origin and the orthographic view ray
+          // in it (per slice, so that each tap needs three dot products).
+          const glm::vec3 dir = sl.direction, axis = sl.axis;
+          const float origin_v = glm::dot(origin, view), origin_d = glm::dot(origin, dir),
+                      origin_a = glm::dot(origin, axis);
+          const float ray_ortho_v = -view.z, ray_ortho_d = -dir.z, ray_ortho_a = -axis.z;
           uint64_t occupied = 0;
           SideState state[2];
 
@@ -221,7 +227,7 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
             // -> 0.040 on cornell): far taps carry walls seen at grazing angles, whose
             // occlusion the dense near taps never see.
             const float dist_px = kMinTapDistancePx + t * (radius_px - kMinTapDistancePx);
-            const int ox = int(std::lround(dx * dist_px)), oy = int(std::lround(dy * dist_px));
+            const int ox = round_to_int(dx * dist_px), oy = round_to_int(dy * dist_px);
             if (ox == 0 && oy == 0) continue;
             for (int side = 0; side < 2; ++side) {
               const int sx = side == 0 ? x + ox : x - ox;
@@ -236,26 +242,29 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
                 st.depth_view = -1.0f;
                 continue;
               }
-              const glm::vec3 tap(tx.x, tx.y, tx.z);
-              const glm::vec3 delta = tap - origin;
+              const float ex = tx.x - origin.x, ey = tx.y - origin.y, ez = tx.z - origin.z;
               // A tap on or below the tangent plane cannot occlude the hemisphere (nor can
               // the rest of its segment, which runs away from the eye, i.e. further down).
               // Testing in 3D first matters: rounding taps to pixel centres moves them off
               // the slice, and their slice angle alone would put tilted planes above
               // their own tangent line.
-              if (!(glm::dot(delta, normal) > 0.0f)) {
+              if (!(ex * normal.x + ey * normal.y + ez * normal.z > 0.0f)) {
                 // Connects at the tangent limit: u = 1 on the positive side, 0 on the other.
                 const float u_lim = side == 0 ? 1.0f : 0.0f;
                 st = SideState{tx.depth_view, u_lim, u_lim, &tx, true};
                 continue;
               }
-              const float dist2 = glm::dot(delta, delta);
-              // The tap's angle in the slice: of its projection onto the slice plane.
-              const float along_axis = glm::dot(delta, sl.axis);
-              const float dist_slice2 = dist2 - along_axis * along_axis;
+              // The tap in the slice's orthonormal frame (view, direction, axis): the slice
+              // plane holds the first two coordinates, so the projection onto the plane is
+              // dropping the third (no 3D projection per tap).
+              const float dv = ex * view.x + ey * view.y + ez * view.z;
+              const float dd = ex * dir.x + ey * dir.y + ez * dir.z;
+              const float da = ex * axis.x + ey * axis.y + ez * axis.z;
+              const float dist_slice2 = dv * dv + dd * dd;
               if (!(dist_slice2 > 0.0f)) continue;
-              const float tap_view = glm::dot(delta, view) - along_axis * glm::dot(sl.axis, view);
-              const float tap_cos = tap_view / std::sqrt(dist_slice2);
+              const float dist2 = dist_slice2 + da * da;
+              // The tap's angle in the slice: of its projection onto the slice plane.
+              const float tap_cos = dv / std::sqrt(dist_slice2);
               if (k.height_field) {
                 // Height-field horizon, weighted by the distance falloff.
                 const float w = falloff(std::sqrt(dist2));
@@ -271,10 +280,17 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
               }
 
               // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray
-              // direction (away from the eye), clipped to |delta + t r| <= radius.
-              const glm::vec3 ray = perspective ? tap * (1.0f / std::sqrt(glm::dot(tap, tap)))
-                                                : glm::vec3(0, 0, -1);
-              const float b = glm::dot(delta, ray);
+              // direction (away from the eye), clipped to |delta + t r| <= radius; r in the
+              // slice frame too (the tap's frame coordinates are the origin's plus delta's).
+              float rv = ray_ortho_v, rd = ray_ortho_d, ra = ray_ortho_a;
+              if (perspective) {
+                const float pv = origin_v + dv, pd = origin_d + dd, pa = origin_a + da;
+                const float inv_len = 1.0f / std::sqrt(pv * pv + pd * pd + pa * pa);
+                rv = pv * inv_len;
+                rd = pd * inv_len;
+                ra = pa * inv_len;
+              }
+              const float b = dv * rv + dd * rd + da * ra;
               const float c = dist2 - r2;
               const float disc = b * b - c;
               float u0 = 1.0f, u1 = 0.0f;  // empty
@@ -283,22 +299,27 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
                 const float t0 = std::max(0.0f, -b - root);
                 const float t1 = std::min(k.thickness_world, -b + root);
                 if (t1 >= t0) {
-                  // Angles (unsigned, from the view vector) of the segment's two ends.
-                  glm::vec3 e0 = delta + t0 * ray, e1 = delta + t1 * ray;
-                  e0 -= sl.axis * glm::dot(e0, sl.axis);
-                  e1 -= sl.axis * glm::dot(e1, sl.axis);
-                  const float c0 = std::clamp(glm::dot(e0, view) / glm::length(e0), -1.0f, 1.0f);
-                  const float c1 = std::clamp(glm::dot(e1, view) / glm::length(e1), -1.0f, 1.0f);
+                  // Cosines and sines (unsigned angles from the view vector) of the segment's
+                  // two ends in the slice plane: sin = |direction coordinate| / length.
+                  const float e0v = dv + t0 * rv, e0d = dd + t0 * rd;
+                  const float e1v = dv + t1 * rv, e1d = dd + t1 * rd;
+                  const float inv0 = 1.0f / std::sqrt(e0v * e0v + e0d * e0d);
+                  const float inv1 = 1.0f / std::sqrt(e1v * e1v + e1d * e1d);
+                  const float c0 = std::clamp(e0v * inv0, -1.0f, 1.0f);
+                  const float c1 = std::clamp(e1v * inv1, -1.0f, 1.0f);
+                  const float s0 = std::min(std::abs(e0d) * inv0, 1.0f);
+                  const float s1 = std::min(std::abs(e1d) * inv1, 1.0f);
                   // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the
-                  // hemisphere's limit on this side (n + pi/2 on +, pi/2 - n on -).
+                  // hemisphere's limit on this side (n + pi/2 on +, pi/2 - n on -), whose
+                  // sine is cos n.
                   const float lim = side == 0 ? lim_pos : lim_neg;
                   const float cos_lim = side == 0 ? low_cos_pos : low_cos_neg;
-                  float ca = std::max(c0, c1), cb = std::min(c0, c1);  // a(ca) <= a(cb)
+                  const bool first_higher = c0 >= c1;  // a(ca) <= a(cb)
+                  const float ca = first_higher ? c0 : c1, sa = first_higher ? s0 : s1;
+                  float cb = first_higher ? c1 : c0, sb = first_higher ? s1 : s0;
                   if (ca > cos_lim) {
-                    cb = std::max(cb, cos_lim);
+                    if (cb < cos_lim) cb = cos_lim, sb = std::abs(cos_n);
                     const float aa = std::min(fast_acos(ca), lim), ab = std::min(fast_acos(cb), lim);
-                    const float sa = std::sqrt(std::max(0.0f, 1.0f - ca * ca));
-                    const float sb = std::sqrt(std::max(0.0f, 1.0f - cb * cb));
                     if (side == 0) {
                       u0 = (weight_neg + inner_integral(aa, ca, sa, cos_n, sin_n)) * inv_total;
                       u1 = (weight_neg + inner_integral(ab, cb, sb, cos_n, sin_n)) * inv_total;

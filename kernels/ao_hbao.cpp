@@ -27,6 +27,9 @@
 //
 // Bent normal: each half slice's cosine-weighted mean visible direction between its view
 // vector and its horizon (closed forms, as GTAO), weighted by |pn|, normalised.
+#include <array>
+#include <vector>
+
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
 #include "kernels/noise.h"
@@ -42,6 +45,12 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const int width = in.depth_view.cols, height = in.depth_view.rows;
   const int directions = s.directions, steps = s.steps;
   const bool use_multibounce = s.multibounce && in.albedo != nullptr && !in.albedo->empty();
+  // Direction angles i 2 pi / directions as (cos, sin), rotated per pixel by one angle.
+  std::vector<std::array<float, 2>> dir_rot(static_cast<size_t>(directions));
+  for (int i = 0; i < directions; ++i) {
+    const double a = double(i) * 2.0 * double(kPi) / double(directions);
+    dir_rot[size_t(i)] = {float(std::cos(a)), float(std::sin(a))};
+  }
 
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -69,25 +78,37 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
         const float angle_noise = noise01(x, y, 0, s.seed);
         const float step_noise = noise01(x, y, 1, s.seed);
 
+        // Direction angles phi_i = (i + noise) 2 pi / directions as the fixed angles
+        // i 2 pi / directions rotated by the pixel's noise angle: one sin/cos per pixel.
+        const float rot = angle_noise / float(directions) * (2.0f * kPi);
+        const float rot_c = std::cos(rot), rot_s = std::sin(rot);
+
         float occlusion_sum = 0.0f, weight_sum = 0.0f;
         glm::vec3 bent(0.0f);
         for (int i = 0; i < directions; ++i) {
-          const float phi = (float(i) + angle_noise) / float(directions) * (2.0f * kPi);
-          const float dx = std::cos(phi), dy = -std::sin(phi);  // screen px, y down
+          const float cos_phi = rot_c * dir_rot[size_t(i)][0] - rot_s * dir_rot[size_t(i)][1];
+          const float sin_phi = rot_s * dir_rot[size_t(i)][0] + rot_c * dir_rot[size_t(i)][1];
+          const float dx = cos_phi, dy = -sin_phi;  // screen px, y down
           const Slice sl = make_slice(screen_to_view(dx, dy), view, normal);
-          const float cos_n = sl.cos_n, sin_n = std::sin(sl.n);
+          // sin n = sign(n) sqrt(1 - cos^2 n); the tangent angle n + pi/2 has cos = -sin n
+          // and sin = cos n: no trig per direction.
+          const float cos_n = sl.cos_n;
+          const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
           const float tangent = sl.n + kHalfPi;  // tangent-plane angle on this side
-          const float m_tangent = inner_integral(tangent, cos_n, sin_n);
-          float horizon_cos = std::cos(tangent);
+          const float m_tangent = inner_integral(tangent, -sin_n, cos_n, cos_n, sin_n);
+          float horizon_cos = -sin_n;
+          float horizon_sin = cos_n;
           float m_horizon = m_tangent;
-          float horizon = tangent;
           float occlusion = 0.0f;
+          // The slice's orthonormal frame (view, direction, axis): a tap's slice-plane
+          // coordinates are two dot products.
+          const glm::vec3 dir = sl.direction;
           for (int j = 0; j < steps; ++j) {
             float t = step_noise + float(j) * 0.618033988749895f;  // R1 offsets per step
             t -= std::floor(t);
             const float dist_px = kMinTapDistancePx + (float(j) + t) / float(steps) * (radius_px - kMinTapDistancePx);
-            const int sx = x + int(std::lround(dx * dist_px));
-            const int sy = y + int(std::lround(dy * dist_px));
+            const int sx = x + round_to_int(dx * dist_px);
+            const int sy = y + round_to_int(dy * dist_px);
             if (sx == x && sy == y) continue;
             if (sx < 0 || sy < 0 || sx >= width || sy >= height) break;  // left the image
             if (!in.mask.ptr<uint8_t>(sy)[sx]) continue;  // background: no occluder
@@ -95,23 +116,25 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
             // On or below the tangent plane: cannot occlude (tested in 3D: rounding to
             // pixel centres moves taps off the slice, see ao_gtao.cpp).
             if (!(glm::dot(delta, normal) > 0.0f)) continue;
-            const glm::vec3 delta_slice = delta - sl.axis * glm::dot(delta, sl.axis);
-            const float len = glm::length(delta_slice);
-            if (!(len > 0.0f)) continue;
-            const float c = glm::dot(delta_slice, view) / len;
+            const float dv = glm::dot(delta, view), dd = glm::dot(delta, dir);
+            const float len2 = dv * dv + dd * dd;
+            if (!(len2 > 0.0f)) continue;
+            const float inv_len = 1.0f / std::sqrt(len2);
+            const float c = dv * inv_len;
             if (c <= horizon_cos) continue;
             horizon_cos = c;
+            // The horizon angle h = acos(c) is in [0, pi]: sin h = |dd| / len.
+            horizon_sin = std::min(std::abs(dd) * inv_len, 1.0f);
             const float h = fast_acos(c);
-            const float m = inner_integral(h, c, std::sqrt(std::max(0.0f, 1.0f - c * c)), cos_n, sin_n);
+            const float m = inner_integral(h, c, horizon_sin, cos_n, sin_n);
             occlusion += falloff(glm::length(delta)) * (m_horizon - m);
             m_horizon = m;
-            horizon = h;
           }
           const float pn_len = sl.projected_normal_length;
           occlusion_sum += pn_len * occlusion;
           weight_sum += pn_len * m_tangent;
           // Bent normal over the visible part [0, horizon] of this half slice.
-          const float ch = std::cos(horizon), sh = std::sin(horizon);
+          const float ch = horizon_cos, sh = horizon_sin;
           const float along_view = bent_a(ch, sh, cos_n, sin_n) - bent_a(1.0f, 0.0f, cos_n, sin_n);
           const float along_dir = bent_b(ch, sh, cos_n, sin_n) - bent_b(1.0f, 0.0f, cos_n, sin_n);
           bent += pn_len * (along_view * view + along_dir * sl.direction);

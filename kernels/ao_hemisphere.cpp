@@ -20,6 +20,7 @@
 // not of rays: it matches ray-traced AO where occluders are large (walls, corners) and
 // differs where they are small (a sphere above a floor shadows more rays than it fills
 // volume). No bent normal.
+#include <array>
 #include <vector>
 
 #include "kernels/ao_common.h"
@@ -47,6 +48,14 @@ void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const
   const float inv_n = 1.0f / float(n);
   const int width = in.depth_view.cols, height = in.depth_view.rows;
   const bool use_multibounce = s.multibounce && in.albedo != nullptr && !in.albedo->empty();
+  const glm::mat4& view_to_clip = camera.view_to_clip;
+  const float half_width = 0.5f * float(width), half_height = 0.5f * float(height);
+  // The 4x4 tile's rotation directions, once per call (16 angles, no trig per pixel).
+  std::array<glm::vec3, 16> tile_dir;
+  for (int j = 0; j < 16; ++j) {
+    const float angle = 2.0f * kPi * noise01(j & 3, j >> 2, 0, s.seed);
+    tile_dir[size_t(j)] = glm::vec3(std::cos(angle), std::sin(angle), 0.0f);
+  }
 
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -69,8 +78,7 @@ void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const
         const Falloff falloff(radius, s.falloff_fraction);
         const float bias = s.depth_bias_relative * depth;
         // 4x4 tiled rotation about the normal (tile position, not pixel, picks the angle).
-        const float angle = 2.0f * kPi * noise01(x & 3, y & 3, 0, s.seed);
-        const glm::vec3 random_dir(std::cos(angle), std::sin(angle), 0.0f);
+        const glm::vec3 random_dir = tile_dir[size_t((y & 3) * 4 + (x & 3))];
         glm::vec3 tangent = random_dir - normal * glm::dot(random_dir, normal);
         float tangent_len = glm::length(tangent);
         if (tangent_len < 1e-4f) {  // random_dir along the normal: any other axis will do
@@ -80,17 +88,31 @@ void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const
         tangent /= tangent_len;
         const glm::vec3 bitangent = glm::cross(normal, tangent);
 
+        // The projection is linear in homogeneous coordinates: a sample's clip position is
+        // the pixel's plus the kernel's offsets times the frame axes' clip images (four
+        // products per pixel instead of a matrix per sample).
+        const glm::vec4 clip_p = view_to_clip * glm::vec4(p, 1.0f);
+        const glm::vec4 clip_t = view_to_clip * glm::vec4(radius * tangent, 0.0f);
+        const glm::vec4 clip_b = view_to_clip * glm::vec4(radius * bitangent, 0.0f);
+        const glm::vec4 clip_n = view_to_clip * glm::vec4(radius * normal, 0.0f);
+        // Planar depth -z of a sample: the pixel's plus the offsets times -z of the axes.
+        const float depth_t = -radius * tangent.z, depth_b = -radius * bitangent.z,
+                    depth_n = -radius * normal.z;
         float occlusion = 0.0f;
         for (int i = 0; i < n; ++i) {
           const glm::vec3& k = kernel[i];
-          const glm::vec3 sample = p + radius * (k.x * tangent + k.y * bitangent + k.z * normal);
-          const glm::vec2 px = camera.pixel_from_view(sample);
-          if (!(px.x >= 0.0f && px.y >= 0.0f && px.x < float(width) && px.y < float(height)))
-            continue;  // off screen (or behind the eye): no information, not occluded
-          const int sx = int(px.x), sy = int(px.y);
+          const glm::vec4 clip = clip_p + k.x * clip_t + k.y * clip_b + k.z * clip_n;
+          if (!(clip.w > 0.0f)) continue;  // behind the eye: no information, not occluded
+          const float inv_w = 1.0f / clip.w;
+          // Camera::pixel_from_ndc: x = (ndc_x + 1) W / 2, y = (1 - ndc_y) H / 2.
+          const float px = (clip.x * inv_w + 1.0f) * half_width;
+          const float py = (1.0f - clip.y * inv_w) * half_height;
+          if (!(px >= 0.0f && py >= 0.0f && px < float(width) && py < float(height)))
+            continue;  // off screen: no information, not occluded
+          const int sx = int(px), sy = int(py);
           if (!in.mask.ptr<uint8_t>(sy)[sx]) continue;
           const float stored = in.depth_view.ptr<float>(sy)[sx];
-          const float sample_depth = -sample.z;
+          const float sample_depth = -p.z + (k.x * depth_t + k.y * depth_b + k.z * depth_n);
           const float in_front = sample_depth - stored;  // > 0: stored surface is closer
           if (!(in_front > bias) || in_front > s.thickness_world) continue;
           const float dist = glm::length(load3(in.position_view, sx, sy) - p);

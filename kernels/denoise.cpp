@@ -108,12 +108,6 @@ void bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& nor
   });
 }
 
-// The single-channel bilateral above, restructured to vectorise (same weights, same
-// per-pixel summation order, so the same values): the guides as planes (depth, normal x,
-// y, z, with the normal zeroed where mask is 0 so that the lobe weighs masked taps 0, and
-// the source zeroed there so that no masked value is ever read into a sum), and each pass
-// as an outer loop over the tap offset k and an inner, branch-free loop over a block of
-// pixels held on the stack. Integer normal powers only (the lobe by squaring).
 // c^P by squaring, unrolled at compile time so the pixel loop stays branch-free.
 template <unsigned P>
 inline float ipow(float c) {
@@ -128,7 +122,32 @@ inline float ipow(float c) {
   }
 }
 
-template <class Lobe>
+// Tile of the planar bilateral, pixels: kTileRows x kTileCols outputs. With the halo of R
+// rows and columns either side, every plane of a tile (depth, normal x/y/z, C values, C
+// horizontal results) is at most (32 + 64) x (256 + 64) floats x 10 planes = 1.2 MB at
+// R = 32 and ~0.2 MB at the default R = 4: the passes run out of L2, and the frame's guides
+// and source are read from memory once (the halo re-reads 2R / kTileRows of the rows).
+constexpr int kTileRows = 32;
+constexpr int kTileCols = 256;
+
+// Per-thread scratch of the tiles, grown once per thread (never inside the pixel loops).
+struct TileScratch {
+  std::vector<float> buffer;
+  float* get(size_t floats) {
+    if (buffer.size() < floats) buffer.resize(floats);
+    return buffer.data();
+  }
+};
+
+// The bilateral above restructured to vectorise (same weights, same per-pixel summation
+// order, so the same values up to the rounding of the depth weight's division): per tile,
+// the guides and the source as planes (depth, normal x, y, z, C value planes) over the tile
+// and its halo, the normal zeroed where mask is 0 or outside the image so that the lobe
+// weighs those taps 0 (the terms they add are exact zeros), the source zeroed there so that
+// no masked value is read into a sum. Each pass is an outer loop over the tap offset k and
+// an inner, branch-free loop over a tile row. Integer normal powers only (the lobe by
+// squaring, ipow).
+template <int C, class Lobe>
 void bilateral_planar(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
                       const cv::Mat& mask, const DenoiseSettings& s, cv::Mat& dst,
                       const cv::Rect& r, int nthreads, Lobe lobe_of) {
@@ -137,97 +156,129 @@ void bilateral_planar(const cv::Mat& src, const cv::Mat& depth_view, const cv::M
   float g[2 * kMaxRadiusPx + 1];
   for (int k = -R; k <= R; ++k) g[k + R] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
   const float inv_tol = 1.0f / s.depth_tolerance_relative;
-  // Guide planes over the rows both passes read, all columns (the horizontal pass reads
-  // R columns either side of the roi).
-  const int y0 = std::max(0, r.y - R), y1 = std::min(height, r.y + r.height + R);
-  const int rows = y1 - y0;
-  cv::Mat nx(rows, width, CV_32FC1), ny(rows, width, CV_32FC1), nz(rows, width, CV_32FC1);
-  cv::Mat value(rows, width, CV_32FC1), tmp(rows, width, CV_32FC1);
-  parallel_rows(cv::Range(y0, y1), nthreads, [&](const cv::Range& rr) {
-    for (int y = rr.start; y < rr.end; ++y) {
+  // Plane geometry of a tile: rows [ya - R, yb + R), columns [xa - R, xb + R), stride pw.
+  const int pw = kTileCols + 2 * R, ph = kTileRows + 2 * R;
+  const size_t plane = size_t(pw) * size_t(ph);
+  // depth, nx, ny, nz, C values, C horizontal results, 3 C + 1 accumulators of a row.
+  const size_t scratch_floats = plane * size_t(4 + 2 * C) + size_t(kTileCols) * size_t(C + 2);
+
+  auto tile = [&](int ya, int yb, int xa, int xb, float* scratch) {
+    float* pd = scratch;
+    float* pnx = pd + plane;
+    float* pny = pnx + plane;
+    float* pnz = pny + plane;
+    float* pv = pnz + plane;       // C planes
+    float* ph_out = pv + C * plane;  // C planes: the horizontal pass, tile columns only
+    float* acc = ph_out + C * plane;  // C sums, the weight sum and the depth scale of a row
+    const int tw = xb - xa;
+    // Fill: plane row j is image row ya - R + j, plane column i is image column xa - R + i.
+    for (int j = 0; j < (yb - ya) + 2 * R; ++j) {
+      const int y = ya - R + j;
+      float* d = pd + size_t(j) * pw;
+      float* nx = pnx + size_t(j) * pw;
+      float* ny = pny + size_t(j) * pw;
+      float* nz = pnz + size_t(j) * pw;
+      if (y < 0 || y >= height) {
+        for (int i = 0; i < tw + 2 * R; ++i) d[i] = nx[i] = ny[i] = nz[i] = 0.0f;
+        for (int c = 0; c < C; ++c)
+          for (int i = 0; i < tw + 2 * R; ++i) pv[c * plane + size_t(j) * pw + i] = 0.0f;
+        continue;
+      }
       const uint8_t* m = mask.ptr<uint8_t>(y);
+      const float* dep = depth_view.ptr<float>(y);
       const cv::Vec3f* n = normal_view.ptr<cv::Vec3f>(y);
       const float* v = src.ptr<float>(y);
-      float* px = nx.ptr<float>(y - y0);
-      float* py = ny.ptr<float>(y - y0);
-      float* pz = nz.ptr<float>(y - y0);
-      float* pv = value.ptr<float>(y - y0);
-      for (int x = 0; x < width; ++x) {
-        const bool on = m[x] != 0;
-        px[x] = on ? n[x][0] : 0.0f;
-        py[x] = on ? n[x][1] : 0.0f;
-        pz[x] = on ? n[x][2] : 0.0f;
-        pv[x] = on ? v[x] : 0.0f;
+      for (int i = 0; i < tw + 2 * R; ++i) {
+        const int x = xa - R + i;
+        const bool on = x >= 0 && x < width && m[x] != 0;
+        d[i] = on ? dep[x] : 0.0f;
+        nx[i] = on ? n[x][0] : 0.0f;
+        ny[i] = on ? n[x][1] : 0.0f;
+        nz[i] = on ? n[x][2] : 0.0f;
+        for (int c = 0; c < C; ++c) pv[c * plane + size_t(j) * pw + i] = on ? v[x * C + c] : 0.0f;
       }
     }
-  });
-
-  constexpr int kBlock = 64;
-  // One pass: out[x] = sum_k w_k tap_k / sum_k w_k over the taps (xk, yk) = (x + k dx,
-  // y + k dy) inside the image, for the block [xa, xb) of row y (plane row py).
-  auto pass = [&](int y, int xa, int xb, int dx, int dy, const cv::Mat& taps, float* out) {
-    const int pr = y - y0;
-    const float* cd = depth_view.ptr<float>(y);
-    const float* cx = nx.ptr<float>(pr);
-    const float* cy = ny.ptr<float>(pr);
-    const float* cz = nz.ptr<float>(pr);
-    float sum[kBlock], wsum[kBlock], scale[kBlock];
-    for (int x = xa; x < xb; ++x) {
-      sum[x - xa] = 0.0f;
-      wsum[x - xa] = 0.0f;
-      scale[x - xa] = inv_tol / cd[x];
-    }
-    for (int k = -R; k <= R; ++k) {
-      const int ty = y + k * dy;
-      if (ty < y0 || ty >= y1) continue;
-      // Columns whose tap x + k dx is inside the image.
-      const int xs = std::max(xa, -k * dx), xe = std::min(xb, width - k * dx);
-      const int tr = ty - y0, off = k * dx;
-      const float* td = depth_view.ptr<float>(ty) + off;
-      const float* tx = nx.ptr<float>(tr) + off;
-      const float* tyn = ny.ptr<float>(tr) + off;
-      const float* tz = nz.ptr<float>(tr) + off;
-      const float* tv = taps.ptr<float>(tr) + off;
-      const float gk = g[k + R];
-      for (int x = xs; x < xe; ++x) {
-        const int i = x - xa;
-        const float wd = std::max(0.0f, 1.0f - std::abs(td[x] - cd[x]) * scale[i]);
-        const float c = std::max(0.0f, cx[x] * tx[x] + cy[x] * tyn[x] + cz[x] * tz[x]);
-        const float w = gk * (wd * lobe_of(c));
-        sum[i] += w * tv[x];
-        wsum[i] += w;
+    float* sum = acc;
+    float* wsum = acc + C * kTileCols;
+    float* scale = wsum + kTileCols;
+    // One pass over a tile row: out[c][i] = sum_k w_k tap_c,k / sum_k w_k, i in [0, tw).
+    // Centre guides at plane row cj, column R + i; tap k at plane offset k * step from the
+    // centre in the guide planes; the taps of value plane c at tap0 + c * tap_plane +
+    // k * tap_step.
+    auto pass = [&](int cj, ptrdiff_t step, const float* tap0, ptrdiff_t tap_step, size_t tap_plane,
+                    float* const* out) {
+      const float* cd = pd + size_t(cj) * pw + R;
+      const float* cx = pnx + size_t(cj) * pw + R;
+      const float* cy = pny + size_t(cj) * pw + R;
+      const float* cz = pnz + size_t(cj) * pw + R;
+      for (int i = 0; i < tw; ++i) {
+        for (int c = 0; c < C; ++c) sum[c * kTileCols + i] = 0.0f;
+        wsum[i] = 0.0f;
+        scale[i] = inv_tol / cd[i];
       }
-    }
-    for (int x = xa; x < xb; ++x) out[x] = sum[x - xa] * (1.0f / wsum[x - xa]);
-  };
-
-  // Pass 1 (horizontal) over the rows pass 2 reads, roi columns; masked pixels 0 (never read).
-  parallel_rows(cv::Range(y0, y1), nthreads, [&](const cv::Range& rr) {
-    for (int y = rr.start; y < rr.end; ++y) {
+      for (int k = -R; k <= R; ++k) {
+        const ptrdiff_t off = k * step;
+        const float* td = cd + off;
+        const float* tx = cx + off;
+        const float* ty = cy + off;
+        const float* tz = cz + off;
+        const float* tv = tap0 + k * tap_step;
+        const float gk = g[k + R];
+        for (int i = 0; i < tw; ++i) {
+          const float wd = std::max(0.0f, 1.0f - std::abs(td[i] - cd[i]) * scale[i]);
+          const float cn = std::max(0.0f, cx[i] * tx[i] + cy[i] * ty[i] + cz[i] * tz[i]);
+          const float w = gk * (wd * lobe_of(cn));
+          for (int c = 0; c < C; ++c) sum[c * kTileCols + i] += w * tv[c * tap_plane + i];
+          wsum[i] += w;
+        }
+      }
+      for (int i = 0; i < tw; ++i) {
+        const float inv = 1.0f / wsum[i];
+        for (int c = 0; c < C; ++c) out[c][i] = sum[c * kTileCols + i] * inv;
+      }
+    };
+    // Pass 1 (horizontal) on every plane row: guides and taps in the same planes.
+    for (int j = 0; j < (yb - ya) + 2 * R; ++j) {
+      const int y = ya - R + j;
+      float* out[C];
+      for (int c = 0; c < C; ++c) out[c] = ph_out + c * plane + size_t(j) * pw;
+      if (y < 0 || y >= height) {
+        for (int c = 0; c < C; ++c)
+          for (int i = 0; i < tw; ++i) out[c][i] = 0.0f;
+        continue;
+      }
+      pass(j, 1, pv + size_t(j) * pw + R, 1, plane, out);
+      // Masked pixels: 0 (their normal is 0, so pass 2 weighs them 0 anyway; no NaN read).
       const uint8_t* m = mask.ptr<uint8_t>(y);
-      float* out = tmp.ptr<float>(y - y0);
-      for (int xa = r.x; xa < r.x + r.width; xa += kBlock) {
-        const int xb = std::min(xa + kBlock, r.x + r.width);
-        pass(y, xa, xb, 1, 0, value, out);
-        for (int x = xa; x < xb; ++x)
-          if (!m[x]) out[x] = 0.0f;
-      }
+      for (int c = 0; c < C; ++c)
+        for (int i = 0; i < tw; ++i) out[c][i] = m[xa + i] ? out[c][i] : 0.0f;
     }
-  });
-  // Pass 2 (vertical) over the roi; masked pixels copy the source.
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rr) {
-    for (int y = rr.start; y < rr.end; ++y) {
+    // Pass 2 (vertical) on the tile's rows; masked pixels copy the source.
+    for (int y = ya; y < yb; ++y) {
+      const int j = y - ya + R;
+      float* row = dst.ptr<float>(y);
+      float result[C][kTileCols];
+      float* to[C];
+      for (int c = 0; c < C; ++c) to[c] = result[c];
+      pass(j, pw, ph_out + size_t(j) * pw, pw, plane, to);
       const uint8_t* m = mask.ptr<uint8_t>(y);
       const float* in = src.ptr<float>(y);
-      float* out = dst.ptr<float>(y);
-      for (int xa = r.x; xa < r.x + r.width; xa += kBlock) {
-        const int xb = std::min(xa + kBlock, r.x + r.width);
-        pass(y, xa, xb, 0, 1, tmp, out);
-        for (int x = xa; x < xb; ++x)
-          if (!m[x]) out[x] = in[x];
+      for (int i = 0; i < tw; ++i) {
+        const int x = xa + i;
+        for (int c = 0; c < C; ++c) row[x * C + c] = m[x] ? result[c][i] : in[x * C + c];
       }
     }
-  });
+  };
+
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    thread_local TileScratch scratch;
+    float* buffer = scratch.get(scratch_floats);
+    for (int ya = rows.start; ya < rows.end; ya += kTileRows) {
+      const int yb = std::min(ya + kTileRows, rows.end);
+      for (int xa = r.x; xa < r.x + r.width; xa += kTileCols)
+        tile(ya, yb, xa, std::min(xa + kTileCols, r.x + r.width), buffer);
+    }
+  }, kTileRows);
 }
 
 template <int C>
@@ -282,20 +333,25 @@ void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::
   prepare_dst(src, dst);
   const cv::Rect r = resolve_roi(roi, src.size());
   if (r.empty()) return;
-  auto planar = [&](auto lobe) {
-    bilateral_planar(src, depth_view, normal_view, mask, settings, dst, r, nthreads, lobe);
+  // The planar path for the integer powers the settings use in practice (the default 16
+  // and its halvings); any other power takes the per-pixel path with std::pow.
+  auto run = [&](auto lobe) {
+    if (src.channels() == 1)
+      bilateral_planar<1>(src, depth_view, normal_view, mask, settings, dst, r, nthreads, lobe);
+    else
+      bilateral_planar<3>(src, depth_view, normal_view, mask, settings, dst, r, nthreads, lobe);
   };
   const float p = settings.normal_power;
-  if (src.channels() == 1 && p == 16.0f)
-    planar([](float c) { return ipow<16>(c); });
-  else if (src.channels() == 1 && p == 8.0f)
-    planar([](float c) { return ipow<8>(c); });
-  else if (src.channels() == 1 && p == 4.0f)
-    planar([](float c) { return ipow<4>(c); });
-  else if (src.channels() == 1 && p == 1.0f)
-    planar([](float c) { return c; });
-  else if (src.channels() == 1 && p == 0.0f)
-    planar([](float c) { return c > 0.0f ? 1.0f : 0.0f; });
+  if (p == 16.0f)
+    run([](float c) { return ipow<16>(c); });
+  else if (p == 8.0f)
+    run([](float c) { return ipow<8>(c); });
+  else if (p == 4.0f)
+    run([](float c) { return ipow<4>(c); });
+  else if (p == 1.0f)
+    run([](float c) { return c; });
+  else if (p == 0.0f)
+    run([](float c) { return c > 0.0f ? 1.0f : 0.0f; });
   else if (src.channels() == 1)
     bilateral<1>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
   else

@@ -19,7 +19,10 @@ cv::Rect resolve_roi(const cv::Rect& roi, cv::Size image);
 // Runs body(rows) over strips covering [rows.start, rows.end).
 // nthreads: 1 = serially in the calling thread; 0 = OpenCV's thread pool as configured
 // (cv::setNumThreads); N > 1 = the pool, with at most N threads used for this call.
+// rows_per_strip: the strip height, >= 1 (independent of the thread count, so the split
+// never depends on it); small strips balance uneven rows, tiled kernels ask for their
+// tile height so that a tile's halo is read once per tile.
 void parallel_rows(const cv::Range& rows, int nthreads,
-                   const std::function<void(const cv::Range&)>& body);
+                   const std::function<void(const cv::Range&)>& body, int rows_per_strip = 4);
 
 }  // namespace ssdo
