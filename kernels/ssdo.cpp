@@ -1,6 +1,7 @@
 #include "kernels/ssdo.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -127,6 +128,12 @@ struct Constants {
   glm::mat3 env_from_view;  // = env_from_world * world_from_view (Camera::world_from_view_direction)
   float width_px, height_px;
   SsdoSettings s;
+  // (cos, sin) of 2 pi a2 i for the samples i of the R2 sequence (a2 its second
+  // generator): a pixel's azimuths 2 pi (shift_v + a2 i) are these rotated by 2 pi shift_v,
+  // so the sample loop needs no trig (the fractional part the sequence takes does not
+  // change an angle's cosine or sine).
+  const float* azimuth_cos;
+  const float* azimuth_sin;
 };
 
 // Orthonormal tangent frame about unit n (Duff et al. 2017, "Building an Orthonormal Basis,
@@ -146,6 +153,10 @@ inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const gl
   const float phi = 2.0f * kPi * v;
   return t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u));
 }
+
+// std::ilogb of a finite float >= 1 (the biased exponent field minus the bias), without
+// the library call: the tap loop's pyramid level.
+inline int exponent_of(float v) { return int((std::bit_cast<uint32_t>(v) >> 23) & 0xFFu) - 127; }
 
 // off_screen: the point projects outside the frame (or behind the eye); a straight ray
 // whose point has left the frame does not come back, so marches stop there.
@@ -167,7 +178,7 @@ inline Tap classify(const Constants& c, const glm::vec2& origin_px, const glm::v
     const float dx = px - origin_px.x, dy = py - origin_px.y;
     const float rho2 = (dx * dx + dy * dy) * (1.0f / (kMipStartPx * kMipStartPx));
     // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
-    if (rho2 >= 1.0f) level = std::min(c.n_levels - 1, (std::ilogb(rho2) >> 1) + 1);
+    if (rho2 >= 1.0f) level = std::min(c.n_levels - 1, (exponent_of(rho2) >> 1) + 1);
   }
   const TapLevel& lv = c.levels[level];
   const size_t texel = size_t(qy >> level) * size_t(lv.width) + size_t(qx >> level);
@@ -230,6 +241,7 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
   const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
   const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
+  const float shift_c = std::cos(2.0f * kPi * shift_v), shift_s = std::sin(2.0f * kPi * shift_v);
   const int n_samples = c.s.samples;
   const int steps = c.s.sample_steps;
   const float inv_steps = 1.0f / float(steps);
@@ -250,7 +262,11 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     } else {
       float u, v;
       r2_point(uint32_t(i), shift_u, shift_v, u, v);
-      const glm::vec3 w = cosine_direction(u, v, t, b, n);
+      // cosine_direction(u, v, t, b, n) with the azimuth 2 pi v by rotation (see Constants).
+      const float cos_phi = shift_c * c.azimuth_cos[i] - shift_s * c.azimuth_sin[i];
+      const float sin_phi = shift_s * c.azimuth_cos[i] + shift_c * c.azimuth_sin[i];
+      const float radius = std::sqrt(u);
+      const glm::vec3 w = t * (radius * cos_phi) + b * (radius * sin_phi) + n * std::sqrt(std::max(0.0f, 1.0f - u));
       // Points along w at lambda_ij = r (j + xi_i) / k, j = 0..k-1, xi_i in (0, 1]: k = 1 is
       // the paper's single point at a uniform distance in (0, r]; k > 1 marches the whole
       // radius (stratified), so an occluder anywhere within r is found. The first point
@@ -479,6 +495,15 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   c.width_px = float(size.width);
   c.height_px = float(size.height);
   c.s = settings;
+  std::vector<float> azimuth_cos(size_t(settings.samples)), azimuth_sin(size_t(settings.samples));
+  for (int i = 0; i < settings.samples; ++i) {
+    constexpr double a2 = 0.5698402909980532;  // r2_point's second generator
+    const double a = 2.0 * 3.14159265358979323846 * (a2 * double(i) - std::floor(a2 * double(i)));
+    azimuth_cos[size_t(i)] = float(std::cos(a));
+    azimuth_sin[size_t(i)] = float(std::sin(a));
+  }
+  c.azimuth_cos = azimuth_cos.data();
+  c.azimuth_sin = azimuth_sin.data();
 
   const bool want_indirect = settings.indirect_strength > 0.0f;
   // First pass (no `lighting`): direct everywhere, the senders' light. Method ssdo also
