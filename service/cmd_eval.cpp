@@ -33,6 +33,26 @@ cv::Mat error_heatmap(const cv::Mat& estimate, const cv::Mat& reference, const c
   return heat;
 }
 
+// The term computed by the screen-space oracle with the request's radius and thickness.
+cv::Mat oracle_term(const GBuffer& g, const FrameRequest& request, const std::string& term,
+                    const std::string& preset_name) {
+  const Preset preset = parse_preset(preset_name).value_or(Preset::medium);
+  FrameRequest oracle = request;
+  if (term == "ao") {
+    oracle.ao = ao_preset(AoMethod::raymarch, preset);
+    oracle.ao.radius_world = request.ao.radius_world;
+    oracle.ao.thickness_world = effective_thickness_world(request.ao);
+    oracle.ao.depth_bias_relative = request.ao.depth_bias_relative;
+  } else {
+    oracle.ssdo = ssdo_preset(SsdoMethod::oracle, preset);
+    oracle.ssdo.radius_world = request.ssdo.radius_world;
+    oracle.ssdo.thickness_world = request.ssdo.thickness_world;
+    oracle.ssdo.depth_bias_relative = request.ssdo.depth_bias_relative;
+  }
+  const ComputedFrame computed = compute_frame(g, oracle);
+  return *computed.find(term);  // raw: the oracle needs no denoising
+}
+
 nlohmann::json stats_json(const ErrorStats& s) {
   return {{"mae", s.mae}, {"rmse", s.rmse}, {"bias", s.bias}, {"p95", s.p95}, {"max", s.max_abs},
           {"pixels", s.pixels}};
@@ -58,7 +78,7 @@ int run_eval(const EvalArgs& args) {
       continue;
     }
     const auto ref_it = frame.gbuffer.references.find(args.reference);
-    if (ref_it == frame.gbuffer.references.end()) {
+    if (args.oracle_preset.empty() && ref_it == frame.gbuffer.references.end()) {
       std::string present;
       for (const auto& [name, img] : frame.gbuffer.references) present += (present.empty() ? "" : ", ") + name;
       std::cerr << "ssdo eval: " << file << ": no reference pass '" << args.reference
@@ -85,7 +105,13 @@ int run_eval(const EvalArgs& args) {
     // Scalar terms (AO) compare with a scalar reference (Cycles' AO is R = G = B);
     // colour terms compare the channel mean of each pixel.
     const cv::Mat estimate = found->channels() == 1 ? *found : to_single_channel(*found);
-    const cv::Mat reference = to_single_channel(ref_it->second);
+    cv::Mat reference;
+    if (args.oracle_preset.empty()) {
+      reference = to_single_channel(ref_it->second);
+    } else {
+      const cv::Mat oracle = oracle_term(frame.gbuffer, request, args.term, args.oracle_preset);
+      reference = oracle.channels() == 1 ? oracle : to_single_channel(oracle);
+    }
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
     overall.add(estimate, reference, frame.gbuffer.mask);
     overall_ms += ms;
@@ -95,6 +121,7 @@ int run_eval(const EvalArgs& args) {
     j["method"] = args.term == "ao" ? method : std::string(to_string(request.ssdo.method));
     j["term"] = args.term;
     j["relative_mae"] = s.mean_reference > 0 ? s.mae / s.mean_reference : 0.0;
+    j["reference"] = args.oracle_preset.empty() ? args.reference : "oracle:" + args.oracle_preset;
     j["preset"] = args.preset;
     j["radius"] = request.ao.radius_world;
     j["ms"] = ms;

@@ -44,6 +44,10 @@ struct EvalArgs {
   std::string preset = "high";      // preset name, for the report
   std::string term = "ao";          // ao | ssdo_direct | ssdo_indirect (denoised output compared)
   bool raw = false;                 // compare the raw term instead of the denoised one
+  // Compare with the screen-space oracle (raymarch for AO, the SSDO oracle for light
+  // terms) run on the same frame with the same radius and thickness, instead of a pass:
+  // the estimator's own error, apart from what the screen lacks. Empty = use the pass.
+  std::string oracle_preset;
   FrameRequest request;             // method, preset, read options
   bool radius_from_frame = true;    // AO radius from the frame's sidecar when known
   bool json = false;
