@@ -80,6 +80,31 @@ mkdir -p "$T/munge-key" "$T/munge" "$T/etc" "$T/state" "$T/spool" "$T/log" "$T/j
 chmod 700 "$T/munge-key"
 daemon_pids=()
 
+# Kills whatever the cluster in folder $1 still runs: slurmctld, slurmd, slurmstepd and job
+# processes carry its SLURM_CONF, munged its socket path.
+kill_leftovers() {
+  local dir=$1 e pid
+  for e in /proc/[0-9]*/environ; do
+    pid=${e#/proc/}
+    pid=${pid%/environ}
+    [ "$pid" = $$ ] || [ "$pid" = "$BASHPID" ] && continue
+    if { tr '\0' '\n' < "$e"; } 2> /dev/null | grep -qxF "SLURM_CONF=$dir/etc/slurm.conf" ||
+       { tr '\0' '\n' < "/proc/$pid/cmdline"; } 2> /dev/null | grep -qxF -- "--socket=$dir/munge/munge.socket"; then
+      echo "[slurm test] killing leftover process $pid: $({ tr '\0' ' ' < "/proc/$pid/cmdline"; } 2> /dev/null)"
+      kill -KILL "$pid" 2> /dev/null
+    fi
+  done
+}
+
+# A detached watchdog for the case no trap can handle (this script killed outright, e.g.
+# by a CTest timeout): once this script is gone, it ends what the cluster left running.
+(
+  setsid bash -c "$(declare -f kill_leftovers)
+    while kill -0 $$ 2> /dev/null; do sleep 2; done
+    kill_leftovers '$T'
+    [ '${SSDO_SLURM_KEEP:-0}' = 1 ] || rm -rf '$T'" > /dev/null 2>&1 < /dev/null &
+)
+
 stop_all() {
   local status=$?
   trap - EXIT INT TERM
@@ -105,17 +130,8 @@ stop_all() {
     sleep 0.2
   done
   for pid in "${daemon_pids[@]}"; do kill -KILL "$pid" 2> /dev/null; done
-  # Anything else this cluster started (slurmstepd, job processes) carries its SLURM_CONF.
-  local e
-  for e in /proc/[0-9]*/environ; do
-    pid=${e#/proc/}
-    pid=${pid%/environ}
-    [ "$pid" = $$ ] && continue
-    if { tr '\0' '\n' < "$e"; } 2> /dev/null | grep -qxF "SLURM_CONF=$T/etc/slurm.conf"; then
-      say "killing leftover process $pid: $({ tr '\0' ' ' < "/proc/$pid/cmdline"; } 2> /dev/null)"
-      kill -KILL "$pid" 2> /dev/null
-    fi
-  done
+  export -n SLURM_CONF  # from here on, no child of this script looks like the cluster's
+  kill_leftovers "$T"
   for pid in "${daemon_pids[@]}"; do wait "$pid" 2> /dev/null; done
   if [ $status != 0 ] && [ $status != $SKIP ]; then
     say "logs of the failed run:"
