@@ -1,7 +1,10 @@
-// Timings of the screen-space AO methods per preset and of the denoisers, at 640x360 (the
-// shared cornell dump) and 1920x1080 (the shared perf1080 dump), with 1 and 2 threads.
-// Without ../shared the Cornell-like scene of the reference ray caster is rendered at both
-// sizes instead. Args: width, method, preset, threads.
+// Timings of the screen-space AO methods per preset, of SSDO per preset, of the denoisers
+// (1 and 3 channels) and of the whole compute step of a frame (`compute_frame`, terms
+// ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
+// 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
+// Cornell-like scene of the reference ray caster is rendered at both sizes instead.
+// Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
+// width, threads (denoisers).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -11,6 +14,8 @@
 #include "kernels/denoise.h"
 #include "kernels/positions.h"
 #include "kernels/raycast.h"
+#include "kernels/ssdo.h"
+#include "service/pipeline.h"
 
 namespace {
 
@@ -60,6 +65,42 @@ void BM_Denoise(benchmark::State& state) {
     ssdo::denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, {}, dst, {}, int(state.range(1)));
 }
 
+void BM_Denoise3(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  cv::Mat src(g.depth_view.size(), CV_32FC3), dst;
+  cv::randu(src, 0.0f, 1.0f);
+  for (auto _ : state)
+    ssdo::denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, {}, dst, {}, int(state.range(1)));
+}
+
+void BM_Ssdo(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const auto preset = ssdo::Preset(state.range(1));
+  const int threads = int(state.range(2));
+  const ssdo::SsdoSettings s = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, preset);
+  static const ssdo::Environment white;  // constant radiance 1, as the pipeline's default
+  const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, white,
+                            g.has_albedo() ? &g.albedo : nullptr, nullptr};
+  ssdo::SsdoOutput out;
+  for (auto _ : state) ssdo::compute_ssdo(in, s, out, {}, threads);
+  state.SetLabel("ssdo " + std::string(ssdo::to_string(preset)) + " " + std::to_string(threads) + "t");
+}
+
+// The compute step of `ssdo process --terms ao,ssdo` (no I/O): the default AO method and
+// the SSDO method at one preset, each denoised.
+void BM_Frame(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const auto preset = ssdo::Preset(state.range(1));
+  ssdo::FrameRequest request;
+  request.terms = {true, true, false};
+  request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, preset);
+  request.ssdo = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, preset);
+  request.threads = int(state.range(2));
+  for (auto _ : state) benchmark::DoNotOptimize(ssdo::compute_frame(g, request));
+  state.SetLabel("ao,ssdo " + std::string(ssdo::to_string(preset)) + " " +
+                 std::to_string(request.threads) + "t");
+}
+
 void BM_BoxBlur(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   cv::Mat src(g.depth_view.size(), CV_32FC1), dst;
@@ -74,6 +115,12 @@ void ao_args(benchmark::internal::Benchmark* b) {
         for (int t : {1, 2}) b->Args({w, m, p, t});
 }
 
+void preset_args(benchmark::internal::Benchmark* b) {
+  for (int w : {640, 1920})
+    for (int p : {0, 1, 2})
+      for (int t : {1, 2}) b->Args({w, p, t});
+}
+
 void image_args(benchmark::internal::Benchmark* b) {
   for (int w : {640, 1920})
     for (int t : {1, 2}) b->Args({w, t});
@@ -83,5 +130,8 @@ void image_args(benchmark::internal::Benchmark* b) {
 
 BENCHMARK(BM_Ao)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();
