@@ -7,7 +7,14 @@
 //   blocked  <=>  depth(q) > d_ref + bias   and   depth(q) - d_ref <= thickness_world
 //
 // where depth(q) is the step's planar depth and d_ref the stored surface's depth on the
-// view ray through q (see below). Visibility is binary with no falloff (Cycles' AO pass:
+// view ray through q (see below). With a second depth layer (AoInputs::depth_back_view,
+// a back-face pass) the tap's own thickness replaces thickness_world: the step is inside
+// the object between the two layers (depth peeling, Ritschel et al. 2009, sec. 3.3),
+//
+//   blocked  <=>  depth(q) > d_ref + bias   and   depth(q) - d_ref <= back(q) - depth(q_px) + bias
+//
+// (the thickness measured at the tap pixel centre, carried onto the tangent plane; a back
+// depth of +inf, e.g. a floor or a wall, is solid behind the surface). Visibility is binary with no falloff (Cycles' AO pass:
 // settings.falloff_fraction is not used), so AO = fraction of unblocked rays; with
 // cosine-weighted directions that is the cosine-weighted open fraction of the hemisphere.
 // Steps landing off-screen, behind the eye or on masked pixels never occlude (nothing is
@@ -57,6 +64,7 @@ struct Constants {
   uint32_t seed;
   bool perspective;
   bool multibounce;
+  bool has_back;  // AoInputs::depth_back_view given: per-tap thickness
   float width_px, height_px;
 };
 
@@ -66,10 +74,16 @@ struct Constants {
 struct Tap {
   float nx, ny, nz, plane_c;
   float depth_view;
-  float pad[3];
+  float thickness_world;  // behind the stored surface that is solid: thickness_world of
+                          // the settings, or depth_back_view - depth_view when given
+  float pad[2];
 };
 
-void build_taps(const AoInputs& in, std::vector<Tap>& taps, int nthreads) {
+void build_taps(const AoInputs& in, float thickness_world, std::vector<Tap>& taps,
+                int nthreads) {
+  const cv::Mat* back = in.depth_back_view != nullptr && !in.depth_back_view->empty()
+                            ? in.depth_back_view
+                            : nullptr;
   const int width = in.depth_view.cols;
   taps.resize(size_t(width) * size_t(in.depth_view.rows));  // before the parallel loop
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
@@ -79,12 +93,19 @@ void build_taps(const AoInputs& in, std::vector<Tap>& taps, int nthreads) {
       for (int x = 0; x < width; ++x) {
         Tap& t = taps[size_t(y) * size_t(width) + size_t(x)];
         if (mask_row[x] == 0) {
-          t = Tap{0.0f, 0.0f, 0.0f, 0.0f, -1.0f, {0.0f, 0.0f, 0.0f}};
+          t = Tap{0.0f, 0.0f, 0.0f, 0.0f, -1.0f, 0.0f, {0.0f, 0.0f}};
           continue;
         }
         const glm::vec3 n = detail::load3(in.normal_view, x, y);
         const glm::vec3 p = detail::load3(in.position_view, x, y);
-        t = Tap{n.x, n.y, n.z, glm::dot(n, p), depth_row[x], {0.0f, 0.0f, 0.0f}};
+        float thickness = thickness_world;
+        if (back) {
+          // Back layer in front of the front one (rounding, or a peeled layer of another
+          // object): no measured thickness, only the bias' allowance.
+          const float b = back->ptr<float>(y)[x];
+          thickness = b > depth_row[x] ? b - depth_row[x] : 0.0f;
+        }
+        t = Tap{n.x, n.y, n.z, glm::dot(n, p), depth_row[x], thickness, {0.0f, 0.0f}};
       }
     }
   });
@@ -96,7 +117,7 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
   const glm::mat4& proj = cam.view_to_clip;
   const int width = in.depth_view.cols, height = in.depth_view.rows;
   std::vector<Tap> taps;
-  build_taps(in, taps, nthreads);
+  build_taps(in, k.thickness_world, taps, nthreads);
   const float min_cos2 = kMinTangentCos * kMinTangentCos;
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -181,7 +202,10 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
             // 6e-8, half: 4.9e-4 of the value), so a fixed bias would be too large near
             // the camera and too small far away. The default 1e-3 covers half-float depth.
             const float bias = k.bias_relative * tap.depth_view;
-            blocked = depth_q > depth_ref + bias && depth_q - depth_ref <= k.thickness_world;
+            // With a back layer the bias also widens the slab: a thin object's two
+            // layers carry the same relative rounding.
+            blocked = depth_q > depth_ref + bias &&
+                      depth_q - depth_ref <= tap.thickness_world + (k.has_back ? bias : 0.0f);
           }
           if (!blocked) {
             ++open;
@@ -206,11 +230,12 @@ Constants make_constants(const AoInputs& in, const AoSettings& s) {
   return {s.directions,
           s.steps,
           s.radius_world,
-          s.thickness_world,
+          effective_thickness_world(s),
           s.depth_bias_relative,
           s.seed,
           in.camera.is_perspective(),
           s.multibounce && in.albedo != nullptr && !in.albedo->empty(),
+          in.depth_back_view != nullptr && !in.depth_back_view->empty(),
           float(in.camera.width_px),
           float(in.camera.height_px)};
 }
@@ -226,6 +251,8 @@ void compute_ao_raymarch(const AoInputs& in, const AoSettings& s, AoOutput& out,
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
   CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
   CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
+  CV_Assert(in.depth_back_view == nullptr || in.depth_back_view->empty() ||
+            (in.depth_back_view->type() == CV_32FC1 && in.depth_back_view->size() == size));
   if (out.ao.size() != size || out.ao.type() != CV_32FC1) out.ao.create(size, CV_32FC1);
   if (out.bent_normal_view.size() != size || out.bent_normal_view.type() != CV_32FC3)
     out.bent_normal_view.create(size, CV_32FC3);

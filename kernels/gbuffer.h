@@ -31,6 +31,13 @@ struct GBuffer {
   // (0, 0, 0) where mask is 0.
   cv::Mat normal_view;
 
+  // CV_32FC1, optional (empty when absent). A second depth layer: planar depth of the
+  // nearest back face on each pixel's ray (a back-face pass, or the second sample of a
+  // deep EXR), scene units, >= depth_view; +infinity where the surface has no far side
+  // within the frame (a floor, a wall) or on background. Between depth_view and
+  // depth_back_view a ray is inside the object (depth peeling as in the SSDO paper).
+  cv::Mat depth_back_view;
+
   // CV_32FC3, optional (empty when absent). View-space positions (x, y, z).
   cv::Mat position_view;
 

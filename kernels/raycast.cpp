@@ -239,6 +239,50 @@ GBuffer render_gbuffer(const Scene& scene, const Camera& camera, int nthreads) {
   return g;
 }
 
+cv::Mat render_depth_back(const Scene& scene, const Camera& camera, int nthreads) {
+  CV_Assert(camera.width_px > 0 && camera.height_px > 0);
+  cv::Mat depth_back(camera.height_px, camera.width_px, CV_32FC1);
+  parallel_rows(cv::Range(0, depth_back.rows), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      float* out = depth_back.ptr<float>(y);
+      for (int x = 0; x < depth_back.cols; ++x) {
+        const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
+        const glm::vec3 origin_view =
+            camera.is_perspective() ? glm::vec3(0.0f) : camera.view_from_pixel_depth(pixel, 0.0f);
+        const glm::vec3 o = glm::vec3(camera.view_to_world * glm::vec4(origin_view, 1.0f));
+        const glm::vec3 d =
+            glm::normalize(camera.world_from_view_direction(camera.view_ray_direction(pixel)));
+        // The nearest front face decides whether a plane is hit first (then: no exit).
+        const Hit front = intersect(scene, o, d);
+        float best = kInf;
+        if (front.valid()) {
+          bool plane_first = false;
+          for (const Plane& p : scene.planes) {
+            const float t = intersect_plane(p, o, d);
+            if (t > 0.0f && t <= front.t) plane_first = true;
+          }
+          if (!plane_first) {
+            for (const Sphere& s : scene.spheres) {
+              float t0, t1;
+              if (intersect_sphere(s, o, d, t0, t1) && t1 > 0.0f) best = std::min(best, t1);
+            }
+            for (const Box& bx : scene.boxes) {
+              float tn, tf, sn, sf;
+              int an, af;
+              if (intersect_box(bx, o, d, tn, tf, an, sn, af, sf) && tf > 0.0f)
+                best = std::min(best, tf);
+            }
+          }
+        }
+        // A back face before the front one only when the eye is inside a solid: clamp.
+        if (best < kInf) best = std::max(best, front.t);
+        out[x] = best < kInf ? -camera.view_from_world_point(o + best * d).z : kInf;
+      }
+    }
+  });
+  return depth_back;
+}
+
 namespace {
 
 // Estimators shared by the point and image entry points; `offset_world` is the origin

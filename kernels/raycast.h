@@ -83,6 +83,15 @@ Camera look_at(glm::vec3 eye_world, glm::vec3 target_world, glm::vec3 up_world, 
 // 0 on background) and albedo (0 on background).
 GBuffer render_gbuffer(const Scene& scene, const Camera& camera, int nthreads = 0);
 
+// A back-face depth pass (the second depth layer of depth peeling, Ritschel et al. 2009,
+// "Approximating Dynamic Global Illumination in Image Space", sec. 3.3): per pixel, the
+// planar depth of the nearest surface the pixel's ray leaves a solid through (the nearest
+// back face: the far side of a sphere, the exit face of a box). Planes bound half-spaces
+// with no far side, so a ray that hits a plane first never exits: +inf, as a pass with
+// front-face culling sees nothing behind a floor or a wall. +inf on background too; compare
+// with the G-buffer's mask. CV_32FC1 of the camera's size.
+cv::Mat render_depth_back(const Scene& scene, const Camera& camera, int nthreads = 0);
+
 // Offset of a secondary ray's origin along the surface normal, scene units:
 // kRayOffsetRelative * max(1, |p_world|, depth_view). Why: hit points are computed in float
 // (relative error ~1e-7 of the coordinates and of the camera distance, amplified a few

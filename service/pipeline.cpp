@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <sstream>
 
+#include "kernels/confidence.h"
 #include "kernels/positions.h"
 
 namespace ssdo {
@@ -88,7 +89,8 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   cv::Mat ao_denoised;
   if (terms.ao || composite_uses(CompositeTerm::ambient_ao)) {
     const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera,
-                      g.has_albedo() ? &g.albedo : nullptr};
+                      g.has_albedo() ? &g.albedo : nullptr,
+                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
     AoOutput ao;
     compute_ao(in, request.ao, ao, {}, threads);
     ao_denoised = denoised(ao.ao);
@@ -118,6 +120,18 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
       frame.terms.push_back({"ssdo_indirect", out.indirect, SampleType::half, false});
       frame.terms.push_back({"ssdo_indirect_denoised", indirect_denoised, SampleType::half, false});
     }
+  }
+
+  // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
+  // samples (kernels/confidence.h), written with every AO or SSDO output.
+  if (terms.ao || terms.ssdo) {
+    ConfidenceSettings cs;
+    cs.radius_world = terms.ao ? request.ao.radius_world : request.ssdo.radius_world;
+    cs.max_radius_px = terms.ao ? request.ao.max_radius_px : request.ssdo.max_radius_px;
+    cs.depth_bias_relative = request.ao.depth_bias_relative;
+    cv::Mat confidence;
+    compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, confidence, {}, threads);
+    frame.terms.push_back({"confidence", confidence, SampleType::float32, false});
   }
 
   if (terms.composite) {

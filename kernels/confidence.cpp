@@ -1,0 +1,161 @@
+// Confidence: the observed fraction of the sampled neighbourhood (definition in
+// confidence.h).
+//
+// Rays are parametrised by planar depth s: x(s) = o + s u with u.z = -1 (perspective: o = 0
+// and u = the view-space point of the pixel at depth 1; orthographic: o = the point at depth
+// 0, u = (0, 0, -1)). Both are affine in the continuous pixel position (view_from_pixel_depth
+// solves a linear system at fixed depth), so one pixel's ray costs two multiply-adds. In s,
+// the sphere |x(s) - p| = R is the quadratic (u.u) s^2 + 2 (u.f) s + (f.f - R^2) = 0 with
+// f = o - p, the tangent plane n.(x(s) - p) = 0 is s* = -(n.f) / (n.u), and the stored
+// surface at the tap is s = depth_view(tap). Lengths in s scale to lengths along the ray by
+// |u|, which weights each chord by its true length.
+#include "kernels/confidence.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "kernels/noise.h"
+#include "kernels/parallel.h"
+
+namespace ssdo {
+namespace {
+
+// Golden angle, radians: successive Vogel-spiral taps (Vogel 1979, "A better way to
+// construct the sunflower head") turn by it, which spreads N taps evenly over a disk for
+// any N.
+constexpr float kGoldenAngle = 2.39996322972865332f;
+
+struct RayMap {
+  glm::vec3 o0, ox, oy;  // o(px, py) = o0 + px ox + py oy
+  glm::vec3 u0, ux, uy;  // u(px, py) = u0 + px ux + py uy
+};
+
+RayMap make_ray_map(const Camera& cam) {
+  RayMap m;
+  auto point = [&](float px, float py, float depth) {
+    return cam.view_from_pixel_depth(glm::vec2(px, py), depth);
+  };
+  if (cam.is_perspective()) {
+    m.o0 = m.ox = m.oy = glm::vec3(0.0f);
+    m.u0 = point(0.0f, 0.0f, 1.0f);
+    m.ux = point(1.0f, 0.0f, 1.0f) - m.u0;
+    m.uy = point(0.0f, 1.0f, 1.0f) - m.u0;
+  } else {
+    m.o0 = point(0.0f, 0.0f, 0.0f);
+    m.ox = point(1.0f, 0.0f, 0.0f) - m.o0;
+    m.oy = point(0.0f, 1.0f, 0.0f) - m.o0;
+    m.u0 = glm::vec3(0.0f, 0.0f, -1.0f);
+    m.ux = m.uy = glm::vec3(0.0f);
+  }
+  return m;
+}
+
+}  // namespace
+
+std::string validate(const ConfidenceSettings& s) {
+  auto bad = [](const char* field, double value, const char* range) {
+    return std::string(field) + " = " + std::to_string(value) + " is out of range " + range;
+  };
+  if (!(s.radius_world > 0.0f) || !std::isfinite(s.radius_world))
+    return bad("radius_world", s.radius_world, "(0, inf)");
+  if (!(s.max_radius_px >= 2.0f && s.max_radius_px <= 4096.0f))
+    return bad("max_radius_px", s.max_radius_px, "[2, 4096]");
+  if (s.taps < 4 || s.taps > 256) return bad("taps", s.taps, "[4, 256]");
+  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
+    return bad("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  return {};
+}
+
+void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
+                        const cv::Mat& mask, const Camera& camera,
+                        const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
+                        int nthreads) {
+  CV_Assert(validate(s).empty());
+  CV_Assert(depth_view.type() == CV_32FC1);
+  const cv::Size size = depth_view.size();
+  CV_Assert(normal_view.type() == CV_32FC3 && normal_view.size() == size);
+  CV_Assert(mask.type() == CV_8UC1 && mask.size() == size);
+  CV_Assert(camera.width_px == size.width && camera.height_px == size.height);
+  if (confidence.size() != size || confidence.type() != CV_32FC1)
+    confidence.create(size, CV_32FC1);
+  const cv::Rect r = resolve_roi(roi, size);
+  if (r.empty()) return;
+  const RayMap rays = make_ray_map(camera);
+  const int width = size.width, height = size.height;
+  const int n_taps = s.taps;
+  const float inv_taps = 1.0f / float(n_taps);
+  const float bias_scale = 1.0f + s.depth_bias_relative;
+
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* mask_row = mask.ptr<uint8_t>(y);
+      const float* depth_row = depth_view.ptr<float>(y);
+      const cv::Vec3f* normal_row = normal_view.ptr<cv::Vec3f>(y);
+      float* out = confidence.ptr<float>(y);
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        const float d = depth_row[x];
+        if (mask_row[x] == 0 || !(d > 0.0f) || !std::isfinite(d)) {
+          out[x] = 1.0f;
+          continue;
+        }
+        const float pxc = float(x) + 0.5f, pyc = float(y) + 0.5f;
+        const glm::vec3 p = rays.o0 + pxc * rays.ox + pyc * rays.oy +
+                            d * (rays.u0 + pxc * rays.ux + pyc * rays.uy);
+        const glm::vec3 n(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
+        // The estimator's neighbourhood: the radius, shrunk where its projection exceeds
+        // max_radius_px (the methods shrink theirs the same way).
+        const glm::vec2 ppu = camera.pixels_per_unit(d);
+        float radius = s.radius_world;
+        const float radius_px_max = radius * std::max(ppu.x, ppu.y);
+        if (radius_px_max > s.max_radius_px) radius *= s.max_radius_px / radius_px_max;
+        const float rx_px = radius * ppu.x, ry_px = radius * ppu.y;
+        const float r2 = radius * radius;
+        const float rotation = 6.2831853f * noise01(x, y, 0, s.seed);
+        double observed = 0.0, total = 0.0;
+        for (int k = 0; k < n_taps; ++k) {
+          // Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle turns.
+          const float rho = std::sqrt((float(k) + 0.5f) * inv_taps);
+          const float angle = rotation + float(k) * kGoldenAngle;
+          const float tx_f = pxc + rho * rx_px * std::cos(angle);
+          const float ty_f = pyc + rho * ry_px * std::sin(angle);
+          const int tx = int(std::floor(tx_f)), ty = int(std::floor(ty_f));
+          // The ray through the tap pixel's centre (where its depth was sampled).
+          const float cx = float(tx) + 0.5f, cy = float(ty) + 0.5f;
+          const glm::vec3 o = rays.o0 + cx * rays.ox + cy * rays.oy;
+          const glm::vec3 u = rays.u0 + cx * rays.ux + cy * rays.uy;
+          const glm::vec3 f = o - p;
+          const float a = glm::dot(u, u), b = glm::dot(u, f), c = glm::dot(f, f) - r2;
+          const float disc = b * b - a * c;
+          if (!(disc > 0.0f)) continue;  // the ray misses the sphere
+          const float root = std::sqrt(disc);
+          float s0 = std::max((-b - root) / a, 0.0f), s1 = (-b + root) / a;
+          // Clip to the hemisphere n.(x - p) >= 0.
+          const float nu = glm::dot(n, u), nf = glm::dot(n, f);
+          if (nu != 0.0f) {
+            const float s_plane = -nf / nu;
+            if (nu < 0.0f) s1 = std::min(s1, s_plane);
+            else s0 = std::max(s0, s_plane);
+          } else if (nf < 0.0f) {
+            continue;  // ray parallel to the tangent plane, below it
+          }
+          if (!(s1 > s0)) continue;
+          const float len_scale = std::sqrt(a);
+          total += double((s1 - s0) * len_scale);
+          if (tx < 0 || ty < 0 || tx >= width || ty >= height) continue;  // off screen
+          if (mask.ptr<uint8_t>(ty)[tx] == 0) continue;                     // unknown
+          const float d_tap = depth_view.ptr<float>(ty)[tx];
+          if (!(d_tap > 0.0f) || !std::isfinite(d_tap)) continue;
+          // In front of the stored surface (within the relative bias: the pixel's own
+          // plane seen at the tap is observed).
+          const float s_surface = d_tap * bias_scale;
+          const float seen = std::min(s1, s_surface) - s0;
+          if (seen > 0.0f) observed += double(seen * len_scale);
+        }
+        out[x] = total > 0.0 ? float(std::clamp(observed / total, 0.0, 1.0)) : 1.0f;
+      }
+    }
+  });
+}
+
+}  // namespace ssdo

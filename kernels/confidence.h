@@ -1,0 +1,58 @@
+// Per-pixel confidence of any screen-space estimate (AO or SSDO): how much of the
+// neighbourhood the estimator samples was actually observed in the frame. Method-
+// independent: it reads only depth, mask, normals and the camera, and the radius the
+// estimator uses.
+//
+// Definition. The neighbourhood of a foreground pixel is the hemisphere H of radius
+// radius_world above its tangent plane (the volume AO and SSDO integrate over). Along the
+// view ray through a screen tap, H is a segment [a, b] (the ray's chord through the sphere,
+// clipped to the positive side of the tangent plane). The frame observes the part of it in
+// front of the surface stored at the tap, [a, min(b, t_surface)]; what lies behind that
+// surface (behind a large depth gap or a thin occluder), outside the frame, or on a masked
+// pixel (background, non-finite input) is unknown. Over taps k spread over the projected
+// disk of the sphere,
+//
+//   confidence = sum_k |observed_k| / sum_k |b_k - a_k|
+//
+// i.e. the observed fraction of H's volume as sampled along view rays (each chord's length
+// is its share of the volume). 1 = every point of the neighbourhood was in front of the
+// stored surfaces: an open plane, a corner seen from outside. 0 = none was. 1 on background
+// and where H covers no tap (projected radius below a pixel: the pixel itself is all).
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include "kernels/camera.h"
+
+namespace ssdo {
+
+struct ConfidenceSettings {
+  // Radius of the sampled neighbourhood, scene units, (0, inf): the estimator's radius
+  // (AoSettings::radius_world or SsdoSettings::radius_world).
+  float radius_world = 1.0f;
+  // Largest projected radius, pixels, [2, 4096]: the estimator's own bound (its taps do not
+  // reach farther, so neither do these).
+  float max_radius_px = 256.0f;
+  // Taps per pixel on the projected disk, [4, 256]. 32 resolves the confidence to ~3% (one
+  // tap); the taps are a Vogel spiral rotated per pixel, so neighbours average further.
+  int taps = 32;
+  // Relative depth tolerance of "in front of the stored surface", [0, 0.1]: the same role
+  // and default as AoSettings::depth_bias_relative (half-float depth rounds to 4.9e-4 of the
+  // value), so that a tap on the pixel's own plane counts as observed.
+  float depth_bias_relative = 1e-3f;
+  uint32_t seed = 0;  // per-pixel rotation of the tap pattern
+};
+
+// Empty when valid, else what is wrong (field, value, range).
+std::string validate(const ConfidenceSettings& s);
+
+// Writes confidence (CV_32FC1 in [0, 1], allocated at the input size when empty or of the
+// wrong size; only roi, empty = all, is written). depth_view CV_32FC1 planar depth (+inf on
+// background), normal_view CV_32FC3 unit view-space normals facing the camera, mask CV_8UC1
+// (255 = foreground). Deterministic: the same bytes for any thread count.
+void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
+                        const cv::Mat& mask, const Camera& camera,
+                        const ConfidenceSettings& settings, cv::Mat& confidence,
+                        cv::Rect roi = {}, int nthreads = 0);
+
+}  // namespace ssdo
