@@ -7,7 +7,8 @@ PACKAGES=(
   cmake g++ make pkg-config
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev
   libopencv-core-dev libglm-dev nlohmann-json3-dev libcli11-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev fonts-dejavu-core
+  clang libclang-rt-dev
 )
 
 missing=()

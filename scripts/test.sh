@@ -5,5 +5,16 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
 scripts/build.sh
-cd "${BUILD_DIR:-build}"
-ctest --output-on-failure -j "${JOBS:-$(nproc)}" "$@"
+(cd "${BUILD_DIR:-build}" && ctest --output-on-failure -j "${JOBS:-$(nproc)}" "$@")
+
+# Second stage: the same suite built by clang with AddressSanitizer + UndefinedBehavior-
+# Sanitizer (CMakePresets.json "asan", in build-asan/), plus a short run of every fuzz
+# target (label fuzz). Not under sanitizers: the Slurm cluster test (label slurm: it
+# exercises the job scheduler, not our code) and the heavy accuracy tests (label
+# accuracy, when present). SSDO_SANITIZE=0 skips the stage. README.md, "Fuzzing and sanitizers".
+if [ "${SSDO_SANITIZE:-1}" != 0 ]; then
+  cmake --preset asan >/dev/null
+  cmake --build build-asan -j "${JOBS:-$(nproc)}"
+  (cd build-asan && ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1} UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
+    ctest --output-on-failure -j "${JOBS:-$(nproc)}" -LE "^(slurm|accuracy)$" "$@")
+fi
