@@ -189,7 +189,7 @@ bool load_json_file(const std::string& path, json& j, std::string& error) {
   }
   try {
     j = json::parse(in);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for numbers like 1e309
     error = path + ": not valid JSON: " + e.what();
     return false;
   }
