@@ -128,7 +128,22 @@ bool is_safe_name(std::string_view name) {
 
 bool parse_socket_request(std::string_view header, const ProtocolLimits& limits, SocketRequest& r,
                           std::string& error) {
-  const nlohmann::json j = nlohmann::json::parse(header, nullptr, false);
+  // nlohmann::json copies and dumps values recursively: a deeply nested "id", "sidecar" or
+  // "options" (a 1 MiB header holds 500,000 levels) would overflow the connection
+  // thread's stack and end the whole service. The parser itself is iterative; the depth
+  // is checked while parsing, before any copy.
+  bool too_deep = false;
+  const nlohmann::json j = nlohmann::json::parse(
+      header,
+      [&](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
+        if (depth > kMaxRequestDepth) too_deep = true;
+        return !too_deep;
+      },
+      false);
+  if (too_deep) {
+    error = "the request nests deeper than " + std::to_string(kMaxRequestDepth) + " levels";
+    return false;
+  }
   if (j.is_discarded()) {
     error = "the request is not valid JSON";
     return false;

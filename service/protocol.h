@@ -70,6 +70,9 @@ struct SocketRequest {
   nlohmann::json options;        // frame options (the CLI flag names), an object
 };
 
+// Deepest nesting of arrays and objects a request header may have (a sidecar needs 3).
+constexpr int kMaxRequestDepth = 64;
+
 // Parses and validates a request header. False with a message naming the field.
 bool parse_socket_request(std::string_view header, const ProtocolLimits& limits, SocketRequest& request,
                           std::string& error);

@@ -244,10 +244,10 @@ bool SocketServer::handle_request(int fd, const std::string& header) {
   SocketRequest request;
   std::string error;
   if (!parse_socket_request(header, options_.limits, request, error)) {
-    // The stream may hold a payload of unknown size: answer and close.
-    const json j = json::parse(header, nullptr, false);
-    const json id = j.is_object() && j.contains("id") ? j["id"] : json();
-    reply(fd, error_response("bad_request", error, id));
+    // The stream may hold a payload of unknown size: answer and close. The id, when the
+    // header got far enough to have one, is in `request` (never re-parsed here: the header
+    // may be nested too deeply to copy).
+    reply(fd, error_response("bad_request", error, request.id));
     return false;
   }
   if (request.op == "ping") {
