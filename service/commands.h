@@ -89,4 +89,16 @@ struct ClientArgs {
 };
 int run_client(const ClientArgs& args);
 
+struct BenchArgs {
+  std::vector<std::string> files;
+  std::string reference = "AO";
+  std::string output_dir;
+  int runs = 3;                      // runs per configuration; the median time is reported
+  std::vector<AoMethod> methods = {AoMethod::hemisphere, AoMethod::hbao, AoMethod::gtao};
+  bool sweep = true;                 // also sweep sample counts at full resolution
+  std::string external_csv;          // external reference costs: series,label,ms,mae
+  FrameRequest request;              // read options, threads
+};
+int run_bench(const BenchArgs& args);
+
 }  // namespace ssdo

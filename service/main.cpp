@@ -227,6 +227,34 @@ int main(int argc, char** argv) {
   add_read_options(*eval_cmd, eval_read);
   add_compute_options(*eval_cmd, eval_compute, true);
 
+  // bench
+  BenchArgs bench;
+  ReadOptionArgs bench_read;
+  std::vector<std::string> bench_methods;
+  bool bench_no_sweep = false;
+  CLI::App* bench_cmd = app.add_subcommand(
+      "bench", "Run every AO method x preset (and a sweep of sample counts) on frames with a "
+               "reference pass; write bench.csv (method, preset, samples, resolution, median ms, "
+               "MAE, RMSE, bias, p95), calibration.csv (for --quality auto) and bench.png (error "
+               "against time, log time axis)");
+  bench_cmd->add_option("files", bench.files, "EXR frames holding the reference pass")->required();
+  bench_cmd->add_option("--reference", bench.reference, "Reference pass name")->capture_default_str();
+  bench_cmd->add_option("-o,--out", bench.output_dir, "Output folder")->required();
+  bench_cmd->add_option("--runs", bench.runs, "Runs per configuration (median time)")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  bench_cmd->add_option("--methods", bench_methods,
+                        "Methods to run (default hemisphere hbao gtao; raymarch is minutes per frame)")
+      ->check(CLI::IsMember({"hemisphere", "hbao", "gtao", "raymarch"}));
+  bench_cmd->add_flag("--no-sweep", bench_no_sweep, "Presets only, no sample-count sweep");
+  bench_cmd->add_option("--external", bench.external_csv,
+                        "CSV of an external reference's cost (series,label,ms,mae), e.g. a ray "
+                        "tracer at several sample counts, plotted beside the methods")
+      ->check(CLI::ExistingFile);
+  bench_cmd->add_option("--threads", bench.request.threads, "Threads for the kernels (0 = all cores)")
+      ->check(CLI::Range(0, 1024));
+  add_read_options(*bench_cmd, bench_read);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -269,6 +297,15 @@ int main(int argc, char** argv) {
     return run_client(client);
   }
   if (*worker_cmd) return run_worker(worker);
+  if (*bench_cmd) {
+    if (!resolve_read_options(bench_read, bench.request.read, error)) return usage_error(error);
+    if (!bench_methods.empty()) {
+      bench.methods.clear();
+      for (const std::string& m : bench_methods) bench.methods.push_back(*parse_ao_method(m));
+    }
+    bench.sweep = !bench_no_sweep;
+    return run_bench(bench);
+  }
   if (*eval_cmd) {
     if (!resolve_read_options(eval_read, eval.request.read, error) ||
         !resolve_compute_options(eval_compute, eval.request, error))

@@ -1,0 +1,238 @@
+// `ssdo bench`: every method x preset (and a sweep of sample counts) on frames with a
+// reference pass: a CSV of time and error and a chart of error against time.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+
+#include "formats/chart.h"
+#include "kernels/metrics.h"
+#include "service/commands.h"
+
+namespace ssdo {
+
+namespace {
+
+struct BenchConfig {
+  std::string preset;  // "low".."ultra" or "sweep"
+  AoSettings settings;
+};
+
+// Depth taps per output pixel: the cost measure the sweep varies.
+int taps_per_pixel(const AoSettings& s) {
+  int taps = 0;
+  switch (s.method) {
+    case AoMethod::hemisphere: taps = s.samples; break;
+    case AoMethod::hbao: taps = s.directions * s.steps; break;
+    case AoMethod::gtao: taps = 2 * s.directions * s.steps; break;
+    case AoMethod::raymarch: taps = s.directions * s.steps; break;
+  }
+  return std::max(1, taps / (s.resolution_divisor * s.resolution_divisor));
+}
+
+std::vector<BenchConfig> bench_configs(const std::vector<AoMethod>& methods, bool sweep) {
+  std::vector<BenchConfig> configs;
+  for (AoMethod m : methods) {
+    for (Preset p : {Preset::low, Preset::medium, Preset::high, Preset::ultra}) {
+      if (m == AoMethod::raymarch && p > Preset::medium) continue;  // minutes per frame
+      configs.push_back({std::string(to_string(p)), ao_preset(m, p)});
+    }
+    if (!sweep) continue;
+    // Full-resolution sweeps of the sample count around the presets.
+    AoSettings s = ao_preset(m, Preset::high);
+    s.resolution_divisor = 1;
+    if (m == AoMethod::hemisphere) {
+      for (int n : {4, 8, 16, 32, 64, 128}) { s.samples = n; configs.push_back({"sweep", s}); }
+    } else if (m == AoMethod::hbao) {
+      for (int n : {2, 4, 8, 16}) { s.directions = n; s.steps = 8; configs.push_back({"sweep", s}); }
+    } else if (m == AoMethod::gtao) {
+      for (int n : {1, 2, 4, 8}) { s.directions = n; s.steps = 8; configs.push_back({"sweep", s}); }
+    }
+  }
+  return configs;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct Row {
+  std::string file, method, preset, resolution;
+  int samples = 0;
+  double ms = 0;
+  ErrorStats error;
+};
+
+void write_csv_row(std::ostream& out, const Row& r) {
+  out << r.file << ',' << r.method << ',' << r.preset << ',' << r.samples << ',' << r.resolution
+      << ',' << r.ms << ',' << r.error.mae << ',' << r.error.rmse << ',' << r.error.bias << ','
+      << r.error.p95 << '\n';
+}
+
+// External reference costs: CSV "series,label,ms,mae" (header line optional).
+bool read_external(const std::string& path, std::vector<ChartSeries>& series, std::string& error) {
+  std::ifstream in(path);
+  if (!in) {
+    error = path + ": cannot open the external reference CSV";
+    return false;
+  }
+  std::map<std::string, size_t> index;
+  std::string line;
+  int line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty() || line[0] == '#') continue;
+    std::stringstream ss(line);
+    std::string name, label, ms, mae;
+    if (!std::getline(ss, name, ',') || !std::getline(ss, label, ',') || !std::getline(ss, ms, ',') ||
+        !std::getline(ss, mae, ',')) {
+      error = path + ":" + std::to_string(line_no) + ": expected series,label,ms,mae";
+      return false;
+    }
+    double ms_v = 0, mae_v = 0;
+    try {
+      ms_v = std::stod(ms);
+      mae_v = std::stod(mae);
+    } catch (const std::exception&) {
+      if (line_no == 1) continue;  // header
+      error = path + ":" + std::to_string(line_no) + ": ms and mae must be numbers";
+      return false;
+    }
+    if (!index.count(name)) {
+      index[name] = series.size();
+      series.push_back({name + " (external)", {}, true});
+    }
+    series[index[name]].points.push_back({ms_v, mae_v, label});
+  }
+  return true;
+}
+
+}  // namespace
+
+int run_bench(const BenchArgs& args) {
+  std::error_code ec;
+  std::filesystem::create_directories(args.output_dir, ec);
+  if (ec) {
+    std::cerr << "ssdo bench: cannot create " << args.output_dir << ": " << ec.message() << "\n";
+    return 2;
+  }
+  std::vector<ChartSeries> external;
+  std::string error;
+  if (!args.external_csv.empty() && !read_external(args.external_csv, external, error)) {
+    std::cerr << "ssdo bench: " << error << "\n";
+    return 2;
+  }
+
+  // Read every frame once.
+  struct Loaded {
+    std::string path;
+    GBuffer g;
+    cv::Mat reference;
+    float radius = 1;
+  };
+  std::vector<Loaded> frames;
+  int failed = 0;
+  for (const std::string& file : args.files) {
+    ReadOptions read = args.request.read;
+    read.read_references = true;
+    ReadResult r = read_gbuffer(file, read);
+    if (!r.ok()) {
+      std::cerr << "ssdo bench: " << r.error << "\n";
+      ++failed;
+      continue;
+    }
+    auto it = r.gbuffer.references.find(args.reference);
+    if (it == r.gbuffer.references.end()) {
+      std::cerr << "ssdo bench: " << file << ": no reference pass '" << args.reference << "'\n";
+      ++failed;
+      continue;
+    }
+    cv::Mat ref = it->second;
+    if (ref.channels() == 3) cv::transform(ref, ref, cv::Matx<float, 1, 3>(1.0f / 3, 1.0f / 3, 1.0f / 3));
+    frames.push_back({file, std::move(r.gbuffer), ref, r.info.ao_distance_world.value_or(args.request.ao.radius_world)});
+  }
+  if (frames.empty()) {
+    std::cerr << "ssdo bench: no frame with a reference to measure\n";
+    return 1;
+  }
+
+  std::ofstream csv(std::filesystem::path(args.output_dir) / "bench.csv");
+  csv << "file,method,preset,samples,resolution,ms,mae,rmse,bias,p95\n";
+  std::ofstream calibration(std::filesystem::path(args.output_dir) / "calibration.csv");
+  calibration << "method,preset,samples,ms,mae\n";
+  std::map<std::string, ChartSeries> by_method;
+  std::printf("%-10s %-7s %7s %10s %8s %8s %8s\n", "method", "preset", "samples", "ms", "MAE", "RMSE", "p95");
+
+  for (const BenchConfig& config : bench_configs(args.methods, args.sweep)) {
+    ErrorAccumulator overall;
+    double ms_sum = 0;
+    std::string resolution;
+    Row row;
+    row.method = std::string(to_string(config.settings.method));
+    row.preset = config.preset;
+    row.samples = taps_per_pixel(config.settings);
+    for (const Loaded& f : frames) {
+      FrameRequest request = args.request;
+      request.terms = {true, false, false};
+      request.ao = config.settings;
+      request.ao.radius_world = f.radius;
+      std::vector<double> times;
+      ComputedFrame computed;
+      for (int run = 0; run < args.runs; ++run) {
+        const auto t0 = std::chrono::steady_clock::now();
+        computed = compute_frame(f.g, request);
+        times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      }
+      const cv::Mat& ao = *computed.find("ao_denoised");
+      Row r = row;
+      r.file = f.path;
+      r.resolution = std::to_string(f.g.width_px()) + "x" + std::to_string(f.g.height_px());
+      r.ms = median(times);
+      r.error = compare_images(ao, f.reference, f.g.mask);
+      write_csv_row(csv, r);
+      overall.add(ao, f.reference, f.g.mask);
+      ms_sum += r.ms;
+      resolution = resolution.empty() || resolution == r.resolution ? r.resolution : "mixed";
+    }
+    row.file = "all";
+    row.resolution = resolution;
+    row.ms = ms_sum / double(frames.size());
+    row.error = overall.result();
+    write_csv_row(csv, row);
+    if (config.preset != "sweep")
+      calibration << row.method << ',' << row.preset << ',' << row.samples << ',' << row.ms << ','
+                  << row.error.mae << '\n';
+    std::printf("%-10s %-7s %7d %10.1f %8.4f %8.4f %8.4f\n", row.method.c_str(), row.preset.c_str(),
+                row.samples, row.ms, row.error.mae, row.error.rmse, row.error.p95);
+    std::fflush(stdout);
+    // Presets and the sample sweep are separate curves of the method.
+    const std::string series_name = row.method + (config.preset == "sweep" ? " (samples)" : " (presets)");
+    ChartSeries& s = by_method[series_name];
+    s.name = series_name;
+    s.points.push_back({row.ms, row.error.mae, config.preset == "sweep" ? std::to_string(row.samples) : config.preset});
+  }
+
+  std::vector<ChartSeries> series;
+  for (auto& [name, s] : by_method) series.push_back(s);
+  series.insert(series.end(), external.begin(), external.end());
+  ChartOptions chart;
+  chart.title = "AO error against time per frame (" + std::to_string(frames.size()) + " frame" +
+                (frames.size() > 1 ? "s" : "") + ", reference " + args.reference + ")";
+  chart.y_label = "MAE against " + args.reference + " (AO units, 0..1)";
+  const std::string png = (std::filesystem::path(args.output_dir) / "bench.png").string();
+  if (const std::string e = write_chart_png(png, series, chart); !e.empty()) {
+    std::cerr << "ssdo bench: " << e << "\n";
+    return 1;
+  }
+  std::printf("wrote %s/bench.csv, %s/calibration.csv and %s\n", args.output_dir.c_str(),
+              args.output_dir.c_str(), png.c_str());
+  return failed ? 1 : 0;
+}
+
+}  // namespace ssdo
