@@ -52,8 +52,15 @@ void BatchProgress::skipped(const std::string& input, const std::string& output)
 void BatchProgress::finished(const std::string& input, const std::string& output, const WorkerResult& r) {
   std::lock_guard<std::mutex> lock(mutex_);
   (r.ok() ? done_ : failed_) += 1;
-  const double stages_ms = r.times.read_ms + r.times.compute_ms + r.times.write_ms;
-  if (r.ok()) isolation_ms_ += std::max(0.0, r.wall_ms - stages_ms);
+  // Isolation = what the parent waited beyond the worker's own handling of the request.
+  const double isolation_ms = std::max(0.0, r.wall_ms - r.handled_ms);
+  if (r.ok() && r.worker_started) {
+    startup_ms_ += isolation_ms;
+    ++startups_;
+  } else if (r.ok()) {
+    isolation_ms_ += isolation_ms;
+    ++warm_frames_;
+  }
   const int computed = done_ + failed_;
   const double fps = computed / std::max(elapsed_s(), 1e-9);
   const double eta_s = (to_compute_ - computed) / std::max(fps, 1e-9);
@@ -64,8 +71,9 @@ void BatchProgress::finished(const std::string& input, const std::string& output
   line += rate;
   if (verbose_) {
     char stages[160];
-    std::snprintf(stages, sizeof stages, " read %.1f ms, compute %.1f ms, write %.1f ms, isolation %.1f ms",
-                  r.times.read_ms, r.times.compute_ms, r.times.write_ms, std::max(0.0, r.wall_ms - stages_ms));
+    std::snprintf(stages, sizeof stages,
+                  " read %.1f ms, compute %.1f ms, write %.1f ms, worker %.1f ms, isolation %.2f ms", r.times.read_ms,
+                  r.times.compute_ms, r.times.write_ms, r.handled_ms, std::max(0.0, r.wall_ms - r.handled_ms));
     line += stages;
   }
   if (!bar_) {
@@ -84,8 +92,12 @@ int BatchProgress::summary(bool interrupted) {
   std::cout << s;
   if (interrupted)
     std::cout << "; interrupted: " << (total_ - done_ - skipped_ - failed_) << " frames not started";
-  if (verbose_ && done_ > 0) {
-    std::snprintf(s, sizeof s, "; isolation %.2f ms per frame", isolation_ms_ / done_);
+  if (verbose_ && warm_frames_ > 0) {
+    std::snprintf(s, sizeof s, "; isolation %.2f ms per frame", isolation_ms_ / warm_frames_);
+    std::cout << s;
+  }
+  if (verbose_ && startups_ > 0) {
+    std::snprintf(s, sizeof s, " (+ %.0f ms per worker start, %d starts)", startup_ms_ / startups_, startups_);
     std::cout << s;
   }
   std::cout << "\n" << std::flush;

@@ -35,7 +35,10 @@ class BatchProgress {
   const int total_, to_compute_;
   const bool bar_, verbose_;
   int done_ = 0, skipped_ = 0, failed_ = 0;
-  double isolation_ms_ = 0;  // parent-seen wall time minus the worker's stage times
+  // Parent-seen wall time minus the worker's handling time, of frames run by a warm
+  // worker (isolation per frame) and of frames that started their worker (+ start-up).
+  double isolation_ms_ = 0, startup_ms_ = 0;
+  int warm_frames_ = 0, startups_ = 0;
   Clock::time_point start_ = Clock::now();
 };
 

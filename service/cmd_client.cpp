@@ -53,7 +53,7 @@ bool exchange(int fd, json request, const std::string& payload_file, json& respo
     }
     request["inline_size"] = payload.size();
   }
-  IoStatus s = write_message(fd, request.dump(), deadline);
+  IoStatus s = write_message(fd, to_wire(request), deadline);
   if (s == IoStatus::ok && !payload.empty()) s = write_all(fd, payload.data(), payload.size(), deadline);
   std::string header;
   // Read the reply even when sending failed: the service may have refused early.
@@ -155,7 +155,7 @@ int run_client(const ClientArgs& args) {
       response.erase("inline_size");
     }
     if (!response.value("ok", false)) ++failed;
-    std::cout << response.dump() << "\n" << std::flush;
+    std::cout << to_wire(response) << "\n" << std::flush;
     if (!response.value("ok", false) && response.value("code", "") == "bad_request") break;  // closed by the service
   }
   ::close(fd);

@@ -42,18 +42,21 @@ int g_response_fd = -1;
     }
   }
   const std::string message =
-      nlohmann::json{{"ok", false}, {"exiting", true}, {"error", "worker aborted: uncaught exception: " + what}}
-          .dump();
+      to_wire(nlohmann::json{{"ok", false}, {"exiting", true}, {"error", "worker aborted: uncaught exception: " + what}});
   if (g_response_fd >= 0) write_message(g_response_fd, message, deadline_in(1.0));
   ::_exit(134);
 }
 
 std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
-  if (error.find("bad_alloc") == std::string::npos && error.find("Insufficient memory") == std::string::npos &&
-      error.find("out of memory") == std::string::npos)
-    return error;
-  return error + " (out of memory: the frame needs more than the worker's limit of " + std::to_string(limit_mb) +
-         " MiB, see --memory-limit)";
+  const bool no_memory = error.find("bad_alloc") != std::string::npos ||
+                         error.find("Insufficient memory") != std::string::npos ||
+                         error.find("out of memory") != std::string::npos;
+  // Threads (OpenEXR's and OpenCV's pools) cannot get their stacks under RLIMIT_AS.
+  const bool no_thread = error.find("Resource temporarily unavailable") != std::string::npos;
+  if (!no_memory && !no_thread) return error;
+  return error + (no_memory ? " (out of memory: the frame needs more than the worker's limit of "
+                            : " (no memory for a thread under the worker's limit of ") +
+         std::to_string(limit_mb) + " MiB, see --memory-limit)";
 }
 
 }  // namespace
@@ -87,6 +90,7 @@ int run_worker(const WorkerArgs& args) {
     std::string message;
     const IoStatus s = read_message(args.request_fd, message, kMaxRequestBytes, no_deadline());
     if (s != IoStatus::ok) return s == IoStatus::closed ? 0 : 1;
+    const auto received = Clock::now();
     nlohmann::json response{{"ok", false}};
     const nlohmann::json j = nlohmann::json::parse(message, nullptr, false);
     if (j.is_discarded() || !j.is_object() || !j.contains("input") || !j["input"].is_string()) {
@@ -124,7 +128,10 @@ int run_worker(const WorkerArgs& args) {
         response["height"] = r.info.height_px;
       }
     }
-    if (write_message(args.response_fd, response.dump(), no_deadline()) != IoStatus::ok) return 1;
+    // Everything the worker spent on this request: the parent's wall time minus this is
+    // the cost of isolation (pipes, scheduling).
+    response["handled_ms"] = std::chrono::duration<double, std::milli>(Clock::now() - received).count();
+    if (write_message(args.response_fd, to_wire(response), no_deadline()) != IoStatus::ok) return 1;
   }
 }
 

@@ -67,7 +67,7 @@ bool write_error_file(const std::string& path, const std::string& input, const s
                                .string();
   {
     std::ofstream out(temp, std::ios::trunc);
-    out << nlohmann::json{{"input", input}, {"error", error}, {"time", utc_now()}}.dump(2) << "\n";
+    out << nlohmann::json{{"input", input}, {"error", error}, {"time", utc_now()}}.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     if (!out) return false;
   }
   std::error_code ec;

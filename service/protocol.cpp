@@ -256,6 +256,10 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
   return true;
 }
 
+std::string to_wire(const nlohmann::json& j) {
+  return j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 nlohmann::json error_response(const std::string& code, const std::string& message, const nlohmann::json& id) {
   nlohmann::json j{{"ok", false}, {"code", code}, {"error", message}};
   if (!id.is_null()) j["id"] = id;

@@ -80,6 +80,10 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
 // True for a name usable as a file stem: [A-Za-z0-9._-]{1,128}, not starting with '.'.
 bool is_safe_name(std::string_view name);
 
+// The JSON text of a message. Strings from damaged files (channel names, attribute
+// values) may hold invalid UTF-8: such bytes become U+FFFD instead of failing.
+std::string to_wire(const nlohmann::json& j);
+
 // {"ok": false, "error": message, "code": code} (+ "id" when given).
 nlohmann::json error_response(const std::string& code, const std::string& message,
                               const nlohmann::json& id = nullptr);

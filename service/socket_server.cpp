@@ -178,7 +178,7 @@ void SocketServer::accept_loop() {
       const json busy = error_response(
           "busy", stopping_ ? "the service is stopping"
                             : "too many clients (" + std::to_string(options_.max_clients) + "); try again later");
-      write_message(fd, busy.dump(), deadline_in(kBusyReplySeconds));
+      write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
       ::close(fd);
       continue;
     }
@@ -215,17 +215,17 @@ void SocketServer::serve_connection(int fd) {
 
 bool SocketServer::reply(int fd, const json& response, const std::string& inline_file) {
   const Deadline deadline = deadline_in(options_.client_timeout_s);
-  if (inline_file.empty()) return write_message(fd, response.dump(), deadline) == IoStatus::ok;
+  if (inline_file.empty()) return write_message(fd, to_wire(response), deadline) == IoStatus::ok;
   const int in = ::open(inline_file.c_str(), O_RDONLY | O_CLOEXEC);
   struct stat st {};
   if (in < 0 || ::fstat(in, &st) != 0) {
     if (in >= 0) ::close(in);
-    return write_message(fd, error_response("internal", "the output vanished before it was sent", response.value("id", json())).dump(),
+    return write_message(fd, to_wire(error_response("internal", "the output vanished before it was sent", response.value("id", json()))),
                          deadline) == IoStatus::ok;
   }
   json header = response;
   header["inline_size"] = uint64_t(st.st_size);
-  bool ok = write_message(fd, header.dump(), deadline) == IoStatus::ok;
+  bool ok = write_message(fd, to_wire(header), deadline) == IoStatus::ok;
   std::vector<char> buffer(size_t(1) << 20);
   for (off_t left = st.st_size; ok && left > 0;) {
     const ssize_t n = ::read(in, buffer.data(), size_t(std::min<off_t>(left, off_t(buffer.size()))));
@@ -307,7 +307,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     if (request.sidecar.is_object()) {
       FILE* f = std::fopen((spool / (request.name + ".camera.json")).c_str(), "w");
       if (!f) return refuse("internal", "cannot write the sidecar to the spool folder");
-      const std::string text = request.sidecar.dump();
+      const std::string text = to_wire(request.sidecar);
       std::fwrite(text.data(), 1, text.size(), f);
       std::fclose(f);
     }

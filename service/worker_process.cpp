@@ -157,15 +157,18 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   WorkerResult result;
   const auto t0 = Clock::now();
   const std::string request =
-      nlohmann::json{{"input", job.input_path}, {"output", job.output_path}, {"options", job.options}}.dump();
+      to_wire(nlohmann::json{{"input", job.input_path}, {"output", job.output_path}, {"options", job.options}});
   const Deadline deadline = deadline_in(limits_.frame_timeout_s);
   // A worker may have died while idle; then the request cannot be written: start a new
   // one and send again (once).
   for (int attempt = 0;; ++attempt) {
     std::string error;
-    if (pid_ <= 0 && !spawn(error)) {
-      result.error = error;
-      return result;
+    if (pid_ <= 0) {
+      if (!spawn(error)) {
+        result.error = error;
+        return result;
+      }
+      result.worker_started = true;
     }
     const IoStatus s = write_message(to_worker_, request, deadline);
     if (s == IoStatus::ok) break;
@@ -203,11 +206,15 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     result.error = "the worker sent a malformed response (worker replaced)";
     return result;
   }
+  // Messages may quote names read from a damaged file: no control characters in logs.
   result.error = j.value("error", std::string());
+  for (char& c : result.error)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   if (!j.value("ok", false) && result.error.empty()) result.error = "the worker reported a failure";
   result.times.read_ms = j.value("read_ms", 0.0);
   result.times.compute_ms = j.value("compute_ms", 0.0);
   result.times.write_ms = j.value("write_ms", 0.0);
+  result.handled_ms = j.value("handled_ms", 0.0);
   result.width_px = j.value("width", 0);
   result.height_px = j.value("height", 0);
   if (j.contains("terms") && j["terms"].is_array())

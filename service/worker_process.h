@@ -42,9 +42,11 @@ struct WorkerResult {
   std::string error;                  // empty on success; else the reason (signal, timeout, memory, ...)
   StageTimes times;                   // as measured inside the worker
   double wall_ms = 0;                 // request sent -> response read, as the parent saw it
+  double handled_ms = 0;              // request received -> response sent, as the worker saw it
   std::vector<std::string> terms;     // terms written
   int width_px = 0, height_px = 0;
   bool worker_replaced = false;       // the worker died or was killed during this frame
+  bool worker_started = false;        // a worker was started for this frame (wall_ms includes it)
   bool ok() const { return error.empty(); }
 };
 

@@ -1,0 +1,162 @@
+// `ssdo process` as a production batch: worker isolation, resumption after kill -9,
+// config files, the frame selection of a farm chunk.
+#include <fstream>
+
+#include "service_harness.h"
+
+namespace ssdo::test {
+namespace {
+
+std::string quoted_list(const std::vector<fs::path>& files) {
+  std::string s;
+  for (const auto& f : files) s += " '" + f.string() + "'";
+  return s;
+}
+
+TEST(Batch, PoisonFramesFailOneByOneBatchFinishesWithExitOne) {
+  SSDO_REQUIRE_CONFORMANCE();
+  ScratchDir out;
+  const auto files = damaged_files();
+  const RunResult r = run_ssdo("process" + quoted_list(files) + " -o " + out.path.string() +
+                               " --frame-timeout 5 --memory-limit 1024 --jobs 2 --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 1) << r.output.substr(0, 4000);
+  EXPECT_NE(r.output.find("done 0, skipped 0, failed 185"), std::string::npos) << r.output.substr(r.output.size() - 500);
+  for (const auto& f : files)
+    EXPECT_NE(r.output.find(f.filename().string() + ": FAILED: "), std::string::npos) << f;
+  // With a channel mapping more of them reach pixel decoding (and the memory limit).
+  const RunResult mapped = run_ssdo("process" + quoted_list(files) + " -o " + out.path.string() +
+                                    " --frame-timeout 5 --memory-limit 1024 --jobs 2 --terms ao --preset low "
+                                    "--map depth=Y --fov 60 --force");
+  EXPECT_EQ(mapped.exit_code, 1);
+  EXPECT_NE(mapped.output.find(", failed "), std::string::npos);
+  EXPECT_EQ(count_occurrences(mapped.output, ": FAILED: ") + count_occurrences(mapped.output, ": ok ("), 185);
+}
+
+TEST(Batch, StalledAndOversizedFramesAreThatFramesErrors) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  for (const char* n : {"a", "b", "c"}) copy_example("cornell", dir.path / "in", n);
+  // A stall: --frame-timeout shorter than the slow oracle needs.
+  RunResult r = run_ssdo("process " + dir / "in/a.exr" + " -o " + dir / "out" +
+                         " --method raymarch --preset ultra --frame-timeout 0.3 --jobs 1");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("timed out after"), std::string::npos) << r.output;
+  // Memory: a limit the frame cannot fit in.
+  r = run_ssdo("process " + dir / "in/a.exr" + " -o " + dir / "out" + " --terms all --memory-limit 256 --jobs 1");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("memory"), std::string::npos) << r.output;
+}
+
+TEST(Batch, AKilledWorkerFailsItsFrameTheOthersGoOn) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  // a: a 1080p frame (seconds to read and compute), b and c: small ones.
+  fs::copy_file(shared_dir() / "gbuffers" / "perf1080.exr", dir.path / "in" / "a.exr");
+  fs::copy_file(shared_dir() / "gbuffers" / "perf1080.camera.json", dir.path / "in" / "a.camera.json");
+  copy_example("cornell", dir.path / "in", "b");
+  copy_example("greeble", dir.path / "in", "c");
+  SsdoProcess batch({"process", dir / "in", "-o", dir / "out", "--jobs", "1", "--terms", "ao", "--preset", "low"},
+                    dir.path / "batch.log");
+  ASSERT_TRUE(wait_until([&] { return !workers_of(batch.pid()).empty() || !batch.running(); }, 20));
+  const auto workers = workers_of(batch.pid());
+  ASSERT_FALSE(workers.empty()) << batch.log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  ::kill(workers.front(), SIGSEGV);  // as a segfault in a decoder would
+  EXPECT_EQ(batch.signal_and_wait(0, 120), 1) << batch.log();
+  const std::string log = batch.log();
+  EXPECT_NE(log.find("a.exr: FAILED: worker killed by SIGSEGV"), std::string::npos) << log;
+  EXPECT_NE(log.find("done 2, skipped 0, failed 1"), std::string::npos) << log;
+  EXPECT_TRUE(exr_has_channel(dir / "out/b.ssdo.exr", "ao"));
+}
+
+TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  constexpr int kFrames = 8;
+  for (int i = 0; i < kFrames; ++i) copy_example(i % 2 ? "greeble" : "cornell", dir.path / "in", numbered("f", i));
+  const fs::path out = dir.path / "out";
+  auto outputs = [&] {
+    int n = 0;
+    for (int i = 0; i < kFrames; ++i) n += path_exists(out / (numbered("f", i) + ".ssdo.exr"));
+    return n;
+  };
+  int finished_before = 0;
+  {
+    SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao", "--preset", "low"},
+                      dir.path / "batch1.log");
+    ASSERT_TRUE(wait_until([&] { return outputs() >= 2; }, 120)) << batch.log();
+    ASSERT_EQ(batch.signal_and_wait(SIGKILL, 10), 128 + SIGKILL);
+    EXPECT_TRUE(wait_until([&] { return workers_of(batch.pid()).empty(); }, 10));
+    finished_before = outputs();
+  }
+  ASSERT_LT(finished_before, kFrames) << "the batch finished before it was killed";
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + out.string() + " --jobs 2 --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  char summary[64];
+  std::snprintf(summary, sizeof summary, "done %d, skipped %d, failed 0", kFrames - finished_before, finished_before);
+  EXPECT_NE(r.output.find(summary), std::string::npos) << r.output;
+  EXPECT_EQ(outputs(), kFrames);
+  for (int i = 0; i < kFrames; ++i) EXPECT_TRUE(exr_has_channel((out / (numbered("f", i) + ".ssdo.exr")).string(), "ao"));
+  EXPECT_TRUE(temp_files(out).empty());
+  // And once more: everything is skipped.
+  const RunResult again = run_ssdo("process " + dir / "in" + " -o " + out.string() + " --terms ao --preset low");
+  EXPECT_EQ(again.exit_code, 0);
+  EXPECT_NE(again.output.find("done 0, skipped 8, failed 0"), std::string::npos) << again.output;
+}
+
+TEST(Batch, ConfigFileGivesOptionsFlagsOverrideIt) {
+  ScratchDir dir;
+  std::ofstream(dir / "config.json") << R"({"terms": "ao,ssdo", "preset": "low", "method": "hbao", "compression": "piz"})";
+  RunResult r = run_ssdo("process " + example_frame("cornell.exr") + " -o " + dir / "out" + " --config " +
+                         dir / "config.json" + " --terms ao");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "out/cornell.ssdo.exr", "ao"));
+  EXPECT_FALSE(exr_has_channel(dir / "out/cornell.ssdo.exr", "ssdo_direct.R"));  // the flag won
+  r = run_ssdo("process " + example_frame("cornell.exr") + " -o " + dir / "out2" + " --config " + dir / "config.json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "out2/cornell.ssdo.exr", "ssdo_direct.R"));  // the file's terms
+  // Unknown keys and bad values are usage errors naming the key.
+  std::ofstream(dir / "bad.json") << R"({"methd": "gtao"})";
+  r = run_ssdo("process " + example_frame("cornell.exr") + " -o " + dir / "out3" + " --config " + dir / "bad.json");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("methd"), std::string::npos) << r.output;
+  std::ofstream(dir / "bad2.json") << R"({"preset": "extreme"})";
+  r = run_ssdo("process " + example_frame("cornell.exr") + " -o " + dir / "out3" + " --config " + dir / "bad2.json");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("preset"), std::string::npos) << r.output;
+}
+
+TEST(Batch, FramesAndChunkSelectThenRerunSkipsAndPlainLinesPerFrame) {
+  ScratchDir dir;
+  for (int f = 1; f <= 10; ++f) {
+    char stem[32];
+    std::snprintf(stem, sizeof stem, "shot.%04d", f);
+    copy_example("cornell", dir.path, stem);
+  }
+  const std::string pattern = dir / "shot.%04d.exr";
+  // 1-10x3 = 1,4,7,10 plus 2 = 1,4,7,10,2; chunk 1/2 = the first 2 of 5 (floor(5/2)) = 1, 4.
+  RunResult r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 --chunk 1/2 -o " + dir / "out" +
+                         " --terms ao --preset low");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::vector<std::string> produced;
+  for (const auto& e : fs::directory_iterator(dir.path / "out"))
+    if (e.path().extension() == ".exr") produced.push_back(e.path().filename().string());
+  std::sort(produced.begin(), produced.end());
+  EXPECT_EQ(produced, (std::vector<std::string>{"shot.0001.ssdo.exr", "shot.0004.ssdo.exr"}));
+  EXPECT_EQ(count_occurrences(r.output, ": ok ("), 2) << r.output;  // one plain line per frame
+  EXPECT_NE(r.output.find("[2/2] "), std::string::npos) << r.output;
+  r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 --chunk 2/2 -o " + dir / "out" + " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("done 3, skipped 0, failed 0"), std::string::npos) << r.output;
+  r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 -o " + dir / "out" + " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("done 0, skipped 5, failed 0"), std::string::npos) << r.output;
+  // Usage errors: 2, before any work.
+  EXPECT_EQ(run_ssdo("process '" + pattern + "' --frames 1-x -o " + dir / "out").exit_code, 2);
+  EXPECT_EQ(run_ssdo("process '" + pattern + "' -o " + dir / "out").exit_code, 2);
+  EXPECT_EQ(run_ssdo("process '" + pattern + "' --frames 1 -o " + dir / "out" + " --jobs -1").exit_code, 2);
+}
+
+}  // namespace
+}  // namespace ssdo::test

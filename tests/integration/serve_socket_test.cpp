@@ -1,0 +1,284 @@
+// `ssdo serve --socket`: the real service, real clients on a real Unix socket.
+#include <atomic>
+#include <mutex>
+#include <thread>
+
+#include "service_harness.h"
+
+namespace ssdo::test {
+namespace {
+
+struct SocketService {
+  ScratchDir& dir;
+  std::string socket;
+  std::unique_ptr<SsdoProcess> process;
+  SocketService(ScratchDir& d, const std::string& tag, std::vector<std::string> extra = {})
+      : dir(d), socket(socket_path_for(tag)) {
+    fs::create_directories(dir.path / "frames");
+    copy_example("cornell", dir.path / "frames", "cornell");
+    copy_example("greeble", dir.path / "frames", "greeble");
+    std::vector<std::string> args = {"serve",  "--socket", socket,  "-o",       dir / "out", "--allow",
+                                     dir / "frames", "--terms", "ao", "--preset", "low", "--frame-timeout", "20",
+                                     "--memory-limit", "2048"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    process = std::make_unique<SsdoProcess>(args, dir.path / ("serve-" + tag + ".log"));
+    ready = process->wait_for_log("ready", 30);
+  }
+  bool ready = false;
+  std::string log() const { return process->log(); }
+};
+
+json process_path(const std::string& socket, const std::string& input, json extra = json::object()) {
+  Client c(socket);
+  json request{{"op", "process"}, {"input", input}};
+  request.update(extra);
+  return c.request(request);
+}
+
+long peak_rss_kb(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stol(line.substr(6));
+  return -1;
+}
+
+TEST(ServeSocket, SixteenClientsFourRequestsEachByPathAndInline) {
+  ScratchDir dir;
+  SocketService service(dir, "sixteen");
+  ASSERT_TRUE(service.ready) << service.log();
+  struct stat st {};
+  ASSERT_EQ(::stat(service.socket.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+
+  const std::string frame_bytes = read_text(dir.path / "frames" / "cornell.exr");
+  const json sidecar = json::parse(read_text(dir.path / "frames" / "cornell.camera.json"));
+  constexpr int kClients = 16, kRequests = 4;
+  std::mutex mutex;
+  std::vector<std::string> failures;
+  std::atomic<int> answered{0};
+  std::vector<std::thread> clients;
+  for (int c = 0; c < kClients; ++c) {
+    clients.emplace_back([&, c] {
+      Client client(service.socket);  // one connection, several requests
+      for (int r = 0; r < kRequests; ++r) {
+        const std::string tag = "c" + std::to_string(c) + "_" + std::to_string(r);
+        std::string problem;
+        if ((c + r) % 2 == 0) {
+          const std::string output = dir / ("out/" + tag + ".ssdo.exr");
+          const json reply = client.request({{"op", "process"},
+                                             {"id", tag},
+                                             {"input", dir / ((c % 2) ? "frames/greeble.exr" : "frames/cornell.exr")},
+                                             {"output", output}});
+          if (!reply.value("ok", false) || reply.value("id", "") != tag || reply.value("output", "") != output ||
+              !exr_has_channel(output, "ao"))
+            problem = tag + " by path: " + reply.dump();
+        } else {
+          std::string bytes;
+          const json reply = client.request(
+              {{"op", "process"}, {"id", tag}, {"name", tag}, {"sidecar", sidecar}, {"reply", "inline"}}, frame_bytes,
+              &bytes);
+          const std::string saved = dir / ("inline_" + tag + ".exr");
+          std::ofstream(saved, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+          if (!reply.value("ok", false) || reply.value("id", "") != tag || bytes.size() < 4 ||
+              !exr_has_channel(saved, "ao_denoised"))
+            problem = tag + " inline: " + reply.dump();
+        }
+        ++answered;
+        if (!problem.empty()) {
+          std::lock_guard<std::mutex> lock(mutex);
+          failures.push_back(problem);
+        }
+      }
+    });
+  }
+  for (auto& t : clients) t.join();
+  EXPECT_EQ(answered.load(), kClients * kRequests);
+  EXPECT_TRUE(failures.empty()) << failures.size() << " failed, first: " << failures.front();
+  const json s = stats(service.socket);
+  EXPECT_EQ(s.value("frames_done", 0), kClients * kRequests) << s.dump();
+  EXPECT_EQ(s.value("frames_failed", -1), 0) << s.dump();
+  const long rss = peak_rss_kb(service.process->pid());
+  RecordProperty("service_peak_rss_kb", std::to_string(rss));
+  std::cout << "service peak RSS under " << kClients << " clients: " << rss / 1024 << " MiB\n";
+  // The spool holds nothing once the replies are sent.
+  EXPECT_TRUE(fs::is_empty(dir.path / "out" / ".ssdo-spool"));
+  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 0);
+  EXPECT_FALSE(path_exists(service.socket));
+}
+
+TEST(ServeSocket, MalformedOversizeAndEscapingRequestsAreRefusedServiceStaysHealthy) {
+  ScratchDir dir;
+  SocketService service(dir, "refuse", {"--max-request-bytes", "4096", "--max-inline-mb", "1", "--client-timeout", "2"});
+  ASSERT_TRUE(service.ready) << service.log();
+  const std::string& socket = service.socket;
+
+  {  // Not JSON.
+    Client c(socket);
+    ASSERT_EQ(write_message(c.fd(), "hello", deadline_in(5)), IoStatus::ok);
+    EXPECT_EQ(c.read_response().value("code", ""), "bad_request");
+  }
+  {  // JSON, but not a valid request.
+    Client c(socket);
+    EXPECT_EQ(c.request({{"op", "process"}}).value("code", ""), "bad_request");
+  }
+  {  // A header larger than --max-request-bytes: refused from its length alone.
+    Client c(socket);
+    unsigned char prefix[4];
+    encode_length(100000, prefix);
+    ASSERT_EQ(write_all(c.fd(), prefix, 4, deadline_in(5)), IoStatus::ok);
+    EXPECT_EQ(c.read_response().value("code", ""), "too_large");
+  }
+  {  // An inline frame larger than --max-inline-mb.
+    Client c(socket);
+    const json reply = c.request({{"op", "process"}, {"inline_size", 2 << 20}});
+    EXPECT_EQ(reply.value("code", ""), "bad_request") << reply.dump();
+    EXPECT_NE(reply.value("error", "").find("limit"), std::string::npos) << reply.dump();
+  }
+  // Paths escaping --allow: "..", a symlink pointing out, an output outside --out.
+  fs::create_directories(dir.path / "secret");
+  copy_example("cornell", dir.path / "secret", "secret");
+  fs::create_symlink(dir.path / "secret" / "secret.exr", dir.path / "frames" / "link.exr");
+  for (const std::string& input : {dir / "frames/../secret/secret.exr", dir / "frames/link.exr", std::string("/etc/passwd")}) {
+    const json reply = process_path(socket, input);
+    EXPECT_EQ(reply.value("code", ""), "forbidden") << input << ": " << reply.dump();
+  }
+  for (const std::string& output : {dir / "frames/x.ssdo.exr", dir / "out/../x.ssdo.exr"}) {
+    const json reply = process_path(socket, dir / "frames/cornell.exr", {{"output", output}});
+    EXPECT_EQ(reply.value("code", ""), "forbidden") << output << ": " << reply.dump();
+  }
+  {  // Option paths are checked too.
+    const json reply = process_path(socket, dir / "frames/cornell.exr", {{"options", {{"camera", "/etc/hostname"}}}});
+    EXPECT_EQ(reply.value("code", ""), "forbidden") << reply.dump();
+    const json bad = process_path(socket, dir / "frames/cornell.exr", {{"options", {{"method", "magic"}}}});
+    EXPECT_EQ(bad.value("code", ""), "bad_request") << bad.dump();
+  }
+  EXPECT_FALSE(path_exists(dir.path / "x.ssdo.exr"));
+  EXPECT_FALSE(path_exists(dir.path / "frames" / "x.ssdo.exr"));
+
+  {  // A silent client does not block others, and is timed out.
+    Client silent(socket);
+    ASSERT_TRUE(silent.connected());
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_EQ(ping(socket).value("ok", false), true);
+    EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 1.0);
+    EXPECT_EQ(silent.read_response(nullptr, 10).value("code", ""), "timeout");
+  }
+  // Still healthy: a good frame is processed.
+  const json good = process_path(socket, dir / "frames/cornell.exr");
+  EXPECT_EQ(good.value("ok", false), true) << good.dump();
+  EXPECT_TRUE(exr_has_channel(good.value("output", ""), "ao"));
+  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 0);
+}
+
+TEST(ServeSocket, FullQueueAnswersBusy) {
+  ScratchDir dir;
+  SocketService service(dir, "busy", {"--jobs", "1", "--queue", "1"});
+  ASSERT_TRUE(service.ready) << service.log();
+  constexpr int kClients = 6;
+  std::vector<json> replies(kClients);
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kClients; ++i)
+    threads.emplace_back([&, i] {
+      replies[i] = process_path(service.socket, dir / "frames/greeble.exr",
+                                {{"output", dir / ("out/b" + std::to_string(i) + ".ssdo.exr")},
+                                 {"options", {{"preset", "high"}}}});
+    });
+  for (auto& t : threads) t.join();
+  int ok = 0, busy = 0;
+  for (const json& r : replies) {
+    ok += r.value("ok", false);
+    busy += r.value("code", "") == "busy";
+  }
+  EXPECT_GE(ok, 1);
+  EXPECT_GE(busy, 1);
+  EXPECT_EQ(ok + busy, kClients);
+  EXPECT_EQ(ping(service.socket).value("ok", false), true);
+}
+
+TEST(ServeSocket, PoisonFramesOverTheSocketEachGetAnError) {
+  SSDO_REQUIRE_CONFORMANCE();
+  ScratchDir dir;
+  const std::string damaged = (shared_dir() / "exr-conformance" / "damaged").string();
+  SocketService service(dir, "poison", {"--allow", damaged, "--frame-timeout", "5", "--memory-limit", "1024"});
+  ASSERT_TRUE(service.ready) << service.log();
+  const auto files = damaged_files();
+  std::atomic<size_t> next{0};
+  std::atomic<int> errors{0};
+  std::mutex mutex;
+  std::vector<std::string> unexpected;
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      Client c(service.socket);
+      for (size_t i; (i = next.fetch_add(1)) < files.size();) {
+        // Half by path, half inline.
+        json reply;
+        if (i % 2) {
+          reply = c.request({{"op", "process"}, {"input", files[i].string()}});
+        } else {
+          std::string bytes = read_text(files[i]);
+          if (bytes.empty()) bytes = " ";
+          reply = c.request({{"op", "process"}, {"name", "poison" + std::to_string(i)}}, bytes);
+        }
+        if (reply.value("code", "") == "frame_failed") {
+          ++errors;
+        } else {
+          std::lock_guard<std::mutex> lock(mutex);
+          unexpected.push_back(files[i].filename().string() + ": " + reply.dump());
+        }
+      }
+      (void)t;
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(errors.load(), int(files.size()));
+  EXPECT_TRUE(unexpected.empty()) << unexpected.front();
+  EXPECT_EQ(ping(service.socket).value("ok", false), true);
+  const json good = process_path(service.socket, dir / "frames/cornell.exr");
+  EXPECT_EQ(good.value("ok", false), true) << good.dump();
+  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 0);
+}
+
+TEST(ServeSocket, GracefulStopFinishesTheFrameInFlight) {
+  ScratchDir dir;
+  SocketService service(dir, "graceful", {"--jobs", "1"});
+  ASSERT_TRUE(service.ready) << service.log();
+  json reply;
+  std::thread slow([&] {
+    reply = process_path(service.socket, dir / "frames/cornell.exr", {{"options", {{"preset", "ultra"}}}});
+  });
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
+  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 60), 0) << service.log();
+  slow.join();
+  EXPECT_EQ(reply.value("ok", false), true) << reply.dump();
+  EXPECT_TRUE(exr_has_channel(reply.value("output", ""), "ao"));
+  EXPECT_FALSE(path_exists(service.socket));
+}
+
+TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
+  ScratchDir dir;
+  SocketService service(dir, "client");
+  ASSERT_TRUE(service.ready) << service.log();
+  const std::string s = " --socket " + service.socket + " ";
+  RunResult r = run_ssdo("client" + s + "ping");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"ok\":true"), std::string::npos) << r.output;
+  r = run_ssdo("client" + s + "stats");
+  EXPECT_NE(r.output.find("queue_depth"), std::string::npos) << r.output;
+  r = run_ssdo("client" + s + "process " + dir / "frames/cornell.exr" + " " + dir / "frames/greeble.exr");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "out/cornell.ssdo.exr", "ao"));
+  EXPECT_TRUE(exr_has_channel(dir / "out/greeble.ssdo.exr", "ao"));
+  r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " " + example_frame("cornell.exr") +
+               " --terms ao,ssdo");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "inline/cornell.ssdo.exr", "ssdo_direct.R")) << r.output;
+  // A frame outside --allow: an error, exit 1.
+  r = run_ssdo("client" + s + "process " + example_frame("cornell.exr"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("forbidden"), std::string::npos) << r.output;
+  EXPECT_EQ(run_ssdo("client --socket /nonexistent.sock ping").exit_code, 2);
+}
+
+}  // namespace
+}  // namespace ssdo::test

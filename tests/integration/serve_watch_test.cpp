@@ -1,0 +1,279 @@
+// `ssdo serve --watch`: the real service on a real folder, with inotify.
+#include <atomic>
+#include <fstream>
+#include <thread>
+
+
+#include "service_harness.h"
+
+namespace ssdo::test {
+namespace {
+
+std::vector<std::string> serve_args(const ScratchDir& dir, const std::string& socket,
+                                    std::vector<std::string> extra = {}) {
+  std::vector<std::string> args = {"serve",   "--watch", dir / "in", "-o",      dir / "out",    "--socket",
+                                   socket,    "--terms", "ao",       "--preset", "low",          "--frame-timeout",
+                                   "20",      "--memory-limit", "2048"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return args;
+}
+
+// A frame written the way a slow renderer writes it: one open file, several writes with
+// pauses, one close.
+void write_slowly(const std::string& from, const fs::path& to) {
+  const std::string bytes = read_text(from);
+  std::ofstream out(to, std::ios::binary);
+  const size_t piece = bytes.size() / 4 + 1;
+  for (size_t at = 0; at < bytes.size(); at += piece) {
+    out.write(bytes.data() + at, std::streamsize(std::min(piece, bytes.size() - at)));
+    out.flush();
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  }
+}
+
+// A valid EXR without depth: the frame has channels, not the ones a G-buffer needs.
+void write_rgb_exr(const fs::path& path) {
+  OIIO::ImageSpec spec(8, 8, 3, OIIO::TypeDesc::HALF);
+  std::vector<float> pixels(8 * 8 * 3, 0.5f);
+  auto out = OIIO::ImageOutput::create(path.string());
+  ASSERT_TRUE(out && out->open(path.string(), spec));
+  out->write_image(OIIO::TypeDesc::FLOAT, pixels.data());
+  out->close();
+}
+
+TEST(ServeWatch, TenFramesEachProcessedOnceBadOneGetsItsErrorFile) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  // Already there before the service starts.
+  copy_example("cornell", in, "pre0");
+  copy_example("greeble", in, "pre1");
+  const std::string socket = socket_path_for("watch10");
+  SsdoProcess service(serve_args(dir, socket), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+
+  for (int i = 0; i < 5; ++i) copy_example(i % 2 ? "greeble" : "cornell", in, "drop" + std::to_string(i));
+  // Written slowly in pieces: must not be read before it is closed.
+  fs::copy_file(example_frame("cornell.camera.json"), in / "slow.camera.json");
+  std::thread slow([&] { write_slowly(example_frame("cornell.exr"), in / "slow.exr"); });
+  // Written under another name and renamed into place.
+  fs::copy_file(example_frame("greeble.camera.json"), in / "moved.camera.json");
+  fs::copy_file(example_frame("greeble.exr"), in / "moved.partial");
+  fs::rename(in / "moved.partial", in / "moved.exr");
+  // Corrupt: a truncated EXR.
+  {
+    const std::string bytes = read_text(example_frame("cornell.exr"));
+    std::ofstream(in / "bad.exr", std::ios::binary).write(bytes.data(), 2000);
+  }
+  slow.join();
+
+  const std::vector<std::string> good = {"pre0", "pre1", "drop0", "drop1", "drop2", "drop3", "drop4", "slow", "moved"};
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (const auto& g : good)
+          if (!path_exists(out / (g + ".ssdo.exr"))) return false;
+        return path_exists(out / "bad.error.json");
+      },
+      120))
+      << service.log();
+  // Nothing left to do, nothing done twice.
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const json s = stats(socket);
+        return s.value("queue_depth", 1) == 0 && s.value("in_flight", 1) == 0;
+      },
+      30));
+  const std::string log = service.log();
+  for (const auto& g : good) {
+    EXPECT_EQ(count_occurrences(log, "ok " + (in / (g + ".exr")).string() + " ->"), 1) << g << "\n" << log;
+    EXPECT_TRUE(exr_has_channel((out / (g + ".ssdo.exr")).string(), "ao")) << g;
+    EXPECT_FALSE(path_exists(out / (g + ".error.json"))) << g;
+  }
+  EXPECT_EQ(count_occurrences(log, "FAILED " + (in / "bad.exr").string()), 1) << log;
+  const json error = json::parse(read_text(out / "bad.error.json"), nullptr, false);
+  ASSERT_TRUE(error.is_object());
+  EXPECT_NE(error.value("error", "").find("bad.exr"), std::string::npos) << error.dump();
+  EXPECT_FALSE(path_exists(out / "bad.ssdo.exr"));
+  EXPECT_TRUE(temp_files(out).empty());
+
+  const json s = stats(socket);
+  EXPECT_EQ(s.value("frames_done", -1), 9) << s.dump();
+  EXPECT_EQ(s.value("frames_failed", -1), 1) << s.dump();
+  EXPECT_EQ(ping(socket).value("ok", false), true);
+
+  // Graceful stop: exit 0, socket removed.
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0) << service.log();
+  EXPECT_FALSE(path_exists(socket));
+  EXPECT_TRUE(workers_of(service.pid()).empty());
+}
+
+TEST(ServeWatch, FailedFramesCorruptMissingChannelsEmptyDeletedReplaced) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  fs::create_directories(dir.path / "busy");
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  const std::string socket = socket_path_for("failures");
+  // One worker, so frames queue behind a slow one and can be changed while queued.
+  SsdoProcess service(serve_args(dir, socket, {"--jobs", "1", "--allow", dir / "busy"}), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+
+  // Keep the worker busy: the slow ray-marching oracle on a frame, asked over the socket.
+  copy_example("cornell", dir.path / "busy", "busy");
+  std::atomic<bool> busy_done{false};
+  json busy_reply;
+  std::thread busy([&] {
+    Client c(socket);
+    busy_reply = c.request({{"op", "process"},
+                            {"input", dir / "busy/busy.exr"},
+                            {"options", {{"method", "raymarch"}, {"preset", "ultra"}}}});
+    busy_done = true;
+  });
+  ASSERT_TRUE(wait_until([&] { return stats(socket).value("in_flight", 0) == 1; }, 20));
+
+  std::ofstream(in / "corrupt.exr") << "this is not an EXR file";
+  write_rgb_exr(in / "nodepth.exr");
+  std::ofstream(in / "empty.exr").close();
+  copy_example("cornell", in, "deleted");
+  // Replaced while queued: a corrupt version first, then a good one renamed over it.
+  std::ofstream(in / "replaced.exr") << "corrupt first version";
+  fs::copy_file(example_frame("cornell.camera.json"), in / "replaced.camera.json");
+  ASSERT_TRUE(wait_until([&] { return stats(socket).value("queue_depth", 0) == 5; }, 20)) << stats(socket).dump();
+  fs::remove(in / "deleted.exr");
+  fs::copy_file(example_frame("cornell.exr"), in / "replaced.partial");
+  fs::rename(in / "replaced.partial", in / "replaced.exr");
+
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (const char* n : {"corrupt", "nodepth", "empty", "deleted"})
+          if (!path_exists(out / (std::string(n) + ".error.json"))) return false;
+        return path_exists(out / "replaced.ssdo.exr") && busy_done;
+      },
+      120))
+      << service.log();
+  auto error_of = [&](const std::string& name) {
+    return json::parse(read_text(out / (name + ".error.json")), nullptr, false).value("error", "");
+  };
+  EXPECT_NE(error_of("corrupt").find("not an OpenEXR file"), std::string::npos) << error_of("corrupt");
+  EXPECT_NE(error_of("nodepth").find("depth"), std::string::npos) << error_of("nodepth");
+  EXPECT_NE(error_of("empty").find("empty file"), std::string::npos) << error_of("empty");
+  EXPECT_NE(error_of("deleted").find("deleted"), std::string::npos) << error_of("deleted");
+  EXPECT_FALSE(path_exists(out / "replaced.error.json"));
+  EXPECT_TRUE(exr_has_channel((out / "replaced.ssdo.exr").string(), "ao"));
+  EXPECT_EQ(busy_reply.value("ok", false), true) << busy_reply.dump();
+  busy.join();
+  EXPECT_EQ(ping(socket).value("ok", false), true);
+
+  // A failed frame rewritten correctly: processed, its error file removed.
+  copy_example("cornell", in, "corrupt");
+  ASSERT_TRUE(wait_until([&] { return path_exists(out / "corrupt.ssdo.exr") && !path_exists(out / "corrupt.error.json"); }, 60))
+      << service.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
+TEST(ServeWatch, PollFindsFramesWithoutEvents) {
+  // --poll: frames that inotify does not report (as on network file systems) are found
+  // by rescanning.
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("poll");
+  SsdoProcess service(serve_args(dir, socket, {"--poll", "0.2"}), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  // A hard link made in the watched folder creates no IN_CLOSE_WRITE / IN_MOVED_TO event
+  // (only IN_CREATE): only a rescan can find it.
+  fs::create_directories(dir.path / "elsewhere");
+  copy_example("cornell", dir.path / "elsewhere", "linked");
+  fs::copy_file(example_frame("cornell.camera.json"), dir.path / "in" / "linked.camera.json");
+  fs::create_hard_link(dir.path / "elsewhere" / "linked.exr", dir.path / "in" / "linked.exr");
+  EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "linked.ssdo.exr"); }, 60)) << service.log();
+}
+
+TEST(ServeWatch, PoisonFramesEachGetAnErrorAndTheServiceStaysUp) {
+  SSDO_REQUIRE_CONFORMANCE();
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  const std::string socket = socket_path_for("poisonwatch");
+  SsdoProcess service(serve_args(dir, socket, {"--frame-timeout", "5", "--memory-limit", "1024", "--jobs", "2"}),
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  const auto files = damaged_files();
+  ASSERT_EQ(files.size(), 185u);
+  for (const fs::path& f : files) {
+    fs::copy_file(f, in / (f.filename().string() + ".partial"));
+    fs::rename(in / (f.filename().string() + ".partial"), in / (f.filename().string() + ".exr"));
+  }
+  auto error_files = [&] {
+    int n = 0;
+    for (const fs::path& f : files) n += path_exists(out / (f.filename().string() + ".error.json"));
+    return n;
+  };
+  EXPECT_TRUE(wait_until([&] { return error_files() == int(files.size()); }, 300)) << error_files();
+  EXPECT_EQ(ping(socket).value("ok", false), true);
+  EXPECT_TRUE(service.running());
+  copy_example("cornell", in, "good_after_poison");
+  EXPECT_TRUE(wait_until([&] { return path_exists(out / "good_after_poison.ssdo.exr"); }, 60)) << service.log();
+  EXPECT_TRUE(exr_has_channel((out / "good_after_poison.ssdo.exr").string(), "ao"));
+  const json s = stats(socket);
+  EXPECT_EQ(s.value("frames_failed", 0), int(files.size())) << s.dump();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
+TEST(ServeWatch, KillNineThenRestartProcessesEveryFrameExactlyOnce) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  constexpr int kFrames = 8;
+  for (int i = 0; i < kFrames; ++i) copy_example(i % 2 ? "greeble" : "cornell", in, numbered("f", i));
+  auto outputs = [&] {
+    int n = 0;
+    for (int i = 0; i < kFrames; ++i) n += path_exists(out / (numbered("f", i) + ".ssdo.exr"));
+    return n;
+  };
+  const std::string socket = socket_path_for("kill9");
+  struct Stamp {
+    fs::file_time_type time;
+    ino_t inode;
+  };
+  std::map<std::string, Stamp> before;
+  {
+    SsdoProcess service(serve_args(dir, socket, {"--jobs", "1"}), dir.path / "serve1.log");
+    ASSERT_TRUE(wait_until([&] { return outputs() >= 2; }, 120)) << service.log();
+    ASSERT_EQ(service.signal_and_wait(SIGKILL, 10), 128 + SIGKILL);
+    // Its workers die with it.
+    EXPECT_TRUE(wait_until([&] { return workers_of(service.pid()).empty(); }, 10));
+    for (int i = 0; i < kFrames; ++i) {
+      const fs::path p = out / (numbered("f", i) + ".ssdo.exr");
+      struct stat st {};
+      if (::stat(p.c_str(), &st) == 0) before[p.string()] = {fs::last_write_time(p), st.st_ino};
+    }
+  }
+  ASSERT_LT(int(before.size()), kFrames) << "the service finished before it was killed";
+  SsdoProcess service(serve_args(dir, socket, {"--jobs", "1"}), dir.path / "serve2.log");
+  ASSERT_TRUE(wait_until([&] { return outputs() == kFrames; }, 120)) << service.log();
+  ASSERT_TRUE(wait_until(
+      [&] {
+        const json s = stats(socket);
+        return s.value("queue_depth", 1) == 0 && s.value("in_flight", 1) == 0;
+      },
+      30));
+  const std::string log = service.log();
+  for (int i = 0; i < kFrames; ++i) {
+    const fs::path p = out / (numbered("f", i) + ".ssdo.exr");
+    EXPECT_TRUE(exr_has_channel(p.string(), "ao")) << p;
+    const int runs = count_occurrences(log, "ok " + (in / (numbered("f", i) + ".exr")).string() + " ->");
+    if (before.count(p.string())) {
+      struct stat st {};
+      ::stat(p.c_str(), &st);
+      EXPECT_EQ(st.st_ino, before[p.string()].inode) << p << " was rewritten";
+      EXPECT_EQ(fs::last_write_time(p), before[p.string()].time) << p << " was rewritten";
+      EXPECT_EQ(runs, 0) << p;
+    } else {
+      EXPECT_EQ(runs, 1) << p << "\n" << log;
+    }
+  }
+  EXPECT_TRUE(temp_files(out).empty());
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
+}  // namespace
+}  // namespace ssdo::test
