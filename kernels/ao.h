@@ -100,8 +100,9 @@ struct AoInputs {
   const Camera& camera;
   const cv::Mat* albedo = nullptr;  // CV_32FC3 or null (multi-bounce only)
   // CV_32FC1 second depth layer (GBuffer::depth_back_view) or null. When given, the
-  // methods that model occluder thickness (raymarch) take each tap's own thickness
-  // depth_back_view - depth_view instead of thickness_world (+inf back = solid behind).
+  // methods that model occluder thickness (raymarch; GTAO's visibility mask at full
+  // resolution) take each tap's own thickness depth_back_view - depth_view instead of
+  // thickness_world (+inf back = solid behind).
   const cv::Mat* depth_back_view = nullptr;
 };
 

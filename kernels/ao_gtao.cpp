@@ -148,6 +148,12 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const bool perspective = camera.is_perspective();
   std::vector<Texel> texels;
   build_texels(in, texels, nthreads);
+  // Second depth layer, when given: per-tap thickness of the visibility mask's segments.
+  const cv::Mat* back = !k.height_field && in.depth_back_view != nullptr &&
+                                !in.depth_back_view->empty() &&
+                                in.depth_back_view->size() == in.depth_view.size()
+                            ? in.depth_back_view
+                            : nullptr;
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
   // slice in the pixel loop.
   std::vector<std::array<float, 2>> slice_rot(size_t(k.slices));
@@ -297,7 +303,19 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
               if (disc >= 0.0f) {
                 const float root = std::sqrt(disc);
                 const float t0 = std::max(0.0f, -b - root);
-                const float t1 = std::min(k.thickness_world, -b + root);
+                // With a back-face layer (AoInputs::depth_back_view) the segment is the
+                // tap's own thickness, back - front in planar depth, as a length along r:
+                // divided by |r.z| (= depth / |tap| in perspective, 1 orthographic).
+                float thickness = k.thickness_world;
+                if (back != nullptr) {
+                  const float d_back = back->ptr<float>(sy)[sx];
+                  const float planar = d_back > tx.depth_view ? d_back - tx.depth_view : 0.0f;
+                  thickness = perspective ? planar *
+                                                std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z) /
+                                                tx.depth_view
+                                          : planar;
+                }
+                const float t1 = std::min(thickness, -b + root);
                 if (t1 >= t0) {
                   // Cosines and sines (unsigned angles from the view vector) of the segment's
                   // two ends in the slice plane: sin = |direction coordinate| / length.

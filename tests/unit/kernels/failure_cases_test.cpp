@@ -177,6 +177,24 @@ TEST(FailureCases, MitigationBackFaceDepth) {
   }
 }
 
+// The same for GTAO's visibility mask (high: full resolution; the half-resolution grid of
+// low and medium does not carry the back layer).
+TEST(FailureCases, MitigationBackFaceDepthGtao) {
+  std::printf("back-face depth (gtao high): MAE without -> with\n");
+  const AoSettings s = settings_of({AoMethod::gtao, Preset::high});
+  for (const Case& c : suite()) {
+    const Result b = evaluate(c, s, false), a = evaluate(c, s, true);
+    std::printf("  %-14s %.3f -> %.3f   max %.2f -> %.2f   flicker %.4f -> %.4f\n",
+                c.name.c_str(), b.err.mae, a.err.mae, b.err.max_abs, a.err.max_abs, b.flicker,
+                a.flicker);
+    if (c.name == "thin") {
+      EXPECT_LT(a.err.mae, b.err.mae);
+    } else {
+      EXPECT_LE(a.err.mae, b.err.mae + 0.005) << c.name;
+    }
+  }
+}
+
 // Guard band: the renderer draws kGuard pixels more on every side (the same projection per
 // pixel: a wider field of view), the methods run on the larger frame and the centre is
 // cropped. The occluders just outside the frame are then seen.
