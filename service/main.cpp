@@ -48,19 +48,23 @@ void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
                  "Worker processes = frames computed at once (0 = one per core, each with cores/jobs "
                  "threads; see also --threads)")
       ->check(CLI::Range(0, 256))
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");
   cmd.add_option("--frame-timeout", limits.frame_timeout_s,
                  "Seconds a frame may take (read + compute + write) before its worker is killed")
       ->check(CLI::PositiveNumber)
       ->capture_default_str()
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");
   cmd.add_option("--memory-limit", limits.memory_limit_mb, "Address-space limit of each worker, MiB")
       ->check(CLI::Range(int64_t(256), int64_t(1) << 22))
       ->capture_default_str()
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");
   cmd.add_option("--max-pixels", limits.max_pixels, "Largest frame (width x height) a worker decodes")
       ->check(CLI::Range(int64_t(1), int64_t(1) << 34))
       ->capture_default_str()
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");
 }
 
