@@ -81,7 +81,7 @@ int run_process(const ProcessArgs& args) {
   BatchProgress progress(int(frames.size()), int(todo.size()), bar, args.verbose);
   for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
 
-  const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, todo.size());
+  const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, false);
   WorkerLimits limits = args.limits;
   limits.threads = plan.threads_per_frame;
   if (args.verbose)

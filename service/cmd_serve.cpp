@@ -67,7 +67,7 @@ int run_serve(const ServeArgs& args) {
   ::pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   ::signal(SIGPIPE, SIG_IGN);
 
-  const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, 0);
+  const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, true);
   FrameServiceOptions service_options;
   service_options.out_dir = out_dir;
   service_options.watch_options = to_json(args.options);

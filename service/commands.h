@@ -33,7 +33,7 @@ struct ProcessArgs {
   FrameOptionArgs options;          // every frame's options (checked by the caller)
   bool force = false;               // recompute frames whose output is up to date
   bool verbose = false;             // per-stage timings per frame
-  int jobs = 0;                     // worker processes (frames in parallel); 0 = plan_parallelism
+  int jobs = 0;                     // worker processes (frames in parallel); 0 = one, with every core
   WorkerLimits limits;              // memory and time per frame (threads: from the plan)
 };
 int run_process(const ProcessArgs& args);

@@ -45,8 +45,8 @@ bool frame_options(const CLI::App& cmd, const std::string& config, FrameOptionAr
 // Limits of the worker processes (memory, time, image size).
 void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
   cmd.add_option("-j,--jobs", jobs,
-                 "Worker processes = frames computed at once (0 = one per core, each with cores/jobs "
-                 "threads; see also --threads)")
+                 "Worker processes = frames computed at once, each with cores/jobs threads (0 = "
+                 "process: 1 worker with every core; serve: one worker per core)")
       ->check(CLI::Range(0, 256))
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");

@@ -14,17 +14,12 @@ int available_cores() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
-Parallelism plan_parallelism(int jobs, int threads, size_t frames) {
+Parallelism plan_parallelism(int jobs, int threads, bool service) {
   const int cores = available_cores();
   Parallelism p;
-  if (jobs > 0) {
-    p.workers = jobs;
-  } else {
-    p.workers = cores;
-    if (frames > 0) p.workers = int(std::min<size_t>(size_t(cores), frames));
-    if (threads > 0) p.workers = std::max(1, std::min(p.workers, cores / threads));
-  }
-  p.workers = std::max(1, p.workers);
+  if (jobs > 0) p.workers = jobs;
+  else if (threads > 0) p.workers = std::max(1, cores / threads);
+  else p.workers = service ? cores : 1;
   p.threads_per_frame = threads > 0 ? threads : std::max(1, cores / p.workers);
   return p;
 }

@@ -1,9 +1,13 @@
 // One owner of parallelism. OpenCV runs nested parallel_for_ calls serially and OpenCV,
-// OpenEXR and OpenImageIO each keep their own pool, so a batch either computes several
-// frames at once (one worker process per frame, one thread each) or one frame at a time
-// with every thread inside it; never both. Measured on 2 cores (README.md, "Batch and
-// service"): frames in parallel are faster for 640x360 and for 1080p frames, because
-// reading, denoising and writing are partly serial inside a frame.
+// OpenEXR and OpenImageIO each keep their own pool, so frames are computed either one at
+// a time with every thread inside the frame, or several at once (one worker process per
+// frame, one thread each); never both.
+// Measured on 2 cores shared with other jobs (README.md, "Batch and service"): a batch
+// of 640x360 frames runs at the same speed both ways (within noise), a batch of 1080p
+// frames 7 % faster one frame at a time, which also needs one worker (one start-up, one
+// frame in memory). So a batch computes one frame at a time by default. A service runs
+// one worker per core instead: concurrent requests are served side by side and a frame
+// that stalls until --frame-timeout holds one worker, not the service.
 #pragma once
 
 #include <cstddef>
@@ -18,9 +22,9 @@ struct Parallelism {
 // CPUs this process may run on (its affinity mask), at least 1.
 int available_cores();
 
-// jobs > 0: that many workers; threads > 0: that many threads per frame; 0 = decide:
-// across frames (workers = min(cores, frames), threads = cores / workers). `frames` = how
-// many frames the batch will compute (a service passes 0 for "unknown, many").
-Parallelism plan_parallelism(int jobs, int threads, size_t frames);
+// jobs > 0: that many workers; threads > 0: that many threads per frame. Otherwise, for
+// a batch (`service` false): one worker with every core; for a service: one worker per
+// core, one thread each. `threads` alone sets the workers to cores / threads.
+Parallelism plan_parallelism(int jobs, int threads, bool service);
 
 }  // namespace ssdo
