@@ -1,9 +1,11 @@
 #include "service/cli_options.h"
 
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 
 #include "formats/env_map.h"
+#include "service/quality.h"
 
 namespace ssdo {
 
@@ -36,6 +38,15 @@ void add_compute_options(CLI::App& app, ComputeOptionArgs& a, bool with_terms) {
       ->group("Compute");
   app.add_option("--preset", a.preset, "Quality preset: low, medium, high, ultra")
       ->check(CLI::IsMember({"low", "medium", "high", "ultra"}))
+      ->capture_default_str()
+      ->group("Compute");
+  app.add_option("--quality", a.quality,
+                 "auto: the fastest method and preset whose error on the shipped calibration "
+                 "frames (MAE against ray-traced AO) is at most --max-error; the choice is printed")
+      ->check(CLI::IsMember({"auto"}))
+      ->group("Compute");
+  app.add_option("--max-error", a.max_error, "Largest acceptable MAE for --quality auto")
+      ->check(CLI::Range(0.0f, 1.0f))
       ->capture_default_str()
       ->group("Compute");
   app.add_option("--radius", a.radius_world,
@@ -219,8 +230,18 @@ bool resolve_read_options(const ReadOptionArgs& a, ReadOptions& read, std::strin
 }
 
 bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error) {
-  const auto method = parse_ao_method(a.method);
-  const auto preset = parse_preset(a.preset);
+  auto method = parse_ao_method(a.method);
+  auto preset = parse_preset(a.preset);
+  if (a.quality == "auto") {
+    bool met = false;
+    const CalibrationEntry choice = choose_quality(shipped_calibration(), a.max_error, met);
+    method = choice.method;
+    preset = choice.preset;
+    std::fprintf(stderr, "ssdo: --quality auto --max-error %.3g: %s %s (calibrated MAE %.3f, %.0f ms at 640x360)%s\n",
+                 a.max_error, std::string(to_string(choice.method)).c_str(),
+                 std::string(to_string(choice.preset)).c_str(), choice.mae, choice.ms,
+                 met ? "" : "; no method reaches that error, this is the most accurate");
+  }
   if (!method || !preset) {
     error = "unknown method or preset: " + a.method + " / " + a.preset;
     return false;

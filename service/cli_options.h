@@ -36,6 +36,9 @@ struct ComputeOptionArgs {
   float env_constant = 0;         // uniform radiance (0 = unset)
   std::string env_up = "z";
   std::string composite;          // mode or weighted term list
+  // --quality auto --max-error E: method and preset from the shipped calibration table
+  std::string quality;            // "" (method/preset as given) or "auto"
+  float max_error = 0.05f;        // MAE against ray-traced AO, for --quality auto
 };
 
 void add_read_options(CLI::App& app, ReadOptionArgs& args);

@@ -60,7 +60,7 @@ const std::vector<std::string>& frame_option_keys() {
   static const std::vector<std::string> keys = {
       "map",  "camera", "fov",      "depth-kind",  "part",        "method", "preset",       "radius",
       "thickness", "threads", "terms", "ssdo-method", "ssdo-preset", "env",    "sky", "env-constant",
-      "env-up", "composite", "compression", "png"};
+      "env-up", "composite", "compression", "png", "quality", "max-error"};
   return keys;
 }
 
@@ -85,6 +85,8 @@ json to_json(const FrameOptionArgs& a) {
               {"env-constant", c.env_constant},
               {"env-up", c.env_up},
               {"composite", c.composite},
+              {"quality", c.quality},
+              {"max-error", c.max_error},
               {"compression", a.compression},
               {"png", a.png}};
 }
@@ -167,6 +169,15 @@ bool apply_json(const json& j, FrameOptionArgs& a, std::string& error,
     else if (k == "env-constant") ok = get_number(v, k, 0, 1e30, c.env_constant, error);
     else if (k == "env-up") ok = get_choice(v, k, {"z", "y"}, c.env_up, error);
     else if (k == "composite") ok = get_string(v, k, c.composite, error);
+    else if (k == "quality") {
+      std::string q;
+      ok = get_string(v, k, q, error);
+      if (ok && !q.empty() && q != "auto") {
+        error = "\"quality\": '" + q + "' is not auto";
+        ok = false;
+      }
+      if (ok) c.quality = q;
+    } else if (k == "max-error") ok = get_number(v, k, 0, 1, c.max_error, error);
     else if (k == "compression") ok = get_choice(v, k, {"zip", "zips", "piz", "none", "dwaa"}, a.compression, error);
     else if (k == "png") {
       if (!v.is_boolean()) {

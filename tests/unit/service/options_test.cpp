@@ -139,3 +139,44 @@ TEST(ComputeOptionArgs, OneEnvironmentAtATime) {
 
 }  // namespace
 }  // namespace ssdo
+
+#include "service/quality.h"
+
+namespace ssdo {
+namespace {
+
+TEST(Quality, FastestUnderTheErrorElseMostAccurate) {
+  std::vector<CalibrationEntry> table;
+  std::string error;
+  ASSERT_TRUE(parse_calibration("# comment\nmethod,preset,samples,ms,mae\n"
+                                "hemisphere,high,32,10,0.19\ngtao,medium,8,20,0.05\n"
+                                "gtao,high,96,80,0.04\nraymarch,low,2048,9000,0.03\n",
+                                table, error))
+      << error;
+  ASSERT_EQ(table.size(), 4u);
+  bool met = false;
+  CalibrationEntry c = choose_quality(table, 0.06, met);
+  EXPECT_TRUE(met);
+  EXPECT_EQ(c.method, AoMethod::gtao);
+  EXPECT_EQ(c.preset, Preset::medium);
+  c = choose_quality(table, 0.2, met);
+  EXPECT_EQ(c.method, AoMethod::hemisphere);
+  c = choose_quality(table, 0.01, met);  // nothing qualifies; the oracle is never chosen
+  EXPECT_FALSE(met);
+  EXPECT_EQ(c.method, AoMethod::gtao);
+  EXPECT_EQ(c.preset, Preset::high);
+  EXPECT_FALSE(parse_calibration("gtao,superb,1,2,3\n", table, error));
+  EXPECT_NE(error.find("line 1"), std::string::npos);
+}
+
+TEST(Quality, ShippedTableCoversTheFastMethods) {
+  const auto& table = shipped_calibration();
+  ASSERT_GE(table.size(), 12u);
+  bool met = false;
+  const CalibrationEntry c = choose_quality(table, 0.5, met);
+  EXPECT_TRUE(met);
+  EXPECT_GT(c.ms, 0);
+}
+
+}  // namespace
+}  // namespace ssdo
