@@ -127,7 +127,11 @@ class SsdoProcess {
     if (::posix_spawn(&pid_, SSDO_BINARY, &actions, nullptr, argv.data(), environ) != 0) pid_ = -1;
     posix_spawn_file_actions_destroy(&actions);
   }
-  ~SsdoProcess() { kill_now(); }
+  // A graceful stop first (the service removes its socket file), then SIGKILL.
+  ~SsdoProcess() {
+    if (running()) signal_and_wait(SIGTERM, 5);
+    kill_now();
+  }
   SsdoProcess(const SsdoProcess&) = delete;
   SsdoProcess& operator=(const SsdoProcess&) = delete;
 
