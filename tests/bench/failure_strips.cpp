@@ -1,4 +1,4 @@
-// Image strips of the failure-case suite (tests/unit/kernels/failure_cases.h) for the
+// Image strips of the failure-case suite (tests/accuracy/failure_cases.h) for the
 // README's "Where screen-space fails": one PNG per case, tiles left to right
 //   input (view-facing shading of the input normals; masked pixels black) | reference |
 //   hemisphere high | hbao high | gtao high | raymarch low | raymarch low + back-face
@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "formats/output_writer.h"
-#include "tests/unit/kernels/failure_cases.h"
+#include "tests/accuracy/failure_cases.h"
 
 namespace fs = std::filesystem;
 using namespace ssdo;

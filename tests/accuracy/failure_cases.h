@@ -1,7 +1,7 @@
 // The failure-case suite of the screen-space estimators: synthetic frames from the
 // reference ray caster (kernels/raycast.h) where screen-space AO is known to fail, each
 // with its ray-traced reference, and the measurements the suite reports (MAE, max error,
-// temporal flicker). Shared by tests/unit/kernels/failure_cases_test.cpp (thresholds) and
+// temporal flicker). Shared by tests/accuracy/failure_cases_test.cpp (thresholds) and
 // tests/bench/failure_strips.cpp (the README's table and image strips).
 //
 // Every frame is 160x90 (the ray caster's test size), AO radius 1 scene unit (the Cycles

@@ -12,7 +12,7 @@
 #include <gtest/gtest.h>
 
 #include "kernels/ao_raymarch.h"
-#include "tests/unit/kernels/failure_cases.h"
+#include "tests/accuracy/failure_cases.h"
 
 namespace ssdo::failure {
 namespace {
