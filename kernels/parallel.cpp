@@ -21,7 +21,9 @@ namespace {
 
 void run_parallel_for(const cv::Range& rows, const std::function<void(const cv::Range&)>& body, double nstripes) {
 #ifdef SSDO_TSAN_ANNOTATE
-  char before = 0, after = 0;
+  // Process-wide sync addresses (TSan keeps their clocks for the whole run; a stack
+  // address's may be reset when its frame is reused).
+  static char before, after;
   __tsan_release(&before);
   cv::parallel_for_(
       rows,
