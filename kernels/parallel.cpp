@@ -19,21 +19,33 @@ namespace ssdo {
 
 namespace {
 
+#ifdef SSDO_TSAN_ANNOTATE
+// Process-wide sync addresses (TSan keeps their clocks for the whole run; a stack
+// address's may be reset when its frame is reused).
+char tsan_before, tsan_after;
+
+// A loop body whose first instrumented action is the acquire: OpenCV's std::function
+// wrapper would read its (stack) storage before any annotation could run.
+class AnnotatedBody : public cv::ParallelLoopBody {
+ public:
+  explicit AnnotatedBody(const std::function<void(const cv::Range&)>& body) : body_(body) {}
+  void operator()(const cv::Range& r) const override {
+    __tsan_acquire(&tsan_before);
+    body_(r);
+    __tsan_release(&tsan_after);
+  }
+
+ private:
+  const std::function<void(const cv::Range&)>& body_;
+};
+#endif
+
 void run_parallel_for(const cv::Range& rows, const std::function<void(const cv::Range&)>& body, double nstripes) {
 #ifdef SSDO_TSAN_ANNOTATE
-  // Process-wide sync addresses (TSan keeps their clocks for the whole run; a stack
-  // address's may be reset when its frame is reused).
-  static char before, after;
-  __tsan_release(&before);
-  cv::parallel_for_(
-      rows,
-      [&](const cv::Range& r) {
-        __tsan_acquire(&before);
-        body(r);
-        __tsan_release(&after);
-      },
-      nstripes);
-  __tsan_acquire(&after);
+  const AnnotatedBody annotated(body);
+  __tsan_release(&tsan_before);
+  cv::parallel_for_(rows, annotated, nstripes);
+  __tsan_acquire(&tsan_after);
 #else
   cv::parallel_for_(rows, body, nstripes);
 #endif
