@@ -11,13 +11,14 @@ scripts/build.sh
 # Sanitizer (CMakePresets.json "asan", in build-asan/), plus a short run of every fuzz
 # target (label fuzz). Not under sanitizers: the Slurm cluster test (label slurm: it
 # exercises the job scheduler, not our code) and the heavy accuracy suites on whole frames
-# (FailureCases, Accuracy, SsdoOnSharedFrames, SsdoOnGreeble, ConfidenceIntegration:
+# (label accuracy, and by name FailureCases, Accuracy, SsdoOnSharedFrames, SsdoOnGreeble,
+# ConfidenceIntegration:
 # 2 to 4 minutes each under ASan; the same code paths run in the unit tests).
 # SSDO_SANITIZE=0 skips the stage. README.md, "Fuzzing and sanitizers".
 if [ "${SSDO_SANITIZE:-1}" != 0 ]; then
   cmake --preset asan >/dev/null
   cmake --build build-asan -j "${JOBS:-$(nproc)}"
   (cd build-asan && ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1} UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1} \
-    ctest --output-on-failure -j "${JOBS:-$(nproc)}" -LE "^slurm$" \
+    ctest --output-on-failure -j "${JOBS:-$(nproc)}" -LE "^(slurm|accuracy)$" \
       -E "^(FailureCases|Accuracy|SsdoOnSharedFrames|SsdoOnGreeble|ConfidenceIntegration)\." "$@")
 fi
