@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <optional>
@@ -22,6 +23,16 @@
 #include "formats/camera_io.h"
 
 namespace ssdo {
+
+std::string temp_file_host() {
+  char name[256] = {};
+  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
+  std::string host(name);
+  // Only characters that cannot be confused with the name's separators.
+  for (char& c : host)
+    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_') c = '_';
+  return host;
+}
 
 namespace {
 
@@ -47,13 +58,15 @@ std::vector<std::string> channel_names(const OutputTerm& t) {
   return {t.name + ".R", t.name + ".G", t.name + ".B"};
 }
 
-// ".NAME.tmp-<pid>-<random>" beside the final file: same file system, so rename() is
-// atomic, and hidden, so watchers of the folder skip it.
+// ".NAME.tmp-<host>-<pid>-<random>" beside the final file: same file system, so rename()
+// is atomic, and hidden, so watchers of the folder skip it. The host name lets a task on a
+// render farm that shares the output folder tell its own host's abandoned temp files
+// (dead pid) from another host's files in progress (service/frame_list.h).
 fs::path temp_path_for(const fs::path& final_path) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
   std::ostringstream s;
-  s << "." << final_path.filename().string() << ".tmp-" << ::getpid() << "-" << std::hex
-    << rng();
+  s << "." << final_path.filename().string() << ".tmp-" << temp_file_host() << "-" << ::getpid()
+    << "-" << std::hex << rng();
   return final_path.parent_path() / s.str();
 }
 

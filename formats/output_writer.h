@@ -27,7 +27,11 @@ struct WriteOptions {
   bool png_previews = false;        // NAME.<term>.png beside the EXR
 };
 
-// Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<pid>-<random>"
+// This host's name as it appears in temp file names (".NAME.tmp-<host>-<pid>-<random>"):
+// letters, digits, '.' and '_' only.
+std::string temp_file_host();
+
+// Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<host>-<pid>-<rnd>"
 // in the same folder and renamed into place, so the file is complete or absent (on failure
 // the temp file is removed and an existing `path` is left as it was). All terms must share
 // one size, equal to the camera grid when camera.width_px > 0. Compression "dwaa" is lossy

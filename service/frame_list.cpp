@@ -1,5 +1,7 @@
 #include "service/frame_list.h"
 
+#include "formats/output_writer.h"
+#include "formats/output_writer.h"
 #include <signal.h>
 #include <sys/stat.h>
 
@@ -79,18 +81,24 @@ bool output_up_to_date(const std::string& input, const std::string& output) {
 }
 
 int remove_stale_temp_files(const std::string& dir) {
+  // ".NAME.tmp-HOST-PID-RANDOM" (formats/output_writer.cpp). Only this host's files whose
+  // process is gone are abandoned: on a farm, another host's temp file in the shared
+  // folder belongs to a task still writing it.
+  const std::string host = temp_file_host();
   int removed = 0;
   std::error_code ec;
   for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
     const size_t at = name.rfind(".tmp-");
     if (name.empty() || name[0] != '.' || at == std::string::npos) continue;
-    // ".NAME.tmp-PID-RANDOM" (formats/output_writer.cpp)
-    const size_t dash = name.find('-', at + 5);
-    if (dash == std::string::npos) continue;
+    const std::string rest = name.substr(at + 5);  // HOST-PID-RANDOM
+    const size_t random_dash = rest.rfind('-');
+    if (random_dash == std::string::npos || random_dash == 0) continue;
+    const size_t pid_dash = rest.rfind('-', random_dash - 1);
+    if (pid_dash == std::string::npos || rest.substr(0, pid_dash) != host) continue;
     long pid = 0;
     try {
-      pid = std::stol(name.substr(at + 5, dash - at - 5));
+      pid = std::stol(rest.substr(pid_dash + 1, random_dash - pid_dash - 1));
     } catch (const std::exception&) {
       continue;
     }

@@ -61,3 +61,24 @@ TEST(FrameList, UpToDateComparesModificationTimes) {
 
 }  // namespace
 }  // namespace ssdo
+
+#include "formats/output_writer.h"
+
+namespace ssdo {
+namespace {
+
+TEST(FrameList, OnlyThisHostsAbandonedTempFilesAreRemoved) {
+  TempDir d;
+  const std::string host = temp_file_host();
+  const std::string dead = "." "a.ssdo.exr.tmp-" + host + "-999999999-1f";   // no such pid
+  const std::string live = ".b.ssdo.exr.tmp-" + host + "-" + std::to_string(::getpid()) + "-2e";
+  const std::string other = ".c.ssdo.exr.tmp-farm-node-17-999999999-3d";      // another host
+  for (const std::string& n : {dead, live, other}) d.touch(n);
+  EXPECT_EQ(remove_stale_temp_files(d.path.string()), 1);
+  EXPECT_FALSE(fs::exists(d.path / dead));
+  EXPECT_TRUE(fs::exists(d.path / live));
+  EXPECT_TRUE(fs::exists(d.path / other));
+}
+
+}  // namespace
+}  // namespace ssdo
