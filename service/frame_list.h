@@ -28,8 +28,9 @@ std::string error_path_for(const std::string& input, const std::string& output_d
 // mtime may be old) still counts as new.
 bool output_up_to_date(const std::string& input, const std::string& output);
 
-// Removes the temp files of output writers that no longer run (".NAME.tmp-PID-*" in
-// `dir` with no process PID: left by a kill -9). Returns how many were removed.
+// Removes the temp files of this host's output writers that no longer run
+// (".NAME.tmp-HOST-PID-*" in `dir` with HOST this host and no process PID: left by a
+// kill -9); other hosts' files sharing the folder are left alone. Returns how many.
 int remove_stale_temp_files(const std::string& dir);
 
 }  // namespace ssdo
