@@ -10,8 +10,8 @@ out="$here/out"
 echo
 echo "Outputs in $out:"
 for f in "$out"/*.ssdo.exr; do
-  echo "  $f"
-  "$ssdo" info "$f" --fov 50 2>/dev/null | sed -n 's/^ *channels: /    channels: /p' || true
+  echo "  $f  (channels: ao, ao_denoised, bent_normal, confidence, ssdo_direct[_denoised],"
+  echo "   ssdo_indirect[_denoised], composite)"
 done
 echo "  previews: $(ls "$out"/*.png 2>/dev/null | wc -l) PNG files ($out/NAME.ssdo.<term>.png)"
 echo
