@@ -1,5 +1,7 @@
 #include "kernels/ao.h"
 
+#include "kernels/settings_check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -93,23 +95,17 @@ float effective_thickness_world(const AoSettings& s) {
 }
 
 std::string validate(const AoSettings& s) {
-  auto bad = [](const char* field, double value, const char* range) {
-    return std::string(field) + " = " + std::to_string(value) + " is out of range " + range;
-  };
-  if (!(s.radius_world > 0.0f) || !std::isfinite(s.radius_world))
-    return bad("radius_world", s.radius_world, "(0, inf)");
-  if (!(s.max_radius_px >= 2.0f && s.max_radius_px <= 4096.0f))
-    return bad("max_radius_px", s.max_radius_px, "[2, 4096]");
-  if (s.samples < 1 || s.samples > 1024) return bad("samples", s.samples, "[1, 1024]");
-  if (s.directions < 1 || s.directions > 4096) return bad("directions", s.directions, "[1, 4096]");
-  if (s.steps < 1 || s.steps > 1024) return bad("steps", s.steps, "[1, 1024]");
-  if (!(s.thickness_world >= 0.0f)) return bad("thickness_world", s.thickness_world, "[0, inf]");
+  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
+  if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
+  if (s.directions < 1 || s.directions > 4096) return detail::out_of_range("directions", s.directions, "[1, 4096]");
+  if (s.steps < 1 || s.steps > 1024) return detail::out_of_range("steps", s.steps, "[1, 1024]");
+  if (!(s.thickness_world >= 0.0f)) return detail::out_of_range("thickness_world", s.thickness_world, "[0, inf]");
   if (!(s.falloff_fraction >= 0.0f && s.falloff_fraction <= 1.0f))
-    return bad("falloff_fraction", s.falloff_fraction, "[0, 1]");
+    return detail::out_of_range("falloff_fraction", s.falloff_fraction, "[0, 1]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
-    return bad("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
   if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
-    return bad("resolution_divisor", s.resolution_divisor, "[1, 2]");
+    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
   return {};
 }
 

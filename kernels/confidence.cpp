@@ -11,6 +11,8 @@
 // |u|, which weights each chord by its true length.
 #include "kernels/confidence.h"
 
+#include "kernels/settings_check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -54,16 +56,10 @@ RayMap make_ray_map(const Camera& cam) {
 }  // namespace
 
 std::string validate(const ConfidenceSettings& s) {
-  auto bad = [](const char* field, double value, const char* range) {
-    return std::string(field) + " = " + std::to_string(value) + " is out of range " + range;
-  };
-  if (!(s.radius_world > 0.0f) || !std::isfinite(s.radius_world))
-    return bad("radius_world", s.radius_world, "(0, inf)");
-  if (!(s.max_radius_px >= 2.0f && s.max_radius_px <= 4096.0f))
-    return bad("max_radius_px", s.max_radius_px, "[2, 4096]");
-  if (s.taps < 4 || s.taps > 256) return bad("taps", s.taps, "[4, 256]");
+  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
+  if (s.taps < 4 || s.taps > 256) return detail::out_of_range("taps", s.taps, "[4, 256]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
-    return bad("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
   return {};
 }
 

@@ -1,5 +1,7 @@
 #include "kernels/denoise.h"
 
+#include "kernels/settings_check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -311,15 +313,12 @@ void prepare_dst(const cv::Mat& src, cv::Mat& dst) {
 }  // namespace
 
 std::string validate(const DenoiseSettings& s) {
-  auto bad = [](const char* field, double value, const char* range) {
-    return std::string(field) + " = " + std::to_string(value) + " is out of range " + range;
-  };
-  if (s.radius_px < 0 || s.radius_px > kMaxRadiusPx) return bad("radius_px", s.radius_px, "[0, 32]");
-  if (!(s.sigma_px > 0.0f) || !std::isfinite(s.sigma_px)) return bad("sigma_px", s.sigma_px, "(0, inf)");
+  if (s.radius_px < 0 || s.radius_px > kMaxRadiusPx) return detail::out_of_range("radius_px", s.radius_px, "[0, 32]");
+  if (!(s.sigma_px > 0.0f) || !std::isfinite(s.sigma_px)) return detail::out_of_range("sigma_px", s.sigma_px, "(0, inf)");
   if (!(s.depth_tolerance_relative > 0.0f) || !std::isfinite(s.depth_tolerance_relative))
-    return bad("depth_tolerance_relative", s.depth_tolerance_relative, "(0, inf)");
+    return detail::out_of_range("depth_tolerance_relative", s.depth_tolerance_relative, "(0, inf)");
   if (!(s.normal_power >= 0.0f && s.normal_power <= 256.0f))
-    return bad("normal_power", s.normal_power, "[0, 256]");
+    return detail::out_of_range("normal_power", s.normal_power, "[0, 256]");
   return {};
 }
 

@@ -1,5 +1,7 @@
 #include "kernels/ssdo.h"
 
+#include "kernels/settings_check.h"
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -42,24 +44,18 @@ SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
 }
 
 std::string validate(const SsdoSettings& s) {
-  auto bad = [](const char* field, double value, const char* range) {
-    return std::string(field) + " = " + std::to_string(value) + " is out of range " + range;
-  };
-  if (!(s.radius_world > 0.0f) || !std::isfinite(s.radius_world))
-    return bad("radius_world", s.radius_world, "(0, inf)");
-  if (!(s.max_radius_px >= 2.0f && s.max_radius_px <= 4096.0f))
-    return bad("max_radius_px", s.max_radius_px, "[2, 4096]");
-  if (s.samples < 1 || s.samples > 1024) return bad("samples", s.samples, "[1, 1024]");
-  if (s.sample_steps < 1 || s.sample_steps > 64) return bad("sample_steps", s.sample_steps, "[1, 64]");
-  if (!(s.thickness_world > 0.0f)) return bad("thickness_world", s.thickness_world, "(0, inf]");
+  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
+  if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
+  if (s.sample_steps < 1 || s.sample_steps > 64) return detail::out_of_range("sample_steps", s.sample_steps, "[1, 64]");
+  if (!(s.thickness_world > 0.0f)) return detail::out_of_range("thickness_world", s.thickness_world, "(0, inf]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
-    return bad("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
   if (!(s.indirect_strength >= 0.0f && s.indirect_strength <= 16.0f))
-    return bad("indirect_strength", s.indirect_strength, "[0, 16]");
+    return detail::out_of_range("indirect_strength", s.indirect_strength, "[0, 16]");
   if (!(s.sender_distance_min_world >= 0.0f) || !std::isfinite(s.sender_distance_min_world))
-    return bad("sender_distance_min_world", s.sender_distance_min_world, "[0, inf)");
-  if (s.oracle_grid < 1 || s.oracle_grid > 256) return bad("oracle_grid", s.oracle_grid, "[1, 256]");
-  if (s.oracle_steps < 1 || s.oracle_steps > 4096) return bad("oracle_steps", s.oracle_steps, "[1, 4096]");
+    return detail::out_of_range("sender_distance_min_world", s.sender_distance_min_world, "[0, inf)");
+  if (s.oracle_grid < 1 || s.oracle_grid > 256) return detail::out_of_range("oracle_grid", s.oracle_grid, "[1, 256]");
+  if (s.oracle_steps < 1 || s.oracle_steps > 4096) return detail::out_of_range("oracle_steps", s.oracle_steps, "[1, 4096]");
   return {};
 }
 
