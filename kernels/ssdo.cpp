@@ -9,6 +9,7 @@
 #include <limits>
 #include <vector>
 
+#include "kernels/half_resolution.h"
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
 
@@ -47,6 +48,8 @@ std::string validate(const SsdoSettings& s) {
   if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
   if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
   if (s.sample_steps < 1 || s.sample_steps > 64) return detail::out_of_range("sample_steps", s.sample_steps, "[1, 64]");
+  if (s.sample_refinements < 0 || s.sample_refinements > 16)
+    return detail::out_of_range("sample_refinements", s.sample_refinements, "[0, 16]");
   if (!(s.thickness_world > 0.0f)) return detail::out_of_range("thickness_world", s.thickness_world, "(0, inf]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
     return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
@@ -54,6 +57,8 @@ std::string validate(const SsdoSettings& s) {
     return detail::out_of_range("indirect_strength", s.indirect_strength, "[0, 16]");
   if (!(s.sender_distance_min_world >= 0.0f) || !std::isfinite(s.sender_distance_min_world))
     return detail::out_of_range("sender_distance_min_world", s.sender_distance_min_world, "[0, inf)");
+  if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
+    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
   if (s.oracle_grid < 1 || s.oracle_grid > 256) return detail::out_of_range("oracle_grid", s.oracle_grid, "[1, 256]");
   if (s.oracle_steps < 1 || s.oracle_steps > 4096) return detail::out_of_range("oracle_steps", s.oracle_steps, "[1, 4096]");
   return {};
@@ -154,9 +159,30 @@ inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const gl
 // the library call: the tap loop's pyramid level.
 inline int exponent_of(float v) { return int((std::bit_cast<uint32_t>(v) >> 23) & 0xFFu) - 127; }
 
+// The fraction of [0, r] over which the point clip_p + lambda clip_w (homogeneous clip
+// coordinates of a ray from an on-screen receiver) stays inside the view frustum's side
+// planes, -w <= x, y <= w, w > 0 (Liang and Barsky 1984, "A New Concept and Method for
+// Line Clipping", ACM TOG 3(1): each plane a + lambda b >= 0 bounds lambda by -a / b when b < 0).
+// Slightly shortened so that the end point itself projects inside the frame.
+inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w, float r) {
+  float lambda_max = r;
+  auto bound = [&](float a, float b) {
+    if (b < 0.0f) lambda_max = std::min(lambda_max, std::max(0.0f, -a / b));
+  };
+  bound(clip_p.w - clip_p.x, clip_w.w - clip_w.x);
+  bound(clip_p.w + clip_p.x, clip_w.w + clip_w.x);
+  bound(clip_p.w - clip_p.y, clip_w.w - clip_w.y);
+  bound(clip_p.w + clip_p.y, clip_w.w + clip_w.y);
+  bound(clip_p.w, clip_w.w);
+  return (lambda_max / r) * (1.0f - 1e-4f);
+}
+
+// visible: in front of the surface the screen shows there (or over background);
+// occluded: behind it by more than the depth bias and less than the thickness; behind:
+// farther behind it than the thickness (taken as passing behind a thin surface);
 // off_screen: the point projects outside the frame (or behind the eye); a straight ray
 // whose point has left the frame does not come back, so marches stop there.
-enum class Tap { visible, occluded, off_screen };
+enum class Tap { visible, occluded, behind, off_screen };
 
 // Occlusion test of view-space point S whose clip coordinates are `clip` (see ssdo.h), for
 // the receiver at pixel coordinates origin_px. On `occluded` the pixel (qx, qy) is the sender.
@@ -193,8 +219,8 @@ inline Tap classify(const Constants& c, const glm::vec2& origin_px, const glm::v
   const float limit = kPlaneCorrectionMaxRelative * depth_q;
   const float depth_surface = inv > 0.0f ? std::clamp(1.0f / inv, depth_q - limit, depth_q + limit) : depth_q;
   const float behind = depth_s - depth_surface;
-  if (behind > c.s.depth_bias_relative * depth_s && behind < c.s.thickness_world) return Tap::occluded;
-  return Tap::visible;
+  if (!(behind > c.s.depth_bias_relative * depth_s)) return Tap::visible;
+  return behind < c.s.thickness_world ? Tap::occluded : Tap::behind;
 }
 
 // Outgoing radiance of sender pixel q (see ssdo.h).
@@ -240,7 +266,7 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   const float shift_c = std::cos(2.0f * kPi * shift_v), shift_s = std::sin(2.0f * kPi * shift_v);
   const int n_samples = c.s.samples;
   const int steps = c.s.sample_steps;
-  const float inv_steps = 1.0f / float(steps);
+  const int refinements = c.s.sample_refinements;
   const bool bent = c.s.direct_estimator == SsdoDirectEstimator::bent_normal;
   const bool form_factor = c.s.indirect_estimator == SsdoIndirectEstimator::form_factor;
   const float d_min2 = c.s.sender_distance_min_world * c.s.sender_distance_min_world;
@@ -263,17 +289,63 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       const float sin_phi = shift_s * c.azimuth_cos[i] + shift_c * c.azimuth_sin[i];
       const float radius = std::sqrt(u);
       const glm::vec3 w = t * (radius * cos_phi) + b * (radius * sin_phi) + n * std::sqrt(std::max(0.0f, 1.0f - u));
-      // Points along w at lambda_ij = r (j + xi_i) / k, j = 0..k-1, xi_i in (0, 1]: k = 1 is
-      // the paper's single point at a uniform distance in (0, r]; k > 1 marches the whole
-      // radius (stratified), so an occluder anywhere within r is found. The first point
-      // behind the depth buffer decides.
+      // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
+      // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
+      // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
+      // occluder the ray meets anywhere within r is found (with the last point at
+      // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
+      // bias of the bounce of up to half against the oracle on the shared frames).
       const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
       const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
+      // The march covers the part of the radius that stays on screen: beyond the frame
+      // nothing can be tested, and a coarse step that leaps off screen would otherwise end
+      // the march before it tests an occluder at the frame's edge (walls that leave the
+      // frame, e.g.).
+      const float march = r * on_screen_fraction(clip_p, clip_w, r);
+      // The first point behind the depth buffer within the thickness decides. Between
+      // two steps, bisection (sample_refinements halvings of the interval from the last
+      // point in front of the depth buffer):
+      // - after an occluded step, for the entry point: the sender is the surface where w
+      //   enters the occluder, not wherever a coarse step overshot to (an overshot point
+      //   projects onto a face of the occluder that often faces away from P, which the
+      //   back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
+      // - after a step farther behind the surface than the thickness right after one in
+      //   front: the ray crossed the stored surface in between, and the part within the
+      //   thickness lies between the steps (large occluders seen face-on: deep inside, a
+      //   point is farther than the thickness behind the front face the screen shows).
+      // Both ends are on screen, so every point between is (projection keeps segments convex).
       Tap tap = Tap::visible;
-      for (int j = 0; j < steps; ++j) {
-        const float lambda = r * (float(j) + xi) * inv_steps;
-        tap = classify(c, origin_px, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
-        if (tap != Tap::visible) break;
+      float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
+      bool after_front = true;
+      for (int j = 0; j < steps && tap != Tap::occluded; ++j) {
+        const float lambda = march * (float(j) + xi) / (steps > 1 ? float(steps - 1) + xi : 1.0f);
+        const Tap t = classify(c, origin_px, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
+        if (t == Tap::off_screen) break;
+        if (t == Tap::visible) {
+          lambda_front = lambda;
+          after_front = true;
+          continue;
+        }
+        tap = t;
+        if (t == Tap::occluded ? (want_indirect || record != nullptr) : after_front) {
+          float lo = lambda_front, hi = lambda;
+          for (int k = 0; k < refinements; ++k) {
+            const float mid = 0.5f * (lo + hi);
+            int mx = 0, my = 0;
+            const Tap m = classify(c, origin_px, p + mid * w, clip_p + mid * clip_w, mx, my);
+            if (m == Tap::visible) {
+              lo = mid;
+              continue;
+            }
+            hi = mid;
+            if (m == Tap::occluded) {
+              tap = Tap::occluded;
+              qx = mx;
+              qy = my;
+            }
+          }
+        }
+        after_front = false;
       }
       if (tap != Tap::occluded) {
         if (want_direct) {
@@ -404,6 +476,26 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   CV_Assert(validate(settings).empty());
   if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);
   if (out.indirect.size() != size || out.indirect.type() != CV_32FC3) out.indirect.create(size, CV_32FC3);
+  if (settings.resolution_divisor == 2 && settings.method == SsdoMethod::ssdo) {
+    const cv::Rect full_roi = resolve_roi(roi, size);
+    if (full_roi.empty()) return;
+    const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
+    HalfGrid h;
+    const cv::Mat* extras[] = {in.albedo, in.lighting};
+    build_half_grid(full, extras, h, nthreads);
+    const SsdoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, in.environment,
+                             h.extras[0].empty() ? nullptr : &h.extras[0],
+                             h.extras[1].empty() ? nullptr : &h.extras[1]};
+    SsdoSettings half_settings = settings;
+    half_settings.resolution_divisor = 1;
+    SsdoOutput half_out;
+    compute_ssdo(half_in, half_settings, half_out, half_grid_roi(full_roi, size), nthreads);
+    // No foreground texel near: nothing known of the light there, 0 (as on background).
+    const UpsampleImage images[] = {{half_out.direct, out.direct, cv::Scalar::all(0), cv::Scalar::all(0)},
+                                    {half_out.indirect, out.indirect, cv::Scalar::all(0), cv::Scalar::all(0)}};
+    upsample_from_half_grid(full, h, images, full_roi, nthreads);
+    return;
+  }
 
   // The packed per-pixel records the taps and senders read (allocated once per call,
   // outside the per-pixel loops). Tangent plane n . X = n . P of pixel q met by the eye ray

@@ -12,11 +12,15 @@
 //
 // Estimators (method = ssdo). N sample directions w_i, cosine-distributed about the normal n
 // (pdf cos / pi; R2 sequence, rotated per pixel), each tested at k points
-// P + lambda_ij w_i, lambda_ij = r (j + xi_i) / k, xi_i uniform in (0, 1], r = radius_world
-// clamped to max_radius_px on screen. k = 1 is the paper's single point at a uniform
-// distance in (0, r]; k > 1 marches the radius. The first point found behind the depth
-// buffer makes w_i occluded, and its pixel q is the sender (surface point P_q, normal n_q,
-// outgoing radiance L_q); points over background or off screen see nothing (the screen
+// P + lambda_ij w_i, lambda_ij = m (j + xi_i) / (k - 1 + xi_i), xi_i uniform in (0, 1], m
+// the part of r that projects on screen, r = radius_world clamped to max_radius_px on
+// screen. k = 1 is the paper's single point at a uniform distance in (0, r]; k > 1 marches
+// the radius, its last point at m. The first point found behind the depth buffer (within
+// the thickness) makes w_i occluded; sample_refinements bisection steps then locate where
+// w_i enters the occluder, and its pixel q is the sender (surface point P_q, normal n_q,
+// outgoing radiance L_q). Bisection also searches between a point in front of the depth
+// buffer and the next one farther behind it than the thickness (the ray crossed a surface
+// between two points). Points over background or off screen see nothing (the screen
 // cannot tell), so a direction with no occluded point is visible.
 //   direct   = (1/N) sum_{i visible} L_env,filtered(w_i)
 //     (the Monte-Carlo estimate of E/pi with pdf cos/pi: the cos and the pi cancel; paper
@@ -105,6 +109,10 @@ struct SsdoSettings {
   // (first point behind the depth buffer decides), k times the taps, much closer to ray
   // visibility (see the measurements in the tests).
   int sample_steps = 4;
+  // Bisection steps that locate where a sample direction enters its occluder, between the
+  // last visible and the first occluded point, [0, 16]: the sender pixel is that entry
+  // point's. 0 = the first occluded point of the k (biased dark: see ssdo.cpp).
+  int sample_refinements = 3;
   // Assumed thickness of every surface in the depth buffer, scene units, (0, inf]: a point
   // farther than this behind the stored depth is not occluded (avoids dark halos around
   // foreground objects in front of a distant background; inf = height field).
@@ -126,6 +134,10 @@ struct SsdoSettings {
   // Default solid_angle: against the oracle it has about half the error of the form factor
   // (whose area heuristic A_s = pi r^2 / N has no exact meaning for screen samples).
   SsdoIndirectEstimator indirect_estimator = SsdoIndirectEstimator::solid_angle;
+  // 1 = every pixel; 2 = method ssdo runs on the half-resolution grid (a quarter of the
+  // pixels, kernels/half_resolution.h) and a depth- and normal-aware upsample fills the
+  // pixels in between. The oracle always runs at full resolution.
+  int resolution_divisor = 1;
   // Oracle: g, the directions per axis of the stratified grid (g^2 directions), [1, 256],
   // and the steps per direction, [1, 4096].
   int oracle_grid = 16;

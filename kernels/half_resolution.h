@@ -1,0 +1,68 @@
+// Half-resolution evaluation of a per-pixel kernel (AO, SSDO): the kernel runs on a grid
+// of half the width and height (a quarter of the pixels), and a depth- and normal-aware
+// upsample brings its outputs back to full resolution.
+//
+// Texel (i, j) of the half grid stands for the 2x2 block of pixels (2i.., 2j..) and takes
+// the first foreground pixel of the block in the order (0,0), (1,0), (0,1), (1,1): its
+// exact depth, normal, view-space position and extra inputs (no averaging, which would
+// invent points between a silhouette and the background). The camera keeps its projection
+// with the half grid's size, so a kernel projecting radii and points sees the same scene
+// at half the pixels.
+//
+// Upsample (joint bilateral over the 2x2 nearest texels; Kopf et al. 2007, "Joint
+// Bilateral Upsampling", SIGGRAPH): bilinear weights x exp(-|dz| / (tol z)) x
+// max(0, n . n_texel)^4, tol = kUpsampleDepthRelative. When all four weigh ~0 (a pixel
+// whose surface no nearby texel took), the texel of the 4x4 neighbourhood closest in depth
+// is copied; with no foreground texel there, the image's fallback value is written.
+#pragma once
+
+#include <span>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "kernels/camera.h"
+
+namespace ssdo {
+
+struct HalfGrid {
+  cv::Mat depth_view, normal_view, position_view, mask;  // as the full-resolution inputs
+  std::vector<cv::Mat> extras;  // each extra input's value at the texel (0 where none)
+  cv::Mat source;               // CV_32SC2: the full-resolution pixel taken, (-1, -1) if none
+  Camera camera;                // the full camera with the half grid's size
+};
+
+// The full-resolution views of one frame (CV_32FC1 depth, +inf on background; CV_32FC3
+// normal and view positions; CV_8UC1 mask).
+struct FullGrid {
+  const cv::Mat& depth_view;
+  const cv::Mat& normal_view;
+  const cv::Mat& position_view;
+  const cv::Mat& mask;
+  const Camera& camera;
+};
+
+// Builds the whole half grid (kernels read taps anywhere on it, whatever the roi). Each
+// extra is a CV_32F image of the full size (any channel count) or empty (stays empty).
+void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& half,
+                     int nthreads = 0);
+
+// The texels the upsample of the full-resolution roi reads.
+cv::Rect half_grid_roi(const cv::Rect& full_roi, const cv::Size& full_size);
+
+// One image to bring to full resolution: `half` (CV_32F, any channels, the half grid's
+// size) into `full` (same type, the full size, allocated by the caller). Background pixels
+// get `background`, pixels with no foreground texel near get `fallback`.
+struct UpsampleImage {
+  const cv::Mat& half;
+  cv::Mat& full;
+  cv::Scalar background;
+  cv::Scalar fallback;
+};
+
+// Writes the pixels of `roi` of every image.
+void upsample_from_half_grid(const FullGrid& full, const HalfGrid& half,
+                             std::span<const UpsampleImage> images, const cv::Rect& roi,
+                             int nthreads = 0);
+
+}  // namespace ssdo
