@@ -17,10 +17,12 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfThreading.h>
 #include <Imath/half.h>
 #include <OpenImageIO/imageio.h>
 
 #include "formats/camera_io.h"
+#include "kernels/parallel.h"
 
 namespace ssdo {
 
@@ -48,6 +50,7 @@ std::optional<Imf::Compression> parse_compression(const std::string& name) {
   if (name == "zip") return Imf::ZIP_COMPRESSION;
   if (name == "zips") return Imf::ZIPS_COMPRESSION;
   if (name == "piz") return Imf::PIZ_COMPRESSION;
+  if (name == "rle") return Imf::RLE_COMPRESSION;
   if (name == "dwaa") return Imf::DWAA_COMPRESSION;
   return std::nullopt;
 }
@@ -135,7 +138,9 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   const auto compression = parse_compression(options.compression);
   if (!compression)
     return path + ": unknown compression \"" + options.compression +
-           "\" (use zip, zips, piz, none, or dwaa for colour terms)";
+           "\" (use zip, zips, piz, rle, none, or dwaa for colour terms)";
+  if (options.zip_level < 1 || options.zip_level > 9)
+    return path + ": zip level " + std::to_string(options.zip_level) + " is not in [1, 9]";
   std::set<std::string> names;
   const cv::Size size = terms[0].image.size();
   for (const auto& t : terms) {
@@ -166,6 +171,7 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   try {
     Imf::Header header(size.width, size.height);
     header.compression() = *compression;
+    header.zipCompressionLevel() = options.zip_level;
     for (const auto& t : terms)
       for (const auto& c : channel_names(t))
         header.channels().insert(c, Imf::Channel(t.type == SampleType::half ? Imf::HALF
@@ -187,11 +193,13 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
       const int n = t.image.channels();
       if (t.type == SampleType::half) {
         std::vector<half>& buffer = half_buffers.emplace_back(size_t(size.area()) * n);
-        for (int y = 0; y < size.height; ++y) {
-          const float* row = t.image.ptr<float>(y);
-          half* out = buffer.data() + size_t(y) * size.width * n;
-          for (int i = 0; i < size.width * n; ++i) out[i] = half(row[i]);
-        }
+        parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
+          for (int y = rows.start; y < rows.end; ++y) {
+            const float* row = t.image.ptr<float>(y);
+            half* out = buffer.data() + size_t(y) * size.width * n;
+            for (int i = 0; i < size.width * n; ++i) out[i] = half(row[i]);
+          }
+        }, 32);
         for (int c = 0; c < n; ++c)
           fb.insert(channels[c], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(buffer.data() + c),
                                             sizeof(half) * n, sizeof(half) * n * size.width));
@@ -205,7 +213,12 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
                              sizeof(float) * n, t.image.step[0]));
     }
     {
-      Imf::OutputFile out(temp.c_str(), header);
+      // Compression runs on OpenEXR's global pool (sized by its owner, e.g. the worker);
+      // asking for N threads makes sure it has N.
+      if (options.threads > 1 && Imf::globalThreadCount() < options.threads)
+        Imf::setGlobalThreadCount(options.threads);
+      const int threads = options.threads > 0 ? options.threads : Imf::globalThreadCount();
+      Imf::OutputFile out(temp.c_str(), header, threads);
       out.setFrameBuffer(fb);
       out.writePixels(size.height);
     }  // closed (and flushed) here, before the rename

@@ -11,6 +11,8 @@
 #include <map>
 #include <string>
 
+#include <OpenEXR/ImfThreading.h>
+#include <OpenImageIO/imageio.h>
 #include <opencv2/core.hpp>
 
 #include "service/protocol.h"
@@ -81,7 +83,14 @@ int run_worker(const WorkerArgs& args) {
   // Each malloc arena reserves 64 MiB of address space; one per thread would eat the
   // RLIMIT_AS budget without using memory.
   ::mallopt(M_ARENA_MAX, 2);
+  // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
+  // conversions), OpenEXR's (decoding and compression; one thread = in the calling thread,
+  // no pool) and OpenImageIO's (environment maps, PNG previews; OpenImageIO also resizes
+  // OpenEXR's pool when it opens an EXR, so it is told the same size).
   cv::setNumThreads(args.threads);
+  Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
+  OIIO::attribute("threads", args.threads);
+  OIIO::attribute("exr_threads", args.threads > 1 ? args.threads : -1);
   g_response_fd = args.response_fd;
   std::set_terminate(terminate_with_last_words);
 

@@ -23,9 +23,13 @@ bool given(const CLI::App& cmd, const std::string& key) {
 // Output options of the schema (request_options.h) on a command.
 void add_output_options(CLI::App& cmd, FrameOptionArgs& o) {
   cmd.add_flag("--png", o.png, "Also write an sRGB PNG preview per term");
-  cmd.add_option("--compression", o.compression, "EXR compression: zip, zips, piz, none; dwaa (colour terms only)")
-      ->check(CLI::IsMember({"zip", "zips", "piz", "none", "dwaa"}))
+  cmd.add_option("--compression", o.compression,
+                 "EXR compression: zip (deflate level 1), zips, piz, rle, none (all lossless); dwaa (lossy, files of "
+                 "colour terms only)")
+      ->check(CLI::IsMember({"zip", "zips", "piz", "rle", "none", "dwaa"}))
       ->capture_default_str();
+  cmd.add_flag("--io-only", o.io_only,
+               "Benchmark the I/O floor: read and write what the terms would, with stand-in images, computing nothing");
 }
 
 // The frame options of a command: its flags over its --config file.

@@ -159,13 +159,77 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   return frame;
 }
 
+namespace {
+
+// Which of the selected terms compute_frame computes (the composite may pull in terms that
+// are not written).
+struct TermsComputed {
+  bool ao = false, ssdo = false;
+  std::vector<WeightedTerm> composite_terms;
+};
+
+TermsComputed terms_computed(const FrameRequest& request) {
+  const TermSelection& terms = request.terms;
+  TermsComputed c;
+  c.composite_terms = !request.composite_terms.empty() ? request.composite_terms
+                      : terms.ssdo ? composite_mode_terms(CompositeMode::ssdo)
+                                   : composite_mode_terms(CompositeMode::ssao);
+  auto composite_uses = [&](CompositeTerm t) {
+    if (!terms.composite) return false;
+    for (const WeightedTerm& w : c.composite_terms)
+      if (w.term == t) return true;
+    return false;
+  };
+  c.ao = terms.ao || composite_uses(CompositeTerm::ambient_ao);
+  c.ssdo = terms.ssdo || composite_uses(CompositeTerm::ssdo_direct) ||
+           composite_uses(CompositeTerm::ssdo_indirect);
+  return c;
+}
+
+}  // namespace
+
+ReadOptions reads_for(const FrameRequest& request) {
+  ReadOptions read = request.read;
+  const TermsComputed c = terms_computed(request);
+  const bool composite = request.terms.composite;
+  // SSDO's bounce sends albedo x lighting; the composite may add the frame's lighting.
+  read.read_lighting = read.read_lighting && (c.ssdo || composite);
+  read.read_albedo = read.read_albedo && (c.ssdo || composite || (c.ao && request.ao.multibounce));
+  // The one reference a product run uses: the composite's background (a mapped Env pass).
+  read.read_references = read.read_references && composite && read.mapping.references.count("Env") > 0;
+  return read;
+}
+
+ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
+  ComputedFrame frame;
+  const TermSelection& terms = request.terms;
+  const TermsComputed c = terms_computed(request);
+  cv::Mat normal_z;
+  cv::extractChannel(g.normal_view, normal_z, 2);
+  auto scalar = [&](const char* name) { frame.terms.push_back({name, normal_z, SampleType::float32, false}); };
+  auto colour = [&](const char* name, bool vector = false) {
+    frame.terms.push_back({name, g.normal_view, SampleType::half, vector});
+  };
+  if (c.ao && terms.ao) {
+    scalar("ao");
+    scalar("ao_denoised");
+    if (request.ao.method != AoMethod::hemisphere) colour("bent_normal", true);  // as compute_ao
+  }
+  if (c.ssdo && terms.ssdo)
+    for (const char* name : {"ssdo_direct", "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"})
+      colour(name);
+  if (terms.ao || terms.ssdo) scalar("confidence");
+  if (terms.composite) colour("composite");
+  return frame;
+}
+
 FrameResult process_frame(const FrameRequest& request) {
   FrameResult result;
   result.input_path = request.input_path;
   result.output_path = request.output_path;
   try {
     auto t0 = std::chrono::steady_clock::now();
-    ReadOptions read = request.read;
+    const ReadOptions read = reads_for(request);
     ReadResult frame = read_gbuffer(request.input_path, read);
     result.times.read_ms = ms_since(t0);
     result.info = frame.info;
@@ -175,13 +239,15 @@ FrameResult process_frame(const FrameRequest& request) {
     }
 
     t0 = std::chrono::steady_clock::now();
-    ComputedFrame computed = compute_frame(frame.gbuffer, request);
+    ComputedFrame computed =
+        request.io_only ? io_only_frame(frame.gbuffer, request) : compute_frame(frame.gbuffer, request);
     result.times.compute_ms = ms_since(t0);
 
     if (!request.output_path.empty()) {
       t0 = std::chrono::steady_clock::now();
-      const std::string err =
-          write_outputs(request.output_path, computed.terms, frame.gbuffer.camera, request.write);
+      WriteOptions write = request.write;
+      if (write.threads == 0) write.threads = request.threads;  // the frame's thread budget
+      const std::string err = write_outputs(request.output_path, computed.terms, frame.gbuffer.camera, write);
       result.times.write_ms = ms_since(t0);
       if (!err.empty()) {
         result.error = err;

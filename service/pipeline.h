@@ -47,6 +47,10 @@ struct FrameRequest {
   std::vector<WeightedTerm> composite_terms;
   WriteOptions write;
   int threads = 0;            // kernels' thread budget (0 = OpenCV's pool, 1 = serial)
+  // I/O floor (benchmarks): read what the terms need and write the same channels (names,
+  // types, size) with the frame's own normals standing in for every term, computing
+  // nothing. process_frame's read and write times are then those of a full run.
+  bool io_only = false;
 };
 
 struct StageTimes {
@@ -70,6 +74,17 @@ struct ComputedFrame {
 
 // Computes the selected terms for a frame already in memory (no I/O).
 ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request);
+
+// The terms compute_frame would return (names, channels, sample types, same order) with
+// stand-in images: the frame's view-space normals (their z for one-channel terms). For
+// FrameRequest::io_only.
+ComputedFrame io_only_frame(const GBuffer& gbuffer, const FrameRequest& request);
+
+// The request's read options narrowed to the inputs its terms use: lighting only for SSDO,
+// albedo for SSDO, the composite or multi-bounce AO, references only for a composite
+// whose background is a mapped Env pass. Channels not read are neither converted nor held
+// (OpenEXR still inflates whole chunks: every channel of a ZIP block is in one stream).
+ReadOptions reads_for(const FrameRequest& request);
 
 // Reads, computes and writes one frame. Never throws: failures are in result.error.
 FrameResult process_frame(const FrameRequest& request);

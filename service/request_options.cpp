@@ -60,7 +60,7 @@ const std::vector<std::string>& frame_option_keys() {
   static const std::vector<std::string> keys = {
       "map",  "camera", "fov",      "depth-kind",  "part",        "method", "preset",       "radius",
       "thickness", "threads", "terms", "ssdo-method", "ssdo-preset", "env",    "sky", "env-constant",
-      "env-up", "composite", "compression", "png", "quality", "max-error"};
+      "env-up", "composite", "compression", "png", "quality", "max-error", "io-only"};
   return keys;
 }
 
@@ -88,7 +88,8 @@ json to_json(const FrameOptionArgs& a) {
               {"quality", c.quality},
               {"max-error", c.max_error},
               {"compression", a.compression},
-              {"png", a.png}};
+              {"png", a.png},
+              {"io-only", a.io_only}};
 }
 
 json to_json(const FrameOptionArgs& a, const std::function<bool(const std::string&)>& given) {
@@ -178,13 +179,14 @@ bool apply_json(const json& j, FrameOptionArgs& a, std::string& error,
       }
       if (ok) c.quality = q;
     } else if (k == "max-error") ok = get_number(v, k, 0, 1, c.max_error, error);
-    else if (k == "compression") ok = get_choice(v, k, {"zip", "zips", "piz", "none", "dwaa"}, a.compression, error);
-    else if (k == "png") {
+    else if (k == "compression")
+      ok = get_choice(v, k, {"zip", "zips", "piz", "rle", "none", "dwaa"}, a.compression, error);
+    else if (k == "png" || k == "io-only") {
       if (!v.is_boolean()) {
-        error = "\"png\" must be true or false";
+        error = "\"" + k + "\" must be true or false";
         ok = false;
       } else {
-        a.png = v.get<bool>();
+        (k == "png" ? a.png : a.io_only) = v.get<bool>();
       }
     }
     if (!ok) return false;
@@ -216,6 +218,7 @@ bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std:
     return false;
   request.write.compression = a.compression;
   request.write.png_previews = a.png;
+  request.io_only = a.io_only;
   return true;
 }
 

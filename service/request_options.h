@@ -4,7 +4,7 @@
 //   {"method": "gtao", "preset": "high", "terms": "ao,ssdo", "map": ["depth=Z"], "png": true}
 // Keys: map, camera, fov, depth-kind, part (reading); method, preset, radius, thickness,
 // threads, terms, ssdo-method, ssdo-preset, env, sky, env-constant, env-up, composite
-// (computing); compression, png (writing).
+// (computing); compression, png (writing); io-only (benchmarks: the I/O floor).
 #pragma once
 
 #include <functional>
@@ -21,8 +21,9 @@ namespace ssdo {
 struct FrameOptionArgs {
   ReadOptionArgs read;
   ComputeOptionArgs compute;
-  std::string compression = "zip";  // zip | zips | piz | none | dwaa
+  std::string compression = "zip";  // zip | zips | piz | rle | none | dwaa
   bool png = false;                  // sRGB PNG previews beside the EXR
+  bool io_only = false;              // read and write as the terms would, compute nothing
 };
 
 // The schema's keys, in the order above.

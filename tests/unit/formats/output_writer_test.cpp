@@ -3,6 +3,10 @@
 #include "formats/output_writer.h"
 
 #include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <Imath/half.h>
 
 #include "formats/gbuffer_reader.h"
 #include "formats_test_util.h"
@@ -140,7 +144,7 @@ TEST(WriteOutputs, DwaaOnlyForColourTerms) {
 TEST(WriteOutputs, CompressionsAndUnknownCompression) {
   ScratchDir dir;
   const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
-  for (const char* c : {"zip", "zips", "piz", "none"}) {
+  for (const char* c : {"zip", "zips", "piz", "rle", "none"}) {
     WriteOptions o;
     o.compression = c;
     const fs::path path = dir / (std::string(c) + ".exr");
@@ -153,6 +157,68 @@ TEST(WriteOutputs, CompressionsAndUnknownCompression) {
   bad.compression = "lzma";
   const std::string e = write_outputs((dir / "bad.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, bad);
   EXPECT_NE(e.find("unknown compression \"lzma\""), std::string::npos) << e;
+}
+
+// Every lossless compression, at any zip level and thread count, stores the same bits: the
+// fast choices (rle, none, zip level 1, the default) lose nothing against OpenEXR's default
+// zip level. Values with noisy mantissas, a background of zeros and non-finite samples.
+TEST(WriteOutputs, LosslessCompressionsStoreTheSameBits) {
+  ScratchDir dir;
+  const int w = 97, h = 61;  // odd sizes: partial zip blocks and conversion strips
+  const Camera cam = Camera::from_fov_x(w, h, 60.0f);
+  cv::Mat ao(h, w, CV_32FC1), colour(h, w, CV_32FC3);
+  cv::RNG rng(7);
+  rng.fill(ao, cv::RNG::UNIFORM, 0.0f, 1.0f);
+  rng.fill(colour, cv::RNG::NORMAL, 0.5f, 2.0f);
+  ao(cv::Rect(0, 0, w, 9)).setTo(0.0f);
+  ao.at<float>(20, 30) = std::numeric_limits<float>::infinity();
+  colour.at<cv::Vec3f>(5, 6)[1] = std::numeric_limits<float>::quiet_NaN();
+  colour.at<cv::Vec3f>(7, 8)[2] = 1e6f;  // beyond half: +inf
+  const std::vector<OutputTerm> terms = {{"ao", ao, SampleType::float32},
+                                         {"ssdo_direct", colour, SampleType::half},
+                                         {"bent_normal", colour, SampleType::half, true}};
+  const std::vector<std::string> names = {"ao", "ssdo_direct.R", "ssdo_direct.G", "ssdo_direct.B",
+                                          "bent_normal.X", "bent_normal.Y", "bent_normal.Z"};
+  struct Variant {
+    const char* compression;
+    int zip_level, threads;
+  };
+  std::vector<std::vector<float>> stored;
+  for (const Variant v : {Variant{"zip", 4, 1}, Variant{"zip", kFastZipLevel, 2}, Variant{"zips", 1, 0},
+                          Variant{"piz", 1, 2}, Variant{"rle", 1, 2}, Variant{"none", 1, 1}}) {
+    WriteOptions o;
+    o.compression = v.compression;
+    o.zip_level = v.zip_level;
+    o.threads = v.threads;
+    const fs::path path = dir / (std::string(v.compression) + std::to_string(v.zip_level) + ".exr");
+    ASSERT_EQ(write_outputs(path.string(), terms, cam, o), "") << v.compression;
+    stored.push_back(read_channels_oiio(path, names));
+    ASSERT_EQ(stored.back().size(), size_t(w) * h * names.size()) << v.compression;
+    EXPECT_EQ(std::memcmp(stored.back().data(), stored.front().data(), stored.front().size() * sizeof(float)), 0)
+        << v.compression << " level " << v.zip_level << " differs from zip level 4";
+  }
+  // The float channel is stored exactly; half channels are the float values rounded to half.
+  const std::vector<float>& s = stored.front();
+  const size_t n = names.size();
+  EXPECT_EQ(s[(size_t(20) * w + 30) * n], std::numeric_limits<float>::infinity());
+  EXPECT_EQ(s[(size_t(40) * w + 41) * n], ao.at<float>(40, 41));
+  EXPECT_EQ(s[(size_t(40) * w + 41) * n + 1], float(half(colour.at<cv::Vec3f>(40, 41)[0])));
+  EXPECT_TRUE(std::isnan(s[(size_t(5) * w + 6) * n + 2]));
+  EXPECT_EQ(s[(size_t(7) * w + 8) * n + 3], std::numeric_limits<float>::infinity());
+}
+
+TEST(WriteOutputs, ZipLevelIsCheckedAndRecorded) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
+  WriteOptions o;
+  EXPECT_EQ(o.zip_level, 1);  // the default: the fast deflate level
+  o.zip_level = 0;
+  std::string e = write_outputs((dir / "z0.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o);
+  EXPECT_NE(e.find("zip level 0"), std::string::npos) << e;
+  o.zip_level = 10;
+  e = write_outputs((dir / "z10.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o);
+  EXPECT_NE(e.find("zip level 10"), std::string::npos) << e;
+  EXPECT_FALSE(fs::exists(dir / "z10.exr"));
 }
 
 TEST(WriteOutputs, InvalidTermsAreRefused) {

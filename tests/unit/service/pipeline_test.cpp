@@ -1,0 +1,85 @@
+// The pipeline's read narrowing (reads_for) and the I/O floor's stand-in terms
+// (io_only_frame) against compute_frame.
+#include "service/pipeline.h"
+
+#include <gtest/gtest.h>
+
+namespace ssdo {
+namespace {
+
+FrameRequest request_for(const std::string& terms) {
+  FrameRequest r;
+  std::string error;
+  EXPECT_TRUE(parse_terms(terms, r.terms, error)) << error;
+  r.ao = ao_preset(AoMethod::gtao, Preset::low);
+  r.ssdo = ssdo_preset(SsdoMethod::ssdo, Preset::low);
+  return r;
+}
+
+TEST(ReadsFor, OnlyTheInputsTheTermsUse) {
+  ReadOptions read = reads_for(request_for("ao"));
+  EXPECT_FALSE(read.read_lighting);
+  EXPECT_FALSE(read.read_albedo);
+  EXPECT_FALSE(read.read_references);
+  FrameRequest multibounce = request_for("ao");
+  multibounce.ao.multibounce = true;
+  EXPECT_TRUE(reads_for(multibounce).read_albedo);
+  read = reads_for(request_for("ao,ssdo"));
+  EXPECT_TRUE(read.read_lighting);
+  EXPECT_TRUE(read.read_albedo);
+  EXPECT_FALSE(read.read_references);
+  read = reads_for(request_for("ao,composite"));
+  EXPECT_TRUE(read.read_albedo);
+  EXPECT_FALSE(read.read_references);  // no mapped Env pass
+  FrameRequest env = request_for("ao,composite");
+  env.read.mapping.references["Env"] = "ViewLayer.Env";
+  EXPECT_TRUE(reads_for(env).read_references);
+  // What the caller turned off stays off.
+  FrameRequest off = request_for("ssdo");
+  off.read.read_lighting = false;
+  EXPECT_FALSE(reads_for(off).read_lighting);
+  EXPECT_FALSE(reads_for(request_for("ssdo")).read_references);
+}
+
+// A small synthetic frame: a tilted plane with a box on it.
+GBuffer small_frame() {
+  GBuffer g;
+  const int w = 48, h = 32;
+  g.camera = Camera::from_fov_x(w, h, 60.0f, 0.1f, 100.0f);
+  g.depth_view.create(h, w, CV_32FC1);
+  g.normal_view.create(h, w, CV_32FC3);
+  g.mask = cv::Mat(h, w, CV_8UC1, cv::Scalar(255));
+  g.albedo = cv::Mat(h, w, CV_32FC3, cv::Scalar(0.5f, 0.6f, 0.7f));
+  g.lighting = cv::Mat(h, w, CV_32FC3, cv::Scalar(0.2f, 0.2f, 0.2f));
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const bool box = x > 18 && x < 30 && y > 12 && y < 24;
+      g.depth_view.at<float>(y, x) = box ? 4.0f : 5.0f + 0.05f * float(y);
+      g.normal_view.at<cv::Vec3f>(y, x) = box ? cv::Vec3f(0, 0, 1) : cv::Vec3f(0, 0.3f, 0.954f);
+    }
+  return g;
+}
+
+TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
+  const GBuffer g = small_frame();
+  for (const char* terms : {"ao", "ssdo", "composite", "ao,ssdo", "all"})
+    for (AoMethod method : {AoMethod::gtao, AoMethod::hbao, AoMethod::hemisphere}) {
+      FrameRequest r = request_for(terms);
+      r.ao = ao_preset(method, Preset::low);
+      r.threads = 1;
+      const ComputedFrame computed = compute_frame(g, r);
+      const ComputedFrame standin = io_only_frame(g, r);
+      ASSERT_EQ(standin.terms.size(), computed.terms.size()) << terms << " " << to_string(method);
+      for (size_t i = 0; i < computed.terms.size(); ++i) {
+        const OutputTerm &c = computed.terms[i], &s = standin.terms[i];
+        EXPECT_EQ(s.name, c.name) << terms;
+        EXPECT_EQ(s.type, c.type) << c.name;
+        EXPECT_EQ(s.vector, c.vector) << c.name;
+        EXPECT_EQ(s.image.type(), c.image.type()) << c.name;
+        EXPECT_EQ(s.image.size(), c.image.size()) << c.name;
+      }
+    }
+}
+
+}  // namespace
+}  // namespace ssdo
