@@ -1,17 +1,25 @@
 #!/usr/bin/env bash
 # Frame I/O benchmark (figures, not a test): the wall time of `ssdo process` on the 1080p
 # Cycles dump with AO and SSDO written, against `oiiotool` merely copying the channels
-# ssdo reads (depth, normal, albedo) to half ZIP. Runs both alternately RUNS times and
-# prints the medians and their ratio; then the throughput over a folder of 8 copies.
+# ssdo reads (depth, normal, albedo) to half ZIP. Runs every command alternately RUNS
+# times in one run (ratios hold on a loaded machine) and prints the medians, the ratios to
+# oiiotool and the per-stage split ssdo reports (read, compute, write: medians over the
+# runs); then the throughput over a folder of 8 copies of the frame (frames/s).
 #
 #   tests/bench/io_vs_oiiotool.sh [FRAME] [RUNS]
-#   SSDO=build/ssdo  SSDO_ARGS="--preset medium"  to override
+#   SSDO=build/ssdo  SSDO_ARGS="--terms ao,ssdo --preset low ..."  to override
+#
+# Commands timed (SSDO_ARGS = the speed settings: fastest presets):
+#   oiiotool FRAME --ch <depth, normal, albedo> -d half --compression zip -o copy.exr
+#   ssdo process FRAME SSDO_ARGS                         (default compression: zip level 1)
+#   ssdo process FRAME SSDO_ARGS --compression none      (the fast lossless choice)
+#   ssdo process FRAME SSDO_ARGS --compression none --io-only   (the same I/O, nothing computed)
 set -euo pipefail
 here="$(cd "$(dirname "$0")/../.." && pwd)"
 frame="${1:-$here/../shared/gbuffers/perf1080.exr}"
 runs="${2:-5}"
 ssdo="${SSDO:-$here/build/ssdo}"
-ssdo_args=(${SSDO_ARGS:---terms ao,ssdo --method gtao --preset medium --env "$here/examples/env_equirect.exr"})
+ssdo_args=(${SSDO_ARGS:---terms ao,ssdo --method gtao --preset low --ssdo-preset low --env "$here/examples/env_equirect.exr"})
 command -v oiiotool >/dev/null || { echo "oiiotool not found (apt-get install openimageio-tools)"; exit 1; }
 [ -x "$ssdo" ] || { echo "no ssdo binary at $ssdo (scripts/build.sh)"; exit 1; }
 [ -f "$frame" ] || { echo "no frame at $frame"; exit 1; }
@@ -30,24 +38,60 @@ layer="$(oiiotool --info -v "$frame" | sed -n 's/.*channel list: //p' | tr ',' '
 now() { date +%s.%N; }
 calc() { awk "BEGIN { print $* }"; }
 median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
+# ssdo process -v prints "... read R ms, compute C ms, write W ms, ..." per frame.
+stage() { sed -n "s/.* $1 \([0-9.]*\) ms.*/\1/p"; }
 
-: >"$work/oiio.txt"; : >"$work/ssdo.txt"
+configs=(zip none io)
+config_args() {
+  case "$1" in
+    zip) echo "" ;;
+    none) echo "--compression none" ;;
+    io) echo "--compression none --io-only" ;;
+  esac
+}
+config_name() {
+  case "$1" in
+    zip) echo "ssdo process (default zip)" ;;
+    none) echo "ssdo process --compression none" ;;
+    io) echo "ssdo process --compression none --io-only" ;;
+  esac
+}
+
+echo "load average at start: $(cut -d' ' -f1-3 /proc/loadavg)"
+: >"$work/oiio.txt"
+for c in "${configs[@]}"; do : >"$work/$c.txt"; : >"$work/$c.log"; done
 for i in $(seq "$runs"); do
   t0=$(now); oiiotool "$work/$stem.exr" --ch "$layer" -d half --compression zip -o "$work/copy.exr"; t1=$(now)
   calc "$t1 - $t0" >>"$work/oiio.txt"
-  t0=$(now); "$ssdo" process "$work/$stem.exr" -o "$work/out" --force "${ssdo_args[@]}" >/dev/null; t1=$(now)
-  calc "$t1 - $t0" >>"$work/ssdo.txt"
+  for c in "${configs[@]}"; do
+    t0=$(now)
+    "$ssdo" process "$work/$stem.exr" -o "$work/out-$c" --force -v "${ssdo_args[@]}" $(config_args "$c") >>"$work/$c.log"
+    t1=$(now)
+    calc "$t1 - $t0" >>"$work/$c.txt"
+  done
 done
-m_oiio=$(median <"$work/oiio.txt"); m_ssdo=$(median <"$work/ssdo.txt")
-printf 'oiiotool channel copy   median %.3f s over %d runs\n' "$m_oiio" "$runs"
-printf 'ssdo process (%s) median %.3f s\n' "${ssdo_args[*]}" "$m_ssdo"
-printf 'ratio ssdo / oiiotool   %.2f\n' "$(calc "$m_ssdo / $m_oiio")"
-"$ssdo" process "$work/$stem.exr" -o "$work/out" --force -v "${ssdo_args[@]}" | grep -E 'read|compute' || true
+m_oiio=$(median <"$work/oiio.txt")
+echo "ssdo settings: ${ssdo_args[*]}"
+printf '%-44s median %7.3f s over %d runs\n' "oiiotool --ch (7 channels) -d half zip" "$m_oiio" "$runs"
+for c in "${configs[@]}"; do
+  m=$(median <"$work/$c.txt")
+  printf '%-44s median %7.3f s  ratio to oiiotool %.2f  (read %.0f, compute %.0f, write %.0f ms; %s MB)\n' \
+    "$(config_name "$c")" "$m" "$(calc "$m / $m_oiio")" \
+    "$(stage read <"$work/$c.log" | median)" "$(stage compute <"$work/$c.log" | median)" \
+    "$(stage write <"$work/$c.log" | median)" "$(calc "$(stat -c %s "$work/out-$c/$stem.ssdo.exr") / 1e6")"
+done
 
 mkdir -p "$work/eight"
 for i in 1 2 3 4 5 6 7 8; do
   ln -f "$work/$stem.exr" "$work/eight/f$i.exr" 2>/dev/null || cp "$work/$stem.exr" "$work/eight/f$i.exr"
   [ -f "$work/$stem.camera.json" ] && cp "$work/$stem.camera.json" "$work/eight/f$i.camera.json"
 done
-t0=$(now); "$ssdo" process "$work/eight" -o "$work/out8" --force "${ssdo_args[@]}" >/dev/null; t1=$(now)
-printf '8 frames: %.2f s, %.2f frames/s\n' "$(calc "$t1 - $t0")" "$(calc "8 / ($t1 - $t0)")"
+for c in none io; do
+  t0=$(now); "$ssdo" process "$work/eight" -o "$work/out8-$c" --force "${ssdo_args[@]}" $(config_args "$c") >/dev/null; t1=$(now)
+  printf '8 frames, %-40s %.2f s, %.3f frames/s\n' "$(config_name "$c"):" "$(calc "$t1 - $t0")" "$(calc "8 / ($t1 - $t0)")"
+done
+t0=$(now)
+for i in 1 2 3 4 5 6 7 8; do oiiotool "$work/eight/f$i.exr" --ch "$layer" -d half --compression zip -o "$work/copy.exr"; done
+t1=$(now)
+printf '8 frames, %-40s %.2f s, %.3f frames/s\n' "oiiotool channel copy:" "$(calc "$t1 - $t0")" "$(calc "8 / ($t1 - $t0)")"
+echo "load average at end: $(cut -d' ' -f1-3 /proc/loadavg)"

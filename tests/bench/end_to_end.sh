@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# End-to-end benchmark of `ssdo process` on a folder of 1080p frames (figures, not a test):
+# per-stage times (read, compute, write: medians over the frames, as `ssdo process -v`
+# reports them), the batch's wall time against its I/O floor (the same batch with
+# --io-only: the same channels read and the same channels written, nothing computed), and
+# the peak resident memory of the worker (getrusage of the batch's descendants, via
+# /usr/bin/time) against the decoded G-buffer (the channels read, as float).
+# The full batch and the floor run alternately RUNS times in one run.
+#
+#   tests/bench/end_to_end.sh [FRAME] [FRAMES] [RUNS]
+#   SSDO=build/ssdo  SSDO_ARGS="--terms ao,ssdo --preset low ..."  to override
+set -euo pipefail
+here="$(cd "$(dirname "$0")/../.." && pwd)"
+frame="${1:-$here/../shared/gbuffers/perf1080.exr}"
+count="${2:-8}"
+runs="${3:-1}"
+ssdo="${SSDO:-$here/build/ssdo}"
+ssdo_args=(${SSDO_ARGS:---terms ao,ssdo --method gtao --preset low --ssdo-preset low --compression none --env "$here/examples/env_equirect.exr"})
+[ -x "$ssdo" ] || { echo "no ssdo binary at $ssdo (scripts/build.sh)"; exit 1; }
+[ -f "$frame" ] || { echo "no frame at $frame"; exit 1; }
+[ -x /usr/bin/time ] || { echo "/usr/bin/time not found (apt-get install time)"; exit 1; }
+
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+stem="$(basename "$frame" .exr)"
+mkdir -p "$work/in"
+sidecar="${frame%.exr}.camera.json"
+for i in $(seq "$count"); do
+  cp "$frame" "$work/in/f$i.exr"  # copies, not links: each frame is read from its own file
+  [ -f "$sidecar" ] && cp "$sidecar" "$work/in/f$i.camera.json"
+done
+
+median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
+stage() { sed -n "s/.* $1 \([0-9.]*\) ms.*/\1/p"; }
+
+echo "load average at start: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "ssdo settings: ${ssdo_args[*]}"
+for mode in full floor; do : >"$work/$mode.wall"; : >"$work/$mode.log"; : >"$work/$mode.rss"; done
+for r in $(seq "$runs"); do
+  for mode in full floor; do
+    extra=(); [ "$mode" = floor ] && extra=(--io-only)
+    /usr/bin/time -f '%e %M' -o "$work/time.txt" \
+      "$ssdo" process "$work/in" -o "$work/out-$mode" --force -v "${ssdo_args[@]}" "${extra[@]}" >>"$work/$mode.log"
+    read -r wall rss <"$work/time.txt"
+    echo "$wall" >>"$work/$mode.wall"
+    echo "$rss" >>"$work/$mode.rss"
+  done
+done
+
+# The decoded G-buffer: the channels the worker reads (`ssdo info` lists them), as float.
+channels=$("$ssdo" info "$work/in/f1.exr" --json 2>/dev/null |
+  python3 -c 'import json,sys; d=json.load(sys.stdin); d=d[0] if isinstance(d,list) else d; print(d["width"]*d["height"])' 2>/dev/null || echo 0)
+for mode in full floor; do
+  wall=$(median <"$work/$mode.wall")
+  printf '%-6s %d frames: %.2f s (median of %d), %.3f frames/s; per frame read %.0f, compute %.0f, write %.0f ms; peak RSS %.0f MiB\n' \
+    "$mode" "$count" "$wall" "$runs" "$(awk "BEGIN{print $count / $wall}")" \
+    "$(stage read <"$work/$mode.log" | median)" "$(stage compute <"$work/$mode.log" | median)" \
+    "$(stage write <"$work/$mode.log" | median)" "$(awk "BEGIN{print $(median <"$work/$mode.rss") / 1024}")"
+done
+full=$(median <"$work/full.wall"); floor=$(median <"$work/floor.wall")
+printf 'end to end / I/O floor: %.2f\n' "$(awk "BEGIN{print $full / $floor}")"
+if [ "$channels" != 0 ]; then
+  # depth 1 + normal 3 + albedo 3 + lighting 3 floats, plus the mask byte (see ssdo info's "uses").
+  mib=$(awk "BEGIN{print $channels * (10 * 4 + 1) / 1048576}")
+  printf 'decoded G-buffer (depth, normal, albedo, lighting as float + mask): %.0f MiB; peak RSS / G-buffer: full %.2f, floor %.2f\n' \
+    "$mib" "$(awk "BEGIN{print $(median <"$work/full.rss") / 1024 / $mib}")" "$(awk "BEGIN{print $(median <"$work/floor.rss") / 1024 / $mib}")"
+fi
+echo "load average at end: $(cut -d' ' -f1-3 /proc/loadavg)"
