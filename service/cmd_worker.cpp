@@ -75,6 +75,15 @@ int run_worker(const WorkerArgs& args) {
   ::signal(SIGPIPE, SIG_IGN);
   const rlimit no_core{0, 0};
   ::setrlimit(RLIMIT_CORE, &no_core);
+  // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
+  // conversions), OpenEXR's (decoding and compression; one thread = in the calling thread,
+  // no pool) and OpenImageIO's (environment maps, PNG previews; OpenImageIO also resizes
+  // OpenEXR's pool when it opens an EXR, so it is told the same size). Before the
+  // address-space limit: OpenEXR starts its threads here, and their stacks are not a frame's.
+  cv::setNumThreads(args.threads);
+  Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
+  OIIO::attribute("threads", args.threads);
+  OIIO::attribute("exr_threads", args.threads > 1 ? args.threads : -1);
   if (args.memory_limit_mb > 0) {
     const rlim_t bytes = rlim_t(args.memory_limit_mb) << 20;
     const rlimit as{bytes, bytes};
@@ -83,14 +92,6 @@ int run_worker(const WorkerArgs& args) {
   // Each malloc arena reserves 64 MiB of address space; one per thread would eat the
   // RLIMIT_AS budget without using memory.
   ::mallopt(M_ARENA_MAX, 2);
-  // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
-  // conversions), OpenEXR's (decoding and compression; one thread = in the calling thread,
-  // no pool) and OpenImageIO's (environment maps, PNG previews; OpenImageIO also resizes
-  // OpenEXR's pool when it opens an EXR, so it is told the same size).
-  cv::setNumThreads(args.threads);
-  Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
-  OIIO::attribute("threads", args.threads);
-  OIIO::attribute("exr_threads", args.threads > 1 ? args.threads : -1);
   g_response_fd = args.response_fd;
   std::set_terminate(terminate_with_last_words);
 
