@@ -61,9 +61,10 @@
 // thickness_world. The surface depth at S's exact sub-pixel position is taken from q's
 // tangent plane (position_view and normal_view of q) for perspective cameras, so flat
 // surfaces do not shadow themselves at grazing angles; the pixel's stored depth otherwise.
-// Method ssdo reads taps farther than 16 px from P in a pyramid of the depth buffer (each
-// texel one full-resolution pixel of its 2x2 children, as in McGuire et al. 2012, "Scalable
-// Ambient Obscurance"), for cache locality; the oracle always reads full resolution.
+// Method ssdo reads the march's taps farther than 16 px from P in a pyramid of the depth
+// buffer (each texel one full-resolution pixel of its 2x2 children, as in McGuire et al.
+// 2012, "Scalable Ambient Obscurance"), for cache locality; its bisection steps and the
+// oracle always read full resolution.
 #pragma once
 
 #include <cstdint>

@@ -63,7 +63,10 @@ TEST_P(SsdoOnSharedFrames, FastKernelStaysCloseToTheOracle) {
   const SsdoInputs in{f.g.depth_view, f.g.normal_view, f.position_view, f.g.mask, f.g.camera,
                       environment_, &f.g.albedo, f.g.lighting.empty() ? nullptr : &f.g.lighting};
   const SsdoSettings fast = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
-  SsdoSettings oracle = ssdo_preset(SsdoMethod::oracle, Preset::low);
+  // The reference is the oracle at high (256 directions, 64 steps): at low (64 directions)
+  // its own noise is 14-28% relative MAE of the bounce (two seeds compared), which would
+  // hide the estimator's error behind the reference's.
+  SsdoSettings oracle = ssdo_preset(SsdoMethod::oracle, Preset::high);
   oracle.radius_world = fast.radius_world;
   oracle.thickness_world = fast.thickness_world;
   oracle.depth_bias_relative = fast.depth_bias_relative;
@@ -85,10 +88,7 @@ TEST_P(SsdoOnSharedFrames, FastKernelStaysCloseToTheOracle) {
   RecordProperty("indirect_relative_mae", std::to_string(indirect));
   std::printf("%s: fast vs oracle relative MAE direct %.3f indirect %.3f\n", GetParam().c_str(), direct, indirect);
   EXPECT_LT(direct, 0.10);
-  // The bounce's target is 0.25; the medium preset reaches 0.44-0.69 (biased dark: the k
-  // points per direction step over occluders the oracle's fine march finds; 64 samples x 8
-  // points reach 0.43 on depthgap). This bound guards what is reached against regressions.
-  EXPECT_LT(indirect, 0.75);
+  EXPECT_LT(indirect, 0.25);
 }
 
 INSTANTIATE_TEST_SUITE_P(Shared, SsdoOnSharedFrames, ::testing::Values("cornell", "greeble", "depthgap"));

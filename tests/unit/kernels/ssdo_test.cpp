@@ -390,7 +390,10 @@ TEST(Ssdo, AccuracyAgainstOracleAndReferenceOnRayCasterScenes) {
       {"floating", raycast::floating_scene(), raycast::floating_camera(160, 90)},
   };
   const Environment sky = Environment::sky(SkyGradient{});
-  const SsdoSettings fast = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
+  // The estimators themselves: every pixel (160 x 90 frames leave a half grid too coarse
+  // to tell estimator error from upsampling error).
+  SsdoSettings fast = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
+  fast.resolution_divisor = 1;
   SsdoSettings paper = fast;
   paper.sample_steps = 1;
   paper.direct_estimator = SsdoDirectEstimator::per_sample;
@@ -419,7 +422,7 @@ TEST(Ssdo, AccuracyAgainstOracleAndReferenceOnRayCasterScenes) {
                 "direct %.3f (%+.3f) indirect %.3f (%+.3f)\n", c.name, od.first, od.second, oi.first,
                 oi.second, rd.first, rd.second, ri.first, ri.second);
     EXPECT_LT(fd.first, 0.25) << c.name;
-    EXPECT_LT(fi.first, 0.85) << c.name;
+    EXPECT_LT(fi.first, 0.6) << c.name;
     EXPECT_LE(fd.first, pd.first + 0.005) << c.name;
     EXPECT_LE(fi.first, pi.first + 0.005) << c.name;
   }
