@@ -17,6 +17,7 @@
 #include <cmath>
 #include <string>
 
+#include "kernels/half_resolution.h"
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
 
@@ -60,6 +61,8 @@ std::string validate(const ConfidenceSettings& s) {
   if (s.taps < 4 || s.taps > 256) return detail::out_of_range("taps", s.taps, "[4, 256]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
     return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
+    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
   return {};
 }
 
@@ -77,6 +80,21 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     confidence.create(size, CV_32FC1);
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
+  if (s.resolution_divisor == 2) {
+    const cv::Mat no_positions;
+    const FullGrid full{depth_view, normal_view, no_positions, mask, camera};
+    HalfGrid h;
+    build_half_grid(full, {}, h, nthreads);
+    ConfidenceSettings half_settings = s;
+    half_settings.resolution_divisor = 1;
+    cv::Mat half_confidence;
+    compute_confidence(h.depth_view, h.normal_view, h.mask, h.camera, half_settings, half_confidence,
+                       half_grid_roi(r, size), nthreads);
+    // Background and pixels with no foreground texel near: 1, as on background.
+    const UpsampleImage images[] = {{half_confidence, confidence, cv::Scalar(1.0), cv::Scalar(1.0)}};
+    upsample_from_half_grid(full, h, images, r, nthreads);
+    return;
+  }
   const RayMap rays = make_ray_map(camera);
   const int width = size.width, height = size.height;
   const int n_taps = s.taps;

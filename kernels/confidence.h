@@ -41,6 +41,10 @@ struct ConfidenceSettings {
   // value), so that a tap on the pixel's own plane counts as observed.
   float depth_bias_relative = 1e-3f;
   uint32_t seed = 0;  // per-pixel rotation of the tap pattern
+  // 2 (default) = computed on the half-resolution grid and upsampled depth- and
+  // normal-aware (kernels/half_resolution.h): the confidence varies over the scale of the
+  // radius, not of a pixel, and a quarter of the taps suffice; 1 = every pixel.
+  int resolution_divisor = 2;
 };
 
 // Empty when valid, else what is wrong (field, value, range).

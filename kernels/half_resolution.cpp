@@ -34,7 +34,9 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
   const cv::Size half((size.width + 1) / 2, (size.height + 1) / 2);
   h.depth_view.create(half, CV_32FC1);
   h.normal_view.create(half, CV_32FC3);
-  h.position_view.create(half, CV_32FC3);
+  const bool has_position = !full.position_view.empty();
+  if (has_position) h.position_view.create(half, CV_32FC3);
+  else h.position_view.release();
   h.mask.create(half, CV_8UC1);
   h.source.create(half, CV_32SC2);
   h.extras.assign(extras.size(), cv::Mat());
@@ -59,11 +61,11 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
         if (sx < 0) {
           h.depth_view.ptr<float>(j)[i] = std::numeric_limits<float>::infinity();
           h.normal_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(0, 0, 0);
-          h.position_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(0, 0, 0);
+          if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(0, 0, 0);
         } else {
           h.depth_view.ptr<float>(j)[i] = full.depth_view.ptr<float>(sy)[sx];
           h.normal_view.ptr<cv::Vec3f>(j)[i] = full.normal_view.ptr<cv::Vec3f>(sy)[sx];
-          h.position_view.ptr<cv::Vec3f>(j)[i] = full.position_view.ptr<cv::Vec3f>(sy)[sx];
+          if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = full.position_view.ptr<cv::Vec3f>(sy)[sx];
         }
         for (size_t e = 0; e < extras.size(); ++e) {
           cv::Mat& dst = h.extras[e];

@@ -33,7 +33,8 @@ struct HalfGrid {
 };
 
 // The full-resolution views of one frame (CV_32FC1 depth, +inf on background; CV_32FC3
-// normal and view positions; CV_8UC1 mask).
+// normal and view positions, positions may be empty for kernels that do not read them;
+// CV_8UC1 mask).
 struct FullGrid {
   const cv::Mat& depth_view;
   const cv::Mat& normal_view;

@@ -1,0 +1,111 @@
+// The half grid and its upsample (kernels/half_resolution.h).
+#include "kernels/half_resolution.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "kernels/raycast.h"
+
+namespace ssdo {
+namespace {
+
+// The cornell scene of the ray caster at an odd size (the last half-grid column and row
+// stand for one pixel only).
+GBuffer frame() { return raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(161, 91), 0); }
+
+TEST(HalfResolution, GridTakesTheFirstForegroundPixelOfEachBlock) {
+  const GBuffer g = frame();
+  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  HalfGrid h;
+  const cv::Mat* extras[] = {&g.albedo, nullptr};
+  build_half_grid(full, extras, h, 2);
+  ASSERT_EQ(h.depth_view.size(), cv::Size(81, 46));
+  EXPECT_EQ(h.camera.width_px, 81);
+  EXPECT_EQ(h.camera.height_px, 46);
+  ASSERT_EQ(h.extras.size(), 2u);
+  EXPECT_TRUE(h.extras[1].empty());
+  int foreground = 0;
+  for (int j = 0; j < h.depth_view.rows; ++j)
+    for (int i = 0; i < h.depth_view.cols; ++i) {
+      const cv::Vec2i src = h.source.at<cv::Vec2i>(j, i);
+      if (src[0] < 0) {
+        EXPECT_EQ(h.mask.at<uint8_t>(j, i), 0);
+        EXPECT_TRUE(std::isinf(h.depth_view.at<float>(j, i)));
+        continue;
+      }
+      ++foreground;
+      // Inside its 2x2 block, and every block pixel before it (in the order (0,0), (1,0),
+      // (0,1), (1,1)) is background.
+      EXPECT_EQ(src[0] / 2, i);
+      EXPECT_EQ(src[1] / 2, j);
+      for (int k = 0; k < (src[0] & 1) + 2 * (src[1] & 1); ++k)
+        EXPECT_EQ(g.mask.at<uint8_t>(2 * j + (k >> 1), 2 * i + (k & 1)), 0);
+      EXPECT_EQ(h.depth_view.at<float>(j, i), g.depth_view.at<float>(src[1], src[0]));
+      EXPECT_EQ(h.normal_view.at<cv::Vec3f>(j, i), g.normal_view.at<cv::Vec3f>(src[1], src[0]));
+      EXPECT_EQ(h.position_view.at<cv::Vec3f>(j, i), g.position_view.at<cv::Vec3f>(src[1], src[0]));
+      EXPECT_EQ(h.extras[0].at<cv::Vec3f>(j, i), g.albedo.at<cv::Vec3f>(src[1], src[0]));
+    }
+  EXPECT_GT(foreground, 81 * 46 / 2);
+}
+
+TEST(HalfResolution, UpsampleKeepsConstantsAndEachPixelsOwnSurface) {
+  const GBuffer g = frame();
+  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  HalfGrid h;
+  build_half_grid(full, {}, h, 2);
+  // A value that is the texel's depth: upsampled, a pixel gets a mean of depths of its own
+  // surface (within a few percent of its own depth), never one across a silhouette.
+  cv::Mat half_value = h.depth_view.clone();
+  half_value.setTo(0.0f, h.mask == 0);
+  cv::Mat constant(h.depth_view.size(), CV_32FC3, cv::Scalar(0.25, 0.5, 0.75));
+  cv::Mat full_value(g.depth_view.size(), CV_32FC1, cv::Scalar(-1.0));
+  cv::Mat full_constant(g.depth_view.size(), CV_32FC3, cv::Scalar(-1, -1, -1));
+  const UpsampleImage images[] = {{half_value, full_value, cv::Scalar(7.0), cv::Scalar(9.0)},
+                                  {constant, full_constant, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)}};
+  const cv::Rect roi(3, 5, 150, 80);
+  upsample_from_half_grid(full, h, images, roi, 2);
+  // A pixel whose surface no texel nearby took (thin features, the corners of silhouettes)
+  // gets the nearby texel closest in depth: a value of another surface, so not all are near.
+  int checked = 0, near_own_depth = 0;
+  for (int y = 0; y < g.depth_view.rows; ++y)
+    for (int x = 0; x < g.depth_view.cols; ++x) {
+      const float v = full_value.at<float>(y, x);
+      if (!roi.contains({x, y})) {
+        EXPECT_EQ(v, -1.0f) << "outside the roi";
+        continue;
+      }
+      if (!g.mask.at<uint8_t>(y, x)) {
+        EXPECT_EQ(v, 7.0f);
+        EXPECT_EQ(full_constant.at<cv::Vec3f>(y, x), cv::Vec3f(0, 0, 0));
+        continue;
+      }
+      const float d = g.depth_view.at<float>(y, x);
+      if (std::abs(v - d) <= 0.05f * d) ++near_own_depth;
+      const cv::Vec3f c = full_constant.at<cv::Vec3f>(y, x);
+      EXPECT_NEAR(c[0], 0.25f, 1e-6f);
+      EXPECT_NEAR(c[1], 0.5f, 1e-6f);
+      EXPECT_NEAR(c[2], 0.75f, 1e-6f);
+      ++checked;
+    }
+  EXPECT_GT(checked, 5000);
+  EXPECT_GT(near_own_depth, 0.98 * checked);
+}
+
+TEST(HalfResolution, RoiOfTheHalfGridCoversEveryTexelTheUpsampleReads) {
+  const cv::Size size(161, 91);
+  const cv::Rect half_all(0, 0, 81, 46);
+  for (const cv::Rect r : {cv::Rect(0, 0, 161, 91), cv::Rect(37, 21, 50, 33), cv::Rect(160, 90, 1, 1)}) {
+    const cv::Rect h = half_grid_roi(r, size);
+    EXPECT_EQ(h & half_all, h);
+    // Pixel x reads texels floor(x / 2 - 0.25) - 1 .. + 2, clamped to the grid.
+    for (int x : {r.x, r.x + r.width - 1}) {
+      const int lo = std::max(0, int(std::floor(x / 2.0 - 0.25)) - 1), hi = std::min(80, int(std::floor(x / 2.0 - 0.25)) + 2);
+      EXPECT_LE(h.x, lo);
+      EXPECT_GE(h.x + h.width - 1, hi);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace ssdo
