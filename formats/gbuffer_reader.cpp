@@ -16,11 +16,11 @@
 #include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfStandardAttributes.h>
-#include <OpenEXR/ImfTestFile.h>
 #include <OpenEXR/ImfThreading.h>
 
 #include "formats/camera_io.h"
 #include "formats/channel_profiles.h"
+#include "formats/exr_header_check.h"
 #include "kernels/normals.h"
 #include "kernels/parallel.h"
 #include "kernels/positions.h"
@@ -112,8 +112,12 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
     result.error = path + ": not a regular file";
     return false;
   }
-  if (!Imf::isOpenExrFile(path.c_str())) {
-    result.error = path + ": not an OpenEXR file (no EXR magic number)";
+  // The headers against the file and the limits, before OpenEXR allocates from them
+  // (formats/exr_header_check.h).
+  const ExrHeaderCheck check =
+      check_exr_headers(path, {options.max_pixels, options.max_decoded_bytes});
+  if (!check.ok()) {
+    result.error = check.error;
     return false;
   }
   const int threads = options.threads > 0 ? options.threads : Imf::globalThreadCount();

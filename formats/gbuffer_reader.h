@@ -75,7 +75,12 @@ struct ReadOptions {
   bool read_albedo = true;
   bool read_lighting = true;
   bool read_references = true;          // e.g. the AO / DiffDir / DiffInd passes
-  int64_t max_pixels = int64_t(1) << 28;  // refuse larger data windows before allocating
+  // Refused before anything is allocated (checked on every part's header, see
+  // formats/exr_header_check.h): a data window, chunk, tile or row of tiles of more than
+  // max_pixels pixels, or of more than max_decoded_bytes with every channel of its part
+  // as stored (OpenEXR decodes them all).
+  int64_t max_pixels = int64_t(1) << 28;
+  int64_t max_decoded_bytes = int64_t(1) << 34;  // 16 GiB: 64 float channels at max_pixels
   int threads = 0;                      // OpenEXR decoding threads (0 = its global pool) and
                                         // conversion strips (0 = OpenCV's pool, 1 = serial)
 };
