@@ -15,6 +15,7 @@
 #include <OpenImageIO/imageio.h>
 #include <opencv2/core.hpp>
 
+#include "service/build_features.h"
 #include "service/protocol.h"
 #include "service/request_options.h"
 #include "service/worker_process.h"
@@ -84,7 +85,7 @@ int run_worker(const WorkerArgs& args) {
   Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
   OIIO::attribute("threads", args.threads);
   OIIO::attribute("exr_threads", args.threads > 1 ? args.threads : -1);
-  if (args.memory_limit_mb > 0) {
+  if (args.memory_limit_mb > 0 && kMemoryLimitEnforced) {  // service/build_features.h
     const rlim_t bytes = rlim_t(args.memory_limit_mb) << 20;
     const rlimit as{bytes, bytes};
     ::setrlimit(RLIMIT_AS, &as);
