@@ -62,7 +62,7 @@ void add_compute_options(CLI::App& app, ComputeOptionArgs& a, bool with_terms) {
       ->check(CLI::Range(0, 1024))
       ->group("Compute");
   if (!with_terms) return;
-  app.add_option("--terms", a.terms, "Terms to compute and write: ao, ssdo, composite, all")
+  app.add_option("--terms", a.terms, "Terms to compute and write: ao (AO, bent normal), ssdo (SSDO direct and indirect, and the composite they light), composite, all")
       ->capture_default_str()
       ->group("Compute");
   app.add_option("--ssdo-method", a.ssdo_method,

@@ -39,6 +39,8 @@ bool parse_terms(const std::string& list, TermSelection& terms, std::string& err
     error = "no term selected (terms: ao, ssdo, composite, all)";
     return false;
   }
+  // SSDO is light: selecting it also writes the image it lights (the composite).
+  if (t.ssdo) t.composite = true;
   terms = t;
   return true;
 }

@@ -9,10 +9,15 @@ namespace {
 TEST(Terms, ParsesListsAndAll) {
   TermSelection t;
   std::string error;
+  ASSERT_TRUE(parse_terms("ao", t, error));
+  EXPECT_TRUE(t.ao);
+  EXPECT_FALSE(t.ssdo);
+  EXPECT_FALSE(t.composite);
+  // SSDO comes with the composite it lights.
   ASSERT_TRUE(parse_terms("ao,ssdo", t, error));
   EXPECT_TRUE(t.ao);
   EXPECT_TRUE(t.ssdo);
-  EXPECT_FALSE(t.composite);
+  EXPECT_TRUE(t.composite);
   ASSERT_TRUE(parse_terms("all", t, error));
   EXPECT_TRUE(t.ao && t.ssdo && t.composite);
   EXPECT_EQ(to_string(t), "ao,ssdo,composite");

@@ -95,7 +95,7 @@ TEST(FrameOptions, ResolvesIntoARequest) {
   ASSERT_TRUE(apply_json(json{{"terms", "ao,ssdo"}, {"compression", "none"}, {"png", true}, {"sky", "1,0.2"}}, a, error));
   FrameRequest r;
   ASSERT_TRUE(resolve_frame_options(a, r, error)) << error;
-  EXPECT_TRUE(r.terms.ao && r.terms.ssdo && !r.terms.composite);
+  EXPECT_TRUE(r.terms.ao && r.terms.ssdo && r.terms.composite);  // ssdo brings the composite
   EXPECT_EQ(r.write.compression, "none");
   EXPECT_TRUE(r.write.png_previews);
   EXPECT_TRUE(r.environment != nullptr);
