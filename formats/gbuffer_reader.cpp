@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <climits>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -28,6 +29,12 @@
 namespace ssdo {
 
 namespace {
+
+// What a failed OpenEXR read is called: OpenEXR passes an allocation that failed (e.g.
+// under the worker's --memory-limit) on as an exception whose text is std::bad_alloc's.
+const char* read_failure(const std::exception& e) {
+  return std::strstr(e.what(), "bad_alloc") ? "out of memory" : "damaged or truncated file";
+}
 
 // Depth at or beyond this is background: renderers write "no hit" as a huge finite value
 // (Cycles: 1e10, see /work/shared/gbuffers/README.md) rather than +inf.
@@ -127,7 +134,7 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
   try {
     prep.file = std::make_unique<Imf::MultiPartInputFile>(path.c_str(), threads);
   } catch (const std::exception& e) {
-    result.error = path + ": cannot read the EXR header (damaged or truncated file): " + e.what();
+    result.error = path + ": cannot read the EXR header (" + read_failure(e) + "): " + e.what();
     return false;
   }
   const int n_parts = prep.file->parts();
@@ -454,7 +461,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     try {
       read_pixels(prep, options, lighting_from_passes, img, size);
     } catch (const std::exception& e) {
-      result.error = path + ": cannot read pixels (damaged or truncated file): " + e.what();
+      result.error = path + ": cannot read pixels (" + read_failure(e) + "): " + e.what();
       return result;
     }
 

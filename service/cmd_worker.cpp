@@ -3,16 +3,21 @@
 // exits when the request pipe closes.
 #include <malloc.h>
 #include <signal.h>
+#include <stdlib.h>
 #include <sys/prctl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <cstring>
 #include <exception>
 #include <map>
 #include <string>
+#include <thread>
 
 #include <OpenEXR/ImfThreading.h>
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/thread.h>
 #include <opencv2/core.hpp>
 
 #include "service/build_features.h"
@@ -31,23 +36,84 @@ constexpr size_t kMaxCachedOptionSets = 8;
 // The response descriptor, for the last words of a worker ending on an uncaught
 // exception (std::terminate runs no destructors and has no arguments).
 int g_response_fd = -1;
+int64_t g_memory_limit_mb = 0;
+// Address space released when the last words are written: an uncaught std::bad_alloc
+// means the limit is reached, and the message itself needs memory.
+void* g_last_words_reserve = nullptr;
+constexpr size_t kLastWordsReserveBytes = size_t(1) << 20;
+std::atomic_flag g_terminating = ATOMIC_FLAG_INIT;
+
+std::string describe_memory_error(const std::string& error, int64_t limit_mb);
+
+// Writes a framed message (service/protocol.h) with no allocation.
+void write_static_message(int fd, const char* text) {
+  const size_t n = std::strlen(text);
+  unsigned char frame[4];
+  encode_length(uint32_t(n), frame);
+  if (::write(fd, frame, sizeof frame) == ssize_t(sizeof frame)) (void)!::write(fd, text, n);
+}
 
 [[noreturn]] void terminate_with_last_words() {
-  std::string what = "an unknown exception";
-  if (const std::exception_ptr e = std::current_exception()) {
-    try {
-      std::rethrow_exception(e);
-    } catch (const std::bad_alloc&) {
-      what = "out of memory (std::bad_alloc)";
-    } catch (const std::exception& ex) {
-      what = ex.what();
-    } catch (...) {
-    }
+  // One thread writes; another reaching here meanwhile waits for the exit.
+  if (g_terminating.test_and_set()) {
+    for (;;) ::pause();
   }
-  const std::string message =
-      to_wire(nlohmann::json{{"ok", false}, {"exiting", true}, {"error", "worker aborted: uncaught exception: " + what}});
-  if (g_response_fd >= 0) write_message(g_response_fd, message, deadline_in(1.0));
+  ::free(g_last_words_reserve);
+  g_last_words_reserve = nullptr;
+  bool no_memory = false;
+  try {
+    std::string what = "an unknown exception";
+    if (const std::exception_ptr e = std::current_exception()) {
+      try {
+        std::rethrow_exception(e);
+      } catch (const std::bad_alloc&) {
+        what = "out of memory (std::bad_alloc)";
+        no_memory = true;
+      } catch (const std::exception& ex) {
+        what = ex.what();
+      } catch (...) {
+      }
+    }
+    const std::string message = to_wire(nlohmann::json{
+        {"ok", false},
+        {"exiting", true},
+        {"error", describe_memory_error("worker aborted: uncaught exception: " + what, g_memory_limit_mb)}});
+    if (g_response_fd >= 0) write_message(g_response_fd, message, deadline_in(1.0));
+  } catch (...) {
+    // Not even the reserve was enough: a message that needs no memory.
+    if (g_response_fd >= 0)
+      write_static_message(g_response_fd,
+                           no_memory ? "{\"ok\":false,\"exiting\":true,\"error\":\"worker aborted: out of memory "
+                                       "(std::bad_alloc) under the worker's --memory-limit\"}"
+                                     : "{\"ok\":false,\"exiting\":true,\"error\":\"worker aborted: uncaught "
+                                       "exception (and out of memory for its message)\"}");
+  }
   ::_exit(134);
+}
+
+// Starts the threads of every pool the worker uses and waits (up to `until`) until they
+// run, so that they start before the address-space limit: a thread's start is not a
+// frame's memory, and a pool thread that cannot start, or cannot allocate as it starts,
+// ends the whole process instead of failing the frame. OpenImageIO's threads register
+// themselves (an allocation, with no handler) when they first run, which may be after
+// the limit was set; TBB, OpenCV's parallel_for_ backend, creates its workers on first
+// use. OpenEXR's pool starts its threads in setGlobalThreadCount, and they allocate
+// nothing until they decode.
+void start_pool_threads(int threads, Deadline until) {
+  if (threads > 1) {
+    // Strips that wait for each other: all `threads` run at once, so TBB has its workers.
+    std::atomic<int> running{0};
+    cv::parallel_for_(
+        cv::Range(0, threads),
+        [&](const cv::Range& r) {
+          running += r.end - r.start;
+          while (running.load() < threads && Clock::now() < until) std::this_thread::yield();
+        },
+        threads);
+  }
+  OIIO::thread_pool* pool = OIIO::default_thread_pool();
+  while (pool->idle() < pool->size() && Clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
 std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
@@ -76,25 +142,28 @@ int run_worker(const WorkerArgs& args) {
   ::signal(SIGPIPE, SIG_IGN);
   const rlimit no_core{0, 0};
   ::setrlimit(RLIMIT_CORE, &no_core);
+  // Each malloc arena reserves 64 MiB of address space; one per thread would eat the
+  // RLIMIT_AS budget without using memory. Before any pool thread allocates.
+  ::mallopt(M_ARENA_MAX, 2);
   // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
   // conversions), OpenEXR's (decoding and compression; one thread = in the calling thread,
   // no pool) and OpenImageIO's (environment maps, PNG previews; OpenImageIO also resizes
-  // OpenEXR's pool when it opens an EXR, so it is told the same size). Before the
-  // address-space limit: OpenEXR starts its threads here, and their stacks are not a frame's.
+  // OpenEXR's pool when it opens an EXR, so it is told the same size). Their threads are
+  // started before the address-space limit: their stacks are not a frame's.
   cv::setNumThreads(args.threads);
   Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
   OIIO::attribute("threads", args.threads);
   OIIO::attribute("exr_threads", args.threads > 1 ? args.threads : -1);
+  g_response_fd = args.response_fd;
+  g_memory_limit_mb = args.memory_limit_mb;
+  std::set_terminate(terminate_with_last_words);
   if (args.memory_limit_mb > 0 && kMemoryLimitEnforced) {  // service/build_features.h
+    start_pool_threads(args.threads, deadline_in(2.0));
+    g_last_words_reserve = ::malloc(kLastWordsReserveBytes);
     const rlim_t bytes = rlim_t(args.memory_limit_mb) << 20;
     const rlimit as{bytes, bytes};
     ::setrlimit(RLIMIT_AS, &as);
   }
-  // Each malloc arena reserves 64 MiB of address space; one per thread would eat the
-  // RLIMIT_AS budget without using memory.
-  ::mallopt(M_ARENA_MAX, 2);
-  g_response_fd = args.response_fd;
-  std::set_terminate(terminate_with_last_words);
 
   std::map<std::string, FrameRequest> resolved;  // options JSON -> request template
   for (;;) {
