@@ -111,6 +111,11 @@ struct SenderTexel {
 // reads level floor(log2(rho / kMipStartPx)) + 1 when rho >= kMipStartPx, else level 0:
 // the contact region, where occlusion changes fastest, is always read at full resolution.
 constexpr float kMipStartPx = 16.0f;
+
+// Pixels are visited in kTilePx x kTilePx tiles (strips of kTilePx rows, tile by tile
+// along them): the taps of a tile's pixels overlap, so a tile reuses texels from cache
+// that row-by-row order (whose taps span 2 r rows of the whole width) fetches again.
+constexpr int kTilePx = 32;
 constexpr int kMaxLevels = 8;
 
 struct TapLevel {
@@ -624,45 +629,47 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     sender_direct.create(size, CV_32FC3);
     parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
       glm::vec3 direct(0.0f), unused(0.0f);
-      for (int y = rows.start; y < rows.end; ++y) {
-        const uint8_t* m = in.mask.ptr<uint8_t>(y);
-        cv::Vec3f* d = sender_direct.ptr<cv::Vec3f>(y);
-        for (int x = 0; x < size.width; ++x) {
-          if (!m[x]) {
-            d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
-            continue;
+      for (int x0 = 0; x0 < size.width; x0 += kTilePx)
+        for (int y = rows.start; y < rows.end; ++y) {
+          const uint8_t* m = in.mask.ptr<uint8_t>(y);
+          cv::Vec3f* d = sender_direct.ptr<cv::Vec3f>(y);
+          for (int x = x0; x < std::min(x0 + kTilePx, size.width); ++x) {
+            if (!m[x]) {
+              d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+              continue;
+            }
+            light_pixel(c, x, y, true, false, sender_direct, record_at(x, y), nullptr, direct, unused);
+            d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
           }
-          light_pixel(c, x, y, true, false, sender_direct, record_at(x, y), nullptr, direct, unused);
-          d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
         }
-      }
-    });
+    }, kTilePx);
   }
 
   const cv::Rect r = resolve_roi(roi, size);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* m = in.mask.ptr<uint8_t>(y);
-      cv::Vec3f* od = out.direct.ptr<cv::Vec3f>(y);
-      cv::Vec3f* oi = out.indirect.ptr<cv::Vec3f>(y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        if (!m[x]) {
-          od[x] = oi[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
-          continue;
+    for (int x0 = r.x; x0 < r.x + r.width; x0 += kTilePx)
+      for (int y = rows.start; y < rows.end; ++y) {
+        const uint8_t* m = in.mask.ptr<uint8_t>(y);
+        cv::Vec3f* od = out.direct.ptr<cv::Vec3f>(y);
+        cv::Vec3f* oi = out.indirect.ptr<cv::Vec3f>(y);
+        for (int x = x0; x < std::min(x0 + kTilePx, r.x + r.width); ++x) {
+          if (!m[x]) {
+            od[x] = oi[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+            continue;
+          }
+          glm::vec3 direct(0.0f), indirect(0.0f);
+          if (!sender_direct.empty()) {
+            const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
+            direct = glm::vec3(d[0], d[1], d[2]);
+            light_pixel(c, x, y, false, true, sender_direct, nullptr, record_at(x, y), direct, indirect);
+          } else {
+            light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, direct, indirect);
+          }
+          od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
+          oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
         }
-        glm::vec3 direct(0.0f), indirect(0.0f);
-        if (!sender_direct.empty()) {
-          const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
-          direct = glm::vec3(d[0], d[1], d[2]);
-          light_pixel(c, x, y, false, true, sender_direct, nullptr, record_at(x, y), direct, indirect);
-        } else {
-          light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, direct, indirect);
-        }
-        od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
-        oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
       }
-    }
-  });
+  }, kTilePx);
 }
 
 }  // namespace ssdo
