@@ -32,8 +32,10 @@ std::vector<std::string> lines(const uint8_t* data, size_t size, size_t n) {
   return out;
 }
 
-// Bounds memory and time per input; the product's default is 1,000,000.
-constexpr size_t kMaxFrames = 100000;
+// Bounds memory and time per input; the product's default is 1,000,000. Lists of up to
+// 2000 frames exercise every path (the limit's refusal included) at thousands of inputs
+// a second; 100000 ran 240 a second under ASan.
+constexpr size_t kMaxFrames = 2000;
 
 }  // namespace
 
