@@ -14,7 +14,11 @@ scripts/build.sh
 # its corpus (label fuzz; they run only in this clang build). Not under sanitizers: the
 # Slurm cluster test (label slurm: it exercises the job scheduler, not our code) and the
 # whole-frame accuracy suites (label accuracy: minutes each under ASan, and the code paths
-# they run are the unit tests'). README.md, "Fuzzing and sanitizers".
+# they run are the unit tests'), nor six kernel tests that measure estimators with large
+# sample counts (the test preset's name filter: Ssdo.AccuracyAgainstOracle...,
+# Ssdo.CornerDirect..., Ssdo.OpenPlane*, Ssdo.IndirectUnits..., AoRaymarch.CornerMatches...;
+# 3 minutes of the stage's tests under ASan, and the same kernel code runs in the other
+# kernel tests). README.md, "Fuzzing and sanitizers".
 # Measured on the 2-core machine while others were building: from an empty build-asan/,
 # build 18.3 min at load average 4 to 6 (11.2 min of CPU, about 6 min on idle cores),
 # tests 5.3 min at load 2 to 3 (217 tests, fuzz runs included): stage about 24 min
