@@ -159,40 +159,32 @@ TEST(FailureCases, MitigationThickness) {
   }
 }
 
-// Second depth layer: the back-face pass as each tap's own thickness (raymarch), against
-// the 0.5 x radius guess.
-TEST(FailureCases, MitigationBackFaceDepth) {
-  std::printf("back-face depth (raymarch low): MAE without -> with\n");
-  const AoSettings s = settings_of({AoMethod::raymarch, Preset::low});
+// Second depth layer: the back-face pass as each tap's own thickness, against the 0.5 x
+// radius guess. On the thin case the MAE with it must fall below thin_factor x without;
+// elsewhere it may not rise by more than 0.005.
+void check_back_face_depth(const char* label, const AoSettings& s, double thin_factor) {
+  std::printf("back-face depth (%s): MAE without -> with\n", label);
   for (const Case& c : suite()) {
     const Result b = evaluate(c, s, false), a = evaluate(c, s, true);
     std::printf("  %-14s %.3f -> %.3f   max %.2f -> %.2f   flicker %.4f -> %.4f\n",
                 c.name.c_str(), b.err.mae, a.err.mae, b.err.max_abs, a.err.max_abs, b.flicker,
                 a.flicker);
     if (c.name == "thin") {
-      EXPECT_LT(a.err.mae, 0.8 * b.err.mae);
+      EXPECT_LT(a.err.mae, thin_factor * b.err.mae);
     } else {
       EXPECT_LE(a.err.mae, b.err.mae + 0.005) << c.name;
     }
   }
 }
 
+TEST(FailureCases, MitigationBackFaceDepth) {
+  check_back_face_depth("raymarch low", settings_of({AoMethod::raymarch, Preset::low}), 0.8);
+}
+
 // The same for GTAO's visibility mask (high: full resolution; the half-resolution grid of
 // low and medium does not carry the back layer).
 TEST(FailureCases, MitigationBackFaceDepthGtao) {
-  std::printf("back-face depth (gtao high): MAE without -> with\n");
-  const AoSettings s = settings_of({AoMethod::gtao, Preset::high});
-  for (const Case& c : suite()) {
-    const Result b = evaluate(c, s, false), a = evaluate(c, s, true);
-    std::printf("  %-14s %.3f -> %.3f   max %.2f -> %.2f   flicker %.4f -> %.4f\n",
-                c.name.c_str(), b.err.mae, a.err.mae, b.err.max_abs, a.err.max_abs, b.flicker,
-                a.flicker);
-    if (c.name == "thin") {
-      EXPECT_LT(a.err.mae, b.err.mae);
-    } else {
-      EXPECT_LE(a.err.mae, b.err.mae + 0.005) << c.name;
-    }
-  }
+  check_back_face_depth("gtao high", settings_of({AoMethod::gtao, Preset::high}), 1.0);
 }
 
 // Guard band: the renderer draws kGuard pixels more on every side (the same projection per
