@@ -64,6 +64,35 @@ const cv::Mat* ComputedFrame::find(const std::string& name) const {
   return nullptr;
 }
 
+namespace {
+
+// Which of the selected terms compute_frame computes (the composite may pull in terms that
+// are not written).
+struct TermsComputed {
+  bool ao = false, ssdo = false;
+  std::vector<WeightedTerm> composite_terms;
+};
+
+TermsComputed terms_computed(const FrameRequest& request) {
+  const TermSelection& terms = request.terms;
+  TermsComputed c;
+  c.composite_terms = !request.composite_terms.empty() ? request.composite_terms
+                      : terms.ssdo ? composite_mode_terms(CompositeMode::ssdo)
+                                   : composite_mode_terms(CompositeMode::ssao);
+  auto composite_uses = [&](CompositeTerm t) {
+    if (!terms.composite) return false;
+    for (const WeightedTerm& w : c.composite_terms)
+      if (w.term == t) return true;
+    return false;
+  };
+  c.ao = terms.ao || composite_uses(CompositeTerm::ambient_ao);
+  c.ssdo = terms.ssdo || composite_uses(CompositeTerm::ssdo_direct) ||
+           composite_uses(CompositeTerm::ssdo_indirect);
+  return c;
+}
+
+}  // namespace
+
 ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const int threads = request.threads;
@@ -77,19 +106,11 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
     return dst;
   };
 
-  const std::vector<WeightedTerm> composite_terms =
-      !request.composite_terms.empty() ? request.composite_terms
-      : terms.ssdo ? composite_mode_terms(CompositeMode::ssdo)
-                   : composite_mode_terms(CompositeMode::ssao);
-  auto composite_uses = [&](CompositeTerm t) {
-    if (!terms.composite) return false;
-    for (const WeightedTerm& w : composite_terms)
-      if (w.term == t) return true;
-    return false;
-  };
+  const TermsComputed computed = terms_computed(request);
+  const std::vector<WeightedTerm>& composite_terms = computed.composite_terms;
 
   cv::Mat ao_denoised;
-  if (terms.ao || composite_uses(CompositeTerm::ambient_ao)) {
+  if (computed.ao) {
     const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera,
                       g.has_albedo() ? &g.albedo : nullptr,
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
@@ -107,8 +128,7 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   static const Environment kWhite;  // constant radiance 1
   const Environment& environment = request.environment ? *request.environment : kWhite;
   cv::Mat direct_denoised, indirect_denoised;
-  if (terms.ssdo || composite_uses(CompositeTerm::ssdo_direct) ||
-      composite_uses(CompositeTerm::ssdo_indirect)) {
+  if (computed.ssdo) {
     const SsdoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera, environment,
                         g.has_albedo() ? &g.albedo : nullptr,
                         g.lighting.empty() ? nullptr : &g.lighting};
@@ -161,34 +181,6 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   return frame;
 }
 
-namespace {
-
-// Which of the selected terms compute_frame computes (the composite may pull in terms that
-// are not written).
-struct TermsComputed {
-  bool ao = false, ssdo = false;
-  std::vector<WeightedTerm> composite_terms;
-};
-
-TermsComputed terms_computed(const FrameRequest& request) {
-  const TermSelection& terms = request.terms;
-  TermsComputed c;
-  c.composite_terms = !request.composite_terms.empty() ? request.composite_terms
-                      : terms.ssdo ? composite_mode_terms(CompositeMode::ssdo)
-                                   : composite_mode_terms(CompositeMode::ssao);
-  auto composite_uses = [&](CompositeTerm t) {
-    if (!terms.composite) return false;
-    for (const WeightedTerm& w : c.composite_terms)
-      if (w.term == t) return true;
-    return false;
-  };
-  c.ao = terms.ao || composite_uses(CompositeTerm::ambient_ao);
-  c.ssdo = terms.ssdo || composite_uses(CompositeTerm::ssdo_direct) ||
-           composite_uses(CompositeTerm::ssdo_indirect);
-  return c;
-}
-
-}  // namespace
 
 ReadOptions reads_for(const FrameRequest& request) {
   ReadOptions read = request.read;
