@@ -2,40 +2,94 @@
 
 #include <cmath>
 #include <exception>
+#include <fstream>
 
-#include <OpenImageIO/imageio.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+
+#include "formats/exr_header_check.h"
+#include "formats/oiio_module.h"
 
 namespace ssdo {
+namespace {
+
+bool is_exr(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  unsigned char magic[4] = {};
+  in.read(reinterpret_cast<char*>(magic), 4);
+  return in && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
+}
+
+// EXR through OpenEXR (the common case; no OpenImageIO to load): R, G, B, or a luminance
+// channel Y replicated. Headers are checked first, as for frames.
+std::string read_exr(const std::string& path, long long max_pixels, cv::Mat& rgb) {
+  ExrLimits limits;
+  limits.max_pixels = max_pixels;
+  if (const ExrHeaderCheck check = check_exr_headers(path, limits); !check.ok())
+    return check.error;
+  Imf::InputFile in(path.c_str());
+  const Imath::Box2i data = in.header().dataWindow();
+  const long long w = (long long)data.max.x - data.min.x + 1;
+  const long long h = (long long)data.max.y - data.min.y + 1;
+  if (w <= 0 || h <= 0 || w * h > max_pixels)
+    return path + ": environment map size " + std::to_string(w) + " x " + std::to_string(h) +
+           " is empty or larger than the limit of " + std::to_string(max_pixels) + " pixels";
+  const Imf::ChannelList& channels = in.header().channels();
+  std::vector<std::string> names;
+  if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B"))
+    names = {"R", "G", "B"};
+  else if (channels.findChannel("Y"))
+    names = {"Y", "Y", "Y"};
+  else
+    return path + ": the environment map has no R, G, B or Y channels";
+  rgb.create(int(h), int(w), CV_32FC3);
+  // Slices address pixel (x, y) of the data window at base + x * xStride + y * yStride.
+  char* base = reinterpret_cast<char*>(rgb.ptr<float>(0)) -
+               (data.min.x * 3 + (long long)data.min.y * w * 3) * (long long)sizeof(float);
+  Imf::FrameBuffer fb;
+  if (names[0] == "Y") {
+    fb.insert("Y", Imf::Slice(Imf::FLOAT, base, 3 * sizeof(float), size_t(w) * 3 * sizeof(float)));
+  } else {
+    for (int c = 0; c < 3; ++c)
+      fb.insert(names[size_t(c)], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), 3 * sizeof(float),
+                                             size_t(w) * 3 * sizeof(float)));
+  }
+  in.setFrameBuffer(fb);
+  in.readPixels(data.min.y, data.max.y);
+  if (names[0] == "Y")
+    for (int y = 0; y < rgb.rows; ++y) {
+      float* p = rgb.ptr<float>(y);
+      for (int x = 0; x < rgb.cols; ++x) p[3 * x + 1] = p[3 * x + 2] = p[3 * x];
+    }
+  return {};
+}
+
+}  // namespace
 
 EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
   EnvMapResult r;
   try {
-    auto in = OIIO::ImageInput::open(path);
-    if (!in) {
-      r.error = path + ": cannot open the environment map: " + OIIO::geterror();
-      return r;
-    }
-    const OIIO::ImageSpec& spec = in->spec();
-    if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0 ||
-        (long long)spec.width * spec.height > max_pixels) {
-      r.error = path + ": environment map size " + std::to_string(spec.width) + " x " +
-                std::to_string(spec.height) + " is empty or larger than the limit of " +
-                std::to_string(max_pixels) + " pixels";
-      return r;
-    }
-    const int channels = std::min(spec.nchannels, 3);
-    cv::Mat pixels(spec.height, spec.width, CV_32FC(channels));
-    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data)) {
-      r.error = path + ": cannot read the environment map: " + in->geterror();
-      return r;
-    }
-    if (channels == 3) {
-      r.radiance_rgb = pixels;
-    } else if (channels == 1) {
-      cv::merge(std::vector<cv::Mat>{pixels, pixels, pixels}, r.radiance_rgb);
+    if (is_exr(path)) {
+      if (std::string e = read_exr(path, max_pixels, r.radiance_rgb); !e.empty()) {
+        r.error = "environment map " + e;
+        return r;
+      }
     } else {
-      r.error = path + ": the environment map has 2 channels; expected RGB or one luminance channel";
-      return r;
+      cv::Mat pixels;
+      if (std::string e = oiio_module::read_image(path, 3, max_pixels, pixels); !e.empty()) {
+        r.error = "environment map " + e;
+        return r;
+      }
+      if (pixels.channels() == 3) {
+        r.radiance_rgb = pixels;
+      } else if (pixels.channels() == 1) {
+        cv::merge(std::vector<cv::Mat>{pixels, pixels, pixels}, r.radiance_rgb);
+      } else {
+        r.error = path + ": the environment map has 2 channels; expected RGB or one luminance channel";
+        return r;
+      }
     }
     // Radiance is finite and >= 0: anything else (NaN, Inf, negative from a bad filter)
     // would poison the SH projection and every pixel with it.

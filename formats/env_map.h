@@ -1,6 +1,7 @@
-// Reading an environment map (equirectangular latitude-longitude radiance image, any
-// format OpenImageIO reads; EXR for HDR) into the CV_32FC3 RGB image kernels/environment.h
-// takes.
+// Reading an environment map (equirectangular latitude-longitude radiance image) into the
+// CV_32FC3 RGB image kernels/environment.h takes. EXR (R, G, B or Y channels) is read with
+// OpenEXR; any other format OpenImageIO reads (HDR, TIFF, ...) through the OpenImageIO
+// module (formats/oiio_module.h).
 #pragma once
 
 #include <string>

@@ -16,10 +16,9 @@
 #include <thread>
 
 #include <OpenEXR/ImfThreading.h>
-#include <OpenImageIO/imageio.h>
-#include <OpenImageIO/thread.h>
 #include <opencv2/core.hpp>
 
+#include "formats/oiio_module.h"
 #include "service/build_features.h"
 #include "service/protocol.h"
 #include "service/request_options.h"
@@ -94,11 +93,9 @@ void write_static_message(int fd, const char* text) {
 // Starts the threads of every pool the worker uses and waits (up to `until`) until they
 // run, so that they start before the address-space limit: a thread's start is not a
 // frame's memory, and a pool thread that cannot start, or cannot allocate as it starts,
-// ends the whole process instead of failing the frame. OpenImageIO's threads register
-// themselves (an allocation, with no handler) when they first run, which may be after
-// the limit was set; TBB, OpenCV's parallel_for_ backend, creates its workers on first
-// use. OpenEXR's pool starts its threads in setGlobalThreadCount, and they allocate
-// nothing until they decode.
+// ends the whole process instead of failing the frame. TBB, OpenCV's parallel_for_
+// backend, creates its workers on first use. OpenEXR's pool starts its threads in
+// setGlobalThreadCount, and they allocate nothing until they decode.
 void start_pool_threads(int threads, Deadline until) {
   if (threads > 1) {
     // Strips that wait for each other: all `threads` run at once, so TBB has its workers.
@@ -111,9 +108,6 @@ void start_pool_threads(int threads, Deadline until) {
         },
         threads);
   }
-  OIIO::thread_pool* pool = OIIO::default_thread_pool();
-  while (pool->idle() < pool->size() && Clock::now() < until)
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
 std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
@@ -146,14 +140,15 @@ int run_worker(const WorkerArgs& args) {
   // RLIMIT_AS budget without using memory. Before any pool thread allocates.
   ::mallopt(M_ARENA_MAX, 2);
   // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
-  // conversions), OpenEXR's (decoding and compression; one thread = in the calling thread,
-  // no pool) and OpenImageIO's (environment maps, PNG previews; OpenImageIO also resizes
-  // OpenEXR's pool when it opens an EXR, so it is told the same size). Their threads are
-  // started before the address-space limit: their stacks are not a frame's.
+  // conversions) and OpenEXR's (decoding and compression; one thread = in the calling
+  // thread, no pool). Their threads are started before the address-space limit: their
+  // stacks are not a frame's. OpenImageIO (PNG previews, environment maps other than EXR)
+  // is loaded only if a request needs it (formats/oiio_module.h), possibly under the limit,
+  // so it gets no pool: its work here is small, and a pool thread that cannot allocate as
+  // it starts would end the worker.
   cv::setNumThreads(args.threads);
   Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
-  OIIO::attribute("threads", args.threads);
-  OIIO::attribute("exr_threads", args.threads > 1 ? args.threads : -1);
+  oiio_module::set_threads(1);
   g_response_fd = args.response_fd;
   g_memory_limit_mb = args.memory_limit_mb;
   std::set_terminate(terminate_with_last_words);

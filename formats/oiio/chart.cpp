@@ -1,4 +1,5 @@
 #include "formats/chart.h"
+#include "formats/oiio/module_api.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,7 +10,7 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
-namespace ssdo {
+namespace ssdo::oiio_module {
 
 namespace {
 
@@ -37,8 +38,8 @@ double nice_step(double span, int ticks) {
 
 }  // namespace
 
-std::string write_chart_png(const std::string& path, const std::vector<ChartSeries>& series,
-                            const ChartOptions& o) {
+std::string render_chart_png(const std::string& path, const std::vector<ChartSeries>& series,
+                             const ChartOptions& o) {
   if (o.width_px < 400 || o.width_px > 8192 || o.height_px < 300 || o.height_px > 8192)
     return path + ": chart size out of range";
   double x_min = std::numeric_limits<double>::infinity(), x_max = 0, y_max = 0;
@@ -124,4 +125,4 @@ std::string write_chart_png(const std::string& path, const std::vector<ChartSeri
   return {};
 }
 
-}  // namespace ssdo
+}  // namespace ssdo::oiio_module

@@ -1,0 +1,35 @@
+// The table of functions the OpenImageIO module (libssdo_oiio.so, formats/oiio/*.cpp)
+// exports to the loader (formats/oiio_module.cpp). Both sides are built together from this
+// header; kVersion guards against a stale module beside a newer binary.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "formats/chart.h"
+
+namespace ssdo::oiio_module {
+
+inline constexpr int kVersion = 1;
+
+struct Api {
+  int version = kVersion;
+  // OpenImageIO's pool size and the OpenEXR pool size it sets when it opens an EXR.
+  void (*set_threads)(int threads) = nullptr;
+  // The first min(channels, max_channels) channels of subimage 0 as float; "" or the error.
+  // Sizes over max_pixels are refused before allocating.
+  std::string (*read_image)(const std::string& path, int max_channels, long long max_pixels,
+                            cv::Mat& pixels) = nullptr;
+  // An 8-bit image (CV_8UC1/3/4) as PNG at exactly `path`; colour_space is recorded.
+  std::string (*write_png)(const std::string& path, const cv::Mat& pixels_u8,
+                           const std::string& colour_space) = nullptr;
+  std::string (*write_chart_png)(const std::string& path, const std::vector<ChartSeries>& series,
+                                 const ChartOptions& options) = nullptr;
+};
+
+}  // namespace ssdo::oiio_module
+
+// The module's one exported symbol.
+extern "C" const ssdo::oiio_module::Api* ssdo_oiio_module_api();

@@ -1,0 +1,110 @@
+// Environment maps: EXR through OpenEXR, other formats through the OpenImageIO module; the
+// same pixels either way, and clean errors.
+#include "formats/env_map.h"
+
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "formats/oiio_module.h"
+#include "tests/unit/formats/formats_test_util.h"
+
+namespace ssdo {
+namespace {
+
+using test::ScratchDir;
+using test::TestChannel;
+using test::TestExr;
+
+TestExr rgb_map(int w, int h) {
+  TestExr exr;
+  exr.width = w;
+  exr.height = h;
+  exr.data_x = 3;  // a data window off the origin must not shift the pixels
+  exr.data_y = -2;
+  TestChannel r{"R", OIIO::TypeDesc::HALF, {}}, g{"G", OIIO::TypeDesc::FLOAT, {}},
+      b{"B", OIIO::TypeDesc::HALF, {}};
+  for (int i = 0; i < w * h; ++i) {
+    r.values.push_back(float(i % 17) * 0.5f);
+    g.values.push_back(float(i) * 0.25f);
+    b.values.push_back(i == 5 ? -1.0f : 2.0f);  // negative radiance is clamped to 0
+  }
+  exr.channels = {b, g, r};
+  return exr;
+}
+
+TEST(EnvMap, ExrRgbIsReadInPlaceWithNegativesClamped) {
+  ScratchDir dir;
+  const int w = 8, h = 4;
+  const TestExr exr = rgb_map(w, h);
+  ASSERT_TRUE(exr.write(dir / "env.exr"));
+  const EnvMapResult env = read_env_map((dir / "env.exr").string());
+  ASSERT_TRUE(env.ok()) << env.error;
+  ASSERT_EQ(env.radiance_rgb.type(), CV_32FC3);
+  ASSERT_EQ(env.radiance_rgb.cols, w);
+  ASSERT_EQ(env.radiance_rgb.rows, h);
+  for (int i = 0; i < w * h; ++i) {
+    const cv::Vec3f p = env.radiance_rgb.at<cv::Vec3f>(i / w, i % w);
+    EXPECT_EQ(p[0], float(i % 17) * 0.5f) << i;
+    EXPECT_EQ(p[1], float(i) * 0.25f) << i;
+    EXPECT_EQ(p[2], i == 5 ? 0.0f : 2.0f) << i;
+  }
+  EXPECT_FALSE(oiio_module::loaded()) << "an EXR map must not need OpenImageIO";
+}
+
+TEST(EnvMap, ExrLuminanceIsReplicated) {
+  ScratchDir dir;
+  TestExr exr;
+  exr.width = 4;
+  exr.height = 2;
+  exr.channels = {{"Y", OIIO::TypeDesc::FLOAT, {0, 1, 2, 3, 4, 5, 6, 7}}};
+  ASSERT_TRUE(exr.write(dir / "y.exr"));
+  const EnvMapResult env = read_env_map((dir / "y.exr").string());
+  ASSERT_TRUE(env.ok()) << env.error;
+  EXPECT_EQ(env.radiance_rgb.at<cv::Vec3f>(1, 2), cv::Vec3f(6, 6, 6));
+}
+
+TEST(EnvMap, OtherFormatsGoThroughTheModuleWithTheSamePixels) {
+  ScratchDir dir;
+  // Radiance HDR holds shared-exponent RGB: values that are exact in it.
+  const int w = 6, h = 3;
+  cv::Mat pixels(h, w, CV_32FC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) pixels.at<cv::Vec3f>(y, x) = cv::Vec3f(float(x), 0.5f, float(y) * 2);
+  auto out = OIIO::ImageOutput::create("hdr");
+  ASSERT_TRUE(out);
+  ASSERT_TRUE(out->open((dir / "env.hdr").string(), OIIO::ImageSpec(w, h, 3, OIIO::TypeDesc::FLOAT)));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data));
+  ASSERT_TRUE(out->close());
+  const EnvMapResult env = read_env_map((dir / "env.hdr").string());
+  ASSERT_TRUE(env.ok()) << env.error;
+  EXPECT_TRUE(oiio_module::loaded());
+  EXPECT_EQ(cv::norm(env.radiance_rgb, pixels, cv::NORM_INF), 0.0);
+}
+
+TEST(EnvMap, ErrorsNameTheFile) {
+  ScratchDir dir;
+  const EnvMapResult missing = read_env_map((dir / "none.exr").string());
+  EXPECT_FALSE(missing.ok());
+  EXPECT_NE(missing.error.find("none.exr"), std::string::npos) << missing.error;
+  std::ofstream(dir / "text.exr") << "not an image";
+  const EnvMapResult text = read_env_map((dir / "text.exr").string());
+  EXPECT_FALSE(text.ok());
+  EXPECT_NE(text.error.find("text.exr"), std::string::npos) << text.error;
+  TestExr exr;
+  exr.width = 2;
+  exr.height = 1;
+  exr.channels = {{"Z", OIIO::TypeDesc::FLOAT, {1, 2}}};
+  ASSERT_TRUE(exr.write(dir / "depth.exr"));
+  const EnvMapResult depth = read_env_map((dir / "depth.exr").string());
+  EXPECT_FALSE(depth.ok());
+  EXPECT_NE(depth.error.find("no R, G, B or Y"), std::string::npos) << depth.error;
+  const TestExr big = rgb_map(8, 4);
+  ASSERT_TRUE(big.write(dir / "big.exr"));
+  const EnvMapResult over = read_env_map((dir / "big.exr").string(), 31);
+  EXPECT_FALSE(over.ok());
+  EXPECT_NE(over.error.find("big.exr"), std::string::npos) << over.error;
+}
+
+}  // namespace
+}  // namespace ssdo
