@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "kernels/half_resolution.h"
 #include "kernels/noise.h"
@@ -98,8 +99,15 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   const RayMap rays = make_ray_map(camera);
   const int width = size.width, height = size.height;
   const int n_taps = s.taps;
-  const float inv_taps = 1.0f / float(n_taps);
   const float bias_scale = 1.0f + s.depth_bias_relative;
+  // The unrotated Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle
+  // turns. Each pixel rotates it by its own angle (a 2x2 rotation per tap, not a sincos).
+  std::vector<glm::vec2> spiral(static_cast<size_t>(n_taps));
+  for (int k = 0; k < n_taps; ++k) {
+    const float rho = std::sqrt((float(k) + 0.5f) / float(n_taps));
+    const float angle = float(k) * kGoldenAngle;
+    spiral[size_t(k)] = rho * glm::vec2(std::cos(angle), std::sin(angle));
+  }
 
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -126,13 +134,12 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
         const float rx_px = radius * ppu.x, ry_px = radius * ppu.y;
         const float r2 = radius * radius;
         const float rotation = 6.2831853f * noise01(x, y, 0, s.seed);
+        const float cos_r = std::cos(rotation), sin_r = std::sin(rotation);
         double observed = 0.0, total = 0.0;
         for (int k = 0; k < n_taps; ++k) {
-          // Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle turns.
-          const float rho = std::sqrt((float(k) + 0.5f) * inv_taps);
-          const float angle = rotation + float(k) * kGoldenAngle;
-          const float tx_f = pxc + rho * rx_px * std::cos(angle);
-          const float ty_f = pyc + rho * ry_px * std::sin(angle);
+          const glm::vec2 v = spiral[size_t(k)];
+          const float tx_f = pxc + rx_px * (cos_r * v.x - sin_r * v.y);
+          const float ty_f = pyc + ry_px * (sin_r * v.x + cos_r * v.y);
           const int tx = int(std::floor(tx_f)), ty = int(std::floor(ty_f));
           // The ray through the tap pixel's centre (where its depth was sampled).
           const float cx = float(tx) + 0.5f, cy = float(ty) + 0.5f;
