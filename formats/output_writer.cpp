@@ -3,13 +3,18 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <bit>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <random>
 #include <set>
+#include <span>
 #include <sstream>
+#include <stdexcept>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFloatAttribute.h>
@@ -18,10 +23,12 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfThreading.h>
+#include <OpenEXR/openexr.h>
 #include <Imath/half.h>
 #include <OpenImageIO/imageio.h>
 
 #include "formats/camera_io.h"
+#include "formats/exr_zip.h"
 #include "kernels/parallel.h"
 
 namespace ssdo {
@@ -131,6 +138,254 @@ std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   return commit(temp, final_path);
 }
 
+// OpenEXR's writer: every compression, and zip / zips with ZipEncoder::openexr. Throws on
+// failure (the caller removes the temp file).
+void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const Camera& camera,
+               const WriteOptions& options, Imf::Compression compression, cv::Size size) {
+  Imf::Header header(size.width, size.height);
+  header.compression() = compression;
+  header.zipCompressionLevel() = options.zip_level;
+  for (const auto& t : terms)
+    for (const auto& c : channel_names(t))
+      header.channels().insert(c, Imf::Channel(t.type == SampleType::half ? Imf::HALF
+                                                                          : Imf::FLOAT));
+  const ExrCameraMatrices m = exr_matrices_from_camera(camera);
+  Imf::addWorldToCamera(header, to_imath(m.world_to_camera));
+  Imf::addWorldToNDC(header, to_imath(m.world_to_ndc));
+  if (camera.near_view > 0.0f)
+    header.insert(kClipNearAttribute, Imf::FloatAttribute(camera.near_view));
+  if (camera.far_view > 0.0f)
+    header.insert(kClipFarAttribute, Imf::FloatAttribute(camera.far_view));
+
+  // OpenEXR writes a slice only into a channel of the same pixel type, so half terms are
+  // converted into an interleaved half buffer first; float terms are written in place.
+  Imf::FrameBuffer fb;
+  std::vector<std::vector<half>> half_buffers;
+  for (const auto& t : terms) {
+    const auto channels = channel_names(t);
+    const int n = t.image.channels();
+    if (t.type == SampleType::half) {
+      std::vector<half>& buffer = half_buffers.emplace_back(size_t(size.area()) * n);
+      parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
+        for (int y = rows.start; y < rows.end; ++y) {
+          const float* row = t.image.ptr<float>(y);
+          half* out = buffer.data() + size_t(y) * size.width * n;
+          for (int i = 0; i < size.width * n; ++i) out[i] = half(row[i]);
+        }
+      }, 32);
+      for (int c = 0; c < n; ++c)
+        fb.insert(channels[c], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(buffer.data() + c),
+                                          sizeof(half) * n, sizeof(half) * n * size.width));
+      continue;
+    }
+    for (int c = 0; c < n; ++c)
+      fb.insert(channels[c],
+                Imf::Slice(Imf::FLOAT,
+                           const_cast<char*>(reinterpret_cast<const char*>(
+                               t.image.ptr<float>() + c)),
+                           sizeof(float) * n, t.image.step[0]));
+  }
+  {
+    // Compression runs on OpenEXR's global pool (sized by its owner, e.g. the worker);
+    // asking for N threads makes sure it has N.
+    if (options.threads > 1 && Imf::globalThreadCount() < options.threads)
+      Imf::setGlobalThreadCount(options.threads);
+    const int threads = options.threads > 0 ? options.threads : Imf::globalThreadCount();
+    Imf::OutputFile out(temp.c_str(), header, threads);
+    out.setFrameBuffer(fb);
+    out.writePixels(size.height);
+  }  // closed (and flushed) here, before the rename
+}
+
+// OpenEXRCore reports errors through a callback: the last message on this thread, for the
+// error text.
+thread_local std::string core_write_message;
+void keep_core_write_message(exr_const_context_t, exr_result_t, const char* message) {
+  core_write_message = message ? message : "";
+}
+
+// Throws the failure of an OpenEXRCore call with the library's message.
+void check_core(exr_result_t result, const char* action) {
+  if (result == EXR_ERR_SUCCESS) return;
+  const std::string message =
+      core_write_message.empty() ? exr_get_default_error_message(result) : core_write_message;
+  throw std::runtime_error(std::string(action) + ": " + message);
+}
+
+// A file being written with OpenEXRCore, closed when abandoned on failure (the caller then
+// removes it).
+struct CoreWriteFile {
+  exr_context_t context = nullptr;
+  CoreWriteFile() = default;
+  CoreWriteFile(const CoreWriteFile&) = delete;
+  CoreWriteFile& operator=(const CoreWriteFile&) = delete;
+  ~CoreWriteFile() {
+    if (context) exr_finish(&context);
+  }
+  // Writes the chunk offset table and closes the file.
+  void finish() {
+    exr_context_t c = context;
+    context = nullptr;
+    check_core(exr_finish(&c), "cannot finish the file");
+  }
+};
+
+// Where one EXR channel's samples come from: component `component` of the pixels of a
+// CV_32FC<components> image.
+struct ChannelSource {
+  const cv::Mat* image = nullptr;
+  int component = 0, components = 1;
+  bool is_half = false;
+};
+
+// Packs scanlines [y0, y1) as a chunk stores them before compression (OpenEXR "Technical
+// Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
+// header's (alphabetical) order, the samples of the whole line, little-endian. Half
+// samples are Imath's conversion of the float (round to nearest even), exactly as
+// OpenEXR's writer stores them.
+void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int y1,
+                uint8_t* out) {
+  static_assert(sizeof(half) == 2 && sizeof(float) == 4);
+  for (int y = y0; y < y1; ++y)
+    for (const ChannelSource& c : channels) {
+      const float* in = c.image->ptr<float>(y) + c.component;
+      const size_t step = size_t(c.components);
+      if (c.is_half) {
+        for (int x = 0; x < width; ++x) {
+          const uint16_t bits = half(in[size_t(x) * step]).bits();
+          std::memcpy(out, &bits, 2);
+          out += 2;
+        }
+      } else if (step == 1) {
+        std::memcpy(out, in, size_t(width) * 4);
+        out += size_t(width) * 4;
+      } else {
+        for (int x = 0; x < width; ++x) {
+          std::memcpy(out, in + size_t(x) * step, 4);
+          out += 4;
+        }
+      }
+    }
+}
+
+// Chunks compressed at a time: at most kBatchPackedBytes of packed data and kBatchChunks
+// chunks, but at least 4 per thread so that the strips balance. A batch's compressed
+// chunks take at most its packed size (a chunk that does not compress is stored packed).
+constexpr size_t kBatchPackedBytes = size_t(32) << 20;
+constexpr int kBatchChunks = 256;
+
+// zip / zips with ZipEncoder::libdeflate: the header and the chunk table are OpenEXRCore's;
+// the chunks are packed and deflated here (formats/exr_zip) in parallel, in batches, and
+// written in increasing y order from this thread, as OpenEXR's writer orders them
+// (lineOrder INCREASING_Y). The header carries the same attributes as write_exr's, plus
+// the "type" attribute ("scanlineimage") OpenEXRCore 3.1 writes into every part (optional
+// in single-part files, which readers accept); the zip level is not among them (OpenEXR
+// keeps it out of the file). Little-endian hosts only (the packed samples are the
+// in-memory bytes). Throws on failure (the caller removes the temp file).
+void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
+                   const Camera& camera, const WriteOptions& options, Imf::Compression compression,
+                   cv::Size size) {
+  core_write_message.clear();
+  CoreWriteFile file;
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = keep_core_write_message;
+  check_core(exr_start_write(&file.context, temp.c_str(), EXR_WRITE_FILE_DIRECTLY, &init),
+             "cannot create the file");
+  exr_context_t context = file.context;
+  // Channel names longer than 31 bytes need the long-names flag of the version field
+  // (OpenEXR "Technical Introduction", "Version Field"); OpenEXR's writer sets it only then,
+  // and so does OpenEXRCore once allowed.
+  bool long_names = false;
+  for (const auto& t : terms)
+    for (const auto& c : channel_names(t)) long_names = long_names || c.size() > 31;
+  if (long_names) check_core(exr_set_longname_support(context, 1), "cannot allow long names");
+  int part = 0;
+  check_core(exr_add_part(context, nullptr, EXR_STORAGE_SCANLINE, &part), "cannot add the part");
+  check_core(exr_initialize_required_attr_simple(
+                 context, part, size.width, size.height,
+                 compression == Imf::ZIPS_COMPRESSION ? EXR_COMPRESSION_ZIPS : EXR_COMPRESSION_ZIP),
+             "cannot set the required attributes");
+  std::map<std::string, ChannelSource> sources;
+  for (const auto& t : terms) {
+    const auto names = channel_names(t);
+    for (int c = 0; c < int(names.size()); ++c) {
+      const bool is_half = t.type == SampleType::half;
+      sources[names[size_t(c)]] = {&t.image, c, t.image.channels(), is_half};
+      // pLinear 0 and sampling 1 x 1: Imf::Channel's defaults, as write_exr adds them.
+      check_core(exr_add_channel(context, part, names[size_t(c)].c_str(),
+                                 is_half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT,
+                                 EXR_PERCEPTUALLY_LOGARITHMIC, 1, 1),
+                 "cannot add a channel");
+    }
+  }
+  const ExrCameraMatrices m = exr_matrices_from_camera(camera);
+  // Same 16 floats in memory order as to_imath's; the names are Imf::addWorldToCamera's and
+  // Imf::addWorldToNDC's (ImfStandardAttributes.h).
+  exr_attr_m44f_t world_to_camera, world_to_ndc;
+  std::copy(&m.world_to_camera[0][0], &m.world_to_camera[0][0] + 16, world_to_camera.m);
+  std::copy(&m.world_to_ndc[0][0], &m.world_to_ndc[0][0] + 16, world_to_ndc.m);
+  check_core(exr_attr_set_m44f(context, part, "worldToCamera", &world_to_camera),
+             "cannot set worldToCamera");
+  check_core(exr_attr_set_m44f(context, part, "worldToNDC", &world_to_ndc),
+             "cannot set worldToNDC");
+  if (camera.near_view > 0.0f)
+    check_core(exr_attr_set_float(context, part, kClipNearAttribute, camera.near_view),
+               "cannot set clipNear");
+  if (camera.far_view > 0.0f)
+    check_core(exr_attr_set_float(context, part, kClipFarAttribute, camera.far_view),
+               "cannot set clipFar");
+  check_core(exr_write_header(context), "cannot write the header");
+
+  // The chunk layout as the written header defines it: channels in its order, 16 (zip) or
+  // 1 (zips) scanlines per chunk.
+  const exr_attr_chlist_t* list = nullptr;
+  int32_t lines_per_chunk = 0, chunks = 0;
+  check_core(exr_get_channels(context, part, &list), "cannot read back the channels");
+  check_core(exr_get_scanlines_per_chunk(context, part, &lines_per_chunk),
+             "cannot read back the chunk height");
+  check_core(exr_get_chunk_count(context, part, &chunks), "cannot read back the chunk count");
+  std::vector<ChannelSource> order;
+  size_t line_bytes = 0;
+  for (int c = 0; c < list->num_channels; ++c) {
+    const exr_attr_chlist_entry_t& e = list->entries[c];
+    const ChannelSource& source = sources.at(std::string(e.name.str, size_t(e.name.length)));
+    order.push_back(source);
+    line_bytes += size_t(size.width) * (source.is_half ? 2 : 4);
+  }
+  if (lines_per_chunk < 1 || chunks != (size.height + lines_per_chunk - 1) / lines_per_chunk)
+    throw std::runtime_error("unexpected chunk layout");
+
+  const size_t chunk_bytes = line_bytes * size_t(lines_per_chunk);
+  const int threads = options.threads > 0 ? options.threads : std::max(1, cv::getNumThreads());
+  const int by_size = int(std::clamp<size_t>(kBatchPackedBytes / chunk_bytes, 1, kBatchChunks));
+  const int batch = std::min(chunks, std::max(4 * threads, by_size));
+  std::vector<std::vector<uint8_t>> stored(static_cast<size_t>(batch));  // reused across batches
+  for (int first = 0; first < chunks; first += batch) {
+    const int count = std::min(batch, chunks - first);
+    parallel_rows(cv::Range(0, count), options.threads, [&](const cv::Range& range) {
+      // One packed chunk per thread, kept like exr_zip's own scratch buffer.
+      thread_local std::vector<uint8_t> packed;
+      for (int i = range.start; i < range.end; ++i) {
+        const int y0 = (first + i) * lines_per_chunk;
+        const int y1 = std::min(y0 + lines_per_chunk, size.height);
+        packed.resize(line_bytes * size_t(y1 - y0));
+        pack_lines(order, size.width, y0, y1, packed.data());
+        // A chunk deflate does not shrink is stored as packed; readers tell it by its size
+        // (OpenEXR "Technical Introduction", "ZIP compression"; ImfZipCompressor.cpp).
+        if (!exr_zip::compress(packed, options.zip_level, stored[size_t(i)]))
+          stored[size_t(i)].assign(packed.begin(), packed.end());
+      }
+    }, 1);
+    for (int i = 0; i < count; ++i) {
+      const std::vector<uint8_t>& bytes = stored[size_t(i)];
+      check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
+                                          bytes.data(), bytes.size()),
+                 "cannot write a chunk");
+    }
+  }
+  file.finish();
+}
+
 std::string write_outputs_unguarded(const std::string& path, const std::vector<OutputTerm>& terms,
                                     const Camera& camera, const WriteOptions& options) {
   const fs::path final_path(path);
@@ -169,59 +424,12 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
 
   const fs::path temp = temp_path_for(final_path);
   try {
-    Imf::Header header(size.width, size.height);
-    header.compression() = *compression;
-    header.zipCompressionLevel() = options.zip_level;
-    for (const auto& t : terms)
-      for (const auto& c : channel_names(t))
-        header.channels().insert(c, Imf::Channel(t.type == SampleType::half ? Imf::HALF
-                                                                            : Imf::FLOAT));
-    const ExrCameraMatrices m = exr_matrices_from_camera(camera);
-    Imf::addWorldToCamera(header, to_imath(m.world_to_camera));
-    Imf::addWorldToNDC(header, to_imath(m.world_to_ndc));
-    if (camera.near_view > 0.0f)
-      header.insert(kClipNearAttribute, Imf::FloatAttribute(camera.near_view));
-    if (camera.far_view > 0.0f)
-      header.insert(kClipFarAttribute, Imf::FloatAttribute(camera.far_view));
-
-    // OpenEXR writes a slice only into a channel of the same pixel type, so half terms are
-    // converted into an interleaved half buffer first; float terms are written in place.
-    Imf::FrameBuffer fb;
-    std::vector<std::vector<half>> half_buffers;
-    for (const auto& t : terms) {
-      const auto channels = channel_names(t);
-      const int n = t.image.channels();
-      if (t.type == SampleType::half) {
-        std::vector<half>& buffer = half_buffers.emplace_back(size_t(size.area()) * n);
-        parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
-          for (int y = rows.start; y < rows.end; ++y) {
-            const float* row = t.image.ptr<float>(y);
-            half* out = buffer.data() + size_t(y) * size.width * n;
-            for (int i = 0; i < size.width * n; ++i) out[i] = half(row[i]);
-          }
-        }, 32);
-        for (int c = 0; c < n; ++c)
-          fb.insert(channels[c], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(buffer.data() + c),
-                                            sizeof(half) * n, sizeof(half) * n * size.width));
-        continue;
-      }
-      for (int c = 0; c < n; ++c)
-        fb.insert(channels[c],
-                  Imf::Slice(Imf::FLOAT,
-                             const_cast<char*>(reinterpret_cast<const char*>(
-                                 t.image.ptr<float>() + c)),
-                             sizeof(float) * n, t.image.step[0]));
-    }
-    {
-      // Compression runs on OpenEXR's global pool (sized by its owner, e.g. the worker);
-      // asking for N threads makes sure it has N.
-      if (options.threads > 1 && Imf::globalThreadCount() < options.threads)
-        Imf::setGlobalThreadCount(options.threads);
-      const int threads = options.threads > 0 ? options.threads : Imf::globalThreadCount();
-      Imf::OutputFile out(temp.c_str(), header, threads);
-      out.setFrameBuffer(fb);
-      out.writePixels(size.height);
-    }  // closed (and flushed) here, before the rename
+    const bool zip = *compression == Imf::ZIP_COMPRESSION || *compression == Imf::ZIPS_COMPRESSION;
+    if (zip && options.zip_encoder == ZipEncoder::libdeflate &&
+        std::endian::native == std::endian::little)
+      write_zip_exr(temp, terms, camera, options, *compression, size);
+    else
+      write_exr(temp, terms, camera, options, *compression, size);
   } catch (const std::exception& e) {
     fs::remove(temp, ec);
     return path + ": cannot write EXR: " + e.what();

@@ -26,17 +26,31 @@ struct OutputTerm {
 // (AO, confidence: float) and vector terms (bent normals) are always stored losslessly:
 // "dwaa" (lossy) is refused when a file holds any of them and is meant for files of
 // colour terms only. zip and zips deflate at level kFastZipLevel (OpenEXR's default is 4):
-// measured on a 1080p frame with AO and SSDO terms, level 1 writes 20% faster for a file
-// 2.4% larger; rle and none are the fast lossless choices (4.5x and 13x faster writes,
-// 31% and 136% larger files; README.md, "Speed").
+// measured with zlib on a 1080p frame with AO and SSDO terms, level 1 writes 20% faster
+// for a file 2.4% larger; rle and none are the fast lossless choices (4.5x and 13x faster
+// writes, 31% and 136% larger files; README.md, "Speed"). The same level means the same
+// to both zip encoders (ZipEncoder) and is checked against zlib's range.
 inline constexpr int kFastZipLevel = 1;
+
+// Who deflates the chunks of zip and zips files. Both write files any OpenEXR reader
+// decodes to the same values; only the compressed bytes differ.
+enum class ZipEncoder {
+  // The writer packs and compresses the chunks itself (formats/exr_zip, libdeflate: 2.7x
+  // faster than zlib at level 1, slightly smaller) on the thread pool, and OpenEXRCore
+  // writes the header and the chunks.
+  libdeflate,
+  // OpenEXR's own writer (Imf::OutputFile, zlib), as every other compression uses.
+  openexr,
+};
 
 struct WriteOptions {
   std::string compression = "zip";  // zip | zips | piz | rle | none (dwaa: colour terms only)
   int zip_level = kFastZipLevel;    // deflate level of zip / zips, [1, 9]
+  ZipEncoder zip_encoder = ZipEncoder::libdeflate;  // zip / zips only
   bool png_previews = false;        // NAME.<term>.png beside the EXR
-  // OpenEXR compression threads and half-conversion strips: 0 = OpenEXR's global pool and
-  // OpenCV's pool as configured; 1 = serial in the calling thread; N = N threads.
+  // Threads that convert and compress: 0 = OpenEXR's global pool and OpenCV's pool as
+  // configured; 1 = serial in the calling thread; N = N threads. The libdeflate encoder
+  // packs and compresses chunks on OpenCV's pool (parallel_rows) only.
   int threads = 0;
 };
 

@@ -5,8 +5,15 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <map>
 
 #include <Imath/half.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfStdIO.h>
+#include <OpenEXR/openexr.h>
 
 #include "formats/gbuffer_reader.h"
 #include "formats_test_util.h"
@@ -50,6 +57,103 @@ size_t files_in(const fs::path& dir) {
   size_t n = 0;
   for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir)) ++n;
   return n;
+}
+
+// Every channel of an EXR as OpenEXR decodes it, in its stored type: the sample bits.
+std::map<std::string, std::vector<uint8_t>> stored_samples(const fs::path& path) {
+  Imf::InputFile in(path.c_str());
+  const Imath::Box2i window = in.header().dataWindow();
+  const size_t w = size_t(window.max.x - window.min.x + 1), h = size_t(window.max.y - window.min.y + 1);
+  std::map<std::string, std::vector<uint8_t>> samples;
+  Imf::FrameBuffer fb;
+  for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it) {
+    const size_t bytes = it.channel().type == Imf::HALF ? 2 : 4;
+    std::vector<uint8_t>& s = samples[it.name()];
+    s.resize(w * h * bytes);
+    fb.insert(it.name(), Imf::Slice(it.channel().type, reinterpret_cast<char*>(s.data()), bytes, bytes * w));
+  }
+  in.setFrameBuffer(fb);
+  in.readPixels(window.min.y, window.max.y);
+  return samples;
+}
+
+// Every header attribute of an EXR: its type name and its value as the file stores it.
+std::map<std::string, std::string> header_attributes(const fs::path& path) {
+  Imf::InputFile in(path.c_str());
+  std::map<std::string, std::string> attributes;
+  for (auto it = in.header().begin(); it != in.header().end(); ++it) {
+    Imf::StdOSStream value;
+    it.attribute().writeValueTo(value, in.version());
+    attributes[it.name()] = std::string(it.attribute().typeName()) + ": " + value.str();
+  }
+  attributes["(version field)"] = std::to_string(in.version());
+  return attributes;
+}
+
+// Chunks of a one-part scanline EXR stored uncompressed (packed size = unpacked size) and
+// compressed, read with OpenEXRCore.
+std::pair<int, int> raw_and_compressed_chunks(const fs::path& path) {
+  exr_context_t ctx = nullptr;
+  if (exr_start_read(&ctx, path.c_str(), nullptr) != EXR_ERR_SUCCESS) return {-1, -1};
+  exr_attr_box2i_t window;
+  int32_t lines = 0;
+  exr_get_data_window(ctx, 0, &window);
+  exr_get_scanlines_per_chunk(ctx, 0, &lines);
+  int raw = 0, compressed = 0;
+  for (int y = window.min.y; y <= window.max.y; y += lines) {
+    exr_chunk_info_t info;
+    if (exr_read_scanline_chunk_info(ctx, 0, y, &info) != EXR_ERR_SUCCESS) {
+      raw = compressed = -1;
+      break;
+    }
+    ++(info.packed_size == info.unpacked_size ? raw : compressed);
+  }
+  exr_finish(&ctx);
+  return {raw, compressed};
+}
+
+// Writes `terms` with both zip encoders and expects the same header and the same stored
+// samples, through OpenEXR and through OpenImageIO.
+void expect_encoders_agree(const fs::path& dir, const std::string& name, const std::vector<OutputTerm>& terms,
+                           const Camera& cam, WriteOptions o) {
+  SCOPED_TRACE(name);
+  o.zip_encoder = ZipEncoder::openexr;
+  const fs::path reference = dir / (name + ".openexr.exr");
+  ASSERT_EQ(write_outputs(reference.string(), terms, cam, o), "");
+  o.zip_encoder = ZipEncoder::libdeflate;
+  const fs::path fast = dir / (name + ".libdeflate.exr");
+  ASSERT_EQ(write_outputs(fast.string(), terms, cam, o), "");
+
+  // OpenEXRCore adds the part's "type" to every header (optional in a single-part file).
+  auto fast_attributes = header_attributes(fast);
+  EXPECT_EQ(fast_attributes["type"], "string: scanlineimage");
+  fast_attributes.erase("type");
+  EXPECT_EQ(fast_attributes, header_attributes(reference));
+  const auto expected = stored_samples(reference), actual = stored_samples(fast);
+  ASSERT_EQ(actual.size(), expected.size());
+  for (const auto& [channel, bits] : expected) {
+    ASSERT_EQ(actual.count(channel), 1u) << channel;
+    EXPECT_TRUE(actual.at(channel) == bits) << channel << " differs";
+  }
+  std::vector<std::string> names;
+  for (const auto& [channel, bits] : expected) names.push_back(channel);
+  const auto oiio_expected = read_channels_oiio(reference, names), oiio_actual = read_channels_oiio(fast, names);
+  ASSERT_EQ(oiio_actual.size(), oiio_expected.size());
+  ASSERT_FALSE(oiio_actual.empty());
+  EXPECT_EQ(std::memcmp(oiio_actual.data(), oiio_expected.data(), oiio_actual.size() * sizeof(float)), 0);
+}
+
+// Uniformly random float bits (no NaN or infinity): incompressible samples.
+cv::Mat random_bits(int w, int h, int channels, uint64_t seed) {
+  cv::Mat m(h, w, CV_32FC(channels));
+  std::mt19937 rng{static_cast<uint32_t>(seed)};
+  for (int y = 0; y < h; ++y)
+    for (int i = 0; i < w * channels; ++i) {
+      uint32_t bits = rng();
+      if ((bits & 0x7f800000u) == 0x7f800000u) bits &= ~0x00800000u;
+      std::memcpy(&m.ptr<float>(y)[i], &bits, 4);
+    }
+  return m;
 }
 
 TEST(WriteOutputs, EveryKindOfTermRoundTrips) {
@@ -182,15 +286,19 @@ TEST(WriteOutputs, LosslessCompressionsStoreTheSameBits) {
   struct Variant {
     const char* compression;
     int zip_level, threads;
+    ZipEncoder encoder = ZipEncoder::libdeflate;
   };
   std::vector<std::vector<float>> stored;
-  for (const Variant v : {Variant{"zip", 4, 1}, Variant{"zip", kFastZipLevel, 2}, Variant{"zips", 1, 0},
+  for (const Variant v : {Variant{"zip", 4, 1, ZipEncoder::openexr}, Variant{"zip", kFastZipLevel, 2},
+                          Variant{"zip", 9, 1}, Variant{"zips", 1, 0}, Variant{"zips", 1, 2, ZipEncoder::openexr},
                           Variant{"piz", 1, 2}, Variant{"rle", 1, 2}, Variant{"none", 1, 1}}) {
     WriteOptions o;
     o.compression = v.compression;
     o.zip_level = v.zip_level;
     o.threads = v.threads;
-    const fs::path path = dir / (std::string(v.compression) + std::to_string(v.zip_level) + ".exr");
+    o.zip_encoder = v.encoder;
+    const fs::path path = dir / (std::string(v.compression) + std::to_string(v.zip_level) + "-" +
+                                 std::to_string(v.threads) + "-" + std::to_string(int(v.encoder)) + ".exr");
     ASSERT_EQ(write_outputs(path.string(), terms, cam, o), "") << v.compression;
     stored.push_back(read_channels_oiio(path, names));
     ASSERT_EQ(stored.back().size(), size_t(w) * h * names.size()) << v.compression;
@@ -207,18 +315,108 @@ TEST(WriteOutputs, LosslessCompressionsStoreTheSameBits) {
   EXPECT_EQ(s[(size_t(7) * w + 8) * n + 3], std::numeric_limits<float>::infinity());
 }
 
+// The libdeflate encoder writes the header and chunks itself: files must carry the same
+// attributes and decode to the same samples as OpenEXR's writer's, for every kind of term,
+// both chunk heights, heights that leave a partial last chunk, and any thread count.
+TEST(WriteOutputs, ZipEncodersWriteTheSameHeaderAndSamples) {
+  ScratchDir dir;
+  const int w = 53, h = 37;  // 37 = 2 x 16 + 5: a partial last zip chunk
+  const Camera cam = test_camera(w, h);
+  cv::Mat colour = ramp(w, h, 3, 0.013f, -0.2f);
+  cv::RNG rng(11);
+  cv::Mat noisy(h, w, CV_32FC1);
+  rng.fill(noisy, cv::RNG::NORMAL, 0.0f, 3.0f);
+  // Half conversion corner cases: ties round to even, subnormals, overflow, NaN.
+  colour.at<cv::Vec3f>(1, 2) = {1.0f + 0x1p-11f, 1.0f + 3 * 0x1p-11f, 1e-6f};
+  colour.at<cv::Vec3f>(3, 4) = {1e6f, -1e6f, std::numeric_limits<float>::quiet_NaN()};
+  colour.at<cv::Vec3f>(5, 6) = {65519.0f, 65520.0f, -0.0f};
+  const std::vector<OutputTerm> terms = {
+      {"ao", noisy, SampleType::float32},
+      {"confidence", ramp(w, h, 1, 1.0f / 2000.0f, 0.0f), SampleType::half},
+      {"bent_normal", ramp(w, h, 3, -0.0005f, 0.9f), SampleType::float32, true},
+      {"ssdo_direct", colour, SampleType::half},
+      {"composite", colour, SampleType::float32},
+      {"bent_normal_half", colour, SampleType::half, true},
+  };
+  for (const char* compression : {"zip", "zips"})
+    for (int threads : {1, 2, 0}) {
+      WriteOptions o;
+      o.compression = compression;
+      o.threads = threads;
+      expect_encoders_agree(dir.path, std::string(compression) + "-" + std::to_string(threads), terms, cam, o);
+    }
+  // A level other than the default, and a frame shorter than one chunk.
+  WriteOptions o;
+  o.zip_level = 6;
+  expect_encoders_agree(dir.path, "zip6", terms, cam, o);
+  const Camera small = test_camera(w, 7);
+  std::vector<OutputTerm> short_terms;
+  for (const auto& t : terms) short_terms.push_back({t.name, t.image.rowRange(0, 7), t.type, t.vector});
+  expect_encoders_agree(dir.path, "short", short_terms, small, WriteOptions{});
+  // No camera clip distances: no clipNear / clipFar attributes, as OpenEXR's writer does.
+  Camera no_clip = cam;
+  no_clip.near_view = no_clip.far_view = 0.0f;
+  expect_encoders_agree(dir.path, "noclip", {terms[0]}, no_clip, o);
+  // Channel names beyond 31 bytes: the long-names flag of the version field.
+  expect_encoders_agree(dir.path, "long", {{"ssdo_indirect_denoised_with_a_long_name", colour}}, cam, o);
+  // The values themselves (the reference is OpenEXR's writer).
+  const auto back = read_channels_oiio(dir / "zip-2.libdeflate.exr", {"ssdo_direct.R", "ssdo_direct.G"});
+  ASSERT_EQ(back.size(), size_t(w) * h * 2);
+  EXPECT_EQ(back[(size_t(1) * w + 2) * 2], 1.0f);
+  EXPECT_EQ(back[(size_t(1) * w + 2) * 2 + 1], 1.0f + 0x1p-9f);
+  EXPECT_EQ(files_in(dir.path), 2u * (6 + 4));
+}
+
+// A chunk deflate cannot shrink is stored uncompressed (the format's rule); a frame whose
+// first rows are flat and whose others are random bits has both kinds of chunks. Many short
+// chunks (zips) also span several batches of compression.
+TEST(WriteOutputs, IncompressibleChunksAreStoredUncompressed) {
+  ScratchDir dir;
+  const int w = 24, h = 300;
+  const Camera cam = Camera::from_fov_x(w, h, 60.0f, 0.1f, 100.0f);
+  cv::Mat noise = random_bits(w, h, 1, 5), noise3 = random_bits(w, h, 3, 6);
+  noise.rowRange(0, 40).setTo(0.25f);
+  noise3.rowRange(0, 40).setTo(cv::Scalar(0.5f, 0.25f, 1.0f));
+  const std::vector<OutputTerm> terms = {{"noise", noise, SampleType::float32},
+                                         {"noise3", noise3, SampleType::float32}};
+  for (const char* compression : {"zip", "zips"})
+    for (int threads : {1, 2}) {
+      WriteOptions o;
+      o.compression = compression;
+      o.threads = threads;
+      const std::string name = std::string(compression) + "-" + std::to_string(threads);
+      expect_encoders_agree(dir.path, name, terms, cam, o);
+      const auto [raw, compressed] = raw_and_compressed_chunks(dir / (name + ".libdeflate.exr"));
+      const int lines = std::string(compression) == "zip" ? 16 : 1;
+      EXPECT_EQ(raw + compressed, (h + lines - 1) / lines) << name;
+      EXPECT_GT(raw, 0) << name;
+      EXPECT_GE(compressed, 40 / lines) << name;
+      // OpenEXR's writer stores the same chunks raw.
+      EXPECT_EQ(raw_and_compressed_chunks(dir / (name + ".openexr.exr")).first, raw) << name;
+    }
+  // The bits come back exactly.
+  const auto back = read_channels_oiio(dir / "zips-2.libdeflate.exr", {"noise"});
+  ASSERT_EQ(back.size(), size_t(w) * h);
+  EXPECT_EQ(std::memcmp(back.data(), noise.ptr<float>(), back.size() * sizeof(float)), 0);
+}
+
 TEST(WriteOutputs, ZipLevelIsCheckedAndRecorded) {
   ScratchDir dir;
   const Camera cam = Camera::from_fov_x(16, 8, 60.0f);
   WriteOptions o;
   EXPECT_EQ(o.zip_level, 1);  // the default: the fast deflate level
-  o.zip_level = 0;
-  std::string e = write_outputs((dir / "z0.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o);
-  EXPECT_NE(e.find("zip level 0"), std::string::npos) << e;
-  o.zip_level = 10;
-  e = write_outputs((dir / "z10.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o);
-  EXPECT_NE(e.find("zip level 10"), std::string::npos) << e;
-  EXPECT_FALSE(fs::exists(dir / "z10.exr"));
+  EXPECT_EQ(o.zip_encoder, ZipEncoder::libdeflate);
+  // One range for both encoders (libdeflate alone would take 10 to 12).
+  for (const ZipEncoder encoder : {ZipEncoder::libdeflate, ZipEncoder::openexr}) {
+    o.zip_encoder = encoder;
+    o.zip_level = 0;
+    std::string e = write_outputs((dir / "z0.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o);
+    EXPECT_NE(e.find("zip level 0"), std::string::npos) << e;
+    o.zip_level = 10;
+    e = write_outputs((dir / "z10.exr").string(), {{"ao", ramp(16, 8, 1, 0.01f, 0.0f)}}, cam, o);
+    EXPECT_NE(e.find("zip level 10"), std::string::npos) << e;
+    EXPECT_FALSE(fs::exists(dir / "z10.exr"));
+  }
 }
 
 TEST(WriteOutputs, InvalidTermsAreRefused) {
