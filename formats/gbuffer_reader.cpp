@@ -1,13 +1,19 @@
 #include "formats/gbuffer_reader.h"
 
 #include <algorithm>
+#include <atomic>
+#include <bit>
 #include <climits>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <new>
 #include <sstream>
+
+#include <Imath/half.h>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFloatAttribute.h>
@@ -18,10 +24,12 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfThreading.h>
+#include <OpenEXR/openexr.h>
 
 #include "formats/camera_io.h"
 #include "formats/channel_profiles.h"
 #include "formats/exr_header_check.h"
+#include "formats/exr_zip.h"
 #include "kernels/normals.h"
 #include "kernels/parallel.h"
 #include "kernels/positions.h"
@@ -75,6 +83,7 @@ std::string space_name(Space s) {
 // Everything known once the headers are read: the file, the channels to read, the pixel
 // grid and the camera.
 struct Prepared {
+  std::string path;
   std::unique_ptr<Imf::MultiPartInputFile> file;
   std::vector<PartChannels> parts;
   ChannelResolution channels;
@@ -110,6 +119,7 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
              Prepared& prep) {
   FrameInfo& info = result.info;
   info.path = path;
+  prep.path = path;
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {
     result.error = path + ": no such file";
@@ -350,16 +360,273 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
   return true;
 }
 
+// ---------------------------------------------------------------------------------------
+// ZIP / ZIPS / uncompressed scanline parts without OpenEXR's decoder (ZipDecoder::libdeflate).
+//
+// File layout (OpenEXR "File Layout", scan line images; "Technical Introduction", data
+// compression): a chunk holds the lines [min_y + i * lines, min_y + (i + 1) * lines) of the
+// data window (16 lines per chunk for ZIP, 1 for ZIPS and NO_COMPRESSION; the last chunk
+// may hold fewer); its pixels, packed, are per line each channel in the channel list's
+// (name) order, each sample little-endian (HALF 2 bytes, FLOAT and UINT 4). A chunk whose
+// stored size equals its packed size is stored as is, whatever the part's compression.
+// The offset table is indexed by y whatever the line order, which only orders the chunks
+// in the file.
+
+// One channel read into a float image.
+struct ChannelTarget {
+  std::string channel;
+  float* first;          // the data window's top-left pixel
+  size_t pixel_floats;   // floats between neighbouring pixels (the image's channel count)
+  size_t row_bytes;      // bytes between rows (cv::Mat step)
+};
+
+// A wanted channel found in the part's channel list.
+struct ZipChannel {
+  const ChannelTarget* target;
+  exr_pixel_type_t type;
+  size_t line_offset_bytes;  // where its samples start in a packed line
+};
+
+struct ZipPlan {
+  exr_compression_t compression = EXR_COMPRESSION_NONE;
+  int lines_per_chunk = 1;
+  int chunks = 0;
+  size_t line_bytes = 0;  // one packed line, every channel
+  std::vector<ZipChannel> channels;
+};
+
+// OpenEXRCore reports errors through a callback (its default prints them to stderr); the
+// message is kept for the error of the calling thread's chunk instead.
+thread_local std::string core_message;
+void keep_core_message(exr_const_context_t, exr_result_t, const char* message) {
+  core_message = message ? message : "";
+}
+
+struct CoreFile {
+  exr_context_t context = nullptr;
+  CoreFile() = default;
+  CoreFile(const CoreFile&) = delete;
+  CoreFile& operator=(const CoreFile&) = delete;
+  ~CoreFile() {
+    if (context) exr_finish(&context);
+  }
+};
+
+// Opens the file with OpenEXRCore; false (the caller uses OpenEXR's decoder) when it cannot.
+// The headers already passed check_exr_headers and OpenEXR's own parser.
+bool open_core(const std::string& path, CoreFile& file) {
+  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
+  init.error_handler_fn = keep_core_message;
+  // A damaged offset table is an error here, never a scan of the file for chunks.
+  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE | EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+  if (exr_start_read(&file.context, path.c_str(), &init) != EXR_ERR_SUCCESS) {
+    if (file.context) exr_finish(&file.context);
+    file.context = nullptr;
+    return false;
+  }
+  return true;
+}
+
+// The chunk layout of a part this path decodes; nullopt sends the part to OpenEXR (tiled,
+// deep, another compression, subsampled channels, a wanted uint channel, or any header
+// value OpenEXRCore and OpenEXR's reader disagree on).
+std::optional<ZipPlan> plan_zip_part(exr_const_context_t context, int part, const PixelBox& data,
+                                     const std::vector<ChannelTarget>& targets) {
+  if constexpr (std::endian::native != std::endian::little) return std::nullopt;
+  exr_storage_t storage;
+  exr_compression_t compression;
+  exr_attr_box2i_t window;
+  const exr_attr_chlist_t* list = nullptr;
+  int32_t lines = 0, chunks = 0;
+  if (exr_get_storage(context, part, &storage) != EXR_ERR_SUCCESS ||
+      storage != EXR_STORAGE_SCANLINE ||
+      exr_get_compression(context, part, &compression) != EXR_ERR_SUCCESS ||
+      (compression != EXR_COMPRESSION_NONE && compression != EXR_COMPRESSION_ZIP &&
+       compression != EXR_COMPRESSION_ZIPS) ||
+      exr_get_data_window(context, part, &window) != EXR_ERR_SUCCESS ||
+      exr_get_channels(context, part, &list) != EXR_ERR_SUCCESS || !list ||
+      exr_get_scanlines_per_chunk(context, part, &lines) != EXR_ERR_SUCCESS ||
+      exr_get_chunk_count(context, part, &chunks) != EXR_ERR_SUCCESS)
+    return std::nullopt;
+  if (window.min.x != data.min_x || window.min.y != data.min_y || window.max.x != data.max_x ||
+      window.max.y != data.max_y)
+    return std::nullopt;
+  const int64_t width = data.width(), height = data.height();
+  const int expected_lines = compression == EXR_COMPRESSION_ZIP ? 16 : 1;
+  if (lines != expected_lines || chunks != (height + lines - 1) / lines) return std::nullopt;
+  ZipPlan plan;
+  plan.compression = compression;
+  plan.lines_per_chunk = lines;
+  plan.chunks = chunks;
+  // Offsets of every channel in a packed line, in the list's order.
+  std::vector<size_t> offsets;
+  int64_t line_bytes = 0;
+  for (int c = 0; c < list->num_channels; ++c) {
+    const exr_attr_chlist_entry_t& e = list->entries[c];
+    if (e.x_sampling != 1 || e.y_sampling != 1) return std::nullopt;
+    int64_t sample_bytes = 0;
+    switch (e.pixel_type) {
+      case EXR_PIXEL_HALF: sample_bytes = 2; break;
+      case EXR_PIXEL_FLOAT:
+      case EXR_PIXEL_UINT: sample_bytes = 4; break;
+      default: return std::nullopt;
+    }
+    offsets.push_back(size_t(line_bytes));
+    // The header check bounds a chunk's bytes (ExrLimits); this only keeps the sums exact.
+    if (width > (std::numeric_limits<int64_t>::max() / 64 - line_bytes) / sample_bytes)
+      return std::nullopt;
+    line_bytes += width * sample_bytes;
+  }
+  plan.line_bytes = size_t(line_bytes);
+  for (const ChannelTarget& t : targets) {
+    int found = -1;
+    for (int c = 0; c < list->num_channels && found < 0; ++c) {
+      const exr_attr_string_t& name = list->entries[c].name;
+      if (name.length >= 0 && size_t(name.length) == t.channel.size() &&
+          std::memcmp(name.str, t.channel.data(), t.channel.size()) == 0)
+        found = c;
+    }
+    // A channel missing from the file is OpenEXR's to fill; uint samples OpenEXR's to convert.
+    if (found < 0 || list->entries[found].pixel_type == EXR_PIXEL_UINT) return std::nullopt;
+    plan.channels.push_back({&t, list->entries[found].pixel_type, offsets[size_t(found)]});
+  }
+  return plan;
+}
+
+// Converts `width` samples of one packed line to float, exactly as OpenEXR does: half
+// through Imath's conversion table (OpenEXR's copyIntoFrameBuffer converts with half's
+// float operator, which is that table unless OpenEXR is built for F16C), float as is.
+void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, float* to,
+                     size_t pixel_floats) {
+  if (type == EXR_PIXEL_HALF) {
+    for (int64_t x = 0; x < width; ++x) {
+      uint16_t bits;
+      std::memcpy(&bits, from + 2 * x, 2);
+      to[size_t(x) * pixel_floats] = imath_half_to_float_table[bits].f;
+    }
+  } else {
+    for (int64_t x = 0; x < width; ++x)
+      std::memcpy(&to[size_t(x) * pixel_floats], from + 4 * x, 4);
+  }
+}
+
+// Reads, inflates and converts every chunk of the part; throws on the first damaged chunk
+// (the lowest scanline, whatever the thread count), naming the part and the scanline.
+void read_zip_part(exr_const_context_t context, int part, const std::string& part_name,
+                   bool multi_part, const PixelBox& data, const ZipPlan& plan, int threads) {
+  const int64_t width = data.width();
+  std::vector<std::string> errors(size_t(plan.chunks));
+  std::atomic<int> first_failed{plan.chunks};
+  std::atomic<bool> out_of_memory{false};
+  auto fail = [&](int chunk, std::string message) {
+    errors[size_t(chunk)] = std::move(message);
+    int seen = first_failed.load();
+    while (chunk < seen && !first_failed.compare_exchange_weak(seen, chunk)) {
+    }
+  };
+  auto read_chunk = [&](int chunk, std::vector<uint8_t>& stored, std::vector<uint8_t>& packed) {
+    const int y = int(data.min_y + int64_t(chunk) * plan.lines_per_chunk);
+    const int lines = int(std::min<int64_t>(plan.lines_per_chunk, data.max_y - y + 1));
+    exr_chunk_info_t info{};
+    core_message.clear();
+    if (const exr_result_t rv = exr_read_scanline_chunk_info(context, part, y, &info);
+        rv != EXR_ERR_SUCCESS) {
+      fail(chunk, "cannot locate the chunk (" +
+                      (core_message.empty() ? std::string(exr_get_default_error_message(rv))
+                                            : core_message) + ")");
+      return;
+    }
+    const uint64_t expected = uint64_t(lines) * plan.line_bytes;
+    // Core derives these from the header; checked all the same, since the conversion below
+    // writes exactly `lines` rows of the images from exactly `expected` bytes.
+    if (info.start_y != y || info.height != lines || info.width != width ||
+        info.compression != uint8_t(plan.compression) || info.unpacked_size != expected) {
+      fail(chunk, "chunk layout disagrees with the header (" + std::to_string(info.height) +
+                      " lines from " + std::to_string(info.start_y) + ", " +
+                      std::to_string(info.unpacked_size) + " bytes; expected " +
+                      std::to_string(lines) + " lines from " + std::to_string(y) + ", " +
+                      std::to_string(expected) + " bytes)");
+      return;
+    }
+    // A stored chunk is never larger than its pixels: the format stores the pixels as they
+    // are when compression does not make them smaller, and uncompressed parts always.
+    if (info.packed_size > expected ||
+        (plan.compression == EXR_COMPRESSION_NONE && info.packed_size != expected) ||
+        (info.packed_size == 0 && expected > 0)) {
+      fail(chunk, "chunk of " + std::to_string(info.packed_size) + " bytes for " +
+                      std::to_string(expected) + " bytes of pixels");
+      return;
+    }
+    // Core checked packed_size against the file's size: this allocation is bounded by it.
+    stored.resize(size_t(info.packed_size));
+    core_message.clear();
+    if (const exr_result_t rv = exr_read_chunk(context, part, &info, stored.data());
+        rv != EXR_ERR_SUCCESS) {
+      fail(chunk, "cannot read the chunk (" +
+                      (core_message.empty() ? std::string(exr_get_default_error_message(rv))
+                                            : core_message) + ")");
+      return;
+    }
+    const uint8_t* pixels = stored.data();
+    if (info.packed_size < expected) {
+      packed.resize(size_t(expected));
+      if (!exr_zip::decompress(stored, packed)) {
+        fail(chunk, "ZIP data of " + std::to_string(info.packed_size) +
+                        " bytes does not inflate to the chunk's " + std::to_string(expected) +
+                        " bytes");
+        return;
+      }
+      pixels = packed.data();
+    }
+    for (int line = 0; line < lines; ++line) {
+      const uint8_t* from = pixels + size_t(line) * plan.line_bytes;
+      const size_t row = size_t(y - data.min_y + line);
+      for (const ZipChannel& c : plan.channels) {
+        const ChannelTarget& t = *c.target;
+        float* to = reinterpret_cast<float*>(reinterpret_cast<uint8_t*>(t.first) + row * t.row_bytes);
+        convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats);
+      }
+    }
+  };
+  // One strip per chunk (16 or 1 lines): the chunks are the unit of work.
+  parallel_rows(cv::Range(0, plan.chunks), threads, [&](const cv::Range& range) {
+    std::vector<uint8_t> stored, packed;
+    for (int chunk = range.start; chunk < range.end; ++chunk) {
+      // Chunks after a damaged one are not worth reading; those before it still decide which
+      // error is reported.
+      if (chunk > first_failed.load()) break;
+      try {
+        read_chunk(chunk, stored, packed);
+      } catch (const std::bad_alloc&) {
+        out_of_memory = true;
+        fail(chunk, "out of memory");
+      } catch (const std::exception& e) {
+        fail(chunk, e.what());
+      }
+    }
+  }, 1);
+  if (out_of_memory) throw std::bad_alloc();
+  const int chunk = first_failed.load();
+  if (chunk < plan.chunks) {
+    std::string where = multi_part ? "part \"" + part_name + "\", " : std::string();
+    throw std::runtime_error(where + "scanline " +
+                             std::to_string(data.min_y + int64_t(chunk) * plan.lines_per_chunk) +
+                             ": " + errors[size_t(chunk)]);
+  }
+}
+
 struct Images {
   cv::Mat depth, normal, position, albedo, diffdir, lighting;
   std::map<std::string, cv::Mat> references;
 };
 
 // Reads the wanted channels of each part straight into the float images: one slice per
-// channel, interleaved by the slice strides; OpenEXR converts half to float.
+// channel, interleaved by the slice strides; OpenEXR (or, for ZIP parts, read_zip_part)
+// converts half to float.
 void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_passes,
                  Images& img, cv::Size size) {
   std::map<int, Imf::FrameBuffer> buffers;
+  std::map<int, std::vector<ChannelTarget>> targets;  // the same slices, for read_zip_part
   std::map<std::string, cv::Mat*> read_into;
   std::vector<std::pair<cv::Mat*, cv::Mat*>> aliases;  // (alias, image read)
   std::map<std::string, std::pair<cv::Mat*, int>> first_use;  // "part:channel" -> image, component
@@ -404,12 +671,29 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
       buffers[r.part].insert(r.channels[c],
                              Imf::Slice::Make(Imf::FLOAT, target->ptr<float>() + c, window,
                                               sizeof(float) * n, target->step[0]));
+      targets[r.part].push_back({r.channels[c], target->ptr<float>() + c, size_t(n),
+                                 target->step[0]});
     }
   }
+  CoreFile core;
+  bool core_tried = false;
   for (auto& [part, fb] : buffers) {
     if (!prep.file->partComplete(part))
       throw std::runtime_error("incomplete or truncated file: part \"" + prep.parts[part].name +
                                "\" is missing pixel data");
+    if (options.zip_decoder == ZipDecoder::libdeflate) {
+      if (!core_tried) {
+        core_tried = true;
+        open_core(prep.path, core);
+      }
+      if (core.context) {
+        if (auto plan = plan_zip_part(core.context, part, prep.data, targets[part])) {
+          read_zip_part(core.context, part, prep.parts[part].name, prep.parts.size() > 1,
+                        prep.data, *plan, options.threads);
+          continue;
+        }
+      }
+    }
     Imf::InputPart in(*prep.file, part);
     in.setFrameBuffer(fb);
     in.readPixels(prep.data.min_y, prep.data.max_y);

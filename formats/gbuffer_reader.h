@@ -63,8 +63,19 @@ struct ChannelMapping {
   Space position_space = Space::automatic;
 };
 
+// Who decodes the pixels of a scanline part stored with ZIP, ZIPS or no compression, with
+// every channel at full resolution (x and y sampling 1):
+// - libdeflate: the chunks are read raw with OpenEXRCore, inflated with libdeflate
+//   (formats/exr_zip.h; OpenEXR 3.1 inflates with zlib, about half as fast) and converted to
+//   float here, over ReadOptions::threads strips of chunks;
+// - openexr: OpenEXR's own decoder (Imf::InputPart), as for every other part.
+// Both give bit-identical pixels, and a damaged chunk is an error with either (worded by
+// each); the choice exists so that tests and benchmarks can compare them. Tiled, deep, subsampled parts and the other
+// compressions always go to OpenEXR.
+enum class ZipDecoder { libdeflate, openexr };
+
 // Defaults read the depth, normals, albedo, lighting and reference passes of the chosen
-// part with OpenEXR's global thread pool.
+// part with OpenEXR's global thread pool (ZIP parts: OpenCV's pool, see ZipDecoder).
 struct ReadOptions {
   ChannelMapping mapping;
   std::string camera_json;              // explicit sidecar path; empty = look beside the frame
@@ -82,7 +93,9 @@ struct ReadOptions {
   int64_t max_pixels = int64_t(1) << 28;
   int64_t max_decoded_bytes = int64_t(1) << 34;  // 16 GiB: 64 float channels at max_pixels
   int threads = 0;                      // OpenEXR decoding threads (0 = its global pool) and
-                                        // conversion strips (0 = OpenCV's pool, 1 = serial)
+                                        // conversion strips and ZIP chunk strips (0 =
+                                        // OpenCV's pool, 1 = serial)
+  ZipDecoder zip_decoder = ZipDecoder::libdeflate;
 };
 
 struct ChannelUse {
