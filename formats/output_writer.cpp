@@ -25,10 +25,10 @@
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
 #include <Imath/half.h>
-#include <OpenImageIO/imageio.h>
 
 #include "formats/camera_io.h"
 #include "formats/exr_zip.h"
+#include "formats/oiio_module.h"
 #include "kernels/parallel.h"
 
 namespace ssdo {
@@ -115,25 +115,18 @@ uint8_t vector8(float v) {
 
 std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   const int w = t.image.cols, h = t.image.rows, nc = t.image.channels();
-  std::vector<uint8_t> pixels(size_t(w) * h * nc);
+  cv::Mat pixels(h, w, CV_8UC(nc));
   for (int y = 0; y < h; ++y) {
     const float* row = t.image.ptr<float>(y);
-    for (int i = 0; i < w * nc; ++i)
-      pixels[size_t(y) * w * nc + i] = t.vector ? vector8(row[i]) : srgb8(row[i]);
+    uint8_t* out = pixels.ptr<uint8_t>(y);
+    for (int i = 0; i < w * nc; ++i) out[i] = t.vector ? vector8(row[i]) : srgb8(row[i]);
   }
   const fs::path temp = temp_path_for(final_path);
-  auto out = OIIO::ImageOutput::create("png");
-  if (!out) return final_path.string() + ": no PNG writer: " + OIIO::geterror();
-  OIIO::ImageSpec spec(w, h, nc, OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", t.vector ? "Linear" : "sRGB");
-  bool ok = out->open(temp.string(), spec) &&
-            out->write_image(OIIO::TypeDesc::UINT8, pixels.data());
-  ok = out->close() && ok;
-  if (!ok) {
-    const std::string message = out->geterror();
+  const std::string error = oiio_module::write_png(temp.string(), pixels, t.vector ? "Linear" : "sRGB");
+  if (!error.empty()) {
     std::error_code ec;
     fs::remove(temp, ec);
-    return final_path.string() + ": cannot write PNG preview: " + message;
+    return final_path.string() + ": cannot write PNG preview: " + error;
   }
   return commit(temp, final_path);
 }

@@ -1013,8 +1013,9 @@ void expect_both_refuse(const fs::path& path, const std::string& libdeflate_says
     EXPECT_TRUE(contains(r.error, path.string())) << r.error;
     EXPECT_TRUE(contains(r.error, "truncated")) << r.error;
     EXPECT_TRUE(r.gbuffer.depth_view.empty());
-    if (decoder == ZipDecoder::libdeflate && !libdeflate_says.empty())
+    if (decoder == ZipDecoder::libdeflate && !libdeflate_says.empty()) {
       EXPECT_TRUE(contains(r.error, libdeflate_says)) << r.error;
+    }
   }
 }
 
