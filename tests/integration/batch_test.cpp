@@ -2,6 +2,8 @@
 // config files, the frame selection of a farm chunk.
 #include <fstream>
 
+#include <OpenImageIO/imageio.h>
+
 #include "service/build_features.h"
 #include "service_harness.h"
 
@@ -42,9 +44,22 @@ TEST(Batch, StalledAndOversizedFramesAreThatFramesErrors) {
                          " --method raymarch --preset ultra --frame-timeout 0.3 --jobs 1");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("timed out after"), std::string::npos) << r.output;
-  // Memory: a limit the frame cannot fit in.
+  // Memory: a limit the frame cannot fit in. A 3000 x 3000 depth-only frame: its G-buffer
+  // (depth, reconstructed normals and positions) alone is over 300 MiB as float, above the
+  // smallest limit, 256 MiB, whatever the worker's own footprint.
   if (!kMemoryLimitEnforced) GTEST_SKIP() << "sanitizer build: workers run without --memory-limit (service/build_features.h)";
-  r = run_ssdo("process " + dir / "in/a.exr" + " -o " + dir / "out" + " --terms all --memory-limit 256 --jobs 1");
+  {
+    const int side = 3000;
+    OIIO::ImageSpec spec(side, side, 1, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = {"Z"};
+    spec.attribute("compression", "zip");
+    std::vector<float> depth(size_t(side) * side, 5.0f);
+    auto out = OIIO::ImageOutput::create((dir.path / "big.exr").string());
+    ASSERT_TRUE(out && out->open((dir.path / "big.exr").string(), spec) &&
+                out->write_image(OIIO::TypeDesc::FLOAT, depth.data()) && out->close());
+  }
+  r = run_ssdo("process " + dir / "big.exr" + " -o " + dir / "out" +
+               " --map depth=Z --fov 60 --terms all --memory-limit 256 --jobs 1");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("memory"), std::string::npos) << r.output;
 }
