@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 #include <vector>
 
 #include "kernels/parallel.h"
@@ -149,12 +150,23 @@ struct TileScratch {
 // no masked value is read into a sum. Each pass is an outer loop over the tap offset k and
 // an inner, branch-free loop over a tile row. Integer normal powers only (the lobe by
 // squaring, ipow).
+// The channels one planar pass denoises together, from one image or several of the same
+// frame: channel c of the pass is channel offset[c] of *src[c] (stride[c] channels per
+// pixel), written to the same channel of *dst[c].
+template <int C>
+struct ChannelMap {
+  const cv::Mat* src[C];
+  cv::Mat* dst[C];
+  int offset[C];
+  int stride[C];
+};
+
 template <int C, class Lobe>
-void bilateral_planar(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
-                      const cv::Mat& mask, const DenoiseSettings& s, cv::Mat& dst,
-                      const cv::Rect& r, int nthreads, Lobe lobe_of) {
+void bilateral_planar(const ChannelMap<C>& ch, const cv::Mat& depth_view, const cv::Mat& normal_view,
+                      const cv::Mat& mask, const DenoiseSettings& s, const cv::Rect& r,
+                      int nthreads, Lobe lobe_of) {
   const int R = s.radius_px;
-  const int width = src.cols, height = src.rows;
+  const int width = depth_view.cols, height = depth_view.rows;
   float g[2 * kMaxRadiusPx + 1];
   for (int k = -R; k <= R; ++k) g[k + R] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
   const float inv_tol = 1.0f / s.depth_tolerance_relative;
@@ -189,7 +201,8 @@ void bilateral_planar(const cv::Mat& src, const cv::Mat& depth_view, const cv::M
       const uint8_t* m = mask.ptr<uint8_t>(y);
       const float* dep = depth_view.ptr<float>(y);
       const cv::Vec3f* n = normal_view.ptr<cv::Vec3f>(y);
-      const float* v = src.ptr<float>(y);
+      const float* v[C];
+      for (int c = 0; c < C; ++c) v[c] = ch.src[c]->template ptr<float>(y) + ch.offset[c];
       for (int i = 0; i < tw + 2 * R; ++i) {
         const int x = xa - R + i;
         const bool on = x >= 0 && x < width && m[x] != 0;
@@ -197,7 +210,8 @@ void bilateral_planar(const cv::Mat& src, const cv::Mat& depth_view, const cv::M
         nx[i] = on ? n[x][0] : 0.0f;
         ny[i] = on ? n[x][1] : 0.0f;
         nz[i] = on ? n[x][2] : 0.0f;
-        for (int c = 0; c < C; ++c) pv[c * plane + size_t(j) * pw + i] = on ? v[x * C + c] : 0.0f;
+        for (int c = 0; c < C; ++c)
+          pv[c * plane + size_t(j) * pw + i] = on ? v[c][x * ch.stride[c]] : 0.0f;
       }
     }
     float* sum = acc;
@@ -258,16 +272,19 @@ void bilateral_planar(const cv::Mat& src, const cv::Mat& depth_view, const cv::M
     // Pass 2 (vertical) on the tile's rows; masked pixels copy the source.
     for (int y = ya; y < yb; ++y) {
       const int j = y - ya + R;
-      float* row = dst.ptr<float>(y);
       float result[C][kTileCols];
       float* to[C];
       for (int c = 0; c < C; ++c) to[c] = result[c];
       pass(j, pw, ph_out + size_t(j) * pw, pw, plane, to);
       const uint8_t* m = mask.ptr<uint8_t>(y);
-      const float* in = src.ptr<float>(y);
-      for (int i = 0; i < tw; ++i) {
-        const int x = xa + i;
-        for (int c = 0; c < C; ++c) row[x * C + c] = m[x] ? result[c][i] : in[x * C + c];
+      for (int c = 0; c < C; ++c) {
+        const float* in = ch.src[c]->template ptr<float>(y) + ch.offset[c];
+        float* row = ch.dst[c]->template ptr<float>(y) + ch.offset[c];
+        const int stride = ch.stride[c];
+        for (int i = 0; i < tw; ++i) {
+          const int x = xa + i;
+          row[x * stride] = m[x] ? result[c][i] : in[x * stride];
+        }
       }
     }
   };
@@ -325,22 +342,77 @@ std::string validate(const DenoiseSettings& s) {
 void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
                        const cv::Mat& mask, const DenoiseSettings& settings, cv::Mat& dst,
                        cv::Rect roi, int nthreads) {
+  const cv::Mat* srcs[] = {&src};
+  cv::Mat* dsts[] = {&dst};
+  denoise_bilateral(srcs, depth_view, normal_view, mask, settings, dsts, roi, nthreads);
+}
+
+void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& depth_view,
+                       const cv::Mat& normal_view, const cv::Mat& mask,
+                       const DenoiseSettings& settings, std::span<cv::Mat* const> dsts,
+                       cv::Rect roi, int nthreads) {
   CV_Assert(validate(settings).empty());
-  CV_Assert(depth_view.type() == CV_32FC1 && depth_view.size() == src.size());
-  CV_Assert(normal_view.type() == CV_32FC3 && normal_view.size() == src.size());
-  CV_Assert(mask.type() == CV_8UC1 && mask.size() == src.size());
-  prepare_dst(src, dst);
-  const cv::Rect r = resolve_roi(roi, src.size());
+  CV_Assert(srcs.size() == dsts.size() && !srcs.empty());
+  int channels = 0;
+  for (size_t i = 0; i < srcs.size(); ++i) {
+    const cv::Mat& src = *srcs[i];
+    CV_Assert(depth_view.type() == CV_32FC1 && depth_view.size() == src.size());
+    CV_Assert(normal_view.type() == CV_32FC3 && normal_view.size() == src.size());
+    CV_Assert(mask.type() == CV_8UC1 && mask.size() == src.size());
+    for (size_t k = 0; k < i; ++k) CV_Assert(dsts[k] != dsts[i]);
+    prepare_dst(src, *dsts[i]);
+    channels += src.channels();
+  }
+  for (cv::Mat* dst : dsts)
+    for (const cv::Mat* src : srcs) CV_Assert(dst->data != src->data);
+  const cv::Rect r = resolve_roi(roi, depth_view.size());
   if (r.empty()) return;
+  const float p = settings.normal_power;
+  const bool planar = p == 16.0f || p == 8.0f || p == 4.0f || p == 1.0f || p == 0.0f;
+  // One pass over every channel: the channel counts the pipeline uses (AO 1, colour 3,
+  // AO + bent normal or two colour terms 4 / 6, all three terms 7).
+  const bool together = planar && (channels == 1 || channels == 3 || channels == 4 ||
+                                   channels == 6 || channels == 7);
+  if (!together) {
+    for (size_t i = 0; i < srcs.size(); ++i) {
+      const cv::Mat& src = *srcs[i];
+      cv::Mat& dst = *dsts[i];
+      if (planar) {
+        const cv::Mat* one_src[] = {&src};
+        cv::Mat* one_dst[] = {&dst};
+        denoise_bilateral(one_src, depth_view, normal_view, mask, settings, one_dst, r, nthreads);
+      } else if (src.channels() == 1) {
+        bilateral<1>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
+      } else {
+        bilateral<3>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
+      }
+    }
+    return;
+  }
+  auto run_with = [&](auto channel_count, auto lobe) {
+    constexpr int C = decltype(channel_count)::value;
+    ChannelMap<C> map{};
+    int c = 0;
+    for (size_t i = 0; i < srcs.size(); ++i)
+      for (int k = 0; k < srcs[i]->channels(); ++k, ++c) {
+        map.src[c] = srcs[i];
+        map.dst[c] = dsts[i];
+        map.offset[c] = k;
+        map.stride[c] = srcs[i]->channels();
+      }
+    bilateral_planar<C>(map, depth_view, normal_view, mask, settings, r, nthreads, lobe);
+  };
   // The planar path for the integer powers the settings use in practice (the default 16
   // and its halvings); any other power takes the per-pixel path with std::pow.
   auto run = [&](auto lobe) {
-    if (src.channels() == 1)
-      bilateral_planar<1>(src, depth_view, normal_view, mask, settings, dst, r, nthreads, lobe);
-    else
-      bilateral_planar<3>(src, depth_view, normal_view, mask, settings, dst, r, nthreads, lobe);
+    switch (channels) {
+      case 1: run_with(std::integral_constant<int, 1>{}, lobe); break;
+      case 3: run_with(std::integral_constant<int, 3>{}, lobe); break;
+      case 4: run_with(std::integral_constant<int, 4>{}, lobe); break;
+      case 6: run_with(std::integral_constant<int, 6>{}, lobe); break;
+      default: run_with(std::integral_constant<int, 7>{}, lobe); break;
+    }
   };
-  const float p = settings.normal_power;
   if (p == 16.0f)
     run([](float c) { return ipow<16>(c); });
   else if (p == 8.0f)
@@ -349,12 +421,8 @@ void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::
     run([](float c) { return ipow<4>(c); });
   else if (p == 1.0f)
     run([](float c) { return c; });
-  else if (p == 0.0f)
-    run([](float c) { return c > 0.0f ? 1.0f : 0.0f; });
-  else if (src.channels() == 1)
-    bilateral<1>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
   else
-    bilateral<3>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
+    run([](float c) { return c > 0.0f ? 1.0f : 0.0f; });
 }
 
 void box_blur_4x4(const cv::Mat& src, cv::Mat& dst, cv::Rect roi, int nthreads) {

@@ -2,6 +2,7 @@
 // the seed projects, for comparison.
 #pragma once
 
+#include <span>
 #include <string>
 
 #include <opencv2/core.hpp>
@@ -38,6 +39,16 @@ std::string validate(const DenoiseSettings& s);
 // (empty = all) is written; dst must not share memory with src.
 void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
                        const cv::Mat& mask, const DenoiseSettings& settings, cv::Mat& dst,
+                       cv::Rect roi = {}, int nthreads = 0);
+
+// The same blur of several images of one frame in one pass (e.g. AO and the two SSDO
+// terms): the tap weights depend only on depth, normals and mask, so they are computed
+// once for every channel instead of once per image. Each result is bit-identical to
+// denoise_bilateral of that image alone. srcs[i] CV_32FC1 or CV_32FC3, all of the guides'
+// size; dsts[i] as dst above (distinct, none sharing memory with a source).
+void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& depth_view,
+                       const cv::Mat& normal_view, const cv::Mat& mask,
+                       const DenoiseSettings& settings, std::span<cv::Mat* const> dsts,
                        cv::Rect roi = {}, int nthreads = 0);
 
 // The SSAO blur of the seed projects: each pixel becomes the mean of the 4x4 block of

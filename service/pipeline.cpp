@@ -100,48 +100,52 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   cv::Mat position_view = g.position_view;
   if (position_view.empty())
     view_positions_from_depth(g.depth_view, g.mask, g.camera, position_view, {}, threads);
-  auto denoised = [&](const cv::Mat& src) {
-    cv::Mat dst;
-    denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, request.denoise, dst, {}, threads);
-    return dst;
-  };
-
   const TermsComputed computed = terms_computed(request);
   const std::vector<WeightedTerm>& composite_terms = computed.composite_terms;
 
-  cv::Mat ao_denoised;
+  AoOutput ao;
   if (computed.ao) {
     const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera,
                       g.has_albedo() ? &g.albedo : nullptr,
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
-    AoOutput ao;
     compute_ao(in, request.ao, ao, {}, threads);
-    ao_denoised = denoised(ao.ao);
-    if (terms.ao) {
-      frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
-      frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});
-      if (!ao.bent_normal_view.empty())
-        frame.terms.push_back({"bent_normal", ao.bent_normal_view, SampleType::half, true});
-    }
   }
 
   static const Environment kWhite;  // constant radiance 1
   const Environment& environment = request.environment ? *request.environment : kWhite;
-  cv::Mat direct_denoised, indirect_denoised;
+  SsdoOutput ssdo;
   if (computed.ssdo) {
     const SsdoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera, environment,
                         g.has_albedo() ? &g.albedo : nullptr,
                         g.lighting.empty() ? nullptr : &g.lighting};
-    SsdoOutput out;
-    compute_ssdo(in, request.ssdo, out, {}, threads);
-    direct_denoised = denoised(out.direct);
-    indirect_denoised = denoised(out.indirect);
-    if (terms.ssdo) {
-      frame.terms.push_back({"ssdo_direct", out.direct, SampleType::half, false});
-      frame.terms.push_back({"ssdo_direct_denoised", direct_denoised, SampleType::half, false});
-      frame.terms.push_back({"ssdo_indirect", out.indirect, SampleType::half, false});
-      frame.terms.push_back({"ssdo_indirect_denoised", indirect_denoised, SampleType::half, false});
+    compute_ssdo(in, request.ssdo, ssdo, {}, threads);
+  }
+
+  // The denoised terms, in one pass over the frame: the blur's weights depend only on the
+  // guides, so AO and the two SSDO terms share them (kernels/denoise.h).
+  cv::Mat ao_denoised, direct_denoised, indirect_denoised;
+  {
+    std::vector<const cv::Mat*> sources;
+    std::vector<cv::Mat*> results;
+    if (computed.ao) sources.push_back(&ao.ao), results.push_back(&ao_denoised);
+    if (computed.ssdo) {
+      sources.push_back(&ssdo.direct), results.push_back(&direct_denoised);
+      sources.push_back(&ssdo.indirect), results.push_back(&indirect_denoised);
     }
+    if (!sources.empty())
+      denoise_bilateral(sources, g.depth_view, g.normal_view, g.mask, request.denoise, results, {}, threads);
+  }
+  if (computed.ao && terms.ao) {
+    frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
+    frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});
+    if (!ao.bent_normal_view.empty())
+      frame.terms.push_back({"bent_normal", ao.bent_normal_view, SampleType::half, true});
+  }
+  if (computed.ssdo && terms.ssdo) {
+    frame.terms.push_back({"ssdo_direct", ssdo.direct, SampleType::half, false});
+    frame.terms.push_back({"ssdo_direct_denoised", direct_denoised, SampleType::half, false});
+    frame.terms.push_back({"ssdo_indirect", ssdo.indirect, SampleType::half, false});
+    frame.terms.push_back({"ssdo_indirect_denoised", indirect_denoised, SampleType::half, false});
   }
 
   // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius

@@ -87,6 +87,40 @@ TEST(Denoise, OneAndTwoThreadsIdentical) {
   EXPECT_EQ(0, std::memcmp(a.data, b.data, a.total() * a.elemSize()));
 }
 
+// Several images in one pass: each result is the same bits as denoising it alone, for
+// every channel count the shared pass takes (1 + 3 + 3 = 7, 3 + 3, 1 + 3) and one it does
+// not (1 + 1: image by image), with both lobe paths (integer and fractional power).
+TEST(Denoise, SeveralImagesInOnePassMatchEachAloneBitForBit) {
+  const cv::Size size(300, 41);  // wider than a tile: the tile seams are crossed
+  const Guides g = random_guides(size, 11);
+  for (const float power : {16.0f, 8.0f, 2.5f}) {
+    DenoiseSettings s;
+    s.normal_power = power;
+    for (const std::vector<int>& layout :
+         std::vector<std::vector<int>>{{1, 3, 3}, {3, 3}, {1, 3}, {1, 1}}) {
+      std::vector<cv::Mat> srcs, together(layout.size());
+      std::vector<const cv::Mat*> src_ptrs;
+      std::vector<cv::Mat*> dst_ptrs;
+      for (size_t i = 0; i < layout.size(); ++i) {
+        srcs.emplace_back(size, CV_MAKETYPE(CV_32F, layout[i]));
+        cv::randu(srcs.back(), 0.0f, 1.0f);
+      }
+      for (size_t i = 0; i < layout.size(); ++i) {
+        src_ptrs.push_back(&srcs[i]);
+        dst_ptrs.push_back(&together[i]);
+      }
+      denoise_bilateral(src_ptrs, g.depth, g.normal, g.mask, s, dst_ptrs, {}, 2);
+      for (size_t i = 0; i < layout.size(); ++i) {
+        cv::Mat alone;
+        denoise_bilateral(srcs[i], g.depth, g.normal, g.mask, s, alone, {}, 1);
+        ASSERT_EQ(alone.type(), together[i].type());
+        EXPECT_EQ(0, std::memcmp(alone.data, together[i].data, alone.total() * alone.elemSize()))
+            << "power " << power << ", image " << i << " of " << layout.size();
+      }
+    }
+  }
+}
+
 TEST(Denoise, StepEdgeDoesNotBleed) {
   // Left half at depth 2, right half at depth 5; the image is constant on each side, so
   // any weight across the edge would move a value.
