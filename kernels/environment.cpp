@@ -1,5 +1,7 @@
 #include "kernels/environment.h"
 
+#include "kernels/parallel.h"
+
 #include <algorithm>
 #include <cmath>
 #include <vector>
@@ -288,33 +290,37 @@ void Environment::build() {
       source_dir[size_t(j) * ssize.width + i] = direction_from_equirect({i + 0.5f, j + 0.5f}, ssize);
   }
   const double row_step = kPi / ssize.height;
-  for (int tj = 0; tj < tsize.height; ++tj) {
-    const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
-    for (int ti = 0; ti < tsize.width; ++ti) {
-      const glm::vec3 c = direction_from_equirect({ti + 0.5f, tj + 0.5f}, tsize);
-      double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
-      for (int j = 0; j < ssize.height; ++j) {
-        // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
-        // a texel centre inside it.
-        const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
-        if (std::abs(theta_s - theta_t) > cone + 0.5 * row_step) continue;
-        const cv::Vec3f* row = source.ptr<cv::Vec3f>(j);
-        const glm::vec3* dirs = &source_dir[size_t(j) * ssize.width];
-        for (int i = 0; i < ssize.width; ++i) {
-          if (glm::dot(dirs[i], c) < cos_cone) continue;
-          for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * row_solid_angle[j];
-          weight += row_solid_angle[j];
+  // Target rows are independent: on OpenCV's pool (as sized by the caller; the same values
+  // for any thread count).
+  parallel_rows(cv::Range(0, tsize.height), 0, [&](const cv::Range& target_rows) {
+    for (int tj = target_rows.start; tj < target_rows.end; ++tj) {
+      const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
+      for (int ti = 0; ti < tsize.width; ++ti) {
+        const glm::vec3 c = direction_from_equirect({ti + 0.5f, tj + 0.5f}, tsize);
+        double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
+        for (int j = 0; j < ssize.height; ++j) {
+          // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
+          // a texel centre inside it.
+          const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
+          if (std::abs(theta_s - theta_t) > cone + 0.5 * row_step) continue;
+          const cv::Vec3f* row = source.ptr<cv::Vec3f>(j);
+          const glm::vec3* dirs = &source_dir[size_t(j) * ssize.width];
+          for (int i = 0; i < ssize.width; ++i) {
+            if (glm::dot(dirs[i], c) < cos_cone) continue;
+            for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * row_solid_angle[j];
+            weight += row_solid_angle[j];
+          }
+        }
+        cv::Vec3f& v = filtered_.at<cv::Vec3f>(tj, ti);
+        if (weight > 0.0) {
+          for (int k = 0; k < 3; ++k) v[k] = float(sum[k] / weight);
+        } else {  // cone narrower than a source texel: the point value
+          const glm::vec3 l = bilinear_equirect(source, c);
+          v = cv::Vec3f(l.x, l.y, l.z);
         }
       }
-      cv::Vec3f& v = filtered_.at<cv::Vec3f>(tj, ti);
-      if (weight > 0.0) {
-        for (int k = 0; k < 3; ++k) v[k] = float(sum[k] / weight);
-      } else {  // cone narrower than a source texel: the point value
-        const glm::vec3 l = bilinear_equirect(source, c);
-        v = cv::Vec3f(l.x, l.y, l.z);
-      }
     }
-  }
+  }, 1);
 }
 
 }  // namespace ssdo
