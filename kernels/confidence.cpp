@@ -102,14 +102,18 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   const float bias_scale = 1.0f + s.depth_bias_relative;
   // The unrotated Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle
   // turns. Each pixel rotates it by its own angle (a 2x2 rotation per tap, not a sincos).
-  std::vector<glm::vec2> spiral(static_cast<size_t>(n_taps));
+  std::vector<float> spiral_x(static_cast<size_t>(n_taps)), spiral_y(static_cast<size_t>(n_taps));
   for (int k = 0; k < n_taps; ++k) {
     const float rho = std::sqrt((float(k) + 0.5f) / float(n_taps));
     const float angle = float(k) * kGoldenAngle;
-    spiral[size_t(k)] = rho * glm::vec2(std::cos(angle), std::sin(angle));
+    spiral_x[size_t(k)] = rho * std::cos(angle);
+    spiral_y[size_t(k)] = rho * std::sin(angle);
   }
 
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    struct Taps {  // one pixel's taps, structure of arrays (settings cap taps at 256)
+      alignas(32) float x[256], y[256], s0[256], s1[256], len_scale[256];
+    } tap;
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = mask.ptr<uint8_t>(y);
       const float* depth_row = depth_view.ptr<float>(y);
@@ -135,34 +139,43 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
         const float r2 = radius * radius;
         const float rotation = 6.2831853f * noise01(x, y, 0, s.seed);
         const float cos_r = std::cos(rotation), sin_r = std::sin(rotation);
-        double observed = 0.0, total = 0.0;
+        // Phase 1, every tap at once (no branch, so the compiler runs 8 taps per
+        // instruction): the tap pixel, and the chord [s0, s1] of the hemisphere along the
+        // ray through its centre (where its depth was sampled), in ray parameter units;
+        // len_scale converts them to lengths. Taps whose ray misses get s1 <= s0.
         for (int k = 0; k < n_taps; ++k) {
-          const glm::vec2 v = spiral[size_t(k)];
-          const float tx_f = pxc + rx_px * (cos_r * v.x - sin_r * v.y);
-          const float ty_f = pyc + ry_px * (sin_r * v.x + cos_r * v.y);
-          const int tx = int(std::floor(tx_f)), ty = int(std::floor(ty_f));
-          // The ray through the tap pixel's centre (where its depth was sampled).
-          const float cx = float(tx) + 0.5f, cy = float(ty) + 0.5f;
+          const float vx = spiral_x[size_t(k)], vy = spiral_y[size_t(k)];
+          const float tx = std::floor(pxc + rx_px * (cos_r * vx - sin_r * vy));
+          const float ty = std::floor(pyc + ry_px * (sin_r * vx + cos_r * vy));
+          const float cx = tx + 0.5f, cy = ty + 0.5f;
           const glm::vec3 o = rays.o0 + cx * rays.ox + cy * rays.oy;
           const glm::vec3 u = rays.u0 + cx * rays.ux + cy * rays.uy;
           const glm::vec3 f = o - p;
           const float a = glm::dot(u, u), b = glm::dot(u, f), c = glm::dot(f, f) - r2;
           const float disc = b * b - a * c;
-          if (!(disc > 0.0f)) continue;  // the ray misses the sphere
-          const float root = std::sqrt(disc);
+          const float root = std::sqrt(std::max(disc, 0.0f));
           float s0 = std::max((-b - root) / a, 0.0f), s1 = (-b + root) / a;
-          // Clip to the hemisphere n.(x - p) >= 0.
+          // Clip to the hemisphere n.(x - p) >= 0. A ray parallel to the tangent plane
+          // (nu = 0) is kept whole above it and dropped below it.
           const float nu = glm::dot(n, u), nf = glm::dot(n, f);
-          if (nu != 0.0f) {
-            const float s_plane = -nf / nu;
-            if (nu < 0.0f) s1 = std::min(s1, s_plane);
-            else s0 = std::max(s0, s_plane);
-          } else if (nf < 0.0f) {
-            continue;  // ray parallel to the tangent plane, below it
-          }
+          const float s_plane = -nf / nu;
+          s1 = nu < 0.0f ? std::min(s1, s_plane) : s1;
+          s0 = nu > 0.0f ? std::max(s0, s_plane) : s0;
+          const bool hit = disc > 0.0f && !(nu == 0.0f && nf < 0.0f) && s1 > s0;
+          tap.x[k] = tx;
+          tap.y[k] = ty;
+          tap.s0[k] = s0;
+          tap.s1[k] = hit ? s1 : s0;  // an empty chord: weighs nothing below
+          tap.len_scale[k] = std::sqrt(a);
+        }
+        // Phase 2, in tap order: the sums, and the depth reads (gathers).
+        double observed = 0.0, total = 0.0;
+        for (int k = 0; k < n_taps; ++k) {
+          const float s0 = tap.s0[k], s1 = tap.s1[k];
           if (!(s1 > s0)) continue;
-          const float len_scale = std::sqrt(a);
+          const float len_scale = tap.len_scale[k];
           total += double((s1 - s0) * len_scale);
+          const int tx = int(tap.x[k]), ty = int(tap.y[k]);
           if (tx < 0 || ty < 0 || tx >= width || ty >= height) continue;  // off screen
           if (mask.ptr<uint8_t>(ty)[tx] == 0) continue;                     // unknown
           const float d_tap = depth_view.ptr<float>(ty)[tx];
