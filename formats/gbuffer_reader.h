@@ -70,8 +70,8 @@ struct ChannelMapping {
 //   float here, over ReadOptions::threads strips of chunks;
 // - openexr: OpenEXR's own decoder (Imf::InputPart), as for every other part.
 // Both give bit-identical pixels, and a damaged chunk is an error with either (worded by
-// each); the choice exists so that tests and benchmarks can compare them. Tiled, deep, subsampled parts and the other
-// compressions always go to OpenEXR.
+// each); the choice exists so that tests and benchmarks can compare them. Tiled, deep and
+// subsampled parts and the other compressions always go to OpenEXR.
 enum class ZipDecoder { libdeflate, openexr };
 
 // Defaults read the depth, normals, albedo, lighting and reference passes of the chosen

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <filesystem>
 #include <mutex>
+#include <vector>
 
 #include "formats/chart.h"
 #include "formats/oiio/module_api.h"

@@ -1,5 +1,5 @@
-// One owner of parallelism. OpenCV runs nested parallel_for_ calls serially and OpenCV,
-// OpenEXR and OpenImageIO each keep their own pool, so frames are computed either one at
+// One owner of parallelism. OpenCV runs nested parallel_for_ calls serially and OpenCV
+// and OpenEXR each keep their own pool, so frames are computed either one at
 // a time with every thread inside the frame, or several at once (one worker process per
 // frame, one thread each); never both.
 // Measured on 2 cores shared with other jobs (README.md, "Batch and service"): a batch
