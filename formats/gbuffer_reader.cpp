@@ -28,6 +28,7 @@
 
 #include "formats/camera_io.h"
 #include "formats/channel_profiles.h"
+#include "formats/exr_core.h"
 #include "formats/exr_header_check.h"
 #include "formats/exr_zip.h"
 #include "kernels/normals.h"
@@ -395,33 +396,14 @@ struct ZipPlan {
   std::vector<ZipChannel> channels;
 };
 
-// OpenEXRCore reports errors through a callback (its default prints them to stderr); the
-// message is kept for the error of the calling thread's chunk instead.
-thread_local std::string core_message;
-void keep_core_message(exr_const_context_t, exr_result_t, const char* message) {
-  core_message = message ? message : "";
-}
-
-struct CoreFile {
-  exr_context_t context = nullptr;
-  CoreFile() = default;
-  CoreFile(const CoreFile&) = delete;
-  CoreFile& operator=(const CoreFile&) = delete;
-  ~CoreFile() {
-    if (context) exr_finish(&context);
-  }
-};
-
 // Opens the file with OpenEXRCore; false (the caller uses OpenEXR's decoder) when it cannot.
 // The headers already passed check_exr_headers and OpenEXR's own parser.
-bool open_core(const std::string& path, CoreFile& file) {
-  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-  init.error_handler_fn = keep_core_message;
+bool open_core(const std::string& path, exr_core::Context& file) {
+  exr_context_initializer_t init = exr_core::quiet_initializer();
   // A damaged offset table is an error here, never a scan of the file for chunks.
   init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE | EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
-  if (exr_start_read(&file.context, path.c_str(), &init) != EXR_ERR_SUCCESS) {
-    if (file.context) exr_finish(&file.context);
-    file.context = nullptr;
+  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) {
+    file.finish();
     return false;
   }
   return true;
@@ -528,12 +510,10 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
     const int y = int(data.min_y + int64_t(chunk) * plan.lines_per_chunk);
     const int lines = int(std::min<int64_t>(plan.lines_per_chunk, data.max_y - y + 1));
     exr_chunk_info_t info{};
-    core_message.clear();
+    exr_core::forget_error();
     if (const exr_result_t rv = exr_read_scanline_chunk_info(context, part, y, &info);
         rv != EXR_ERR_SUCCESS) {
-      fail(chunk, "cannot locate the chunk (" +
-                      (core_message.empty() ? std::string(exr_get_default_error_message(rv))
-                                            : core_message) + ")");
+      fail(chunk, "cannot locate the chunk (" + exr_core::error_text(rv) + ")");
       return;
     }
     const uint64_t expected = uint64_t(lines) * plan.line_bytes;
@@ -559,12 +539,10 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
     }
     // Core checked packed_size against the file's size: this allocation is bounded by it.
     stored.resize(size_t(info.packed_size));
-    core_message.clear();
+    exr_core::forget_error();
     if (const exr_result_t rv = exr_read_chunk(context, part, &info, stored.data());
         rv != EXR_ERR_SUCCESS) {
-      fail(chunk, "cannot read the chunk (" +
-                      (core_message.empty() ? std::string(exr_get_default_error_message(rv))
-                                            : core_message) + ")");
+      fail(chunk, "cannot read the chunk (" + exr_core::error_text(rv) + ")");
       return;
     }
     const uint8_t* pixels = stored.data();
@@ -675,7 +653,7 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
                                  target->step[0]});
     }
   }
-  CoreFile core;
+  exr_core::Context core;
   bool core_tried = false;
   for (auto& [part, fb] : buffers) {
     if (!prep.file->partComplete(part))
@@ -686,9 +664,9 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
         core_tried = true;
         open_core(prep.path, core);
       }
-      if (core.context) {
-        if (auto plan = plan_zip_part(core.context, part, prep.data, targets[part])) {
-          read_zip_part(core.context, part, prep.parts[part].name, prep.parts.size() > 1,
+      if (core.get()) {
+        if (auto plan = plan_zip_part(core.get(), part, prep.data, targets[part])) {
+          read_zip_part(core.get(), part, prep.parts[part].name, prep.parts.size() > 1,
                         prep.data, *plan, options.threads);
           continue;
         }

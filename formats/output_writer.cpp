@@ -27,6 +27,7 @@
 #include <Imath/half.h>
 
 #include "formats/camera_io.h"
+#include "formats/exr_core.h"
 #include "formats/exr_zip.h"
 #include "formats/oiio_module.h"
 #include "kernels/parallel.h"
@@ -190,38 +191,11 @@ void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const
   }  // closed (and flushed) here, before the rename
 }
 
-// OpenEXRCore reports errors through a callback: the last message on this thread, for the
-// error text.
-thread_local std::string core_write_message;
-void keep_core_write_message(exr_const_context_t, exr_result_t, const char* message) {
-  core_write_message = message ? message : "";
-}
-
 // Throws the failure of an OpenEXRCore call with the library's message.
 void check_core(exr_result_t result, const char* action) {
   if (result == EXR_ERR_SUCCESS) return;
-  const std::string message =
-      core_write_message.empty() ? exr_get_default_error_message(result) : core_write_message;
-  throw std::runtime_error(std::string(action) + ": " + message);
+  throw std::runtime_error(std::string(action) + ": " + exr_core::error_text(result));
 }
-
-// A file being written with OpenEXRCore, closed when abandoned on failure (the caller then
-// removes it).
-struct CoreWriteFile {
-  exr_context_t context = nullptr;
-  CoreWriteFile() = default;
-  CoreWriteFile(const CoreWriteFile&) = delete;
-  CoreWriteFile& operator=(const CoreWriteFile&) = delete;
-  ~CoreWriteFile() {
-    if (context) exr_finish(&context);
-  }
-  // Writes the chunk offset table and closes the file.
-  void finish() {
-    exr_context_t c = context;
-    context = nullptr;
-    check_core(exr_finish(&c), "cannot finish the file");
-  }
-};
 
 // Where one EXR channel's samples come from: component `component` of the pixels of a
 // CV_32FC<components> image.
@@ -278,13 +252,13 @@ constexpr int kBatchChunks = 256;
 void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
                    const Camera& camera, const WriteOptions& options, Imf::Compression compression,
                    cv::Size size) {
-  core_write_message.clear();
-  CoreWriteFile file;
-  exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
-  init.error_handler_fn = keep_core_write_message;
-  check_core(exr_start_write(&file.context, temp.c_str(), EXR_WRITE_FILE_DIRECTLY, &init),
+  exr_core::forget_error();
+  // Closed on failure (the caller removes the file), finished explicitly on success.
+  exr_core::Context file;
+  const exr_context_initializer_t init = exr_core::quiet_initializer();
+  check_core(exr_start_write(file.out(), temp.c_str(), EXR_WRITE_FILE_DIRECTLY, &init),
              "cannot create the file");
-  exr_context_t context = file.context;
+  exr_context_t context = file.get();
   // Channel names longer than 31 bytes need the long-names flag of the version field
   // (OpenEXR "Technical Introduction", "Version Field"); OpenEXR's writer sets it only then,
   // and so does OpenEXRCore once allowed.
@@ -376,7 +350,8 @@ void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
                  "cannot write a chunk");
     }
   }
-  file.finish();
+  // Writes the chunk offset table and closes the file.
+  check_core(file.finish(), "cannot finish the file");
 }
 
 std::string write_outputs_unguarded(const std::string& path, const std::vector<OutputTerm>& terms,
