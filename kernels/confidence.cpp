@@ -30,6 +30,9 @@ namespace {
 // any N.
 constexpr float kGoldenAngle = 2.39996322972865332f;
 
+// ConfidenceSettings::taps' upper bound: a pixel's taps fit in fixed arrays.
+constexpr int kMaxTaps = 256;
+
 struct RayMap {
   glm::vec3 o0, ox, oy;  // o(px, py) = o0 + px ox + py oy
   glm::vec3 u0, ux, uy;  // u(px, py) = u0 + px ux + py uy
@@ -59,7 +62,7 @@ RayMap make_ray_map(const Camera& cam) {
 
 std::string validate(const ConfidenceSettings& s) {
   if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
-  if (s.taps < 4 || s.taps > 256) return detail::out_of_range("taps", s.taps, "[4, 256]");
+  if (s.taps < 4 || s.taps > kMaxTaps) return detail::out_of_range("taps", s.taps, "[4, 256]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
     return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
   if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
@@ -111,8 +114,8 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   }
 
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    struct Taps {  // one pixel's taps, structure of arrays (settings cap taps at 256)
-      alignas(32) float x[256], y[256], s0[256], s1[256], len_scale[256];
+    struct Taps {  // one pixel's taps, structure of arrays
+      alignas(32) float x[kMaxTaps], y[kMaxTaps], s0[kMaxTaps], s1[kMaxTaps], len_scale[kMaxTaps];
     } tap;
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = mask.ptr<uint8_t>(y);

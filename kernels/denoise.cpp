@@ -369,10 +369,9 @@ void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& dept
   if (r.empty()) return;
   const float p = settings.normal_power;
   const bool planar = p == 16.0f || p == 8.0f || p == 4.0f || p == 1.0f || p == 0.0f;
-  // One pass over every channel: the channel counts the pipeline uses (AO 1, colour 3,
-  // AO + bent normal or two colour terms 4 / 6, all three terms 7).
-  const bool together = planar && (channels == 1 || channels == 3 || channels == 4 ||
-                                   channels == 6 || channels == 7);
+  // One pass over every channel for the channel counts the pipeline uses: AO 1, a colour
+  // term 3, the two SSDO terms 6, AO and both SSDO terms 7.
+  const bool together = planar && (channels == 1 || channels == 3 || channels == 6 || channels == 7);
   if (!together) {
     for (size_t i = 0; i < srcs.size(); ++i) {
       const cv::Mat& src = *srcs[i];
@@ -408,7 +407,6 @@ void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& dept
     switch (channels) {
       case 1: run_with(std::integral_constant<int, 1>{}, lobe); break;
       case 3: run_with(std::integral_constant<int, 3>{}, lobe); break;
-      case 4: run_with(std::integral_constant<int, 4>{}, lobe); break;
       case 6: run_with(std::integral_constant<int, 6>{}, lobe); break;
       default: run_with(std::integral_constant<int, 7>{}, lobe); break;
     }

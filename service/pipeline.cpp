@@ -185,7 +185,6 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   return frame;
 }
 
-
 ReadOptions reads_for(const FrameRequest& request) {
   ReadOptions read = request.read;
   const TermsComputed c = terms_computed(request);
