@@ -240,6 +240,10 @@ void bilateral_planar(const ChannelMap<C>& ch, const cv::Mat& depth_view, const 
         const float* tz = cz + off;
         const float* tv = tap0 + k * tap_step;
         const float gk = g[k + R];
+        // The accumulators and the planes are disjoint parts of one scratch buffer, which
+        // the compiler's runtime overlap check cannot prove: without ivdep it takes the
+        // scalar copy of this loop (5x slower at 3 channels).
+#pragma GCC ivdep
         for (int i = 0; i < tw; ++i) {
           const float wd = std::max(0.0f, 1.0f - std::abs(td[i] - cd[i]) * scale[i]);
           const float cn = std::max(0.0f, cx[i] * tx[i] + cy[i] * ty[i] + cz[i] * tz[i]);
