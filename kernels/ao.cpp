@@ -147,11 +147,15 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   }
   // Half grid (kernels/half_resolution.h), then the depth- and normal-aware upsample.
   const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
-  HalfGrid h;
-  const cv::Mat* extras[] = {in.albedo};
-  build_half_grid(full, extras, h, nthreads);
+  HalfGrid own;
+  if (in.half_grid == nullptr) build_half_grid(full, {}, own, nthreads);
+  const HalfGrid& h = in.half_grid != nullptr ? *in.half_grid : own;
+  CV_Assert(h.depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2) &&
+            !h.position_view.empty());
+  cv::Mat half_albedo;
+  if (in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
   const AoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
-                         h.extras[0].empty() ? nullptr : &h.extras[0]};
+                         half_albedo.empty() ? nullptr : &half_albedo};
   AoOutput half_out;
   half_out.ao.create(h.depth_view.size(), CV_32FC1);
   if (has_bent_normal) half_out.bent_normal_view.create(h.depth_view.size(), CV_32FC3);

@@ -15,6 +15,7 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/camera.h"
+#include "kernels/half_resolution.h"
 
 namespace ssdo {
 
@@ -104,6 +105,10 @@ struct AoInputs {
   // resolution) take each tap's own thickness depth_back_view - depth_view instead of
   // thickness_world (+inf back = solid behind).
   const cv::Mat* depth_back_view = nullptr;
+  // The frame's half-resolution grid, built from these inputs (build_half_grid with
+  // positions, and build_upsample_weights over the roi), when the kernels of one frame
+  // share it; null: built here when the settings run at half resolution.
+  const HalfGrid* half_grid = nullptr;
 };
 
 struct AoOutput {

@@ -73,7 +73,7 @@ std::string validate(const ConfidenceSettings& s) {
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
-                        int nthreads) {
+                        int nthreads, const HalfGrid* half_grid) {
   CV_Assert(validate(s).empty());
   CV_Assert(depth_view.type() == CV_32FC1);
   const cv::Size size = depth_view.size();
@@ -87,8 +87,10 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   if (s.resolution_divisor == 2) {
     const cv::Mat no_positions;
     const FullGrid full{depth_view, normal_view, no_positions, mask, camera};
-    HalfGrid h;
-    build_half_grid(full, {}, h, nthreads);
+    HalfGrid own;
+    if (half_grid == nullptr) build_half_grid(full, {}, own, nthreads);
+    const HalfGrid& h = half_grid != nullptr ? *half_grid : own;
+    CV_Assert(h.depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2));
     ConfidenceSettings half_settings = s;
     half_settings.resolution_divisor = 1;
     cv::Mat half_confidence;

@@ -23,6 +23,7 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/camera.h"
+#include "kernels/half_resolution.h"
 
 namespace ssdo {
 
@@ -53,10 +54,12 @@ std::string validate(const ConfidenceSettings& s);
 // Writes confidence (CV_32FC1 in [0, 1], allocated at the input size when empty or of the
 // wrong size; only roi, empty = all, is written). depth_view CV_32FC1 planar depth (+inf on
 // background), normal_view CV_32FC3 unit view-space normals facing the camera, mask CV_8UC1
-// (255 = foreground). Deterministic: the same bytes for any thread count.
+// (255 = foreground). Deterministic: the same bytes for any thread count. half_grid: the
+// frame's half-resolution grid of these guides, shared with other kernels of the frame
+// (AoInputs::half_grid), or null (built here when the settings run at half resolution).
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& settings, cv::Mat& confidence,
-                        cv::Rect roi = {}, int nthreads = 0);
+                        cv::Rect roi = {}, int nthreads = 0, const HalfGrid* half_grid = nullptr);
 
 }  // namespace ssdo

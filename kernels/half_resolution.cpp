@@ -40,11 +40,9 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
   h.mask.create(half, CV_8UC1);
   h.source.create(half, CV_32SC2);
   h.extras.assign(extras.size(), cv::Mat());
-  for (size_t e = 0; e < extras.size(); ++e) {
-    if (!extras[e] || extras[e]->empty()) continue;
-    CV_Assert(extras[e]->depth() == CV_32F && extras[e]->size() == size);
-    h.extras[e].create(half, extras[e]->type());
-  }
+  for (const cv::Mat* e : extras) CV_Assert(!e || e->empty() || (e->depth() == CV_32F && e->size() == size));
+  h.upsample_weights.release();
+  h.upsample_roi = {};
   h.camera = full.camera;
   h.camera.width_px = half.width;
   h.camera.height_px = half.height;
@@ -67,22 +65,140 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
           h.normal_view.ptr<cv::Vec3f>(j)[i] = full.normal_view.ptr<cv::Vec3f>(sy)[sx];
           if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = full.position_view.ptr<cv::Vec3f>(sy)[sx];
         }
-        for (size_t e = 0; e < extras.size(); ++e) {
-          cv::Mat& dst = h.extras[e];
-          if (dst.empty()) continue;
-          const int cn = dst.channels();
-          float* d = dst.ptr<float>(j) + size_t(i) * size_t(cn);
-          if (sx < 0) std::fill(d, d + cn, 0.0f);
-          else std::copy_n(extras[e]->ptr<float>(sy) + size_t(sx) * size_t(cn), cn, d);
-        }
       }
   });
+  for (size_t e = 0; e < extras.size(); ++e)
+    if (extras[e] && !extras[e]->empty()) sample_at_texels(h, *extras[e], h.extras[e], nthreads);
 }
 
 cv::Rect half_grid_roi(const cv::Rect& r, const cv::Size& size) {
   // Pixel x reads texels floor(x / 2 - 0.25) - 1 .. + 2.
   return cv::Rect(r.x / 2 - 2, r.y / 2 - 2, r.width / 2 + 5, r.height / 2 + 5) &
          cv::Rect(0, 0, (size.width + 1) / 2, (size.height + 1) / 2);
+}
+
+namespace {
+
+// The texels full-resolution pixel (x, y) reads (bilinear at the texel centres, texel
+// centre i = pixel 2 i + 0.5): columns i0, i0 + 1 and rows j0, j0 + 1 (clamped to the
+// grid), and the bilinear fractions towards the second ones.
+struct Footprint {
+  int i[2], j[2];
+  float wx1, wy1;
+  int i0, j0;  // unclamped, for the fallback's 4x4 neighbourhood
+};
+
+inline void footprint_row(int y, int hh, Footprint& f) {
+  const float fy = (float(y) + 0.5f) * 0.5f - 0.5f;
+  f.j0 = int(std::floor(fy));
+  f.wy1 = fy - float(f.j0);
+  f.j[0] = std::clamp(f.j0, 0, hh - 1);
+  f.j[1] = std::clamp(f.j0 + 1, 0, hh - 1);
+}
+
+inline void footprint_column(int x, int hw, Footprint& f) {
+  const float fx = (float(x) + 0.5f) * 0.5f - 0.5f;
+  f.i0 = int(std::floor(fx));
+  f.wx1 = fx - float(f.i0);
+  f.i[0] = std::clamp(f.i0, 0, hw - 1);
+  f.i[1] = std::clamp(f.i0 + 1, 0, hw - 1);
+}
+
+// Joint bilateral weights of the four texels k = (k & 1, k >> 1) of a foreground pixel of
+// depth d and normal n (header: bilinear x exp(-|dz| / (tol d)) x max(0, n . n_k)^4), 0 on
+// masked texels.
+inline void texel_weights(const HalfGrid& h, const Footprint& f, float d, const cv::Vec3f& n, float w[4]) {
+  const float inv_tol = 1.0f / (kUpsampleDepthRelative * d);
+  for (int k = 0; k < 4; ++k) {
+    const int i = f.i[k & 1], j = f.j[k >> 1];
+    w[k] = 0.0f;
+    if (!h.mask.ptr<uint8_t>(j)[i]) continue;
+    const float wb = ((k & 1) ? f.wx1 : 1.0f - f.wx1) * ((k >> 1) ? f.wy1 : 1.0f - f.wy1);
+    const float dz = std::abs(h.depth_view.ptr<float>(j)[i] - d) * inv_tol;
+    float c = std::max(0.0f, n.dot(h.normal_view.ptr<cv::Vec3f>(j)[i]));
+    c *= c;
+    w[k] = wb * std::exp(-dz) * c * c;
+  }
+}
+
+// The foreground texel of the 4x4 neighbourhood closest in depth to d, or false.
+inline bool nearest_in_depth(const HalfGrid& h, const Footprint& f, float d, int& bi, int& bj) {
+  const int hw = h.depth_view.cols, hh = h.depth_view.rows;
+  bi = -1, bj = -1;
+  float best = std::numeric_limits<float>::infinity();
+  for (int dj = -1; dj <= 2; ++dj)
+    for (int di = -1; di <= 2; ++di) {
+      const int i = f.i0 + di, j = f.j0 + dj;
+      if (i < 0 || j < 0 || i >= hw || j >= hh || !h.mask.ptr<uint8_t>(j)[i]) continue;
+      const float dz = std::abs(h.depth_view.ptr<float>(j)[i] - d);
+      if (dz < best) best = dz, bi = i, bj = j;
+    }
+  return bi >= 0;
+}
+
+// out = sum_k w_k v_k / sum_k w_k over the texels of nonzero weight, in k order (masked
+// texels, weight 0, are skipped: their values may be anything).
+template <int C>
+inline void blend(const cv::Mat& half, const Footprint& f, const float w[4], float wsum, float* out) {
+  float acc[C] = {};
+  for (int k = 0; k < 4; ++k) {
+    if (w[k] == 0.0f) continue;
+    const float* v = half.ptr<float>(f.j[k >> 1]) + size_t(f.i[k & 1]) * C;
+    for (int ch = 0; ch < C; ++ch) acc[ch] += w[k] * v[ch];
+  }
+  for (int ch = 0; ch < C; ++ch) out[ch] = acc[ch] / wsum;
+}
+
+inline void blend_any(const cv::Mat& half, const Footprint& f, const float w[4], float wsum, float* out) {
+  switch (half.channels()) {
+    case 1: blend<1>(half, f, w, wsum, out); break;
+    case 2: blend<2>(half, f, w, wsum, out); break;
+    case 3: blend<3>(half, f, w, wsum, out); break;
+    default: blend<4>(half, f, w, wsum, out); break;
+  }
+}
+
+}  // namespace
+
+void sample_at_texels(const HalfGrid& h, const cv::Mat& full_image, cv::Mat& half_image, int nthreads) {
+  CV_Assert(full_image.depth() == CV_32F);
+  CV_Assert((full_image.cols + 1) / 2 == h.source.cols && (full_image.rows + 1) / 2 == h.source.rows);
+  const int cn = full_image.channels();
+  half_image.create(h.source.size(), full_image.type());
+  parallel_rows(cv::Range(0, h.source.rows), nthreads, [&](const cv::Range& rows) {
+    for (int j = rows.start; j < rows.end; ++j) {
+      const cv::Vec2i* src = h.source.ptr<cv::Vec2i>(j);
+      float* d = half_image.ptr<float>(j);
+      for (int i = 0; i < h.source.cols; ++i, d += cn) {
+        if (src[i][0] < 0) std::fill(d, d + cn, 0.0f);
+        else std::copy_n(full_image.ptr<float>(src[i][1]) + size_t(src[i][0]) * size_t(cn), cn, d);
+      }
+    }
+  });
+}
+
+void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int nthreads) {
+  const cv::Rect r = roi.empty() ? cv::Rect(cv::Point(), full.depth_view.size())
+                                 : roi & cv::Rect(cv::Point(), full.depth_view.size());
+  h.upsample_weights.create(full.depth_view.size(), CV_32FC4);
+  h.upsample_roi = r;
+  const int hw = h.depth_view.cols, hh = h.depth_view.rows;
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+      cv::Vec4f* out = h.upsample_weights.ptr<cv::Vec4f>(y);
+      Footprint f;
+      footprint_row(y, hh, f);
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        if (!mask_row[x]) {
+          out[x] = cv::Vec4f(0, 0, 0, 0);
+          continue;
+        }
+        footprint_column(x, hw, f);
+        texel_weights(h, f, full.depth_view.ptr<float>(y)[x], full.normal_view.ptr<cv::Vec3f>(y)[x], &out[x][0]);
+      }
+    }
+  });
 }
 
 void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
@@ -93,12 +209,14 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
     CV_Assert(im.full.type() == im.half.type() && im.full.size() == full.depth_view.size());
     CV_Assert(im.half.channels() <= kMaxChannels);
   }
+  const bool kept = !h.upsample_weights.empty() && h.upsample_weights.size() == full.depth_view.size() &&
+                    (h.upsample_roi & r) == r;
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
-      const float fy = (float(y) + 0.5f) * 0.5f - 0.5f;
-      const int j0 = int(std::floor(fy));
-      const float wy1 = fy - float(j0);
+      const cv::Vec4f* kept_row = kept ? h.upsample_weights.ptr<cv::Vec4f>(y) : nullptr;
+      Footprint f;
+      footprint_row(y, hh, f);
       for (int x = r.x; x < r.x + r.width; ++x) {
         if (!mask_row[x]) {
           for (const UpsampleImage& im : images)
@@ -107,56 +225,29 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
           continue;
         }
         const float d = full.depth_view.ptr<float>(y)[x];
-        const cv::Vec3f n = full.normal_view.ptr<cv::Vec3f>(y)[x];
-        const float inv_tol = 1.0f / (kUpsampleDepthRelative * d);
-        const float fx = (float(x) + 0.5f) * 0.5f - 0.5f;
-        const int i0 = int(std::floor(fx));
-        const float wx1 = fx - float(i0);
-        // The texels and their weights.
-        int ti[4], tj[4];
-        float tw[4];
-        int n_taps = 0;
+        footprint_column(x, hw, f);
+        float w[4];
+        if (kept) std::copy_n(&kept_row[x][0], 4, w);
+        else texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
         float wsum = 0.0f;
-        for (int k = 0; k < 4; ++k) {
-          const int i = std::clamp(i0 + (k & 1), 0, hw - 1), j = std::clamp(j0 + (k >> 1), 0, hh - 1);
-          if (!h.mask.ptr<uint8_t>(j)[i]) continue;
-          const float wb = ((k & 1) ? wx1 : 1.0f - wx1) * ((k >> 1) ? wy1 : 1.0f - wy1);
-          const float dz = std::abs(h.depth_view.ptr<float>(j)[i] - d) * inv_tol;
-          float c = std::max(0.0f, n.dot(h.normal_view.ptr<cv::Vec3f>(j)[i]));
-          c *= c;
-          const float w = wb * std::exp(-dz) * c * c;
-          ti[n_taps] = i, tj[n_taps] = j, tw[n_taps] = w;
-          ++n_taps;
-          wsum += w;
-        }
+        for (int k = 0; k < 4; ++k) wsum += w[k];
         if (!(wsum > kMinUpsampleWeight)) {
-          int bi = -1, bj = -1;
-          float best = std::numeric_limits<float>::infinity();
-          for (int dj = -1; dj <= 2; ++dj)
-            for (int di = -1; di <= 2; ++di) {
-              const int i = i0 + di, j = j0 + dj;
-              if (i < 0 || j < 0 || i >= hw || j >= hh || !h.mask.ptr<uint8_t>(j)[i]) continue;
-              const float dz = std::abs(h.depth_view.ptr<float>(j)[i] - d);
-              if (dz < best) best = dz, bi = i, bj = j;
-            }
-          if (bi < 0) {  // no foreground texel near: nothing known
+          int bi, bj;
+          if (!nearest_in_depth(h, f, d, bi, bj)) {  // no foreground texel near: nothing known
             for (const UpsampleImage& im : images)
               write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.fallback,
                            im.full.channels());
             continue;
           }
-          n_taps = 1, ti[0] = bi, tj[0] = bj, tw[0] = 1.0f, wsum = 1.0f;
-        }
-        for (const UpsampleImage& im : images) {
-          const int cn = im.half.channels();
-          float acc[kMaxChannels] = {0.0f, 0.0f, 0.0f, 0.0f};
-          for (int t = 0; t < n_taps; ++t) {
-            const float* v = im.half.ptr<float>(tj[t]) + size_t(ti[t]) * size_t(cn);
-            for (int ch = 0; ch < cn; ++ch) acc[ch] += tw[t] * v[ch];
+          for (const UpsampleImage& im : images) {
+            const int cn = im.half.channels();
+            std::copy_n(im.half.ptr<float>(bj) + size_t(bi) * size_t(cn), cn,
+                        im.full.ptr<float>(y) + size_t(x) * size_t(cn));
           }
-          float* out = im.full.ptr<float>(y) + size_t(x) * size_t(cn);
-          for (int ch = 0; ch < cn; ++ch) out[ch] = acc[ch] / wsum;
+          continue;
         }
+        for (const UpsampleImage& im : images)
+          blend_any(im.half, f, w, wsum, im.full.ptr<float>(y) + size_t(x) * size_t(im.half.channels()));
       }
     }
   });

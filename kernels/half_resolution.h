@@ -30,6 +30,13 @@ struct HalfGrid {
   std::vector<cv::Mat> extras;  // each extra input's value at the texel (0 where none)
   cv::Mat source;               // CV_32SC2: the full-resolution pixel taken, (-1, -1) if none
   Camera camera;                // the full camera with the half grid's size
+  // The upsample's texel weights of the full-resolution pixels of upsample_roi
+  // (build_upsample_weights; CV_32FC4, the full size, weight k of texel k of the 2x2 block
+  // the pixel reads, 0 on masked texels), for kernels of one frame that share the grid:
+  // they depend on the guides only, so every upsample from the grid reuses them. Empty:
+  // each upsample computes them itself (the same values).
+  cv::Mat upsample_weights;
+  cv::Rect upsample_roi;
 };
 
 // The full-resolution views of one frame (CV_32FC1 depth, +inf on background; CV_32FC3
@@ -48,6 +55,16 @@ struct FullGrid {
 void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& half,
                      int nthreads = 0);
 
+// Each texel's value of a full-resolution image: the value at the pixel the texel took
+// (HalfGrid::source), 0 on texels that took none. `full_image` CV_32F of any channel
+// count and the full size; `half_image` is allocated at the grid's size.
+void sample_at_texels(const HalfGrid& half, const cv::Mat& full_image, cv::Mat& half_image,
+                      int nthreads = 0);
+
+// Computes and keeps in `half` the upsample weights of the full-resolution roi (empty =
+// all), for a grid that several kernels of one frame upsample from.
+void build_upsample_weights(const FullGrid& full, HalfGrid& half, cv::Rect roi = {}, int nthreads = 0);
+
 // The texels the upsample of the full-resolution roi reads.
 cv::Rect half_grid_roi(const cv::Rect& full_roi, const cv::Size& full_size);
 
@@ -61,7 +78,8 @@ struct UpsampleImage {
   cv::Scalar fallback;
 };
 
-// Writes the pixels of `roi` of every image.
+// Writes the pixels of `roi` of every image, with the grid's kept weights when they cover
+// roi (bit-identical to computing them here).
 void upsample_from_half_grid(const FullGrid& full, const HalfGrid& half,
                              std::span<const UpsampleImage> images, const cv::Rect& roi,
                              int nthreads = 0);

@@ -163,6 +163,9 @@ struct SsdoInputs {
   const Environment& environment;
   const cv::Mat* albedo = nullptr;    // CV_32FC3 or null (= white): sender albedo
   const cv::Mat* lighting = nullptr;  // CV_32FC3 or null: sender outgoing radiance
+  // The frame's half-resolution grid of these inputs, shared by the kernels of one frame
+  // (AoInputs::half_grid), or null: built here when the settings run at half resolution.
+  const HalfGrid* half_grid = nullptr;
 };
 
 struct SsdoOutput {

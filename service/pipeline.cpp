@@ -102,12 +102,34 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
     view_positions_from_depth(g.depth_view, g.mask, g.camera, position_view, {}, threads);
   const TermsComputed computed = terms_computed(request);
   const std::vector<WeightedTerm>& composite_terms = computed.composite_terms;
+  const bool confidence_wanted = terms.ao || terms.ssdo;
+  const ConfidenceSettings confidence_settings = [&] {
+    ConfidenceSettings cs;
+    cs.radius_world = terms.ao ? request.ao.radius_world : request.ssdo.radius_world;
+    cs.max_radius_px = terms.ao ? request.ao.max_radius_px : request.ssdo.max_radius_px;
+    cs.depth_bias_relative = request.ao.depth_bias_relative;
+    return cs;
+  }();
+
+  // One half-resolution grid and one set of upsample weights for every kernel of the frame
+  // that runs at half resolution (kernels/half_resolution.h): built once, not per kernel.
+  const bool ao_half = computed.ao && request.ao.resolution_divisor == 2 && request.ao.method != AoMethod::raymarch;
+  const bool ssdo_half = computed.ssdo && request.ssdo.resolution_divisor == 2 && request.ssdo.method == SsdoMethod::ssdo;
+  const bool confidence_half = confidence_wanted && confidence_settings.resolution_divisor == 2;
+  HalfGrid half_grid;
+  const HalfGrid* shared_grid = nullptr;
+  if (int(ao_half) + int(ssdo_half) + int(confidence_half) >= 2) {
+    const FullGrid full{g.depth_view, g.normal_view, position_view, g.mask, g.camera};
+    build_half_grid(full, {}, half_grid, threads);
+    build_upsample_weights(full, half_grid, {}, threads);
+    shared_grid = &half_grid;
+  }
 
   AoOutput ao;
   if (computed.ao) {
     const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera,
                       g.has_albedo() ? &g.albedo : nullptr,
-                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
+                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view, shared_grid};
     compute_ao(in, request.ao, ao, {}, threads);
   }
 
@@ -117,7 +139,7 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   if (computed.ssdo) {
     const SsdoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera, environment,
                         g.has_albedo() ? &g.albedo : nullptr,
-                        g.lighting.empty() ? nullptr : &g.lighting};
+                        g.lighting.empty() ? nullptr : &g.lighting, shared_grid};
     compute_ssdo(in, request.ssdo, ssdo, {}, threads);
   }
 
@@ -150,13 +172,10 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
 
   // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
   // samples (kernels/confidence.h), written with every AO or SSDO output.
-  if (terms.ao || terms.ssdo) {
-    ConfidenceSettings cs;
-    cs.radius_world = terms.ao ? request.ao.radius_world : request.ssdo.radius_world;
-    cs.max_radius_px = terms.ao ? request.ao.max_radius_px : request.ssdo.max_radius_px;
-    cs.depth_bias_relative = request.ao.depth_bias_relative;
+  if (confidence_wanted) {
     cv::Mat confidence;
-    compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, confidence, {}, threads);
+    compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, confidence_settings, confidence, {},
+                       threads, shared_grid);
     frame.terms.push_back({"confidence", confidence, SampleType::float32, false});
   }
 

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "kernels/ao.h"
+#include "kernels/confidence.h"
 #include "kernels/raycast.h"
 
 namespace ssdo {
@@ -90,6 +92,74 @@ TEST(HalfResolution, UpsampleKeepsConstantsAndEachPixelsOwnSurface) {
     }
   EXPECT_GT(checked, 5000);
   EXPECT_GT(near_own_depth, 0.98 * checked);
+}
+
+TEST(HalfResolution, KeptWeightsGiveTheBitsOfWeightsComputedPerUpsample) {
+  const GBuffer g = frame();
+  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  HalfGrid h;
+  build_half_grid(full, {}, h, 2);
+  cv::Mat half_value(h.depth_view.size(), CV_32FC3);
+  cv::randu(half_value, 0.0f, 1.0f);
+  cv::Mat computed(g.depth_view.size(), CV_32FC3, cv::Scalar::all(-1)), kept = computed.clone();
+  const cv::Rect roi(3, 5, 150, 80);
+  upsample_from_half_grid(full, h, std::vector<UpsampleImage>{{half_value, computed, cv::Scalar::all(7), cv::Scalar::all(9)}},
+                          roi, 2);
+  build_upsample_weights(full, h, roi, 1);
+  ASSERT_EQ(h.upsample_roi, roi);
+  // Weights lie in [0, 1] (bilinear x exp x cos^4) and are 0 on background pixels.
+  double lo, hi;
+  cv::minMaxLoc(h.upsample_weights(roi).reshape(1), &lo, &hi);
+  EXPECT_GE(lo, 0.0);
+  EXPECT_LE(hi, 1.0);
+  EXPECT_GT(hi, 0.2);
+  upsample_from_half_grid(full, h, std::vector<UpsampleImage>{{half_value, kept, cv::Scalar::all(7), cv::Scalar::all(9)}},
+                          roi, 2);
+  EXPECT_EQ(cv::norm(computed, kept, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::countNonZero(computed.reshape(1) == -1), 3 * (161 * 91 - roi.area()));
+}
+
+TEST(HalfResolution, SampleAtTexelsTakesEachTexelsSourcePixel) {
+  const GBuffer g = frame();
+  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  HalfGrid with_extra, plain;
+  const cv::Mat* extras[] = {&g.albedo};
+  build_half_grid(full, extras, with_extra, 2);
+  build_half_grid(full, {}, plain, 1);
+  cv::Mat sampled;
+  sample_at_texels(plain, g.albedo, sampled, 2);
+  ASSERT_EQ(sampled.size(), cv::Size(81, 46));
+  EXPECT_EQ(cv::norm(sampled, with_extra.extras[0], cv::NORM_INF), 0.0);
+  // Texels that took no pixel hold 0.
+  for (int j = 0; j < 46; ++j)
+    for (int i = 0; i < 81; ++i)
+      if (plain.source.at<cv::Vec2i>(j, i)[0] < 0) EXPECT_EQ(sampled.at<cv::Vec3f>(j, i), cv::Vec3f(0, 0, 0));
+}
+
+// Kernels of one frame given a shared grid (with kept weights) return the bits they return
+// when each builds its own.
+TEST(HalfResolution, KernelsOnASharedGridGiveTheirOwnGridsBits) {
+  const GBuffer g = frame();
+  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  HalfGrid h;
+  build_half_grid(full, {}, h, 2);
+  build_upsample_weights(full, h, {}, 2);
+  AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
+  ao_settings.multibounce = true;
+  AoOutput own, shared;
+  compute_ao({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &g.albedo}, ao_settings, own, {}, 2);
+  compute_ao({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &g.albedo, nullptr, &h}, ao_settings,
+             shared, {}, 2);
+  EXPECT_EQ(cv::norm(own.ao, shared.ao, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(own.bent_normal_view, shared.bent_normal_view, cv::NORM_INF), 0.0);
+  EXPECT_LT(cv::mean(own.ao)[0], 0.99);  // something is occluded
+
+  ConfidenceSettings cs;
+  cv::Mat own_confidence, shared_confidence;
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, own_confidence, {}, 2);
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, shared_confidence, {}, 2, &h);
+  EXPECT_EQ(cv::norm(own_confidence, shared_confidence, cv::NORM_INF), 0.0);
+  EXPECT_LT(cv::mean(own_confidence)[0], 1.0);
 }
 
 TEST(HalfResolution, RoiOfTheHalfGridCoversEveryTexelTheUpsampleReads) {
