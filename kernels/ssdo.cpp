@@ -84,16 +84,17 @@ constexpr float kPi = 3.14159265358979323846f;
 // ray) from extrapolating far beyond the pixel.
 constexpr float kPlaneCorrectionMaxRelative = 0.25f;
 
-// What a tap reads of a pixel: one 16-byte record (taps scatter over up to max_radius_px
-// around the pixel, and their cache misses are a large part of the kernel's cost). For a plane seen in
-// perspective, 1 / depth is an affine function of the pixel coordinates, so the pixel's
-// tangent plane gives the surface depth anywhere in the pixel from 1 / depth at the centre
-// and its two screen gradients.
+// What a tap reads of a pixel: one 16-byte record, one cache line (taps scatter over up to
+// max_radius_px around the pixel, and their cache misses are a large part of the kernel's
+// cost). For a plane seen in perspective, 1 / depth is an affine function of the pixel
+// coordinates, so the pixel's tangent plane gives the surface depth anywhere in the pixel
+// from 1 / depth at the centre (recomputed per tap, the same division as when the record
+// was built) and its two screen gradients.
 struct TapTexel {
   float depth_view;      // planar depth at the centre; +inf where mask = 0 (nothing there)
-  float inv_depth;       // 1 / depth_view
   float inv_depth_dx;    // d(1 / depth) / d(pixel x) of the tangent plane (0: not used)
   float inv_depth_dy;    // d(1 / depth) / d(pixel y)
+  uint32_t source;       // the full-resolution pixel x | y << 16 whose tangent plane this is
 };
 static_assert(sizeof(TapTexel) == 16);
 
@@ -119,15 +120,21 @@ constexpr float kMipStartPx = 16.0f;
 constexpr int kTilePx = 32;
 constexpr int kMaxLevels = 8;
 
-struct TapLevel {
-  const TapTexel* taps = nullptr;
-  const uint32_t* source = nullptr;  // full-resolution pixel x | y << 16 (null at level 0)
-  int width = 0, height = 0;
-};
+// A pixel's sample directions are marched kSampleBatch at a time: first every point of
+// every direction of the batch is tested (one loop without branches over up to
+// kSampleBatch x kMaxSampleSteps points, whose texel reads and divisions overlap), then
+// each direction's march reads its points' results in order (the points after the one
+// that decides are tested but not used).
+constexpr int kSampleBatch = 8;
+constexpr int kMaxSampleSteps = 64;  // validate()'s bound on sample_steps
 
 // Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {
-  TapLevel levels[kMaxLevels];
+  // The pyramid's levels one after another in one array (level l starts at
+  // level_offset[l] and is level_width[l] texels wide), so that a tap's texel is one index.
+  const TapTexel* pyramid;
+  int level_offset[kMaxLevels];
+  int level_width[kMaxLevels];
   int n_levels;                // 1 = no pyramid (the oracle reads full resolution only)
   const SenderTexel* senders;  // row-major, width_px per row
   const cv::Mat* depth;
@@ -197,48 +204,42 @@ inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w
 // whose point has left the frame does not come back, so marches stop there.
 enum class Tap { visible, occluded, behind, off_screen };
 
-// Occlusion test of view-space point S whose clip coordinates are `clip` (see ssdo.h), for
-// the receiver at pixel coordinates origin_px. On `occluded` the pixel (qx, qy) S projects
-// to is the sender. full_resolution: read level 0 whatever the distance (the bisection
-// steps: on the shared frames, bisecting on coarse texels left the bounce 27-31% from the
-// oracle, on full-resolution texels 13-17%).
-inline Tap classify(const Constants& c, const glm::vec2& origin_px, const glm::vec3& s_view,
-                    const glm::vec4& clip, int& qx, int& qy, bool full_resolution = false) {
-  if (!(clip.w > 0.0f)) return Tap::off_screen;  // behind the eye
-  const float inv_w = 1.0f / clip.w;
-  const float px = 0.5f * (clip.x * inv_w + 1.0f) * c.width_px;
-  const float py = 0.5f * (1.0f - clip.y * inv_w) * c.height_px;
-  if (!(px >= 0.0f && px < c.width_px && py >= 0.0f && py < c.height_px)) return Tap::off_screen;
-  qx = int(px);
-  qy = int(py);
-  int level = 0;
-  if (c.n_levels > 1 && !full_resolution) {
-    const float dx = px - origin_px.x, dy = py - origin_px.y;
-    const float rho2 = (dx * dx + dy * dy) * (1.0f / (kMipStartPx * kMipStartPx));
-    // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
-    if (rho2 >= 1.0f) level = std::min(c.n_levels - 1, (exponent_of(rho2) >> 1) + 1);
-  }
-  const TapLevel& lv = c.levels[level];
-  const size_t texel = size_t(qy >> level) * size_t(lv.width) + size_t(qx >> level);
-  const TapTexel& t = lv.taps[texel];
+// Occlusion test of view-space point S at planar depth depth_s whose clip coordinates are
+// (clip_x, clip_y, ., clip_w) (see ssdo.h), for the receiver at pixel coordinates origin_px.
+// On `occluded` the pixel (qx, qy) S projects to is the sender. full_resolution: read level
+// 0 whatever the distance (the bisection steps: on the shared frames, bisecting on coarse
+// texels left the bounce 27-31% from the oracle, on full-resolution texels 13-17%).
+// Without branches (every case is computed and selected), so that a loop over many points
+// has no branch to mispredict; an off-screen point reads texel 0 and ignores it.
+inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_s, float clip_x, float clip_y,
+                    float clip_w, bool full_resolution, int& qx, int& qy) {
+  const bool in_front_of_eye = clip_w > 0.0f;
+  const float inv_w = 1.0f / clip_w;
+  const float px = 0.5f * (clip_x * inv_w + 1.0f) * c.width_px;
+  const float py = 0.5f * (1.0f - clip_y * inv_w) * c.height_px;
+  const bool on_screen = in_front_of_eye & (px >= 0.0f) & (px < c.width_px) & (py >= 0.0f) & (py < c.height_px);
+  qx = int(on_screen ? px : 0.0f);
+  qy = int(on_screen ? py : 0.0f);
+  const float dx = px - origin_px.x, dy = py - origin_px.y;
+  const float rho2 = (dx * dx + dy * dy) * (1.0f / (kMipStartPx * kMipStartPx));
+  // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
+  const bool coarse = c.n_levels > 1 && !full_resolution && rho2 >= 1.0f;
+  const int level = coarse ? std::min(c.n_levels - 1, (exponent_of(rho2) >> 1) + 1) : 0;
+  const TapTexel& t = c.pyramid[c.level_offset[level] + (qy >> level) * c.level_width[level] + (qx >> level)];
   // The texel's tangent plane is its source pixel's.
-  int sx = qx, sy = qy;
-  if (level > 0) {
-    const uint32_t source = lv.source[texel];
-    sx = int(source & 0xFFFFu);
-    sy = int(source >> 16);
-  }
+  const int sx = int(t.source & 0xFFFFu), sy = int(t.source >> 16);
   const float depth_q = t.depth_view;
-  if (!(depth_q < std::numeric_limits<float>::infinity())) return Tap::visible;  // background
-  const float depth_s = -s_view.z;
+  const bool background = !(depth_q < std::numeric_limits<float>::infinity());
   // The surface depth on S's own ray: the tangent plane at S's sub-pixel offset.
-  const float inv = t.inv_depth + t.inv_depth_dx * (px - float(sx) - 0.5f) +
+  const float inv = 1.0f / depth_q + t.inv_depth_dx * (px - float(sx) - 0.5f) +
                     t.inv_depth_dy * (py - float(sy) - 0.5f);
   const float limit = kPlaneCorrectionMaxRelative * depth_q;
   const float depth_surface = inv > 0.0f ? std::clamp(1.0f / inv, depth_q - limit, depth_q + limit) : depth_q;
   const float behind = depth_s - depth_surface;
-  if (!(behind > c.s.depth_bias_relative * depth_s)) return Tap::visible;
-  return behind < c.s.thickness_world ? Tap::occluded : Tap::behind;
+  const bool beyond_bias = behind > c.s.depth_bias_relative * depth_s;
+  const bool within_thickness = behind < c.s.thickness_world;
+  const Tap in_view = !beyond_bias ? Tap::visible : within_thickness ? Tap::occluded : Tap::behind;
+  return !on_screen ? Tap::off_screen : background ? Tap::visible : in_view;
 }
 
 // Outgoing radiance of sender pixel q (see ssdo.h).
@@ -276,124 +277,164 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
   const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
   const float r = effective_radius(c, c.depth->at<float>(y, x));
-  glm::vec3 t, b;
-  tangent_frame(n, t, b);
-  const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
-  const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
-  const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
-  const float shift_c = std::cos(2.0f * kPi * shift_v), shift_s = std::sin(2.0f * kPi * shift_v);
   const int n_samples = c.s.samples;
-  const int steps = c.s.sample_steps;
-  const int refinements = c.s.sample_refinements;
   const bool bent = c.s.direct_estimator == SsdoDirectEstimator::bent_normal;
   const bool form_factor = c.s.indirect_estimator == SsdoIndirectEstimator::form_factor;
   const float d_min2 = c.s.sender_distance_min_world * c.s.sender_distance_min_world;
-
   const bool control_variate = c.s.direct_estimator == SsdoDirectEstimator::open_minus_occluded;
+  const int width = int(c.width_px);
+
   glm::vec3 direct_sum(0.0f), indirect_sum(0.0f), bent_sum(0.0f), occluded_sum(0.0f);
   int visible = 0;
-  const int width = int(c.width_px);
-  for (int i = 0; i < n_samples; ++i) {
-    int qx = 0, qy = 0;
-    if (recorded) {
-      if (recorded[i] < 0) continue;
-      qx = recorded[i] % width;
-      qy = recorded[i] / width;
-    } else {
-      float u, v;
-      r2_point(uint32_t(i), shift_u, shift_v, u, v);
-      // cosine_direction(u, v, t, b, n) with the azimuth 2 pi v by rotation (see Constants).
-      const float cos_phi = shift_c * c.azimuth_cos[i] - shift_s * c.azimuth_sin[i];
-      const float sin_phi = shift_s * c.azimuth_cos[i] + shift_c * c.azimuth_sin[i];
-      const float radius = std::sqrt(u);
-      const glm::vec3 w = t * (radius * cos_phi) + b * (radius * sin_phi) + n * std::sqrt(std::max(0.0f, 1.0f - u));
-      // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
-      // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
-      // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
-      // occluder the ray meets anywhere within r is found (with the last point at
-      // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
-      // bias of the bounce of up to half against the oracle on the shared frames).
-      const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
-      const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
-      // The march covers the part of the radius that stays on screen: beyond the frame
-      // nothing can be tested, and a coarse step that leaps off screen would otherwise end
-      // the march before it tests an occluder at the frame's edge (walls that leave the
-      // frame, e.g.).
-      const float march = r * on_screen_fraction(clip_p, clip_w, r);
-      // The first point behind the depth buffer within the thickness decides. Between
-      // two steps, bisection (sample_refinements halvings of the interval from the last
-      // point in front of the depth buffer):
-      // - after an occluded step, for the entry point: the sender is the surface where w
-      //   enters the occluder, not wherever a coarse step overshot to (an overshot point
-      //   projects onto a face of the occluder that often faces away from P, which the
-      //   back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
-      // - after a step farther behind the surface than the thickness right after one in
-      //   front: the ray crossed the stored surface in between, and the part within the
-      //   thickness lies between the steps (large occluders seen face-on: deep inside, a
-      //   point is farther than the thickness behind the front face the screen shows).
-      // Both ends are on screen, so every point between is (projection keeps segments convex).
-      Tap tap = Tap::visible;
-      float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
-      bool after_front = true;
-      for (int j = 0; j < steps && tap != Tap::occluded; ++j) {
-        const float lambda = march * (float(j) + xi) / (steps > 1 ? float(steps - 1) + xi : 1.0f);
-        const Tap t = classify(c, origin_px, p + lambda * w, clip_p + lambda * clip_w, qx, qy);
-        if (t == Tap::off_screen) break;
-        if (t == Tap::visible) {
-          lambda_front = lambda;
-          after_front = true;
-          continue;
-        }
-        tap = t;
-        if (t == Tap::occluded ? (want_indirect || record != nullptr) : after_front) {
-          float lo = lambda_front, hi = lambda;
-          for (int k = 0; k < refinements; ++k) {
-            const float mid = 0.5f * (lo + hi);
-            int mx = 0, my = 0;
-            const Tap m = classify(c, origin_px, p + mid * w, clip_p + mid * clip_w, mx, my, true);
-            if (m == Tap::visible) {
-              lo = mid;
-              continue;
-            }
-            hi = mid;
-            if (m == Tap::occluded) {
-              tap = Tap::occluded;
-              qx = mx;
-              qy = my;
-            }
-          }
-        }
-        after_front = false;
-      }
-      if (tap != Tap::occluded) {
-        if (want_direct) {
-          if (bent) bent_sum += w;
-          else if (!control_variate) direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
-        }
-        ++visible;
-        if (record) record[i] = -1;
-        continue;
-      }
-      if (record) record[i] = qy * width + qx;
-      if (want_direct && control_variate) occluded_sum += c.env->radiance_filtered_env(c.env_from_view * w);
-    }
-    if (!want_indirect) continue;
+  // The bounce of an occluded sample whose sender is pixel (qx, qy).
+  auto add_sender = [&](int qx, int qy) {
     const SenderTexel& sender = c.senders[size_t(qy) * size_t(width) + size_t(qx)];
     const glm::vec3& pq = sender.position_view;
     const glm::vec3& nq = sender.normal_view;
     const glm::vec3 to_receiver = p - pq;
     const float d2 = glm::dot(to_receiver, to_receiver);
     // A sender at P itself has no defined direction (a zero-area coincidence).
-    if (!(d2 > 0.0f)) continue;
+    if (!(d2 > 0.0f)) return;
     const float cos_s = glm::dot(nq, to_receiver);  // x d
-    if (!(cos_s > 0.0f)) continue;                  // back-facing sender
+    if (!(cos_s > 0.0f)) return;                    // back-facing sender
     if (form_factor) {
       const float cos_r = -glm::dot(n, to_receiver);  // x d
-      if (!(cos_r > 0.0f)) continue;
+      if (!(cos_r > 0.0f)) return;
       const float cos_cos = cos_s * cos_r / d2;
       indirect_sum += sender_radiance(c, sender_direct, qx, qy) * (cos_cos / std::max(d2, d_min2));
     } else {
       indirect_sum += sender_radiance(c, sender_direct, qx, qy);
+    }
+  };
+
+  if (recorded) {
+    for (int i = 0; i < n_samples; ++i)
+      if (recorded[i] >= 0 && want_indirect) add_sender(recorded[i] % width, recorded[i] / width);
+  } else {
+    glm::vec3 t, b;
+    tangent_frame(n, t, b);
+    const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
+    const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
+    const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
+    const float shift_c = std::cos(2.0f * kPi * shift_v), shift_s = std::sin(2.0f * kPi * shift_v);
+    const int steps = c.s.sample_steps;
+    const int refinements = c.s.sample_refinements;
+    // Per batch: each direction's w and clip-space direction, and per point (index
+    // direction x steps + step) its distance lambda along w, depth, clip coordinates and
+    // test result with its pixel.
+    glm::vec3 w_batch[kSampleBatch];
+    glm::vec4 clip_w_batch[kSampleBatch];
+    float lambda[kSampleBatch * kMaxSampleSteps], depth_s[kSampleBatch * kMaxSampleSteps];
+    float clip_x[kSampleBatch * kMaxSampleSteps], clip_y[kSampleBatch * kMaxSampleSteps];
+    float clip_w[kSampleBatch * kMaxSampleSteps];
+    Tap tap_at[kSampleBatch * kMaxSampleSteps];
+    int qx_at[kSampleBatch * kMaxSampleSteps], qy_at[kSampleBatch * kMaxSampleSteps];
+    for (int i0 = 0; i0 < n_samples; i0 += kSampleBatch) {
+      const int batch = std::min(kSampleBatch, n_samples - i0);
+      for (int s = 0; s < batch; ++s) {
+        const int i = i0 + s;
+        float u, v;
+        r2_point(uint32_t(i), shift_u, shift_v, u, v);
+        // cosine_direction(u, v, t, b, n) with the azimuth 2 pi v by rotation (see Constants).
+        const float cos_phi = shift_c * c.azimuth_cos[i] - shift_s * c.azimuth_sin[i];
+        const float sin_phi = shift_s * c.azimuth_cos[i] + shift_c * c.azimuth_sin[i];
+        const float radius = std::sqrt(u);
+        const glm::vec3 w = t * (radius * cos_phi) + b * (radius * sin_phi) + n * std::sqrt(std::max(0.0f, 1.0f - u));
+        // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
+        // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
+        // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
+        // occluder the ray meets anywhere within r is found (with the last point at
+        // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
+        // bias of the bounce of up to half against the oracle on the shared frames).
+        const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
+        const glm::vec4 cw = c.clip_from_view * glm::vec4(w, 0.0f);
+        // The march covers the part of the radius that stays on screen: beyond the frame
+        // nothing can be tested, and a coarse step that leaps off screen would otherwise end
+        // the march before it tests an occluder at the frame's edge (walls that leave the
+        // frame, e.g.).
+        const float march = r * on_screen_fraction(clip_p, cw, r);
+        const float denominator = steps > 1 ? float(steps - 1) + xi : 1.0f;
+        for (int j = 0; j < steps; ++j) {
+          const int k = s * steps + j;
+          lambda[k] = march * (float(j) + xi) / denominator;
+          depth_s[k] = -(p.z + lambda[k] * w.z);
+          clip_x[k] = clip_p.x + lambda[k] * cw.x;
+          clip_y[k] = clip_p.y + lambda[k] * cw.y;
+          clip_w[k] = clip_p.w + lambda[k] * cw.w;
+        }
+        w_batch[s] = w;
+        clip_w_batch[s] = cw;
+      }
+      const int points = batch * steps;
+      for (int k = 0; k < points; ++k)
+        tap_at[k] = classify(c, origin_px, depth_s[k], clip_x[k], clip_y[k], clip_w[k], false, qx_at[k], qy_at[k]);
+
+      for (int s = 0; s < batch; ++s) {
+        const int i = i0 + s;
+        const glm::vec3& w = w_batch[s];
+        const glm::vec4& cw = clip_w_batch[s];
+        // The first point behind the depth buffer within the thickness decides. Between
+        // two steps, bisection (sample_refinements halvings of the interval from the last
+        // point in front of the depth buffer):
+        // - after an occluded step, for the entry point: the sender is the surface where w
+        //   enters the occluder, not wherever a coarse step overshot to (an overshot point
+        //   projects onto a face of the occluder that often faces away from P, which the
+        //   back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
+        // - after a step farther behind the surface than the thickness right after one in
+        //   front: the ray crossed the stored surface in between, and the part within the
+        //   thickness lies between the steps (large occluders seen face-on: deep inside, a
+        //   point is farther than the thickness behind the front face the screen shows).
+        // Both ends are on screen, so every point between is (projection keeps segments convex).
+        Tap tap = Tap::visible;
+        int qx = 0, qy = 0;
+        float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
+        bool after_front = true;
+        for (int j = 0; j < steps && tap != Tap::occluded; ++j) {
+          const int k = s * steps + j;
+          const Tap tj = tap_at[k];
+          if (tj == Tap::off_screen) break;
+          if (tj == Tap::visible) {
+            lambda_front = lambda[k];
+            after_front = true;
+            continue;
+          }
+          tap = tj;
+          qx = qx_at[k];
+          qy = qy_at[k];
+          if (tj == Tap::occluded ? (want_indirect || record != nullptr) : after_front) {
+            float lo = lambda_front, hi = lambda[k];
+            for (int h = 0; h < refinements; ++h) {
+              const float mid = 0.5f * (lo + hi);
+              int mx = 0, my = 0;
+              const glm::vec4 clip = clip_p + mid * cw;
+              const Tap m = classify(c, origin_px, -(p + mid * w).z, clip.x, clip.y, clip.w, true, mx, my);
+              if (m == Tap::visible) {
+                lo = mid;
+                continue;
+              }
+              hi = mid;
+              if (m == Tap::occluded) {
+                tap = Tap::occluded;
+                qx = mx;
+                qy = my;
+              }
+            }
+          }
+          after_front = false;
+        }
+        if (tap != Tap::occluded) {
+          if (want_direct) {
+            if (bent) bent_sum += w;
+            else if (!control_variate) direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
+          }
+          ++visible;
+          if (record) record[i] = -1;
+          continue;
+        }
+        if (record) record[i] = qy * width + qx;
+        if (want_direct && control_variate) occluded_sum += c.env->radiance_filtered_env(c.env_from_view * w);
+        if (want_indirect) add_sender(qx, qy);
+      }
     }
   }
   const float inv_n = 1.0f / float(n_samples);
@@ -449,7 +490,7 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
         const float lambda = (float(k) + step_jitter) * step + 1e-7f * r;  // > 0 always
         const glm::vec4 clip = clip_p + lambda * clip_w;
         if (!(clip.w > 0.0f)) break;
-        const Tap tap = classify(c, origin_px, p + lambda * w, clip, qx, qy);
+        const Tap tap = classify(c, origin_px, -(p + lambda * w).z, clip.x, clip.y, clip.w, false, qx, qy);
         if (tap == Tap::off_screen) break;
         if (tap == Tap::occluded) {
           hit = true;
@@ -524,7 +565,27 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   const glm::vec3 ray_00 = in.camera.view_from_pixel_depth({0.0f, 0.0f}, 1.0f);
   const glm::vec3 ray_du = in.camera.view_from_pixel_depth({1.0f, 0.0f}, 1.0f) - ray_00;
   const glm::vec3 ray_dv = in.camera.view_from_pixel_depth({0.0f, 1.0f}, 1.0f) - ray_00;
-  std::vector<TapTexel> taps(size_t(size.area()));
+  // The pyramid (method ssdo only; the oracle is the full-resolution best case): levels
+  // until one covers the largest tap distance (~2 max_radius_px: a sample point nearer the
+  // camera than P projects farther out) or the image is one texel wide.
+  CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
+  Constants c{};
+  c.n_levels = 1;
+  c.level_width[0] = size.width;
+  int level_height[kMaxLevels] = {size.height};
+  size_t pyramid_texels = size_t(size.area());
+  const float max_rho_px = 2.0f * settings.max_radius_px;
+  while (settings.method == SsdoMethod::ssdo && c.n_levels < kMaxLevels &&
+         kMipStartPx * float(1 << (c.n_levels - 1)) < max_rho_px &&
+         (c.level_width[c.n_levels - 1] > 1 || level_height[c.n_levels - 1] > 1)) {
+    const int l = c.n_levels++;
+    c.level_offset[l] = int(pyramid_texels);
+    c.level_width[l] = (c.level_width[l - 1] + 1) / 2;
+    level_height[l] = (level_height[l - 1] + 1) / 2;
+    pyramid_texels += size_t(c.level_width[l]) * size_t(level_height[l]);
+  }
+  CV_Assert(pyramid_texels <= size_t(std::numeric_limits<int>::max()));  // texel indices are int
+  std::vector<TapTexel> taps(pyramid_texels);
   std::vector<SenderTexel> senders(size_t(size.area()));
   parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -539,8 +600,8 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
         snd[x].normal_view = glm::vec3(nrm[x][0], nrm[x][1], nrm[x][2]);
         const bool foreground = m[x] != 0 && d[x] > 0.0f && d[x] < std::numeric_limits<float>::infinity();
         t[x].depth_view = foreground ? d[x] : std::numeric_limits<float>::infinity();
-        t[x].inv_depth = foreground ? 1.0f / d[x] : 0.0f;
         t[x].inv_depth_dx = t[x].inv_depth_dy = 0.0f;
+        t[x].source = uint32_t(x) | (uint32_t(y) << 16);
         const float plane = glm::dot(snd[x].normal_view, snd[x].position_view);
         // A plane through the eye (plane ~ 0) is seen edge-on: no usable gradient. The
         // threshold is relative to the depth (|n . P| = depth x |cos| of the view angle),
@@ -553,40 +614,21 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     }
   });
 
-  // The pyramid (method ssdo only; the oracle is the full-resolution best case).
-  std::vector<std::vector<TapTexel>> level_taps;
-  std::vector<std::vector<uint32_t>> level_source;
-  CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
-  Constants c{};
-  c.levels[0] = {taps.data(), nullptr, size.width, size.height};
-  c.n_levels = 1;
-  if (settings.method == SsdoMethod::ssdo) {
-    // Levels until one covers the largest tap distance (~2 max_radius_px: a sample point
-    // nearer the camera than P projects farther out) or the image is one texel wide.
-    const float max_rho_px = 2.0f * settings.max_radius_px;
-    level_taps.reserve(kMaxLevels);
-    level_source.reserve(kMaxLevels);
-    while (c.n_levels < kMaxLevels && kMipStartPx * float(1 << (c.n_levels - 1)) < max_rho_px) {
-      const TapLevel& prev = c.levels[c.n_levels - 1];
-      if (prev.width <= 1 && prev.height <= 1) break;
-      const int w = (prev.width + 1) / 2, h = (prev.height + 1) / 2;
-      level_taps.emplace_back(size_t(w) * size_t(h));
-      level_source.emplace_back(size_t(w) * size_t(h));
-      TapTexel* lt = level_taps.back().data();
-      uint32_t* ls = level_source.back().data();
-      for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-          // SAO's rotated grid: child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)), clamped to the image.
-          const int cx = std::min(2 * x + ((y & 1) ^ 1), prev.width - 1);
-          const int cy = std::min(2 * y + ((x & 1) ^ 1), prev.height - 1);
-          const size_t child = size_t(cy) * size_t(prev.width) + size_t(cx);
-          lt[size_t(y) * size_t(w) + size_t(x)] = prev.taps[child];
-          ls[size_t(y) * size_t(w) + size_t(x)] =
-              prev.source ? prev.source[child] : uint32_t(cx) | (uint32_t(cy) << 16);
-        }
-      c.levels[c.n_levels++] = {lt, ls, w, h};
-    }
+  // Level l > 0 from level l - 1: SAO's rotated grid, child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)),
+  // clamped to the image.
+  for (int l = 1; l < c.n_levels; ++l) {
+    const TapTexel* prev = &taps[size_t(c.level_offset[l - 1])];
+    const int prev_w = c.level_width[l - 1], prev_h = level_height[l - 1];
+    TapTexel* lt = &taps[size_t(c.level_offset[l])];
+    const int w = c.level_width[l], h = level_height[l];
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const int cx = std::min(2 * x + ((y & 1) ^ 1), prev_w - 1);
+        const int cy = std::min(2 * y + ((x & 1) ^ 1), prev_h - 1);
+        lt[size_t(y) * size_t(w) + size_t(x)] = prev[size_t(cy) * size_t(prev_w) + size_t(cx)];
+      }
   }
+  c.pyramid = taps.data();
   c.senders = senders.data();
   c.depth = &in.depth_view;
   c.normal = &in.normal_view;
