@@ -184,10 +184,12 @@ inline int exponent_of(float v) { return int((std::bit_cast<uint32_t>(v) >> 23) 
 // planes, -w <= x, y <= w, w > 0 (Liang and Barsky 1984, "A New Concept and Method for
 // Line Clipping", ACM TOG 3(1): each plane a + lambda b >= 0 bounds lambda by -a / b when b < 0).
 // Slightly shortened so that the end point itself projects inside the frame.
+// Without branches, so that a loop over directions vectorises.
 inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w, float r) {
   float lambda_max = r;
   auto bound = [&](float a, float b) {
-    if (b < 0.0f) lambda_max = std::min(lambda_max, std::max(0.0f, -a / b));
+    const float limit = std::min(lambda_max, std::max(0.0f, -a / b));
+    lambda_max = b < 0.0f ? limit : lambda_max;
   };
   bound(clip_p.w - clip_p.x, clip_w.w - clip_w.x);
   bound(clip_p.w + clip_p.x, clip_w.w + clip_w.x);
@@ -319,60 +321,71 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     const float shift_c = std::cos(2.0f * kPi * shift_v), shift_s = std::sin(2.0f * kPi * shift_v);
     const int steps = c.s.sample_steps;
     const int refinements = c.s.sample_refinements;
-    // Per batch: each direction's w and clip-space direction, and per point (index
-    // direction x steps + step) its distance lambda along w, depth, clip coordinates and
-    // test result with its pixel.
-    glm::vec3 w_batch[kSampleBatch];
-    glm::vec4 clip_w_batch[kSampleBatch];
+    // Per batch: each direction's w and clip-space direction, in arrays indexed by the
+    // direction s so that the loops over directions vectorise, and per point (index
+    // step x batch + s) its distance lambda along w, depth, clip coordinates and test
+    // result with its pixel.
+    float u_at[kSampleBatch], wx[kSampleBatch], wy[kSampleBatch], wz[kSampleBatch];
+    float cwx[kSampleBatch], cwy[kSampleBatch], cwz[kSampleBatch], cww[kSampleBatch];
+    float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
     float lambda[kSampleBatch * kMaxSampleSteps], depth_s[kSampleBatch * kMaxSampleSteps];
     float clip_x[kSampleBatch * kMaxSampleSteps], clip_y[kSampleBatch * kMaxSampleSteps];
     float clip_w[kSampleBatch * kMaxSampleSteps];
     Tap tap_at[kSampleBatch * kMaxSampleSteps];
     int qx_at[kSampleBatch * kMaxSampleSteps], qy_at[kSampleBatch * kMaxSampleSteps];
+    const glm::mat4& m = c.clip_from_view;
     for (int i0 = 0; i0 < n_samples; i0 += kSampleBatch) {
       const int batch = std::min(kSampleBatch, n_samples - i0);
       for (int s = 0; s < batch; ++s) {
+        float v;
+        r2_point(uint32_t(i0 + s), shift_u, shift_v, u_at[s], v);
+      }
+      for (int s = 0; s < batch; ++s) {
         const int i = i0 + s;
-        float u, v;
-        r2_point(uint32_t(i), shift_u, shift_v, u, v);
+        const float u = u_at[s];
         // cosine_direction(u, v, t, b, n) with the azimuth 2 pi v by rotation (see Constants).
         const float cos_phi = shift_c * c.azimuth_cos[i] - shift_s * c.azimuth_sin[i];
         const float sin_phi = shift_s * c.azimuth_cos[i] + shift_c * c.azimuth_sin[i];
         const float radius = std::sqrt(u);
-        const glm::vec3 w = t * (radius * cos_phi) + b * (radius * sin_phi) + n * std::sqrt(std::max(0.0f, 1.0f - u));
+        const float along_t = radius * cos_phi, along_b = radius * sin_phi;
+        const float along_n = std::sqrt(std::max(0.0f, 1.0f - u));
+        wx[s] = t.x * along_t + b.x * along_b + n.x * along_n;
+        wy[s] = t.y * along_t + b.y * along_b + n.y * along_n;
+        wz[s] = t.z * along_t + b.z * along_b + n.z * along_n;
+        // clip_from_view * (w, 0), in glm's order of operations.
+        const glm::vec4 cw = (m[0] * wx[s] + m[1] * wy[s]) + (m[2] * wz[s] + m[3] * 0.0f);
+        cwx[s] = cw.x, cwy[s] = cw.y, cwz[s] = cw.z, cww[s] = cw.w;
         // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
         // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
         // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
         // occluder the ray meets anywhere within r is found (with the last point at
         // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
         // bias of the bounce of up to half against the oracle on the shared frames).
-        const float xi = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
-        const glm::vec4 cw = c.clip_from_view * glm::vec4(w, 0.0f);
+        xi_at[s] = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
         // The march covers the part of the radius that stays on screen: beyond the frame
         // nothing can be tested, and a coarse step that leaps off screen would otherwise end
         // the march before it tests an occluder at the frame's edge (walls that leave the
         // frame, e.g.).
-        const float march = r * on_screen_fraction(clip_p, cw, r);
-        const float denominator = steps > 1 ? float(steps - 1) + xi : 1.0f;
-        for (int j = 0; j < steps; ++j) {
-          const int k = s * steps + j;
-          lambda[k] = march * (float(j) + xi) / denominator;
-          depth_s[k] = -(p.z + lambda[k] * w.z);
-          clip_x[k] = clip_p.x + lambda[k] * cw.x;
-          clip_y[k] = clip_p.y + lambda[k] * cw.y;
-          clip_w[k] = clip_p.w + lambda[k] * cw.w;
-        }
-        w_batch[s] = w;
-        clip_w_batch[s] = cw;
+        march_at[s] = r * on_screen_fraction(clip_p, cw, r);
+        denominator_at[s] = steps > 1 ? float(steps - 1) + xi_at[s] : 1.0f;
       }
+      for (int j = 0; j < steps; ++j)
+        for (int s = 0; s < batch; ++s) {
+          const int k = j * batch + s;
+          lambda[k] = march_at[s] * (float(j) + xi_at[s]) / denominator_at[s];
+          depth_s[k] = -(p.z + lambda[k] * wz[s]);
+          clip_x[k] = clip_p.x + lambda[k] * cwx[s];
+          clip_y[k] = clip_p.y + lambda[k] * cwy[s];
+          clip_w[k] = clip_p.w + lambda[k] * cww[s];
+        }
       const int points = batch * steps;
       for (int k = 0; k < points; ++k)
         tap_at[k] = classify(c, origin_px, depth_s[k], clip_x[k], clip_y[k], clip_w[k], false, qx_at[k], qy_at[k]);
 
       for (int s = 0; s < batch; ++s) {
         const int i = i0 + s;
-        const glm::vec3& w = w_batch[s];
-        const glm::vec4& cw = clip_w_batch[s];
+        const glm::vec3 w(wx[s], wy[s], wz[s]);
+        const glm::vec4 cw(cwx[s], cwy[s], cwz[s], cww[s]);
         // The first point behind the depth buffer within the thickness decides. Between
         // two steps, bisection (sample_refinements halvings of the interval from the last
         // point in front of the depth buffer):
@@ -390,7 +403,7 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
         float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
         bool after_front = true;
         for (int j = 0; j < steps && tap != Tap::occluded; ++j) {
-          const int k = s * steps + j;
+          const int k = j * batch + s;
           const Tap tj = tap_at[k];
           if (tj == Tap::off_screen) break;
           if (tj == Tap::visible) {
