@@ -59,6 +59,12 @@ namespace {
 
 constexpr int kSectors = 64;
 
+// Side of the square tiles the pixels are shaded in, pixels (see ao_gtao).
+constexpr int kTilePx = 32;
+
+// Steps whose taps are read together, before their arithmetic (see ao_gtao).
+constexpr int kChunkSteps = 8;
+
 // Sets the sectors whose centres lie in [u0, u1] (fractions of the slice measure).
 inline uint64_t sector_bits(float u0, float u1) {
   const int k0 = std::max(0, int(std::ceil(u0 * kSectors - 0.5f)));
@@ -69,16 +75,23 @@ inline uint64_t sector_bits(float u0, float u1) {
   return run << k0;
 }
 
-// What a tap reads from the pixel it lands in, packed in 16 bytes (one load): the view-space
-// position and the planar depth, negative on masked pixels (no occluder there).
+// What a tap reads from the pixel it lands in, in two planes: the view-space position and
+// the planar depth (negative on masked pixels: no occluder there) in 16 bytes (one load,
+// four texels per cache line), read by every tap; the normal and its tangent plane, read
+// only by the connection rule's coplanar test. Taps land anywhere within the radius, so
+// the bytes per tap set how much of the frame stays in cache.
 struct Texel {
   float x, y, z, depth_view;
+};
+struct TexelPlane {
   float nx, ny, nz, plane_c;  // unit normal and its tangent plane dot(n, x) = plane_c
 };
 
-void build_texels(const AoInputs& in, std::vector<Texel>& texels, int nthreads) {
+void build_texels(const AoInputs& in, std::vector<Texel>& texels, std::vector<TexelPlane>& planes,
+                  int nthreads) {
   const int width = in.depth_view.cols;
   texels.resize(size_t(width) * size_t(in.depth_view.rows));  // before the parallel loop
+  planes.resize(texels.size());
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
@@ -86,11 +99,12 @@ void build_texels(const AoInputs& in, std::vector<Texel>& texels, int nthreads) 
       const cv::Vec3f* pos_row = in.position_view.ptr<cv::Vec3f>(y);
       const cv::Vec3f* nor_row = in.normal_view.ptr<cv::Vec3f>(y);
       Texel* out = texels.data() + size_t(y) * size_t(width);
+      TexelPlane* out_plane = planes.data() + size_t(y) * size_t(width);
       for (int x = 0; x < width; ++x) {
         const cv::Vec3f& p = pos_row[x];
         const cv::Vec3f& n = nor_row[x];
-        out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], depth_row[x], n[0], n[1], n[2], n.dot(p)}
-                             : Texel{0.0f, 0.0f, 0.0f, -1.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+        out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], depth_row[x]} : Texel{0.0f, 0.0f, 0.0f, -1.0f};
+        out_plane[x] = mask_row[x] ? TexelPlane{n[0], n[1], n[2], n.dot(p)} : TexelPlane{0.0f, 0.0f, 0.0f, 0.0f};
       }
     }
   });
@@ -103,9 +117,9 @@ void build_texels(const AoInputs& in, std::vector<Texel>& texels, int nthreads) 
 constexpr float kCoplanarMinCos = 0.95f;
 
 // b lies on a's tangent plane within tol, and their normals agree: the same surface.
-inline bool coplanar(const Texel& a, const Texel& b, float tol) {
+inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_pos, float tol) {
   return a.nx * b.nx + a.ny * b.ny + a.nz * b.nz >= kCoplanarMinCos &&
-         std::abs(a.nx * b.x + a.ny * b.y + a.nz * b.z - a.plane_c) <= tol;
+         std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol;
 }
 struct Constants {
   int slices;
@@ -124,9 +138,170 @@ struct Constants {
 struct SideState {
   float depth_view = -1.0f;  // < 0: no previous tap to connect to
   float u0 = 1.0f, u1 = 0.0f;
-  const Texel* texel = nullptr;
+  size_t texel = 0;  // its index in the texel planes
   bool below = false;  // the tap was on or below the tangent plane (interval at the limit)
 };
+
+
+// Lanes of a chunk of taps: step j0 + jj of side s (0: +direction, 1: -direction) is lane
+// s * kChunkSteps + jj. Every lane is computed (unused ones read as background), so the
+// arithmetic runs in full vector registers without a remainder.
+constexpr int kChunkTaps = 2 * kChunkSteps;
+
+// The side constants per lane.
+struct TapLanes {
+  alignas(32) float sign[kChunkTaps];     // +1 on the positive side, -1 on the negative
+  alignas(32) float lim[kChunkTaps];      // the hemisphere's limit angle on the lane's side
+  alignas(32) float cos_lim[kChunkTaps];  // its cosine
+};
+
+// What the taps of a chunk read: texel index (-1 off screen), view-space position, planar
+// depth (< 0: no occluder) and the occluder segment's length.
+struct TapChunk {
+  ptrdiff_t index[kChunkTaps];
+  alignas(32) float x[kChunkTaps];
+  alignas(32) float y[kChunkTaps];
+  alignas(32) float z[kChunkTaps];
+  alignas(32) float depth_view[kChunkTaps];
+  alignas(32) float thickness_world[kChunkTaps];
+};
+
+// The pixel's point and the slice's frame, as the taps' arithmetic needs them.
+struct SliceFrame {
+  glm::vec3 origin, normal, view, dir, axis;
+  float origin_v, origin_d, origin_a;           // the origin in the slice frame
+  float ray_ortho_v, ray_ortho_d, ray_ortho_a;  // the orthographic view ray in it
+  float r2;                                     // radius_world^2
+  float cos_n, sin_n, abs_cos_n;                // the projected normal's angle n
+  float weight_neg, inv_total;                  // slice measure of the negative side, 1 / total
+};
+
+// Per lane: the tap's height above the tangent plane (times nothing: only its sign is
+// used), its squared distance in the slice plane and in 3D, the cosine of its angle in the
+// slice, and the occluded interval [u0, u1] of its segment (u0 > u1: none).
+struct TapGeometry {
+  alignas(32) float height[kChunkTaps];
+  alignas(32) float dist_slice2[kChunkTaps];
+  alignas(32) float dist2[kChunkTaps];
+  alignas(32) float tap_cos[kChunkTaps];
+  alignas(32) float u0[kChunkTaps];
+  alignas(32) float u1[kChunkTaps];
+};
+
+// Reads the texels of the lanes' indices (the first `chunk` steps of each side; the other
+// lanes and off-screen taps read as background).
+inline void gather_taps(const std::vector<Texel>& texels, const cv::Mat* back, int width,
+                        bool perspective, float thickness_world, int chunk, TapChunk& taps) {
+  for (int m = 0; m < kChunkTaps; ++m) {
+    const ptrdiff_t index = taps.index[m];
+    const bool used = (m % kChunkSteps) < chunk && index >= 0;
+    const Texel tx = used ? texels[size_t(index)] : Texel{0.0f, 0.0f, 0.0f, -1.0f};
+    if (!used) taps.index[m] = -1;
+    taps.x[m] = tx.x;
+    taps.y[m] = tx.y;
+    taps.z[m] = tx.z;
+    taps.depth_view[m] = tx.depth_view;
+    float thickness = thickness_world;
+    if (back != nullptr && used) {
+      // With a back-face layer (AoInputs::depth_back_view) the segment is the tap's own
+      // thickness, back - front in planar depth, as a length along its view ray: divided
+      // by |r.z| (= depth / |tap| in perspective, 1 orthographic).
+      const int sy = int(index / width), sx = int(index % width);
+      const float d_back = back->ptr<float>(sy)[sx];
+      const float planar = d_back > tx.depth_view ? d_back - tx.depth_view : 0.0f;
+      thickness = perspective ? planar * std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z) / tx.depth_view
+                              : planar;
+    }
+    taps.thickness_world[m] = thickness;
+  }
+}
+
+// The taps' arithmetic, every lane alike (no branches: the loop vectorises). Lanes whose
+// tap is not used later (background, below the tangent plane, zero distance) compute
+// values nobody reads; with segments = false (the height-field model) the occluder
+// segments are skipped.
+template <bool perspective, bool segments>
+[[gnu::noinline]]
+void tap_geometry(const TapChunk& taps, const TapLanes& lanes, const SliceFrame& f, TapGeometry& __restrict g) {
+  // The frame's values as locals: selects between them then need no conditional loads,
+  // which would keep the loop from vectorising.
+  const float ox = f.origin.x, oy = f.origin.y, oz = f.origin.z;
+  const float nx = f.normal.x, ny = f.normal.y, nz = f.normal.z;
+  const float vx = f.view.x, vy = f.view.y, vz = f.view.z;
+  const float dx = f.dir.x, dy = f.dir.y, dz = f.dir.z;
+  const float ax = f.axis.x, ay = f.axis.y, az = f.axis.z;
+  const float origin_v = f.origin_v, origin_d = f.origin_d, origin_a = f.origin_a;
+  const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
+  const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
+  const float weight_neg = f.weight_neg, inv_total = f.inv_total;
+  for (int m = 0; m < kChunkTaps; ++m) {
+    const float ex = taps.x[m] - ox, ey = taps.y[m] - oy, ez = taps.z[m] - oz;
+    g.height[m] = ex * nx + ey * ny + ez * nz;
+    // The tap in the slice's orthonormal frame (view, direction, axis): the slice plane
+    // holds the first two coordinates, so the projection onto the plane is dropping the
+    // third (no 3D projection per tap).
+    const float dv = ex * vx + ey * vy + ez * vz;
+    const float dd = ex * dx + ey * dy + ez * dz;
+    const float da = ex * ax + ey * ay + ez * az;
+    const float dist_slice2 = dv * dv + dd * dd;
+    const float dist2 = dist_slice2 + da * da;
+    g.dist_slice2[m] = dist_slice2;
+    g.dist2[m] = dist2;
+    // The tap's angle in the slice: of its projection onto the slice plane.
+    g.tap_cos[m] = dv / std::sqrt(dist_slice2);
+    if constexpr (!segments) continue;
+    // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
+    // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too
+    // (the tap's frame coordinates are the origin's plus delta's).
+    const float pv = origin_v + dv, pd = origin_d + dd, pa = origin_a + da;
+    const float inv_len = 1.0f / std::sqrt(pv * pv + pd * pd + pa * pa);
+    float rv = ray_ortho_v, rd = ray_ortho_d, ra = ray_ortho_a;
+    if constexpr (perspective) {
+      rv = pv * inv_len;
+      rd = pd * inv_len;
+      ra = pa * inv_len;
+    }
+    const float b = dv * rv + dd * rd + da * ra;
+    const float c = dist2 - r2;
+    const float disc = b * b - c;
+    // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
+    const float root = std::sqrt(disc);
+    const float thickness = taps.thickness_world[m];
+    const float t0 = std::max(0.0f, -b - root);
+    const float t1 = std::min(thickness, -b + root);
+    // Cosines and sines (unsigned angles from the view vector) of the segment's two ends
+    // in the slice plane: sin = |direction coordinate| / length.
+    const float e0v = dv + t0 * rv, e0d = dd + t0 * rd;
+    const float e1v = dv + t1 * rv, e1d = dd + t1 * rd;
+    const float inv0 = 1.0f / std::sqrt(e0v * e0v + e0d * e0d);
+    const float inv1 = 1.0f / std::sqrt(e1v * e1v + e1d * e1d);
+    const float c0 = std::clamp(e0v * inv0, -1.0f, 1.0f);
+    const float c1 = std::clamp(e1v * inv1, -1.0f, 1.0f);
+    const float s0 = std::min(std::abs(e0d) * inv0, 1.0f);
+    const float s1 = std::min(std::abs(e1d) * inv1, 1.0f);
+    // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the hemisphere's
+    // limit on this side (n + pi/2 on +, pi/2 - n on -), whose sine is cos n.
+    const bool first_higher = c0 >= c1;  // a(ca) <= a(cb)
+    const float ca = first_higher ? c0 : c1, sa = first_higher ? s0 : s1;
+    const float cos_lim = lanes.cos_lim[m], lim = lanes.lim[m];
+    const float c_far = first_higher ? c1 : c0, s_far = first_higher ? s1 : s0;
+    const bool clip = c_far < cos_lim;
+    const float cb = clip ? cos_lim : c_far, sb = clip ? abs_cos_n : s_far;
+    const float aa = std::min(fast_acos(ca), lim), ab = std::min(fast_acos(cb), lim);
+    // Positive side: u = measure of the negative side + of [0, a]. Negative side (signed
+    // angle -a): the weight of [-a, 0] comes off the negative side's, and the end nearer
+    // the view vector is the higher u.
+    const float sign = lanes.sign[m];
+    const bool pos = sign > 0.0f;
+    const float h_lo = pos ? aa : ab, c_lo = pos ? ca : cb, s_lo = pos ? sa : sb;
+    const float h_hi = pos ? ab : aa, c_hi = pos ? cb : ca, s_hi = pos ? sb : sa;
+    const float u0 = (weight_neg + sign * inner_integral(sign * h_lo, c_lo, sign * s_lo, cos_n, sin_n)) * inv_total;
+    const float u1 = (weight_neg + sign * inner_integral(sign * h_hi, c_hi, sign * s_hi, cos_n, sin_n)) * inv_total;
+    const bool hit = (disc >= 0.0f) & (t1 >= t0) & (ca > cos_lim);
+    g.u0[m] = hit ? u0 : 1.0f;  // empty: u0 > u1
+    g.u1[m] = hit ? u1 : 0.0f;
+  }
+}
 
 }  // namespace
 
@@ -147,7 +322,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const int width = in.depth_view.cols, height = in.depth_view.rows;
   const bool perspective = camera.is_perspective();
   std::vector<Texel> texels;
-  build_texels(in, texels, nthreads);
+  std::vector<TexelPlane> planes;
+  build_texels(in, texels, planes, nthreads);
   // Second depth layer, when given: per-tap thickness of the visibility mask's segments.
   const cv::Mat* back = !k.height_field && in.depth_back_view != nullptr &&
                                 !in.depth_back_view->empty() &&
@@ -163,256 +339,275 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   }
   const float r2 = k.radius_world * k.radius_world;
 
-  parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      const float* depth_row = in.depth_view.ptr<float>(y);
-      const cv::Vec3f* normal_row = in.normal_view.ptr<cv::Vec3f>(y);
-      float* ao_row = out.ao.ptr<float>(y);
-      cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
-      for (int x = roi.x; x < roi.x + roi.width; ++x) {
-        if (!mask_row[x]) {
-          ao_row[x] = 1.0f;
-          bent_row[x] = cv::Vec3f(0, 0, 0);
-          continue;
+  // A pixel's tap pattern (GTAO Alg. 1 lines 5-6 and the steps' jitter): whether it has
+  // taps, its projected radius, its step noise and the rotation of its slices.
+  struct PixelTaps {
+    bool has_taps = false;
+    float radius_px = 0.0f;
+    float step_noise = 0.0f;
+    float rot_c = 1.0f, rot_s = 0.0f;
+  };
+  const auto pixel_taps = [&](int x, int y) {
+    PixelTaps p;
+    if (!in.mask.ptr<uint8_t>(y)[x]) return p;
+    p.radius_px = projected_radius_px(camera, in.depth_view.ptr<float>(y)[x], k.radius_world, k.max_radius_px);
+    // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
+    if (p.radius_px < 2.0f * kMinTapDistancePx) return p;
+    p.has_taps = true;
+    const float slice_noise = noise01(x, y, 0, k.seed);
+    p.step_noise = noise01(x, y, 1, k.seed);
+    const float rot = slice_noise / float(k.slices) * kPi;
+    p.rot_c = std::cos(rot);
+    p.rot_s = std::sin(rot);
+    return p;
+  };
+  // Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
+  const auto slice_direction = [&](const PixelTaps& p, int i) {
+    const float cos_phi = p.rot_c * slice_rot[size_t(i)][0] - p.rot_s * slice_rot[size_t(i)][1];
+    const float sin_phi = p.rot_s * slice_rot[size_t(i)][0] + p.rot_c * slice_rot[size_t(i)][1];
+    return glm::vec2(cos_phi, -sin_phi);
+  };
+  // Pixel offset of step j's tap on the positive side of the slice through screen
+  // direction d (the negative side's is its negation); (0, 0): no tap.
+  const auto step_offset = [&](const PixelTaps& p, int i, glm::vec2 d, int j) {
+    // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
+    float t = p.step_noise + float(i + j * k.slices) * 0.618033988749895f;
+    t -= std::floor(t);
+    t = (float(j) + t) / float(k.steps);
+    // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps near
+    // the centre; against the ray-marched reference on the shared frames (cornell,
+    // greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057 -> 0.040 on
+    // cornell): far taps carry walls seen at grazing angles, whose occlusion the dense
+    // near taps never see.
+    const float dist_px = kMinTapDistancePx + t * (p.radius_px - kMinTapDistancePx);
+    return glm::ivec2(round_to_int(d.x * dist_px), round_to_int(d.y * dist_px));
+  };
+  // Texel index of the tap at offset o from (x, y), -1 off screen.
+  const auto tap_index = [&](int x, int y, glm::ivec2 o) {
+    const int sx = x + o.x, sy = y + o.y;
+    return sx >= 0 && sy >= 0 && sx < width && sy < height ? ptrdiff_t(sy) * width + sx : ptrdiff_t(-1);
+  };
+  // One pixel: its AO and bent normal.
+  const auto shade_pixel = [&](int x, int y, const PixelTaps& pt) {
+    const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+    const float* depth_row = in.depth_view.ptr<float>(y);
+    const cv::Vec3f* normal_row = in.normal_view.ptr<cv::Vec3f>(y);
+    float* ao_row = out.ao.ptr<float>(y);
+    cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
+    if (!mask_row[x]) {
+      ao_row[x] = 1.0f;
+      bent_row[x] = cv::Vec3f(0, 0, 0);
+      return;
+    }
+    const float depth = depth_row[x];
+    const Texel& centre = texels[size_t(y) * size_t(width) + size_t(x)];
+    const glm::vec3 p(centre.x, centre.y, centre.z);
+    const glm::vec3 normal(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
+    if (!pt.has_taps) {
+      ao_row[x] = 1.0f;
+      bent_row[x] = cv::Vec3f(normal.x, normal.y, normal.z);
+      return;
+    }
+    const glm::vec3 view = view_vector(camera, p);
+    const glm::vec3 origin = biased_origin(p, normal, depth, k.depth_bias_relative);
+
+    float visible_sum = 0.0f, open_sum = 0.0f;
+    glm::vec3 bent(0.0f);
+    for (int i = 0; i < k.slices; ++i) {
+      const glm::vec2 d = slice_direction(pt, i);
+      const Slice sl = make_slice(screen_to_view(d.x, d.y), view, normal);
+      // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
+      // n +- pi/2 have cos = -+sin n: no trig per slice.
+      const float cos_n = sl.cos_n;
+      const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
+      const float low_cos_pos = -sin_n, low_cos_neg = sin_n;
+      float horizon_cos_pos = low_cos_pos, horizon_cos_neg = low_cos_neg;
+      // Slice measure of the negative side and in total (inner integral at n +- pi/2).
+      const float weight_neg = inner_integral(sl.n - kHalfPi, sin_n, -cos_n, cos_n, sin_n);
+      const float weight_total = cos_n + sl.n * sin_n;
+      const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
+      const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
+      // The slice's orthonormal frame and the origin and the orthographic view ray
+      // in it (per slice, so that each tap needs three dot products).
+      const glm::vec3 dir = sl.direction, axis = sl.axis;
+      const float origin_v = glm::dot(origin, view), origin_d = glm::dot(origin, dir),
+                  origin_a = glm::dot(origin, axis);
+      const float ray_ortho_v = -view.z, ray_ortho_d = -dir.z, ray_ortho_a = -axis.z;
+      // Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the
+      // side's sign of the angle, its hemisphere limit and the limit's cosine.
+      TapLanes lanes;
+      for (int m = 0; m < kChunkTaps; ++m) {
+        const bool pos = m < kChunkSteps;
+        lanes.sign[m] = pos ? 1.0f : -1.0f;
+        lanes.lim[m] = pos ? lim_pos : lim_neg;
+        lanes.cos_lim[m] = pos ? low_cos_pos : low_cos_neg;
+      }
+      const SliceFrame frame{origin, normal, view, dir, axis, origin_v, origin_d, origin_a,
+                             ray_ortho_v, ray_ortho_d, ray_ortho_a, r2, cos_n, sin_n,
+                             std::abs(cos_n), weight_neg, inv_total};
+      uint64_t occupied = 0;
+      SideState state[2];
+
+      for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
+        const int chunk = std::min(kChunkSteps, k.steps - j0);
+        // The chunk's tap pixels first, then their texels, then the taps' arithmetic in
+        // lanes, then the taps in order: the texel loads do not wait on each other's
+        // arithmetic, so their cache misses overlap (a tap's texel is anywhere within
+        // the radius), and the arithmetic has no branches.
+        TapChunk taps;
+        std::array<bool, kChunkSteps> skip{};
+        for (int jj = 0; jj < chunk; ++jj) {
+          const glm::ivec2 o = step_offset(pt, i, d, j0 + jj);
+          skip[size_t(jj)] = o.x == 0 && o.y == 0;
+          taps.index[jj] = tap_index(x, y, o);
+          taps.index[kChunkSteps + jj] = tap_index(x, y, -o);
         }
-        const float depth = depth_row[x];
-        const Texel& centre = texels[size_t(y) * size_t(width) + size_t(x)];
-        const glm::vec3 p(centre.x, centre.y, centre.z);
-        const glm::vec3 normal(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
-        const glm::vec3 view = view_vector(camera, p);
-        const float radius_px = projected_radius_px(camera, depth, k.radius_world, k.max_radius_px);
-        if (radius_px < 2.0f * kMinTapDistancePx) {
-          // The whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
-          ao_row[x] = 1.0f;
-          bent_row[x] = cv::Vec3f(normal.x, normal.y, normal.z);
-          continue;
+        gather_taps(texels, back, width, perspective, k.thickness_world, chunk, taps);
+        TapGeometry geo;
+        if (k.height_field)
+          perspective ? tap_geometry<true, false>(taps, lanes, frame, geo)
+                      : tap_geometry<false, false>(taps, lanes, frame, geo);
+        else
+          perspective ? tap_geometry<true, true>(taps, lanes, frame, geo)
+                      : tap_geometry<false, true>(taps, lanes, frame, geo);
+
+        for (int side = 0; side < 2; ++side) {
+          SideState& st = state[side];
+          float& horizon_cos = side == 0 ? horizon_cos_pos : horizon_cos_neg;
+          for (int jj = 0; jj < chunk; ++jj) {
+            if (skip[size_t(jj)]) continue;
+            const int m = side * kChunkSteps + jj;
+            const float depth_view = taps.depth_view[m];
+            if (depth_view < 0.0f) {  // background or off screen: no occluder, nothing connects
+              st.depth_view = -1.0f;
+              continue;
+            }
+            const size_t index = size_t(taps.index[m]);
+            // A tap on or below the tangent plane cannot occlude the hemisphere (nor can
+            // the rest of its segment, which runs away from the eye, i.e. further down).
+            // Testing in 3D first matters: rounding taps to pixel centres moves them off
+            // the slice, and their slice angle alone would put tilted planes above
+            // their own tangent line.
+            if (!(geo.height[m] > 0.0f)) {
+              // Connects at the tangent limit: u = 1 on the positive side, 0 on the other.
+              const float u_lim = side == 0 ? 1.0f : 0.0f;
+              st = SideState{depth_view, u_lim, u_lim, index, true};
+              continue;
+            }
+            if (!(geo.dist_slice2[m] > 0.0f)) continue;
+            const float dist2 = geo.dist2[m], tap_cos = geo.tap_cos[m];
+            if (k.height_field) {
+              // Height-field horizon, weighted by the distance falloff.
+              const float w = falloff(std::sqrt(dist2));
+              const float low_cos = side == 0 ? low_cos_pos : low_cos_neg;
+              horizon_cos = std::max(horizon_cos, low_cos + (tap_cos - low_cos) * w);
+              continue;
+            }
+            // The bent normal's horizon in the mask model: taps within the radius.
+            if (dist2 <= r2) horizon_cos = std::max(horizon_cos, tap_cos);
+            const float u0 = geo.u0[m], u1 = geo.u1[m];
+            if (u0 > u1) {  // beyond the radius: nothing to occlude, nothing to connect
+              st.depth_view = -1.0f;
+              continue;
+            }
+            float h0 = u0, h1 = u1;
+            bool connected = false;
+            if (st.depth_view >= 0.0f) {
+              const Texel& pv = texels[st.texel];
+              const Texel& tx = texels[index];
+              if (st.below) {
+                // From the tangent plane: only when the two points are within the
+                // thickness of each other in 3D (a wall standing on the floor), never
+                // across the gap under a floating object.
+                const float ddx = tx.x - pv.x, ddy = tx.y - pv.y, ddz = tx.z - pv.z;
+                connected = ddx * ddx + ddy * ddy + ddz * ddz <= k.thickness_world * k.thickness_world;
+              } else {
+                connected = std::abs(depth_view - st.depth_view) <= k.thickness_world ||
+                            coplanar(planes[st.texel], planes[index], tx, k.thickness_world);
+              }
+            }
+            if (connected) {
+              h0 = std::min(h0, st.u0);
+              h1 = std::max(h1, st.u1);
+            }
+            occupied |= sector_bits(h0, h1);
+            st = SideState{depth_view, u0, u1, index, false};
+          }
         }
-        const glm::vec3 origin = biased_origin(p, normal, depth, k.depth_bias_relative);
-        const float slice_noise = noise01(x, y, 0, k.seed);
-        const float step_noise = noise01(x, y, 1, k.seed);
-        const float rot = slice_noise / float(k.slices) * kPi;
-        const float rot_c = std::cos(rot), rot_s = std::sin(rot);
+      }
 
-        float visible_sum = 0.0f, open_sum = 0.0f;
-        glm::vec3 bent(0.0f);
-        for (int i = 0; i < k.slices; ++i) {
-          // GTAO Alg. 1 lines 5-6: slice angle phi in [0, pi), rotated per pixel.
-          const float cos_phi = rot_c * slice_rot[size_t(i)][0] - rot_s * slice_rot[size_t(i)][1];
-          const float sin_phi = rot_s * slice_rot[size_t(i)][0] + rot_c * slice_rot[size_t(i)][1];
-          const float dx = cos_phi, dy = -sin_phi;  // screen px, y down
-          const Slice sl = make_slice(screen_to_view(dx, dy), view, normal);
-          // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
-          // n +- pi/2 have cos = -+sin n: no trig per slice.
-          const float cos_n = sl.cos_n;
-          const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
-          const float low_cos_pos = -sin_n, low_cos_neg = sin_n;
-          float horizon_cos_pos = low_cos_pos, horizon_cos_neg = low_cos_neg;
-          // Slice measure of the negative side and in total (inner integral at n +- pi/2).
-          const float weight_neg = inner_integral(sl.n - kHalfPi, sin_n, -cos_n, cos_n, sin_n);
-          const float weight_total = cos_n + sl.n * sin_n;
-          const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
-          const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
-          // The slice's orthonormal frame and the origin and the orthographic view ray
-          // in it (per slice, so that each tap needs three dot products).
-          const glm::vec3 dir = sl.direction, axis = sl.axis;
-          const float origin_v = glm::dot(origin, view), origin_d = glm::dot(origin, dir),
-                      origin_a = glm::dot(origin, axis);
-          const float ray_ortho_v = -view.z, ray_ortho_d = -dir.z, ray_ortho_a = -axis.z;
-          uint64_t occupied = 0;
-          SideState state[2];
+      const float pn_len = sl.projected_normal_length;
+      float visible;
+      if (k.height_field) {
+        // Horizon angles (GTAO Alg. 1 line 27): positive side +acos, negative -acos.
+        const float h_pos = fast_acos(horizon_cos_pos);
+        const float h_neg = -fast_acos(horizon_cos_neg);
+        const float sp = std::sqrt(std::max(0.0f, 1.0f - horizon_cos_pos * horizon_cos_pos));
+        const float sm = -std::sqrt(std::max(0.0f, 1.0f - horizon_cos_neg * horizon_cos_neg));
+        visible = inner_integral(h_pos, horizon_cos_pos, sp, cos_n, sin_n) +
+                  inner_integral(h_neg, horizon_cos_neg, sm, cos_n, sin_n);
+      } else {
+        const int free_sectors = kSectors - std::popcount(occupied);
+        visible = weight_total * float(free_sectors) * (1.0f / kSectors);
+      }
+      visible_sum += pn_len * visible;
+      open_sum += pn_len * weight_total;
 
-          for (int j = 0; j < k.steps; ++j) {
-            // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
-            float t = step_noise + float(i + j * k.slices) * 0.618033988749895f;
-            t -= std::floor(t);
-            t = (float(j) + t) / float(k.steps);
-            // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps
-            // near the centre; against the ray-marched reference on the shared frames
-            // (cornell, greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057
-            // -> 0.040 on cornell): far taps carry walls seen at grazing angles, whose
-            // occlusion the dense near taps never see.
-            const float dist_px = kMinTapDistancePx + t * (radius_px - kMinTapDistancePx);
-            const int ox = round_to_int(dx * dist_px), oy = round_to_int(dy * dist_px);
-            if (ox == 0 && oy == 0) continue;
-            for (int side = 0; side < 2; ++side) {
-              const int sx = side == 0 ? x + ox : x - ox;
-              const int sy = side == 0 ? y + oy : y - oy;
-              SideState& st = state[side];
-              if (sx < 0 || sy < 0 || sx >= width || sy >= height) {
-                st.depth_view = -1.0f;  // off screen: nothing known, nothing connects
-                continue;
-              }
-              const Texel& tx = texels[size_t(sy) * size_t(width) + size_t(sx)];
-              if (tx.depth_view < 0.0f) {  // background: no occluder
-                st.depth_view = -1.0f;
-                continue;
-              }
-              const float ex = tx.x - origin.x, ey = tx.y - origin.y, ez = tx.z - origin.z;
-              // A tap on or below the tangent plane cannot occlude the hemisphere (nor can
-              // the rest of its segment, which runs away from the eye, i.e. further down).
-              // Testing in 3D first matters: rounding taps to pixel centres moves them off
-              // the slice, and their slice angle alone would put tilted planes above
-              // their own tangent line.
-              if (!(ex * normal.x + ey * normal.y + ez * normal.z > 0.0f)) {
-                // Connects at the tangent limit: u = 1 on the positive side, 0 on the other.
-                const float u_lim = side == 0 ? 1.0f : 0.0f;
-                st = SideState{tx.depth_view, u_lim, u_lim, &tx, true};
-                continue;
-              }
-              // The tap in the slice's orthonormal frame (view, direction, axis): the slice
-              // plane holds the first two coordinates, so the projection onto the plane is
-              // dropping the third (no 3D projection per tap).
-              const float dv = ex * view.x + ey * view.y + ez * view.z;
-              const float dd = ex * dir.x + ey * dir.y + ez * dir.z;
-              const float da = ex * axis.x + ey * axis.y + ez * axis.z;
-              const float dist_slice2 = dv * dv + dd * dd;
-              if (!(dist_slice2 > 0.0f)) continue;
-              const float dist2 = dist_slice2 + da * da;
-              // The tap's angle in the slice: of its projection onto the slice plane.
-              const float tap_cos = dv / std::sqrt(dist_slice2);
-              if (k.height_field) {
-                // Height-field horizon, weighted by the distance falloff.
-                const float w = falloff(std::sqrt(dist2));
-                float& horizon_cos = side == 0 ? horizon_cos_pos : horizon_cos_neg;
-                const float low_cos = side == 0 ? low_cos_pos : low_cos_neg;
-                horizon_cos = std::max(horizon_cos, low_cos + (tap_cos - low_cos) * w);
-                continue;
-              }
-              // The bent normal's horizon in the mask model: taps within the radius.
-              if (dist2 <= r2) {
-                float& horizon_cos = side == 0 ? horizon_cos_pos : horizon_cos_neg;
-                horizon_cos = std::max(horizon_cos, tap_cos);
-              }
+      // Bent normal between the horizons: h_pos = acos(cp) in [0, pi] has sin >= 0,
+      // h_neg = -acos(cm) has sin <= 0.
+      const float cp = horizon_cos_pos, sp = std::sqrt(std::max(0.0f, 1.0f - cp * cp));
+      const float cm = horizon_cos_neg, sm = -std::sqrt(std::max(0.0f, 1.0f - cm * cm));
+      const float a0 = bent_a(1.0f, 0.0f, cos_n, sin_n), b0 = bent_b(1.0f, 0.0f, cos_n, sin_n);
+      const float along_view = bent_a(cp, sp, cos_n, sin_n) + bent_a(cm, sm, cos_n, sin_n) - 2.0f * a0;
+      const float along_dir = bent_b(cp, sp, cos_n, sin_n) + bent_b(cm, sm, cos_n, sin_n) - 2.0f * b0;
+      bent += pn_len * (along_view * view + along_dir * sl.direction);
+    }
 
-              // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray
-              // direction (away from the eye), clipped to |delta + t r| <= radius; r in the
-              // slice frame too (the tap's frame coordinates are the origin's plus delta's).
-              float rv = ray_ortho_v, rd = ray_ortho_d, ra = ray_ortho_a;
-              if (perspective) {
-                const float pv = origin_v + dv, pd = origin_d + dd, pa = origin_a + da;
-                const float inv_len = 1.0f / std::sqrt(pv * pv + pd * pd + pa * pa);
-                rv = pv * inv_len;
-                rd = pd * inv_len;
-                ra = pa * inv_len;
-              }
-              const float b = dv * rv + dd * rd + da * ra;
-              const float c = dist2 - r2;
-              const float disc = b * b - c;
-              float u0 = 1.0f, u1 = 0.0f;  // empty
-              if (disc >= 0.0f) {
-                const float root = std::sqrt(disc);
-                const float t0 = std::max(0.0f, -b - root);
-                // With a back-face layer (AoInputs::depth_back_view) the segment is the
-                // tap's own thickness, back - front in planar depth, as a length along r:
-                // divided by |r.z| (= depth / |tap| in perspective, 1 orthographic).
-                float thickness = k.thickness_world;
-                if (back != nullptr) {
-                  const float d_back = back->ptr<float>(sy)[sx];
-                  const float planar = d_back > tx.depth_view ? d_back - tx.depth_view : 0.0f;
-                  thickness = perspective ? planar *
-                                                std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z) /
-                                                tx.depth_view
-                                          : planar;
-                }
-                const float t1 = std::min(thickness, -b + root);
-                if (t1 >= t0) {
-                  // Cosines and sines (unsigned angles from the view vector) of the segment's
-                  // two ends in the slice plane: sin = |direction coordinate| / length.
-                  const float e0v = dv + t0 * rv, e0d = dd + t0 * rd;
-                  const float e1v = dv + t1 * rv, e1d = dd + t1 * rd;
-                  const float inv0 = 1.0f / std::sqrt(e0v * e0v + e0d * e0d);
-                  const float inv1 = 1.0f / std::sqrt(e1v * e1v + e1d * e1d);
-                  const float c0 = std::clamp(e0v * inv0, -1.0f, 1.0f);
-                  const float c1 = std::clamp(e1v * inv1, -1.0f, 1.0f);
-                  const float s0 = std::min(std::abs(e0d) * inv0, 1.0f);
-                  const float s1 = std::min(std::abs(e1d) * inv1, 1.0f);
-                  // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the
-                  // hemisphere's limit on this side (n + pi/2 on +, pi/2 - n on -), whose
-                  // sine is cos n.
-                  const float lim = side == 0 ? lim_pos : lim_neg;
-                  const float cos_lim = side == 0 ? low_cos_pos : low_cos_neg;
-                  const bool first_higher = c0 >= c1;  // a(ca) <= a(cb)
-                  const float ca = first_higher ? c0 : c1, sa = first_higher ? s0 : s1;
-                  float cb = first_higher ? c1 : c0, sb = first_higher ? s1 : s0;
-                  if (ca > cos_lim) {
-                    if (cb < cos_lim) cb = cos_lim, sb = std::abs(cos_n);
-                    const float aa = std::min(fast_acos(ca), lim), ab = std::min(fast_acos(cb), lim);
-                    if (side == 0) {
-                      u0 = (weight_neg + inner_integral(aa, ca, sa, cos_n, sin_n)) * inv_total;
-                      u1 = (weight_neg + inner_integral(ab, cb, sb, cos_n, sin_n)) * inv_total;
-                    } else {
-                      // Signed angle -a: the weight of [-a, 0] comes off the negative side.
-                      u0 = (weight_neg - inner_integral(-ab, cb, -sb, cos_n, sin_n)) * inv_total;
-                      u1 = (weight_neg - inner_integral(-aa, ca, -sa, cos_n, sin_n)) * inv_total;
-                    }
+    float ao = open_sum > 0.0f ? std::clamp(visible_sum / open_sum, 0.0f, 1.0f) : 1.0f;
+    if (k.multibounce) ao = multibounce(ao, albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
+    ao_row[x] = std::min(ao, 1.0f);
+    const float bent_len = glm::length(bent);
+    const glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
+    bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
+  };
+
+  // Tiles of kTilePx x kTilePx pixels: a pixel's taps land anywhere within its radius, so
+  // the texels a tile reads are its footprint grown by the radius, which stays in cache
+  // while the tile runs; row by row, the band of rows within the radius of a whole row
+  // would not.
+  parallel_rows(
+      cv::Range(roi.y, roi.y + roi.height), nthreads,
+      [&](const cv::Range& rows) {
+        for (int y0 = rows.start; y0 < rows.end; y0 += kTilePx) {
+          const int y1 = std::min(y0 + kTilePx, rows.end);
+          for (int x0 = roi.x; x0 < roi.x + roi.width; x0 += kTilePx) {
+            const int x1 = std::min(x0 + kTilePx, roi.x + roi.width);
+            for (int y = y0; y < y1; ++y) {
+              // The row's tap patterns first, asking for their texels, then the pixels: a
+              // tap's texel is anywhere within the radius, mostly not in the nearest cache,
+              // and the requests of a whole row are under way together.
+              std::array<PixelTaps, kTilePx> row_taps;
+              for (int x = x0; x < x1; ++x) {
+                const PixelTaps p = pixel_taps(x, y);
+                row_taps[size_t(x - x0)] = p;
+                // (Inline, not a function of its own: the compiler drops calls of a function
+                // whose only effect is a prefetch.)
+                for (int i = 0; i < k.slices && p.has_taps; ++i) {
+                  const glm::vec2 d = slice_direction(p, i);
+                  for (int j = 0; j < k.steps; ++j) {
+                    const glm::ivec2 o = step_offset(p, i, d, j);
+                    const ptrdiff_t pos = tap_index(x, y, o), neg = tap_index(x, y, -o);
+                    if (pos >= 0) __builtin_prefetch(texels.data() + pos);
+                    if (neg >= 0) __builtin_prefetch(texels.data() + neg);
                   }
                 }
               }
-              if (u0 > u1) {  // beyond the radius: nothing to occlude, nothing to connect
-                st.depth_view = -1.0f;
-                continue;
-              }
-              float h0 = u0, h1 = u1;
-              bool connected = false;
-              if (st.depth_view >= 0.0f) {
-                const Texel& pv = *st.texel;
-                if (st.below) {
-                  // From the tangent plane: only when the two points are within the
-                  // thickness of each other in 3D (a wall standing on the floor), never
-                  // across the gap under a floating object.
-                  const float ddx = tx.x - pv.x, ddy = tx.y - pv.y, ddz = tx.z - pv.z;
-                  connected = ddx * ddx + ddy * ddy + ddz * ddz <= k.thickness_world * k.thickness_world;
-                } else {
-                  connected = std::abs(tx.depth_view - st.depth_view) <= k.thickness_world ||
-                              coplanar(pv, tx, k.thickness_world);
-                }
-              }
-              if (connected) {
-                h0 = std::min(h0, st.u0);
-                h1 = std::max(h1, st.u1);
-              }
-              occupied |= sector_bits(h0, h1);
-              st = SideState{tx.depth_view, u0, u1, &tx, false};
+              for (int x = x0; x < x1; ++x) shade_pixel(x, y, row_taps[size_t(x - x0)]);
             }
           }
-
-          const float pn_len = sl.projected_normal_length;
-          float visible;
-          if (k.height_field) {
-            // Horizon angles (GTAO Alg. 1 line 27): positive side +acos, negative -acos.
-            const float h_pos = fast_acos(horizon_cos_pos);
-            const float h_neg = -fast_acos(horizon_cos_neg);
-            const float sp = std::sqrt(std::max(0.0f, 1.0f - horizon_cos_pos * horizon_cos_pos));
-            const float sm = -std::sqrt(std::max(0.0f, 1.0f - horizon_cos_neg * horizon_cos_neg));
-            visible = inner_integral(h_pos, horizon_cos_pos, sp, cos_n, sin_n) +
-                      inner_integral(h_neg, horizon_cos_neg, sm, cos_n, sin_n);
-          } else {
-            const int free_sectors = kSectors - std::popcount(occupied);
-            visible = weight_total * float(free_sectors) * (1.0f / kSectors);
-          }
-          visible_sum += pn_len * visible;
-          open_sum += pn_len * weight_total;
-
-          // Bent normal between the horizons: h_pos = acos(cp) in [0, pi] has sin >= 0,
-          // h_neg = -acos(cm) has sin <= 0.
-          const float cp = horizon_cos_pos, sp = std::sqrt(std::max(0.0f, 1.0f - cp * cp));
-          const float cm = horizon_cos_neg, sm = -std::sqrt(std::max(0.0f, 1.0f - cm * cm));
-          const float a0 = bent_a(1.0f, 0.0f, cos_n, sin_n), b0 = bent_b(1.0f, 0.0f, cos_n, sin_n);
-          const float along_view = bent_a(cp, sp, cos_n, sin_n) + bent_a(cm, sm, cos_n, sin_n) - 2.0f * a0;
-          const float along_dir = bent_b(cp, sp, cos_n, sin_n) + bent_b(cm, sm, cos_n, sin_n) - 2.0f * b0;
-          bent += pn_len * (along_view * view + along_dir * sl.direction);
         }
-
-        float ao = open_sum > 0.0f ? std::clamp(visible_sum / open_sum, 0.0f, 1.0f) : 1.0f;
-        if (k.multibounce) ao = multibounce(ao, albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
-        ao_row[x] = std::min(ao, 1.0f);
-        const float bent_len = glm::length(bent);
-        const glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
-        bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
-      }
-    }
-  });
+      },
+      kTilePx);
 }
 
 }  // namespace ssdo::detail
