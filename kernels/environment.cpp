@@ -33,7 +33,13 @@ glm::vec3 bilinear_equirect(const cv::Mat& image, const glm::vec3& d_env) {
   const float x0f = std::floor(p.x), y0f = std::floor(p.y);
   const float fx = p.x - x0f, fy = p.y - y0f;
   const int x0 = int(x0f), y0 = int(y0f);
-  auto wrap_x = [&](int x) { return ((x % size.width) + size.width) % size.width; };
+  // A unit direction gives p.x in [-0.5, W - 0.5], so x0 and x0 + 1 are at most one period
+  // out: one add or subtract wraps them (the remainder, two integer divisions, only for
+  // anything else).
+  auto wrap_x = [&](int x) {
+    if (x >= -size.width && x < 2 * size.width) return x < 0 ? x + size.width : x >= size.width ? x - size.width : x;
+    return ((x % size.width) + size.width) % size.width;
+  };
   auto clamp_y = [&](int y) { return std::clamp(y, 0, size.height - 1); };
   const int xa = wrap_x(x0), xb = wrap_x(x0 + 1), ya = clamp_y(y0), yb = clamp_y(y0 + 1);
   const cv::Vec3f* ra = image.ptr<cv::Vec3f>(ya);
