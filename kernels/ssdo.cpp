@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "kernels/half_resolution.h"
@@ -130,11 +131,12 @@ constexpr int kMaxSampleSteps = 64;  // validate()'s bound on sample_steps
 
 // Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {
-  // The pyramid's levels one after another in one array (level l starts at
-  // level_offset[l] and is level_width[l] texels wide), so that a tap's texel is one index.
+  // The pyramid's levels one below the other in one array of rows of width_px texels:
+  // with H' = the height rounded up to a multiple of 2^(n_levels - 1), level l has
+  // H' / 2^l rows from row 2 H' - 2 H' / 2^l on (its texels at the start of each row),
+  // so that a tap's texel index is arithmetic, without a table per level.
   const TapTexel* pyramid;
-  int level_offset[kMaxLevels];
-  int level_width[kMaxLevels];
+  int pyramid_rows_2h;         // 2 H'
   int n_levels;                // 1 = no pyramid (the oracle reads full resolution only)
   const SenderTexel* senders;  // row-major, width_px per row
   const cv::Mat* depth;
@@ -227,7 +229,8 @@ inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_
   // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
   const bool coarse = c.n_levels > 1 && !full_resolution && rho2 >= 1.0f;
   const int level = coarse ? std::min(c.n_levels - 1, (exponent_of(rho2) >> 1) + 1) : 0;
-  const TapTexel& t = c.pyramid[c.level_offset[level] + (qy >> level) * c.level_width[level] + (qx >> level)];
+  const int row = c.pyramid_rows_2h - (c.pyramid_rows_2h >> level) + (qy >> level);
+  const TapTexel& t = c.pyramid[row * int(c.width_px) + (qx >> level)];
   // The texel's tangent plane is its source pixel's.
   const int sx = int(t.source & 0xFFFFu), sy = int(t.source >> 16);
   const float depth_q = t.depth_view;
@@ -584,21 +587,23 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
   Constants c{};
   c.n_levels = 1;
-  c.level_width[0] = size.width;
-  int level_height[kMaxLevels] = {size.height};
-  size_t pyramid_texels = size_t(size.area());
+  int level_width[kMaxLevels] = {size.width}, level_height[kMaxLevels] = {size.height};
   const float max_rho_px = 2.0f * settings.max_radius_px;
   while (settings.method == SsdoMethod::ssdo && c.n_levels < kMaxLevels &&
          kMipStartPx * float(1 << (c.n_levels - 1)) < max_rho_px &&
-         (c.level_width[c.n_levels - 1] > 1 || level_height[c.n_levels - 1] > 1)) {
+         (level_width[c.n_levels - 1] > 1 || level_height[c.n_levels - 1] > 1)) {
     const int l = c.n_levels++;
-    c.level_offset[l] = int(pyramid_texels);
-    c.level_width[l] = (c.level_width[l - 1] + 1) / 2;
+    level_width[l] = (level_width[l - 1] + 1) / 2;
     level_height[l] = (level_height[l - 1] + 1) / 2;
-    pyramid_texels += size_t(c.level_width[l]) * size_t(level_height[l]);
   }
-  CV_Assert(pyramid_texels <= size_t(std::numeric_limits<int>::max()));  // texel indices are int
-  std::vector<TapTexel> taps(pyramid_texels);
+  const int64_t top_level_rows = (int64_t(size.height) + (1 << (c.n_levels - 1)) - 1) >> (c.n_levels - 1);
+  const int64_t rows_2h = top_level_rows << c.n_levels;  // 2 H'
+  const int64_t pyramid_rows = rows_2h - (rows_2h >> c.n_levels);
+  CV_Assert(pyramid_rows * size.width <= std::numeric_limits<int>::max());  // texel indices are int
+  c.pyramid_rows_2h = int(rows_2h);
+  auto level_row = [&](int l, int y) { return size_t(rows_2h - (rows_2h >> l) + y) * size_t(size.width); };
+  // Not initialised: only the texels of each level are written, and only they are read.
+  const std::unique_ptr<TapTexel[]> taps(new TapTexel[size_t(pyramid_rows) * size_t(size.width)]);
   std::vector<SenderTexel> senders(size_t(size.area()));
   parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -606,7 +611,7 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
       const float* d = in.depth_view.ptr<float>(y);
       const cv::Vec3f* nrm = in.normal_view.ptr<cv::Vec3f>(y);
       const cv::Vec3f* pos = in.position_view.ptr<cv::Vec3f>(y);
-      TapTexel* t = &taps[size_t(y) * size_t(size.width)];
+      TapTexel* t = &taps[level_row(0, y)];
       SenderTexel* snd = &senders[size_t(y) * size_t(size.width)];
       for (int x = 0; x < size.width; ++x) {
         snd[x].position_view = glm::vec3(pos[x][0], pos[x][1], pos[x][2]);
@@ -629,19 +634,16 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
 
   // Level l > 0 from level l - 1: SAO's rotated grid, child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)),
   // clamped to the image.
-  for (int l = 1; l < c.n_levels; ++l) {
-    const TapTexel* prev = &taps[size_t(c.level_offset[l - 1])];
-    const int prev_w = c.level_width[l - 1], prev_h = level_height[l - 1];
-    TapTexel* lt = &taps[size_t(c.level_offset[l])];
-    const int w = c.level_width[l], h = level_height[l];
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const int cx = std::min(2 * x + ((y & 1) ^ 1), prev_w - 1);
-        const int cy = std::min(2 * y + ((x & 1) ^ 1), prev_h - 1);
-        lt[size_t(y) * size_t(w) + size_t(x)] = prev[size_t(cy) * size_t(prev_w) + size_t(cx)];
+  for (int l = 1; l < c.n_levels; ++l)
+    for (int y = 0; y < level_height[l]; ++y) {
+      TapTexel* lt = &taps[level_row(l, y)];
+      for (int x = 0; x < level_width[l]; ++x) {
+        const int cx = std::min(2 * x + ((y & 1) ^ 1), level_width[l - 1] - 1);
+        const int cy = std::min(2 * y + ((x & 1) ^ 1), level_height[l - 1] - 1);
+        lt[x] = taps[level_row(l - 1, cy) + size_t(cx)];
       }
-  }
-  c.pyramid = taps.data();
+    }
+  c.pyramid = taps.get();
   c.senders = senders.data();
   c.depth = &in.depth_view;
   c.normal = &in.normal_view;
