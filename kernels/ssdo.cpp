@@ -115,10 +115,14 @@ struct SenderTexel {
 // the contact region, where occlusion changes fastest, is always read at full resolution.
 constexpr float kMipStartPx = 16.0f;
 
-// Pixels are visited in kTilePx x kTilePx tiles (strips of kTilePx rows, tile by tile
-// along them): the taps of a tile's pixels overlap, so a tile reuses texels from cache
+// Pixels are visited in tiles kTileWidthPx wide and kStripRows high (strips of kStripRows
+// rows, tile by tile along them; one thread walks its whole range of rows tile column by
+// tile column): the taps of a tile's pixels overlap, so a tile reuses texels from cache
 // that row-by-row order (whose taps span 2 r rows of the whole width) fetches again.
-constexpr int kTilePx = 32;
+// Measured at 1080p (low, half grid): 64 px wide tiles took ~5% less time than 32 (and
+// than 128 or the whole width) with one thread, the same with two.
+constexpr int kTileWidthPx = 64;
+constexpr int kStripRows = 32;
 constexpr int kMaxLevels = 8;
 
 // A pixel's sample directions are marched kSampleBatch at a time: first every point of
@@ -687,11 +691,11 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     sender_direct.create(size, CV_32FC3);
     parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
       glm::vec3 direct(0.0f), unused(0.0f);
-      for (int x0 = 0; x0 < size.width; x0 += kTilePx)
+      for (int x0 = 0; x0 < size.width; x0 += kTileWidthPx)
         for (int y = rows.start; y < rows.end; ++y) {
           const uint8_t* m = in.mask.ptr<uint8_t>(y);
           cv::Vec3f* d = sender_direct.ptr<cv::Vec3f>(y);
-          for (int x = x0; x < std::min(x0 + kTilePx, size.width); ++x) {
+          for (int x = x0; x < std::min(x0 + kTileWidthPx, size.width); ++x) {
             if (!m[x]) {
               d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
               continue;
@@ -700,17 +704,17 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
             d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
           }
         }
-    }, kTilePx);
+    }, kStripRows);
   }
 
   const cv::Rect r = resolve_roi(roi, size);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int x0 = r.x; x0 < r.x + r.width; x0 += kTilePx)
+    for (int x0 = r.x; x0 < r.x + r.width; x0 += kTileWidthPx)
       for (int y = rows.start; y < rows.end; ++y) {
         const uint8_t* m = in.mask.ptr<uint8_t>(y);
         cv::Vec3f* od = out.direct.ptr<cv::Vec3f>(y);
         cv::Vec3f* oi = out.indirect.ptr<cv::Vec3f>(y);
-        for (int x = x0; x < std::min(x0 + kTilePx, r.x + r.width); ++x) {
+        for (int x = x0; x < std::min(x0 + kTileWidthPx, r.x + r.width); ++x) {
           if (!m[x]) {
             od[x] = oi[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
             continue;
@@ -727,7 +731,7 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
           oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
         }
       }
-  }, kTilePx);
+  }, kStripRows);
 }
 
 }  // namespace ssdo
