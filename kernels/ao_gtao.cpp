@@ -142,10 +142,9 @@ struct SideState {
   bool below = false;  // the tap was on or below the tangent plane (interval at the limit)
 };
 
-
 // Lanes of a chunk of taps: step j0 + jj of side s (0: +direction, 1: -direction) is lane
-// s * kChunkSteps + jj. Every lane is computed (unused ones read as background), so the
-// arithmetic runs in full vector registers without a remainder.
+// s * kChunkSteps + jj. Every lane is computed (unused ones for nobody), so the arithmetic
+// runs in full vector registers without a remainder.
 constexpr int kChunkTaps = 2 * kChunkSteps;
 
 // The side constants per lane.
@@ -155,14 +154,11 @@ struct TapLanes {
   alignas(32) float cos_lim[kChunkTaps];  // its cosine
 };
 
-// What the taps of a chunk read: texel index (-1 off screen), view-space position, planar
-// depth (< 0: no occluder) and the occluder segment's length.
+// The taps of a chunk: texel index (-1: off screen or past the last step), and the length
+// of their occluder segments.
 struct TapChunk {
-  ptrdiff_t index[kChunkTaps];
-  alignas(32) float x[kChunkTaps];
-  alignas(32) float y[kChunkTaps];
-  alignas(32) float z[kChunkTaps];
-  alignas(32) float depth_view[kChunkTaps];
+  alignas(32) int32_t index[kChunkTaps];
+  alignas(32) int32_t skip[kChunkSteps];  // the step has no tap: its offset rounds to (0, 0)
   alignas(32) float thickness_world[kChunkTaps];
 };
 
@@ -176,10 +172,11 @@ struct SliceFrame {
   float weight_neg, inv_total;                  // slice measure of the negative side, 1 / total
 };
 
-// Per lane: the tap's height above the tangent plane (times nothing: only its sign is
-// used), its squared distance in the slice plane and in 3D, the cosine of its angle in the
-// slice, and the occluded interval [u0, u1] of its segment (u0 > u1: none).
+// Per lane: the tap's coordinates in the slice frame, its height above the tangent plane
+// (only its sign is used), its squared distance in the slice plane and in 3D, the cosine of
+// its angle in the slice, and the occluded interval [u0, u1] of its segment (u0 > u1: none).
 struct TapGeometry {
+  alignas(32) float dv[kChunkTaps], dd[kChunkTaps], da[kChunkTaps];  // in the slice frame
   alignas(32) float height[kChunkTaps];
   alignas(32) float dist_slice2[kChunkTaps];
   alignas(32) float dist2[kChunkTaps];
@@ -188,31 +185,57 @@ struct TapGeometry {
   alignas(32) float u1[kChunkTaps];
 };
 
-// Reads the texels of the lanes' indices (the first `chunk` steps of each side; the other
-// lanes and off-screen taps read as background).
-inline void gather_taps(const std::vector<Texel>& texels, const cv::Mat* back, int width,
-                        bool perspective, float thickness_world, int chunk, TapChunk& taps) {
+// The grid the taps land on and the pattern's counts.
+struct TapGrid {
+  int width, height;
+  int slices, steps;
+};
+
+// Texel indices of the taps of steps j0 .. j0 + kChunkSteps - 1 of slice i of pixel (x, y)
+// in the lanes of TapChunk (-1: off screen or past the last step), and per step whether
+// it has no tap. d: the slice's screen direction; every lane alike, so the loop vectorises.
+inline void tap_indices(const TapGrid& g, float step_noise, float radius_px, int x, int y, int i,
+                        glm::vec2 d, int j0, int32_t* __restrict index, int32_t* __restrict skip) {
+  for (int jj = 0; jj < kChunkSteps; ++jj) {
+    const int j = j0 + jj;
+    // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
+    float t = step_noise + float(i + j * g.slices) * 0.618033988749895f;
+    t -= std::floor(t);
+    t = (float(j) + t) / float(g.steps);
+    // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps near
+    // the centre; against the ray-marched reference on the shared frames (cornell,
+    // greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057 -> 0.040 on
+    // cornell): far taps carry walls seen at grazing angles, whose occlusion the dense
+    // near taps never see.
+    const float dist_px = kMinTapDistancePx + t * (radius_px - kMinTapDistancePx);
+    // The positive side's offset; the negative side's is its negation.
+    const int ox = round_to_int(d.x * dist_px), oy = round_to_int(d.y * dist_px);
+    const bool used = j < g.steps;
+    skip[jj] = (ox == 0) & (oy == 0);
+    const int px = x + ox, py = y + oy, nx = x - ox, ny = y - oy;
+    const bool pos_on = used & (px >= 0) & (py >= 0) & (px < g.width) & (py < g.height);
+    const bool neg_on = used & (nx >= 0) & (ny >= 0) & (nx < g.width) & (ny < g.height);
+    index[jj] = pos_on ? py * g.width + px : -1;
+    index[kChunkSteps + jj] = neg_on ? ny * g.width + nx : -1;
+  }
+}
+
+// The occluder segments' lengths of the taps of a chunk.
+inline void tap_thickness(const std::vector<Texel>& texels, const cv::Mat* back, int width,
+                          bool perspective, float thickness_world, TapChunk& taps) {
+  for (int m = 0; m < kChunkTaps; ++m) taps.thickness_world[m] = thickness_world;
+  if (back == nullptr) return;
   for (int m = 0; m < kChunkTaps; ++m) {
-    const ptrdiff_t index = taps.index[m];
-    const bool used = (m % kChunkSteps) < chunk && index >= 0;
-    const Texel tx = used ? texels[size_t(index)] : Texel{0.0f, 0.0f, 0.0f, -1.0f};
-    if (!used) taps.index[m] = -1;
-    taps.x[m] = tx.x;
-    taps.y[m] = tx.y;
-    taps.z[m] = tx.z;
-    taps.depth_view[m] = tx.depth_view;
-    float thickness = thickness_world;
-    if (back != nullptr && used) {
-      // With a back-face layer (AoInputs::depth_back_view) the segment is the tap's own
-      // thickness, back - front in planar depth, as a length along its view ray: divided
-      // by |r.z| (= depth / |tap| in perspective, 1 orthographic).
-      const int sy = int(index / width), sx = int(index % width);
-      const float d_back = back->ptr<float>(sy)[sx];
-      const float planar = d_back > tx.depth_view ? d_back - tx.depth_view : 0.0f;
-      thickness = perspective ? planar * std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z) / tx.depth_view
-                              : planar;
-    }
-    taps.thickness_world[m] = thickness;
+    const int32_t index = taps.index[m];
+    if (index < 0) continue;
+    // With a back-face layer (AoInputs::depth_back_view) the segment is the tap's own
+    // thickness, back - front in planar depth, as a length along its view ray: divided
+    // by |r.z| (= depth / |tap| in perspective, 1 orthographic).
+    const Texel& tx = texels[size_t(index)];
+    const float d_back = back->ptr<float>(index / width)[index % width];
+    const float planar = d_back > tx.depth_view ? d_back - tx.depth_view : 0.0f;
+    const float tap_length = std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z);
+    taps.thickness_world[m] = perspective ? planar * tap_length / tx.depth_view : planar;
   }
 }
 
@@ -220,9 +243,12 @@ inline void gather_taps(const std::vector<Texel>& texels, const cv::Mat* back, i
 // tap is not used later (background, below the tangent plane, zero distance) compute
 // values nobody reads; with segments = false (the height-field model) the occluder
 // segments are skipped.
+// Not inlined: inside the pixel loop the compiler no longer turns the selects into blends
+// and the loop stays scalar (GCC 12).
 template <bool perspective, bool segments>
 [[gnu::noinline]]
-void tap_geometry(const TapChunk& taps, const TapLanes& lanes, const SliceFrame& f, TapGeometry& __restrict g) {
+void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
+                  const SliceFrame& f, TapGeometry& __restrict g) {
   // The frame's values as locals: selects between them then need no conditional loads,
   // which would keep the loop from vectorising.
   const float ox = f.origin.x, oy = f.origin.y, oz = f.origin.z;
@@ -234,9 +260,12 @@ void tap_geometry(const TapChunk& taps, const TapLanes& lanes, const SliceFrame&
   const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
   const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
   const float weight_neg = f.weight_neg, inv_total = f.inv_total;
+  int occluders = 0;
   for (int m = 0; m < kChunkTaps; ++m) {
-    const float ex = taps.x[m] - ox, ey = taps.y[m] - oy, ez = taps.z[m] - oz;
-    g.height[m] = ex * nx + ey * ny + ez * nz;
+    // Lanes without a texel compute on texel 0, for nobody.
+    const Texel& tx = texels[taps.index[m] >= 0 ? taps.index[m] : 0];
+    const float ex = tx.x - ox, ey = tx.y - oy, ez = tx.z - oz;
+    const float height = ex * nx + ey * ny + ez * nz;
     // The tap in the slice's orthonormal frame (view, direction, axis): the slice plane
     // holds the first two coordinates, so the projection onto the plane is dropping the
     // third (no 3D projection per tap).
@@ -244,12 +273,23 @@ void tap_geometry(const TapChunk& taps, const TapLanes& lanes, const SliceFrame&
     const float dd = ex * dx + ey * dy + ez * dz;
     const float da = ex * ax + ey * ay + ez * az;
     const float dist_slice2 = dv * dv + dd * dd;
-    const float dist2 = dist_slice2 + da * da;
+    g.dv[m] = dv;
+    g.dd[m] = dd;
+    g.da[m] = da;
+    g.height[m] = height;
     g.dist_slice2[m] = dist_slice2;
-    g.dist2[m] = dist2;
+    g.dist2[m] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
     g.tap_cos[m] = dv / std::sqrt(dist_slice2);
-    if constexpr (!segments) continue;
+    // The taps whose segments the ordered pass reads (see ao_gtao).
+    occluders |= (taps.index[m] >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) &
+                 (dist_slice2 > 0.0f);
+  }
+  // No lane needs a segment (a chunk of taps all on or below the tangent plane, the common
+  // case on open surfaces): the segments' arithmetic is skipped.
+  if (!segments || !occluders) return;
+  for (int m = 0; m < kChunkTaps; ++m) {
+    const float dv = g.dv[m], dd = g.dd[m], da = g.da[m], dist2 = g.dist2[m];
     // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
     // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too
     // (the tap's frame coordinates are the origin's plus delta's).
@@ -295,8 +335,10 @@ void tap_geometry(const TapChunk& taps, const TapLanes& lanes, const SliceFrame&
     const bool pos = sign > 0.0f;
     const float h_lo = pos ? aa : ab, c_lo = pos ? ca : cb, s_lo = pos ? sa : sb;
     const float h_hi = pos ? ab : aa, c_hi = pos ? cb : ca, s_hi = pos ? sb : sa;
-    const float u0 = (weight_neg + sign * inner_integral(sign * h_lo, c_lo, sign * s_lo, cos_n, sin_n)) * inv_total;
-    const float u1 = (weight_neg + sign * inner_integral(sign * h_hi, c_hi, sign * s_hi, cos_n, sin_n)) * inv_total;
+    const float i_lo = sign * inner_integral(sign * h_lo, c_lo, sign * s_lo, cos_n, sin_n);
+    const float i_hi = sign * inner_integral(sign * h_hi, c_hi, sign * s_hi, cos_n, sin_n);
+    const float u0 = (weight_neg + i_lo) * inv_total;
+    const float u1 = (weight_neg + i_hi) * inv_total;
     const bool hit = (disc >= 0.0f) & (t1 >= t0) & (ca > cos_lim);
     g.u0[m] = hit ? u0 : 1.0f;  // empty: u0 > u1
     g.u1[m] = hit ? u1 : 0.0f;
@@ -320,6 +362,9 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const Falloff falloff(s.radius_world, s.falloff_fraction);
   const ScreenToView screen_to_view(camera);
   const int width = in.depth_view.cols, height = in.depth_view.rows;
+  // Texel indices are 32-bit.
+  CV_Assert(int64_t(width) * int64_t(height) <= int64_t(INT32_MAX));
+  const TapGrid grid{width, height, k.slices, k.steps};
   const bool perspective = camera.is_perspective();
   std::vector<Texel> texels;
   std::vector<TexelPlane> planes;
@@ -350,7 +395,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const auto pixel_taps = [&](int x, int y) {
     PixelTaps p;
     if (!in.mask.ptr<uint8_t>(y)[x]) return p;
-    p.radius_px = projected_radius_px(camera, in.depth_view.ptr<float>(y)[x], k.radius_world, k.max_radius_px);
+    const float depth = in.depth_view.ptr<float>(y)[x];
+    p.radius_px = projected_radius_px(camera, depth, k.radius_world, k.max_radius_px);
     // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
     if (p.radius_px < 2.0f * kMinTapDistancePx) return p;
     p.has_taps = true;
@@ -366,26 +412,6 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
     const float cos_phi = p.rot_c * slice_rot[size_t(i)][0] - p.rot_s * slice_rot[size_t(i)][1];
     const float sin_phi = p.rot_s * slice_rot[size_t(i)][0] + p.rot_c * slice_rot[size_t(i)][1];
     return glm::vec2(cos_phi, -sin_phi);
-  };
-  // Pixel offset of step j's tap on the positive side of the slice through screen
-  // direction d (the negative side's is its negation); (0, 0): no tap.
-  const auto step_offset = [&](const PixelTaps& p, int i, glm::vec2 d, int j) {
-    // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
-    float t = p.step_noise + float(i + j * k.slices) * 0.618033988749895f;
-    t -= std::floor(t);
-    t = (float(j) + t) / float(k.steps);
-    // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps near
-    // the centre; against the ray-marched reference on the shared frames (cornell,
-    // greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057 -> 0.040 on
-    // cornell): far taps carry walls seen at grazing angles, whose occlusion the dense
-    // near taps never see.
-    const float dist_px = kMinTapDistancePx + t * (p.radius_px - kMinTapDistancePx);
-    return glm::ivec2(round_to_int(d.x * dist_px), round_to_int(d.y * dist_px));
-  };
-  // Texel index of the tap at offset o from (x, y), -1 off screen.
-  const auto tap_index = [&](int x, int y, glm::ivec2 o) {
-    const int sx = x + o.x, sy = y + o.y;
-    return sx >= 0 && sy >= 0 && sx < width && sy < height ? ptrdiff_t(sy) * width + sx : ptrdiff_t(-1);
   };
   // One pixel: its AO and bent normal.
   const auto shade_pixel = [&](int x, int y, const PixelTaps& pt) {
@@ -455,34 +481,33 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
         // arithmetic, so their cache misses overlap (a tap's texel is anywhere within
         // the radius), and the arithmetic has no branches.
         TapChunk taps;
-        std::array<bool, kChunkSteps> skip{};
-        for (int jj = 0; jj < chunk; ++jj) {
-          const glm::ivec2 o = step_offset(pt, i, d, j0 + jj);
-          skip[size_t(jj)] = o.x == 0 && o.y == 0;
-          taps.index[jj] = tap_index(x, y, o);
-          taps.index[kChunkSteps + jj] = tap_index(x, y, -o);
-        }
-        gather_taps(texels, back, width, perspective, k.thickness_world, chunk, taps);
+        tap_indices(grid, pt.step_noise, pt.radius_px, x, y, i, d, j0, taps.index, taps.skip);
+        tap_thickness(texels, back, width, perspective, k.thickness_world, taps);
         TapGeometry geo;
         if (k.height_field)
-          perspective ? tap_geometry<true, false>(taps, lanes, frame, geo)
-                      : tap_geometry<false, false>(taps, lanes, frame, geo);
+          perspective ? tap_geometry<true, false>(texels.data(), taps, lanes, frame, geo)
+                      : tap_geometry<false, false>(texels.data(), taps, lanes, frame, geo);
         else
-          perspective ? tap_geometry<true, true>(taps, lanes, frame, geo)
-                      : tap_geometry<false, true>(taps, lanes, frame, geo);
+          perspective ? tap_geometry<true, true>(texels.data(), taps, lanes, frame, geo)
+                      : tap_geometry<false, true>(texels.data(), taps, lanes, frame, geo);
 
         for (int side = 0; side < 2; ++side) {
           SideState& st = state[side];
           float& horizon_cos = side == 0 ? horizon_cos_pos : horizon_cos_neg;
           for (int jj = 0; jj < chunk; ++jj) {
-            if (skip[size_t(jj)]) continue;
+            if (taps.skip[jj]) continue;
             const int m = side * kChunkSteps + jj;
-            const float depth_view = taps.depth_view[m];
-            if (depth_view < 0.0f) {  // background or off screen: no occluder, nothing connects
+            if (taps.index[m] < 0) {  // off screen: nothing known, nothing connects
               st.depth_view = -1.0f;
               continue;
             }
             const size_t index = size_t(taps.index[m]);
+            const Texel& tx = texels[index];
+            const float depth_view = tx.depth_view;
+            if (depth_view < 0.0f) {  // background: no occluder, nothing connects
+              st.depth_view = -1.0f;
+              continue;
+            }
             // A tap on or below the tangent plane cannot occlude the hemisphere (nor can
             // the rest of its segment, which runs away from the eye, i.e. further down).
             // Testing in 3D first matters: rounding taps to pixel centres moves them off
@@ -514,7 +539,6 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
             bool connected = false;
             if (st.depth_view >= 0.0f) {
               const Texel& pv = texels[st.texel];
-              const Texel& tx = texels[index];
               if (st.below) {
                 // From the tangent plane: only when the two points are within the
                 // thickness of each other in 3D (a wall standing on the floor), never
@@ -582,27 +606,31 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
           const int y1 = std::min(y0 + kTilePx, rows.end);
           for (int x0 = roi.x; x0 < roi.x + roi.width; x0 += kTilePx) {
             const int x1 = std::min(x0 + kTilePx, roi.x + roi.width);
-            for (int y = y0; y < y1; ++y) {
-              // The row's tap patterns first, asking for their texels, then the pixels: a
-              // tap's texel is anywhere within the radius, mostly not in the nearest cache,
-              // and the requests of a whole row are under way together.
-              std::array<PixelTaps, kTilePx> row_taps;
+            // Each row's tap patterns are computed, and their texels asked for, while the
+            // row above is shaded: a tap's texel is anywhere within the radius, mostly not
+            // in the nearest cache, and a row's worth of shading hides the wait.
+            std::array<PixelTaps, kTilePx> shaded_row, next_row;
+            for (int y = y0; y <= y1; ++y) {
               for (int x = x0; x < x1; ++x) {
-                const PixelTaps p = pixel_taps(x, y);
-                row_taps[size_t(x - x0)] = p;
-                // (Inline, not a function of its own: the compiler drops calls of a function
-                // whose only effect is a prefetch.)
-                for (int i = 0; i < k.slices && p.has_taps; ++i) {
-                  const glm::vec2 d = slice_direction(p, i);
-                  for (int j = 0; j < k.steps; ++j) {
-                    const glm::ivec2 o = step_offset(p, i, d, j);
-                    const ptrdiff_t pos = tap_index(x, y, o), neg = tap_index(x, y, -o);
-                    if (pos >= 0) __builtin_prefetch(texels.data() + pos);
-                    if (neg >= 0) __builtin_prefetch(texels.data() + neg);
+                const size_t xi = size_t(x - x0);
+                if (y < y1) {
+                  const PixelTaps p = pixel_taps(x, y);
+                  next_row[xi] = p;
+                  // (Inline, not a function of its own: the compiler drops calls of a
+                  // function whose only effect is a prefetch.)
+                  for (int i = 0; i < k.slices && p.has_taps; ++i) {
+                    const glm::vec2 d = slice_direction(p, i);
+                    for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
+                      int32_t index[kChunkTaps], skip[kChunkSteps];
+                      tap_indices(grid, p.step_noise, p.radius_px, x, y, i, d, j0, index, skip);
+                      for (int m = 0; m < kChunkTaps; ++m)
+                        if (index[m] >= 0) __builtin_prefetch(texels.data() + index[m]);
+                    }
                   }
                 }
+                if (y > y0) shade_pixel(x, y - 1, shaded_row[xi]);
               }
-              for (int x = x0; x < x1; ++x) shade_pixel(x, y, row_taps[size_t(x - x0)]);
+              std::swap(shaded_row, next_row);
             }
           }
         }
