@@ -212,29 +212,43 @@ inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w
 // whose point has left the frame does not come back, so marches stop there.
 enum class Tap { visible, occluded, behind, off_screen };
 
-// Occlusion test of view-space point S at planar depth depth_s whose clip coordinates are
-// (clip_x, clip_y, ., clip_w) (see ssdo.h), for the receiver at pixel coordinates origin_px.
-// On `occluded` the pixel (qx, qy) S projects to is the sender. full_resolution: read level
-// 0 whatever the distance (the bisection steps: on the shared frames, bisecting on coarse
-// texels left the bounce 27-31% from the oracle, on full-resolution texels 13-17%).
-// Without branches (every case is computed and selected), so that a loop over many points
-// has no branch to mispredict; an off-screen point reads texel 0 and ignores it.
-inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_s, float clip_x, float clip_y,
-                    float clip_w, bool full_resolution, int& qx, int& qy) {
+// Where a point with clip coordinates (clip_x, clip_y, ., clip_w) projects, for the
+// receiver at pixel coordinates origin_px: continuous pixel coordinates (px, py), its pixel
+// (qx, qy) (0 when off screen or behind the eye) and the texel the occlusion test reads.
+// full_resolution: read level 0 whatever the distance (the bisection steps: on the shared
+// frames, bisecting on coarse texels left the bounce 27-31% from the oracle, on
+// full-resolution texels 13-17%). Without branches, like classify_at.
+struct Projection {
+  float px, py;
+  int qx, qy;
+  int texel;       // index into Constants::pyramid (texel 0 when off screen)
+  bool on_screen;  // in front of the eye and inside the frame
+};
+
+inline Projection project(const Constants& c, const glm::vec2& origin_px, float clip_x, float clip_y, float clip_w,
+                          bool full_resolution) {
+  Projection q;
   const bool in_front_of_eye = clip_w > 0.0f;
   const float inv_w = 1.0f / clip_w;
-  const float px = 0.5f * (clip_x * inv_w + 1.0f) * c.width_px;
-  const float py = 0.5f * (1.0f - clip_y * inv_w) * c.height_px;
-  const bool on_screen = in_front_of_eye & (px >= 0.0f) & (px < c.width_px) & (py >= 0.0f) & (py < c.height_px);
-  qx = int(on_screen ? px : 0.0f);
-  qy = int(on_screen ? py : 0.0f);
-  const float dx = px - origin_px.x, dy = py - origin_px.y;
+  q.px = 0.5f * (clip_x * inv_w + 1.0f) * c.width_px;
+  q.py = 0.5f * (1.0f - clip_y * inv_w) * c.height_px;
+  q.on_screen = in_front_of_eye & (q.px >= 0.0f) & (q.px < c.width_px) & (q.py >= 0.0f) & (q.py < c.height_px);
+  q.qx = int(q.on_screen ? q.px : 0.0f);
+  q.qy = int(q.on_screen ? q.py : 0.0f);
+  const float dx = q.px - origin_px.x, dy = q.py - origin_px.y;
   const float rho2 = (dx * dx + dy * dy) * (1.0f / (kMipStartPx * kMipStartPx));
   // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
   const bool coarse = c.n_levels > 1 && !full_resolution && rho2 >= 1.0f;
   const int level = coarse ? std::min(c.n_levels - 1, (exponent_of(rho2) >> 1) + 1) : 0;
-  const int row = c.pyramid_rows_2h - (c.pyramid_rows_2h >> level) + (qy >> level);
-  const TapTexel& t = c.pyramid[row * int(c.width_px) + (qx >> level)];
+  const int row = c.pyramid_rows_2h - (c.pyramid_rows_2h >> level) + (q.qy >> level);
+  q.texel = row * int(c.width_px) + (q.qx >> level);
+  return q;
+}
+
+// Occlusion test of view-space point S at planar depth depth_s projected to q (see
+// ssdo.h), with t = the texel q reads. Without branches (every case is computed and
+// selected), so that a loop over many points has no branch to mispredict.
+inline Tap classify_at(const Constants& c, float depth_s, float px, float py, bool on_screen, const TapTexel& t) {
   // The texel's tangent plane is its source pixel's.
   const int sx = int(t.source & 0xFFFFu), sy = int(t.source >> 16);
   const float depth_q = t.depth_view;
@@ -249,6 +263,15 @@ inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_
   const bool within_thickness = behind < c.s.thickness_world;
   const Tap in_view = !beyond_bias ? Tap::visible : within_thickness ? Tap::occluded : Tap::behind;
   return !on_screen ? Tap::off_screen : background ? Tap::visible : in_view;
+}
+
+// Both for one point: on `occluded` the pixel (qx, qy) S projects to is the sender.
+inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_s, float clip_x, float clip_y,
+                    float clip_w, bool full_resolution, int& qx, int& qy) {
+  const Projection q = project(c, origin_px, clip_x, clip_y, clip_w, full_resolution);
+  qx = q.qx;
+  qy = q.qy;
+  return classify_at(c, depth_s, q.px, q.py, q.on_screen, c.pyramid[q.texel]);
 }
 
 // Outgoing radiance of sender pixel q (see ssdo.h).
@@ -340,6 +363,10 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     float clip_w[kSampleBatch * kMaxSampleSteps];
     Tap tap_at[kSampleBatch * kMaxSampleSteps];
     int qx_at[kSampleBatch * kMaxSampleSteps], qy_at[kSampleBatch * kMaxSampleSteps];
+    float px_at[kSampleBatch * kMaxSampleSteps], py_at[kSampleBatch * kMaxSampleSteps];
+    int texel_at[kSampleBatch * kMaxSampleSteps];
+    int on_screen_at[kSampleBatch * kMaxSampleSteps];
+    TapTexel texels[kSampleBatch * kMaxSampleSteps];
     const glm::mat4& m = c.clip_from_view;
     for (int i0 = 0; i0 < n_samples; i0 += kSampleBatch) {
       const int batch = std::min(kSampleBatch, n_samples - i0);
@@ -386,8 +413,17 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
           clip_w[k] = clip_p.w + lambda[k] * cww[s];
         }
       const int points = batch * steps;
+      // In three loops: where the points project (vectorises), their texels copied together
+      // (one 16-byte read each), the tests (vectorises, reading the copies).
+      for (int k = 0; k < points; ++k) {
+        const Projection q = project(c, origin_px, clip_x[k], clip_y[k], clip_w[k], false);
+        px_at[k] = q.px, py_at[k] = q.py, qx_at[k] = q.qx, qy_at[k] = q.qy;
+        texel_at[k] = q.texel;
+        on_screen_at[k] = int(q.on_screen);
+      }
+      for (int k = 0; k < points; ++k) texels[k] = c.pyramid[texel_at[k]];
       for (int k = 0; k < points; ++k)
-        tap_at[k] = classify(c, origin_px, depth_s[k], clip_x[k], clip_y[k], clip_w[k], false, qx_at[k], qy_at[k]);
+        tap_at[k] = classify_at(c, depth_s[k], px_at[k], py_at[k], on_screen_at[k] != 0, texels[k]);
 
       for (int s = 0; s < batch; ++s) {
         const int i = i0 + s;
