@@ -126,10 +126,11 @@ constexpr int kStripRows = 32;
 constexpr int kMaxLevels = 8;
 
 // A pixel's sample directions are marched kSampleBatch at a time: first every point of
-// every direction of the batch is tested (one loop without branches over up to
-// kSampleBatch x kMaxSampleSteps points, whose texel reads and divisions overlap), then
-// each direction's march reads its points' results in order (the points after the one
-// that decides are tested but not used).
+// every direction of the batch is tested (loops without branches over up to
+// kSampleBatch x kMaxSampleSteps points, which vectorise and whose texel reads and
+// divisions overlap), then each direction's march reads its points' results in order (the
+// points after the one that decides are tested but not used: ~7% of them at low on the
+// 1080p frame).
 constexpr int kSampleBatch = 8;
 constexpr int kMaxSampleSteps = 64;  // validate()'s bound on sample_steps
 
@@ -265,7 +266,8 @@ inline Tap classify_at(const Constants& c, float depth_s, float px, float py, bo
   return !on_screen ? Tap::off_screen : background ? Tap::visible : in_view;
 }
 
-// Both for one point: on `occluded` the pixel (qx, qy) S projects to is the sender.
+// project() and classify_at() for one point (the bisection steps, the oracle): on
+// `occluded` the pixel (qx, qy) S projects to is the sender.
 inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_s, float clip_x, float clip_y,
                     float clip_w, bool full_resolution, int& qx, int& qy) {
   const Projection q = project(c, origin_px, clip_x, clip_y, clip_w, full_resolution);
