@@ -597,12 +597,17 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     const cv::Rect full_roi = resolve_roi(roi, size);
     if (full_roi.empty()) return;
     const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
-    HalfGrid h;
-    const cv::Mat* extras[] = {in.albedo, in.lighting};
-    build_half_grid(full, extras, h, nthreads);
+    HalfGrid own;
+    if (in.half_grid == nullptr) build_half_grid(full, {}, own, nthreads);
+    const HalfGrid& h = in.half_grid != nullptr ? *in.half_grid : own;
+    CV_Assert(h.depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2) &&
+              !h.position_view.empty());
+    cv::Mat half_albedo, half_lighting;
+    if (in.albedo != nullptr) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
+    if (in.lighting != nullptr) sample_at_texels(h, *in.lighting, half_lighting, nthreads);
     const SsdoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, in.environment,
-                             h.extras[0].empty() ? nullptr : &h.extras[0],
-                             h.extras[1].empty() ? nullptr : &h.extras[1]};
+                             half_albedo.empty() ? nullptr : &half_albedo,
+                             half_lighting.empty() ? nullptr : &half_lighting};
     SsdoSettings half_settings = settings;
     half_settings.resolution_divisor = 1;
     SsdoOutput half_out;

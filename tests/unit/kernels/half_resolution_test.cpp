@@ -8,6 +8,7 @@
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/raycast.h"
+#include "kernels/ssdo.h"
 
 namespace ssdo {
 namespace {
@@ -153,6 +154,17 @@ TEST(HalfResolution, KernelsOnASharedGridGiveTheirOwnGridsBits) {
   EXPECT_EQ(cv::norm(own.ao, shared.ao, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(own.bent_normal_view, shared.bent_normal_view, cv::NORM_INF), 0.0);
   EXPECT_LT(cv::mean(own.ao)[0], 0.99);  // something is occluded
+
+  const Environment sky = Environment::sky(SkyGradient{});
+  const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
+  SsdoOutput own_light, shared_light;
+  compute_ssdo({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, sky, &g.albedo, nullptr},
+               ssdo_settings, own_light, {}, 2);
+  compute_ssdo({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, sky, &g.albedo, nullptr, &h},
+               ssdo_settings, shared_light, {}, 2);
+  EXPECT_EQ(cv::norm(own_light.direct, shared_light.direct, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(own_light.indirect, shared_light.indirect, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::mean(own_light.indirect)[0], 0.0);
 
   ConfidenceSettings cs;
   cv::Mat own_confidence, shared_confidence;
