@@ -59,8 +59,12 @@ namespace {
 
 constexpr int kSectors = 64;
 
-// Side of the square tiles the pixels are shaded in, pixels (see ao_gtao).
-constexpr int kTilePx = 32;
+// Tiles the pixels are shaded in, pixels (see ao_gtao). 64 wide: a row of a tile is
+// prefetched while the row above is shaded, and 64 px of shading hide the wait better than
+// 32 (perf1080 low, 1 thread: 8% less kernel time); 32 tall: the strips of the parallel
+// loop, whose count balances the threads.
+constexpr int kTileWidthPx = 64;
+constexpr int kTileHeightPx = 32;
 
 // Steps whose taps are read together, before their arithmetic (see ao_gtao).
 constexpr int kChunkSteps = 8;
@@ -595,21 +599,21 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
     bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
   };
 
-  // Tiles of kTilePx x kTilePx pixels: a pixel's taps land anywhere within its radius, so
-  // the texels a tile reads are its footprint grown by the radius, which stays in cache
-  // while the tile runs; row by row, the band of rows within the radius of a whole row
-  // would not.
+  // Tiles of kTileWidthPx x kTileHeightPx pixels: a pixel's taps land anywhere within its
+  // radius, so the texels a tile reads are its footprint grown by the radius, which stays
+  // in cache while the tile runs; row by row, the band of rows within the radius of a
+  // whole row would not.
   parallel_rows(
       cv::Range(roi.y, roi.y + roi.height), nthreads,
       [&](const cv::Range& rows) {
-        for (int y0 = rows.start; y0 < rows.end; y0 += kTilePx) {
-          const int y1 = std::min(y0 + kTilePx, rows.end);
-          for (int x0 = roi.x; x0 < roi.x + roi.width; x0 += kTilePx) {
-            const int x1 = std::min(x0 + kTilePx, roi.x + roi.width);
+        for (int y0 = rows.start; y0 < rows.end; y0 += kTileHeightPx) {
+          const int y1 = std::min(y0 + kTileHeightPx, rows.end);
+          for (int x0 = roi.x; x0 < roi.x + roi.width; x0 += kTileWidthPx) {
+            const int x1 = std::min(x0 + kTileWidthPx, roi.x + roi.width);
             // Each row's tap patterns are computed, and their texels asked for, while the
             // row above is shaded: a tap's texel is anywhere within the radius, mostly not
             // in the nearest cache, and a row's worth of shading hides the wait.
-            std::array<PixelTaps, kTilePx> shaded_row, next_row;
+            std::array<PixelTaps, kTileWidthPx> shaded_row, next_row;
             for (int y = y0; y <= y1; ++y) {
               for (int x = x0; x < x1; ++x) {
                 const size_t xi = size_t(x - x0);
@@ -635,7 +639,7 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
           }
         }
       },
-      kTilePx);
+      kTileHeightPx);
 }
 
 }  // namespace ssdo::detail
