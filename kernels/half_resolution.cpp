@@ -79,30 +79,29 @@ cv::Rect half_grid_roi(const cv::Rect& r, const cv::Size& size) {
 
 namespace {
 
-// The texels full-resolution pixel (x, y) reads (bilinear at the texel centres, texel
-// centre i = pixel 2 i + 0.5): columns i0, i0 + 1 and rows j0, j0 + 1 (clamped to the
-// grid), and the bilinear fractions towards the second ones.
-struct Footprint {
-  int i[2], j[2];
-  float wx1, wy1;
-  int i0, j0;  // unclamped, for the fallback's 4x4 neighbourhood
+// The texels a full-resolution pixel reads along one axis (bilinear at the texel centres,
+// texel centre t = pixel 2 t + 0.5): t0 and t0 + 1, clamped to the grid's n texels, and
+// the bilinear fraction towards the second.
+struct AxisFootprint {
+  int t[2];
+  float frac;
+  int t0;  // unclamped, for the fallback's 4x4 neighbourhood
 };
 
-inline void footprint_row(int y, int hh, Footprint& f) {
-  const float fy = (float(y) + 0.5f) * 0.5f - 0.5f;
-  f.j0 = int(std::floor(fy));
-  f.wy1 = fy - float(f.j0);
-  f.j[0] = std::clamp(f.j0, 0, hh - 1);
-  f.j[1] = std::clamp(f.j0 + 1, 0, hh - 1);
+inline AxisFootprint axis_footprint(int pixel, int n) {
+  const float f = (float(pixel) + 0.5f) * 0.5f - 0.5f;
+  AxisFootprint a;
+  a.t0 = int(std::floor(f));
+  a.frac = f - float(a.t0);
+  a.t[0] = std::clamp(a.t0, 0, n - 1);
+  a.t[1] = std::clamp(a.t0 + 1, 0, n - 1);
+  return a;
 }
 
-inline void footprint_column(int x, int hw, Footprint& f) {
-  const float fx = (float(x) + 0.5f) * 0.5f - 0.5f;
-  f.i0 = int(std::floor(fx));
-  f.wx1 = fx - float(f.i0);
-  f.i[0] = std::clamp(f.i0, 0, hw - 1);
-  f.i[1] = std::clamp(f.i0 + 1, 0, hw - 1);
-}
+// The 2x2 texels of pixel (x, y): columns x.t, rows y.t.
+struct Footprint {
+  AxisFootprint x, y;
+};
 
 // Joint bilateral weights of the four texels k = (k & 1, k >> 1) of a foreground pixel of
 // depth d and normal n (header: bilinear x exp(-|dz| / (tol d)) x max(0, n . n_k)^4), 0 on
@@ -110,10 +109,10 @@ inline void footprint_column(int x, int hw, Footprint& f) {
 inline void texel_weights(const HalfGrid& h, const Footprint& f, float d, const cv::Vec3f& n, float w[4]) {
   const float inv_tol = 1.0f / (kUpsampleDepthRelative * d);
   for (int k = 0; k < 4; ++k) {
-    const int i = f.i[k & 1], j = f.j[k >> 1];
+    const int i = f.x.t[k & 1], j = f.y.t[k >> 1];
     w[k] = 0.0f;
     if (!h.mask.ptr<uint8_t>(j)[i]) continue;
-    const float wb = ((k & 1) ? f.wx1 : 1.0f - f.wx1) * ((k >> 1) ? f.wy1 : 1.0f - f.wy1);
+    const float wb = ((k & 1) ? f.x.frac : 1.0f - f.x.frac) * ((k >> 1) ? f.y.frac : 1.0f - f.y.frac);
     const float dz = std::abs(h.depth_view.ptr<float>(j)[i] - d) * inv_tol;
     float c = std::max(0.0f, n.dot(h.normal_view.ptr<cv::Vec3f>(j)[i]));
     c *= c;
@@ -128,7 +127,7 @@ inline bool nearest_in_depth(const HalfGrid& h, const Footprint& f, float d, int
   float best = std::numeric_limits<float>::infinity();
   for (int dj = -1; dj <= 2; ++dj)
     for (int di = -1; di <= 2; ++di) {
-      const int i = f.i0 + di, j = f.j0 + dj;
+      const int i = f.x.t0 + di, j = f.y.t0 + dj;
       if (i < 0 || j < 0 || i >= hw || j >= hh || !h.mask.ptr<uint8_t>(j)[i]) continue;
       const float dz = std::abs(h.depth_view.ptr<float>(j)[i] - d);
       if (dz < best) best = dz, bi = i, bj = j;
@@ -143,7 +142,7 @@ inline void blend(const cv::Mat& half, const Footprint& f, const float w[4], flo
   float acc[C] = {};
   for (int k = 0; k < 4; ++k) {
     if (w[k] == 0.0f) continue;
-    const float* v = half.ptr<float>(f.j[k >> 1]) + size_t(f.i[k & 1]) * C;
+    const float* v = half.ptr<float>(f.y.t[k >> 1]) + size_t(f.x.t[k & 1]) * C;
     for (int ch = 0; ch < C; ++ch) acc[ch] += w[k] * v[ch];
   }
   for (int ch = 0; ch < C; ++ch) out[ch] = acc[ch] / wsum;
@@ -188,13 +187,13 @@ void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int
       const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
       cv::Vec4f* out = h.upsample_weights.ptr<cv::Vec4f>(y);
       Footprint f;
-      footprint_row(y, hh, f);
+      f.y = axis_footprint(y, hh);
       for (int x = r.x; x < r.x + r.width; ++x) {
         if (!mask_row[x]) {
           out[x] = cv::Vec4f(0, 0, 0, 0);
           continue;
         }
-        footprint_column(x, hw, f);
+        f.x = axis_footprint(x, hw);
         texel_weights(h, f, full.depth_view.ptr<float>(y)[x], full.normal_view.ptr<cv::Vec3f>(y)[x], &out[x][0]);
       }
     }
@@ -216,7 +215,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
       const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
       const cv::Vec4f* kept_row = kept ? h.upsample_weights.ptr<cv::Vec4f>(y) : nullptr;
       Footprint f;
-      footprint_row(y, hh, f);
+      f.y = axis_footprint(y, hh);
       for (int x = r.x; x < r.x + r.width; ++x) {
         if (!mask_row[x]) {
           for (const UpsampleImage& im : images)
@@ -225,7 +224,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
           continue;
         }
         const float d = full.depth_view.ptr<float>(y)[x];
-        footprint_column(x, hw, f);
+        f.x = axis_footprint(x, hw);
         float w[4];
         if (kept) std::copy_n(&kept_row[x][0], 4, w);
         else texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
