@@ -92,6 +92,10 @@ AoSettings ao_preset(AoMethod method, Preset preset) {
   return s;
 }
 
+bool runs_on_half_grid(const AoSettings& s) {
+  return s.resolution_divisor == 2 && s.method != AoMethod::raymarch;
+}
+
 float effective_thickness_world(const AoSettings& s) {
   return s.thickness_world > 0.0f ? s.thickness_world : kThicknessPerRadius * s.radius_world;
 }
@@ -141,17 +145,14 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   if (!has_bent_normal) out.bent_normal_view.release();
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
-  if (s.resolution_divisor == 1 || s.method == AoMethod::raymarch) {
+  if (!runs_on_half_grid(s)) {
     dispatch(in, s, out, r, nthreads);
     return;
   }
   // Half grid (kernels/half_resolution.h), then the depth- and normal-aware upsample.
   const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
   HalfGrid own;
-  if (in.half_grid == nullptr) build_half_grid(full, {}, own, nthreads);
-  const HalfGrid& h = in.half_grid != nullptr ? *in.half_grid : own;
-  CV_Assert(h.depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2) &&
-            !h.position_view.empty());
+  const HalfGrid& h = shared_or_own_half_grid(full, in.half_grid, own, true, nthreads);
   cv::Mat half_albedo;
   if (in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
   const AoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,

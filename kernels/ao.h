@@ -86,6 +86,10 @@ inline constexpr float kThicknessPerRadius = 0.5f;
 // thickness_world, or kThicknessPerRadius * radius_world when it is 0 (automatic).
 float effective_thickness_world(const AoSettings& s);
 
+// The method runs on the half-resolution grid (resolution_divisor 2; raymarch, the oracle,
+// always at full resolution).
+bool runs_on_half_grid(const AoSettings& s);
+
 // The named presets of each method (values of AoSettings).
 AoSettings ao_preset(AoMethod method, Preset preset);
 

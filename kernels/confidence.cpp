@@ -88,9 +88,7 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     const cv::Mat no_positions;
     const FullGrid full{depth_view, normal_view, no_positions, mask, camera};
     HalfGrid own;
-    if (half_grid == nullptr) build_half_grid(full, {}, own, nthreads);
-    const HalfGrid& h = half_grid != nullptr ? *half_grid : own;
-    CV_Assert(h.depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2));
+    const HalfGrid& h = shared_or_own_half_grid(full, half_grid, own, false, nthreads);
     ConfidenceSettings half_settings = s;
     half_settings.resolution_divisor = 1;
     cv::Mat half_confidence;

@@ -71,6 +71,18 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
     if (extras[e] && !extras[e]->empty()) sample_at_texels(h, *extras[e], h.extras[e], nthreads);
 }
 
+const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* shared, HalfGrid& own,
+                                        bool need_positions, int nthreads) {
+  if (shared == nullptr) {
+    build_half_grid(full, {}, own, nthreads);
+    return own;
+  }
+  const cv::Size size = full.depth_view.size();
+  CV_Assert(shared->depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2));
+  CV_Assert(!need_positions || !shared->position_view.empty());
+  return *shared;
+}
+
 cv::Rect half_grid_roi(const cv::Rect& r, const cv::Size& size) {
   // Pixel x reads texels floor(x / 2 - 0.25) - 1 .. + 2.
   return cv::Rect(r.x / 2 - 2, r.y / 2 - 2, r.width / 2 + 5, r.height / 2 + 5) &

@@ -55,6 +55,11 @@ struct FullGrid {
 void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& half,
                      int nthreads = 0);
 
+// The half grid a kernel runs on: `shared` (the frame's, checked to be of the full
+// grid's half size, with positions when `need_positions`) or, when null, `own` built here.
+const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* shared, HalfGrid& own,
+                                        bool need_positions, int nthreads = 0);
+
 // Each texel's value of a full-resolution image: the value at the pixel the texel took
 // (HalfGrid::source), 0 on texels that took none. `full_image` CV_32F of any channel
 // count and the full size; `half_image` is allocated at the grid's size.

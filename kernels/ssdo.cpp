@@ -53,6 +53,10 @@ SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
   return s;
 }
 
+bool runs_on_half_grid(const SsdoSettings& s) {
+  return s.resolution_divisor == 2 && s.method == SsdoMethod::ssdo;
+}
+
 std::string validate(const SsdoSettings& s) {
   if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
   if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
@@ -593,15 +597,12 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   CV_Assert(validate(settings).empty());
   if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);
   if (out.indirect.size() != size || out.indirect.type() != CV_32FC3) out.indirect.create(size, CV_32FC3);
-  if (settings.resolution_divisor == 2 && settings.method == SsdoMethod::ssdo) {
+  if (runs_on_half_grid(settings)) {
     const cv::Rect full_roi = resolve_roi(roi, size);
     if (full_roi.empty()) return;
     const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
     HalfGrid own;
-    if (in.half_grid == nullptr) build_half_grid(full, {}, own, nthreads);
-    const HalfGrid& h = in.half_grid != nullptr ? *in.half_grid : own;
-    CV_Assert(h.depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2) &&
-              !h.position_view.empty());
+    const HalfGrid& h = shared_or_own_half_grid(full, in.half_grid, own, true, nthreads);
     cv::Mat half_albedo, half_lighting;
     if (in.albedo != nullptr) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
     if (in.lighting != nullptr) sample_at_texels(h, *in.lighting, half_lighting, nthreads);

@@ -154,6 +154,10 @@ SsdoSettings ssdo_preset(SsdoMethod method, Preset preset);
 // range). Called once at the boundary; the kernel only asserts.
 std::string validate(const SsdoSettings& s);
 
+// The method runs on the half-resolution grid (resolution_divisor 2, method ssdo; the
+// oracle always at full resolution).
+bool runs_on_half_grid(const SsdoSettings& s);
+
 struct SsdoInputs {
   const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
   const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals

@@ -113,8 +113,8 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
 
   // One half-resolution grid and one set of upsample weights for every kernel of the frame
   // that runs at half resolution (kernels/half_resolution.h): built once, not per kernel.
-  const bool ao_half = computed.ao && request.ao.resolution_divisor == 2 && request.ao.method != AoMethod::raymarch;
-  const bool ssdo_half = computed.ssdo && request.ssdo.resolution_divisor == 2 && request.ssdo.method == SsdoMethod::ssdo;
+  const bool ao_half = computed.ao && runs_on_half_grid(request.ao);
+  const bool ssdo_half = computed.ssdo && runs_on_half_grid(request.ssdo);
   const bool confidence_half = confidence_wanted && confidence_settings.resolution_divisor == 2;
   HalfGrid half_grid;
   const HalfGrid* shared_grid = nullptr;

@@ -134,7 +134,9 @@ TEST(HalfResolution, SampleAtTexelsTakesEachTexelsSourcePixel) {
   // Texels that took no pixel hold 0.
   for (int j = 0; j < 46; ++j)
     for (int i = 0; i < 81; ++i)
-      if (plain.source.at<cv::Vec2i>(j, i)[0] < 0) EXPECT_EQ(sampled.at<cv::Vec3f>(j, i), cv::Vec3f(0, 0, 0));
+      if (plain.source.at<cv::Vec2i>(j, i)[0] < 0) {
+        EXPECT_EQ(sampled.at<cv::Vec3f>(j, i), cv::Vec3f(0, 0, 0));
+      }
 }
 
 // Kernels of one frame given a shared grid (with kept weights) return the bits they return
