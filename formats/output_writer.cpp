@@ -25,6 +25,9 @@
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
 #include <Imath/half.h>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "formats/camera_io.h"
 #include "formats/exr_core.h"
@@ -132,8 +135,8 @@ std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   return commit(temp, final_path);
 }
 
-// OpenEXR's writer: every compression, and zip / zips with ZipEncoder::openexr. Throws on
-// failure (the caller removes the temp file).
+// OpenEXR's writer: every compression, and zip, zips and none with ChunkEncoder::openexr.
+// Throws on failure (the caller removes the temp file).
 void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const Camera& camera,
                const WriteOptions& options, Imf::Compression compression, cv::Size size) {
   Imf::Header header(size.width, size.height);
@@ -205,6 +208,49 @@ struct ChannelSource {
   bool is_half = false;
 };
 
+// Imath's conversion (round to nearest even) of n floats `step` floats apart into
+// little-endian half bits.
+void to_half_imath(const float* in, size_t step, int n, uint8_t* out) {
+  for (int x = 0; x < n; ++x) {
+    const uint16_t bits = half(in[size_t(x) * step]).bits();
+    std::memcpy(out + 2 * size_t(x), &bits, 2);
+  }
+}
+
+#if defined(__x86_64__)
+// The same with F16C, 8 samples at a time. F16C rounds to nearest even as Imath does, so
+// every finite value and infinity converts to the same bits; NaNs may not (F16C quiets a
+// signalling NaN), so a group of 8 holding a NaN is converted by Imath.
+__attribute__((target("avx2,f16c"))) void to_half_f16c(const float* in, size_t step, int n,
+                                                        uint8_t* out) {
+  const __m256i lanes = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
+                                           _mm256_set1_epi32(int(step)));
+  int x = 0;
+  for (; x + 8 <= n; x += 8) {
+    const float* p = in + size_t(x) * step;
+    const __m256 v = step == 1 ? _mm256_loadu_ps(p) : _mm256_i32gather_ps(p, lanes, 4);
+    if (_mm256_movemask_ps(_mm256_cmp_ps(v, v, _CMP_UNORD_Q)) != 0) {
+      to_half_imath(p, step, 8, out + 2 * size_t(x));
+      continue;
+    }
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + 2 * size_t(x)),
+                     _mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
+  }
+  to_half_imath(in + size_t(x) * step, step, n - x, out + 2 * size_t(x));
+}
+
+#endif
+
+// Imath's or F16C's conversion: the fastest this CPU has.
+using HalfConversion = void (*)(const float* in, size_t step, int n, uint8_t* out);
+HalfConversion half_conversion() {
+#if defined(__x86_64__)
+  static const bool f16c = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c");
+  if (f16c) return to_half_f16c;
+#endif
+  return to_half_imath;
+}
+
 // Packs scanlines [y0, y1) as a chunk stores them before compression (OpenEXR "Technical
 // Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
 // header's (alphabetical) order, the samples of the whole line, little-endian. Half
@@ -213,16 +259,14 @@ struct ChannelSource {
 void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int y1,
                 uint8_t* out) {
   static_assert(sizeof(half) == 2 && sizeof(float) == 4);
+  const HalfConversion to_half = half_conversion();
   for (int y = y0; y < y1; ++y)
     for (const ChannelSource& c : channels) {
       const float* in = c.image->ptr<float>(y) + c.component;
       const size_t step = size_t(c.components);
       if (c.is_half) {
-        for (int x = 0; x < width; ++x) {
-          const uint16_t bits = half(in[size_t(x) * step]).bits();
-          std::memcpy(out, &bits, 2);
-          out += 2;
-        }
+        to_half(in, step, width, out);
+        out += size_t(width) * 2;
       } else if (step == 1) {
         std::memcpy(out, in, size_t(width) * 4);
         out += size_t(width) * 4;
@@ -241,15 +285,15 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
 constexpr size_t kBatchPackedBytes = size_t(32) << 20;
 constexpr int kBatchChunks = 256;
 
-// zip / zips with ZipEncoder::libdeflate: the header and the chunk table are OpenEXRCore's;
-// the chunks are packed and deflated here (formats/exr_zip) in parallel, in batches, and
-// written in increasing y order from this thread, as OpenEXR's writer orders them
-// (lineOrder INCREASING_Y). The header carries the same attributes as write_exr's, plus
+// zip, zips and none with ChunkEncoder::own: the header and the chunk table are
+// OpenEXRCore's; the chunks are packed (and deflated, formats/exr_zip) here in parallel, in
+// batches, and written in increasing y order from this thread, as OpenEXR's writer orders
+// them (lineOrder INCREASING_Y). The header carries the same attributes as write_exr's, plus
 // the "type" attribute ("scanlineimage") OpenEXRCore 3.1 writes into every part (optional
 // in single-part files, which readers accept); the zip level is not among them (OpenEXR
 // keeps it out of the file). Little-endian hosts only (the packed samples are the
 // in-memory bytes). Throws on failure (the caller removes the temp file).
-void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
+void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
                    const Camera& camera, const WriteOptions& options, Imf::Compression compression,
                    cv::Size size) {
   exr_core::forget_error();
@@ -270,7 +314,9 @@ void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   check_core(exr_add_part(context, nullptr, EXR_STORAGE_SCANLINE, &part), "cannot add the part");
   check_core(exr_initialize_required_attr_simple(
                  context, part, size.width, size.height,
-                 compression == Imf::ZIPS_COMPRESSION ? EXR_COMPRESSION_ZIPS : EXR_COMPRESSION_ZIP),
+                 compression == Imf::ZIPS_COMPRESSION  ? EXR_COMPRESSION_ZIPS
+                 : compression == Imf::NO_COMPRESSION ? EXR_COMPRESSION_NONE
+                                                      : EXR_COMPRESSION_ZIP),
              "cannot set the required attributes");
   std::map<std::string, ChannelSource> sources;
   for (const auto& t : terms) {
@@ -304,7 +350,7 @@ void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   check_core(exr_write_header(context), "cannot write the header");
 
   // The chunk layout as the written header defines it: channels in its order, 16 (zip) or
-  // 1 (zips) scanlines per chunk.
+  // 1 (zips, none) scanlines per chunk.
   const exr_attr_chlist_t* list = nullptr;
   int32_t lines_per_chunk = 0, chunks = 0;
   check_core(exr_get_channels(context, part, &list), "cannot read back the channels");
@@ -326,6 +372,7 @@ void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   const int threads = options.threads > 0 ? options.threads : std::max(1, cv::getNumThreads());
   const int by_size = int(std::clamp<size_t>(kBatchPackedBytes / chunk_bytes, 1, kBatchChunks));
   const int batch = std::min(chunks, std::max(4 * threads, by_size));
+  const bool deflate = compression != Imf::NO_COMPRESSION;
   std::vector<std::vector<uint8_t>> stored(static_cast<size_t>(batch));  // reused across batches
   for (int first = 0; first < chunks; first += batch) {
     const int count = std::min(batch, chunks - first);
@@ -335,6 +382,11 @@ void write_zip_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
       for (int i = range.start; i < range.end; ++i) {
         const int y0 = (first + i) * lines_per_chunk;
         const int y1 = std::min(y0 + lines_per_chunk, size.height);
+        if (!deflate) {  // stored as packed
+          stored[size_t(i)].resize(line_bytes * size_t(y1 - y0));
+          pack_lines(order, size.width, y0, y1, stored[size_t(i)].data());
+          continue;
+        }
         packed.resize(line_bytes * size_t(y1 - y0));
         pack_lines(order, size.width, y0, y1, packed.data());
         // A chunk deflate does not shrink is stored as packed; readers tell it by its size
@@ -392,10 +444,10 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
 
   const fs::path temp = temp_path_for(final_path);
   try {
-    const bool zip = *compression == Imf::ZIP_COMPRESSION || *compression == Imf::ZIPS_COMPRESSION;
-    if (zip && options.zip_encoder == ZipEncoder::libdeflate &&
-        std::endian::native == std::endian::little)
-      write_zip_exr(temp, terms, camera, options, *compression, size);
+    const bool own = *compression == Imf::ZIP_COMPRESSION || *compression == Imf::ZIPS_COMPRESSION ||
+                     *compression == Imf::NO_COMPRESSION;
+    if (own && options.chunk_encoder == ChunkEncoder::own && std::endian::native == std::endian::little)
+      write_own_exr(temp, terms, camera, options, *compression, size);
     else
       write_exr(temp, terms, camera, options, *compression, size);
   } catch (const std::exception& e) {

@@ -29,17 +29,18 @@ struct OutputTerm {
 // measured with zlib on a 1080p frame with AO and SSDO terms, level 1 writes 20% faster
 // for a file 2.4% larger. With the libdeflate encoder, rle and none write that frame 1.2x
 // and 1.9x faster than zip, for files 29% and 123% larger (README.md, "Frame I/O"). The
-// same level means the same to both zip encoders (ZipEncoder) and is checked against
+// same level means the same to both zip encoders (ChunkEncoder) and is checked against
 // zlib's range.
 inline constexpr int kFastZipLevel = 1;
 
-// Who deflates the chunks of zip and zips files. Both write files any OpenEXR reader
-// decodes to the same values; only the compressed bytes differ.
-enum class ZipEncoder {
-  // The writer packs and compresses the chunks itself (formats/exr_zip, libdeflate: 2.7x
-  // faster than zlib at level 1, slightly smaller) on the thread pool, and OpenEXRCore
-  // writes the header and the chunks.
-  libdeflate,
+// Who packs (and deflates) the chunks of zip, zips and none files. Both write files any
+// OpenEXR reader decodes to the same values; only the compressed bytes differ.
+enum class ChunkEncoder {
+  // The writer packs the chunks itself, converting to half with the CPU's F16C
+  // instructions where it has them, and deflates zip and zips chunks with libdeflate
+  // (formats/exr_zip: 2.7x faster than zlib at level 1, slightly smaller), on the thread
+  // pool; OpenEXRCore writes the header and the chunks.
+  own,
   // OpenEXR's own writer (Imf::OutputFile, zlib), as every other compression uses.
   openexr,
 };
@@ -47,11 +48,11 @@ enum class ZipEncoder {
 struct WriteOptions {
   std::string compression = "zip";  // zip | zips | piz | rle | none (dwaa: colour terms only)
   int zip_level = kFastZipLevel;    // deflate level of zip / zips, [1, 9]
-  ZipEncoder zip_encoder = ZipEncoder::libdeflate;  // zip / zips only
+  ChunkEncoder chunk_encoder = ChunkEncoder::own;  // zip, zips and none only
   bool png_previews = false;        // NAME.<term>.png beside the EXR
   // Threads that convert and compress: 0 = OpenEXR's global pool and OpenCV's pool as
-  // configured; 1 = serial in the calling thread; N = N threads. The libdeflate encoder
-  // packs and compresses chunks on OpenCV's pool (parallel_rows) only.
+  // configured; 1 = serial in the calling thread; N = N threads. ChunkEncoder::own packs
+  // and compresses chunks on OpenCV's pool (parallel_rows) only.
   int threads = 0;
 };
 

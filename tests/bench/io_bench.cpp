@@ -1,8 +1,10 @@
 // Frame I/O kernels: reading a frame (depth, normals, albedo, lighting) with each ZIP
 // decoder, and writing its 21 output channels (AO, SSDO and composite terms: 3 float, 18
-// half) with each ZIP encoder, with 1 and 2 threads. The frame is the shared 1080p Cycles
-// dump (perf1080.exr, 26 channels, ZIP). Without ../shared the benchmarks report an error.
-// Args: decoder or encoder (0 = libdeflate, 1 = openexr), threads.
+// half) with each chunk encoder, zip or uncompressed, with 1 and 2 threads. The frame is the
+// shared 1080p Cycles dump (perf1080.exr, 26 channels, ZIP). Without ../shared the
+// benchmarks report an error.
+// Args: decoder or encoder (0 = libdeflate / own, 1 = openexr), threads; for writing also
+// the compression (0 = zip, 1 = none).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -63,8 +65,9 @@ void BM_WriteTerms(benchmark::State& state) {
   request.threads = 2;
   const std::vector<ssdo::OutputTerm> terms = ssdo::compute_frame(g, request).terms;
   ssdo::WriteOptions options;
-  options.zip_encoder = state.range(0) == 0 ? ssdo::ZipEncoder::libdeflate : ssdo::ZipEncoder::openexr;
+  options.chunk_encoder = state.range(0) == 0 ? ssdo::ChunkEncoder::own : ssdo::ChunkEncoder::openexr;
   options.threads = int(state.range(1));
+  options.compression = state.range(2) == 0 ? "zip" : "none";
   const fs::path out = fs::temp_directory_path() / ("ssdo_io_bench_" + std::to_string(::getpid()) + ".exr");
   for (auto _ : state) {
     const std::string error = ssdo::write_outputs(out.string(), terms, g.camera, options);
@@ -77,7 +80,7 @@ void BM_WriteTerms(benchmark::State& state) {
   state.counters["MB"] = double(fs::file_size(out, ec)) / 1e6;
   fs::remove(out, ec);
 }
-BENCHMARK(BM_WriteTerms)->ArgsProduct({{0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_WriteTerms)->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
