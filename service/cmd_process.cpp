@@ -90,13 +90,18 @@ int run_process(const ProcessArgs& args) {
   const nlohmann::json options = to_json(args.options);
 
   // SIGINT / SIGTERM are taken by this thread with sigtimedwait (blocked everywhere, so
-  // no handler and no global flag); the worker threads check `stop` between frames.
+  // no handler and no global flag); the worker threads check `stop` between frames. The
+  // last worker thread to finish wakes this one with SIGUSR1 (the batch ends when its
+  // last frame does, not at the next tick).
   sigset_t stop_signals;
   sigemptyset(&stop_signals);
   sigaddset(&stop_signals, SIGINT);
   sigaddset(&stop_signals, SIGTERM);
-  ::pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+  sigset_t waited = stop_signals;
+  sigaddset(&waited, SIGUSR1);
+  ::pthread_sigmask(SIG_BLOCK, &waited, nullptr);
   ::signal(SIGPIPE, SIG_IGN);
+  const pthread_t main_thread = ::pthread_self();
 
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
@@ -113,12 +118,13 @@ int run_process(const ProcessArgs& args) {
           progress.finished(job.input_path, job.output_path, worker.run(job));
         }
       }  // the worker ends with the thread that started it
-      --running;
+      if (--running == 0) ::pthread_kill(main_thread, SIGUSR1);
     });
   }
   const timespec tick{0, 100 * 1000 * 1000};
   while (running > 0) {
-    if (::sigtimedwait(&stop_signals, nullptr, &tick) > 0 && !stop) {
+    const int sig = ::sigtimedwait(&waited, nullptr, &tick);
+    if ((sig == SIGINT || sig == SIGTERM) && !stop) {
       stop = true;
       std::cerr << "\nssdo process: stopping: frames in flight finish, no new frame starts\n";
     }
