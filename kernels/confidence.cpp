@@ -58,6 +58,135 @@ RayMap make_ray_map(const Camera& cam) {
   return m;
 }
 
+// kLanes foreground pixels of a row evaluated together, one per vector lane: every lane
+// runs the same operations in the same order as a pixel alone (its sums in tap order), so
+// the lanes change the speed, not the bits.
+constexpr int kLanes = 8;  // one AVX2 register of floats
+
+struct PixelLanes {  // the per-pixel constants, one entry per lane
+  alignas(32) float pxc[kLanes], pyc[kLanes];            // pixel centre
+  alignas(32) float px[kLanes], py[kLanes], pz[kLanes];  // view-space point p
+  alignas(32) float nx[kLanes], ny[kLanes], nz[kLanes];  // view-space normal n
+  alignas(32) float rx_px[kLanes], ry_px[kLanes];        // projected radius, pixels
+  alignas(32) float r2[kLanes];                          // radius^2, scene units^2
+  alignas(32) float cos_r[kLanes], sin_r[kLanes];        // the pixel's spiral rotation
+  // Perspective only, where every ray starts at o = 0: f = o - p, c = f.f - R^2 and n.f
+  // are the pixel's, whatever the tap.
+  alignas(32) float fx[kLanes], fy[kLanes], fz[kLanes], c[kLanes], nf[kLanes];
+};
+
+struct TapLanes {  // every tap of the lanes, [tap][lane]
+  alignas(32) float x[kMaxTaps][kLanes], y[kMaxTaps][kLanes];  // tap pixel
+  alignas(32) int index[kMaxTaps][kLanes];                      // into TapFrame::surface
+  alignas(32) float s0[kMaxTaps][kLanes], s1[kMaxTaps][kLanes], len_scale[kMaxTaps][kLanes];
+  alignas(32) float surface[kMaxTaps][kLanes];
+};
+
+// What the taps read, shared by every pixel of a call.
+struct TapFrame {
+  RayMap rays;
+  const float* spiral_x;
+  const float* spiral_y;
+  int n_taps;
+  int width, height;
+  // Per texel of the frame (row-major, contiguous): the largest ray parameter still in
+  // front of the stored surface, 0 where the tap is unknown; one more unknown texel at
+  // index width * height, for off-screen taps.
+  const float* surface;
+};
+
+// The sums of the confidence's ratio (confidence.h) of the pixels in the lanes.
+// kPerspective: the rays start at o = o0 + cx ox + cy oy = +0 exactly (o0, ox, oy are +0,
+// so each product is +-0 and the sums +0) for every tap with a finite centre, and f, c and
+// n.f are the pixel's (PixelLanes). The other centres are NaN (a NaN projected radius, as
+// where pixels_per_unit is infinite), which makes u, a and s0 NaN and the chord empty
+// either way.
+template <bool kPerspective>
+void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
+                TapLanes& __restrict tap, double (&observed)[kLanes], double (&total)[kLanes]) {
+  const RayMap rays = frame.rays;
+  const int n_taps = frame.n_taps, width = frame.width;
+  const float width_f = float(frame.width), height_f = float(frame.height);
+  const float max_x = float(frame.width - 1), max_y = float(frame.height - 1);
+  const int unknown_index = frame.width * frame.height;
+  // Pass 1, every tap of every lane (no branch: 8 lanes per instruction): the tap pixel,
+  // and the chord [s0, s1] of the hemisphere along the ray through its centre (where its
+  // depth was sampled), in ray parameter units; len_scale converts them to lengths. Taps
+  // whose ray misses get s1 = s0.
+  for (int k = 0; k < n_taps; ++k) {
+    const float vx = frame.spiral_x[k], vy = frame.spiral_y[k];
+#pragma GCC unroll 1
+    for (int j = 0; j < kLanes; ++j) {
+      const float cos_r = lane.cos_r[j], sin_r = lane.sin_r[j];
+      const float tx = std::floor(lane.pxc[j] + lane.rx_px[j] * (cos_r * vx - sin_r * vy));
+      const float ty = std::floor(lane.pyc[j] + lane.ry_px[j] * (sin_r * vx + cos_r * vy));
+      const float cx = tx + 0.5f, cy = ty + 0.5f;
+      const glm::vec3 n(lane.nx[j], lane.ny[j], lane.nz[j]);
+      const glm::vec3 u = rays.u0 + cx * rays.ux + cy * rays.uy;
+      glm::vec3 f;
+      float c, nf;
+      if constexpr (kPerspective) {
+        f = glm::vec3(lane.fx[j], lane.fy[j], lane.fz[j]);
+        c = lane.c[j];
+        nf = lane.nf[j];
+      } else {
+        const glm::vec3 p(lane.px[j], lane.py[j], lane.pz[j]);
+        const glm::vec3 o = rays.o0 + cx * rays.ox + cy * rays.oy;
+        f = o - p;
+        c = glm::dot(f, f) - lane.r2[j];
+        nf = glm::dot(n, f);
+      }
+      const float a = glm::dot(u, u), b = glm::dot(u, f);
+      const float disc = b * b - a * c;
+      const float root = std::sqrt(std::max(disc, 0.0f));
+      float s0 = std::max((-b - root) / a, 0.0f), s1 = (-b + root) / a;
+      // Clip to the hemisphere n.(x - p) >= 0. A ray parallel to the tangent plane
+      // (nu = 0) is kept whole above it and dropped below it.
+      const float nu = glm::dot(n, u);
+      const float s_plane = -nf / nu;
+      s1 = nu < 0.0f ? std::min(s1, s_plane) : s1;
+      s0 = nu > 0.0f ? std::max(s0, s_plane) : s0;
+      const bool hit = disc > 0.0f && !(nu == 0.0f && nf < 0.0f) && s1 > s0;
+      tap.x[k][j] = tx;
+      tap.y[k][j] = ty;
+      tap.s0[k][j] = s0;
+      tap.s1[k][j] = hit ? s1 : s0;  // an empty chord: weighs nothing below
+      tap.len_scale[k][j] = std::sqrt(a);
+    }
+  }
+  // Pass 2: the texel of each tap; off-screen taps read the unknown texel. The clamp keeps
+  // the conversion defined (std::max(0, t) also maps NaN to 0).
+  for (int k = 0; k < n_taps; ++k) {
+#pragma GCC unroll 1
+    for (int j = 0; j < kLanes; ++j) {
+      const float tx = tap.x[k][j], ty = tap.y[k][j];
+      const bool on_screen = (tx >= 0.0f) & (ty >= 0.0f) & (tx < width_f) & (ty < height_f);
+      const int index = int(std::min(std::max(0.0f, ty), max_y)) * width +
+                        int(std::min(std::max(0.0f, tx), max_x));
+      tap.index[k][j] = on_screen ? index : unknown_index;
+    }
+  }
+  // Pass 3: the surface at each tap (scattered reads, apart from the arithmetic).
+  for (int k = 0; k < n_taps; ++k)
+    for (int j = 0; j < kLanes; ++j) tap.surface[k][j] = frame.surface[tap.index[k][j]];
+  // Pass 4, in tap order per lane: the chord's length, and its observed part
+  // [s0, min(s1, s_surface)] where the tap is known. Taps adding nothing add +0.0, which
+  // leaves the (non-negative) sums unchanged: the same sums as skipping them.
+  for (int j = 0; j < kLanes; ++j) observed[j] = total[j] = 0.0;
+  for (int k = 0; k < n_taps; ++k) {
+#pragma GCC unroll 1
+    for (int j = 0; j < kLanes; ++j) {
+      const float s0 = tap.s0[k][j], s1 = tap.s1[k][j], len_scale = tap.len_scale[k][j];
+      const float s_surface = tap.surface[k][j];
+      const bool chord = s1 > s0;
+      const float seen = std::min(s1, s_surface) - s0;
+      const bool seen_tap = chord & (s_surface > 0.0f) & (seen > 0.0f);
+      total[j] += double(chord ? (s1 - s0) * len_scale : 0.0f);
+      observed[j] += double(seen_tap ? seen * len_scale : 0.0f);
+    }
+  }
+}
+
 }  // namespace
 
 std::string validate(const ConfidenceSettings& s) {
@@ -113,85 +242,108 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     spiral_y[size_t(k)] = rho * std::sin(angle);
   }
 
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    struct Taps {  // one pixel's taps, structure of arrays
-      alignas(32) float x[kMaxTaps], y[kMaxTaps], s0[kMaxTaps], s1[kMaxTaps], len_scale[kMaxTaps];
-    } tap;
+  // Tap validity and surface in one plane, read once per tap: depth_view x bias_scale (the
+  // largest ray parameter still in front of the stored surface, within the relative bias:
+  // the pixel's own plane seen at a tap is observed) where the tap is known, 0 where it is
+  // masked or its depth is not a positive finite value. Contiguous rows, so a tap is one
+  // index. The whole frame: taps reach anywhere, whatever the roi.
+  // One more texel past the frame's end, unknown: off-screen taps read it.
+  std::vector<float> surface(size_t(width) * size_t(height) + 1, 0.0f);
+  parallel_rows(cv::Range(0, height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = mask.ptr<uint8_t>(y);
       const float* depth_row = depth_view.ptr<float>(y);
-      const cv::Vec3f* normal_row = normal_view.ptr<cv::Vec3f>(y);
-      float* out = confidence.ptr<float>(y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
+      float* surface_row = surface.data() + size_t(y) * size_t(width);
+      for (int x = 0; x < width; ++x) {
         const float d = depth_row[x];
-        if (mask_row[x] == 0 || !(d > 0.0f) || !std::isfinite(d)) {
-          out[x] = 1.0f;
-          continue;
-        }
-        const float pxc = float(x) + 0.5f, pyc = float(y) + 0.5f;
-        const glm::vec3 p = rays.o0 + pxc * rays.ox + pyc * rays.oy +
-                            d * (rays.u0 + pxc * rays.ux + pyc * rays.uy);
-        const glm::vec3 n(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
-        // The estimator's neighbourhood: the radius, shrunk where its projection exceeds
-        // max_radius_px (the methods shrink theirs the same way).
-        const glm::vec2 ppu = camera.pixels_per_unit(d);
-        float radius = s.radius_world;
-        const float radius_px_max = radius * std::max(ppu.x, ppu.y);
-        if (radius_px_max > s.max_radius_px) radius *= s.max_radius_px / radius_px_max;
-        const float rx_px = radius * ppu.x, ry_px = radius * ppu.y;
-        const float r2 = radius * radius;
-        const float rotation = 6.2831853f * noise01(x, y, 0, s.seed);
-        const float cos_r = std::cos(rotation), sin_r = std::sin(rotation);
-        // Phase 1, every tap at once (no branch, so the compiler runs 8 taps per
-        // instruction): the tap pixel, and the chord [s0, s1] of the hemisphere along the
-        // ray through its centre (where its depth was sampled), in ray parameter units;
-        // len_scale converts them to lengths. Taps whose ray misses get s1 <= s0.
-        for (int k = 0; k < n_taps; ++k) {
-          const float vx = spiral_x[size_t(k)], vy = spiral_y[size_t(k)];
-          const float tx = std::floor(pxc + rx_px * (cos_r * vx - sin_r * vy));
-          const float ty = std::floor(pyc + ry_px * (sin_r * vx + cos_r * vy));
-          const float cx = tx + 0.5f, cy = ty + 0.5f;
-          const glm::vec3 o = rays.o0 + cx * rays.ox + cy * rays.oy;
-          const glm::vec3 u = rays.u0 + cx * rays.ux + cy * rays.uy;
-          const glm::vec3 f = o - p;
-          const float a = glm::dot(u, u), b = glm::dot(u, f), c = glm::dot(f, f) - r2;
-          const float disc = b * b - a * c;
-          const float root = std::sqrt(std::max(disc, 0.0f));
-          float s0 = std::max((-b - root) / a, 0.0f), s1 = (-b + root) / a;
-          // Clip to the hemisphere n.(x - p) >= 0. A ray parallel to the tangent plane
-          // (nu = 0) is kept whole above it and dropped below it.
-          const float nu = glm::dot(n, u), nf = glm::dot(n, f);
-          const float s_plane = -nf / nu;
-          s1 = nu < 0.0f ? std::min(s1, s_plane) : s1;
-          s0 = nu > 0.0f ? std::max(s0, s_plane) : s0;
-          const bool hit = disc > 0.0f && !(nu == 0.0f && nf < 0.0f) && s1 > s0;
-          tap.x[k] = tx;
-          tap.y[k] = ty;
-          tap.s0[k] = s0;
-          tap.s1[k] = hit ? s1 : s0;  // an empty chord: weighs nothing below
-          tap.len_scale[k] = std::sqrt(a);
-        }
-        // Phase 2, in tap order: the sums, and the depth reads (gathers).
-        double observed = 0.0, total = 0.0;
-        for (int k = 0; k < n_taps; ++k) {
-          const float s0 = tap.s0[k], s1 = tap.s1[k];
-          if (!(s1 > s0)) continue;
-          const float len_scale = tap.len_scale[k];
-          total += double((s1 - s0) * len_scale);
-          const int tx = int(tap.x[k]), ty = int(tap.y[k]);
-          if (tx < 0 || ty < 0 || tx >= width || ty >= height) continue;  // off screen
-          if (mask.ptr<uint8_t>(ty)[tx] == 0) continue;                     // unknown
-          const float d_tap = depth_view.ptr<float>(ty)[tx];
-          if (!(d_tap > 0.0f) || !std::isfinite(d_tap)) continue;
-          // In front of the stored surface (within the relative bias: the pixel's own
-          // plane seen at the tap is observed).
-          const float s_surface = d_tap * bias_scale;
-          const float seen = std::min(s1, s_surface) - s0;
-          if (seen > 0.0f) observed += double(seen * len_scale);
-        }
-        out[x] = total > 0.0 ? float(std::clamp(observed / total, 0.0, 1.0)) : 1.0f;
+        const bool known = mask_row[x] != 0 && d > 0.0f && std::isfinite(d);
+        surface_row[x] = known ? d * bias_scale : 0.0f;
       }
     }
+  });
+
+  const TapFrame frame{rays, spiral_x.data(), spiral_y.data(), n_taps, width, height, surface.data()};
+
+  const bool perspective = camera.is_perspective();
+
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    PixelLanes lane;
+    TapLanes tap;
+    // The pending foreground pixels; lanes fill across the rows of the strip.
+    int lane_x[kLanes], lane_y[kLanes];
+    float* lane_out[kLanes];
+    int n_lanes = 0;
+    auto evaluate = [&] {
+      for (int j = n_lanes; j < kLanes; ++j) {  // unfilled lanes repeat the last pixel
+        lane_x[j] = lane_x[n_lanes - 1], lane_y[j] = lane_y[n_lanes - 1];
+      }
+      alignas(32) float depth[kLanes], rotation[kLanes], ppu_x[kLanes], ppu_y[kLanes];
+      for (int j = 0; j < kLanes; ++j) {
+        const int x = lane_x[j], y = lane_y[j];
+        depth[j] = depth_view.ptr<float>(y)[x];
+        const cv::Vec3f& n = normal_view.ptr<cv::Vec3f>(y)[x];
+        lane.nx[j] = n[0], lane.ny[j] = n[1], lane.nz[j] = n[2];
+        lane.pxc[j] = float(x) + 0.5f, lane.pyc[j] = float(y) + 0.5f;
+        rotation[j] = 6.2831853f * noise01(x, y, 0, s.seed);
+      }
+      for (int j = 0; j < kLanes; ++j) {
+        const glm::vec2 ppu = camera.pixels_per_unit(depth[j]);
+        ppu_x[j] = ppu.x, ppu_y[j] = ppu.y;
+        lane.cos_r[j] = std::cos(rotation[j]), lane.sin_r[j] = std::sin(rotation[j]);
+      }
+      for (int j = 0; j < kLanes; ++j) {
+        const float d = depth[j], pxc = lane.pxc[j], pyc = lane.pyc[j];
+        const glm::vec3 p = rays.o0 + pxc * rays.ox + pyc * rays.oy +
+                            d * (rays.u0 + pxc * rays.ux + pyc * rays.uy);
+        // The estimator's neighbourhood: the radius, shrunk where its projection exceeds
+        // max_radius_px (the methods shrink theirs the same way).
+        float radius = s.radius_world;
+        const float radius_px_max = radius * std::max(ppu_x[j], ppu_y[j]);
+        radius = radius_px_max > s.max_radius_px ? radius * (s.max_radius_px / radius_px_max)
+                                                 : radius;
+        lane.px[j] = p.x, lane.py[j] = p.y, lane.pz[j] = p.z;
+        lane.rx_px[j] = radius * ppu_x[j], lane.ry_px[j] = radius * ppu_y[j];
+        lane.r2[j] = radius * radius;
+        const glm::vec3 f = glm::vec3(0.0f) - p;  // o - p with the perspective o = 0
+        const glm::vec3 n(lane.nx[j], lane.ny[j], lane.nz[j]);
+        lane.fx[j] = f.x, lane.fy[j] = f.y, lane.fz[j] = f.z;
+        lane.c[j] = glm::dot(f, f) - lane.r2[j];
+        lane.nf[j] = glm::dot(n, f);
+      }
+      double observed[kLanes], total[kLanes];
+      if (perspective)
+        sum_chords<true>(frame, lane, tap, observed, total);
+      else
+        sum_chords<false>(frame, lane, tap, observed, total);
+      for (int j = 0; j < n_lanes; ++j)
+        *lane_out[j] = total[j] > 0.0 ? float(std::clamp(observed[j] / total[j], 0.0, 1.0)) : 1.0f;
+      n_lanes = 0;
+    };
+    // Foreground pixels are found a chunk of a row at a time, without a branch per pixel.
+    constexpr int kChunk = 64;
+    int chunk_x[kChunk];
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* mask_row = mask.ptr<uint8_t>(y);
+      const float* depth_row = depth_view.ptr<float>(y);
+      float* out = confidence.ptr<float>(y);
+      for (int x0 = r.x; x0 < r.x + r.width; x0 += kChunk) {
+        const int x1 = std::min(x0 + kChunk, r.x + r.width);
+        int n_foreground = 0;
+        for (int x = x0; x < x1; ++x) {
+          const float d = depth_row[x];
+          const bool foreground = (mask_row[x] != 0) & (d > 0.0f) & std::isfinite(d);
+          out[x] = 1.0f;  // background; foreground pixels are overwritten when evaluated
+          chunk_x[n_foreground] = x;
+          n_foreground += foreground;
+        }
+        for (int i = 0; i < n_foreground; ++i) {
+          lane_x[n_lanes] = chunk_x[i], lane_y[n_lanes] = y;
+          lane_out[n_lanes] = out + chunk_x[i];
+          if (++n_lanes == kLanes) evaluate();
+        }
+      }
+    }
+    if (n_lanes > 0) evaluate();
   });
 }
 
