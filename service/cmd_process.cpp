@@ -117,7 +117,9 @@ int run_process(const ProcessArgs& args) {
           WorkerJob job{todo[i], output_path_for(todo[i], args.output_dir), options};
           progress.finished(job.input_path, job.output_path, worker.run(job));
         }
-      }  // the worker ends with the thread that started it
+        // Every output is in place: the batch need not wait for the worker to exit.
+        worker.release();
+      }
       if (--running == 0) ::pthread_kill(main_thread, SIGUSR1);
     });
   }

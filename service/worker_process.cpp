@@ -49,6 +49,14 @@ WorkerProcess::WorkerProcess(WorkerLimits limits, std::string executable)
 
 WorkerProcess::~WorkerProcess() { stop(false); }
 
+void WorkerProcess::release() {
+  if (pid_ <= 0) return;
+  ::close(to_worker_);
+  ::close(from_worker_);
+  to_worker_ = from_worker_ = -1;
+  pid_ = -1;
+}
+
 bool WorkerProcess::start(std::string& error) { return pid_ > 0 || spawn(error); }
 
 bool WorkerProcess::spawn(std::string& error) {

@@ -67,6 +67,11 @@ class WorkerProcess {
   // Runs one frame. Never throws; every failure is in the result.
   WorkerResult run(const WorkerJob& job);
 
+  // Ends the worker without waiting for it: closes the pipes, and the idle worker exits on
+  // its own (the kernel frees its memory, ~0.1 s for a 1080p frame's, after this returns).
+  // For a process about to exit, whose end reaps it; the destructor waits instead.
+  void release();
+
   pid_t pid() const { return pid_; }
   int spawn_count() const { return spawns_; }
 
