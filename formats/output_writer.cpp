@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -15,6 +16,7 @@
 #include <span>
 #include <sstream>
 #include <stdexcept>
+#include <thread>
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFloatAttribute.h>
@@ -287,12 +289,12 @@ constexpr int kBatchChunks = 256;
 
 // zip, zips and none with ChunkEncoder::own: the header and the chunk table are
 // OpenEXRCore's; the chunks are packed (and deflated, formats/exr_zip) here in parallel, in
-// batches, and written in increasing y order from this thread, as OpenEXR's writer orders
-// them (lineOrder INCREASING_Y). The header carries the same attributes as write_exr's, plus
-// the "type" attribute ("scanlineimage") OpenEXRCore 3.1 writes into every part (optional
-// in single-part files, which readers accept); the zip level is not among them (OpenEXR
-// keeps it out of the file). Little-endian hosts only (the packed samples are the
-// in-memory bytes). Throws on failure (the caller removes the temp file).
+// batches, and written in increasing y order from one thread at a time, as OpenEXR's
+// writer orders them (lineOrder INCREASING_Y). The header carries the same attributes as
+// write_exr's, plus the "type" attribute ("scanlineimage") OpenEXRCore 3.1 writes into
+// every part (optional in single-part files, which readers accept); the zip level is not
+// among them (OpenEXR keeps it out of the file). Little-endian hosts only (the packed
+// samples are the in-memory bytes). Throws on failure (the caller removes the temp file).
 void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
                    const Camera& camera, const WriteOptions& options, Imf::Compression compression,
                    cv::Size size) {
@@ -373,34 +375,60 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   const int by_size = int(std::clamp<size_t>(kBatchPackedBytes / chunk_bytes, 1, kBatchChunks));
   const int batch = std::min(chunks, std::max(4 * threads, by_size));
   const bool deflate = compression != Imf::NO_COMPRESSION;
-  std::vector<std::vector<uint8_t>> stored(static_cast<size_t>(batch));  // reused across batches
-  for (int first = 0; first < chunks; first += batch) {
-    const int count = std::min(batch, chunks - first);
-    parallel_rows(cv::Range(0, count), options.threads, [&](const cv::Range& range) {
-      // One packed chunk per thread, kept like exr_zip's own scratch buffer.
-      thread_local std::vector<uint8_t> packed;
-      for (int i = range.start; i < range.end; ++i) {
-        const int y0 = (first + i) * lines_per_chunk;
-        const int y1 = std::min(y0 + lines_per_chunk, size.height);
-        if (!deflate) {  // stored as packed
-          stored[size_t(i)].resize(line_bytes * size_t(y1 - y0));
-          pack_lines(order, size.width, y0, y1, stored[size_t(i)].data());
-          continue;
+  // Two sets of chunk buffers: while one batch is written to the file (a thread of its own:
+  // the copy into the page cache is serial), the next is packed and compressed into the
+  // other on the pool.
+  std::vector<std::vector<uint8_t>> stored[2];
+  stored[0].resize(size_t(batch));
+  stored[1].resize(size_t(batch));
+  std::thread writing;
+  std::exception_ptr write_error;
+  const auto finish_writing = [&] {
+    if (writing.joinable()) writing.join();
+    if (write_error) std::rethrow_exception(write_error);
+  };
+  try {
+    for (int first = 0, b = 0; first < chunks; first += batch, b ^= 1) {
+      const int count = std::min(batch, chunks - first);
+      std::vector<std::vector<uint8_t>>& out = stored[b];
+      parallel_rows(cv::Range(0, count), options.threads, [&](const cv::Range& range) {
+        // One packed chunk per thread, kept like exr_zip's own scratch buffer.
+        thread_local std::vector<uint8_t> packed;
+        for (int i = range.start; i < range.end; ++i) {
+          const int y0 = (first + i) * lines_per_chunk;
+          const int y1 = std::min(y0 + lines_per_chunk, size.height);
+          if (!deflate) {  // stored as packed
+            out[size_t(i)].resize(line_bytes * size_t(y1 - y0));
+            pack_lines(order, size.width, y0, y1, out[size_t(i)].data());
+            continue;
+          }
+          packed.resize(line_bytes * size_t(y1 - y0));
+          pack_lines(order, size.width, y0, y1, packed.data());
+          // A chunk deflate does not shrink is stored as packed; readers tell it by its size
+          // (OpenEXR "Technical Introduction", "ZIP compression"; ImfZipCompressor.cpp).
+          if (!exr_zip::compress(packed, options.zip_level, out[size_t(i)]))
+            out[size_t(i)].assign(packed.begin(), packed.end());
         }
-        packed.resize(line_bytes * size_t(y1 - y0));
-        pack_lines(order, size.width, y0, y1, packed.data());
-        // A chunk deflate does not shrink is stored as packed; readers tell it by its size
-        // (OpenEXR "Technical Introduction", "ZIP compression"; ImfZipCompressor.cpp).
-        if (!exr_zip::compress(packed, options.zip_level, stored[size_t(i)]))
-          stored[size_t(i)].assign(packed.begin(), packed.end());
-      }
-    }, 1);
-    for (int i = 0; i < count; ++i) {
-      const std::vector<uint8_t>& bytes = stored[size_t(i)];
-      check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
-                                          bytes.data(), bytes.size()),
-                 "cannot write a chunk");
+      }, 1);
+      finish_writing();  // the previous batch, whose buffers the next one reuses
+      writing = std::thread([&, first, count, b] {
+        try {
+          exr_core::forget_error();
+          for (int i = 0; i < count; ++i) {
+            const std::vector<uint8_t>& bytes = stored[b][size_t(i)];
+            check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
+                                                bytes.data(), bytes.size()),
+                       "cannot write a chunk");
+          }
+        } catch (...) {
+          write_error = std::current_exception();
+        }
+      });
     }
+    finish_writing();
+  } catch (...) {
+    if (writing.joinable()) writing.join();
+    throw;
   }
   // Writes the chunk offset table and closes the file.
   check_core(file.finish(), "cannot finish the file");
