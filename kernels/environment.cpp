@@ -178,12 +178,11 @@ void Environment::build() {
   if (kind_ == EnvironmentKind::sky) {
     const cv::Size size(2 * kAnalyticGridHeightPx, kAnalyticGridHeightPx);
     grid.create(size, CV_32FC3);
+    // The sky depends on the up-component only, sin(theta), the same at every texel centre
+    // of a row: one evaluation per row.
     for (int j = 0; j < size.height; ++j) {
-      cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
-      for (int i = 0; i < size.width; ++i) {
-        const glm::vec3 l = radiance_env(direction_from_equirect({i + 0.5f, j + 0.5f}, size));
-        row[i] = cv::Vec3f(l.x, l.y, l.z);
-      }
+      const glm::vec3 l = radiance_env(direction_from_equirect({0.5f, j + 0.5f}, size));
+      grid.row(j).setTo(cv::Scalar(l.x, l.y, l.z));
     }
   }
 
@@ -256,15 +255,24 @@ void Environment::build() {
   if (grid.rows > kFilterSourceHeightPx) {
     const cv::Size ssize(2 * kFilterSourceHeightPx, kFilterSourceHeightPx);
     std::vector<double> sum(size_t(ssize.area()) * 3, 0.0), weight(size_t(ssize.area()), 0.0);
+    // Target column of each grid column: non-decreasing, so a row is a sequence of runs of
+    // columns that fall in the same target texel, each summed in column order.
+    std::vector<int> target_column(size_t(grid.cols) + 1);
+    for (int i = 0; i < grid.cols; ++i) target_column[i] = int(int64_t(i) * ssize.width / grid.cols);
+    target_column[grid.cols] = ssize.width;  // sentinel: ends the last run
     for (int j = 0; j < grid.rows; ++j) {
       const double d_omega = equirect_pixel_solid_angle(j, grid.size());
       const int tj = int(int64_t(j) * ssize.height / grid.rows);
       const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
-      for (int i = 0; i < grid.cols; ++i) {
-        const int ti = int(int64_t(i) * ssize.width / grid.cols);
+      for (int i = 0; i < grid.cols;) {
+        const int ti = target_column[i];
         const size_t t = size_t(tj) * ssize.width + ti;
-        for (int c = 0; c < 3; ++c) sum[3 * t + c] += row[i][c] * d_omega;
-        weight[t] += d_omega;
+        double r = sum[3 * t], g = sum[3 * t + 1], b = sum[3 * t + 2], w = weight[t];
+        for (; target_column[i] == ti; ++i) {
+          r += row[i][0] * d_omega, g += row[i][1] * d_omega, b += row[i][2] * d_omega;
+          w += d_omega;
+        }
+        sum[3 * t] = r, sum[3 * t + 1] = g, sum[3 * t + 2] = b, weight[t] = w;
       }
     }
     source.create(ssize, CV_32FC3);
@@ -296,25 +304,85 @@ void Environment::build() {
       source_dir[size_t(j) * ssize.width + i] = direction_from_equirect({i + 0.5f, j + 0.5f}, ssize);
   }
   const double row_step = kPi / ssize.height;
+  // Which source columns of row j can hold a texel centre inside the cone around a target
+  // texel of row tj. For unit directions at elevations theta_s, theta_t and azimuth
+  // difference dphi,
+  //   s . c = cos(theta_s) cos(theta_t) cos(dphi) + sin(theta_s) sin(theta_t),
+  // so s . c >= cos_cone  <=>  cos(dphi) >= K = (cos_cone - sin sin) / (cos cos): the texels
+  // of a row inside the cone are the columns within acos(K) of the target's azimuth, one
+  // interval (wrapping around column 0). The interval is widened to be sure it holds every
+  // texel the float test below accepts: K is lowered by kDotError / (cos cos), kDotError
+  // bounding the float dot's error against the exact one (float directions and three
+  // products and two sums of magnitude <= 1: < 1e-6), and kMarginColumns columns are added
+  // on each side. Inside the interval the float test decides, so the accepted texels, and
+  // the order in which they are summed (increasing column), are those of testing every
+  // column of the row.
+  constexpr double kDotError = 1e-5;
+  constexpr double kMarginColumns = 2.0;
+  struct RowInterval {
+    int row;              // source row j
+    bool whole_row;       // the interval covers every column
+    double half_columns;  // else: columns within this distance of the target's column
+  };
+  auto row_intervals = [&](int tj, std::vector<RowInterval>& out) {
+    out.clear();
+    const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
+    for (int j = 0; j < ssize.height; ++j) {
+      // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
+      // a texel centre inside it.
+      const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
+      if (std::abs(theta_s - theta_t) > cone + 0.5 * row_step) continue;
+      const double cos_cos = std::cos(theta_s) * std::cos(theta_t);
+      const double sin_sin = std::sin(theta_s) * std::sin(theta_t);
+      const double k_low = cos_cos > 0.0 ? (double(cos_cone) - kDotError - sin_sin) / cos_cos : -2.0;
+      if (k_low > 1.0) continue;  // no texel of the row reaches the cone
+      const double half_columns =
+          k_low <= -1.0 ? double(ssize.width) : std::acos(k_low) * ssize.width / (2.0 * kPi) + kMarginColumns;
+      out.push_back({j, 2.0 * half_columns + 1.0 >= double(ssize.width), half_columns});
+    }
+  };
   // Target rows are independent: on OpenCV's pool (as sized by the caller; the same values
   // for any thread count).
   parallel_rows(cv::Range(0, tsize.height), 0, [&](const cv::Range& target_rows) {
+    std::vector<RowInterval> intervals;
+    intervals.reserve(size_t(ssize.height));
     for (int tj = target_rows.start; tj < target_rows.end; ++tj) {
-      const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
+      row_intervals(tj, intervals);
       for (int ti = 0; ti < tsize.width; ++ti) {
         const glm::vec3 c = direction_from_equirect({ti + 0.5f, tj + 0.5f}, tsize);
+        // The target's azimuth as a continuous source column (the centre of column i is at
+        // i + 0.5 in the layout's pixel coordinates).
+        const double column_t = (ti + 0.5) * ssize.width / tsize.width - 0.5;
         double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
-        for (int j = 0; j < ssize.height; ++j) {
-          // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
-          // a texel centre inside it.
-          const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
-          if (std::abs(theta_s - theta_t) > cone + 0.5 * row_step) continue;
+        for (const RowInterval& interval : intervals) {
+          const int j = interval.row;
           const cv::Vec3f* row = source.ptr<cv::Vec3f>(j);
           const glm::vec3* dirs = &source_dir[size_t(j) * ssize.width];
-          for (int i = 0; i < ssize.width; ++i) {
-            if (glm::dot(dirs[i], c) < cos_cone) continue;
-            for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * row_solid_angle[j];
-            weight += row_solid_angle[j];
+          const double d_omega = row_solid_angle[j];
+          auto add_columns = [&](int begin, int end) {
+            for (int i = begin; i < end; ++i) {
+              if (glm::dot(dirs[i], c) < cos_cone) continue;
+              for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * d_omega;
+              weight += d_omega;
+            }
+          };
+          if (interval.whole_row) {
+            add_columns(0, ssize.width);
+            continue;
+          }
+          // [first, last] spans fewer than width columns, so at most one end wraps and the
+          // two pieces of a wrapped interval do not overlap; the piece from column 0 comes
+          // first to keep the columns in increasing order.
+          const int first = int(std::ceil(column_t - interval.half_columns));
+          const int last = int(std::floor(column_t + interval.half_columns));
+          if (first < 0) {
+            add_columns(0, last + 1);
+            add_columns(first + ssize.width, ssize.width);
+          } else if (last >= ssize.width) {
+            add_columns(0, last - ssize.width + 1);
+            add_columns(first, ssize.width);
+          } else {
+            add_columns(first, last + 1);
           }
         }
         cv::Vec3f& v = filtered_.at<cv::Vec3f>(tj, ti);

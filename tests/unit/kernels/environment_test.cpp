@@ -3,6 +3,8 @@
 #include "kernels/environment.h"
 
 #include <cmath>
+#include <cstring>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -172,6 +174,84 @@ TEST(Environment, FilteredLookupAveragesOverTheCone) {
   EXPECT_GT(at_zenith, 0.0f);
   EXPECT_LT(at_zenith, 0.5f);
   EXPECT_NEAR(filter_cone_half_angle_for_samples(30), 14.8f, 0.1f);
+}
+
+// The cone filter as its comment states it, by brute force: the filter source (the image
+// box-averaged, solid-angle weighted, down to 64 rows when taller), then for every target
+// texel every source texel of every row in the cone's elevation band is tested.
+cv::Mat reference_filtered_map(const cv::Mat& image, const EnvironmentSettings& s) {
+  auto pixel_solid_angle = [](int j, cv::Size size) {
+    const double top = kPi * (0.5 - double(j) / size.height), bottom = kPi * (0.5 - double(j + 1) / size.height);
+    return (2.0 * kPi / size.width) * (std::sin(top) - std::sin(bottom));
+  };
+  cv::Mat source = image;
+  if (image.rows > 64) {
+    const cv::Size ssize(128, 64);
+    std::vector<double> sum(size_t(ssize.area()) * 3, 0.0), weight(size_t(ssize.area()), 0.0);
+    for (int j = 0; j < image.rows; ++j)
+      for (int i = 0; i < image.cols; ++i) {
+        const double d_omega = pixel_solid_angle(j, image.size());
+        const size_t t = size_t(j * ssize.height / image.rows) * ssize.width + size_t(i * ssize.width / image.cols);
+        for (int c = 0; c < 3; ++c) sum[3 * t + c] += image.at<cv::Vec3f>(j, i)[c] * d_omega;
+        weight[t] += d_omega;
+      }
+    source.create(ssize, CV_32FC3);
+    for (size_t t = 0; t < size_t(ssize.area()); ++t)
+      for (int c = 0; c < 3; ++c) source.ptr<cv::Vec3f>()[t][c] = float(sum[3 * t + c] / weight[t]);
+  }
+  const cv::Size tsize(2 * s.filtered_height_px, s.filtered_height_px), ssize = source.size();
+  const double cone = s.filter_cone_half_angle_deg * kPi / 180.0;
+  const float cos_cone = float(std::cos(cone));
+  const Environment point = Environment::equirect(source);  // the fallback's bilinear lookup
+  std::vector<glm::vec3> source_dir;
+  for (int j = 0; j < ssize.height; ++j)
+    for (int i = 0; i < ssize.width; ++i)
+      source_dir.push_back(Environment::direction_from_equirect({i + 0.5f, j + 0.5f}, ssize));
+  cv::Mat out(tsize, CV_32FC3);
+  for (int tj = 0; tj < tsize.height; ++tj)
+    for (int ti = 0; ti < tsize.width; ++ti) {
+      const glm::vec3 c = Environment::direction_from_equirect({ti + 0.5f, tj + 0.5f}, tsize);
+      const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
+      double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
+      for (int j = 0; j < ssize.height; ++j) {
+        const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
+        if (std::abs(theta_s - theta_t) > cone + 0.5 * kPi / ssize.height) continue;
+        const double d_omega = pixel_solid_angle(j, ssize);
+        for (int i = 0; i < ssize.width; ++i) {
+          if (glm::dot(source_dir[size_t(j) * ssize.width + i], c) < cos_cone) continue;
+          for (int k = 0; k < 3; ++k) sum[k] += source.at<cv::Vec3f>(j, i)[k] * d_omega;
+          weight += d_omega;
+        }
+      }
+      cv::Vec3f& v = out.at<cv::Vec3f>(tj, ti);
+      if (weight > 0.0) {
+        for (int k = 0; k < 3; ++k) v[k] = float(sum[k] / weight);
+      } else {
+        const glm::vec3 l = point.radiance_env(c);
+        v = cv::Vec3f(l.x, l.y, l.z);
+      }
+    }
+  return out;
+}
+
+TEST(Environment, FilteredMapMatchesTheBruteForceConeFilterBitForBit) {
+  cv::RNG rng(3);
+  // Sources used as they are (64 rows or fewer, of either aspect) and box-averaged ones.
+  for (const cv::Size size : {cv::Size(128, 64), cv::Size(90, 37), cv::Size(200, 100)}) {
+    cv::Mat img(size, CV_32FC3);
+    rng.fill(img, cv::RNG::UNIFORM, 0.0, 4.0);
+    for (const float cone_deg : {0.0f, 1.0f, 7.3f, 15.0f, 40.0f, 90.0f})
+      for (const int height : {8, 29, 48}) {
+        EnvironmentSettings s;
+        s.filter_cone_half_angle_deg = cone_deg;
+        s.filtered_height_px = height;
+        const cv::Mat got = Environment::equirect(img, s).filtered_map();
+        const cv::Mat want = reference_filtered_map(img, s);
+        ASSERT_EQ(got.size(), want.size());
+        ASSERT_EQ(std::memcmp(got.data, want.data, want.total() * want.elemSize()), 0)
+            << size << " cone " << cone_deg << " height " << height;
+      }
+  }
 }
 
 }  // namespace
