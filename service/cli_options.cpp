@@ -229,7 +229,8 @@ bool resolve_read_options(const ReadOptionArgs& a, ReadOptions& read, std::strin
   return true;
 }
 
-bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error) {
+bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error,
+                             bool build_environment) {
   auto method = parse_ao_method(a.method);
   auto preset = parse_preset(a.preset);
   if (a.quality == "auto") {
@@ -287,12 +288,14 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
       error = env.error;
       return false;
     }
-    request.environment = std::make_shared<const Environment>(Environment::equirect(env.radiance_rgb, env_settings));
+    if (build_environment)
+      request.environment =
+          std::make_shared<const Environment>(Environment::equirect(env.radiance_rgb, env_settings));
   } else if (!a.sky.empty()) {
     SkyGradient sky;
     if (!parse_sky(a.sky, sky.top, sky.bottom, error)) return false;
-    request.environment = std::make_shared<const Environment>(Environment::sky(sky, env_settings));
-  } else if (a.env_constant > 0) {
+    if (build_environment) request.environment = std::make_shared<const Environment>(Environment::sky(sky, env_settings));
+  } else if (a.env_constant > 0 && build_environment) {
     request.environment =
         std::make_shared<const Environment>(Environment::constant(glm::vec3(a.env_constant), env_settings));
   }

@@ -46,8 +46,11 @@ void add_compute_options(CLI::App& app, ComputeOptionArgs& args, bool with_terms
 
 // Fill the request; on a bad value return false with a message naming the option.
 bool resolve_read_options(const ReadOptionArgs& args, ReadOptions& read, std::string& error);
-// Also loads the environment map (once) when one is named.
-bool resolve_compute_options(const ComputeOptionArgs& args, FrameRequest& request, std::string& error);
+// Also loads the environment map (once) when one is named. build_environment = false:
+// the map is read and checked but not prefiltered (request.environment stays null), for
+// a process that only checks options and leaves the frames to workers.
+bool resolve_compute_options(const ComputeOptionArgs& args, FrameRequest& request, std::string& error,
+                             bool build_environment = true);
 
 // "0.25 0.5 1, 1 0.35 0.08" / "0.25:0.5:1,1:0.35:0.08" / "0.25,0.5,1,1,0.35,0.08" / "1,0.2"
 // (grey levels) -> top and bottom colours. False with a message on error.

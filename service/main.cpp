@@ -42,8 +42,10 @@ bool frame_options(const CLI::App& cmd, const std::string& config, FrameOptionAr
       return false;
     }
   }
-  FrameRequest check;  // every value checked (and the environment map read) before any work
-  return resolve_frame_options(options, check, error);
+  // Every value checked (and the environment map read) before any work; the workers build
+  // what they compute with.
+  FrameRequest check;
+  return resolve_frame_options(options, check, error, /*build_environment=*/false);
 }
 
 // Limits of the worker processes (memory, time, image size).

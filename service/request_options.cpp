@@ -213,8 +213,10 @@ bool load_json_file(const std::string& path, json& j, std::string& error) {
   return true;
 }
 
-bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std::string& error) {
-  if (!resolve_read_options(a.read, request.read, error) || !resolve_compute_options(a.compute, request, error))
+bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std::string& error,
+                           bool build_environment) {
+  if (!resolve_read_options(a.read, request.read, error) ||
+      !resolve_compute_options(a.compute, request, error, build_environment))
     return false;
   request.write.compression = a.compression;
   request.write.png_previews = a.png;
