@@ -1,9 +1,16 @@
 #include "kernels/half_resolution.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <vector>
+
+#if defined(__AVX2__) && defined(__FMA__)
+#include <immintrin.h>
+#define SSDO_HALF_RESOLUTION_AVX2 1
+#endif
 
 #include "kernels/parallel.h"
 
@@ -168,6 +175,317 @@ inline void blend_any(const cv::Mat& half, const Footprint& f, const float w[4],
     default: blend<4>(half, f, w, wsum, out); break;
   }
 }
+// Weights of the pixels [x0, x1) of row y (`fy` its row footprint) into out[x0 .. x1), as
+// texel_weights, 0 on background pixels.
+void weights_span(const FullGrid& full, const HalfGrid& h, int y, const AxisFootprint& fy, int x0, int x1,
+                  cv::Vec4f* out) {
+  const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+  Footprint f;
+  f.y = fy;
+  for (int x = x0; x < x1; ++x) {
+    if (!mask_row[x]) {
+      out[x] = cv::Vec4f(0, 0, 0, 0);
+      continue;
+    }
+    f.x = axis_footprint(x, h.depth_view.cols);
+    texel_weights(h, f, full.depth_view.ptr<float>(y)[x], full.normal_view.ptr<cv::Vec3f>(y)[x], &out[x][0]);
+  }
+}
+
+// Foreground pixel (x, y) of depth d and texel weights w of every image: the normalised
+// blend, or the texel closest in depth, or the fallback (header).
+void upsample_pixel(const HalfGrid& h, std::span<const UpsampleImage> images, const Footprint& f, float d,
+                    const float w[4], int x, int y) {
+  float wsum = 0.0f;
+  for (int k = 0; k < 4; ++k) wsum += w[k];
+  if (!(wsum > kMinUpsampleWeight)) {
+    int bi, bj;
+    if (!nearest_in_depth(h, f, d, bi, bj)) {  // no foreground texel near: nothing known
+      for (const UpsampleImage& im : images)
+        write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.fallback,
+                     im.full.channels());
+      return;
+    }
+    for (const UpsampleImage& im : images) {
+      const int cn = im.half.channels();
+      std::copy_n(im.half.ptr<float>(bj) + size_t(bi) * size_t(cn), cn, im.full.ptr<float>(y) + size_t(x) * size_t(cn));
+    }
+    return;
+  }
+  for (const UpsampleImage& im : images)
+    blend_any(im.half, f, w, wsum, im.full.ptr<float>(y) + size_t(x) * size_t(im.half.channels()));
+}
+
+// Pixels [x0, x1) of row y of every image; `kept_row` the row of kept weights or null.
+void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
+                   const cv::Vec4f* kept_row, int y, const AxisFootprint& fy, int x0, int x1) {
+  const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+  Footprint f;
+  f.y = fy;
+  for (int x = x0; x < x1; ++x) {
+    if (!mask_row[x]) {
+      for (const UpsampleImage& im : images)
+        write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.background,
+                     im.full.channels());
+      continue;
+    }
+    const float d = full.depth_view.ptr<float>(y)[x];
+    f.x = axis_footprint(x, h.depth_view.cols);
+    float w[4];
+    if (kept_row != nullptr) std::copy_n(&kept_row[x][0], 4, w);
+    else texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
+    upsample_pixel(h, images, f, d, w, x, y);
+  }
+}
+
+// Rows per strip of the weights and the upsample: a strip lays out each texel row it reads
+// once (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
+constexpr int kRowsPerStrip = 16;
+
+#ifdef SSDO_HALF_RESOLUTION_AVX2
+// Eight pixels at a time (AVX2, FMA): the same operations as the per-pixel code in the
+// same order, lane by lane, so the same bits. Pixel x (odd) .. x + 7 read texel columns
+// m .. m + 4, m = (x - 1) / 2: pixels 2m + 1 and 2m + 2 both read texels m and m + 1, with
+// bilinear fractions 0.25 and 0.75 (exact in float for widths below 2^22).
+namespace lanes {
+
+constexpr int kMaxWidth = 1 << 22;
+
+// The C library's expf (glibc since 2.27, sysdeps/ieee754/flt-32/e_expf.c, as built for
+// FMA machines, which x86-64-v3 ones are) in 8 lanes, so each weight's exp has the bits
+// of the per-pixel std::exp: x 32 / ln 2 = k + r (k rounded to an integer), exp(x) =
+// 2^(k / 32) 2^(r / 32), 2^(i / 32) from a 32-entry table and 2^(r / 32) a cubic, in
+// double. The unit test compares it with std::exp over every float of the weights' range.
+// Lanes with |x| >= 88 (underflow, overflow, infinities, NaN) are left to std::exp.
+alignas(32) constexpr uint64_t kExp2Table[32] = {
+    0x3ff0000000000000, 0x3fefd9b0d3158574, 0x3fefb5586cf9890f, 0x3fef9301d0125b51, 0x3fef72b83c7d517b,
+    0x3fef54873168b9aa, 0x3fef387a6e756238, 0x3fef1e9df51fdee1, 0x3fef06fe0a31b715, 0x3feef1a7373aa9cb,
+    0x3feedea64c123422, 0x3feece086061892d, 0x3feebfdad5362a27, 0x3feeb42b569d4f82, 0x3feeab07dd485429,
+    0x3feea47eb03a5585, 0x3feea09e667f3bcd, 0x3fee9f75e8ec5f74, 0x3feea11473eb0187, 0x3feea589994cce13,
+    0x3feeace5422aa0db, 0x3feeb737b0cdc5e5, 0x3feec49182a3f090, 0x3feed503b23e255d, 0x3feee89f995ad3ad,
+    0x3feeff76f2fb5e47, 0x3fef199bdd85529c, 0x3fef3720dcef9069, 0x3fef5818dcfba487, 0x3fef7c97337b9b5f,
+    0x3fefa4afa2a490da, 0x3fefd0765b6e4540};
+constexpr double kInvLn2N = std::bit_cast<double>(uint64_t(0x40471547652b82fe));  // 32 / ln 2
+constexpr double kShift = 0x1.8p52;  // adding it rounds to an integer (in the low bits)
+constexpr double kExpPoly[3] = {std::bit_cast<double>(uint64_t(0x3ebc6af84b912394)),
+                                std::bit_cast<double>(uint64_t(0x3f2ebfce50fac4f3)),
+                                std::bit_cast<double>(uint64_t(0x3f962e42ff0c52d6))};
+
+inline __m128 exp_4(__m128 x) {
+  const __m256d xd = _mm256_cvtps_pd(x);
+  const __m256d shift = _mm256_set1_pd(kShift), inv_ln2n = _mm256_set1_pd(kInvLn2N);
+  const __m256d kd_shifted = _mm256_fmadd_pd(inv_ln2n, xd, shift);
+  const __m256i ki = _mm256_castpd_si256(kd_shifted);
+  const __m256d kd = _mm256_sub_pd(kd_shifted, shift);
+  const __m256d r = _mm256_fmsub_pd(inv_ln2n, xd, kd);
+  const __m256i table = _mm256_i64gather_epi64(reinterpret_cast<const long long*>(kExp2Table),
+                                               _mm256_and_si256(ki, _mm256_set1_epi64x(31)), 8);
+  const __m256d s = _mm256_castsi256_pd(_mm256_add_epi64(table, _mm256_slli_epi64(ki, 47)));
+  const __m256d z = _mm256_fmadd_pd(r, _mm256_set1_pd(kExpPoly[0]), _mm256_set1_pd(kExpPoly[1]));
+  const __m256d r2 = _mm256_mul_pd(r, r);
+  __m256d y = _mm256_fmadd_pd(r, _mm256_set1_pd(kExpPoly[2]), _mm256_set1_pd(1.0));
+  y = _mm256_fmadd_pd(z, r2, y);
+  return _mm256_cvtpd_ps(_mm256_mul_pd(y, s));
+}
+
+inline __m256 exp_8(__m256 x) {
+  __m256 e = _mm256_set_m128(exp_4(_mm256_extractf128_ps(x, 1)), exp_4(_mm256_castps256_ps128(x)));
+  const __m256i abs_top = _mm256_and_si256(_mm256_srli_epi32(_mm256_castps_si256(x), 20), _mm256_set1_epi32(0x7ff));
+  const int special = _mm256_movemask_ps(_mm256_castsi256_ps(_mm256_cmpgt_epi32(abs_top, _mm256_set1_epi32(0x42a))));
+  if (special != 0) {
+    alignas(32) float xs[8], es[8];
+    _mm256_store_ps(xs, x);
+    _mm256_store_ps(es, e);
+    for (int i = 0; i < 8; ++i)
+      if (special & (1 << i)) es[i] = std::exp(xs[i]);
+    e = _mm256_load_ps(es);
+  }
+  return e;
+}
+
+// x, y, z of 8 interleaved 3-vectors (24 floats) and back.
+inline void deinterleave_3(const float* p, __m256& x, __m256& y, __m256& z) {
+  const __m256 a = _mm256_loadu_ps(p), b = _mm256_loadu_ps(p + 8), c = _mm256_loadu_ps(p + 16);
+  x = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a, b, 0b10010010), c, 0b00100100),
+                               _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+  y = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a, b, 0b00100100), c, 0b01001001),
+                               _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6));
+  z = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a, b, 0b01001001), c, 0b10010010),
+                               _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+}
+
+inline void interleave_3(__m256 x, __m256 y, __m256 z, float* p) {
+  x = _mm256_permutevar8x32_ps(x, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+  y = _mm256_permutevar8x32_ps(y, _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2));
+  z = _mm256_permutevar8x32_ps(z, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+  _mm256_storeu_ps(p, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b10010010), z, 0b00100100));
+  _mm256_storeu_ps(p + 8, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b00100100), z, 0b01001001));
+  _mm256_storeu_ps(p + 16, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b01001001), z, 0b10010010));
+}
+
+// The 4 weights of 8 pixels, stored as 8 cv::Vec4f and back.
+inline void store_weights(const __m256 w[4], cv::Vec4f* out) {
+  const __m256 t0 = _mm256_unpacklo_ps(w[0], w[1]), t1 = _mm256_unpackhi_ps(w[0], w[1]);
+  const __m256 t2 = _mm256_unpacklo_ps(w[2], w[3]), t3 = _mm256_unpackhi_ps(w[2], w[3]);
+  const __m256 p04 = _mm256_shuffle_ps(t0, t2, 0x44), p15 = _mm256_shuffle_ps(t0, t2, 0xEE);
+  const __m256 p26 = _mm256_shuffle_ps(t1, t3, 0x44), p37 = _mm256_shuffle_ps(t1, t3, 0xEE);
+  float* p = &out[0][0];
+  _mm256_storeu_ps(p, _mm256_permute2f128_ps(p04, p15, 0x20));
+  _mm256_storeu_ps(p + 8, _mm256_permute2f128_ps(p26, p37, 0x20));
+  _mm256_storeu_ps(p + 16, _mm256_permute2f128_ps(p04, p15, 0x31));
+  _mm256_storeu_ps(p + 24, _mm256_permute2f128_ps(p26, p37, 0x31));
+}
+
+inline void load_weights(const cv::Vec4f* in, __m256 w[4]) {
+  const float* p = &in[0][0];
+  const __m256 q01 = _mm256_loadu_ps(p), q23 = _mm256_loadu_ps(p + 8);
+  const __m256 q45 = _mm256_loadu_ps(p + 16), q67 = _mm256_loadu_ps(p + 24);
+  const __m256 p04 = _mm256_permute2f128_ps(q01, q45, 0x20), p15 = _mm256_permute2f128_ps(q01, q45, 0x31);
+  const __m256 p26 = _mm256_permute2f128_ps(q23, q67, 0x20), p37 = _mm256_permute2f128_ps(q23, q67, 0x31);
+  const __m256 t0 = _mm256_unpacklo_ps(p04, p15), t1 = _mm256_unpackhi_ps(p04, p15);
+  const __m256 t2 = _mm256_unpacklo_ps(p26, p37), t3 = _mm256_unpackhi_ps(p26, p37);
+  w[0] = _mm256_shuffle_ps(t0, t2, 0x44);
+  w[1] = _mm256_shuffle_ps(t0, t2, 0xEE);
+  w[2] = _mm256_shuffle_ps(t1, t3, 0x44);
+  w[3] = _mm256_shuffle_ps(t1, t3, 0xEE);
+}
+
+// All-ones lanes where the 8 mask bytes are nonzero.
+inline __m256 foreground(const uint8_t* mask) {
+  const __m256i m = _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mask)));
+  return _mm256_castsi256_ps(_mm256_cmpgt_epi32(m, _mm256_setzero_si256()));
+}
+
+// Texel rows of the half grid laid out for 8 pixels at a time: per row, one array per
+// quantity (when asked, the depth, the normal's x, y, z and the mask as all-ones or zero
+// bits; then each image's channels), indexed by texel column + 1, the edge texels repeated
+// at 0 and hw + 1 (axis_footprint's clamp). The texels of pixels x .. x + 7 are then lanes
+// 0 .. 4 of each array from m + 1, and a strip fills each row it reads once.
+class TexelRows {
+ public:
+  static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kMask = 4;
+
+  TexelRows(const HalfGrid& h, bool geometry, std::span<const UpsampleImage> images)
+      : h_(h), images_(images), geometry_(geometry), hw_(h.depth_view.cols), length_(hw_ + 2 + 8) {
+    int arrays = geometry ? 5 : 0;
+    for (const UpsampleImage& im : images) {
+      image_first_.push_back(arrays);
+      arrays += im.half.channels();
+    }
+    arrays_ = arrays;
+    data_.assign(size_t(2) * size_t(arrays_) * size_t(length_), 0.0f);
+  }
+
+  int length() const { return length_; }
+  int image_first(size_t i) const { return image_first_[i]; }
+
+  // Rows j0 and j1, filled unless the strip's previous pixel row read them.
+  void rows(int j0, int j1, const float*& r0, const float*& r1) {
+    int s0 = slot_of(j0);
+    if (s0 < 0) fill(s0 = (slot_of(j1) == 0 ? 1 : 0), j0);
+    int s1 = slot_of(j1);
+    if (s1 < 0) fill(s1 = 1 - s0, j1);
+    r0 = slot(s0);
+    r1 = slot(s1);
+  }
+
+ private:
+  int slot_of(int j) const { return row_[0] == j ? 0 : row_[1] == j ? 1 : -1; }
+  float* slot(int s) { return data_.data() + size_t(s) * size_t(arrays_) * size_t(length_); }
+
+  void fill_array(float* a, const float* src, int step) {
+    for (int i = 0; i < hw_; ++i) a[i + 1] = src[size_t(i) * size_t(step)];
+    a[0] = a[1];
+    a[hw_ + 1] = a[hw_];
+  }
+
+  void fill(int s, int j) {
+    float* base = slot(s);
+    if (geometry_) {
+      fill_array(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
+      const float* n = h_.normal_view.ptr<float>(j);
+      for (int c = 0; c < 3; ++c) fill_array(base + (kNormalX + c) * length_, n + c, 3);
+      const uint8_t* m = h_.mask.ptr<uint8_t>(j);
+      float* a = base + kMask * length_;
+      for (int i = 0; i < hw_; ++i) a[i + 1] = std::bit_cast<float>(m[i] ? ~uint32_t(0) : uint32_t(0));
+      a[0] = a[1];
+      a[hw_ + 1] = a[hw_];
+    }
+    for (size_t k = 0; k < images_.size(); ++k) {
+      const int cn = images_[k].half.channels();
+      const float* v = images_[k].half.ptr<float>(j);
+      for (int c = 0; c < cn; ++c) fill_array(base + (image_first_[k] + c) * length_, v + c, cn);
+    }
+    row_[s] = j;
+  }
+
+  const HalfGrid& h_;
+  std::span<const UpsampleImage> images_;
+  bool geometry_;
+  int hw_, length_, arrays_ = 0;
+  std::vector<int> image_first_;
+  std::vector<float> data_;
+  int row_[2] = {-1, -1};
+};
+
+// The texels of pixels x .. x + 7 (x odd) from one array of TexelRows: column t[0] of each
+// pixel (kFirst) or t[1] (kSecond).
+inline __m256 texel_lanes(const float* array, int x, __m256i column) {
+  return _mm256_permutevar8x32_ps(_mm256_loadu_ps(array + (x - 1) / 2 + 1), column);
+}
+
+inline __m256i column_lanes(int k) {
+  return (k & 1) ? _mm256_setr_epi32(1, 1, 2, 2, 3, 3, 4, 4) : _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
+}
+
+// texel_weights of the 8 pixels x .. x + 7 (x odd) of a row whose texel rows are r0, r1
+// (TexelRows with geometry) and vertical bilinear weights wy; 0 where `foreground` is not.
+inline void texel_weights_8(const float* r0, const float* r1, int length, const float wy[2], int x,
+                            const float* depth_row, const float* normal_row, __m256 foreground, __m256 w[4]) {
+  const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
+  const __m256 d = _mm256_loadu_ps(depth_row + x);
+  __m256 nx, ny, nz;
+  deinterleave_3(normal_row + size_t(3) * size_t(x), nx, ny, nz);
+  const __m256 inv_tol = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_mul_ps(_mm256_set1_ps(kUpsampleDepthRelative), d));
+  const __m256 frac_x = _mm256_setr_ps(0.25f, 0.75f, 0.25f, 0.75f, 0.25f, 0.75f, 0.25f, 0.75f);
+  const __m256 wx[2] = {_mm256_sub_ps(_mm256_set1_ps(1.0f), frac_x), frac_x};
+  for (int k = 0; k < 4; ++k) {
+    const float* row = (k >> 1) ? r1 : r0;
+    const __m256i column = column_lanes(k);
+    const __m256 valid = _mm256_and_ps(foreground, texel_lanes(row + TexelRows::kMask * length, x, column));
+    const __m256 wb = _mm256_mul_ps(wx[k & 1], _mm256_set1_ps(wy[k >> 1]));
+    const __m256 texel_depth = texel_lanes(row + TexelRows::kDepth * length, x, column);
+    const __m256 dz = _mm256_mul_ps(_mm256_andnot_ps(sign, _mm256_sub_ps(texel_depth, d)), inv_tol);
+    // exp(-dz); 0 (exp = 1, the weight set to 0 below) where the weight is 0.
+    const __m256 e = exp_8(_mm256_and_ps(valid, _mm256_xor_ps(dz, sign)));
+    __m256 c = _mm256_add_ps(zero, _mm256_mul_ps(nx, texel_lanes(row + TexelRows::kNormalX * length, x, column)));
+    c = _mm256_add_ps(c, _mm256_mul_ps(ny, texel_lanes(row + TexelRows::kNormalY * length, x, column)));
+    c = _mm256_add_ps(c, _mm256_mul_ps(nz, texel_lanes(row + TexelRows::kNormalZ * length, x, column)));
+    c = _mm256_max_ps(c, zero);  // c > 0 ? c : 0, as std::max(0, c)
+    c = _mm256_mul_ps(c, c);
+    w[k] = _mm256_and_ps(valid, _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(wb, e), c), c));
+  }
+}
+
+}  // namespace lanes
+#endif
+
+// The pixels of row y in [x0, x1) that the 8-pixel code takes: from the first odd x, whole
+// groups of 8 (the others go pixel by pixel).
+struct LaneSpan {
+  int begin, end;
+};
+
+inline LaneSpan lane_span(int x0, int x1, int width) {
+#ifdef SSDO_HALF_RESOLUTION_AVX2
+  if (width < lanes::kMaxWidth) {
+    const int begin = std::max(x0, 1) | 1;
+    if (begin + 8 <= x1) return {begin, begin + (x1 - begin) / 8 * 8};
+  }
+#endif
+  (void)x0, (void)width;
+  return {x1, x1};
+}
 
 }  // namespace
 
@@ -193,28 +511,42 @@ void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int
                                  : roi & cv::Rect(cv::Point(), full.depth_view.size());
   h.upsample_weights.create(full.depth_view.size(), CV_32FC4);
   h.upsample_roi = r;
-  const int hw = h.depth_view.cols, hh = h.depth_view.rows;
+  const int hh = h.depth_view.rows;
+  const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
+  const HalfGrid& grid = h;
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+#ifdef SSDO_HALF_RESOLUTION_AVX2
+    lanes::TexelRows texels(grid, true, {});
+#endif
     for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
       cv::Vec4f* out = h.upsample_weights.ptr<cv::Vec4f>(y);
-      Footprint f;
-      f.y = axis_footprint(y, hh);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        if (!mask_row[x]) {
-          out[x] = cv::Vec4f(0, 0, 0, 0);
-          continue;
+      const AxisFootprint fy = axis_footprint(y, hh);
+      weights_span(full, grid, y, fy, r.x, span.begin, out);
+#ifdef SSDO_HALF_RESOLUTION_AVX2
+      if (span.begin < span.end) {
+        const float* r0;
+        const float* r1;
+        texels.rows(fy.t[0], fy.t[1], r0, r1);
+        const float wy[2] = {1.0f - fy.frac, fy.frac};
+        const float* depth_row = full.depth_view.ptr<float>(y);
+        const float* normal_row = full.normal_view.ptr<float>(y);
+        const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+        for (int x = span.begin; x < span.end; x += 8) {
+          __m256 w[4];
+          lanes::texel_weights_8(r0, r1, texels.length(), wy, x, depth_row, normal_row,
+                                 lanes::foreground(mask_row + x), w);
+          lanes::store_weights(w, out + x);
         }
-        f.x = axis_footprint(x, hw);
-        texel_weights(h, f, full.depth_view.ptr<float>(y)[x], full.normal_view.ptr<cv::Vec3f>(y)[x], &out[x][0]);
       }
+#endif
+      weights_span(full, grid, y, fy, span.end, r.x + r.width, out);
     }
-  });
+  }, kRowsPerStrip);
 }
 
 void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
                              const cv::Rect& r, int nthreads) {
-  const int hw = h.depth_view.cols, hh = h.depth_view.rows;
+  const int hh = h.depth_view.rows;
   for (const UpsampleImage& im : images) {
     CV_Assert(im.half.depth() == CV_32F && im.half.size() == h.depth_view.size());
     CV_Assert(im.full.type() == im.half.type() && im.full.size() == full.depth_view.size());
@@ -222,46 +554,81 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
   }
   const bool kept = !h.upsample_weights.empty() && h.upsample_weights.size() == full.depth_view.size() &&
                     (h.upsample_roi & r) == r;
+  const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+#ifdef SSDO_HALF_RESOLUTION_AVX2
+    lanes::TexelRows texels(h, !kept, images);
+#endif
     for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
       const cv::Vec4f* kept_row = kept ? h.upsample_weights.ptr<cv::Vec4f>(y) : nullptr;
-      Footprint f;
-      f.y = axis_footprint(y, hh);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        if (!mask_row[x]) {
-          for (const UpsampleImage& im : images)
-            write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.background,
-                         im.full.channels());
-          continue;
-        }
-        const float d = full.depth_view.ptr<float>(y)[x];
-        f.x = axis_footprint(x, hw);
-        float w[4];
-        if (kept) std::copy_n(&kept_row[x][0], 4, w);
-        else texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
-        float wsum = 0.0f;
-        for (int k = 0; k < 4; ++k) wsum += w[k];
-        if (!(wsum > kMinUpsampleWeight)) {
-          int bi, bj;
-          if (!nearest_in_depth(h, f, d, bi, bj)) {  // no foreground texel near: nothing known
-            for (const UpsampleImage& im : images)
-              write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.fallback,
-                           im.full.channels());
-            continue;
-          }
-          for (const UpsampleImage& im : images) {
+      const AxisFootprint fy = axis_footprint(y, hh);
+      upsample_span(full, h, images, kept_row, y, fy, r.x, span.begin);
+#ifdef SSDO_HALF_RESOLUTION_AVX2
+      if (span.begin < span.end) {
+        const float* r0;
+        const float* r1;
+        texels.rows(fy.t[0], fy.t[1], r0, r1);
+        const int length = texels.length();
+        const float wy[2] = {1.0f - fy.frac, fy.frac};
+        const float* depth_row = full.depth_view.ptr<float>(y);
+        const float* normal_row = full.normal_view.ptr<float>(y);
+        const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+        const __m256 zero = _mm256_setzero_ps();
+        for (int x = span.begin; x < span.end; x += 8) {
+          const __m256 fg = lanes::foreground(mask_row + x);
+          __m256 w[4];
+          if (kept) lanes::load_weights(kept_row + x, w);
+          else lanes::texel_weights_8(r0, r1, length, wy, x, depth_row, normal_row, fg, w);
+          __m256 wsum = zero;
+          for (int k = 0; k < 4; ++k) wsum = _mm256_add_ps(wsum, w[k]);
+          // Foreground pixels whose weights are too small go pixel by pixel (below).
+          const int low = _mm256_movemask_ps(
+              _mm256_andnot_ps(_mm256_cmp_ps(wsum, _mm256_set1_ps(kMinUpsampleWeight), _CMP_GT_OQ), fg));
+          __m256 used[4];  // texels of nonzero weight (blend skips the others)
+          for (int k = 0; k < 4; ++k) used[k] = _mm256_cmp_ps(w[k], zero, _CMP_NEQ_UQ);
+          for (size_t i = 0; i < images.size(); ++i) {
+            const UpsampleImage& im = images[i];
             const int cn = im.half.channels();
-            std::copy_n(im.half.ptr<float>(bj) + size_t(bi) * size_t(cn), cn,
-                        im.full.ptr<float>(y) + size_t(x) * size_t(cn));
+            __m256 value[kMaxChannels];
+            for (int ch = 0; ch < cn; ++ch) {
+              const int a = (texels.image_first(i) + ch) * length;
+              __m256 acc = zero;
+              for (int k = 0; k < 4; ++k) {
+                const __m256 v = lanes::texel_lanes(((k >> 1) ? r1 : r0) + a, x, lanes::column_lanes(k));
+                acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(w[k], v)), used[k]);
+              }
+              value[ch] = _mm256_blendv_ps(_mm256_set1_ps(float(im.background[ch])), _mm256_div_ps(acc, wsum), fg);
+            }
+            float* out = im.full.ptr<float>(y) + size_t(x) * size_t(cn);
+            if (cn == 1) {
+              _mm256_storeu_ps(out, value[0]);
+            } else if (cn == 3) {
+              lanes::interleave_3(value[0], value[1], value[2], out);
+            } else {
+              alignas(32) float v[kMaxChannels][8];
+              for (int ch = 0; ch < cn; ++ch) _mm256_store_ps(v[ch], value[ch]);
+              for (int l = 0; l < 8; ++l)
+                for (int ch = 0; ch < cn; ++ch) out[l * cn + ch] = v[ch][l];
+            }
           }
-          continue;
+          if (low != 0) {
+            alignas(32) float wl[4][8];
+            for (int k = 0; k < 4; ++k) _mm256_store_ps(wl[k], w[k]);
+            Footprint f;
+            f.y = fy;
+            for (int l = 0; l < 8; ++l) {
+              if (!(low & (1 << l))) continue;
+              f.x = axis_footprint(x + l, h.depth_view.cols);
+              const float wp[4] = {wl[0][l], wl[1][l], wl[2][l], wl[3][l]};
+              upsample_pixel(h, images, f, depth_row[x + l], wp, x + l, y);
+            }
+          }
         }
-        for (const UpsampleImage& im : images)
-          blend_any(im.half, f, w, wsum, im.full.ptr<float>(y) + size_t(x) * size_t(im.half.channels()));
       }
+#endif
+      upsample_span(full, h, images, kept_row, y, fy, span.end, r.x + r.width);
     }
-  });
+  }, kRowsPerStrip);
 }
 
 }  // namespace ssdo

@@ -1,7 +1,11 @@
 // The half grid and its upsample (kernels/half_resolution.h).
 #include "kernels/half_resolution.h"
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 
 #include <gtest/gtest.h>
 
@@ -118,6 +122,86 @@ TEST(HalfResolution, KeptWeightsGiveTheBitsOfWeightsComputedPerUpsample) {
                           roi, 2);
   EXPECT_EQ(cv::norm(computed, kept, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::countNonZero(computed.reshape(1) == -1), 3 * (161 * 91 - roi.area()));
+}
+
+// The header's formulas pixel by pixel, in the order the per-pixel code evaluates them
+// (the weights and upsample run 8 pixels at a time where they can; those lanes must give
+// these bits). The frame's depths span three decades so that exp's argument runs from 0
+// past its underflow, and its mask leaves texels and pixels of every kind of neighbourhood.
+TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
+  const cv::Size size(203, 37);
+  cv::Mat depth(size, CV_32FC1), normal(size, CV_32FC3), mask(size, CV_8UC1);
+  cv::RNG rng(7);
+  for (int y = 0; y < size.height; ++y)
+    for (int x = 0; x < size.width; ++x) {
+      const bool foreground = rng.uniform(0.0, 1.0) < 0.85;
+      mask.at<uint8_t>(y, x) = foreground ? 255 : 0;
+      depth.at<float>(y, x) = foreground ? float(std::pow(10.0, rng.uniform(-1.0, 2.0))) : std::numeric_limits<float>::infinity();
+      cv::Vec3f n(float(rng.uniform(-1.0, 1.0)), float(rng.uniform(-1.0, 1.0)), float(rng.uniform(0.05, 1.0)));
+      normal.at<cv::Vec3f>(y, x) = foreground ? n / cv::norm(n) : cv::Vec3f(0, 0, 0);
+    }
+  const cv::Mat no_positions;
+  Camera camera;
+  camera.width_px = size.width;
+  camera.height_px = size.height;
+  const FullGrid full{depth, normal, no_positions, mask, camera};
+  HalfGrid h;
+  build_half_grid(full, {}, h, 2);
+  build_upsample_weights(full, h, {}, 2);
+  cv::Mat gray(h.depth_view.size(), CV_32FC1), color(h.depth_view.size(), CV_32FC3);
+  cv::randu(gray, -1.0f, 2.0f);
+  cv::randu(color, -1.0f, 2.0f);
+  cv::Mat up_gray(size, CV_32FC1), up_color(size, CV_32FC3);
+  const UpsampleImage images[] = {{gray, up_gray, cv::Scalar(7.0), cv::Scalar(9.0)},
+                                  {color, up_color, cv::Scalar(1, 2, 3), cv::Scalar(4, 5, 6)}};
+  upsample_from_half_grid(full, h, images, cv::Rect(0, 0, size.width, size.height), 2);
+
+  const int hw = h.depth_view.cols, hh = h.depth_view.rows;
+  int blended = 0, underflowed = 0;
+  for (int y = 0; y < size.height; ++y)
+    for (int x = 0; x < size.width; ++x) {
+      const cv::Vec4f w = h.upsample_weights.at<cv::Vec4f>(y, x);
+      if (!mask.at<uint8_t>(y, x)) {
+        EXPECT_EQ(w, cv::Vec4f(0, 0, 0, 0));
+        EXPECT_EQ(up_gray.at<float>(y, x), 7.0f);
+        continue;
+      }
+      const float fx = (float(x) + 0.5f) * 0.5f - 0.5f, fy = (float(y) + 0.5f) * 0.5f - 0.5f;
+      const int tx = int(std::floor(fx)), ty = int(std::floor(fy));
+      const float ax = fx - float(tx), ay = fy - float(ty);
+      const float d = depth.at<float>(y, x);
+      const cv::Vec3f n = normal.at<cv::Vec3f>(y, x);
+      const float inv_tol = 1.0f / (0.05f * d);
+      float ref[4], wsum = 0.0f, acc[4] = {};
+      for (int k = 0; k < 4; ++k) {
+        const int i = std::clamp(tx + (k & 1), 0, hw - 1), j = std::clamp(ty + (k >> 1), 0, hh - 1);
+        ref[k] = 0.0f;
+        if (!h.mask.at<uint8_t>(j, i)) continue;
+        const float wb = ((k & 1) ? ax : 1.0f - ax) * ((k >> 1) ? ay : 1.0f - ay);
+        const float dz = std::abs(h.depth_view.at<float>(j, i) - d) * inv_tol;
+        if (dz > 88.0f) ++underflowed;
+        float c = std::max(0.0f, n.dot(h.normal_view.at<cv::Vec3f>(j, i)));
+        c *= c;
+        ref[k] = wb * std::exp(-dz) * c * c;
+      }
+      for (int k = 0; k < 4; ++k) {
+        EXPECT_EQ(std::bit_cast<uint32_t>(w[k]), std::bit_cast<uint32_t>(ref[k])) << x << ", " << y << " tap " << k;
+        wsum += ref[k];
+      }
+      if (!(wsum > 1e-4f)) continue;  // nearest in depth (UpsampleKeepsConstants...)
+      ++blended;
+      for (int k = 0; k < 4; ++k) {
+        if (ref[k] == 0.0f) continue;
+        const int i = std::clamp(tx + (k & 1), 0, hw - 1), j = std::clamp(ty + (k >> 1), 0, hh - 1);
+        acc[0] += ref[k] * gray.at<float>(j, i);
+        for (int ch = 0; ch < 3; ++ch) acc[1 + ch] += ref[k] * color.at<cv::Vec3f>(j, i)[ch];
+      }
+      EXPECT_EQ(std::bit_cast<uint32_t>(up_gray.at<float>(y, x)), std::bit_cast<uint32_t>(acc[0] / wsum));
+      for (int ch = 0; ch < 3; ++ch)
+        EXPECT_EQ(std::bit_cast<uint32_t>(up_color.at<cv::Vec3f>(y, x)[ch]), std::bit_cast<uint32_t>(acc[1 + ch] / wsum));
+    }
+  EXPECT_GT(blended, size.area() / 4);
+  EXPECT_GT(underflowed, 100);
 }
 
 TEST(HalfResolution, SampleAtTexelsTakesEachTexelsSourcePixel) {
