@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <tuple>
+#include <vector>
 
 #include "kernels/parallel.h"
 
@@ -16,12 +17,6 @@ constexpr CompositeMode kAllModes[] = {CompositeMode::off, CompositeMode::ssao, 
                                        CompositeMode::ssao_ssdo};
 
 bool usable(const cv::Mat* m) { return m && !m->empty(); }
-
-glm::vec3 rgb(const cv::Mat* m, int x, int y, glm::vec3 missing) {
-  if (!usable(m)) return missing;
-  const cv::Vec3f& v = m->at<cv::Vec3f>(y, x);
-  return {v[0], v[1], v[2]};
-}
 
 }  // namespace
 
@@ -106,6 +101,69 @@ std::string validate(const CompositeInputs& in, const CompositeSettings& s) {
   return {};
 }
 
+namespace {
+
+// The composite's per-term weights, 0 = not selected.
+struct TermWeights {
+  float ambient, ambient_ao, direct, indirect, lighting;
+  glm::vec3 ambient_radiance;
+};
+
+// One row of the inputs, from pixel 0 of the row. A missing albedo or AO points at a row
+// of ones: multiplying by 1 is exact, so this equals the "missing = white / unoccluded"
+// value of composite.h bit for bit.
+struct InputRow {
+  const float* albedo;    // 3 floats per pixel
+  const float* ao;        // 1 float per pixel
+  const float* direct;    // 3 floats per pixel, or null when the term is off
+  const float* indirect;  // 3 floats per pixel, or null when the term is off
+  const float* lighting;  // 3 floats per pixel, or null when the term is off
+};
+
+// Foreground pixels [x_begin, x_end) of one row:
+//   c = albedo x ((w_ambient + w_ambient_ao ao) ambient + w_direct direct + w_indirect indirect)
+//       + w_lighting lighting,
+// each product and sum in this order (the order does not depend on the term list). The term
+// switches are template parameters so that the loop has no per-pixel branch, plain
+// pointers and can vectorise.
+template <bool kDirect, bool kIndirect, bool kLighting>
+void foreground_span(const InputRow& in, const TermWeights& w, int x_begin, int x_end, float* out) {
+  const float ar = w.ambient_radiance.x, ag = w.ambient_radiance.y, ab = w.ambient_radiance.z;
+  for (int x = x_begin; x < x_end; ++x) {
+    const float ambient = w.ambient + w.ambient_ao * in.ao[x];
+    float r = ambient * ar, g = ambient * ag, b = ambient * ab;
+    if constexpr (kDirect) {
+      const float* d = in.direct + 3 * x;
+      r += w.direct * d[0], g += w.direct * d[1], b += w.direct * d[2];
+    }
+    if constexpr (kIndirect) {
+      const float* d = in.indirect + 3 * x;
+      r += w.indirect * d[0], g += w.indirect * d[1], b += w.indirect * d[2];
+    }
+    const float* a = in.albedo + 3 * x;
+    r = a[0] * r, g = a[1] * g, b = a[2] * b;
+    if constexpr (kLighting) {
+      const float* l = in.lighting + 3 * x;
+      r += w.lighting * l[0], g += w.lighting * l[1], b += w.lighting * l[2];
+    }
+    float* o = out + 3 * x;
+    o[0] = r, o[1] = g, o[2] = b;
+  }
+}
+
+using ForegroundSpan = void (*)(const InputRow&, const TermWeights&, int, int, float*);
+
+ForegroundSpan foreground_span_for(bool direct, bool indirect, bool lighting) {
+  static constexpr ForegroundSpan kSpans[8] = {
+      foreground_span<false, false, false>, foreground_span<false, false, true>,
+      foreground_span<false, true, false>,  foreground_span<false, true, true>,
+      foreground_span<true, false, false>,  foreground_span<true, false, true>,
+      foreground_span<true, true, false>,   foreground_span<true, true, true>};
+  return kSpans[4 * int(direct) + 2 * int(indirect) + int(lighting)];
+}
+
+}  // namespace
+
 void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv::Mat& out, cv::Rect roi,
                        int nthreads) {
   CV_Assert(validate(in, s).empty());
@@ -114,36 +172,48 @@ void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv
   // Per-term weights (0 = not selected), fixed order so the sum does not depend on the list order.
   float w[5] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
   for (const WeightedTerm& t : s.terms) w[int(t.term)] = t.weight;
-  const float w_ambient = w[int(CompositeTerm::ambient)], w_ambient_ao = w[int(CompositeTerm::ambient_ao)];
-  const float w_direct = w[int(CompositeTerm::ssdo_direct)], w_indirect = w[int(CompositeTerm::ssdo_indirect)];
-  const float w_lighting = w[int(CompositeTerm::lighting)];
-  const bool env_background = !usable(in.background) && in.environment && in.camera;
+  const TermWeights weights{w[int(CompositeTerm::ambient)],     w[int(CompositeTerm::ambient_ao)],
+                            w[int(CompositeTerm::ssdo_direct)], w[int(CompositeTerm::ssdo_indirect)],
+                            w[int(CompositeTerm::lighting)],    s.ambient_radiance};
+  // A term of weight 0 (or -0) is skipped, not added as 0 x input: an infinite or NaN input
+  // of an unused term must not reach the sum.
+  const bool use_direct = weights.direct > 0.0f, use_indirect = weights.indirect > 0.0f;
+  const bool use_lighting = weights.lighting > 0.0f;
+  const ForegroundSpan foreground = foreground_span_for(use_direct, use_indirect, use_lighting);
+  const bool has_albedo = usable(in.albedo), has_ao = usable(in.ao);
+  const std::vector<float> ones(has_albedo && has_ao ? 0 : 3 * size_t(size.width), 1.0f);
+  const cv::Mat* background = usable(in.background) ? in.background : nullptr;
+  const bool env_background = !background && in.environment && in.camera;
 
   const cv::Rect r = resolve_roi(roi, size);
+  const int x_end = r.x + r.width;
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* m = in.mask.ptr<uint8_t>(y);
-      cv::Vec3f* o = out.ptr<cv::Vec3f>(y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        glm::vec3 c(0.0f);
-        if (!m[x]) {
-          if (usable(in.background)) {
-            c = rgb(in.background, x, y, glm::vec3(0.0f));
+      float* o = out.ptr<float>(y);
+      const InputRow row{has_albedo ? in.albedo->ptr<float>(y) : ones.data(),
+                         has_ao ? in.ao->ptr<float>(y) : ones.data(),
+                         use_direct ? in.direct->ptr<float>(y) : nullptr,
+                         use_indirect ? in.indirect->ptr<float>(y) : nullptr,
+                         use_lighting ? in.lighting->ptr<float>(y) : nullptr};
+      const float* bg = background ? background->ptr<float>(y) : nullptr;
+      // Alternating runs of foreground (mask != 0) and background pixels.
+      for (int x = r.x; x < x_end;) {
+        int run_end = x;
+        while (run_end < x_end && m[run_end]) ++run_end;
+        foreground(row, weights, x, run_end, o);
+        for (x = run_end; x < x_end && !m[x]; ++x) {
+          float* c = o + 3 * x;
+          if (bg) {
+            c[0] = bg[3 * x], c[1] = bg[3 * x + 1], c[2] = bg[3 * x + 2];
           } else if (env_background) {
             const glm::vec3 d_view = in.camera->view_ray_direction({x + 0.5f, y + 0.5f});
-            c = in.environment->radiance(in.camera->world_from_view_direction(d_view));
+            const glm::vec3 l = in.environment->radiance(in.camera->world_from_view_direction(d_view));
+            c[0] = l.x, c[1] = l.y, c[2] = l.z;
+          } else {
+            c[0] = 0.0f, c[1] = 0.0f, c[2] = 0.0f;
           }
-          o[x] = cv::Vec3f(c.x, c.y, c.z);
-          continue;
         }
-        const glm::vec3 albedo = rgb(in.albedo, x, y, glm::vec3(1.0f));
-        const float ao = usable(in.ao) ? in.ao->at<float>(y, x) : 1.0f;
-        glm::vec3 irradiance_like = (w_ambient + w_ambient_ao * ao) * s.ambient_radiance;
-        if (w_direct > 0.0f) irradiance_like += w_direct * rgb(in.direct, x, y, glm::vec3(0.0f));
-        if (w_indirect > 0.0f) irradiance_like += w_indirect * rgb(in.indirect, x, y, glm::vec3(0.0f));
-        c = albedo * irradiance_like;
-        if (w_lighting > 0.0f) c += w_lighting * rgb(in.lighting, x, y, glm::vec3(0.0f));
-        o[x] = cv::Vec3f(c.x, c.y, c.z);
       }
     }
   });

@@ -123,5 +123,76 @@ TEST(Composite, RoiAndThreads) {
   EXPECT_EQ(part.at<cv::Vec3f>(0, 0)[0], -1.0f);
 }
 
+// The composite of one pixel as composite.h states it, term by term.
+cv::Vec3f reference_pixel(const CompositeInputs& in, const CompositeSettings& s, int x, int y) {
+  auto rgb = [&](const cv::Mat* m, glm::vec3 missing) {
+    if (!m || m->empty()) return missing;
+    const cv::Vec3f& v = m->at<cv::Vec3f>(y, x);
+    return glm::vec3(v[0], v[1], v[2]);
+  };
+  glm::vec3 c(0.0f);
+  if (!in.mask.at<uint8_t>(y, x)) {
+    if (in.background && !in.background->empty()) {
+      c = rgb(in.background, glm::vec3(0.0f));
+    } else if (in.environment && in.camera) {
+      const glm::vec3 d_view = in.camera->view_ray_direction({x + 0.5f, y + 0.5f});
+      c = in.environment->radiance(in.camera->world_from_view_direction(d_view));
+    }
+    return {c.x, c.y, c.z};
+  }
+  float w[5] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
+  for (const WeightedTerm& t : s.terms) w[int(t.term)] = t.weight;
+  const float ao = in.ao && !in.ao->empty() ? in.ao->at<float>(y, x) : 1.0f;
+  glm::vec3 irradiance_like = (w[int(CompositeTerm::ambient)] + w[int(CompositeTerm::ambient_ao)] * ao) *
+                              s.ambient_radiance;
+  if (w[int(CompositeTerm::ssdo_direct)] > 0.0f)
+    irradiance_like += w[int(CompositeTerm::ssdo_direct)] * rgb(in.direct, glm::vec3(0.0f));
+  if (w[int(CompositeTerm::ssdo_indirect)] > 0.0f)
+    irradiance_like += w[int(CompositeTerm::ssdo_indirect)] * rgb(in.indirect, glm::vec3(0.0f));
+  c = rgb(in.albedo, glm::vec3(1.0f)) * irradiance_like;
+  if (w[int(CompositeTerm::lighting)] > 0.0f)
+    c += w[int(CompositeTerm::lighting)] * rgb(in.lighting, glm::vec3(0.0f));
+  return {c.x, c.y, c.z};
+}
+
+TEST(Composite, MatchesThePerPixelReferenceBitForBit) {
+  const cv::Size size(67, 41);
+  cv::RNG rng(7);
+  cv::Mat mask(size, CV_8UC1), albedo(size, CV_32FC3), ao(size, CV_32FC1), direct(size, CV_32FC3),
+      indirect(size, CV_32FC3), lighting(size, CV_32FC3), background(size, CV_32FC3);
+  rng.fill(mask, cv::RNG::UNIFORM, 0, 2);
+  mask *= 255;
+  for (cv::Mat* m : {&albedo, &ao, &direct, &indirect, &lighting, &background})
+    rng.fill(*m, cv::RNG::UNIFORM, 0.0, 2.0);
+  const Environment env = Environment::sky(SkyGradient{});
+  const Camera cam = Camera::from_fov_x(size.width, size.height, 60.0f);
+  for (int subset = 0; subset < 32; ++subset)
+    for (int inputs = 0; inputs < 4; ++inputs) {
+      CompositeSettings s;
+      s.terms.clear();
+      for (int t = 0; t < 5; ++t)
+        if (subset & (1 << t)) s.terms.push_back({CompositeTerm(t), t == 2 && inputs == 3 ? 0.0f : 0.25f + 0.5f * t});
+      s.ambient_radiance = glm::vec3(0.7f, 1.0f, 1.3f);
+      const CompositeInputs in{mask,
+                               inputs == 1 ? nullptr : &albedo,
+                               inputs == 2 ? nullptr : &ao,
+                               &direct,
+                               &indirect,
+                               &lighting,
+                               inputs == 0 ? &background : nullptr,
+                               inputs == 1 ? nullptr : &env,
+                               inputs == 1 ? nullptr : &cam};
+      ASSERT_EQ(validate(in, s), "");
+      cv::Mat out;
+      compute_composite(in, s, out, {}, 2);
+      for (int y = 0; y < size.height; ++y)
+        for (int x = 0; x < size.width; ++x) {
+          const cv::Vec3f want = reference_pixel(in, s, x, y), got = out.at<cv::Vec3f>(y, x);
+          ASSERT_EQ(std::memcmp(&want, &got, sizeof want), 0) << "terms " << subset << " inputs " << inputs
+                                                              << " pixel " << x << ", " << y;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace ssdo
