@@ -1,16 +1,18 @@
 // Timings of the screen-space AO methods per preset, of SSDO per preset, of the denoisers
-// (1 and 3 channels) and of the whole compute step of a frame (`compute_frame`, terms
-// ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
-// 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
-// Cornell-like scene of the reference ray caster is rendered at both sizes instead.
+// (1 and 3 channels), of the confidence term and of the whole compute step of a frame
+// (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared
+// cornell dump) and 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without
+// ../shared the Cornell-like scene of the reference ray caster is rendered at both sizes
+// instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
-// width, threads (denoisers).
+// width, threads (denoisers, BM_Confidence).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
 
 #include "formats/gbuffer_reader.h"
 #include "kernels/ao.h"
+#include "kernels/confidence.h"
 #include "kernels/denoise.h"
 #include "kernels/positions.h"
 #include "kernels/raycast.h"
@@ -101,6 +103,23 @@ void BM_Frame(benchmark::State& state) {
                  std::to_string(request.threads) + "t");
 }
 
+// The confidence term at the default settings as the pipeline runs it: on the frame's
+// shared half grid (built once, outside the timing) and upsampled.
+void BM_Confidence(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const int threads = int(state.range(1));
+  const ssdo::FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  ssdo::HalfGrid half;
+  ssdo::build_half_grid(full, {}, half, threads);
+  ssdo::build_upsample_weights(full, half, {}, threads);
+  const ssdo::ConfidenceSettings s;
+  cv::Mat confidence;
+  for (auto _ : state)
+    ssdo::compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, confidence, {},
+                             threads, &half);
+  state.SetLabel(std::to_string(threads) + "t");
+}
+
 void BM_BoxBlur(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   cv::Mat src(g.depth_view.size(), CV_32FC1), dst;
@@ -133,5 +152,6 @@ BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseReal
 BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();

@@ -1,0 +1,150 @@
+// The confidence term (kernels/confidence.h) against its per-pixel reference.
+#include "kernels/confidence.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include "kernels/noise.h"
+#include "kernels/raycast.h"
+
+namespace ssdo {
+namespace {
+
+// The definition of confidence.h evaluated one pixel and one tap at a time, in the order
+// the kernel evaluates each pixel (its operations in the same order, so the same bits):
+// rays x(s) = o + s u affine in the pixel position, the chord of the hemisphere along the
+// ray through each tap's centre, its part in front of the stored surface, and the ratio of
+// the summed lengths.
+cv::Mat reference_confidence(const GBuffer& g, const ConfidenceSettings& s) {
+  const Camera& cam = g.camera;
+  auto point = [&](float px, float py, float depth) {
+    return cam.view_from_pixel_depth(glm::vec2(px, py), depth);
+  };
+  glm::vec3 o0(0.0f), ox(0.0f), oy(0.0f), u0(0.0f, 0.0f, -1.0f), ux(0.0f), uy(0.0f);
+  if (cam.is_perspective()) {
+    u0 = point(0.0f, 0.0f, 1.0f);
+    ux = point(1.0f, 0.0f, 1.0f) - u0;
+    uy = point(0.0f, 1.0f, 1.0f) - u0;
+  } else {
+    o0 = point(0.0f, 0.0f, 0.0f);
+    ox = point(1.0f, 0.0f, 0.0f) - o0;
+    oy = point(0.0f, 1.0f, 0.0f) - o0;
+  }
+  const int width = g.depth_view.cols, height = g.depth_view.rows;
+  auto known = [&](int x, int y) {
+    const float d = g.depth_view.at<float>(y, x);
+    return g.mask.at<uint8_t>(y, x) != 0 && d > 0.0f && std::isfinite(d);
+  };
+  cv::Mat out(g.depth_view.size(), CV_32FC1, cv::Scalar(1.0f));
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x) {
+      if (!known(x, y)) continue;
+      const float d = g.depth_view.at<float>(y, x);
+      const float pxc = float(x) + 0.5f, pyc = float(y) + 0.5f;
+      const glm::vec3 p = o0 + pxc * ox + pyc * oy + d * (u0 + pxc * ux + pyc * uy);
+      const cv::Vec3f nv = g.normal_view.at<cv::Vec3f>(y, x);
+      const glm::vec3 n(nv[0], nv[1], nv[2]);
+      const glm::vec2 ppu = cam.pixels_per_unit(d);
+      float radius = s.radius_world;
+      const float radius_px_max = radius * std::max(ppu.x, ppu.y);
+      if (radius_px_max > s.max_radius_px) radius *= s.max_radius_px / radius_px_max;
+      const float rotation = 6.2831853f * noise01(x, y, 0, s.seed);
+      const float cos_r = std::cos(rotation), sin_r = std::sin(rotation);
+      double observed = 0.0, total = 0.0;
+      for (int k = 0; k < s.taps; ++k) {
+        // Vogel spiral: equal-area rings, golden-angle turns, rotated per pixel.
+        const float rho = std::sqrt((float(k) + 0.5f) / float(s.taps));
+        const float angle = float(k) * 2.39996322972865332f;
+        const float vx = rho * std::cos(angle), vy = rho * std::sin(angle);
+        const float tx = std::floor(pxc + radius * ppu.x * (cos_r * vx - sin_r * vy));
+        const float ty = std::floor(pyc + radius * ppu.y * (sin_r * vx + cos_r * vy));
+        const float cx = tx + 0.5f, cy = ty + 0.5f;
+        const glm::vec3 f = (o0 + cx * ox + cy * oy) - p;
+        const glm::vec3 u = u0 + cx * ux + cy * uy;
+        const float a = glm::dot(u, u), b = glm::dot(u, f);
+        const float c = glm::dot(f, f) - radius * radius;
+        const float disc = b * b - a * c;
+        if (!(disc > 0.0f)) continue;  // the ray misses the sphere
+        const float root = std::sqrt(disc);
+        float s0 = std::max((-b - root) / a, 0.0f), s1 = (-b + root) / a;
+        const float nu = glm::dot(n, u), nf = glm::dot(n, f);
+        if (nu == 0.0f && nf < 0.0f) continue;  // parallel to the tangent plane, below it
+        if (nu < 0.0f) s1 = std::min(s1, -nf / nu);
+        if (nu > 0.0f) s0 = std::max(s0, -nf / nu);
+        if (!(s1 > s0)) continue;
+        const float len_scale = std::sqrt(a);
+        total += double((s1 - s0) * len_scale);
+        const int ix = int(tx), iy = int(ty);
+        if (ix < 0 || iy < 0 || ix >= width || iy >= height || !known(ix, iy)) continue;
+        const float s_surface = g.depth_view.at<float>(iy, ix) * (1.0f + s.depth_bias_relative);
+        const float seen = std::min(s1, s_surface) - s0;
+        if (seen > 0.0f) observed += double(seen * len_scale);
+      }
+      out.at<float>(y, x) = total > 0.0 ? float(std::clamp(observed / total, 0.0, 1.0)) : 1.0f;
+    }
+  return out;
+}
+
+bool bitwise_equal(const cv::Mat& a, const cv::Mat& b) {
+  if (a.size() != b.size() || a.type() != b.type()) return false;
+  for (int y = 0; y < a.rows; ++y)
+    if (std::memcmp(a.ptr(y), b.ptr(y), a.cols * a.elemSize()) != 0) return false;
+  return true;
+}
+
+cv::Mat confidence_of(const GBuffer& g, const ConfidenceSettings& s, cv::Rect roi, int nthreads) {
+  cv::Mat out;
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, out, roi, nthreads);
+  return out;
+}
+
+// Settings of every evaluation below: every pixel (no half grid), the radius and tap
+// counts of the call, a radius the max_radius_px bound shrinks near the camera.
+ConfidenceSettings full_resolution(float radius_world, int taps) {
+  ConfidenceSettings s;
+  s.resolution_divisor = 1;
+  s.radius_world = radius_world;
+  s.taps = taps;
+  s.max_radius_px = 24.0f;
+  s.seed = 7;
+  return s;
+}
+
+// Scenes with silhouettes, depth gaps and background; the camera sizes are odd and not
+// multiples of the kernel's pixel batches.
+TEST(Confidence, GivesTheReferenceBitsForAnyThreadCount) {
+  const GBuffer scenes[] = {
+      raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(163, 91), 0),
+      raycast::render_gbuffer(raycast::poles_scene(), raycast::poles_camera(157, 89), 0)};
+  for (const GBuffer& g : scenes)
+    for (const ConfidenceSettings& s : {full_resolution(0.3f, 32), full_resolution(2.0f, 7)}) {
+      const cv::Mat reference = reference_confidence(g, s);
+      EXPECT_LT(cv::mean(reference)[0], 1.0);
+      EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 1), reference));
+      EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 3), reference));
+      // A roi is written with the values of the whole image (taps read outside it).
+      const cv::Rect roi(13, 9, 71, 40);
+      const cv::Mat part = confidence_of(g, s, roi, 2);
+      EXPECT_TRUE(bitwise_equal(part(roi), reference(roi)));
+    }
+}
+
+TEST(Confidence, GivesTheReferenceBitsWithAnOrthographicCamera) {
+  GBuffer g =
+      raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(121, 67), 0);
+  // The same depths and normals seen through parallel rays (a consistent frame is not
+  // needed to compare two evaluations of it).
+  g.camera.view_to_clip = glm::ortho(-3.0f, 3.0f, -1.7f, 1.7f, 0.1f, 100.0f);
+  const ConfidenceSettings s = full_resolution(0.5f, 16);
+  const cv::Mat reference = reference_confidence(g, s);
+  EXPECT_LT(cv::mean(reference)[0], 1.0);
+  EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 2), reference));
+}
+
+}  // namespace
+}  // namespace ssdo
