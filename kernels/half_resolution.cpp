@@ -7,9 +7,6 @@
 #include <limits>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
 #if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
 #define SSDO_HALF_RESOLUTION_AVX2 1
@@ -239,23 +236,6 @@ void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const Upsa
     else texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
     upsample_pixel(h, images, f, d, w, x, y);
   }
-}
-
-// Asks for 2 MiB pages under rows [y0, y1) of an image about to be written: the weights
-// and outputs of a 1080p frame are tens of MB, freshly allocated per frame, and their
-// first writes into 4 KiB pages cost a page fault each (most of the upsample's time on
-// perf1080). A hint only (contents and results are unchanged; it is ignored where
-// transparent huge pages are off), for the aligned 2 MiB blocks inside those rows.
-void advise_huge_pages(const cv::Mat& m, int y0, int y1) {
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  constexpr uintptr_t kHuge = uintptr_t(2) << 20;
-  if (m.empty() || y1 <= y0) return;
-  const uintptr_t begin = (reinterpret_cast<uintptr_t>(m.ptr(y0)) + kHuge - 1) & ~(kHuge - 1);
-  const uintptr_t end = reinterpret_cast<uintptr_t>(m.ptr(y1 - 1) + m.cols * m.elemSize()) & ~(kHuge - 1);
-  if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
-#else
-  (void)m, (void)y0, (void)y1;
-#endif
 }
 
 // Rows per strip of the weights and the upsample: a strip lays out each texel row it reads
@@ -531,7 +511,6 @@ void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int
                                  : roi & cv::Rect(cv::Point(), full.depth_view.size());
   h.upsample_weights.create(full.depth_view.size(), CV_32FC4);
   h.upsample_roi = r;
-  advise_huge_pages(h.upsample_weights, r.y, r.y + r.height);
   const int hh = h.depth_view.rows;
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   const HalfGrid& grid = h;
@@ -576,7 +555,6 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
   const bool kept = !h.upsample_weights.empty() && h.upsample_weights.size() == full.depth_view.size() &&
                     (h.upsample_roi & r) == r;
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
-  for (const UpsampleImage& im : images) advise_huge_pages(im.full, r.y, r.y + r.height);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
 #ifdef SSDO_HALF_RESOLUTION_AVX2
     lanes::TexelRows texels(h, !kept, images);
