@@ -66,6 +66,11 @@ const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* sh
 void sample_at_texels(const HalfGrid& half, const cv::Mat& full_image, cv::Mat& half_image,
                       int nthreads = 0);
 
+// exp(x), x <= 0, as the upsample weights evaluate their depth term exp(-|dz| / (tol z)):
+// libmvec's vector expf where the kernels are built with AVX2 (within 3 ulp of std::exp),
+// else std::exp.
+float upsample_depth_falloff(float x);
+
 // Computes and keeps in `half` the upsample weights of the full-resolution roi (empty =
 // all), for a grid that several kernels of one frame upsample from.
 void build_upsample_weights(const FullGrid& full, HalfGrid& half, cv::Rect roi = {}, int nthreads = 0);

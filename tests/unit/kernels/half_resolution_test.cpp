@@ -182,7 +182,7 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
         if (dz > 88.0f) ++underflowed;
         float c = std::max(0.0f, n.dot(h.normal_view.at<cv::Vec3f>(j, i)));
         c *= c;
-        ref[k] = wb * std::exp(-dz) * c * c;
+        ref[k] = wb * upsample_depth_falloff(-dz) * c * c;
       }
       for (int k = 0; k < 4; ++k) {
         EXPECT_EQ(std::bit_cast<uint32_t>(w[k]), std::bit_cast<uint32_t>(ref[k])) << x << ", " << y << " tap " << k;
