@@ -45,6 +45,7 @@
 // Bent normal: the cosine-weighted mean visible direction of each slice between its
 // height-field horizons (closed-form integrals of cos(t - n)|sin t| (cos t, sin t)),
 // summed over slices and normalised.
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <vector>
@@ -150,6 +151,12 @@ struct SideState {
 // s * kChunkSteps + jj. Every lane is computed (unused ones for nobody), so the arithmetic
 // runs in full vector registers without a remainder.
 constexpr int kChunkTaps = 2 * kChunkSteps;
+
+// Chunks per pixel (slices x chunks per slice) whose tap indices, computed for the
+// prefetch, are kept for the shading: 2 covers the low (1 x 6 steps) and medium (2 x 8)
+// presets; more would grow the kept rows out of the nearest cache, and those pixels
+// compute their indices again.
+constexpr int kKeptChunks = 2;
 
 // The side constants per lane.
 struct TapLanes {
@@ -396,48 +403,63 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
     float step_noise = 0.0f;
     float rot_c = 1.0f, rot_s = 0.0f;
   };
-  const auto pixel_taps = [&](int x, int y) {
-    PixelTaps p;
-    if (!in.mask.ptr<uint8_t>(y)[x]) return p;
+  // Written field by field into its place in the row (a whole struct built on the stack
+  // and copied is read back before its parts' stores retire: a store-forwarding stall).
+  const auto pixel_taps = [&](int x, int y, PixelTaps& p) {
+    p.has_taps = false;
+    p.radius_px = 0.0f;
+    p.step_noise = 0.0f;
+    p.rot_c = 1.0f;
+    p.rot_s = 0.0f;
+    if (!in.mask.ptr<uint8_t>(y)[x]) return;
     const float depth = in.depth_view.ptr<float>(y)[x];
     p.radius_px = projected_radius_px(camera, depth, k.radius_world, k.max_radius_px);
     // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
-    if (p.radius_px < 2.0f * kMinTapDistancePx) return p;
+    if (p.radius_px < 2.0f * kMinTapDistancePx) return;
     p.has_taps = true;
     const float slice_noise = noise01(x, y, 0, k.seed);
     p.step_noise = noise01(x, y, 1, k.seed);
     const float rot = slice_noise / float(k.slices) * kPi;
     p.rot_c = std::cos(rot);
     p.rot_s = std::sin(rot);
-    return p;
   };
+  // A row of a tile: the pixels' tap patterns and kept tap indices (filled a row ahead,
+  // see the tile loop), and the shading's per-pixel sums, turned into the outputs for the
+  // whole row at once (the divisions and square roots of the normalisation then run in
+  // vector lanes instead of ending each pixel's dependency chain).
+  enum : uint8_t { kBackground, kNoTaps, kShaded };
+  struct TileRow {
+    std::array<PixelTaps, kTileWidthPx> pixel;
+    alignas(32) int32_t index[kTileWidthPx][kKeptChunks][kChunkTaps];
+    alignas(32) int32_t skip[kTileWidthPx][kKeptChunks][kChunkSteps];
+    alignas(32) float visible_sum[kTileWidthPx];
+    alignas(32) float open_sum[kTileWidthPx];
+    alignas(32) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
+    alignas(32) uint8_t state[kTileWidthPx];
+  };
+  const int chunks_per_slice = (k.steps + kChunkSteps - 1) / kChunkSteps;
+  const bool keep_indices = k.slices * chunks_per_slice <= kKeptChunks;
   // Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
   const auto slice_direction = [&](const PixelTaps& p, int i) {
     const float cos_phi = p.rot_c * slice_rot[size_t(i)][0] - p.rot_s * slice_rot[size_t(i)][1];
     const float sin_phi = p.rot_s * slice_rot[size_t(i)][0] + p.rot_c * slice_rot[size_t(i)][1];
     return glm::vec2(cos_phi, -sin_phi);
   };
-  // One pixel: its AO and bent normal.
-  const auto shade_pixel = [&](int x, int y, const PixelTaps& pt) {
-    const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-    const float* depth_row = in.depth_view.ptr<float>(y);
-    const cv::Vec3f* normal_row = in.normal_view.ptr<cv::Vec3f>(y);
-    float* ao_row = out.ao.ptr<float>(y);
-    cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
-    if (!mask_row[x]) {
-      ao_row[x] = 1.0f;
-      bent_row[x] = cv::Vec3f(0, 0, 0);
+  // One pixel (x, y), at xi in its tile row: the sums of its AO and bent normal.
+  const auto shade_pixel = [&](int x, int y, TileRow& row, size_t xi) {
+    const PixelTaps& pt = row.pixel[xi];
+    const bool background = !in.mask.ptr<uint8_t>(y)[x];
+    if (background || !pt.has_taps) {
+      row.state[xi] = background ? kBackground : kNoTaps;
+      row.visible_sum[xi] = row.open_sum[xi] = 0.0f;
+      row.bent_x[xi] = row.bent_y[xi] = row.bent_z[xi] = 0.0f;
       return;
     }
-    const float depth = depth_row[x];
+    const float depth = in.depth_view.ptr<float>(y)[x];
+    const cv::Vec3f& n_px = in.normal_view.ptr<cv::Vec3f>(y)[x];
     const Texel& centre = texels[size_t(y) * size_t(width) + size_t(x)];
     const glm::vec3 p(centre.x, centre.y, centre.z);
-    const glm::vec3 normal(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
-    if (!pt.has_taps) {
-      ao_row[x] = 1.0f;
-      bent_row[x] = cv::Vec3f(normal.x, normal.y, normal.z);
-      return;
-    }
+    const glm::vec3 normal(n_px[0], n_px[1], n_px[2]);
     const glm::vec3 view = view_vector(camera, p);
     const glm::vec3 origin = biased_origin(p, normal, depth, k.depth_bias_relative);
 
@@ -485,7 +507,13 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
         // arithmetic, so their cache misses overlap (a tap's texel is anywhere within
         // the radius), and the arithmetic has no branches.
         TapChunk taps;
-        tap_indices(grid, pt.step_noise, pt.radius_px, x, y, i, d, j0, taps.index, taps.skip);
+        if (keep_indices) {
+          const int c = i * chunks_per_slice + j0 / kChunkSteps;
+          std::copy_n(row.index[xi][c], kChunkTaps, taps.index);
+          std::copy_n(row.skip[xi][c], kChunkSteps, taps.skip);
+        } else {
+          tap_indices(grid, pt.step_noise, pt.radius_px, x, y, i, d, j0, taps.index, taps.skip);
+        }
         tap_thickness(texels, back, width, perspective, k.thickness_world, taps);
         TapGeometry geo;
         if (k.height_field)
@@ -591,12 +619,44 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
       bent += pn_len * (along_view * view + along_dir * sl.direction);
     }
 
-    float ao = open_sum > 0.0f ? std::clamp(visible_sum / open_sum, 0.0f, 1.0f) : 1.0f;
-    if (k.multibounce) ao = multibounce(ao, albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
-    ao_row[x] = std::min(ao, 1.0f);
-    const float bent_len = glm::length(bent);
-    const glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
-    bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
+    row.state[xi] = kShaded;
+    row.visible_sum[xi] = visible_sum;
+    row.open_sum[xi] = open_sum;
+    row.bent_x[xi] = bent.x;
+    row.bent_y[xi] = bent.y;
+    row.bent_z[xi] = bent.z;
+  };
+  // The outputs of pixels x0 .. x1 - 1 of row y from their sums (no branches: the loop
+  // vectorises). Background: AO 1 and no bent normal; no taps: AO 1 and the normal.
+  const auto finish_row = [&](int x0, int x1, int y, const TileRow& row) {
+    const cv::Vec3f* normal_row = in.normal_view.ptr<cv::Vec3f>(y);
+    const cv::Vec3f* albedo_row = k.multibounce ? in.albedo->ptr<cv::Vec3f>(y) : nullptr;
+    float* ao_row = out.ao.ptr<float>(y);
+    cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
+    const int n = x1 - x0;
+    for (int xi = 0; xi < n; ++xi) {
+      const int x = x0 + xi;
+      const bool shaded = row.state[xi] == kShaded;
+      const float visible_sum = row.visible_sum[xi], open_sum = row.open_sum[xi];
+      float ao = open_sum > 0.0f ? std::clamp(visible_sum / open_sum, 0.0f, 1.0f) : 1.0f;
+      ao_row[x] = shaded ? ao : 1.0f;
+    }
+    if (k.multibounce)
+      for (int xi = 0; xi < n; ++xi) {
+        const int x = x0 + xi;
+        if (row.state[xi] == kShaded)
+          ao_row[x] = std::min(multibounce(ao_row[x], albedo_luminance(albedo_row[x])), 1.0f);
+      }
+    for (int xi = 0; xi < n; ++xi) {
+      const int x = x0 + xi;
+      const uint8_t state = row.state[xi];
+      const glm::vec3 bent(row.bent_x[xi], row.bent_y[xi], row.bent_z[xi]);
+      const glm::vec3 normal(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
+      const float bent_len = glm::length(bent);
+      glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
+      bn = state == kShaded ? bn : state == kNoTaps ? normal : glm::vec3(0.0f);
+      bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
+    }
   };
 
   // Tiles of kTileWidthPx x kTileHeightPx pixels: a pixel's taps land anywhere within its
@@ -613,27 +673,34 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
             // Each row's tap patterns are computed, and their texels asked for, while the
             // row above is shaded: a tap's texel is anywhere within the radius, mostly not
             // in the nearest cache, and a row's worth of shading hides the wait.
-            std::array<PixelTaps, kTileWidthPx> shaded_row, next_row;
+            // The tap indices are kept for the shading when they fit (kKeptChunks).
+            TileRow rows[2];
+            TileRow* shaded_row = &rows[0];
+            TileRow* next_row = &rows[1];
             for (int y = y0; y <= y1; ++y) {
               for (int x = x0; x < x1; ++x) {
                 const size_t xi = size_t(x - x0);
                 if (y < y1) {
-                  const PixelTaps p = pixel_taps(x, y);
-                  next_row[xi] = p;
+                  PixelTaps& p = next_row->pixel[xi];
+                  pixel_taps(x, y, p);
                   // (Inline, not a function of its own: the compiler drops calls of a
                   // function whose only effect is a prefetch.)
                   for (int i = 0; i < k.slices && p.has_taps; ++i) {
                     const glm::vec2 d = slice_direction(p, i);
                     for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
-                      int32_t index[kChunkTaps], skip[kChunkSteps];
+                      int32_t scratch_index[kChunkTaps], scratch_skip[kChunkSteps];
+                      const int c = i * chunks_per_slice + j0 / kChunkSteps;
+                      int32_t* index = keep_indices ? next_row->index[xi][c] : scratch_index;
+                      int32_t* skip = keep_indices ? next_row->skip[xi][c] : scratch_skip;
                       tap_indices(grid, p.step_noise, p.radius_px, x, y, i, d, j0, index, skip);
                       for (int m = 0; m < kChunkTaps; ++m)
                         if (index[m] >= 0) __builtin_prefetch(texels.data() + index[m]);
                     }
                   }
                 }
-                if (y > y0) shade_pixel(x, y - 1, shaded_row[xi]);
+                if (y > y0) shade_pixel(x, y - 1, *shaded_row, xi);
               }
+              if (y > y0) finish_row(x0, x1, y - 1, *shaded_row);
               std::swap(shaded_row, next_row);
             }
           }
