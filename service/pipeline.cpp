@@ -143,6 +143,19 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
     compute_ssdo(in, request.ssdo, ssdo, {}, threads);
   }
 
+  // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
+  // samples (kernels/confidence.h), written with every AO or SSDO output. Computed while
+  // the shared grid exists; then the grid, its weights and positions computed here are
+  // released, and the denoised terms and the composite reuse their memory (the worker's
+  // heap keeps freed memory: fresh pages cost a fault each).
+  cv::Mat confidence;
+  if (confidence_wanted)
+    compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, confidence_settings, confidence, {},
+                       threads, shared_grid);
+  half_grid = HalfGrid();
+  shared_grid = nullptr;
+  if (g.position_view.empty()) position_view.release();
+
   // The denoised terms, in one pass over the frame: the blur's weights depend only on the
   // guides, so AO and the two SSDO terms share them (kernels/denoise.h).
   cv::Mat ao_denoised, direct_denoised, indirect_denoised;
@@ -170,14 +183,7 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
     frame.terms.push_back({"ssdo_indirect_denoised", indirect_denoised, SampleType::half, false});
   }
 
-  // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
-  // samples (kernels/confidence.h), written with every AO or SSDO output.
-  if (confidence_wanted) {
-    cv::Mat confidence;
-    compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, confidence_settings, confidence, {},
-                       threads, shared_grid);
-    frame.terms.push_back({"confidence", confidence, SampleType::float32, false});
-  }
+  if (confidence_wanted) frame.terms.push_back({"confidence", confidence, SampleType::float32, false});
 
   if (terms.composite) {
     CompositeSettings settings;
@@ -260,10 +266,14 @@ FrameResult process_frame(const FrameRequest& request) {
     result.times.compute_ms = ms_since(t0);
 
     if (!request.output_path.empty()) {
+      // The G-buffer's images are not written: their memory goes to the writer's buffers
+      // (images a term shares stay alive with it).
+      const Camera camera = frame.gbuffer.camera;
+      frame.gbuffer = GBuffer();
       t0 = std::chrono::steady_clock::now();
       WriteOptions write = request.write;
       if (write.threads == 0) write.threads = request.threads;  // the frame's thread budget
-      const std::string err = write_outputs(request.output_path, computed.terms, frame.gbuffer.camera, write);
+      const std::string err = write_outputs(request.output_path, computed.terms, camera, write);
       result.times.write_ms = ms_since(t0);
       if (!err.empty()) {
         result.error = err;
