@@ -876,8 +876,16 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
         g.lighting = img.lighting;
       } else if (!img.albedo.empty() && !img.diffdir.empty()) {
         // Sender radiance of a Lambertian pixel under the renderer's direct light:
-        // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, see README).
-        g.lighting = img.albedo.mul(img.diffdir);
+        // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, see README),
+        // in the pass's own image unless a reference pass shares it.
+        bool shared = false;
+        for (const auto& [name, m] : img.references) shared = shared || m.data == img.diffdir.data;
+        if (shared) {
+          g.lighting = img.albedo.mul(img.diffdir);
+        } else {
+          cv::multiply(img.diffdir, img.albedo, img.diffdir);
+          g.lighting = img.diffdir;
+        }
       }
       set_nonfinite_to_zero(g.lighting);
     }
