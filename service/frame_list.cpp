@@ -1,13 +1,16 @@
 #include "service/frame_list.h"
 
-#include "formats/output_writer.h"
-#include "formats/output_writer.h"
 #include <signal.h>
 #include <sys/stat.h>
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <filesystem>
+#include <thread>
+#include <vector>
+
+#include "formats/output_writer.h"
 
 namespace ssdo {
 
@@ -80,12 +83,17 @@ bool output_up_to_date(const std::string& input, const std::string& output) {
   return !later(changed, out.st_mtim);
 }
 
-int remove_stale_temp_files(const std::string& dir) {
+int remove_stale_temp_files(const std::string& dir, double wait_s) {
   // ".NAME.tmp-HOST-PID-RANDOM" (formats/output_writer.cpp). Only this host's files whose
   // process is gone are abandoned: on a farm, another host's temp file in the shared
   // folder belongs to a task still writing it.
   const std::string host = temp_file_host();
   int removed = 0;
+  struct Owned {
+    fs::path path;
+    pid_t pid;
+  };
+  std::vector<Owned> owned;
   std::error_code ec;
   for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
@@ -102,10 +110,24 @@ int remove_stale_temp_files(const std::string& dir) {
     } catch (const std::exception&) {
       continue;
     }
-    if (pid <= 0 || (::kill(pid_t(pid), 0) == -1 && errno == ESRCH)) {
+    if (pid <= 0) {
       std::error_code rm;
       if (fs::remove(e.path(), rm)) ++removed;
+      continue;
     }
+    owned.push_back({e.path(), pid_t(pid)});
+  }
+  // Each file whose writer is gone is removed; the others are checked again until wait_s.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
+  for (;;) {
+    std::erase_if(owned, [&](const Owned& o) {
+      if (::kill(o.pid, 0) == 0 || errno != ESRCH) return false;
+      std::error_code rm;
+      if (fs::remove(o.path, rm)) ++removed;
+      return true;
+    });
+    if (owned.empty() || std::chrono::steady_clock::now() >= deadline) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return removed;
 }

@@ -30,7 +30,10 @@ bool output_up_to_date(const std::string& input, const std::string& output);
 
 // Removes the temp files of this host's output writers that no longer run
 // (".NAME.tmp-HOST-PID-*" in `dir` with HOST this host and no process PID: left by a
-// kill -9); other hosts' files sharing the folder are left alone. Returns how many.
-int remove_stale_temp_files(const std::string& dir);
+// kill -9); other hosts' files sharing the folder are left alone. A writer that still runs
+// is waited for up to wait_s seconds: the worker of a batch or service killed just before
+// this one started takes a moment to die (it is killed with its parent, and freeing a
+// frame's memory takes ~0.1 s). Returns how many.
+int remove_stale_temp_files(const std::string& dir, double wait_s = 2.0);
 
 }  // namespace ssdo
