@@ -235,6 +235,10 @@ int run_worker(const WorkerArgs& args) {
     // Everything the worker spent on this request: the parent's wall time minus this is
     // the cost of isolation (pipes, scheduling).
     response["handled_ms"] = std::chrono::duration<double, std::milli>(Clock::now() - received).count();
+    // Peak resident memory (the batch does not wait for its workers to exit, so its own
+    // rusage does not include theirs).
+    rusage usage{};
+    if (::getrusage(RUSAGE_SELF, &usage) == 0) response["peak_rss_mib"] = double(usage.ru_maxrss) / 1024.0;
     if (write_message(args.response_fd, to_wire(response), no_deadline()) != IoStatus::ok) return 1;
   }
 }

@@ -223,6 +223,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   result.times.compute_ms = j.value("compute_ms", 0.0);
   result.times.write_ms = j.value("write_ms", 0.0);
   result.handled_ms = j.value("handled_ms", 0.0);
+  result.peak_rss_mib = j.value("peak_rss_mib", 0.0);
   result.width_px = j.value("width", 0);
   result.height_px = j.value("height", 0);
   if (j.contains("terms") && j["terms"].is_array())

@@ -44,6 +44,7 @@ struct WorkerResult {
   StageTimes times;                   // as measured inside the worker
   double wall_ms = 0;                 // request sent -> response read, as the parent saw it
   double handled_ms = 0;              // request received -> response sent, as the worker saw it
+  double peak_rss_mib = 0;            // the worker's peak resident memory so far
   std::vector<std::string> terms;     // terms written
   int width_px = 0, height_px = 0;
   bool worker_replaced = false;       // the worker died or was killed during this frame

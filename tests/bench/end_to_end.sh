@@ -3,8 +3,8 @@
 # per-stage times (read, compute, write: medians over the frames, as `ssdo process -v`
 # reports them), the batch's wall time against its I/O floor (the same batch with
 # --io-only: the same channels read and the same channels written, nothing computed), and
-# the peak resident memory of the worker (getrusage of the batch's descendants, via
-# /usr/bin/time) against the decoded G-buffer (the channels read, as float).
+# the peak resident memory of the worker (its getrusage, which `ssdo process -v` prints
+# with each frame) against the decoded G-buffer (the channels read, as float).
 # The full batch and the floor run alternately RUNS times in one run.
 #
 #   tests/bench/end_to_end.sh [FRAME] [FRAMES] [RUNS]
@@ -39,11 +39,14 @@ for mode in full floor; do : >"$work/$mode.wall"; : >"$work/$mode.log"; : >"$wor
 for r in $(seq "$runs"); do
   for mode in full floor; do
     extra=(); [ "$mode" = floor ] && extra=(--io-only)
-    /usr/bin/time -f '%e %M' -o "$work/time.txt" \
-      "$ssdo" process "$work/in" -o "$work/out-$mode" --force -v "${ssdo_args[@]}" "${extra[@]}" >>"$work/$mode.log"
-    read -r wall rss <"$work/time.txt"
-    echo "$wall" >>"$work/$mode.wall"
-    echo "$rss" >>"$work/$mode.rss"
+    t0=$(date +%s.%N)
+    "$ssdo" process "$work/in" -o "$work/out-$mode" --force -v "${ssdo_args[@]}" "${extra[@]}" >"$work/run.log"
+    t1=$(date +%s.%N)
+    cat "$work/run.log" >>"$work/$mode.log"
+    awk "BEGIN { print $t1 - $t0 }" >>"$work/$mode.wall"
+    # KiB, as /usr/bin/time's %M: the largest of the run's workers.
+    sed -n 's/.* worker peak RSS \([0-9.]*\) MiB.*/\1/p' "$work/run.log" | sort -g | tail -1 |
+      awk '{ print $1 * 1024 }' >>"$work/$mode.rss"
   done
 done
 
