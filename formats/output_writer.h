@@ -27,10 +27,10 @@ struct OutputTerm {
 // "dwaa" (lossy) is refused when a file holds any of them and is meant for files of
 // colour terms only. zip and zips deflate at level kFastZipLevel (OpenEXR's default is 4):
 // measured with zlib on a 1080p frame with AO and SSDO terms, level 1 writes 20% faster
-// for a file 2.4% larger. With the libdeflate encoder, rle and none write that frame 1.2x
-// and 1.9x faster than zip, for files 29% and 123% larger (README.md, "Frame I/O"). The
-// same level means the same to both zip encoders (ChunkEncoder) and is checked against
-// zlib's range.
+// for a file 2.4% larger. With ChunkEncoder::own, rle and none write that frame 1.3x and
+// 6x faster than zip, for files 29% and 123% larger (README.md, "Frame I/O"). The same
+// level means the same to both zip encoders (ChunkEncoder) and is checked against zlib's
+// range.
 inline constexpr int kFastZipLevel = 1;
 
 // Who packs (and deflates) the chunks of zip, zips and none files. Both write files any
