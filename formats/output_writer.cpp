@@ -28,6 +28,7 @@
 #include <OpenEXR/openexr.h>
 #include <Imath/half.h>
 #if defined(__x86_64__)
+#include <cpuid.h>
 #include <immintrin.h>
 #endif
 
@@ -247,7 +248,10 @@ __attribute__((target("avx2,f16c"))) void to_half_f16c(const float* in, size_t s
 using HalfConversion = void (*)(const float* in, size_t step, int n, uint8_t* out);
 HalfConversion half_conversion() {
 #if defined(__x86_64__)
-  static const bool f16c = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("f16c");
+  static const bool f16c = [] {
+    unsigned a = 0, b = 0, c = 0, d = 0;
+    return __builtin_cpu_supports("avx2") && __get_cpuid(1, &a, &b, &c, &d) != 0 && (c & bit_F16C) != 0;
+  }();
   if (f16c) return to_half_f16c;
 #endif
   return to_half_imath;
