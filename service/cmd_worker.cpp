@@ -184,13 +184,9 @@ int run_worker(const WorkerArgs& args) {
   }
 
   std::map<std::string, FrameRequest> resolved;  // options JSON -> request template
-  bool trimmed = true;
-  for (;;) {
-    if (!trimmed && !request_within(args.request_fd, kIdleTrimSeconds)) {
-      ::malloc_trim(0);
-      trimmed = true;
-    }
-    trimmed = false;
+  for (bool first = true;; first = false) {
+    // After a frame, a worker idle for kIdleTrimSeconds returns its free memory, then waits.
+    if (!first && !request_within(args.request_fd, kIdleTrimSeconds)) ::malloc_trim(0);
     std::string message;
     const IoStatus s = read_message(args.request_fd, message, kMaxRequestBytes, no_deadline());
     if (s != IoStatus::ok) return s == IoStatus::closed ? 0 : 1;
