@@ -110,18 +110,14 @@ int remove_stale_temp_files(const std::string& dir, double wait_s) {
     } catch (const std::exception&) {
       continue;
     }
-    if (pid <= 0) {
-      std::error_code rm;
-      if (fs::remove(e.path(), rm)) ++removed;
-      continue;
-    }
     owned.push_back({e.path(), pid_t(pid)});
   }
-  // Each file whose writer is gone is removed; the others are checked again until wait_s.
+  // Each file whose writer is gone (or whose pid is not one) is removed; the others are
+  // checked again until wait_s.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
   for (;;) {
     std::erase_if(owned, [&](const Owned& o) {
-      if (::kill(o.pid, 0) == 0 || errno != ESRCH) return false;
+      if (o.pid > 0 && (::kill(o.pid, 0) == 0 || errno != ESRCH)) return false;
       std::error_code rm;
       if (fs::remove(o.path, rm)) ++removed;
       return true;
