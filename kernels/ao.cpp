@@ -154,7 +154,9 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   HalfGrid own;
   const HalfGrid& h = shared_or_own_half_grid(full, in.half_grid, own, true, nthreads);
   cv::Mat half_albedo;
-  if (in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
+  // Only multi-bounce reads albedo (every method).
+  if (settings.multibounce && in.albedo != nullptr && !in.albedo->empty())
+    sample_at_texels(h, *in.albedo, half_albedo, nthreads);
   const AoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
                          half_albedo.empty() ? nullptr : &half_albedo};
   AoOutput half_out;

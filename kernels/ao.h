@@ -15,9 +15,10 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/camera.h"
-#include "kernels/half_resolution.h"
 
 namespace ssdo {
+
+struct HalfGrid;  // kernels/half_resolution.h
 
 enum class AoMethod { hemisphere, hbao, gtao, raymarch };
 enum class Preset { low, medium, high, ultra };

@@ -23,9 +23,10 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/camera.h"
-#include "kernels/half_resolution.h"
 
 namespace ssdo {
+
+struct HalfGrid;  // kernels/half_resolution.h
 
 struct ConfidenceSettings {
   // Radius of the sampled neighbourhood, scene units, (0, inf): the estimator's radius

@@ -470,21 +470,19 @@ void sample_at_texels(const HalfGrid& h, const cv::Mat& full_image, cv::Mat& hal
 }
 
 void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int nthreads) {
-  const cv::Rect r = roi.empty() ? cv::Rect(cv::Point(), full.depth_view.size())
-                                 : roi & cv::Rect(cv::Point(), full.depth_view.size());
+  const cv::Rect r = resolve_roi(roi, full.depth_view.size());
   h.upsample_weights.create(full.depth_view.size(), CV_32FC4);
   h.upsample_roi = r;
   const int hh = h.depth_view.rows;
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
-  const HalfGrid& grid = h;
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
 #ifdef SSDO_HALF_RESOLUTION_AVX2
-    lanes::TexelRows texels(grid, true, {});
+    lanes::TexelRows texels(h, true, {});
 #endif
     for (int y = rows.start; y < rows.end; ++y) {
       cv::Vec4f* out = h.upsample_weights.ptr<cv::Vec4f>(y);
       const AxisFootprint fy = axis_footprint(y, hh);
-      weights_span(full, grid, y, fy, r.x, span.begin, out);
+      weights_span(full, h, y, fy, r.x, span.begin, out);
 #ifdef SSDO_HALF_RESOLUTION_AVX2
       if (span.begin < span.end) {
         const float* r0;
@@ -502,7 +500,7 @@ void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int
         }
       }
 #endif
-      weights_span(full, grid, y, fy, span.end, r.x + r.width, out);
+      weights_span(full, h, y, fy, span.end, r.x + r.width, out);
     }
   }, kRowsPerStrip);
 }

@@ -57,10 +57,15 @@ bool runs_on_half_grid(const SsdoSettings& s) {
   return s.resolution_divisor == 2 && s.method == SsdoMethod::ssdo;
 }
 
+// validate()'s bound on sample_steps; the march's per-pixel arrays are sized by it.
+constexpr int kMaxSampleSteps = 64;
+
 std::string validate(const SsdoSettings& s) {
   if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
   if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
-  if (s.sample_steps < 1 || s.sample_steps > 64) return detail::out_of_range("sample_steps", s.sample_steps, "[1, 64]");
+  if (s.sample_steps < 1 || s.sample_steps > kMaxSampleSteps)
+    return detail::out_of_range("sample_steps", s.sample_steps,
+                                ("[1, " + std::to_string(kMaxSampleSteps) + "]").c_str());
   if (s.sample_refinements < 0 || s.sample_refinements > 16)
     return detail::out_of_range("sample_refinements", s.sample_refinements, "[0, 16]");
   if (!(s.thickness_world > 0.0f)) return detail::out_of_range("thickness_world", s.thickness_world, "(0, inf]");
@@ -136,7 +141,6 @@ constexpr int kMaxLevels = 8;
 // points after the one that decides are tested but not used: ~7% of them at low on the
 // 1080p frame).
 constexpr int kSampleBatch = 8;
-constexpr int kMaxSampleSteps = 64;  // validate()'s bound on sample_steps
 
 // Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {

@@ -81,6 +81,8 @@
 
 namespace ssdo {
 
+struct HalfGrid;  // kernels/half_resolution.h
+
 enum class SsdoMethod { ssdo, oracle };
 enum class SsdoDirectEstimator {
   per_sample,   // (1/N) sum over visible samples of the cone-filtered radiance (paper)

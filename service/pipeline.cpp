@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "kernels/confidence.h"
+#include "kernels/half_resolution.h"
 #include "kernels/positions.h"
 
 namespace ssdo {

@@ -14,6 +14,7 @@
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/denoise.h"
+#include "kernels/half_resolution.h"
 #include "kernels/positions.h"
 #include "kernels/raycast.h"
 #include "kernels/ssdo.h"
