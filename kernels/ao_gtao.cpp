@@ -514,7 +514,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
         } else {
           tap_indices(grid, pt.step_noise, pt.radius_px, x, y, i, d, j0, taps.index, taps.skip);
         }
-        tap_thickness(texels, back, width, perspective, k.thickness_world, taps);
+        // Segment lengths: read by the visibility mask only (not by the height field).
+        if (!k.height_field) tap_thickness(texels, back, width, perspective, k.thickness_world, taps);
         TapGeometry geo;
         if (k.height_field)
           perspective ? tap_geometry<true, false>(texels.data(), taps, lanes, frame, geo)
