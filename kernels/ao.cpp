@@ -133,8 +133,10 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == in.depth_view.size());
-  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == in.depth_view.size());
   CV_Assert(validate(settings).empty());
+  // Positions may be omitted when the settings run on the half grid (which has its own).
+  CV_Assert((in.position_view.empty() && runs_on_half_grid(settings)) ||
+            (in.position_view.type() == CV_32FC3 && in.position_view.size() == in.depth_view.size()));
   AoSettings s = settings;
   s.thickness_world = effective_thickness_world(settings);
   const cv::Size size = in.depth_view.size();

@@ -101,7 +101,9 @@ std::string validate(const AoSettings& s);
 struct AoInputs {
   const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
   const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals
-  const cv::Mat& position_view;  // CV_32FC3 view-space positions (view_positions_from_depth)
+  // CV_32FC3 view-space positions (view_positions_from_depth); may be empty when the
+  // settings run on the half grid (its texels' positions are computed from depth).
+  const cv::Mat& position_view;
   const cv::Mat& mask;           // CV_8UC1, 255 = foreground
   const Camera& camera;
   const cv::Mat* albedo = nullptr;  // CV_32FC3 or null (multi-bounce only)

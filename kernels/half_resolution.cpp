@@ -51,12 +51,14 @@ void write_scalar(float* dst, const cv::Scalar& v, int channels) {
 }  // namespace
 
 void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& h,
-                     int nthreads) {
+                     int nthreads, bool with_positions) {
   const cv::Size size = full.depth_view.size();
   const cv::Size half((size.width + 1) / 2, (size.height + 1) / 2);
   h.depth_view.create(half, CV_32FC1);
   h.normal_view.create(half, CV_32FC3);
-  const bool has_position = !full.position_view.empty();
+  const bool has_position = with_positions;
+  const bool positions_given = !full.position_view.empty();
+  if (positions_given) CV_Assert(full.position_view.type() == CV_32FC3 && full.position_view.size() == size);
   if (has_position) h.position_view.create(half, CV_32FC3);
   else h.position_view.release();
   h.mask.create(half, CV_8UC1);
@@ -85,7 +87,14 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
         } else {
           h.depth_view.ptr<float>(j)[i] = full.depth_view.ptr<float>(sy)[sx];
           h.normal_view.ptr<cv::Vec3f>(j)[i] = full.normal_view.ptr<cv::Vec3f>(sy)[sx];
-          if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = full.position_view.ptr<cv::Vec3f>(sy)[sx];
+          if (positions_given) {
+            if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = full.position_view.ptr<cv::Vec3f>(sy)[sx];
+          } else if (has_position) {
+            // As view_positions_from_depth at pixel (sx, sy).
+            const glm::vec3 p = full.camera.view_from_pixel_depth({sx + 0.5f, sy + 0.5f},
+                                                                  full.depth_view.ptr<float>(sy)[sx]);
+            h.position_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(p.x, p.y, p.z);
+          }
         }
       }
   });
@@ -96,7 +105,7 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
 const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* shared, HalfGrid& own,
                                         bool need_positions, int nthreads) {
   if (shared == nullptr) {
-    build_half_grid(full, {}, own, nthreads);
+    build_half_grid(full, {}, own, nthreads, need_positions);
     return own;
   }
   const cv::Size size = full.depth_view.size();

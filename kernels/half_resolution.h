@@ -26,7 +26,10 @@
 namespace ssdo {
 
 struct HalfGrid {
-  cv::Mat depth_view, normal_view, position_view, mask;  // as the full-resolution inputs
+  cv::Mat depth_view, normal_view, mask;  // as the full-resolution inputs
+  // The source pixels' view-space positions (the full-resolution positions' or, without
+  // them, view_positions_from_depth's values); empty when built without positions.
+  cv::Mat position_view;
   std::vector<cv::Mat> extras;  // each extra input's value at the texel (0 where none)
   cv::Mat source;               // CV_32SC2: the full-resolution pixel taken, (-1, -1) if none
   Camera camera;                // the full camera with the half grid's size
@@ -52,11 +55,15 @@ struct FullGrid {
 
 // Builds the whole half grid (kernels read taps anywhere on it, whatever the roi). Each
 // extra is a CV_32F image of the full size (any channel count) or empty (stays empty).
+// with_positions: the texels' positions, copied from full.position_view or, when that is
+// empty, computed from the depth at the source pixels only (a full-resolution position
+// image is not needed by kernels that run on the grid).
 void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& half,
-                     int nthreads = 0);
+                     int nthreads = 0, bool with_positions = true);
 
 // The half grid a kernel runs on: `shared` (the frame's, checked to be of the full
-// grid's half size, with positions when `need_positions`) or, when null, `own` built here.
+// grid's half size, with positions when `need_positions`) or, when null, `own` built here
+// (with positions when `need_positions`).
 const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* shared, HalfGrid& own,
                                         bool need_positions, int nthreads = 0);
 

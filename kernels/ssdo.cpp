@@ -594,7 +594,9 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == size);
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
-  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
+  // Positions may be omitted when the settings run on the half grid (which has its own).
+  CV_Assert((in.position_view.empty() && runs_on_half_grid(settings)) ||
+            (in.position_view.type() == CV_32FC3 && in.position_view.size() == size));
   CV_Assert(!in.albedo || (in.albedo->type() == CV_32FC3 && in.albedo->size() == size));
   CV_Assert(!in.lighting || (in.lighting->type() == CV_32FC3 && in.lighting->size() == size));
   CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);

@@ -163,7 +163,9 @@ bool runs_on_half_grid(const SsdoSettings& s);
 struct SsdoInputs {
   const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
   const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals
-  const cv::Mat& position_view;  // CV_32FC3 view-space positions (view_positions_from_depth)
+  // CV_32FC3 view-space positions (view_positions_from_depth); may be empty when the
+  // settings run on the half grid (its texels' positions are computed from depth).
+  const cv::Mat& position_view;
   const cv::Mat& mask;           // CV_8UC1, 255 = foreground
   const Camera& camera;
   const Environment& environment;

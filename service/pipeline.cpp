@@ -98,9 +98,6 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const int threads = request.threads;
   const TermSelection& terms = request.terms;
-  cv::Mat position_view = g.position_view;
-  if (position_view.empty())
-    view_positions_from_depth(g.depth_view, g.mask, g.camera, position_view, {}, threads);
   const TermsComputed computed = terms_computed(request);
   const std::vector<WeightedTerm>& composite_terms = computed.composite_terms;
   const bool confidence_wanted = terms.ao || terms.ssdo;
@@ -117,11 +114,16 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
   const bool ao_half = computed.ao && runs_on_half_grid(request.ao);
   const bool ssdo_half = computed.ssdo && runs_on_half_grid(request.ssdo);
   const bool confidence_half = confidence_wanted && confidence_settings.resolution_divisor == 2;
+  // View-space positions: the G-buffer's, else from depth, at full resolution only for a
+  // kernel that runs there (the half grid computes its texels' own).
+  cv::Mat position_view = g.position_view;
+  if (position_view.empty() && ((computed.ao && !ao_half) || (computed.ssdo && !ssdo_half)))
+    view_positions_from_depth(g.depth_view, g.mask, g.camera, position_view, {}, threads);
   HalfGrid half_grid;
   const HalfGrid* shared_grid = nullptr;
   if (int(ao_half) + int(ssdo_half) + int(confidence_half) >= 2) {
     const FullGrid full{g.depth_view, g.normal_view, position_view, g.mask, g.camera};
-    build_half_grid(full, {}, half_grid, threads);
+    build_half_grid(full, {}, half_grid, threads, /*with_positions=*/ao_half || ssdo_half);
     build_upsample_weights(full, half_grid, {}, threads);
     shared_grid = &half_grid;
   }

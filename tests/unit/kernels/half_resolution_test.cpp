@@ -11,6 +11,7 @@
 
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
+#include "kernels/positions.h"
 #include "kernels/raycast.h"
 #include "kernels/ssdo.h"
 
@@ -258,6 +259,42 @@ TEST(HalfResolution, KernelsOnASharedGridGiveTheirOwnGridsBits) {
   compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, shared_confidence, {}, 2, &h);
   EXPECT_EQ(cv::norm(own_confidence, shared_confidence, cv::NORM_INF), 0.0);
   EXPECT_LT(cv::mean(own_confidence)[0], 1.0);
+}
+
+// Without full-resolution positions the grid computes its texels' own from depth: the
+// bits of view_positions_from_depth at the source pixels, so kernels on the grid return
+// the bits they return given the full-resolution positions computed from depth.
+TEST(HalfResolution, TexelPositionsFromDepthGiveTheBitsOfFullResolutionPositions) {
+  const GBuffer g = frame();
+  cv::Mat from_depth;
+  view_positions_from_depth(g.depth_view, g.mask, g.camera, from_depth, {}, 2);
+  const cv::Mat none;
+  HalfGrid given, computed, without;
+  build_half_grid({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, {}, given, 2);
+  build_half_grid({g.depth_view, g.normal_view, none, g.mask, g.camera}, {}, computed, 2);
+  build_half_grid({g.depth_view, g.normal_view, none, g.mask, g.camera}, {}, without, 2, false);
+  ASSERT_EQ(computed.position_view.size(), given.position_view.size());
+  EXPECT_EQ(cv::norm(computed.position_view, given.position_view, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(computed.position_view, cv::NORM_INF), 1.0);  // not all zero
+  EXPECT_TRUE(without.position_view.empty());
+
+  const AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
+  AoOutput with_positions, without_positions;
+  compute_ao({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, ao_settings, with_positions, {}, 2);
+  compute_ao({g.depth_view, g.normal_view, none, g.mask, g.camera}, ao_settings, without_positions, {}, 2);
+  EXPECT_EQ(cv::norm(with_positions.ao, without_positions.ao, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(with_positions.bent_normal_view, without_positions.bent_normal_view, cv::NORM_INF), 0.0);
+
+  const Environment sky = Environment::sky(SkyGradient{});
+  const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
+  SsdoOutput lit_with, lit_without;
+  compute_ssdo({g.depth_view, g.normal_view, from_depth, g.mask, g.camera, sky, &g.albedo}, ssdo_settings, lit_with,
+               {}, 2);
+  compute_ssdo({g.depth_view, g.normal_view, none, g.mask, g.camera, sky, &g.albedo}, ssdo_settings, lit_without, {},
+               2);
+  EXPECT_EQ(cv::norm(lit_with.direct, lit_without.direct, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(lit_with.indirect, lit_without.indirect, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::mean(lit_with.indirect)[0], 0.0);
 }
 
 TEST(HalfResolution, RoiOfTheHalfGridCoversEveryTexelTheUpsampleReads) {
