@@ -22,31 +22,44 @@ bool is_exr(const std::string& path) {
   return in && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
 }
 
-// EXR through OpenEXR (the common case; no OpenImageIO to load): R, G, B, or a luminance
-// channel Y replicated. Headers are checked first, as for frames.
-std::string read_exr(const std::string& path, long long max_pixels, cv::Mat& rgb) {
-  ExrLimits limits;
-  limits.max_pixels = max_pixels;
-  if (const ExrHeaderCheck check = check_exr_headers(path, limits); !check.ok())
-    return check.error;
-  Imf::InputFile in(path.c_str());
-  const Imath::Box2i data = in.header().dataWindow();
+// The header checks of an EXR map: the channels read ({R, G, B} or {Y, Y, Y}) in
+// `names`, or the error.
+std::string check_exr(const std::string& path, long long max_pixels, const Imf::Header& header,
+                      std::vector<std::string>& names) {
+  const Imath::Box2i data = header.dataWindow();
   const long long w = (long long)data.max.x - data.min.x + 1;
   const long long h = (long long)data.max.y - data.min.y + 1;
   if (w <= 0 || h <= 0 || w * h > max_pixels)
     return path + ": environment map size " + std::to_string(w) + " x " + std::to_string(h) +
            " is empty or larger than the limit of " + std::to_string(max_pixels) + " pixels";
-  const Imf::ChannelList& channels = in.header().channels();
-  std::vector<std::string> names;
+  const Imf::ChannelList& channels = header.channels();
   if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B"))
     names = {"R", "G", "B"};
   else if (channels.findChannel("Y"))
     names = {"Y", "Y", "Y"};
   else
     return path + ": the environment map has no R, G, B or Y channels";
-  rgb.create(int(h), int(w), CV_32FC3);
+  return {};
+}
+
+// EXR through OpenEXR (the common case; no OpenImageIO to load): R, G, B, or a luminance
+// channel Y replicated. Headers are checked first, as for frames. rgb null: the checks only.
+std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb) {
+  ExrLimits limits;
+  limits.max_pixels = max_pixels;
+  if (const ExrHeaderCheck check = check_exr_headers(path, limits); !check.ok())
+    return check.error;
+  Imf::InputFile in(path.c_str());
+  std::vector<std::string> names;
+  if (std::string e = check_exr(path, max_pixels, in.header(), names); !e.empty() || rgb == nullptr)
+    return e;
+  const Imath::Box2i data = in.header().dataWindow();
+  const long long w = (long long)data.max.x - data.min.x + 1;
+  const long long h = (long long)data.max.y - data.min.y + 1;
+  cv::Mat& out = *rgb;
+  out.create(int(h), int(w), CV_32FC3);
   // Slices address pixel (x, y) of the data window at base + x * xStride + y * yStride.
-  char* base = reinterpret_cast<char*>(rgb.ptr<float>(0)) -
+  char* base = reinterpret_cast<char*>(out.ptr<float>(0)) -
                (data.min.x * 3 + (long long)data.min.y * w * 3) * (long long)sizeof(float);
   Imf::FrameBuffer fb;
   if (names[0] == "Y") {
@@ -59,9 +72,9 @@ std::string read_exr(const std::string& path, long long max_pixels, cv::Mat& rgb
   in.setFrameBuffer(fb);
   in.readPixels(data.min.y, data.max.y);
   if (names[0] == "Y")
-    for (int y = 0; y < rgb.rows; ++y) {
-      float* p = rgb.ptr<float>(y);
-      for (int x = 0; x < rgb.cols; ++x) p[3 * x + 1] = p[3 * x + 2] = p[3 * x];
+    for (int y = 0; y < out.rows; ++y) {
+      float* p = out.ptr<float>(y);
+      for (int x = 0; x < out.cols; ++x) p[3 * x + 1] = p[3 * x + 2] = p[3 * x];
     }
   return {};
 }
@@ -72,7 +85,7 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
   EnvMapResult r;
   try {
     if (is_exr(path)) {
-      if (std::string e = read_exr(path, max_pixels, r.radiance_rgb); !e.empty()) {
+      if (std::string e = read_exr(path, max_pixels, &r.radiance_rgb); !e.empty()) {
         r.error = "environment map " + e;
         return r;
       }
@@ -102,6 +115,16 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
     r.error = path + ": cannot read the environment map: " + e.what();
   }
   return r;
+}
+
+std::string check_env_map(const std::string& path, long long max_pixels) {
+  if (!is_exr(path)) return read_env_map(path, max_pixels).error;
+  try {
+    if (std::string e = read_exr(path, max_pixels, nullptr); !e.empty()) return "environment map " + e;
+  } catch (const std::exception& e) {
+    return path + ": cannot read the environment map: " + e.what();
+  }
+  return {};
 }
 
 }  // namespace ssdo

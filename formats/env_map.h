@@ -21,4 +21,10 @@ struct EnvMapResult {
 // clamped to 0.
 EnvMapResult read_env_map(const std::string& path, long long max_pixels = 1ll << 26);
 
+// What read_env_map would refuse that is known without decoding the pixels: for EXR the
+// header (formats/exr_header_check.h), the size limit and the channels; any other format
+// is read whole (read_env_map). Empty on success, else the error read_env_map gives. For
+// a process that checks options before a worker reads the map.
+std::string check_env_map(const std::string& path, long long max_pixels = 1ll << 26);
+
 }  // namespace ssdo

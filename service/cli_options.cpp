@@ -283,14 +283,22 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
   env_settings.up = a.env_up == "y" ? UpAxis::y : UpAxis::z;
   env_settings.filter_cone_half_angle_deg = filter_cone_half_angle_for_samples(request.ssdo.samples);
   if (!a.env_path.empty()) {
-    EnvMapResult env = read_env_map(a.env_path);
-    if (!env.ok()) {
-      error = env.error;
-      return false;
-    }
-    if (build_environment)
+    // Without building it (a process that only checks the options): what is known without
+    // decoding the pixels; the worker that builds it reports the rest.
+    if (!build_environment) {
+      if (std::string e = check_env_map(a.env_path); !e.empty()) {
+        error = e;
+        return false;
+      }
+    } else {
+      EnvMapResult env = read_env_map(a.env_path);
+      if (!env.ok()) {
+        error = env.error;
+        return false;
+      }
       request.environment =
           std::make_shared<const Environment>(Environment::equirect(env.radiance_rgb, env_settings));
+    }
   } else if (!a.sky.empty()) {
     SkyGradient sky;
     if (!parse_sky(a.sky, sky.top, sky.bottom, error)) return false;

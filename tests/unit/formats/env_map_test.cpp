@@ -104,6 +104,14 @@ TEST(EnvMap, ErrorsNameTheFile) {
   const EnvMapResult over = read_env_map((dir / "big.exr").string(), 31);
   EXPECT_FALSE(over.ok());
   EXPECT_NE(over.error.find("big.exr"), std::string::npos) << over.error;
+
+  // The check without the pixels refuses each of them with read_env_map's error, and
+  // passes the map within the limit.
+  EXPECT_EQ(check_env_map((dir / "none.exr").string()), missing.error);
+  EXPECT_EQ(check_env_map((dir / "text.exr").string()), text.error);
+  EXPECT_EQ(check_env_map((dir / "depth.exr").string()), depth.error);
+  EXPECT_EQ(check_env_map((dir / "big.exr").string(), 31), over.error);
+  EXPECT_EQ(check_env_map((dir / "big.exr").string(), 128), "");
 }
 
 }  // namespace
