@@ -610,8 +610,10 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     HalfGrid own;
     const HalfGrid& h = shared_or_own_half_grid(full, in.half_grid, own, true, nthreads);
     cv::Mat half_albedo, half_lighting;
-    if (in.albedo != nullptr) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
-    if (in.lighting != nullptr) sample_at_texels(h, *in.lighting, half_lighting, nthreads);
+    // Albedo only scales the senders' direct light when the frame has no lighting.
+    const bool lit = in.lighting != nullptr && !in.lighting->empty();
+    if (in.albedo != nullptr && !lit) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
+    if (lit) sample_at_texels(h, *in.lighting, half_lighting, nthreads);
     const SsdoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, in.environment,
                              half_albedo.empty() ? nullptr : &half_albedo,
                              half_lighting.empty() ? nullptr : &half_lighting};

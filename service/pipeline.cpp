@@ -94,7 +94,12 @@ TermsComputed terms_computed(const FrameRequest& request) {
 
 }  // namespace
 
-ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
+ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request) {
+  GBuffer shared = gbuffer;  // the images' headers: releasing them frees nothing of the caller's
+  return compute_frame(std::move(shared), request);
+}
+
+ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
   ComputedFrame frame;
   const int threads = request.threads;
   const TermSelection& terms = request.terms;
@@ -173,6 +178,13 @@ ComputedFrame compute_frame(const GBuffer& g, const FrameRequest& request) {
     if (!sources.empty())
       denoise_bilateral(sources, g.depth_view, g.normal_view, g.mask, request.denoise, results, {}, threads);
   }
+  // The guides of AO, SSDO, confidence and the denoise are read no more: their memory
+  // goes to the composite.
+  g.depth_view.release();
+  g.normal_view.release();
+  g.depth_back_view.release();
+  g.position_view.release();
+  position_view.release();
   if (computed.ao && terms.ao) {
     frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
     frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});
@@ -263,15 +275,16 @@ FrameResult process_frame(const FrameRequest& request) {
       return result;
     }
 
+    // The G-buffer's images are not written: compute_frame releases each once it is read
+    // no more, and their memory goes to the later terms and the writer's buffers (images a
+    // term shares stay alive with it).
+    const Camera camera = frame.gbuffer.camera;
     t0 = std::chrono::steady_clock::now();
-    ComputedFrame computed =
-        request.io_only ? io_only_frame(frame.gbuffer, request) : compute_frame(frame.gbuffer, request);
+    ComputedFrame computed = request.io_only ? io_only_frame(frame.gbuffer, request)
+                                             : compute_frame(std::move(frame.gbuffer), request);
     result.times.compute_ms = ms_since(t0);
 
     if (!request.output_path.empty()) {
-      // The G-buffer's images are not written: their memory goes to the writer's buffers
-      // (images a term shares stay alive with it).
-      const Camera camera = frame.gbuffer.camera;
       frame.gbuffer = GBuffer();
       t0 = std::chrono::steady_clock::now();
       WriteOptions write = request.write;

@@ -1,5 +1,5 @@
-// The pipeline's read narrowing (reads_for) and the I/O floor's stand-in terms
-// (io_only_frame) against compute_frame.
+// The pipeline's read narrowing (reads_for), the I/O floor's stand-in terms
+// (io_only_frame) against compute_frame, and compute_frame consuming its G-buffer.
 #include "service/pipeline.h"
 
 #include <gtest/gtest.h>
@@ -79,6 +79,30 @@ TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
         EXPECT_EQ(s.image.size(), c.image.size()) << c.name;
       }
     }
+}
+
+// The consuming compute_frame returns the bits of the one that leaves the G-buffer alone,
+// and releases the images no later step reads (depth and normals) while keeping the ones
+// the composite reads.
+TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
+  const GBuffer g = small_frame();
+  for (const char* terms : {"ao", "ssdo", "ao,ssdo", "all"}) {
+    FrameRequest r = request_for(terms);
+    r.threads = 2;
+    const ComputedFrame kept = compute_frame(g, r);
+    EXPECT_FALSE(g.depth_view.empty());
+    GBuffer consumed = small_frame();
+    const ComputedFrame released = compute_frame(std::move(consumed), r);
+    EXPECT_TRUE(consumed.depth_view.empty()) << terms;
+    EXPECT_TRUE(consumed.normal_view.empty()) << terms;
+    EXPECT_FALSE(consumed.albedo.empty()) << terms;
+    ASSERT_EQ(released.terms.size(), kept.terms.size()) << terms;
+    for (size_t i = 0; i < kept.terms.size(); ++i) {
+      EXPECT_EQ(released.terms[i].name, kept.terms[i].name);
+      EXPECT_EQ(cv::norm(released.terms[i].image, kept.terms[i].image, cv::NORM_INF), 0.0)
+          << terms << " " << kept.terms[i].name;
+    }
+  }
 }
 
 }  // namespace
