@@ -211,41 +211,32 @@ struct ChannelSource {
   bool is_half = false;
 };
 
-// Imath's conversion (round to nearest even) of n floats `step` floats apart into
-// little-endian half bits.
-void to_half_imath(const float* in, size_t step, int n, uint8_t* out) {
-  for (int x = 0; x < n; ++x) {
-    const uint16_t bits = half(in[size_t(x) * step]).bits();
-    std::memcpy(out + 2 * size_t(x), &bits, 2);
-  }
+// Imath's conversion (round to nearest even) of n consecutive floats into half bits.
+void to_half_imath(const float* in, int n, uint16_t* out) {
+  for (int x = 0; x < n; ++x) out[x] = half(in[x]).bits();
 }
 
 #if defined(__x86_64__)
 // The same with F16C, 8 samples at a time. F16C rounds to nearest even as Imath does, so
 // every finite value and infinity converts to the same bits; NaNs may not (F16C quiets a
 // signalling NaN), so a group of 8 holding a NaN is converted by Imath.
-__attribute__((target("avx2,f16c"))) void to_half_f16c(const float* in, size_t step, int n,
-                                                        uint8_t* out) {
-  const __m256i lanes = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7),
-                                           _mm256_set1_epi32(int(step)));
+__attribute__((target("avx2,f16c"))) void to_half_f16c(const float* in, int n, uint16_t* out) {
   int x = 0;
   for (; x + 8 <= n; x += 8) {
-    const float* p = in + size_t(x) * step;
-    const __m256 v = step == 1 ? _mm256_loadu_ps(p) : _mm256_i32gather_ps(p, lanes, 4);
+    const __m256 v = _mm256_loadu_ps(in + x);
     if (_mm256_movemask_ps(_mm256_cmp_ps(v, v, _CMP_UNORD_Q)) != 0) {
-      to_half_imath(p, step, 8, out + 2 * size_t(x));
+      to_half_imath(in + x, 8, out + x);
       continue;
     }
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + 2 * size_t(x)),
-                     _mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), _mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
   }
-  to_half_imath(in + size_t(x) * step, step, n - x, out + 2 * size_t(x));
+  to_half_imath(in + x, n - x, out + x);
 }
 
 #endif
 
 // Imath's or F16C's conversion: the fastest this CPU has.
-using HalfConversion = void (*)(const float* in, size_t step, int n, uint8_t* out);
+using HalfConversion = void (*)(const float* in, int n, uint16_t* out);
 HalfConversion half_conversion() {
 #if defined(__x86_64__)
   static const bool f16c = [] {
@@ -261,17 +252,37 @@ HalfConversion half_conversion() {
 // Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
 // header's (alphabetical) order, the samples of the whole line, little-endian. Half
 // samples are Imath's conversion of the float (round to nearest even), exactly as
-// OpenEXR's writer stores them.
+// OpenEXR's writer stores them. A half channel of a multi-channel image takes its samples
+// from the image's whole row converted at once (contiguous: no strided loads), kept while
+// the next channels read the same row.
 void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int y1,
                 uint8_t* out) {
   static_assert(sizeof(half) == 2 && sizeof(float) == 4);
+  static_assert(std::endian::native == std::endian::little);
   const HalfConversion to_half = half_conversion();
+  std::vector<uint16_t> line_half;  // one channel's line
+  std::vector<uint16_t> row_half;   // the converted row of row_image at row_y
+  const cv::Mat* row_image = nullptr;
+  int row_y = -1;
   for (int y = y0; y < y1; ++y)
     for (const ChannelSource& c : channels) {
       const float* in = c.image->ptr<float>(y) + c.component;
       const size_t step = size_t(c.components);
       if (c.is_half) {
-        to_half(in, step, width, out);
+        if (step == 1) {
+          line_half.resize(size_t(width));
+          to_half(in, width, line_half.data());
+          std::memcpy(out, line_half.data(), size_t(width) * 2);
+        } else {
+          if (row_image != c.image || row_y != y) {
+            row_half.resize(size_t(width) * step);
+            to_half(c.image->ptr<float>(y), int(size_t(width) * step), row_half.data());
+            row_image = c.image;
+            row_y = y;
+          }
+          const uint16_t* from = row_half.data() + c.component;
+          for (int x = 0; x < width; ++x) std::memcpy(out + 2 * size_t(x), &from[size_t(x) * step], 2);
+        }
         out += size_t(width) * 2;
       } else if (step == 1) {
         std::memcpy(out, in, size_t(width) * 4);
