@@ -14,6 +14,13 @@
 #include <sstream>
 
 #include <Imath/half.h>
+#if defined(__x86_64__)
+#include <cpuid.h>
+#include <immintrin.h>
+#endif
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFloatAttribute.h>
@@ -475,17 +482,68 @@ std::optional<ZipPlan> plan_zip_part(exr_const_context_t context, int part, cons
   return plan;
 }
 
-// Converts `width` samples of one packed line to float, exactly as OpenEXR does: half
-// through Imath's conversion table (OpenEXR's copyIntoFrameBuffer converts with half's
-// float operator, which is that table unless OpenEXR is built for F16C), float as is.
-void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, float* to,
-                     size_t pixel_floats) {
-  if (type == EXR_PIXEL_HALF) {
-    for (int64_t x = 0; x < width; ++x) {
-      uint16_t bits;
-      std::memcpy(&bits, from + 2 * x, 2);
-      to[size_t(x) * pixel_floats] = imath_half_to_float_table[bits].f;
+// Imath's conversion of n half samples (little-endian bits) to floats `pixel_floats` floats
+// apart: its table, which OpenEXR's copyIntoFrameBuffer uses through half's float operator
+// unless OpenEXR is built for F16C.
+void half_to_float_imath(const uint8_t* from, int64_t n, float* to, size_t pixel_floats) {
+  for (int64_t x = 0; x < n; ++x) {
+    uint16_t bits;
+    std::memcpy(&bits, from + 2 * x, 2);
+    to[size_t(x) * pixel_floats] = imath_half_to_float_table[bits].f;
+  }
+}
+
+#if defined(__x86_64__)
+// The same with F16C, 8 samples at a time. F16C's conversion is exact, as the table is, for
+// every finite half and infinity; a NaN may come out otherwise (a signalling NaN quieted),
+// so a group of 8 holding a NaN (exponent all ones, mantissa not 0) goes through the table.
+__attribute__((target("avx2,f16c"))) void half_to_float_f16c(const uint8_t* from, int64_t n,
+                                                             float* to, size_t pixel_floats) {
+  const __m128i magnitude_bits = _mm_set1_epi16(0x7fff);
+  const __m128i infinity_bits = _mm_set1_epi16(0x7c00);
+  int64_t x = 0;
+  for (; x + 8 <= n; x += 8) {
+    const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(from + 2 * x));
+    float* out = to + size_t(x) * pixel_floats;
+    // Magnitudes are at most 0x7fff, so the signed comparison is the unsigned one.
+    const __m128i nan = _mm_cmpgt_epi16(_mm_and_si128(h, magnitude_bits), infinity_bits);
+    if (_mm_movemask_epi8(nan) != 0) {
+      half_to_float_imath(from + 2 * x, 8, out, pixel_floats);
+      continue;
     }
+    const __m256 v = _mm256_cvtph_ps(h);
+    if (pixel_floats == 1) {
+      _mm256_storeu_ps(out, v);
+      continue;
+    }
+    alignas(32) float lanes[8];
+    _mm256_store_ps(lanes, v);
+    for (int i = 0; i < 8; ++i) out[size_t(i) * pixel_floats] = lanes[i];
+  }
+  half_to_float_imath(from + 2 * x, n - x, to + size_t(x) * pixel_floats, pixel_floats);
+}
+#endif
+
+// Imath's or F16C's conversion (the same bits): the fastest this CPU has.
+using HalfToFloat = void (*)(const uint8_t* from, int64_t n, float* to, size_t pixel_floats);
+HalfToFloat half_to_float() {
+#if defined(__x86_64__)
+  static const bool f16c = [] {
+    unsigned a = 0, b = 0, c = 0, d = 0;
+    return __builtin_cpu_supports("avx2") && __get_cpuid(1, &a, &b, &c, &d) != 0 &&
+           (c & bit_F16C) != 0;
+  }();
+  if (f16c) return half_to_float_f16c;
+#endif
+  return half_to_float_imath;
+}
+
+// Converts `width` samples of one packed line to float, exactly as OpenEXR does: half as
+// Imath converts it (half_to_float_imath), float as is.
+void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, float* to,
+                     size_t pixel_floats, HalfToFloat to_float) {
+  if (type == EXR_PIXEL_HALF) {
+    to_float(from, width, to, pixel_floats);
   } else {
     for (int64_t x = 0; x < width; ++x)
       std::memcpy(&to[size_t(x) * pixel_floats], from + 4 * x, 4);
@@ -497,6 +555,7 @@ void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, 
 void read_zip_part(exr_const_context_t context, int part, const std::string& part_name,
                    bool multi_part, const PixelBox& data, const ZipPlan& plan, int threads) {
   const int64_t width = data.width();
+  const HalfToFloat to_float = half_to_float();
   std::vector<std::string> errors(size_t(plan.chunks));
   std::atomic<int> first_failed{plan.chunks};
   std::atomic<bool> out_of_memory{false};
@@ -562,7 +621,7 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
       for (const ZipChannel& c : plan.channels) {
         const ChannelTarget& t = *c.target;
         float* to = reinterpret_cast<float*>(reinterpret_cast<uint8_t*>(t.first) + row * t.row_bytes);
-        convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats);
+        convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats, to_float);
       }
     }
   };
@@ -691,6 +750,195 @@ void set_nonfinite_to_zero(cv::Mat& m) {
     if (!std::isfinite(p[i])) p[i] = 0.0f;
 }
 
+// One row's share of what read_gbuffer reports.
+struct RowCounts {
+  int64_t foreground = 0, nonfinite = 0, repaired = 0;
+  float depth_min = std::numeric_limits<float>::infinity();
+  float depth_max = -std::numeric_limits<float>::infinity();
+};
+
+// What the pass after reading needs besides the row's pixels (see foreground_row).
+struct ForegroundPass {
+  int width = 0;
+  float far_view = 0.0f;
+  bool has_background = false;
+  float background = 0.0f;
+  bool radial = false, perspective = false, normals_world = false;
+  glm::mat3 normal_to_view{1.0f};
+  glm::vec3 ray_step_x{0.0f};
+};
+
+// The pass after reading, one row: depth (radial -> planar) classified as foreground or
+// not, normals to view space, unit length and facing the camera. `ray_row` is the eye ray
+// through the row's first pixel centre; `normal` and `repair` are null without normals.
+// Background and unusable pixels get depth +inf, mask 0 and normal (0, 0, 0); foreground
+// pixels mask 255, and repair 1 where the normal is (0, 0, 0). `pass` is taken by value:
+// the mask's byte stores may alias anything behind a reference, which would be reloaded
+// per pixel.
+RowCounts foreground_row(const ForegroundPass pass, const glm::vec3 ray_row, float* depth,
+                         uint8_t* mask, cv::Vec3f* normal, uint8_t* repair) {
+  const float inf = std::numeric_limits<float>::infinity();
+  RowCounts counts;
+  // One pixel, every case.
+  auto pixel = [&](int x) {
+    float d = depth[x];
+    bool nonfinite = !std::isfinite(d);
+    glm::vec3 n(0.0f);
+    if (normal) {
+      n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
+      if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) nonfinite = true;
+    }
+    // The eye ray through the pixel centre (length arbitrary, z = -1 in perspective).
+    const glm::vec3 ray =
+        pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
+    // Radial distance from the eye -> planar depth along -Z: d_planar = d cos(angle
+    // to the axis) = d / |ray| for a ray with z = -1.
+    if (pass.radial && !nonfinite && pass.perspective) d /= glm::length(ray);
+    const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
+                            !(pass.far_view > 0.0f && d > pass.far_view) &&
+                            !(pass.has_background && depth[x] == pass.background);
+    if (!foreground) {
+      counts.nonfinite += nonfinite ? 1 : 0;
+      depth[x] = inf;
+      mask[x] = 0;
+      if (normal) normal[x] = cv::Vec3f(0, 0, 0);
+      return;
+    }
+    depth[x] = d;
+    mask[x] = 255;
+    ++counts.foreground;
+    counts.depth_min = std::min(counts.depth_min, d);
+    counts.depth_max = std::max(counts.depth_max, d);
+    if (normal) {
+      if (pass.normals_world) n = pass.normal_to_view * n;
+      const float len = glm::length(n);
+      if (!(len > kMinNormalLength)) {
+        repair[x] = 1;
+        ++counts.repaired;
+        normal[x] = cv::Vec3f(0, 0, 0);
+        return;
+      }
+      n /= len;
+      // Face the camera: a normal pointing away from the eye (back face, or a
+      // renderer that does not flip shading normals) is turned around, since the
+      // kernels integrate over the visible side's hemisphere.
+      if (glm::dot(n, ray) > 0.0f) n = -n;
+      normal[x] = cv::Vec3f(n.x, n.y, n.z);
+    }
+  };
+  int x = 0;
+#if defined(__SSE2__)
+  // Four pixels at a time while all four are foreground with a usable normal (nearly every
+  // group of a rendered frame); any other group goes pixel by pixel. The operations are
+  // `pixel`'s, in its order and without contraction (SSE2 has no FMA), so the bits are its.
+  if (normal) {
+    const __m128 zero = _mm_setzero_ps();
+    const __m128 magnitude_bits = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    const __m128 infinity = _mm_set1_ps(inf);
+    const __m128 sign_bit = _mm_set1_ps(-0.0f);
+    const __m128 background_depth = _mm_set1_ps(kBackgroundDepth);
+    // No far clip: +inf, which no depth exceeds; no background value: NaN, which no depth
+    // equals.
+    const __m128 far_view = _mm_set1_ps(pass.far_view > 0.0f ? pass.far_view : inf);
+    const __m128 background = _mm_set1_ps(
+        pass.has_background ? pass.background : std::numeric_limits<float>::quiet_NaN());
+    const __m128 min_length = _mm_set1_ps(kMinNormalLength);
+    const glm::mat3& m = pass.normal_to_view;
+    const __m128 m00 = _mm_set1_ps(m[0][0]), m10 = _mm_set1_ps(m[1][0]), m20 = _mm_set1_ps(m[2][0]);
+    const __m128 m01 = _mm_set1_ps(m[0][1]), m11 = _mm_set1_ps(m[1][1]), m21 = _mm_set1_ps(m[2][1]);
+    const __m128 m02 = _mm_set1_ps(m[0][2]), m12 = _mm_set1_ps(m[1][2]), m22 = _mm_set1_ps(m[2][2]);
+    const __m128 ray_row_x = _mm_set1_ps(ray_row.x), ray_row_y = _mm_set1_ps(ray_row.y),
+                 ray_row_z = _mm_set1_ps(ray_row.z);
+    const __m128 step_x = _mm_set1_ps(pass.ray_step_x.x), step_y = _mm_set1_ps(pass.ray_step_x.y),
+                 step_z = _mm_set1_ps(pass.ray_step_x.z);
+    const __m128 lanes = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+    __m128 depth_min = infinity, depth_max = _mm_set1_ps(-inf);
+    for (; x + 4 <= pass.width; x += 4) {
+      const __m128 stored = _mm_loadu_ps(depth + x);
+      // (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3) -> (x0 x1 x2 x3) (y0 ..) (z0 ..).
+      float* n_at = &normal[x][0];
+      const __m128 a = _mm_loadu_ps(n_at), b = _mm_loadu_ps(n_at + 4), c = _mm_loadu_ps(n_at + 8);
+      __m128 nx = _mm_shuffle_ps(a, _mm_shuffle_ps(b, c, _MM_SHUFFLE(1, 1, 2, 2)),
+                                 _MM_SHUFFLE(2, 0, 3, 0));
+      __m128 ny = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(0, 0, 1, 1)),
+                                 _mm_shuffle_ps(b, c, _MM_SHUFFLE(2, 2, 3, 3)),
+                                 _MM_SHUFFLE(2, 0, 2, 0));
+      __m128 nz = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(1, 1, 2, 2)), c,
+                                 _MM_SHUFFLE(3, 0, 2, 0));
+      // Finite: |v| < inf (false for NaN).
+      __m128 usable = _mm_and_ps(
+          _mm_and_ps(_mm_cmplt_ps(_mm_and_ps(stored, magnitude_bits), infinity),
+                     _mm_cmplt_ps(_mm_and_ps(nx, magnitude_bits), infinity)),
+          _mm_and_ps(_mm_cmplt_ps(_mm_and_ps(ny, magnitude_bits), infinity),
+                     _mm_cmplt_ps(_mm_and_ps(nz, magnitude_bits), infinity)));
+      __m128 ray_x = zero, ray_y = zero, ray_z = _mm_set1_ps(-1.0f);
+      if (pass.perspective) {
+        // float(x) + lane is float(x + lane): integers this small are exact.
+        const __m128 at = _mm_add_ps(_mm_set1_ps(float(x)), lanes);
+        ray_x = _mm_add_ps(ray_row_x, _mm_mul_ps(at, step_x));
+        ray_y = _mm_add_ps(ray_row_y, _mm_mul_ps(at, step_y));
+        ray_z = _mm_add_ps(ray_row_z, _mm_mul_ps(at, step_z));
+      }
+      __m128 d = stored;
+      if (pass.radial && pass.perspective)
+        d = _mm_div_ps(d, _mm_sqrt_ps(_mm_add_ps(
+                              _mm_add_ps(_mm_mul_ps(ray_x, ray_x), _mm_mul_ps(ray_y, ray_y)),
+                              _mm_mul_ps(ray_z, ray_z))));
+      usable = _mm_and_ps(usable, _mm_and_ps(_mm_cmpgt_ps(d, zero), _mm_cmplt_ps(d, background_depth)));
+      usable = _mm_andnot_ps(_mm_or_ps(_mm_cmpgt_ps(d, far_view), _mm_cmpeq_ps(stored, background)),
+                             usable);
+      if (pass.normals_world) {
+        const __m128 vx = nx, vy = ny, vz = nz;
+        nx = _mm_add_ps(_mm_add_ps(_mm_mul_ps(m00, vx), _mm_mul_ps(m10, vy)), _mm_mul_ps(m20, vz));
+        ny = _mm_add_ps(_mm_add_ps(_mm_mul_ps(m01, vx), _mm_mul_ps(m11, vy)), _mm_mul_ps(m21, vz));
+        nz = _mm_add_ps(_mm_add_ps(_mm_mul_ps(m02, vx), _mm_mul_ps(m12, vy)), _mm_mul_ps(m22, vz));
+      }
+      const __m128 len = _mm_sqrt_ps(
+          _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, nx), _mm_mul_ps(ny, ny)), _mm_mul_ps(nz, nz)));
+      usable = _mm_and_ps(usable, _mm_cmpgt_ps(len, min_length));
+      if (_mm_movemask_ps(usable) != 0xf) {
+        for (int i = 0; i < 4; ++i) pixel(x + i);
+        continue;
+      }
+      nx = _mm_div_ps(nx, len);
+      ny = _mm_div_ps(ny, len);
+      nz = _mm_div_ps(nz, len);
+      const __m128 facing = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, ray_x), _mm_mul_ps(ny, ray_y)),
+                                       _mm_mul_ps(nz, ray_z));
+      const __m128 flip = _mm_and_ps(_mm_cmpgt_ps(facing, zero), sign_bit);
+      nx = _mm_xor_ps(nx, flip);
+      ny = _mm_xor_ps(ny, flip);
+      nz = _mm_xor_ps(nz, flip);
+      _mm_storeu_ps(depth + x, d);
+      std::memset(mask + x, 255, 4);
+      // And back: (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3).
+      const __m128 xy = _mm_shuffle_ps(nx, ny, _MM_SHUFFLE(0, 0, 0, 0));  // x0 x0 y0 y0
+      const __m128 zx = _mm_shuffle_ps(nz, nx, _MM_SHUFFLE(1, 1, 0, 0));  // z0 z0 x1 x1
+      const __m128 yz = _mm_shuffle_ps(ny, nz, _MM_SHUFFLE(1, 1, 1, 1));  // y1 y1 z1 z1
+      const __m128 xy2 = _mm_shuffle_ps(nx, ny, _MM_SHUFFLE(2, 2, 2, 2));  // x2 x2 y2 y2
+      const __m128 zx3 = _mm_shuffle_ps(nz, nx, _MM_SHUFFLE(3, 3, 2, 2));  // z2 z2 x3 x3
+      const __m128 yz3 = _mm_shuffle_ps(ny, nz, _MM_SHUFFLE(3, 3, 3, 3));  // y3 y3 z3 z3
+      _mm_storeu_ps(n_at, _mm_shuffle_ps(xy, zx, _MM_SHUFFLE(2, 0, 2, 0)));
+      _mm_storeu_ps(n_at + 4, _mm_shuffle_ps(yz, xy2, _MM_SHUFFLE(2, 0, 2, 0)));
+      _mm_storeu_ps(n_at + 8, _mm_shuffle_ps(zx3, yz3, _MM_SHUFFLE(2, 0, 2, 0)));
+      counts.foreground += 4;
+      depth_min = _mm_min_ps(depth_min, d);
+      depth_max = _mm_max_ps(depth_max, d);
+    }
+    // Foreground depths are finite and positive: the extremes do not depend on the order.
+    alignas(16) float lo[4], hi[4];
+    _mm_store_ps(lo, depth_min);
+    _mm_store_ps(hi, depth_max);
+    for (int i = 0; i < 4; ++i) {
+      counts.depth_min = std::min(counts.depth_min, lo[i]);
+      counts.depth_max = std::max(counts.depth_max, hi[i]);
+    }
+  }
+#endif
+  for (; x < pass.width; ++x) pixel(x);
+  return counts;
+}
+
 }  // namespace
 
 ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options) {
@@ -747,7 +995,6 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     const float far_view = camera.far_view;
     const std::optional<float> background = prep.background_depth;
     const bool radial = prep.radial_depth;
-    const float inf = std::numeric_limits<float>::infinity();
     // The view-space point at planar depth 1 is affine in the pixel coordinates for every
     // projection whose clip.w does not depend on x and y (see Camera::view_from_pixel_depth),
     // so rays are stepped across the image instead of solved per pixel.
@@ -756,60 +1003,27 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     const glm::vec3 ray_step_x = camera.view_from_pixel_depth({1.5f, 0.5f}, 1.0f) - ray_origin;
     const glm::vec3 ray_step_y = camera.view_from_pixel_depth({0.5f, 1.5f}, 1.0f) - ray_origin;
 
+    ForegroundPass pass;
+    pass.width = size.width;
+    pass.far_view = far_view;
+    pass.has_background = background.has_value();
+    pass.background = background.value_or(0.0f);
+    pass.radial = radial;
+    pass.perspective = perspective;
+    pass.normals_world = normals_world;
+    pass.normal_to_view = normal_to_view;
+    pass.ray_step_x = ray_step_x;
     parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
       for (int y = rows.start; y < rows.end; ++y) {
-        float* depth = g.depth_view.ptr<float>(y);
-        uint8_t* mask = g.mask.ptr<uint8_t>(y);
-        cv::Vec3f* normal = has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr;
-        uint8_t* rep = has_normals ? repair.ptr<uint8_t>(y) : nullptr;
-        const glm::vec3 ray_row = ray_origin + float(y) * ray_step_y;
-        for (int x = 0; x < size.width; ++x) {
-          float d = depth[x];
-          bool nonfinite = !std::isfinite(d);
-          glm::vec3 n(0.0f);
-          if (normal) {
-            n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
-            if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z))
-              nonfinite = true;
-          }
-          // The eye ray through the pixel centre (length arbitrary, z = -1 in perspective).
-          const glm::vec3 ray = perspective ? ray_row + float(x) * ray_step_x
-                                            : glm::vec3(0.0f, 0.0f, -1.0f);
-          // Radial distance from the eye -> planar depth along -Z: d_planar = d cos(angle
-          // to the axis) = d / |ray| for a ray with z = -1.
-          if (radial && !nonfinite && perspective) d /= glm::length(ray);
-          const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
-                                  !(far_view > 0.0f && d > far_view) &&
-                                  !(background && depth[x] == *background);
-          if (!foreground) {
-            nonfinite_rows[y] += nonfinite ? 1 : 0;
-            depth[x] = inf;
-            mask[x] = 0;
-            if (normal) normal[x] = cv::Vec3f(0, 0, 0);
-            continue;
-          }
-          depth[x] = d;
-          mask[x] = 255;
-          ++fg_rows[y];
-          min_rows[y] = std::min(min_rows[y], d);
-          max_rows[y] = std::max(max_rows[y], d);
-          if (normal) {
-            if (normals_world) n = normal_to_view * n;
-            const float len = glm::length(n);
-            if (!(len > kMinNormalLength)) {
-              rep[x] = 1;
-              ++repair_rows[y];
-              normal[x] = cv::Vec3f(0, 0, 0);
-              continue;
-            }
-            n /= len;
-            // Face the camera: a normal pointing away from the eye (back face, or a
-            // renderer that does not flip shading normals) is turned around, since the
-            // kernels integrate over the visible side's hemisphere.
-            if (glm::dot(n, ray) > 0.0f) n = -n;
-            normal[x] = cv::Vec3f(n.x, n.y, n.z);
-          }
-        }
+        const RowCounts counts = foreground_row(
+            pass, ray_origin + float(y) * ray_step_y, g.depth_view.ptr<float>(y), g.mask.ptr<uint8_t>(y),
+            has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr,
+            has_normals ? repair.ptr<uint8_t>(y) : nullptr);
+        fg_rows[y] = counts.foreground;
+        nonfinite_rows[y] = counts.nonfinite;
+        repair_rows[y] = counts.repaired;
+        min_rows[y] = counts.depth_min;
+        max_rows[y] = counts.depth_max;
       }
     });
 

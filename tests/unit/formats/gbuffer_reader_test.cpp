@@ -953,6 +953,26 @@ TEST(ZipDecoders, HalfAndFloatChannelsAreBitIdenticalForEveryLayout) {
     }
 }
 
+TEST(ZipDecoders, EveryHalfValueConvertsAsImathDoes) {
+  ScratchDir dir;
+  // Reference A holds each of the 65536 half values once (NaNs with every payload among
+  // them): groups of 8 with and without a NaN, at every alignment the rows give.
+  RawExr e = zip_test_frame(256, 256);
+  for (uint32_t i = 0; i < 65536; ++i) e.channels[0].bits[i] = i;
+  const fs::path path = dir / "every_half.exr";
+  e.write(path);
+  ReadOptions options;
+  options.fov_x_deg = 50.0f;
+  options.mapping.references.emplace("a", "A");
+  const ReadResult r = expect_same_reads(path, options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  const cv::Mat& a = r.gbuffer.references.at("a");
+  for (uint32_t i = 0; i < 65536; ++i)
+    ASSERT_EQ(float_bits(a.at<float>(int(i / 256), int(i % 256))),
+              float_bits(imath_half_to_float_table[i].f))
+        << "half bits " << i;
+}
+
 TEST(ZipDecoders, IncompressibleChunkStoredAsIsIsBitIdentical) {
   ScratchDir dir;
   for (auto compression : {Imf::ZIP_COMPRESSION, Imf::ZIPS_COMPRESSION}) {
