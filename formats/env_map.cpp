@@ -10,6 +10,7 @@
 #include <OpenEXR/ImfInputFile.h>
 
 #include "formats/exr_header_check.h"
+#include "formats/gbuffer_reader.h"
 #include "formats/oiio_module.h"
 
 namespace ssdo {
@@ -42,6 +43,15 @@ std::string check_exr(const std::string& path, long long max_pixels, const Imf::
   return {};
 }
 
+// A luminance map read into component 0: copied to G and B.
+void replicate_luminance(const std::vector<std::string>& names, cv::Mat& rgb) {
+  if (names[0] != "Y") return;
+  for (int y = 0; y < rgb.rows; ++y) {
+    float* p = rgb.ptr<float>(y);
+    for (int x = 0; x < rgb.cols; ++x) p[3 * x + 1] = p[3 * x + 2] = p[3 * x];
+  }
+}
+
 // EXR through OpenEXR (the common case; no OpenImageIO to load): R, G, B, or a luminance
 // channel Y replicated. Headers are checked first, as for frames. rgb null: the checks only.
 std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb) {
@@ -58,6 +68,15 @@ std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb
   const long long h = (long long)data.max.y - data.min.y + 1;
   cv::Mat& out = *rgb;
   out.create(int(h), int(w), CV_32FC3);
+  // ZIP, ZIPS and uncompressed scanlines through the G-buffer reader's decoder (the
+  // OpenEXR calls below give the same floats, slower).
+  const std::vector<ChannelComponent> wanted =
+      names[0] == "Y" ? std::vector<ChannelComponent>{{"Y", 0}}
+                      : std::vector<ChannelComponent>{{"R", 0}, {"G", 1}, {"B", 2}};
+  if (read_scanline_channels(path, wanted, out)) {
+    replicate_luminance(names, out);
+    return {};
+  }
   // Slices address pixel (x, y) of the data window at base + x * xStride + y * yStride.
   char* base = reinterpret_cast<char*>(out.ptr<float>(0)) -
                (data.min.x * 3 + (long long)data.min.y * w * 3) * (long long)sizeof(float);
@@ -71,11 +90,7 @@ std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb
   }
   in.setFrameBuffer(fb);
   in.readPixels(data.min.y, data.max.y);
-  if (names[0] == "Y")
-    for (int y = 0; y < out.rows; ++y) {
-      float* p = out.ptr<float>(y);
-      for (int x = 0; x < out.cols; ++x) p[3 * x + 1] = p[3 * x + 2] = p[3 * x];
-    }
+  replicate_luminance(names, out);
   return {};
 }
 

@@ -954,6 +954,26 @@ ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options) 
   return result;
 }
 
+bool read_scanline_channels(const std::string& path, std::span<const ChannelComponent> channels,
+                            cv::Mat& image, int threads) {
+  CV_Assert(image.depth() == CV_32F && !image.empty());
+  exr_core::Context core;
+  if (!open_core(path, core)) return false;
+  exr_attr_box2i_t window;
+  if (exr_get_data_window(core.get(), 0, &window) != EXR_ERR_SUCCESS) return false;
+  const PixelBox data{window.min.x, window.min.y, window.max.x, window.max.y};
+  if (data.width() != image.cols || data.height() != image.rows) return false;
+  std::vector<ChannelTarget> targets;
+  for (const ChannelComponent& c : channels) {
+    CV_Assert(c.component >= 0 && c.component < image.channels());
+    targets.push_back({c.channel, image.ptr<float>() + c.component, size_t(image.channels()), image.step[0]});
+  }
+  const std::optional<ZipPlan> plan = plan_zip_part(core.get(), 0, data, targets);
+  if (!plan) return false;
+  read_zip_part(core.get(), 0, "", false, data, *plan, threads);
+  return true;
+}
+
 ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
   ReadResult result;
   try {

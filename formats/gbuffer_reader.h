@@ -39,6 +39,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -142,5 +143,21 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options = {}
 
 // Reads only the header: profile, channels, camera source (info.* filled, gbuffer empty).
 ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options = {});
+
+// One channel of an EXR part read into one component of a float image.
+struct ChannelComponent {
+  std::string channel;
+  int component = 0;
+};
+
+// read_gbuffer's own decoder for other images (an environment map): reads `channels` of
+// the first part of the EXR at `path` into `image` (CV_32F, any channel count, the data
+// window's size, allocated by the caller; other components are left as they are), half
+// converted to float as OpenEXR does. False, with nothing read, when the part is not one
+// this decoder reads (tiled, deep, another compression, a channel missing or of type
+// uint, another size): the caller reads it with OpenEXR. Throws on a damaged chunk. The
+// file's headers must have passed check_exr_headers.
+bool read_scanline_channels(const std::string& path, std::span<const ChannelComponent> channels,
+                            cv::Mat& image, int threads = 0);
 
 }  // namespace ssdo

@@ -52,6 +52,28 @@ TEST(EnvMap, ExrRgbIsReadInPlaceWithNegativesClamped) {
   EXPECT_FALSE(oiio_module::loaded()) << "an EXR map must not need OpenImageIO";
 }
 
+// ZIP, ZIPS and uncompressed maps go through the G-buffer reader's decoder, the others
+// through OpenEXR: the same floats (half and float channels, a data window off the origin,
+// more than one chunk of lines).
+TEST(EnvMap, EveryCompressionGivesTheSameMap) {
+  ScratchDir dir;
+  TestExr exr = rgb_map(37, 21);
+  cv::Mat reference;
+  for (const char* compression : {"piz", "zip", "zips", "none", "rle"}) {
+    exr.compression = compression;
+    const std::string path = (dir / (std::string(compression) + ".exr")).string();
+    ASSERT_TRUE(exr.write(path));
+    const EnvMapResult env = read_env_map(path);
+    ASSERT_TRUE(env.ok()) << compression << ": " << env.error;
+    if (reference.empty()) {
+      reference = env.radiance_rgb;
+      EXPECT_EQ(reference.at<cv::Vec3f>(2, 3), cv::Vec3f(float(77 % 17) * 0.5f, 77 * 0.25f, 2.0f));
+      continue;
+    }
+    EXPECT_EQ(cv::norm(env.radiance_rgb, reference, cv::NORM_INF), 0.0) << compression;
+  }
+}
+
 TEST(EnvMap, ExrLuminanceIsReplicated) {
   ScratchDir dir;
   TestExr exr;
