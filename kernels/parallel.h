@@ -21,7 +21,9 @@ cv::Rect resolve_roi(const cv::Rect& roi, cv::Size image);
 // (cv::setNumThreads); N > 1 = the pool, with at most N threads used for this call.
 // rows_per_strip: the strip height, >= 1 (independent of the thread count, so the split
 // never depends on it); small strips balance uneven rows, tiled kernels ask for their
-// tile height so that a tile's halo is read once per tile.
+// tile height so that a tile's halo is read once per tile. The threads take the strips in
+// order, and the last two strips' rows come in strips of a quarter of the height, so
+// that the threads finish close together.
 void parallel_rows(const cv::Range& rows, int nthreads,
                    const std::function<void(const cv::Range&)>& body, int rows_per_strip = 4);
 
