@@ -111,7 +111,7 @@ void unpredict(uint8_t* t, size_t n) {
 
 }  // namespace
 
-bool compress(std::span<const uint8_t> packed, int level, std::vector<uint8_t>& compressed) {
+bool compress(std::span<const uint8_t> packed, int level, UninitializedVector<uint8_t>& compressed) {
   level = std::clamp(level, kMinLevel, kMaxLevel);
   const size_t n = packed.size();
   if (n == 0) return false;

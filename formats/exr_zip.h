@@ -17,17 +17,20 @@
 #include <span>
 #include <vector>
 
+#include "kernels/uninitialized.h"
+
 namespace ssdo::exr_zip {
 
 // Deflate levels libdeflate accepts: 1 (fastest) .. 12 (smallest).
 inline constexpr int kMinLevel = 1;
 inline constexpr int kMaxLevel = 12;
 
-// Compresses one packed chunk into `compressed` (resized to the stream's size). Returns
+// Compresses one packed chunk into `compressed` (resized to the stream's size; its
+// storage is not zeroed first). Returns
 // false when the stream would not be smaller than the packed bytes: the file format then
 // stores the chunk uncompressed, and so must the caller. Thread-safe: each thread keeps
 // its own compressor per level.
-bool compress(std::span<const uint8_t> packed, int level, std::vector<uint8_t>& compressed);
+bool compress(std::span<const uint8_t> packed, int level, UninitializedVector<uint8_t>& compressed);
 
 // Inflates one chunk into `packed`, whose size is the chunk's unpacked size (known from the
 // header). False when the stream is damaged or does not inflate to exactly that size.

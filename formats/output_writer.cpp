@@ -393,7 +393,8 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   // Two sets of chunk buffers: while one batch is written to the file (a thread of its own:
   // the copy into the page cache is serial), the next is packed and compressed into the
   // other on the pool.
-  std::vector<std::vector<uint8_t>> stored[2];
+  // Not zeroed when they grow: every byte is written before it is read.
+  std::vector<UninitializedVector<uint8_t>> stored[2];
   stored[0].resize(size_t(batch));
   stored[1].resize(size_t(batch));
   std::thread writing;
@@ -405,7 +406,7 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   try {
     for (int first = 0, b = 0; first < chunks; first += batch, b ^= 1) {
       const int count = std::min(batch, chunks - first);
-      std::vector<std::vector<uint8_t>>& out = stored[b];
+      std::vector<UninitializedVector<uint8_t>>& out = stored[b];
       parallel_rows(cv::Range(0, count), options.threads, [&](const cv::Range& range) {
         // One packed chunk per thread, kept like exr_zip's own scratch buffer.
         thread_local std::vector<uint8_t> packed;
@@ -430,7 +431,7 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
         try {
           exr_core::forget_error();
           for (int i = 0; i < count; ++i) {
-            const std::vector<uint8_t>& bytes = stored[b][size_t(i)];
+            const UninitializedVector<uint8_t>& bytes = stored[b][size_t(i)];
             check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
                                                 bytes.data(), bytes.size()),
                        "cannot write a chunk");

@@ -54,6 +54,7 @@
 #include "kernels/ao_methods.h"
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
+#include "kernels/uninitialized.h"
 
 namespace ssdo::detail {
 namespace {
@@ -92,10 +93,11 @@ struct TexelPlane {
   float nx, ny, nz, plane_c;  // unit normal and its tangent plane dot(n, x) = plane_c
 };
 
-void build_texels(const AoInputs& in, std::vector<Texel>& texels, std::vector<TexelPlane>& planes,
+void build_texels(const AoInputs& in, UninitializedVector<Texel>& texels, UninitializedVector<TexelPlane>& planes,
                   int nthreads) {
   const int width = in.depth_view.cols;
-  texels.resize(size_t(width) * size_t(in.depth_view.rows));  // before the parallel loop
+  // Before the parallel loop, which writes every element (not zeroed first).
+  texels.resize(size_t(width) * size_t(in.depth_view.rows));
   planes.resize(texels.size());
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -232,7 +234,7 @@ inline void tap_indices(const TapGrid& g, float step_noise, float radius_px, int
 }
 
 // The occluder segments' lengths of the taps of a chunk.
-inline void tap_thickness(const std::vector<Texel>& texels, const cv::Mat* back, int width,
+inline void tap_thickness(const UninitializedVector<Texel>& texels, const cv::Mat* back, int width,
                           bool perspective, float thickness_world, TapChunk& taps) {
   for (int m = 0; m < kChunkTaps; ++m) taps.thickness_world[m] = thickness_world;
   if (back == nullptr) return;
@@ -377,8 +379,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   CV_Assert(int64_t(width) * int64_t(height) <= int64_t(INT32_MAX));
   const TapGrid grid{width, height, k.slices, k.steps};
   const bool perspective = camera.is_perspective();
-  std::vector<Texel> texels;
-  std::vector<TexelPlane> planes;
+  UninitializedVector<Texel> texels;
+  UninitializedVector<TexelPlane> planes;
   build_texels(in, texels, planes, nthreads);
   // Second depth layer, when given: per-tap thickness of the visibility mask's segments.
   const cv::Mat* back = !k.height_field && in.depth_back_view != nullptr &&

@@ -13,6 +13,7 @@
 #include "kernels/half_resolution.h"
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
+#include "kernels/uninitialized.h"
 
 namespace ssdo {
 
@@ -660,7 +661,7 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   auto level_row = [&](int l, int y) { return size_t(rows_2h - (rows_2h >> l) + y) * size_t(size.width); };
   // Not initialised: only the texels of each level are written, and only they are read.
   const std::unique_ptr<TapTexel[]> taps(new TapTexel[size_t(pyramid_rows) * size_t(size.width)]);
-  std::vector<SenderTexel> senders(size_t(size.area()));
+  UninitializedVector<SenderTexel> senders(size_t(size.area()));  // every element written below
   parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* m = in.mask.ptr<uint8_t>(y);
