@@ -421,9 +421,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
     p.has_taps = true;
     const float slice_noise = noise01(x, y, 0, k.seed);
     p.step_noise = noise01(x, y, 1, k.seed);
-    const float rot = slice_noise / float(k.slices) * kPi;
-    p.rot_c = std::cos(rot);
-    p.rot_s = std::sin(rot);
+    // The rotation slice_noise pi / slices, in turns.
+    sincos_turns(slice_noise / float(2 * k.slices), p.rot_c, p.rot_s);
   };
   // A row of a tile: the pixels' tap patterns and kept tap indices (filled a row ahead,
   // see the tile loop), and the shading's per-pixel sums, turned into the outputs for the

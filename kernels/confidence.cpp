@@ -280,19 +280,19 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
       for (int j = n_lanes; j < kLanes; ++j) {  // unfilled lanes repeat the last pixel
         lane_x[j] = lane_x[n_lanes - 1], lane_y[j] = lane_y[n_lanes - 1];
       }
-      alignas(32) float depth[kLanes], rotation[kLanes], ppu_x[kLanes], ppu_y[kLanes];
+      alignas(32) float depth[kLanes], rotation_turns[kLanes], ppu_x[kLanes], ppu_y[kLanes];
       for (int j = 0; j < kLanes; ++j) {
         const int x = lane_x[j], y = lane_y[j];
         depth[j] = depth_view.ptr<float>(y)[x];
         const cv::Vec3f& n = normal_view.ptr<cv::Vec3f>(y)[x];
         lane.nx[j] = n[0], lane.ny[j] = n[1], lane.nz[j] = n[2];
         lane.pxc[j] = float(x) + 0.5f, lane.pyc[j] = float(y) + 0.5f;
-        rotation[j] = 6.2831853f * noise01(x, y, 0, s.seed);
+        rotation_turns[j] = noise01(x, y, 0, s.seed);
       }
       for (int j = 0; j < kLanes; ++j) {
         const glm::vec2 ppu = camera.pixels_per_unit(depth[j]);
         ppu_x[j] = ppu.x, ppu_y[j] = ppu.y;
-        lane.cos_r[j] = std::cos(rotation[j]), lane.sin_r[j] = std::sin(rotation[j]);
+        sincos_turns(rotation_turns[j], lane.cos_r[j], lane.sin_r[j]);
       }
       for (int j = 0; j < kLanes; ++j) {
         const float d = depth[j], pxc = lane.pxc[j], pyc = lane.pyc[j];

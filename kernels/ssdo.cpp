@@ -359,7 +359,8 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
     const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
     const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
-    const float shift_c = std::cos(2.0f * kPi * shift_v), shift_s = std::sin(2.0f * kPi * shift_v);
+    float shift_c, shift_s;  // of the angle 2 pi shift_v
+    sincos_turns(shift_v, shift_c, shift_s);
     const int steps = c.s.sample_steps;
     const int refinements = c.s.sample_refinements;
     // Per batch: each direction's w and clip-space direction, in arrays indexed by the

@@ -53,8 +53,9 @@ cv::Mat reference_confidence(const GBuffer& g, const ConfidenceSettings& s) {
       float radius = s.radius_world;
       const float radius_px_max = radius * std::max(ppu.x, ppu.y);
       if (radius_px_max > s.max_radius_px) radius *= s.max_radius_px / radius_px_max;
-      const float rotation = 6.2831853f * noise01(x, y, 0, s.seed);
-      const float cos_r = std::cos(rotation), sin_r = std::sin(rotation);
+      // The pixel's rotation: noise01 turns (kernels/noise.h).
+      float cos_r, sin_r;
+      sincos_turns(noise01(x, y, 0, s.seed), cos_r, sin_r);
       double observed = 0.0, total = 0.0;
       for (int k = 0; k < s.taps; ++k) {
         // Vogel spiral: equal-area rings, golden-angle turns, rotated per pixel.
