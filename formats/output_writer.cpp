@@ -258,7 +258,8 @@ HalfConversion half_conversion() {
 void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int y1,
                 uint8_t* out) {
   static_assert(sizeof(half) == 2 && sizeof(float) == 4);
-  static_assert(std::endian::native == std::endian::little);
+  // Samples are copied in the host's byte order: write_own_exr, the only caller, runs on
+  // little-endian hosts only.
   const HalfConversion to_half = half_conversion();
   std::vector<uint16_t> line_half;  // one channel's line
   std::vector<uint16_t> row_half;   // the converted row of row_image at row_y
