@@ -14,10 +14,6 @@
 #include <sstream>
 
 #include <Imath/half.h>
-#if defined(__x86_64__)
-#include <cpuid.h>
-#include <immintrin.h>
-#endif
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -37,6 +33,7 @@
 #include "formats/channel_profiles.h"
 #include "formats/exr_core.h"
 #include "formats/exr_header_check.h"
+#include "formats/half_samples.h"
 #include "formats/exr_zip.h"
 #include "kernels/normals.h"
 #include "kernels/parallel.h"
@@ -482,68 +479,12 @@ std::optional<ZipPlan> plan_zip_part(exr_const_context_t context, int part, cons
   return plan;
 }
 
-// Imath's conversion of n half samples (little-endian bits) to floats `pixel_floats` floats
-// apart: its table, which OpenEXR's copyIntoFrameBuffer uses through half's float operator
-// unless OpenEXR is built for F16C.
-void half_to_float_imath(const uint8_t* from, int64_t n, float* to, size_t pixel_floats) {
-  for (int64_t x = 0; x < n; ++x) {
-    uint16_t bits;
-    std::memcpy(&bits, from + 2 * x, 2);
-    to[size_t(x) * pixel_floats] = imath_half_to_float_table[bits].f;
-  }
-}
-
-#if defined(__x86_64__)
-// The same with F16C, 8 samples at a time. F16C's conversion is exact, as the table is, for
-// every finite half and infinity; a NaN may come out otherwise (a signalling NaN quieted),
-// so a group of 8 holding a NaN (exponent all ones, mantissa not 0) goes through the table.
-__attribute__((target("avx2,f16c"))) void half_to_float_f16c(const uint8_t* from, int64_t n,
-                                                             float* to, size_t pixel_floats) {
-  const __m128i magnitude_bits = _mm_set1_epi16(0x7fff);
-  const __m128i infinity_bits = _mm_set1_epi16(0x7c00);
-  int64_t x = 0;
-  for (; x + 8 <= n; x += 8) {
-    const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(from + 2 * x));
-    float* out = to + size_t(x) * pixel_floats;
-    // Magnitudes are at most 0x7fff, so the signed comparison is the unsigned one.
-    const __m128i nan = _mm_cmpgt_epi16(_mm_and_si128(h, magnitude_bits), infinity_bits);
-    if (_mm_movemask_epi8(nan) != 0) {
-      half_to_float_imath(from + 2 * x, 8, out, pixel_floats);
-      continue;
-    }
-    const __m256 v = _mm256_cvtph_ps(h);
-    if (pixel_floats == 1) {
-      _mm256_storeu_ps(out, v);
-      continue;
-    }
-    alignas(32) float lanes[8];
-    _mm256_store_ps(lanes, v);
-    for (int i = 0; i < 8; ++i) out[size_t(i) * pixel_floats] = lanes[i];
-  }
-  half_to_float_imath(from + 2 * x, n - x, to + size_t(x) * pixel_floats, pixel_floats);
-}
-#endif
-
-// Imath's or F16C's conversion (the same bits): the fastest this CPU has.
-using HalfToFloat = void (*)(const uint8_t* from, int64_t n, float* to, size_t pixel_floats);
-HalfToFloat half_to_float() {
-#if defined(__x86_64__)
-  static const bool f16c = [] {
-    unsigned a = 0, b = 0, c = 0, d = 0;
-    return __builtin_cpu_supports("avx2") && __get_cpuid(1, &a, &b, &c, &d) != 0 &&
-           (c & bit_F16C) != 0;
-  }();
-  if (f16c) return half_to_float_f16c;
-#endif
-  return half_to_float_imath;
-}
-
 // Converts `width` samples of one packed line to float, exactly as OpenEXR does: half as
-// Imath converts it (half_to_float_imath), float as is.
+// Imath converts it (formats/half_samples.h), float as is.
 void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, float* to,
-                     size_t pixel_floats, HalfToFloat to_float) {
+                     size_t pixel_floats) {
   if (type == EXR_PIXEL_HALF) {
-    to_float(from, width, to, pixel_floats);
+    half_samples::to_float(from, width, to, pixel_floats);
   } else {
     for (int64_t x = 0; x < width; ++x)
       std::memcpy(&to[size_t(x) * pixel_floats], from + 4 * x, 4);
@@ -555,7 +496,6 @@ void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, 
 void read_zip_part(exr_const_context_t context, int part, const std::string& part_name,
                    bool multi_part, const PixelBox& data, const ZipPlan& plan, int threads) {
   const int64_t width = data.width();
-  const HalfToFloat to_float = half_to_float();
   std::vector<std::string> errors(size_t(plan.chunks));
   std::atomic<int> first_failed{plan.chunks};
   std::atomic<bool> out_of_memory{false};
@@ -621,7 +561,7 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
       for (const ZipChannel& c : plan.channels) {
         const ChannelTarget& t = *c.target;
         float* to = reinterpret_cast<float*>(reinterpret_cast<uint8_t*>(t.first) + row * t.row_bytes);
-        convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats, to_float);
+        convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats);
       }
     }
   };

@@ -27,14 +27,11 @@
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
 #include <Imath/half.h>
-#if defined(__x86_64__)
-#include <cpuid.h>
-#include <immintrin.h>
-#endif
 
 #include "formats/camera_io.h"
 #include "formats/exr_core.h"
 #include "formats/exr_zip.h"
+#include "formats/half_samples.h"
 #include "formats/oiio_module.h"
 #include "kernels/parallel.h"
 
@@ -211,43 +208,6 @@ struct ChannelSource {
   bool is_half = false;
 };
 
-// Imath's conversion (round to nearest even) of n consecutive floats into half bits.
-void to_half_imath(const float* in, int n, uint16_t* out) {
-  for (int x = 0; x < n; ++x) out[x] = half(in[x]).bits();
-}
-
-#if defined(__x86_64__)
-// The same with F16C, 8 samples at a time. F16C rounds to nearest even as Imath does, so
-// every finite value and infinity converts to the same bits; NaNs may not (F16C quiets a
-// signalling NaN), so a group of 8 holding a NaN is converted by Imath.
-__attribute__((target("avx2,f16c"))) void to_half_f16c(const float* in, int n, uint16_t* out) {
-  int x = 0;
-  for (; x + 8 <= n; x += 8) {
-    const __m256 v = _mm256_loadu_ps(in + x);
-    if (_mm256_movemask_ps(_mm256_cmp_ps(v, v, _CMP_UNORD_Q)) != 0) {
-      to_half_imath(in + x, 8, out + x);
-      continue;
-    }
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), _mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
-  }
-  to_half_imath(in + x, n - x, out + x);
-}
-
-#endif
-
-// Imath's or F16C's conversion: the fastest this CPU has.
-using HalfConversion = void (*)(const float* in, int n, uint16_t* out);
-HalfConversion half_conversion() {
-#if defined(__x86_64__)
-  static const bool f16c = [] {
-    unsigned a = 0, b = 0, c = 0, d = 0;
-    return __builtin_cpu_supports("avx2") && __get_cpuid(1, &a, &b, &c, &d) != 0 && (c & bit_F16C) != 0;
-  }();
-  if (f16c) return to_half_f16c;
-#endif
-  return to_half_imath;
-}
-
 // Packs scanlines [y0, y1) as a chunk stores them before compression (OpenEXR "Technical
 // Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
 // header's (alphabetical) order, the samples of the whole line, little-endian. Half
@@ -260,7 +220,7 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
   static_assert(sizeof(half) == 2 && sizeof(float) == 4);
   // Samples are copied in the host's byte order: write_own_exr, the only caller, runs on
   // little-endian hosts only.
-  const HalfConversion to_half = half_conversion();
+  const auto to_half = half_samples::to_half;
   std::vector<uint16_t> line_half;  // one channel's line
   std::vector<uint16_t> row_half;   // the converted row of row_image at row_y
   const cv::Mat* row_image = nullptr;
