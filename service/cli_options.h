@@ -47,8 +47,9 @@ void add_compute_options(CLI::App& app, ComputeOptionArgs& args, bool with_terms
 // Fill the request; on a bad value return false with a message naming the option.
 bool resolve_read_options(const ReadOptionArgs& args, ReadOptions& read, std::string& error);
 // Also loads the environment map (once) when one is named. build_environment = false:
-// the map is read and checked but not prefiltered (request.environment stays null), for
-// a process that only checks options and leaves the frames to workers.
+// only what is known without decoding the map's pixels is checked (check_env_map) and
+// request.environment stays null, for a process that only checks options and leaves the
+// frames to workers.
 bool resolve_compute_options(const ComputeOptionArgs& args, FrameRequest& request, std::string& error,
                              bool build_environment = true);
 

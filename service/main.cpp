@@ -42,8 +42,8 @@ bool frame_options(const CLI::App& cmd, const std::string& config, FrameOptionAr
       return false;
     }
   }
-  // Every value checked (and the environment map read) before any work; the workers build
-  // what they compute with.
+  // Every value checked (the environment map's header too) before any work; the workers
+  // read and build what they compute with.
   FrameRequest check;
   return resolve_frame_options(options, check, error, /*build_environment=*/false);
 }

@@ -153,8 +153,8 @@ ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
 
   // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
   // samples (kernels/confidence.h), written with every AO or SSDO output. Computed while
-  // the shared grid exists; then the grid, its weights and positions computed here are
-  // released, and the denoised terms and the composite reuse their memory (the worker's
+  // the shared grid exists; then the grid, its weights and the positions (no later step reads
+  // them) are released, and the denoised terms and the composite reuse their memory (the worker's
   // heap keeps freed memory: fresh pages cost a fault each).
   cv::Mat confidence;
   if (confidence_wanted)
@@ -162,7 +162,8 @@ ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
                        threads, shared_grid);
   half_grid = HalfGrid();
   shared_grid = nullptr;
-  if (g.position_view.empty()) position_view.release();
+  position_view.release();
+  g.position_view.release();
 
   // The denoised terms, in one pass over the frame: the blur's weights depend only on the
   // guides, so AO and the two SSDO terms share them (kernels/denoise.h).
@@ -183,8 +184,6 @@ ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
   g.depth_view.release();
   g.normal_view.release();
   g.depth_back_view.release();
-  g.position_view.release();
-  position_view.release();
   if (computed.ao && terms.ao) {
     frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
     frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});

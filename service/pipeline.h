@@ -74,8 +74,9 @@ struct ComputedFrame {
 
 // Computes the selected terms for a frame already in memory (no I/O).
 ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request);
-// The same, releasing each of the G-buffer's images once no later step reads it (depth,
-// normals and positions before the composite): a frame's peak memory is lower.
+// The same, releasing each of the G-buffer's images once no later step reads it (positions
+// before the denoise, depth and normals before the composite): a frame's peak memory is
+// lower.
 ComputedFrame compute_frame(GBuffer&& gbuffer, const FrameRequest& request);
 
 // The terms compute_frame would return (names, channels, sample types, same order) with

@@ -45,8 +45,8 @@ bool apply_json(const nlohmann::json& j, FrameOptionArgs& args, std::string& err
 bool load_json_file(const std::string& path, nlohmann::json& j, std::string& error);
 
 // Turns typed options into a request (resolve_read_options + resolve_compute_options +
-// write options): loads the environment map when one is named (and builds it unless
-// build_environment is false, see resolve_compute_options).
+// write options): loads and builds the environment map when one is named (only checks
+// its header when build_environment is false, see resolve_compute_options).
 bool resolve_frame_options(const FrameOptionArgs& args, FrameRequest& request, std::string& error,
                            bool build_environment = true);
 
