@@ -212,17 +212,15 @@ struct ChannelSource {
 // Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
 // header's (alphabetical) order, the samples of the whole line, little-endian. Half
 // samples are Imath's conversion of the float (round to nearest even), exactly as
-// OpenEXR's writer stores them. A half channel of a multi-channel image takes its samples
-// from the image's whole row converted at once (contiguous: no strided loads), kept while
-// the next channels read the same row.
+// OpenEXR's writer stores them. A half channel takes its samples from its image's whole row
+// converted at once (contiguous: no strided loads), kept while the next channels read the
+// same row.
 void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int y1,
                 uint8_t* out) {
   static_assert(sizeof(half) == 2 && sizeof(float) == 4);
   // Samples are copied in the host's byte order: write_own_exr, the only caller, runs on
   // little-endian hosts only.
-  const auto to_half = half_samples::to_half;
-  std::vector<uint16_t> line_half;  // one channel's line
-  std::vector<uint16_t> row_half;   // the converted row of row_image at row_y
+  thread_local UninitializedVector<uint16_t> row_half;  // the converted row of row_image at row_y
   const cv::Mat* row_image = nullptr;
   int row_y = -1;
   for (int y = y0; y < y1; ++y)
@@ -230,18 +228,16 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
       const float* in = c.image->ptr<float>(y) + c.component;
       const size_t step = size_t(c.components);
       if (c.is_half) {
+        if (row_image != c.image || row_y != y) {
+          row_half.resize(size_t(width) * step);
+          half_samples::to_half(c.image->ptr<float>(y), int(size_t(width) * step), row_half.data());
+          row_image = c.image;
+          row_y = y;
+        }
+        const uint16_t* from = row_half.data() + c.component;
         if (step == 1) {
-          line_half.resize(size_t(width));
-          to_half(in, width, line_half.data());
-          std::memcpy(out, line_half.data(), size_t(width) * 2);
+          std::memcpy(out, from, size_t(width) * 2);
         } else {
-          if (row_image != c.image || row_y != y) {
-            row_half.resize(size_t(width) * step);
-            to_half(c.image->ptr<float>(y), int(size_t(width) * step), row_half.data());
-            row_image = c.image;
-            row_y = y;
-          }
-          const uint16_t* from = row_half.data() + c.component;
           for (int x = 0; x < width; ++x) std::memcpy(out + 2 * size_t(x), &from[size_t(x) * step], 2);
         }
         out += size_t(width) * 2;
