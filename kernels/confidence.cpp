@@ -15,13 +15,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
 #include <string>
 #include <vector>
 
 #include "kernels/half_resolution.h"
 #include "kernels/noise.h"
 #include "kernels/parallel.h"
+#include "kernels/uninitialized.h"
 
 namespace ssdo {
 namespace {
@@ -250,13 +250,13 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   // index, and one more unknown texel past the frame's end for off-screen taps. The whole
   // frame: taps reach anywhere, whatever the roi. Every texel is written below.
   const size_t n_texels = size_t(width) * size_t(height);
-  const std::unique_ptr<float[]> surface(new float[n_texels + 1]);
+  UninitializedVector<float> surface(n_texels + 1);
   surface[n_texels] = 0.0f;
   parallel_rows(cv::Range(0, height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = mask.ptr<uint8_t>(y);
       const float* depth_row = depth_view.ptr<float>(y);
-      float* surface_row = surface.get() + size_t(y) * size_t(width);
+      float* surface_row = surface.data() + size_t(y) * size_t(width);
       for (int x = 0; x < width; ++x) {
         const float d = depth_row[x];
         const bool known = mask_row[x] != 0 && d > 0.0f && std::isfinite(d);
@@ -266,7 +266,7 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   });
 
   const TapFrame frame{rays, spiral_x.data(), spiral_y.data(), n_taps,
-                       width, height, surface.get()};
+                       width, height, surface.data()};
   const bool perspective = camera.is_perspective();
 
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {

@@ -7,7 +7,6 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
-#include <memory>
 #include <vector>
 
 #include "kernels/half_resolution.h"
@@ -661,7 +660,7 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   c.pyramid_rows_2h = int(rows_2h);
   auto level_row = [&](int l, int y) { return size_t(rows_2h - (rows_2h >> l) + y) * size_t(size.width); };
   // Not initialised: only the texels of each level are written, and only they are read.
-  const std::unique_ptr<TapTexel[]> taps(new TapTexel[size_t(pyramid_rows) * size_t(size.width)]);
+  UninitializedVector<TapTexel> taps(size_t(pyramid_rows) * size_t(size.width));
   UninitializedVector<SenderTexel> senders(size_t(size.area()));  // every element written below
   parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -701,7 +700,7 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
         lt[x] = taps[level_row(l - 1, cy) + size_t(cx)];
       }
     }
-  c.pyramid = taps.get();
+  c.pyramid = taps.data();
   c.senders = senders.data();
   c.depth = &in.depth_view;
   c.normal = &in.normal_view;
