@@ -439,6 +439,32 @@ inline void texel_weights_8(const float* r0, const float* r1, int length, const 
   }
 }
 
+// What the 8-pixel code of pixel row y reads: its two texel rows (from `texels`), their
+// vertical bilinear weights and the row's full-resolution guides.
+struct PixelRow {
+  const float* r0;
+  const float* r1;
+  int length;  // TexelRows::length()
+  float wy[2];
+  const float* depth;
+  const float* normal;
+  const uint8_t* mask;
+
+  PixelRow(TexelRows& texels, const FullGrid& full, int y, const AxisFootprint& fy)
+      : length(texels.length()),
+        wy{1.0f - fy.frac, fy.frac},
+        depth(full.depth_view.ptr<float>(y)),
+        normal(full.normal_view.ptr<float>(y)),
+        mask(full.mask.ptr<uint8_t>(y)) {
+    texels.rows(fy.t[0], fy.t[1], r0, r1);
+  }
+
+  // texel_weights_8 of pixels x .. x + 7, 0 where `fg` is not.
+  void weights(int x, __m256 fg, __m256 w[4]) const {
+    texel_weights_8(r0, r1, length, wy, x, depth, normal, fg, w);
+  }
+};
+
 }  // namespace lanes
 #endif
 
@@ -494,17 +520,10 @@ void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int
       weights_span(full, h, y, fy, r.x, span.begin, out);
 #ifdef SSDO_HALF_RESOLUTION_AVX2
       if (span.begin < span.end) {
-        const float* r0;
-        const float* r1;
-        texels.rows(fy.t[0], fy.t[1], r0, r1);
-        const float wy[2] = {1.0f - fy.frac, fy.frac};
-        const float* depth_row = full.depth_view.ptr<float>(y);
-        const float* normal_row = full.normal_view.ptr<float>(y);
-        const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+        const lanes::PixelRow row(texels, full, y, fy);
         for (int x = span.begin; x < span.end; x += 8) {
           __m256 w[4];
-          lanes::texel_weights_8(r0, r1, texels.length(), wy, x, depth_row, normal_row,
-                                 lanes::foreground(mask_row + x), w);
+          row.weights(x, lanes::foreground(row.mask + x), w);
           lanes::store_weights(w, out + x);
         }
       }
@@ -535,20 +554,13 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
       upsample_span(full, h, images, kept_row, y, fy, r.x, span.begin);
 #ifdef SSDO_HALF_RESOLUTION_AVX2
       if (span.begin < span.end) {
-        const float* r0;
-        const float* r1;
-        texels.rows(fy.t[0], fy.t[1], r0, r1);
-        const int length = texels.length();
-        const float wy[2] = {1.0f - fy.frac, fy.frac};
-        const float* depth_row = full.depth_view.ptr<float>(y);
-        const float* normal_row = full.normal_view.ptr<float>(y);
-        const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+        const lanes::PixelRow row(texels, full, y, fy);
         const __m256 zero = _mm256_setzero_ps();
         for (int x = span.begin; x < span.end; x += 8) {
-          const __m256 fg = lanes::foreground(mask_row + x);
+          const __m256 fg = lanes::foreground(row.mask + x);
           __m256 w[4];
           if (kept) lanes::load_weights(kept_row + x, w);
-          else lanes::texel_weights_8(r0, r1, length, wy, x, depth_row, normal_row, fg, w);
+          else row.weights(x, fg, w);
           __m256 wsum = zero;
           for (int k = 0; k < 4; ++k) wsum = _mm256_add_ps(wsum, w[k]);
           // Foreground pixels whose weights are too small go pixel by pixel (below).
@@ -561,10 +573,10 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
             const int cn = im.half.channels();
             __m256 value[kMaxChannels];
             for (int ch = 0; ch < cn; ++ch) {
-              const int a = (texels.image_first(i) + ch) * length;
+              const int a = (texels.image_first(i) + ch) * row.length;
               __m256 acc = zero;
               for (int k = 0; k < 4; ++k) {
-                const __m256 v = lanes::texel_lanes(((k >> 1) ? r1 : r0) + a, x, lanes::column_lanes(k));
+                const __m256 v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, lanes::column_lanes(k));
                 acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(w[k], v)), used[k]);
               }
               value[ch] = _mm256_blendv_ps(_mm256_set1_ps(float(im.background[ch])), _mm256_div_ps(acc, wsum), fg);
@@ -590,7 +602,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
               if (!(low & (1 << l))) continue;
               f.x = axis_footprint(x + l, h.depth_view.cols);
               const float wp[4] = {wl[0][l], wl[1][l], wl[2][l], wl[3][l]};
-              upsample_pixel(h, images, f, depth_row[x + l], wp, x + l, y);
+              upsample_pixel(h, images, f, row.depth[x + l], wp, x + l, y);
             }
           }
         }
