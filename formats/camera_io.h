@@ -1,4 +1,4 @@
-// Camera sources of a frame and their conversion to the internal Camera (kernels/camera.h):
+// Camera sources of a frame and their conversion to the internal Camera (core/camera.h):
 // the JSON sidecar written beside Blender/Cycles dumps, and the OpenEXR standard header
 // attributes worldToCamera / worldToNDC.
 //
@@ -13,7 +13,7 @@
 
 #include <glm/glm.hpp>
 
-#include "kernels/camera.h"
+#include "core/camera.h"
 
 namespace ssdo {
 

@@ -17,7 +17,7 @@
 #include <span>
 #include <vector>
 
-#include "kernels/uninitialized.h"
+#include "core/uninitialized.h"
 
 namespace ssdo::exr_zip {
 

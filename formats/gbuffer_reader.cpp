@@ -36,7 +36,7 @@
 #include "formats/half_samples.h"
 #include "formats/exr_zip.h"
 #include "kernels/normals.h"
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 #include "kernels/positions.h"
 
 namespace ssdo {

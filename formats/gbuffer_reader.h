@@ -43,7 +43,7 @@
 #include <string>
 #include <vector>
 
-#include "kernels/gbuffer.h"
+#include "core/gbuffer.h"
 
 namespace ssdo {
 

@@ -33,7 +33,7 @@
 #include "formats/exr_zip.h"
 #include "formats/half_samples.h"
 #include "formats/oiio_module.h"
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 

@@ -9,7 +9,7 @@
 
 #include "kernels/ao_methods.h"
 #include "kernels/half_resolution.h"
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 

@@ -12,7 +12,7 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/ao.h"
-#include "kernels/camera.h"
+#include "core/camera.h"
 
 namespace ssdo::detail {
 

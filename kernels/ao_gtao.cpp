@@ -53,8 +53,8 @@
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
 #include "kernels/noise.h"
-#include "kernels/parallel.h"
-#include "kernels/uninitialized.h"
+#include "core/parallel.h"
+#include "core/uninitialized.h"
 
 namespace ssdo::detail {
 namespace {

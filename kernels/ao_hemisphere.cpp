@@ -26,7 +26,7 @@
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
 #include "kernels/noise.h"
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo::detail {
 

@@ -41,7 +41,7 @@
 #include "kernels/ao_methods.h"
 #include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 namespace {

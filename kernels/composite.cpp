@@ -4,7 +4,7 @@
 #include <tuple>
 #include <vector>
 
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 

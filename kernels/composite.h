@@ -33,7 +33,7 @@
 #include <glm/glm.hpp>
 #include <opencv2/core.hpp>
 
-#include "kernels/camera.h"
+#include "core/camera.h"
 #include "kernels/environment.h"
 
 namespace ssdo {

@@ -20,8 +20,8 @@
 
 #include "kernels/half_resolution.h"
 #include "kernels/noise.h"
-#include "kernels/parallel.h"
-#include "kernels/uninitialized.h"
+#include "core/parallel.h"
+#include "core/uninitialized.h"
 
 namespace ssdo {
 namespace {

@@ -9,7 +9,7 @@
 #include <type_traits>
 #include <vector>
 
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 namespace {

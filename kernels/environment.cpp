@@ -1,6 +1,6 @@
 #include "kernels/environment.h"
 
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <cmath>

@@ -15,7 +15,7 @@
 extern "C" __m256 _ZGVdN8v_expf(__m256 x);
 #endif
 
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 

@@ -21,7 +21,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "kernels/camera.h"
+#include "core/camera.h"
 
 namespace ssdo {
 

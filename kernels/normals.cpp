@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 

@@ -1,6 +1,6 @@
 #include "kernels/positions.h"
 
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo {
 

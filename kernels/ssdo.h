@@ -76,7 +76,7 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/ao.h"  // Preset
-#include "kernels/camera.h"
+#include "core/camera.h"
 #include "kernels/environment.h"
 
 namespace ssdo {

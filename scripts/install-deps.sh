@@ -8,7 +8,7 @@ PACKAGES=(
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev libdeflate-dev
   libopencv-core-dev libglm-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev fonts-dejavu-core
-  clang libclang-rt-dev
+  clang libclang-rt-dev universal-ctags
 )
 
 missing=()

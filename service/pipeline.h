@@ -12,7 +12,7 @@
 #include "kernels/composite.h"
 #include "kernels/denoise.h"
 #include "kernels/environment.h"
-#include "kernels/gbuffer.h"
+#include "core/gbuffer.h"
 #include "kernels/ssdo.h"
 
 namespace ssdo {

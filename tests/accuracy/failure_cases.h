@@ -1,5 +1,5 @@
 // The failure-case suite of the screen-space estimators: synthetic frames from the
-// reference ray caster (kernels/raycast.h) where screen-space AO is known to fail, each
+// reference ray caster (tests/support/raycast.h) where screen-space AO is known to fail, each
 // with its ray-traced reference, and the measurements the suite reports (MAE, max error,
 // temporal flicker). Shared by tests/accuracy/failure_cases_test.cpp (thresholds) and
 // tests/bench/failure_strips.cpp (the README's table and image strips).
@@ -24,7 +24,7 @@
 #include "kernels/noise.h"
 #include "kernels/normals.h"
 #include "kernels/positions.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 namespace ssdo::failure {
 

@@ -16,7 +16,7 @@
 #include "kernels/denoise.h"
 #include "kernels/half_resolution.h"
 #include "kernels/positions.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
 #include "service/pipeline.h"
 

@@ -14,7 +14,7 @@
 #include "kernels/composite.h"
 #include "kernels/environment.h"
 #include "kernels/positions.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
 
 namespace {

@@ -8,7 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 namespace ssdo {
 namespace {

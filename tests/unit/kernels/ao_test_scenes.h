@@ -12,7 +12,7 @@
 #include <opencv2/core.hpp>
 
 #include "kernels/ao.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 namespace ssdo::ao_test {
 

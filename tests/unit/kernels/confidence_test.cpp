@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "kernels/noise.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 namespace ssdo {
 namespace {

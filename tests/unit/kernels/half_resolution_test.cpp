@@ -12,7 +12,7 @@
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/positions.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
 
 namespace ssdo {

@@ -1,6 +1,6 @@
 // The reference ray caster against closed forms: G-buffer geometry, AO of a corner, of a
 // plane under a sphere and of an open plane, and the direct / one-bounce light terms.
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 #include <cmath>
 

@@ -1,5 +1,5 @@
 // SSDO direct and indirect light against closed forms, the reference ray caster
-// (kernels/raycast.h, same light convention) and the kernel's own oracle.
+// (tests/support/raycast.h, same light convention) and the kernel's own oracle.
 #include "kernels/ssdo.h"
 
 #include <chrono>
@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "kernels/metrics.h"
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 namespace ssdo {
 namespace {

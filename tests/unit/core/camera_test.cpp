@@ -1,6 +1,6 @@
 // Camera: pixel <-> view round trips, field of view, and from_fov_x against the projection
 // Blender wrote for the shared cornell frame.
-#include "kernels/camera.h"
+#include "core/camera.h"
 
 #include <filesystem>
 #include <fstream>

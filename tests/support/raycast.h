@@ -21,8 +21,8 @@
 #include <glm/glm.hpp>
 #include <opencv2/core.hpp>
 
-#include "kernels/camera.h"
-#include "kernels/gbuffer.h"
+#include "core/camera.h"
+#include "core/gbuffer.h"
 
 namespace ssdo::raycast {
 

@@ -1,11 +1,11 @@
-#include "kernels/raycast.h"
+#include "tests/support/raycast.h"
 
 #include <algorithm>
 #include <cmath>
 
 #include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 namespace ssdo::raycast {
 namespace {

@@ -1,6 +1,6 @@
-// The kernels' one parallel helper (kernels/parallel.h): every row once, in strips that do
+// The kernels' one parallel helper (core/parallel.h): every row once, in strips that do
 // not depend on the thread count.
-#include "kernels/parallel.h"
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <mutex>

@@ -11,7 +11,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "kernels/camera.h"
+#include "core/camera.h"
 
 namespace ssdo {
 

@@ -1,4 +1,4 @@
-#include "kernels/camera.h"
+#include "core/camera.h"
 
 #include <cmath>
 #include <limits>
