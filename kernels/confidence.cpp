@@ -96,25 +96,15 @@ struct TapFrame {
   const float* surface;
 };
 
-// The sums of the confidence's ratio (confidence.h) of the pixels in the lanes.
-// kPerspective: the rays start at o = o0 + cx ox + cy oy = +0 exactly (o0, ox, oy are +0,
-// so each product is +-0 and the sums +0) for every tap with a finite centre, and f, c and
-// n.f are the pixel's (PixelLanes). The other centres are NaN (a NaN projected radius, as
-// where pixels_per_unit is infinite), which makes u, a and s0 NaN and the chord empty
-// either way.
+// Pass 1 of sum_chords, every tap of every lane (no branch: 8 lanes per instruction): the
+// tap pixel, and the chord [s0, s1] of the hemisphere along the ray through its centre
+// (where its depth was sampled), in ray parameter units; len_scale converts them to
+// lengths. Taps whose ray misses get s1 = s0.
 template <bool kPerspective>
-void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
-                TapLanes& __restrict tap, double (&observed)[kLanes], double (&total)[kLanes]) {
+inline void hemisphere_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
+                              TapLanes& __restrict tap) {
   const RayMap rays = frame.rays;
-  const int n_taps = frame.n_taps, width = frame.width;
-  const float width_f = float(frame.width), height_f = float(frame.height);
-  const float max_x = float(frame.width - 1), max_y = float(frame.height - 1);
-  const int unknown_index = frame.width * frame.height;
-  // Pass 1, every tap of every lane (no branch: 8 lanes per instruction): the tap pixel,
-  // and the chord [s0, s1] of the hemisphere along the ray through its centre (where its
-  // depth was sampled), in ray parameter units; len_scale converts them to lengths. Taps
-  // whose ray misses get s1 = s0.
-  for (int k = 0; k < n_taps; ++k) {
+  for (int k = 0; k < frame.n_taps; ++k) {
     const float vx = frame.spiral_x[k], vy = frame.spiral_y[k];
 #pragma GCC unroll 1
     for (int j = 0; j < kLanes; ++j) {
@@ -155,8 +145,16 @@ void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
       tap.len_scale[k][j] = std::sqrt(a);
     }
   }
-  // Pass 2: the texel of each tap; off-screen taps read the unknown texel. The clamp keeps
-  // the conversion defined (std::max(0, t) also maps NaN to 0).
+}
+
+// Passes 2 and 3 of sum_chords: the texel of each tap (off-screen taps read the unknown
+// texel; the clamp keeps the conversion defined, std::max(0, t) also maps NaN to 0), then
+// the surface there (scattered reads, apart from the arithmetic).
+inline void surface_at_taps(const TapFrame& frame, TapLanes& __restrict tap) {
+  const int n_taps = frame.n_taps, width = frame.width;
+  const float width_f = float(frame.width), height_f = float(frame.height);
+  const float max_x = float(frame.width - 1), max_y = float(frame.height - 1);
+  const int unknown_index = frame.width * frame.height;
   for (int k = 0; k < n_taps; ++k) {
 #pragma GCC unroll 1
     for (int j = 0; j < kLanes; ++j) {
@@ -167,12 +165,15 @@ void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
       tap.index[k][j] = on_screen ? index : unknown_index;
     }
   }
-  // Pass 3: the surface at each tap (scattered reads, apart from the arithmetic).
   for (int k = 0; k < n_taps; ++k)
     for (int j = 0; j < kLanes; ++j) tap.surface[k][j] = frame.surface[tap.index[k][j]];
-  // Pass 4, in tap order per lane: the chord's length, and its observed part
-  // [s0, min(s1, s_surface)] where the tap is known. Taps adding nothing add +0.0, which
-  // leaves the (non-negative) sums unchanged: the same sums as skipping them.
+}
+
+// Pass 4 of sum_chords, in tap order per lane: the chord's length, and its observed part
+// [s0, min(s1, s_surface)] where the tap is known. Taps adding nothing add +0.0, which
+// leaves the (non-negative) sums unchanged: the same sums as skipping them.
+inline void add_chords(int n_taps, const TapLanes& __restrict tap, double (&observed)[kLanes],
+                       double (&total)[kLanes]) {
   for (int j = 0; j < kLanes; ++j) observed[j] = total[j] = 0.0;
   for (int k = 0; k < n_taps; ++k) {
 #pragma GCC unroll 1
@@ -186,6 +187,174 @@ void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
       observed[j] += double(seen_tap ? seen * len_scale : 0.0f);
     }
   }
+}
+
+// The sums of the confidence's ratio (confidence.h) of the pixels in the lanes.
+// kPerspective: the rays start at o = o0 + cx ox + cy oy = +0 exactly (o0, ox, oy are +0,
+// so each product is +-0 and the sums +0) for every tap with a finite centre, and f, c and
+// n.f are the pixel's (PixelLanes). The other centres are NaN (a NaN projected radius, as
+// where pixels_per_unit is infinite), which makes u, a and s0 NaN and the chord empty
+// either way.
+template <bool kPerspective>
+void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
+                TapLanes& __restrict tap, double (&observed)[kLanes], double (&total)[kLanes]) {
+  hemisphere_chords<kPerspective>(frame, lane, tap);
+  surface_at_taps(frame, tap);
+  add_chords(frame.n_taps, tap, observed, total);
+}
+
+// The unrotated Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle
+// turns. Each pixel rotates it by its own angle (a 2x2 rotation per tap, not a sincos).
+struct Spiral {
+  std::vector<float> x, y;
+};
+
+Spiral vogel_spiral(int n_taps) {
+  Spiral spiral{std::vector<float>(size_t(n_taps)), std::vector<float>(size_t(n_taps))};
+  for (int k = 0; k < n_taps; ++k) {
+    const float rho = std::sqrt((float(k) + 0.5f) / float(n_taps));
+    const float angle = float(k) * kGoldenAngle;
+    spiral.x[size_t(k)] = rho * std::cos(angle);
+    spiral.y[size_t(k)] = rho * std::sin(angle);
+  }
+  return spiral;
+}
+
+// Tap validity and surface in one plane, read once per tap: depth_view x (1 +
+// depth_bias_relative) (the largest ray parameter still in front of the stored surface,
+// within the relative bias: the pixel's own plane seen at a tap is observed) where the tap
+// is known, 0 where it is masked or its depth is not a positive finite value. Contiguous
+// rows, so a tap is one index, and one more unknown texel past the frame's end for
+// off-screen taps. The whole frame: taps reach anywhere, whatever the roi.
+UninitializedVector<float> surface_plane(const cv::Mat& depth_view, const cv::Mat& mask,
+                                         float depth_bias_relative, int nthreads) {
+  const int width = depth_view.cols, height = depth_view.rows;
+  const float bias_scale = 1.0f + depth_bias_relative;
+  const size_t n_texels = size_t(width) * size_t(height);
+  UninitializedVector<float> surface(n_texels + 1);  // every texel is written below
+  surface[n_texels] = 0.0f;
+  parallel_rows(cv::Range(0, height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* mask_row = mask.ptr<uint8_t>(y);
+      const float* depth_row = depth_view.ptr<float>(y);
+      float* surface_row = surface.data() + size_t(y) * size_t(width);
+      for (int x = 0; x < width; ++x) {
+        const float d = depth_row[x];
+        const bool known = mask_row[x] != 0 && d > 0.0f && std::isfinite(d);
+        surface_row[x] = known ? d * bias_scale : 0.0f;
+      }
+    }
+  });
+  return surface;
+}
+
+// What the pixels of a call read besides their taps.
+struct PixelFrame {
+  const cv::Mat& depth_view;
+  const cv::Mat& normal_view;
+  const cv::Mat& mask;
+  const Camera& camera;
+  const ConfidenceSettings& settings;
+  const TapFrame& taps;
+  bool perspective;  // camera.is_perspective()
+};
+
+// The foreground pixels waiting for a full set of lanes; lanes fill across the rows of a
+// strip.
+struct PendingPixels {
+  int x[kLanes], y[kLanes];
+  float* out[kLanes];
+  int n = 0;
+};
+
+// The per-pixel constants of the pending pixels: centre, view-space point and normal, the
+// projected radius, the spiral's rotation and, for perspective rays, f = o - p, c and n.f.
+void set_up_lanes(const PixelFrame& frame, const PendingPixels& pending, PixelLanes& lane) {
+  const ConfidenceSettings& s = frame.settings;
+  const RayMap& rays = frame.taps.rays;
+  alignas(32) float depth[kLanes], rotation_turns[kLanes], ppu_x[kLanes], ppu_y[kLanes];
+  for (int j = 0; j < kLanes; ++j) {
+    const int x = pending.x[j], y = pending.y[j];
+    depth[j] = frame.depth_view.ptr<float>(y)[x];
+    const cv::Vec3f& n = frame.normal_view.ptr<cv::Vec3f>(y)[x];
+    lane.nx[j] = n[0], lane.ny[j] = n[1], lane.nz[j] = n[2];
+    lane.pxc[j] = float(x) + 0.5f, lane.pyc[j] = float(y) + 0.5f;
+    rotation_turns[j] = noise01(x, y, 0, s.seed);
+  }
+  for (int j = 0; j < kLanes; ++j) {
+    const glm::vec2 ppu = frame.camera.pixels_per_unit(depth[j]);
+    ppu_x[j] = ppu.x, ppu_y[j] = ppu.y;
+    sincos_turns(rotation_turns[j], lane.cos_r[j], lane.sin_r[j]);
+  }
+  for (int j = 0; j < kLanes; ++j) {
+    const float d = depth[j], pxc = lane.pxc[j], pyc = lane.pyc[j];
+    const glm::vec3 p = rays.o0 + pxc * rays.ox + pyc * rays.oy +
+                        d * (rays.u0 + pxc * rays.ux + pyc * rays.uy);
+    // The estimator's neighbourhood: the radius, shrunk where its projection exceeds
+    // max_radius_px (the methods shrink theirs the same way).
+    float radius = s.radius_world;
+    const float radius_px_max = radius * std::max(ppu_x[j], ppu_y[j]);
+    radius = radius_px_max > s.max_radius_px ? radius * (s.max_radius_px / radius_px_max)
+                                             : radius;
+    lane.px[j] = p.x, lane.py[j] = p.y, lane.pz[j] = p.z;
+    lane.rx_px[j] = radius * ppu_x[j], lane.ry_px[j] = radius * ppu_y[j];
+    lane.r2[j] = radius * radius;
+    const glm::vec3 f = glm::vec3(0.0f) - p;  // o - p with the perspective o = 0
+    const glm::vec3 n(lane.nx[j], lane.ny[j], lane.nz[j]);
+    lane.fx[j] = f.x, lane.fy[j] = f.y, lane.fz[j] = f.z;
+    lane.c[j] = glm::dot(f, f) - lane.r2[j];
+    lane.nf[j] = glm::dot(n, f);
+  }
+}
+
+// The confidence of the pending pixels (unfilled lanes repeat the last pixel and are not
+// written); empties the pending set.
+void evaluate_pending(const PixelFrame& frame, PendingPixels& pending, PixelLanes& lane, TapLanes& tap) {
+  for (int j = pending.n; j < kLanes; ++j) {
+    pending.x[j] = pending.x[pending.n - 1], pending.y[j] = pending.y[pending.n - 1];
+  }
+  set_up_lanes(frame, pending, lane);
+  double observed[kLanes], total[kLanes];
+  if (frame.perspective)
+    sum_chords<true>(frame.taps, lane, tap, observed, total);
+  else
+    sum_chords<false>(frame.taps, lane, tap, observed, total);
+  for (int j = 0; j < pending.n; ++j)
+    *pending.out[j] = total[j] > 0.0 ? float(std::clamp(observed[j] / total[j], 0.0, 1.0)) : 1.0f;
+  pending.n = 0;
+}
+
+// The confidence of rows [rows.start, rows.end), columns of r: 1 on background, the
+// observed fraction on foreground pixels, evaluated kLanes at a time.
+void confidence_rows(const PixelFrame& frame, const cv::Range& rows, const cv::Rect& r, cv::Mat& confidence) {
+  PixelLanes lane;
+  TapLanes tap;
+  PendingPixels pending;
+  // Foreground pixels are found a chunk of a row at a time, without a branch per pixel.
+  constexpr int kChunk = 64;
+  int chunk_x[kChunk];
+  for (int y = rows.start; y < rows.end; ++y) {
+    const uint8_t* mask_row = frame.mask.ptr<uint8_t>(y);
+    const float* depth_row = frame.depth_view.ptr<float>(y);
+    float* out = confidence.ptr<float>(y);
+    for (int x0 = r.x; x0 < r.x + r.width; x0 += kChunk) {
+      const int x1 = std::min(x0 + kChunk, r.x + r.width);
+      int n_foreground = 0;
+      for (int x = x0; x < x1; ++x) {
+        const float d = depth_row[x];
+        const bool foreground = (mask_row[x] != 0) & (d > 0.0f) & std::isfinite(d);
+        out[x] = 1.0f;  // background; foreground pixels are overwritten when evaluated
+        chunk_x[n_foreground] = x;
+        n_foreground += foreground;
+      }
+      for (int i = 0; i < n_foreground; ++i) {
+        pending.x[pending.n] = chunk_x[i], pending.y[pending.n] = y;
+        pending.out[pending.n] = out + chunk_x[i];
+        if (++pending.n == kLanes) evaluate_pending(frame, pending, lane, tap);
+      }
+    }
+  }
+  if (pending.n > 0) evaluate_pending(frame, pending, lane, tap);
 }
 
 }  // namespace
@@ -229,125 +398,13 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     upsample_from_half_grid(full, h, images, r, nthreads);
     return;
   }
-  const RayMap rays = make_ray_map(camera);
-  const int width = size.width, height = size.height;
-  const int n_taps = s.taps;
-  const float bias_scale = 1.0f + s.depth_bias_relative;
-  // The unrotated Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle
-  // turns. Each pixel rotates it by its own angle (a 2x2 rotation per tap, not a sincos).
-  std::vector<float> spiral_x(static_cast<size_t>(n_taps)), spiral_y(static_cast<size_t>(n_taps));
-  for (int k = 0; k < n_taps; ++k) {
-    const float rho = std::sqrt((float(k) + 0.5f) / float(n_taps));
-    const float angle = float(k) * kGoldenAngle;
-    spiral_x[size_t(k)] = rho * std::cos(angle);
-    spiral_y[size_t(k)] = rho * std::sin(angle);
-  }
-
-  // Tap validity and surface in one plane, read once per tap: depth_view x bias_scale (the
-  // largest ray parameter still in front of the stored surface, within the relative bias:
-  // the pixel's own plane seen at a tap is observed) where the tap is known, 0 where it is
-  // masked or its depth is not a positive finite value. Contiguous rows, so a tap is one
-  // index, and one more unknown texel past the frame's end for off-screen taps. The whole
-  // frame: taps reach anywhere, whatever the roi. Every texel is written below.
-  const size_t n_texels = size_t(width) * size_t(height);
-  UninitializedVector<float> surface(n_texels + 1);
-  surface[n_texels] = 0.0f;
-  parallel_rows(cv::Range(0, height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* mask_row = mask.ptr<uint8_t>(y);
-      const float* depth_row = depth_view.ptr<float>(y);
-      float* surface_row = surface.data() + size_t(y) * size_t(width);
-      for (int x = 0; x < width; ++x) {
-        const float d = depth_row[x];
-        const bool known = mask_row[x] != 0 && d > 0.0f && std::isfinite(d);
-        surface_row[x] = known ? d * bias_scale : 0.0f;
-      }
-    }
-  });
-
-  const TapFrame frame{rays, spiral_x.data(), spiral_y.data(), n_taps,
-                       width, height, surface.data()};
-  const bool perspective = camera.is_perspective();
-
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    PixelLanes lane;
-    TapLanes tap;
-    // The pending foreground pixels; lanes fill across the rows of the strip.
-    int lane_x[kLanes], lane_y[kLanes];
-    float* lane_out[kLanes];
-    int n_lanes = 0;
-    auto evaluate = [&] {
-      for (int j = n_lanes; j < kLanes; ++j) {  // unfilled lanes repeat the last pixel
-        lane_x[j] = lane_x[n_lanes - 1], lane_y[j] = lane_y[n_lanes - 1];
-      }
-      alignas(32) float depth[kLanes], rotation_turns[kLanes], ppu_x[kLanes], ppu_y[kLanes];
-      for (int j = 0; j < kLanes; ++j) {
-        const int x = lane_x[j], y = lane_y[j];
-        depth[j] = depth_view.ptr<float>(y)[x];
-        const cv::Vec3f& n = normal_view.ptr<cv::Vec3f>(y)[x];
-        lane.nx[j] = n[0], lane.ny[j] = n[1], lane.nz[j] = n[2];
-        lane.pxc[j] = float(x) + 0.5f, lane.pyc[j] = float(y) + 0.5f;
-        rotation_turns[j] = noise01(x, y, 0, s.seed);
-      }
-      for (int j = 0; j < kLanes; ++j) {
-        const glm::vec2 ppu = camera.pixels_per_unit(depth[j]);
-        ppu_x[j] = ppu.x, ppu_y[j] = ppu.y;
-        sincos_turns(rotation_turns[j], lane.cos_r[j], lane.sin_r[j]);
-      }
-      for (int j = 0; j < kLanes; ++j) {
-        const float d = depth[j], pxc = lane.pxc[j], pyc = lane.pyc[j];
-        const glm::vec3 p = rays.o0 + pxc * rays.ox + pyc * rays.oy +
-                            d * (rays.u0 + pxc * rays.ux + pyc * rays.uy);
-        // The estimator's neighbourhood: the radius, shrunk where its projection exceeds
-        // max_radius_px (the methods shrink theirs the same way).
-        float radius = s.radius_world;
-        const float radius_px_max = radius * std::max(ppu_x[j], ppu_y[j]);
-        radius = radius_px_max > s.max_radius_px ? radius * (s.max_radius_px / radius_px_max)
-                                                 : radius;
-        lane.px[j] = p.x, lane.py[j] = p.y, lane.pz[j] = p.z;
-        lane.rx_px[j] = radius * ppu_x[j], lane.ry_px[j] = radius * ppu_y[j];
-        lane.r2[j] = radius * radius;
-        const glm::vec3 f = glm::vec3(0.0f) - p;  // o - p with the perspective o = 0
-        const glm::vec3 n(lane.nx[j], lane.ny[j], lane.nz[j]);
-        lane.fx[j] = f.x, lane.fy[j] = f.y, lane.fz[j] = f.z;
-        lane.c[j] = glm::dot(f, f) - lane.r2[j];
-        lane.nf[j] = glm::dot(n, f);
-      }
-      double observed[kLanes], total[kLanes];
-      if (perspective)
-        sum_chords<true>(frame, lane, tap, observed, total);
-      else
-        sum_chords<false>(frame, lane, tap, observed, total);
-      for (int j = 0; j < n_lanes; ++j)
-        *lane_out[j] = total[j] > 0.0 ? float(std::clamp(observed[j] / total[j], 0.0, 1.0)) : 1.0f;
-      n_lanes = 0;
-    };
-    // Foreground pixels are found a chunk of a row at a time, without a branch per pixel.
-    constexpr int kChunk = 64;
-    int chunk_x[kChunk];
-    for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* mask_row = mask.ptr<uint8_t>(y);
-      const float* depth_row = depth_view.ptr<float>(y);
-      float* out = confidence.ptr<float>(y);
-      for (int x0 = r.x; x0 < r.x + r.width; x0 += kChunk) {
-        const int x1 = std::min(x0 + kChunk, r.x + r.width);
-        int n_foreground = 0;
-        for (int x = x0; x < x1; ++x) {
-          const float d = depth_row[x];
-          const bool foreground = (mask_row[x] != 0) & (d > 0.0f) & std::isfinite(d);
-          out[x] = 1.0f;  // background; foreground pixels are overwritten when evaluated
-          chunk_x[n_foreground] = x;
-          n_foreground += foreground;
-        }
-        for (int i = 0; i < n_foreground; ++i) {
-          lane_x[n_lanes] = chunk_x[i], lane_y[n_lanes] = y;
-          lane_out[n_lanes] = out + chunk_x[i];
-          if (++n_lanes == kLanes) evaluate();
-        }
-      }
-    }
-    if (n_lanes > 0) evaluate();
-  });
+  const Spiral spiral = vogel_spiral(s.taps);
+  const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
+  const TapFrame taps{make_ray_map(camera), spiral.x.data(), spiral.y.data(), s.taps,
+                      size.width, size.height, surface.data()};
+  const PixelFrame frame{depth_view, normal_view, mask, camera, s, taps, camera.is_perspective()};
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads,
+                [&](const cv::Range& rows) { confidence_rows(frame, rows, r, confidence); });
 }
 
 }  // namespace ssdo

@@ -1,3 +1,14 @@
+// The cross (joint) bilateral filter of Tomasi & Manduchi 1998, "Bilateral filtering for
+// gray and color images", with the range kernel on the guides instead of the filtered
+// image: a tap's weight is the spatial Gaussian times edge-stopping weights on depth and
+// normal (denoise.h). Separable: a horizontal pass, then a vertical pass over its result.
+//
+// Layout. The frame is cut into tiles; per tile the guides and the source channels are
+// copied into planes over the tile and its halo, with the normal zeroed where the mask is
+// 0 or outside the image (the normal lobe then weighs those taps 0 and the terms they add
+// are exact zeros) and the source zeroed there (no masked value is read into a sum). Each
+// pass is, per tile row, a weight computation and an accumulation over the taps k for
+// kLanes pixels at once.
 #include "kernels/denoise.h"
 
 #include "kernels/settings_check.h"
@@ -6,7 +17,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <type_traits>
 #include <vector>
 
 #include "core/parallel.h"
@@ -15,118 +25,6 @@ namespace ssdo {
 namespace {
 
 constexpr int kMaxRadiusPx = 32;
-
-template <int C>
-void bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
-               const cv::Mat& mask, const DenoiseSettings& s, cv::Mat& dst, const cv::Rect& r,
-               int nthreads) {
-  using Pixel = cv::Vec<float, C>;
-  const int R = s.radius_px;
-  const int width = src.cols, height = src.rows;
-  // Gaussian spatial weights g(k), k in [-R, R], computed once.
-  float g[2 * kMaxRadiusPx + 1];
-  for (int k = -R; k <= R; ++k) g[k + R] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
-  const float power = s.normal_power;
-  // Integer powers (the default 16) by repeated squaring: std::pow per tap costs more than
-  // the rest of the weight together.
-  const bool integer_power = power == std::floor(power);
-  const unsigned ipower = integer_power ? unsigned(power) : 0u;
-  auto lobe = [&](float c) -> float {
-    if (!integer_power) return std::pow(c, power);
-    float result = 1.0f, base = c;
-    for (unsigned e = ipower; e; e >>= 1) {
-      if (e & 1u) result *= base;
-      base *= base;
-    }
-    return result;
-  };
-  const float inv_tol = 1.0f / s.depth_tolerance_relative;
-
-  // Range weight of a tap against a centre (depth d, normal n): hard-cut linear depth
-  // weight times the normal lobe; 0 for masked taps.
-  auto range_weight = [&](int tx, int ty, float d, const cv::Vec3f& n) -> float {
-    if (!mask.ptr<uint8_t>(ty)[tx]) return 0.0f;
-    const float dt = depth_view.ptr<float>(ty)[tx];
-    const float wd = 1.0f - std::abs(dt - d) * inv_tol / d;
-    if (!(wd > 0.0f)) return 0.0f;
-    const float cosn = n.dot(normal_view.ptr<cv::Vec3f>(ty)[tx]);
-    if (!(cosn > 0.0f)) return 0.0f;
-    return wd * lobe(cosn);
-  };
-
-  // Pass 1 (horizontal) over the rows the vertical pass reads, roi columns only.
-  const int y0 = std::max(0, r.y - R), y1 = std::min(height, r.y + r.height + R);
-  cv::Mat tmp(y1 - y0, r.width, CV_MAKETYPE(CV_32F, C));
-  parallel_rows(cv::Range(y0, y1), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const Pixel* in = src.ptr<Pixel>(y);
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      const float* dep = depth_view.ptr<float>(y);
-      const cv::Vec3f* nor = normal_view.ptr<cv::Vec3f>(y);
-      Pixel* out = tmp.ptr<Pixel>(y - y0);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        if (!m[x]) {
-          out[x - r.x] = in[x];
-          continue;
-        }
-        const float d = dep[x];
-        const cv::Vec3f n = nor[x];
-        const int k0 = std::max(-R, -x), k1 = std::min(R, width - 1 - x);
-        Pixel sum = Pixel::all(0.0f);
-        float wsum = 0.0f;
-        for (int k = k0; k <= k1; ++k) {
-          const float w = g[k + R] * range_weight(x + k, y, d, n);
-          sum += w * in[x + k];
-          wsum += w;
-        }
-        out[x - r.x] = sum * (1.0f / wsum);  // wsum >= g(0) * 1 (the centre) > 0
-      }
-    }
-  });
-
-  // Pass 2 (vertical) over the roi, reading pass 1.
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const Pixel* in = src.ptr<Pixel>(y);
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      const float* dep = depth_view.ptr<float>(y);
-      const cv::Vec3f* nor = normal_view.ptr<cv::Vec3f>(y);
-      Pixel* out = dst.ptr<Pixel>(y);
-      const int k0 = std::max(-R, y0 - y), k1 = std::min(R, y1 - 1 - y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        if (!m[x]) {
-          out[x] = in[x];
-          continue;
-        }
-        const float d = dep[x];
-        const cv::Vec3f n = nor[x];
-        Pixel sum = Pixel::all(0.0f);
-        float wsum = 0.0f;
-        for (int k = k0; k <= k1; ++k) {
-          const float w = g[k + R] * range_weight(x, y + k, d, n);
-          sum += w * tmp.ptr<Pixel>(y + k - y0)[x - r.x];
-          wsum += w;
-        }
-        out[x] = sum * (1.0f / wsum);
-      }
-    }
-  });
-}
-
-// c^P by squaring, unrolled at compile time so the pixel loop stays branch-free.
-// T: float or a vector of floats (Lanes).
-template <unsigned P, typename T>
-inline T ipow(T c) {
-  if constexpr (P == 0) {
-    return T{} + 1.0f;
-  } else if constexpr (P == 1) {
-    return c;
-  } else {
-    const T h = ipow<P / 2>(c);
-    if constexpr (P % 2 == 0) return h * h;
-    else return h * h * c;
-  }
-}
 
 // Eight pixels of a row in one value (GCC/Clang vector extension: AVX registers where
 // the kernels are built for them, pairs of SSE registers or scalars elsewhere), so that a
@@ -156,13 +54,126 @@ inline Lanes abs_lanes(Lanes x) {
   return x;
 }
 
-// Tile of the planar bilateral, pixels: kTileRows x kTileCols outputs. With the halo of R
-// rows and columns either side, every plane of a tile (depth, normal x/y/z, C values, C
-// horizontal results) is at most (32 + 64) x (256 + 64) floats x 10 planes = 1.2 MB at
-// R = 32 and ~0.2 MB at the default R = 4: the passes run out of L2, and the frame's guides
-// and source are read from memory once (the halo re-reads 2R / kTileRows of the rows).
+// c^P by squaring, unrolled at compile time so that the tap loop stays branch-free.
+template <unsigned P>
+inline Lanes ipow(Lanes c) {
+  if constexpr (P == 0) {
+    return broadcast(1.0f);
+  } else if constexpr (P == 1) {
+    return c;
+  } else {
+    const Lanes h = ipow<P / 2>(c);
+    if constexpr (P % 2 == 0) return h * h;
+    else return h * h * c;
+  }
+}
+
+// The normal lobe max(0, n . n_tap)^normal_power of the range weight, applied to
+// c = max(0, n . n_tap). The default power by compile-time squaring: a runtime exponent
+// (or std::pow) per tap costs more than the rest of the weight together.
+struct DefaultLobe {
+  static constexpr unsigned kPower = 16;
+  Lanes operator()(Lanes c) const { return ipow<kPower>(c); }
+};
+static_assert(DenoiseSettings{}.normal_power == float(DefaultLobe::kPower));
+
+// Any power in [0, 256]: integers by squaring from the most significant bit (the
+// association of ipow, so the same bits as ipow<P>), other powers by std::pow. 0 where
+// c = 0: masked taps have normal 0, and c^0 = 1 would count them.
+struct PowerLobe {
+  float power;
+  bool integer;
+  unsigned ipower;
+  explicit PowerLobe(float p) : power(p), integer(p == std::floor(p)), ipower(integer ? unsigned(p) : 0u) {}
+  Lanes operator()(Lanes c) const {
+    Lanes r = broadcast(1.0f);
+    if (integer) {
+      for (int bit = 8; bit >= 0; --bit) {  // ipower <= 256 = 2^8
+        r = r * r;
+        if ((ipower >> bit) & 1u) r = r * c;
+      }
+    } else {
+      for (int j = 0; j < kLanes; ++j) r[j] = std::pow(c[j], power);
+    }
+    return c > 0.0f ? r : broadcast(0.0f);
+  }
+};
+
+// Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
+// columns either side, every plane of a tile (depth, normal x/y/z, C values, C horizontal
+// results) is (32 + 2R) x (256 + 2R) floats, 42 KB at the default R = 4: the passes run on
+// cached planes, and the frame's guides and source are read from memory once (the halo
+// re-reads 2R / kTileRows of the rows).
 constexpr int kTileRows = 32;
 constexpr int kTileCols = 256;
+static_assert(kTileCols % kLanes == 0, "a tile row is whole blocks of lanes");
+
+// The most channels one pass filters with the same weights (AO and both SSDO terms are 7);
+// more are filtered in several passes. The channels are independent, so how they are
+// grouped changes the speed, not the values.
+constexpr int kMaxPassChannels = 8;
+
+// One channel of a pass: channel `offset` of *src (`stride` channels per pixel), written to
+// the same channel of *dst.
+struct Channel {
+  const cv::Mat* src;
+  cv::Mat* dst;
+  int offset;
+  int stride;
+};
+
+// What every tile of a call reads: the guides and the constants from the settings.
+struct FilterConstants {
+  const cv::Mat& depth_view;   // CV_32FC1 planar depth
+  const cv::Mat& normal_view;  // CV_32FC3 unit view-space normal
+  const cv::Mat& mask;         // CV_8UC1, 0 = not filtered and not read
+  int width, height;           // the frame
+  int radius;                  // R: taps k in [-R, R] per pass
+  float g[2 * kMaxRadiusPx + 1];  // the spatial Gaussian g(k), at k + R
+  float inv_tol;               // 1 / depth_tolerance_relative
+  int plane_stride;            // floats per plane row: kTileCols + 2R
+  size_t plane;                // floats per plane: plane_stride x (kTileRows + 2R)
+
+  FilterConstants(const cv::Mat& depth, const cv::Mat& normal, const cv::Mat& m, const DenoiseSettings& s)
+      : depth_view(depth), normal_view(normal), mask(m), width(depth.cols), height(depth.rows),
+        radius(s.radius_px), g{}, inv_tol(1.0f / s.depth_tolerance_relative),
+        plane_stride(kTileCols + 2 * s.radius_px),
+        plane(size_t(plane_stride) * size_t(kTileRows + 2 * s.radius_px)) {
+    for (int k = -radius; k <= radius; ++k)
+      g[k + radius] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
+  }
+};
+
+// A tile: output rows [ya, yb), columns [xa, xb). Plane row j is image row ya - R + j,
+// plane column i is image column xa - R + i.
+struct Tile {
+  int ya, yb, xa, xb;
+  int width() const { return xb - xa; }
+  // Columns each pass computes: whole blocks of lanes (the pixels past xb are computed and
+  // not written).
+  int lane_width() const { return (width() + kLanes - 1) / kLanes * kLanes; }
+};
+
+// The planes of a tile in the per-thread scratch.
+struct TilePlanes {
+  float* depth;
+  float* nx;
+  float* ny;
+  float* nz;
+  float* value;       // C planes: the source channels
+  float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
+};
+
+TilePlanes tile_planes(float* scratch, size_t plane, int channels) {
+  TilePlanes p;
+  p.depth = scratch;
+  p.nx = p.depth + plane;
+  p.ny = p.nx + plane;
+  p.nz = p.ny + plane;
+  p.value = p.nz + plane;
+  p.horizontal = p.value + size_t(channels) * plane;
+  return p;
+}
 
 // Per-thread scratch of the tiles, grown once per thread (never inside the pixel loops).
 struct TileScratch {
@@ -173,189 +184,175 @@ struct TileScratch {
   }
 };
 
-// The bilateral above restructured to vectorise (same weights, same per-pixel summation
-// order, so the same values up to the rounding of the depth weight's division): per tile,
-// the guides and the source as planes (depth, normal x, y, z, C value planes) over the tile
-// and its halo, the normal zeroed where mask is 0 or outside the image so that the lobe
-// weighs those taps 0 (the terms they add are exact zeros), the source zeroed there so that
-// no masked value is read into a sum. Each pass is an outer loop over the tap offset k and
-// an inner, branch-free loop over a tile row. Integer normal powers only (the lobe by
-// squaring, ipow).
-// The channels one planar pass denoises together, from one image or several of the same
-// frame: channel c of the pass is channel offset[c] of *src[c] (stride[c] channels per
-// pixel), written to the same channel of *dst[c].
+// Copies the guides and the source channels of the tile and its halo into the planes;
+// zeros outside the image and where the mask is 0.
 template <int C>
-struct ChannelMap {
-  const cv::Mat* src[C];
-  cv::Mat* dst[C];
-  int offset[C];
-  int stride[C];
+void fill_planes(const FilterConstants& k, const Channel* ch, const Tile& t, const TilePlanes& p) {
+  const int R = k.radius, columns = t.lane_width() + 2 * R;
+  for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
+    const int y = t.ya - R + j;
+    const size_t row = size_t(j) * size_t(k.plane_stride);
+    float* d = p.depth + row;
+    float* nx = p.nx + row;
+    float* ny = p.ny + row;
+    float* nz = p.nz + row;
+    if (y < 0 || y >= k.height) {
+      for (int i = 0; i < columns; ++i) d[i] = nx[i] = ny[i] = nz[i] = 0.0f;
+      for (int c = 0; c < C; ++c)
+        for (int i = 0; i < columns; ++i) p.value[c * k.plane + row + i] = 0.0f;
+      continue;
+    }
+    const uint8_t* m = k.mask.ptr<uint8_t>(y);
+    const float* dep = k.depth_view.ptr<float>(y);
+    const cv::Vec3f* n = k.normal_view.ptr<cv::Vec3f>(y);
+    const float* v[C];
+    for (int c = 0; c < C; ++c) v[c] = ch[c].src->ptr<float>(y) + ch[c].offset;
+    for (int i = 0; i < columns; ++i) {
+      const int x = t.xa - R + i;
+      const bool on = x >= 0 && x < k.width && m[x] != 0;
+      d[i] = on ? dep[x] : 0.0f;
+      nx[i] = on ? n[x][0] : 0.0f;
+      ny[i] = on ? n[x][1] : 0.0f;
+      nz[i] = on ? n[x][2] : 0.0f;
+      for (int c = 0; c < C; ++c) p.value[c * k.plane + row + i] = on ? v[c][x * ch[c].stride] : 0.0f;
+    }
+  }
+}
+
+// The guides of kLanes pixels (or of their taps at one offset) in the planes.
+struct GuideLanes {
+  Lanes depth, nx, ny, nz;
 };
 
+inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
+  return {load_lanes(p.depth + at), load_lanes(p.nx + at), load_lanes(p.ny + at), load_lanes(p.nz + at)};
+}
+
+// The weight of the taps at one offset: the spatial Gaussian g(k) times the range weight,
+// the hard-cut linear depth weight max(0, 1 - |d_tap - d| / (tol d)) (depth_scale =
+// 1 / (tol d)) times the normal lobe.
+template <class Lobe>
+inline Lanes tap_weight(float g, const GuideLanes& centre, Lanes depth_scale, const GuideLanes& tap,
+                        const Lobe& lobe) {
+  const Lanes wd = max0(1.0f - abs_lanes(tap.depth - centre.depth) * depth_scale);
+  const Lanes cn = max0(centre.nx * tap.nx + centre.ny * tap.ny + centre.nz * tap.nz);
+  return g * (wd * lobe(cn));
+}
+
+// One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
+// pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
+// k * step from it; tap k of channel c at values + c * plane + k * step + i. The centre
+// tap weighs g(0) > 0 (its depth and normal match), so the weight sum is never 0.
 template <int C, class Lobe>
-void bilateral_planar(const ChannelMap<C>& ch, const cv::Mat& depth_view, const cv::Mat& normal_view,
-                      const cv::Mat& mask, const DenoiseSettings& s, const cv::Rect& r,
-                      int nthreads, Lobe lobe_of) {
-  const int R = s.radius_px;
-  const int width = depth_view.cols, height = depth_view.rows;
-  float g[2 * kMaxRadiusPx + 1];
-  for (int k = -R; k <= R; ++k) g[k + R] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
-  const float inv_tol = 1.0f / s.depth_tolerance_relative;
-  // Plane geometry of a tile: rows [ya - R, yb + R), columns [xa - R, xb + R), stride pw.
-  const int pw = kTileCols + 2 * R, ph = kTileRows + 2 * R;
-  const size_t plane = size_t(pw) * size_t(ph);
-  // depth, nx, ny, nz, C values, C horizontal results, 3 C + 1 accumulators of a row.
-  const size_t scratch_floats = plane * size_t(4 + 2 * C) + size_t(kTileCols) * size_t(C + 2);
-
-  auto tile = [&](int ya, int yb, int xa, int xb, float* scratch) {
-    float* pd = scratch;
-    float* pnx = pd + plane;
-    float* pny = pnx + plane;
-    float* pnz = pny + plane;
-    float* pv = pnz + plane;       // C planes
-    float* ph_out = pv + C * plane;  // C planes: the horizontal pass, tile columns only
-    float* acc = ph_out + C * plane;  // C sums, the weight sum and the depth scale of a row
-    const int tw = xb - xa;
-    // Fill: plane row j is image row ya - R + j, plane column i is image column xa - R + i.
-    for (int j = 0; j < (yb - ya) + 2 * R; ++j) {
-      const int y = ya - R + j;
-      float* d = pd + size_t(j) * pw;
-      float* nx = pnx + size_t(j) * pw;
-      float* ny = pny + size_t(j) * pw;
-      float* nz = pnz + size_t(j) * pw;
-      if (y < 0 || y >= height) {
-        for (int i = 0; i < tw + 2 * R; ++i) d[i] = nx[i] = ny[i] = nz[i] = 0.0f;
-        for (int c = 0; c < C; ++c)
-          for (int i = 0; i < tw + 2 * R; ++i) pv[c * plane + size_t(j) * pw + i] = 0.0f;
-        continue;
-      }
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      const float* dep = depth_view.ptr<float>(y);
-      const cv::Vec3f* n = normal_view.ptr<cv::Vec3f>(y);
-      const float* v[C];
-      for (int c = 0; c < C; ++c) v[c] = ch.src[c]->template ptr<float>(y) + ch.offset[c];
-      for (int i = 0; i < tw + 2 * R; ++i) {
-        const int x = xa - R + i;
-        const bool on = x >= 0 && x < width && m[x] != 0;
-        d[i] = on ? dep[x] : 0.0f;
-        nx[i] = on ? n[x][0] : 0.0f;
-        ny[i] = on ? n[x][1] : 0.0f;
-        nz[i] = on ? n[x][2] : 0.0f;
-        for (int c = 0; c < C; ++c)
-          pv[c * plane + size_t(j) * pw + i] = on ? v[c][x * ch.stride[c]] : 0.0f;
-      }
+void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre,
+                ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe) {
+  const int R = k.radius, width = t.lane_width();
+  const float inv_tol = k.inv_tol;
+  const size_t plane = k.plane;
+  for (int i = 0; i < width; i += kLanes) {
+    const GuideLanes c0 = load_guides(p, centre + size_t(i));
+    const Lanes depth_scale = inv_tol / c0.depth;
+    Lanes sum[C], wsum = broadcast(0.0f);
+    for (int c = 0; c < C; ++c) sum[c] = broadcast(0.0f);
+    for (int tap = -R; tap <= R; ++tap) {
+      const ptrdiff_t off = tap * step + i;
+      const GuideLanes taps = load_guides(p, size_t(ptrdiff_t(centre) + off));
+      const Lanes w = tap_weight(k.g[tap + R], c0, depth_scale, taps, lobe);
+      for (int c = 0; c < C; ++c) sum[c] += w * load_lanes(values + c * plane + off);
+      wsum += w;
     }
-    float* sum = acc;
-    float* wsum = acc + C * kTileCols;
-    float* scale = wsum + kTileCols;
-    // One pass over a tile row: out[c][i] = sum_k w_k tap_c,k / sum_k w_k, i in [0, tw).
-    // Centre guides at plane row cj, column R + i; tap k at plane offset k * step from the
-    // centre in the guide planes; the taps of value plane c at tap0 + c * tap_plane +
-    // k * tap_step.
-    auto pass = [&](int cj, ptrdiff_t step, const float* tap0, ptrdiff_t tap_step, size_t tap_plane,
-                    float* const* out) {
-      const float* cd = pd + size_t(cj) * pw + R;
-      const float* cx = pnx + size_t(cj) * pw + R;
-      const float* cy = pny + size_t(cj) * pw + R;
-      const float* cz = pnz + size_t(cj) * pw + R;
-      // Blocks of kLanes pixels: the sums stay in registers over the taps. Each lane
-      // computes what the loop below computes for its pixel, in the same order (the same
-      // bits).
-      int i0 = 0;
-      for (; i0 + kLanes <= tw; i0 += kLanes) {
-        const Lanes d0 = load_lanes(cd + i0), x0 = load_lanes(cx + i0), y0 = load_lanes(cy + i0),
-                    z0 = load_lanes(cz + i0);
-        const Lanes sc = inv_tol / d0;
-        Lanes acc_c[C], acc_w = broadcast(0.0f);
-        for (int c = 0; c < C; ++c) acc_c[c] = broadcast(0.0f);
-        for (int k = -R; k <= R; ++k) {
-          const ptrdiff_t off = k * step + i0;
-          const Lanes wd = max0(1.0f - abs_lanes(load_lanes(cd + off) - d0) * sc);
-          const Lanes cn = max0(x0 * load_lanes(cx + off) + y0 * load_lanes(cy + off) + z0 * load_lanes(cz + off));
-          const Lanes w = g[k + R] * (wd * lobe_of(cn));
-          const float* tv = tap0 + k * tap_step + i0;
-          for (int c = 0; c < C; ++c) acc_c[c] += w * load_lanes(tv + c * tap_plane);
-          acc_w += w;
-        }
-        const Lanes inv = 1.0f / acc_w;
-        for (int c = 0; c < C; ++c) store_lanes(out[c] + i0, acc_c[c] * inv);
-      }
-      if (i0 == tw) return;
-      for (int i = i0; i < tw; ++i) {
-        for (int c = 0; c < C; ++c) sum[c * kTileCols + i] = 0.0f;
-        wsum[i] = 0.0f;
-        scale[i] = inv_tol / cd[i];
-      }
-      for (int k = -R; k <= R; ++k) {
-        const ptrdiff_t off = k * step;
-        const float* td = cd + off;
-        const float* tx = cx + off;
-        const float* ty = cy + off;
-        const float* tz = cz + off;
-        const float* tv = tap0 + k * tap_step;
-        const float gk = g[k + R];
-        // The accumulators and the planes are disjoint parts of one scratch buffer, which
-        // the compiler's runtime overlap check cannot prove: without ivdep it takes the
-        // scalar copy of this loop (5x slower at 3 channels).
-#pragma GCC ivdep
-        for (int i = i0; i < tw; ++i) {
-          const float wd = std::max(0.0f, 1.0f - std::abs(td[i] - cd[i]) * scale[i]);
-          const float cn = std::max(0.0f, cx[i] * tx[i] + cy[i] * ty[i] + cz[i] * tz[i]);
-          const float w = gk * (wd * lobe_of(cn));
-          for (int c = 0; c < C; ++c) sum[c * kTileCols + i] += w * tv[c * tap_plane + i];
-          wsum[i] += w;
-        }
-      }
-      for (int i = i0; i < tw; ++i) {
-        const float inv = 1.0f / wsum[i];
-        for (int c = 0; c < C; ++c) out[c][i] = sum[c * kTileCols + i] * inv;
-      }
-    };
-    // Pass 1 (horizontal) on every plane row: guides and taps in the same planes.
-    for (int j = 0; j < (yb - ya) + 2 * R; ++j) {
-      const int y = ya - R + j;
-      float* out[C];
-      for (int c = 0; c < C; ++c) out[c] = ph_out + c * plane + size_t(j) * pw;
-      if (y < 0 || y >= height) {
-        for (int c = 0; c < C; ++c)
-          for (int i = 0; i < tw; ++i) out[c][i] = 0.0f;
-        continue;
-      }
-      pass(j, 1, pv + size_t(j) * pw + R, 1, plane, out);
-      // Masked pixels: 0 (their normal is 0, so pass 2 weighs them 0 anyway; no NaN read).
-      const uint8_t* m = mask.ptr<uint8_t>(y);
+    const Lanes inv = 1.0f / wsum;
+    for (int c = 0; c < C; ++c) store_lanes(out[c] + i, sum[c] * inv);
+  }
+}
+
+// Pass 1 (horizontal) on every plane row of the tile: guides and taps in the same planes.
+// Masked pixels and rows outside the image get 0 (their normal is 0, so pass 2 weighs them
+// 0 anyway; no NaN is read).
+template <int C, class Lobe>
+void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& t, const Lobe& lobe) {
+  const int R = k.radius;
+  for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
+    const int y = t.ya - R + j;
+    const size_t row = size_t(j) * size_t(k.plane_stride);
+    float* out[C];
+    for (int c = 0; c < C; ++c) out[c] = p.horizontal + c * k.plane + row;
+    if (y < 0 || y >= k.height) {
       for (int c = 0; c < C; ++c)
-        for (int i = 0; i < tw; ++i) out[c][i] = m[xa + i] ? out[c][i] : 0.0f;
+        for (int i = 0; i < t.lane_width(); ++i) out[c][i] = 0.0f;
+      continue;
     }
-    // Pass 2 (vertical) on the tile's rows; masked pixels copy the source.
-    for (int y = ya; y < yb; ++y) {
-      const int j = y - ya + R;
-      float result[C][kTileCols];
-      float* to[C];
-      for (int c = 0; c < C; ++c) to[c] = result[c];
-      pass(j, pw, ph_out + size_t(j) * pw, pw, plane, to);
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      for (int c = 0; c < C; ++c) {
-        const float* in = ch.src[c]->template ptr<float>(y) + ch.offset[c];
-        float* row = ch.dst[c]->template ptr<float>(y) + ch.offset[c];
-        const int stride = ch.stride[c];
-        for (int i = 0; i < tw; ++i) {
-          const int x = xa + i;
-          row[x * stride] = m[x] ? result[c][i] : in[x * stride];
-        }
+    filter_row<C>(k, p, t, row + size_t(R), 1, p.value + row + R, out, lobe);
+    const uint8_t* m = k.mask.ptr<uint8_t>(y);
+    for (int c = 0; c < C; ++c)
+      for (int i = 0; i < t.width(); ++i) out[c][i] = m[t.xa + i] ? out[c][i] : 0.0f;
+  }
+}
+
+// Pass 2 (vertical) over the horizontal results, on the tile's rows, into the outputs;
+// masked pixels copy the source.
+template <int C, class Lobe>
+void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
+                   const Lobe& lobe) {
+  const int R = k.radius;
+  for (int y = t.ya; y < t.yb; ++y) {
+    const size_t row = size_t(y - t.ya + R) * size_t(k.plane_stride);
+    float result[C][kTileCols];
+    float* to[C];
+    for (int c = 0; c < C; ++c) to[c] = result[c];
+    filter_row<C>(k, p, t, row + size_t(R), k.plane_stride, p.horizontal + row, to, lobe);
+    const uint8_t* m = k.mask.ptr<uint8_t>(y);
+    for (int c = 0; c < C; ++c) {
+      const float* in = ch[c].src->ptr<float>(y) + ch[c].offset;
+      float* out = ch[c].dst->ptr<float>(y) + ch[c].offset;
+      const int stride = ch[c].stride;
+      for (int i = 0; i < t.width(); ++i) {
+        const int x = t.xa + i;
+        out[x * stride] = m[x] ? result[c][i] : in[x * stride];
       }
     }
-  };
+  }
+}
 
+// The filter of C channels with one set of weights, over the roi r, tile by tile.
+template <int C, class Lobe>
+void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
+                     const Lobe& lobe) {
+  // The guide and value planes, and the horizontal results.
+  const size_t scratch_floats = k.plane * size_t(4 + 2 * C);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     thread_local TileScratch scratch;
-    float* buffer = scratch.get(scratch_floats);
+    const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k.plane, C);
     for (int ya = rows.start; ya < rows.end; ya += kTileRows) {
       const int yb = std::min(ya + kTileRows, rows.end);
-      for (int xa = r.x; xa < r.x + r.width; xa += kTileCols)
-        tile(ya, yb, xa, std::min(xa + kTileCols, r.x + r.width), buffer);
+      for (int xa = r.x; xa < r.x + r.width; xa += kTileCols) {
+        const Tile t{ya, yb, xa, std::min(xa + kTileCols, r.x + r.width)};
+        fill_planes<C>(k, ch, t, planes);
+        horizontal_pass<C>(k, planes, t, lobe);
+        vertical_pass<C>(k, ch, planes, t, lobe);
+      }
     }
   }, kTileRows);
+}
+
+// filter_channels with the channel count as a compile-time constant (the sums stay in
+// registers): n in [1, C].
+template <int C, class Lobe>
+void filter_pass(const FilterConstants& k, const Channel* ch, int n, const cv::Rect& r, int nthreads,
+                 const Lobe& lobe) {
+  if constexpr (C > 1) {
+    if (n < C) return filter_pass<C - 1>(k, ch, n, r, nthreads, lobe);
+  }
+  filter_channels<C>(k, ch, r, nthreads, lobe);
+}
+
+template <class Lobe>
+void filter_all(const FilterConstants& k, const std::vector<Channel>& channels, const cv::Rect& r,
+                int nthreads, const Lobe& lobe) {
+  const int n = int(channels.size());
+  for (int first = 0; first < n; first += kMaxPassChannels)
+    filter_pass<kMaxPassChannels>(k, channels.data() + first, std::min(kMaxPassChannels, n - first), r,
+                                  nthreads, lobe);
 }
 
 template <int C>
@@ -411,7 +408,7 @@ void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& dept
                        cv::Rect roi, int nthreads) {
   CV_Assert(validate(settings).empty());
   CV_Assert(srcs.size() == dsts.size() && !srcs.empty());
-  int channels = 0;
+  std::vector<Channel> channels;
   for (size_t i = 0; i < srcs.size(); ++i) {
     const cv::Mat& src = *srcs[i];
     CV_Assert(depth_view.type() == CV_32FC1 && depth_view.size() == src.size());
@@ -419,70 +416,17 @@ void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& dept
     CV_Assert(mask.type() == CV_8UC1 && mask.size() == src.size());
     for (size_t k = 0; k < i; ++k) CV_Assert(dsts[k] != dsts[i]);
     prepare_dst(src, *dsts[i]);
-    channels += src.channels();
+    for (int c = 0; c < src.channels(); ++c) channels.push_back({srcs[i], dsts[i], c, src.channels()});
   }
   for (cv::Mat* dst : dsts)
     for (const cv::Mat* src : srcs) CV_Assert(dst->data != src->data);
   const cv::Rect r = resolve_roi(roi, depth_view.size());
   if (r.empty()) return;
-  const float p = settings.normal_power;
-  const bool planar = p == 16.0f || p == 8.0f || p == 4.0f || p == 1.0f || p == 0.0f;
-  // One pass over every channel for the channel counts the pipeline uses: AO 1, a colour
-  // term 3, the two SSDO terms 6, AO and both SSDO terms 7.
-  const bool together = planar && (channels == 1 || channels == 3 || channels == 6 || channels == 7);
-  if (!together) {
-    for (size_t i = 0; i < srcs.size(); ++i) {
-      const cv::Mat& src = *srcs[i];
-      cv::Mat& dst = *dsts[i];
-      if (planar) {
-        const cv::Mat* one_src[] = {&src};
-        cv::Mat* one_dst[] = {&dst};
-        denoise_bilateral(one_src, depth_view, normal_view, mask, settings, one_dst, r, nthreads);
-      } else if (src.channels() == 1) {
-        bilateral<1>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
-      } else {
-        bilateral<3>(src, depth_view, normal_view, mask, settings, dst, r, nthreads);
-      }
-    }
-    return;
-  }
-  auto run_with = [&](auto channel_count, auto lobe) {
-    constexpr int C = decltype(channel_count)::value;
-    ChannelMap<C> map{};
-    int c = 0;
-    for (size_t i = 0; i < srcs.size(); ++i)
-      for (int k = 0; k < srcs[i]->channels(); ++k, ++c) {
-        map.src[c] = srcs[i];
-        map.dst[c] = dsts[i];
-        map.offset[c] = k;
-        map.stride[c] = srcs[i]->channels();
-      }
-    bilateral_planar<C>(map, depth_view, normal_view, mask, settings, r, nthreads, lobe);
-  };
-  // The planar path for the integer powers the settings use in practice (the default 16
-  // and its halvings); any other power takes the per-pixel path with std::pow.
-  auto run = [&](auto lobe) {
-    switch (channels) {
-      case 1: run_with(std::integral_constant<int, 1>{}, lobe); break;
-      case 3: run_with(std::integral_constant<int, 3>{}, lobe); break;
-      case 6: run_with(std::integral_constant<int, 6>{}, lobe); break;
-      default: run_with(std::integral_constant<int, 7>{}, lobe); break;
-    }
-  };
-  // Each lobe takes a float or Lanes.
-  if (p == 16.0f)
-    run([](auto c) { return ipow<16>(c); });
-  else if (p == 8.0f)
-    run([](auto c) { return ipow<8>(c); });
-  else if (p == 4.0f)
-    run([](auto c) { return ipow<4>(c); });
-  else if (p == 1.0f)
-    run([](auto c) { return c; });
+  const FilterConstants k(depth_view, normal_view, mask, settings);
+  if (settings.normal_power == float(DefaultLobe::kPower))
+    filter_all(k, channels, r, nthreads, DefaultLobe{});
   else
-    run([](auto c) {
-      using T = decltype(c);
-      return c > 0.0f ? T{} + 1.0f : T{};
-    });
+    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power));
 }
 
 void box_blur_4x4(const cv::Mat& src, cv::Mat& dst, cv::Rect roi, int nthreads) {

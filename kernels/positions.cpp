@@ -4,14 +4,17 @@
 
 namespace ssdo {
 
+cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& out, cv::Rect roi) {
+  CV_Assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 &&
+            mask.size() == depth_view.size());
+  if (out.size() != depth_view.size() || out.type() != CV_32FC3) out.create(depth_view.size(), CV_32FC3);
+  return resolve_roi(roi, depth_view.size());
+}
+
 void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
                                const Camera& camera, cv::Mat& position_view, cv::Rect roi,
                                int nthreads) {
-  CV_Assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 &&
-            mask.size() == depth_view.size());
-  if (position_view.size() != depth_view.size() || position_view.type() != CV_32FC3)
-    position_view.create(depth_view.size(), CV_32FC3);
-  const cv::Rect r = resolve_roi(roi, depth_view.size());
+  const cv::Rect r = prepare_view_vectors(depth_view, mask, position_view, roi);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const float* depth = depth_view.ptr<float>(y);

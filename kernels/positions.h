@@ -14,4 +14,10 @@ void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
                                const Camera& camera, cv::Mat& position_view,
                                cv::Rect roi = {}, int nthreads = 0);
 
+// The checks and the output of a per-pixel image of view-space vectors computed from depth
+// (the positions above, the normals of normals.h): depth_view CV_32FC1 and mask CV_8UC1 of
+// one size; out allocated CV_32FC3 at that size when empty or of another size or type.
+// Returns roi resolved against the size (empty = all).
+cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& out, cv::Rect roi);
+
 }  // namespace ssdo

@@ -64,16 +64,22 @@ cv::Mat brute_force(const cv::Mat& src, const Guides& g, const DenoiseSettings& 
   return out;
 }
 
+// The default power (compile-time lobe) and others (integer and fractional, the general
+// lobe), one and three channels.
 TEST(Denoise, MatchesBruteForce) {
   const cv::Size size(37, 29);
   const Guides g = random_guides(size, 7);
-  DenoiseSettings s;
-  for (int channels : {1, 3}) {
-    cv::Mat src(size, CV_MAKETYPE(CV_32F, channels));
-    cv::randu(src, 0.0f, 1.0f);
-    cv::Mat dst;
-    denoise_bilateral(src, g.depth, g.normal, g.mask, s, dst, {}, 1);
-    EXPECT_LE(cv::norm(dst, brute_force(src, g, s), cv::NORM_INF), 1e-5) << channels;
+  for (const float power : {16.0f, 7.0f, 2.5f, 1.0f, 0.0f}) {
+    DenoiseSettings s;
+    s.normal_power = power;
+    for (int channels : {1, 3}) {
+      cv::Mat src(size, CV_MAKETYPE(CV_32F, channels));
+      cv::randu(src, 0.0f, 1.0f);
+      cv::Mat dst;
+      denoise_bilateral(src, g.depth, g.normal, g.mask, s, dst, {}, 1);
+      EXPECT_LE(cv::norm(dst, brute_force(src, g, s), cv::NORM_INF), 1e-5)
+          << "power " << power << ", " << channels << " channels";
+    }
   }
 }
 
@@ -88,8 +94,8 @@ TEST(Denoise, OneAndTwoThreadsIdentical) {
 }
 
 // Several images in one pass: each result is the same bits as denoising it alone, for
-// every channel count the shared pass takes (1 + 3 + 3 = 7, 3 + 3, 1 + 3) and one it does
-// not (1 + 1: image by image), with both lobe paths (integer and fractional power).
+// channel counts up to one pass's (1 + 3 + 3 = 7, 3 + 3, 1 + 3, 1 + 1) and beyond it
+// (3 + 3 + 3: two passes), with both lobes (the default power, integer and fractional).
 TEST(Denoise, SeveralImagesInOnePassMatchEachAloneBitForBit) {
   const cv::Size size(300, 41);  // wider than a tile: the tile seams are crossed
   const Guides g = random_guides(size, 11);
@@ -97,7 +103,7 @@ TEST(Denoise, SeveralImagesInOnePassMatchEachAloneBitForBit) {
     DenoiseSettings s;
     s.normal_power = power;
     for (const std::vector<int>& layout :
-         std::vector<std::vector<int>>{{1, 3, 3}, {3, 3}, {1, 3}, {1, 1}}) {
+         std::vector<std::vector<int>>{{1, 3, 3}, {3, 3}, {1, 3}, {1, 1}, {3, 3, 3}}) {
       std::vector<cv::Mat> srcs, together(layout.size());
       std::vector<const cv::Mat*> src_ptrs;
       std::vector<cv::Mat*> dst_ptrs;
