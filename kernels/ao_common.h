@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 
 #include <glm/glm.hpp>
 #include <opencv2/core.hpp>
@@ -16,8 +17,8 @@
 
 namespace ssdo::detail {
 
-inline constexpr float kPi = 3.14159265358979323846f;
-inline constexpr float kHalfPi = 1.57079632679489661923f;
+// pi / 2 in float (halving is exact: the float nearest pi / 2).
+inline constexpr float kHalfPi = std::numbers::pi_v<float> / 2.0f;
 
 // Taps closer than this to the centre pixel are skipped, pixels: the centre pixel itself
 // carries no occlusion information (its own depth), and a tap at distance < 1 px rounds
@@ -134,7 +135,7 @@ inline float fast_acos(float x) {
   const float ax = std::min(std::abs(x), 1.0f);
   float r = ((-0.0187293f * ax + 0.0742610f) * ax - 0.2121144f) * ax + 1.5707288f;
   r *= std::sqrt(1.0f - ax);
-  return x >= 0.0f ? r : kPi - r;
+  return x >= 0.0f ? r : std::numbers::pi_v<float> - r;
 }
 
 // Nearest integer, halves away from zero (std::lround's rule), without the library call

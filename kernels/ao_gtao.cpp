@@ -45,9 +45,18 @@
 // Bent normal: the cosine-weighted mean visible direction of each slice between its
 // height-field horizons (closed-form integrals of cos(t - n)|sin t| (cos t, sin t)),
 // summed over slices and normalised.
+//
+// The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
+// becomes packed texels (build_texels); tiles of pixels are scheduled with the next row's
+// taps prefetched (shade_tile, plan_pixel); per pixel (shade_pixel) and slice
+// (integrate_slice): the slice basis (slice_basis), then either the height-field horizons
+// and their integral (height_field_horizons, height_field_integral) or the visibility mask
+// and its integral (visibility_mask, visibility_mask_integral), and the slice's bent normal
+// (slice_bent_normal); a row's sums become AO and bent normal in finish_row.
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <numbers>
 #include <vector>
 
 #include "kernels/ao_common.h"
@@ -61,14 +70,13 @@ namespace {
 
 constexpr int kSectors = 64;
 
-// Tiles the pixels are shaded in, pixels (see ao_gtao). 64 wide: a row of a tile is
+// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: a row of a tile is
 // prefetched while the row above is shaded, and 64 px of shading hide the wait better than
-// 32 (perf1080 low, 1 thread: 8% less kernel time); 32 tall: the strips of the parallel
-// loop, whose count balances the threads.
+// 32; 32 tall: the strips of the parallel loop, whose count balances the threads.
 constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
 
-// Steps whose taps are read together, before their arithmetic (see ao_gtao).
+// Steps whose taps are read together, before their arithmetic (see chunk_indices).
 constexpr int kChunkSteps = 8;
 
 // Sets the sectors whose centres lie in [u0, u1] (fractions of the slice measure).
@@ -128,17 +136,6 @@ inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_po
   return a.nx * b.nx + a.ny * b.ny + a.nz * b.nz >= kCoplanarMinCos &&
          std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol;
 }
-struct Constants {
-  int slices;
-  int steps;
-  float radius_world;
-  float max_radius_px;
-  float thickness_world;
-  bool height_field;
-  float depth_bias_relative;
-  uint32_t seed;
-  bool multibounce;
-};
 
 // A side's last tap, for the connection rule (top of this file): its depth and its
 // occluded interval in fractions of the slice measure (u0 > u1: no interval).
@@ -252,16 +249,11 @@ inline void tap_thickness(const UninitializedVector<Texel>& texels, const cv::Ma
   }
 }
 
-// The taps' arithmetic, every lane alike (no branches: the loop vectorises). Lanes whose
-// tap is not used later (background, below the tangent plane, zero distance) compute
-// values nobody reads; with segments = false (the height-field model) the occluder
-// segments are skipped.
-// Not inlined: inside the pixel loop the compiler no longer turns the selects into blends
-// and the loop stays scalar (GCC 12).
-template <bool perspective, bool segments>
-[[gnu::noinline]]
-void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
-                  const SliceFrame& f, TapGeometry& __restrict g) {
+// The taps' coordinates in the slice frame, every lane alike (no branches: the loop
+// vectorises); nonzero when some lane is an occluder the ordered pass reads (on screen,
+// foreground, above the tangent plane, off the slice's centre).
+[[gnu::always_inline]] inline int slice_coordinates(const Texel* texels, const TapChunk& taps,
+                                                    const SliceFrame& f, TapGeometry& __restrict g) {
   // The frame's values as locals: selects between them then need no conditional loads,
   // which would keep the loop from vectorising.
   const float ox = f.origin.x, oy = f.origin.y, oz = f.origin.z;
@@ -269,10 +261,6 @@ void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lan
   const float vx = f.view.x, vy = f.view.y, vz = f.view.z;
   const float dx = f.dir.x, dy = f.dir.y, dz = f.dir.z;
   const float ax = f.axis.x, ay = f.axis.y, az = f.axis.z;
-  const float origin_v = f.origin_v, origin_d = f.origin_d, origin_a = f.origin_a;
-  const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
-  const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
-  const float weight_neg = f.weight_neg, inv_total = f.inv_total;
   int occluders = 0;
   for (int m = 0; m < kChunkTaps; ++m) {
     // Lanes without a texel compute on texel 0, for nobody.
@@ -294,13 +282,21 @@ void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lan
     g.dist2[m] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
     g.tap_cos[m] = dv / std::sqrt(dist_slice2);
-    // The taps whose segments the ordered pass reads (see ao_gtao).
     occluders |= (taps.index[m] >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) &
                  (dist_slice2 > 0.0f);
   }
-  // No lane needs a segment (a chunk of taps all on or below the tangent plane, the common
-  // case on open surfaces): the segments' arithmetic is skipped.
-  if (!segments || !occluders) return;
+  return occluders;
+}
+
+// The occluded interval [u0, u1] of each lane's occluder segment, in fractions of the slice
+// measure (the visibility mask's sectors), every lane alike (u0 > u1: no interval).
+template <bool perspective>
+[[gnu::always_inline]] inline void segment_intervals(const TapChunk& taps, const TapLanes& lanes,
+                                                     const SliceFrame& f, TapGeometry& __restrict g) {
+  const float origin_v = f.origin_v, origin_d = f.origin_d, origin_a = f.origin_a;
+  const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
+  const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
+  const float weight_neg = f.weight_neg, inv_total = f.inv_total;
   for (int m = 0; m < kChunkTaps; ++m) {
     const float dv = g.dv[m], dd = g.dd[m], da = g.da[m], dist2 = g.dist2[m];
     // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
@@ -358,309 +354,489 @@ void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lan
   }
 }
 
+// The taps' arithmetic, every lane alike. Lanes whose tap is not used later (background,
+// below the tangent plane, zero distance) compute values nobody reads; with segments =
+// false (the height-field model) the occluder segments are skipped, and so they are when
+// no lane is an occluder (a chunk of taps all on or below the tangent plane, the common
+// case on open surfaces).
+// Not inlined: inlined into the pixel loop, its selects no longer become blends and the
+// loops stay scalar.
+template <bool perspective, bool segments>
+[[gnu::noinline]]
+void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
+                  const SliceFrame& f, TapGeometry& __restrict g) {
+  const int occluders = slice_coordinates(texels, taps, f, g);
+  if (!segments || !occluders) return;
+  segment_intervals<perspective>(taps, lanes, f, g);
+}
+
+// The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
+struct Constants {
+  int slices;
+  int steps;
+  float radius_world;
+  float max_radius_px;
+  float thickness_world;
+  bool height_field;  // thickness_world = inf: the paper's height-field occluders
+  float depth_bias_relative;
+  uint32_t seed;
+  bool multibounce;
+  bool perspective;
+  float r2;  // radius_world^2
+  Falloff falloff;
+  ScreenToView screen_to_view;
+  TapGrid grid;
+  int chunks_per_slice;
+  bool keep_indices;  // a pixel's tap indices fit in its tile row (kKeptChunks)
+  // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
+  // slice in the pixel loop.
+  std::vector<std::array<float, 2>> slice_rot;
+
+  Constants(const AoInputs& in, const AoSettings& s)
+      : slices(s.directions),
+        steps(s.steps),
+        radius_world(s.radius_world),
+        max_radius_px(s.max_radius_px),
+        thickness_world(s.thickness_world),
+        height_field(!std::isfinite(s.thickness_world)),
+        depth_bias_relative(s.depth_bias_relative),
+        seed(s.seed),
+        multibounce(s.multibounce && in.albedo != nullptr && !in.albedo->empty()),
+        perspective(in.camera.is_perspective()),
+        r2(s.radius_world * s.radius_world),
+        falloff(s.radius_world, s.falloff_fraction),
+        screen_to_view(in.camera),
+        grid{in.depth_view.cols, in.depth_view.rows, s.directions, s.steps},
+        chunks_per_slice((s.steps + kChunkSteps - 1) / kChunkSteps),
+        keep_indices(slices * chunks_per_slice <= kKeptChunks),
+        slice_rot(size_t(s.directions)) {
+    for (int i = 0; i < slices; ++i) {
+      // The float pi widened to double (the slice angles' bits depend on it).
+      const double a = double(i) * double(std::numbers::pi_v<float>) / double(slices);
+      slice_rot[size_t(i)] = {float(std::cos(a)), float(std::sin(a))};
+    }
+  }
+};
+
+// The frame as the taps read it: the G-buffer views, their texels, and the second depth
+// layer when the visibility mask's segments take their thickness from it.
+struct Frame {
+  const AoInputs& in;
+  UninitializedVector<Texel> texels;
+  UninitializedVector<TexelPlane> planes;
+  const cv::Mat* back;  // AoInputs::depth_back_view, or nullptr
+};
+
+const cv::Mat* back_layer(const AoInputs& in, const Constants& k) {
+  return !k.height_field && in.depth_back_view != nullptr && !in.depth_back_view->empty() &&
+                 in.depth_back_view->size() == in.depth_view.size()
+             ? in.depth_back_view
+             : nullptr;
+}
+
+// A pixel's tap pattern (GTAO Alg. 1 lines 5-6 and the steps' jitter): whether it has
+// taps, its projected radius, its step noise and the rotation of its slices.
+struct PixelTaps {
+  bool has_taps = false;
+  float radius_px = 0.0f;
+  float step_noise = 0.0f;
+  float rot_c = 1.0f, rot_s = 0.0f;
+};
+
+// A row of a tile: the pixels' tap patterns and kept tap indices (filled a row ahead, see
+// shade_tile), and the shading's per-pixel sums, turned into the outputs for the whole row
+// at once (the divisions and square roots of the normalisation then run in vector lanes
+// instead of ending each pixel's dependency chain).
+enum : uint8_t { kBackground, kNoTaps, kShaded };
+struct TileRow {
+  std::array<PixelTaps, kTileWidthPx> pixel;
+  alignas(32) int32_t index[kTileWidthPx][kKeptChunks][kChunkTaps];
+  alignas(32) int32_t skip[kTileWidthPx][kKeptChunks][kChunkSteps];
+  alignas(32) float visible_sum[kTileWidthPx];
+  alignas(32) float open_sum[kTileWidthPx];
+  alignas(32) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
+  alignas(32) uint8_t state[kTileWidthPx];
+};
+
+// Written field by field into its place in the row (a whole struct built on the stack and
+// copied is read back before its parts' stores retire: a store-forwarding stall).
+[[gnu::always_inline]] inline void pixel_taps(const Constants& k, const AoInputs& in, int x, int y,
+                                              PixelTaps& p) {
+  p.has_taps = false;
+  p.radius_px = 0.0f;
+  p.step_noise = 0.0f;
+  p.rot_c = 1.0f;
+  p.rot_s = 0.0f;
+  if (!in.mask.ptr<uint8_t>(y)[x]) return;
+  const float depth = in.depth_view.ptr<float>(y)[x];
+  p.radius_px = projected_radius_px(in.camera, depth, k.radius_world, k.max_radius_px);
+  // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
+  if (p.radius_px < 2.0f * kMinTapDistancePx) return;
+  p.has_taps = true;
+  const float slice_noise = noise01(x, y, 0, k.seed);
+  p.step_noise = noise01(x, y, 1, k.seed);
+  // The rotation slice_noise pi / slices, in turns.
+  sincos_turns(slice_noise / float(2 * k.slices), p.rot_c, p.rot_s);
+}
+
+// Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
+[[gnu::always_inline]] inline glm::vec2 slice_direction(const Constants& k, const PixelTaps& p, int i) {
+  const std::array<float, 2>& r = k.slice_rot[size_t(i)];
+  const float cos_phi = p.rot_c * r[0] - p.rot_s * r[1];
+  const float sin_phi = p.rot_s * r[0] + p.rot_c * r[1];
+  return glm::vec2(cos_phi, -sin_phi);
+}
+
+// The pixel being shaded (GTAO Alg. 1 lines 1-4): where it is, its tile row (which holds
+// its tap pattern), and its biased origin, normal and view vector.
+struct ShadedPixel {
+  int x, y;
+  const TileRow& row;
+  size_t xi;
+  glm::vec3 origin, normal, view;
+};
+
+// A slice's basis as the taps' arithmetic needs it (GTAO Alg. 1 lines 8-16), and its
+// measure.
+struct SliceBasis {
+  SliceFrame frame;
+  TapLanes lanes;
+  float pn_len;                    // |projected normal|: the slice's weight
+  float weight_total;              // the slice measure between the tangent limits
+  float low_cos_pos, low_cos_neg;  // the tangent limits' cosines: the lowest horizons
+};
+
+[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const ShadedPixel& px, glm::vec2 d) {
+  const Slice sl = make_slice(k.screen_to_view(d.x, d.y), px.view, px.normal);
+  // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
+  // n +- pi/2 have cos = -+sin n: no trig per slice.
+  const float cos_n = sl.cos_n;
+  const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
+  const float low_cos_pos = -sin_n, low_cos_neg = sin_n;
+  // Slice measure of the negative side and in total (inner integral at n +- pi/2).
+  const float weight_neg = inner_integral(sl.n - kHalfPi, sin_n, -cos_n, cos_n, sin_n);
+  const float weight_total = cos_n + sl.n * sin_n;
+  const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
+  const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
+  // The slice's orthonormal frame and the origin and the orthographic view ray in it (per
+  // slice, so that each tap needs three dot products).
+  const glm::vec3 &origin = px.origin, &view = px.view, &dir = sl.direction, &axis = sl.axis;
+  SliceBasis b{SliceFrame{origin, px.normal, view, dir, axis, glm::dot(origin, view), glm::dot(origin, dir),
+                          glm::dot(origin, axis), -view.z, -dir.z, -axis.z, k.r2, cos_n, sin_n,
+                          std::abs(cos_n), weight_neg, inv_total},
+               {}, sl.projected_normal_length, weight_total, low_cos_pos, low_cos_neg};
+  // Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the side's
+  // sign of the angle, its hemisphere limit and the limit's cosine.
+  for (int m = 0; m < kChunkTaps; ++m) {
+    const bool pos = m < kChunkSteps;
+    b.lanes.sign[m] = pos ? 1.0f : -1.0f;
+    b.lanes.lim[m] = pos ? lim_pos : lim_neg;
+    b.lanes.cos_lim[m] = pos ? low_cos_pos : low_cos_neg;
+  }
+  return b;
+}
+
+// The tap indices of steps j0 .. j0 + kChunkSteps - 1 of slice i: kept by the prefetch when
+// they fit, computed again otherwise. The chunk's tap pixels come first, then their texels,
+// then the taps' arithmetic in lanes, then the taps in order: the texel loads do not wait
+// on each other's arithmetic, so their cache misses overlap (a tap's texel is anywhere
+// within the radius), and the arithmetic has no branches.
+[[gnu::always_inline]] inline void chunk_indices(const Constants& k, const ShadedPixel& px, int i, glm::vec2 d,
+                                                 int j0, TapChunk& taps) {
+  if (k.keep_indices) {
+    const int c = i * k.chunks_per_slice + j0 / kChunkSteps;
+    std::copy_n(px.row.index[px.xi][c], kChunkTaps, taps.index);
+    std::copy_n(px.row.skip[px.xi][c], kChunkSteps, taps.skip);
+  } else {
+    const PixelTaps& pt = px.row.pixel[px.xi];
+    tap_indices(k.grid, pt.step_noise, pt.radius_px, px.x, px.y, i, d, j0, taps.index, taps.skip);
+  }
+}
+
+// A slice's horizons, per side, as cosines from the view vector.
+struct Horizons {
+  float cos_pos, cos_neg;
+};
+
+// Height-field horizons (GTAO Alg. 1 lines 17-26, the paper's occluder model): per side,
+// the tap direction closest to the view vector, lerped towards the lowest horizon by the
+// distance falloff (GTAO sec. 4.3, "Bounding the sampling area"; XeGTAO).
+[[gnu::always_inline]] inline void height_field_horizons(const Constants& k, const Frame& f, const ShadedPixel& px,
+                                                         int i, glm::vec2 d, const SliceBasis& b, Horizons& h) {
+  for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
+    const int chunk = std::min(kChunkSteps, k.steps - j0);
+    TapChunk taps;
+    chunk_indices(k, px, i, d, j0, taps);
+    TapGeometry geo;
+    k.perspective ? tap_geometry<true, false>(f.texels.data(), taps, b.lanes, b.frame, geo)
+                  : tap_geometry<false, false>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    for (int side = 0; side < 2; ++side) {
+      float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
+      const float low_cos = side == 0 ? b.low_cos_pos : b.low_cos_neg;
+      for (int jj = 0; jj < chunk; ++jj) {
+        const int m = side * kChunkSteps + jj;
+        // No tap, off screen, background (no occluder), on or below the tangent plane (see
+        // visibility_mask_tap) or on the view ray through the origin: no horizon.
+        if (taps.skip[jj] || taps.index[m] < 0 || f.texels[size_t(taps.index[m])].depth_view < 0.0f ||
+            !(geo.height[m] > 0.0f) || !(geo.dist_slice2[m] > 0.0f))
+          continue;
+        const float w = k.falloff(std::sqrt(geo.dist2[m]));
+        horizon_cos = std::max(horizon_cos, low_cos + (geo.tap_cos[m] - low_cos) * w);
+      }
+    }
+  }
+}
+
+// The height-field slice integral: the visible measure between the two horizons (GTAO
+// eq. 10's inner integral per side, Alg. 1 lines 27-29); positive side +acos, negative -acos.
+inline float height_field_integral(const Horizons& h, float cos_n, float sin_n) {
+  const float h_pos = fast_acos(h.cos_pos);
+  const float h_neg = -fast_acos(h.cos_neg);
+  const float sp = std::sqrt(std::max(0.0f, 1.0f - h.cos_pos * h.cos_pos));
+  const float sm = -std::sqrt(std::max(0.0f, 1.0f - h.cos_neg * h.cos_neg));
+  return inner_integral(h_pos, h.cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, h.cos_neg, sm, cos_n, sin_n);
+}
+
+// The connection rule (top of this file): tap tx, at index, continues its side's last tap.
+[[gnu::always_inline]] inline bool connects(const Constants& k, const Frame& f, const SideState& st,
+                                            const Texel& tx, size_t index) {
+  if (!(st.depth_view >= 0.0f)) return false;
+  if (st.below) {
+    // From the tangent plane: only when the two points are within the thickness of each
+    // other in 3D (a wall standing on the floor), never across the gap under a floating
+    // object.
+    const Texel& pv = f.texels[st.texel];
+    const float ddx = tx.x - pv.x, ddy = tx.y - pv.y, ddz = tx.z - pv.z;
+    return ddx * ddx + ddy * ddy + ddz * ddz <= k.thickness_world * k.thickness_world;
+  }
+  return std::abs(tx.depth_view - st.depth_view) <= k.thickness_world ||
+         coplanar(f.planes[st.texel], f.planes[index], tx, k.thickness_world);
+}
+
+// One tap of the visibility mask at lane m: the sectors its segment occludes (with the
+// previous tap's when they connect); updates the side's last tap and the bent normal's
+// horizon (the taps within the radius).
+[[gnu::always_inline]] inline uint64_t visibility_mask_tap(const Constants& k, const Frame& f, const TapChunk& taps,
+                                                           const TapGeometry& geo, int m, int side, SideState& st,
+                                                           float& horizon_cos) {
+  if (taps.index[m] < 0) {  // off screen: nothing known, nothing connects
+    st.depth_view = -1.0f;
+    return 0;
+  }
+  const size_t index = size_t(taps.index[m]);
+  const Texel& tx = f.texels[index];
+  const float depth_view = tx.depth_view;
+  if (depth_view < 0.0f) {  // background: no occluder, nothing connects
+    st.depth_view = -1.0f;
+    return 0;
+  }
+  // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest of
+  // its segment, which runs away from the eye, i.e. further down). Testing in 3D first
+  // matters: rounding taps to pixel centres moves them off the slice, and their slice
+  // angle alone would put tilted planes above their own tangent line.
+  if (!(geo.height[m] > 0.0f)) {
+    // Connects at the tangent limit: u = 1 on the positive side, 0 on the other.
+    const float u_lim = side == 0 ? 1.0f : 0.0f;
+    st = SideState{depth_view, u_lim, u_lim, index, true};
+    return 0;
+  }
+  if (!(geo.dist_slice2[m] > 0.0f)) return 0;
+  if (geo.dist2[m] <= k.r2) horizon_cos = std::max(horizon_cos, geo.tap_cos[m]);
+  const float u0 = geo.u0[m], u1 = geo.u1[m];
+  if (u0 > u1) {  // beyond the radius: nothing to occlude, nothing to connect
+    st.depth_view = -1.0f;
+    return 0;
+  }
+  float h0 = u0, h1 = u1;
+  if (connects(k, f, st, tx, index)) {
+    h0 = std::min(h0, st.u0);
+    h1 = std::max(h1, st.u1);
+  }
+  st = SideState{depth_view, u0, u1, index, false};
+  return sector_bits(h0, h1);
+}
+
+// The visibility mask of a slice (Therrien et al. 2023; finite thickness_world): the
+// sectors occluded by the taps' segments, side by side in order of distance.
+[[gnu::always_inline]] inline uint64_t visibility_mask(const Constants& k, const Frame& f, const ShadedPixel& px,
+                                                       int i, glm::vec2 d, const SliceBasis& b, Horizons& h) {
+  uint64_t occupied = 0;
+  SideState state[2];
+  for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
+    const int chunk = std::min(kChunkSteps, k.steps - j0);
+    TapChunk taps;
+    chunk_indices(k, px, i, d, j0, taps);
+    tap_thickness(f.texels, f.back, k.grid.width, k.perspective, k.thickness_world, taps);
+    TapGeometry geo;
+    k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, b.lanes, b.frame, geo)
+                  : tap_geometry<false, true>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    for (int side = 0; side < 2; ++side) {
+      SideState& st = state[side];
+      float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
+      for (int jj = 0; jj < chunk; ++jj)
+        if (!taps.skip[jj])
+          occupied |= visibility_mask_tap(k, f, taps, geo, side * kChunkSteps + jj, side, st, horizon_cos);
+    }
+  }
+  return occupied;
+}
+
+// The visibility-mask slice integral: the free sectors' share of the slice measure (the
+// sectors are equally spaced in it).
+inline float visibility_mask_integral(uint64_t occupied, float weight_total) {
+  const int free_sectors = kSectors - std::popcount(occupied);
+  return weight_total * float(free_sectors) * (1.0f / kSectors);
+}
+
+// The slice's bent normal, weighted by |pn|: its cosine-weighted mean visible direction
+// between the horizons (closed forms, see bent_a and bent_b). h_pos = acos(cp) in [0, pi]
+// has sin >= 0, h_neg = -acos(cm) has sin <= 0.
+inline glm::vec3 slice_bent_normal(const Horizons& h, const SliceBasis& b) {
+  const float cos_n = b.frame.cos_n, sin_n = b.frame.sin_n;
+  const float cp = h.cos_pos, sp = std::sqrt(std::max(0.0f, 1.0f - cp * cp));
+  const float cm = h.cos_neg, sm = -std::sqrt(std::max(0.0f, 1.0f - cm * cm));
+  const float a0 = bent_a(1.0f, 0.0f, cos_n, sin_n), b0 = bent_b(1.0f, 0.0f, cos_n, sin_n);
+  const float along_view = bent_a(cp, sp, cos_n, sin_n) + bent_a(cm, sm, cos_n, sin_n) - 2.0f * a0;
+  const float along_dir = bent_b(cp, sp, cos_n, sin_n) + bent_b(cm, sm, cos_n, sin_n) - 2.0f * b0;
+  return b.pn_len * (along_view * b.frame.view + along_dir * b.frame.dir);
+}
+
+// A pixel's sums over its slices: the visible and the unoccluded measure, the bent normal.
+struct PixelSums {
+  float visible = 0.0f, open = 0.0f;
+  glm::vec3 bent{0.0f};
+};
+
+// Slice i of the pixel (GTAO Alg. 1 lines 5-30): its basis, its visible measure under the
+// occluder model, its bent normal.
+[[gnu::always_inline]] inline void integrate_slice(const Constants& k, const Frame& f, const ShadedPixel& px, int i,
+                                                   PixelSums& sums) {
+  const glm::vec2 d = slice_direction(k, px.row.pixel[px.xi], i);
+  const SliceBasis b = slice_basis(k, px, d);
+  Horizons h{b.low_cos_pos, b.low_cos_neg};
+  float visible;
+  if (k.height_field) {
+    height_field_horizons(k, f, px, i, d, b, h);
+    visible = height_field_integral(h, b.frame.cos_n, b.frame.sin_n);
+  } else {
+    visible = visibility_mask_integral(visibility_mask(k, f, px, i, d, b, h), b.weight_total);
+  }
+  sums.visible += b.pn_len * visible;
+  sums.open += b.pn_len * b.weight_total;
+  sums.bent += slice_bent_normal(h, b);
+}
+
+// One pixel (x, y), at xi in its tile row: the sums of its AO and bent normal.
+[[gnu::always_inline]] inline void shade_pixel(const Constants& k, const Frame& f, int x, int y, TileRow& row,
+                                               size_t xi) {
+  const AoInputs& in = f.in;
+  const bool background = !in.mask.ptr<uint8_t>(y)[x];
+  if (background || !row.pixel[xi].has_taps) {
+    row.state[xi] = background ? kBackground : kNoTaps;
+    row.visible_sum[xi] = row.open_sum[xi] = 0.0f;
+    row.bent_x[xi] = row.bent_y[xi] = row.bent_z[xi] = 0.0f;
+    return;
+  }
+  const float depth = in.depth_view.ptr<float>(y)[x];
+  const cv::Vec3f& n_px = in.normal_view.ptr<cv::Vec3f>(y)[x];
+  const Texel& centre = f.texels[size_t(y) * size_t(k.grid.width) + size_t(x)];
+  const glm::vec3 p(centre.x, centre.y, centre.z);
+  const glm::vec3 normal(n_px[0], n_px[1], n_px[2]);
+  const glm::vec3 view = view_vector(in.camera, p);
+  const ShadedPixel px{x, y, row, xi, biased_origin(p, normal, depth, k.depth_bias_relative), normal, view};
+  PixelSums sums;
+  for (int i = 0; i < k.slices; ++i) integrate_slice(k, f, px, i, sums);
+  row.state[xi] = kShaded;
+  row.visible_sum[xi] = sums.visible;
+  row.open_sum[xi] = sums.open;
+  row.bent_x[xi] = sums.bent.x;
+  row.bent_y[xi] = sums.bent.y;
+  row.bent_z[xi] = sums.bent.z;
+}
+
+// The outputs of pixels x0 .. x1 - 1 of row y from their sums (no branches: the loop
+// vectorises). Background: AO 1 and no bent normal; no taps: AO 1 and the normal.
+inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, int x0, int x1, int y,
+                       const TileRow& row) {
+  const cv::Vec3f* normal_row = in.normal_view.ptr<cv::Vec3f>(y);
+  const cv::Vec3f* albedo_row = k.multibounce ? in.albedo->ptr<cv::Vec3f>(y) : nullptr;
+  float* ao_row = out.ao.ptr<float>(y);
+  cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
+  const int n = x1 - x0;
+  for (int xi = 0; xi < n; ++xi) {
+    const int x = x0 + xi;
+    const bool shaded = row.state[xi] == kShaded;
+    const float visible_sum = row.visible_sum[xi], open_sum = row.open_sum[xi];
+    float ao = open_sum > 0.0f ? std::clamp(visible_sum / open_sum, 0.0f, 1.0f) : 1.0f;
+    ao_row[x] = shaded ? ao : 1.0f;
+  }
+  if (k.multibounce)
+    for (int xi = 0; xi < n; ++xi) {
+      const int x = x0 + xi;
+      if (row.state[xi] == kShaded)
+        ao_row[x] = std::min(multibounce(ao_row[x], albedo_luminance(albedo_row[x])), 1.0f);
+    }
+  for (int xi = 0; xi < n; ++xi) {
+    const int x = x0 + xi;
+    const uint8_t state = row.state[xi];
+    const glm::vec3 bent(row.bent_x[xi], row.bent_y[xi], row.bent_z[xi]);
+    const glm::vec3 normal(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
+    const float bent_len = glm::length(bent);
+    glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
+    bn = state == kShaded ? bn : state == kNoTaps ? normal : glm::vec3(0.0f);
+    bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
+  }
+}
+
+// Pixel (x, y)'s tap pattern, at xi in the next tile row, and a prefetch of its taps'
+// texels; its tap indices are kept in the row when they fit (kKeptChunks). Always inlined:
+// the prefetches have to be issued from the tile loop itself, between the shading of the
+// row above's pixels.
+[[gnu::always_inline]] inline void plan_pixel(const Constants& k, const Frame& f, int x, int y, TileRow& row,
+                                              size_t xi) {
+  PixelTaps& p = row.pixel[xi];
+  pixel_taps(k, f.in, x, y, p);
+  for (int i = 0; i < k.slices && p.has_taps; ++i) {
+    const glm::vec2 d = slice_direction(k, p, i);
+    for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
+      int32_t scratch_index[kChunkTaps], scratch_skip[kChunkSteps];
+      const int c = i * k.chunks_per_slice + j0 / kChunkSteps;
+      int32_t* index = k.keep_indices ? row.index[xi][c] : scratch_index;
+      int32_t* skip = k.keep_indices ? row.skip[xi][c] : scratch_skip;
+      tap_indices(k.grid, p.step_noise, p.radius_px, x, y, i, d, j0, index, skip);
+      for (int m = 0; m < kChunkTaps; ++m)
+        if (index[m] >= 0) __builtin_prefetch(f.texels.data() + index[m]);
+    }
+  }
+}
+
+// The tile [x0, x1) x [y0, y1). Each row's tap patterns are computed, and their texels
+// asked for, while the row above is shaded: a tap's texel is anywhere within the radius,
+// mostly not in the nearest cache, and a row's worth of shading hides the wait.
+inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
+  TileRow rows[2];
+  TileRow* shaded_row = &rows[0];
+  TileRow* next_row = &rows[1];
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x < x1; ++x) {
+      const size_t xi = size_t(x - x0);
+      if (y < y1) plan_pixel(k, f, x, y, *next_row, xi);
+      if (y > y0) shade_pixel(k, f, x, y - 1, *shaded_row, xi);
+    }
+    if (y > y0) finish_row(k, f.in, out, x0, x1, y - 1, *shaded_row);
+    std::swap(shaded_row, next_row);
+  }
+}
+
 }  // namespace
 
 void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi,
              int nthreads) {
-  const Camera& camera = in.camera;
-  const Constants k{s.directions,
-                    s.steps,
-                    s.radius_world,
-                    s.max_radius_px,
-                    s.thickness_world,
-                    !std::isfinite(s.thickness_world),
-                    s.depth_bias_relative,
-                    s.seed,
-                    s.multibounce && in.albedo != nullptr && !in.albedo->empty()};
-  const Falloff falloff(s.radius_world, s.falloff_fraction);
-  const ScreenToView screen_to_view(camera);
-  const int width = in.depth_view.cols, height = in.depth_view.rows;
+  const Constants k(in, s);
   // Texel indices are 32-bit.
-  CV_Assert(int64_t(width) * int64_t(height) <= int64_t(INT32_MAX));
-  const TapGrid grid{width, height, k.slices, k.steps};
-  const bool perspective = camera.is_perspective();
-  UninitializedVector<Texel> texels;
-  UninitializedVector<TexelPlane> planes;
-  build_texels(in, texels, planes, nthreads);
-  // Second depth layer, when given: per-tap thickness of the visibility mask's segments.
-  const cv::Mat* back = !k.height_field && in.depth_back_view != nullptr &&
-                                !in.depth_back_view->empty() &&
-                                in.depth_back_view->size() == in.depth_view.size()
-                            ? in.depth_back_view
-                            : nullptr;
-  // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
-  // slice in the pixel loop.
-  std::vector<std::array<float, 2>> slice_rot(size_t(k.slices));
-  for (int i = 0; i < k.slices; ++i) {
-    const double a = double(i) * double(kPi) / double(k.slices);
-    slice_rot[size_t(i)] = {float(std::cos(a)), float(std::sin(a))};
-  }
-  const float r2 = k.radius_world * k.radius_world;
-
-  // A pixel's tap pattern (GTAO Alg. 1 lines 5-6 and the steps' jitter): whether it has
-  // taps, its projected radius, its step noise and the rotation of its slices.
-  struct PixelTaps {
-    bool has_taps = false;
-    float radius_px = 0.0f;
-    float step_noise = 0.0f;
-    float rot_c = 1.0f, rot_s = 0.0f;
-  };
-  // Written field by field into its place in the row (a whole struct built on the stack
-  // and copied is read back before its parts' stores retire: a store-forwarding stall).
-  const auto pixel_taps = [&](int x, int y, PixelTaps& p) {
-    p.has_taps = false;
-    p.radius_px = 0.0f;
-    p.step_noise = 0.0f;
-    p.rot_c = 1.0f;
-    p.rot_s = 0.0f;
-    if (!in.mask.ptr<uint8_t>(y)[x]) return;
-    const float depth = in.depth_view.ptr<float>(y)[x];
-    p.radius_px = projected_radius_px(camera, depth, k.radius_world, k.max_radius_px);
-    // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
-    if (p.radius_px < 2.0f * kMinTapDistancePx) return;
-    p.has_taps = true;
-    const float slice_noise = noise01(x, y, 0, k.seed);
-    p.step_noise = noise01(x, y, 1, k.seed);
-    // The rotation slice_noise pi / slices, in turns.
-    sincos_turns(slice_noise / float(2 * k.slices), p.rot_c, p.rot_s);
-  };
-  // A row of a tile: the pixels' tap patterns and kept tap indices (filled a row ahead,
-  // see the tile loop), and the shading's per-pixel sums, turned into the outputs for the
-  // whole row at once (the divisions and square roots of the normalisation then run in
-  // vector lanes instead of ending each pixel's dependency chain).
-  enum : uint8_t { kBackground, kNoTaps, kShaded };
-  struct TileRow {
-    std::array<PixelTaps, kTileWidthPx> pixel;
-    alignas(32) int32_t index[kTileWidthPx][kKeptChunks][kChunkTaps];
-    alignas(32) int32_t skip[kTileWidthPx][kKeptChunks][kChunkSteps];
-    alignas(32) float visible_sum[kTileWidthPx];
-    alignas(32) float open_sum[kTileWidthPx];
-    alignas(32) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
-    alignas(32) uint8_t state[kTileWidthPx];
-  };
-  const int chunks_per_slice = (k.steps + kChunkSteps - 1) / kChunkSteps;
-  const bool keep_indices = k.slices * chunks_per_slice <= kKeptChunks;
-  // Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
-  const auto slice_direction = [&](const PixelTaps& p, int i) {
-    const float cos_phi = p.rot_c * slice_rot[size_t(i)][0] - p.rot_s * slice_rot[size_t(i)][1];
-    const float sin_phi = p.rot_s * slice_rot[size_t(i)][0] + p.rot_c * slice_rot[size_t(i)][1];
-    return glm::vec2(cos_phi, -sin_phi);
-  };
-  // One pixel (x, y), at xi in its tile row: the sums of its AO and bent normal.
-  const auto shade_pixel = [&](int x, int y, TileRow& row, size_t xi) {
-    const PixelTaps& pt = row.pixel[xi];
-    const bool background = !in.mask.ptr<uint8_t>(y)[x];
-    if (background || !pt.has_taps) {
-      row.state[xi] = background ? kBackground : kNoTaps;
-      row.visible_sum[xi] = row.open_sum[xi] = 0.0f;
-      row.bent_x[xi] = row.bent_y[xi] = row.bent_z[xi] = 0.0f;
-      return;
-    }
-    const float depth = in.depth_view.ptr<float>(y)[x];
-    const cv::Vec3f& n_px = in.normal_view.ptr<cv::Vec3f>(y)[x];
-    const Texel& centre = texels[size_t(y) * size_t(width) + size_t(x)];
-    const glm::vec3 p(centre.x, centre.y, centre.z);
-    const glm::vec3 normal(n_px[0], n_px[1], n_px[2]);
-    const glm::vec3 view = view_vector(camera, p);
-    const glm::vec3 origin = biased_origin(p, normal, depth, k.depth_bias_relative);
-
-    float visible_sum = 0.0f, open_sum = 0.0f;
-    glm::vec3 bent(0.0f);
-    for (int i = 0; i < k.slices; ++i) {
-      const glm::vec2 d = slice_direction(pt, i);
-      const Slice sl = make_slice(screen_to_view(d.x, d.y), view, normal);
-      // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
-      // n +- pi/2 have cos = -+sin n: no trig per slice.
-      const float cos_n = sl.cos_n;
-      const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
-      const float low_cos_pos = -sin_n, low_cos_neg = sin_n;
-      float horizon_cos_pos = low_cos_pos, horizon_cos_neg = low_cos_neg;
-      // Slice measure of the negative side and in total (inner integral at n +- pi/2).
-      const float weight_neg = inner_integral(sl.n - kHalfPi, sin_n, -cos_n, cos_n, sin_n);
-      const float weight_total = cos_n + sl.n * sin_n;
-      const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
-      const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
-      // The slice's orthonormal frame and the origin and the orthographic view ray
-      // in it (per slice, so that each tap needs three dot products).
-      const glm::vec3 dir = sl.direction, axis = sl.axis;
-      const float origin_v = glm::dot(origin, view), origin_d = glm::dot(origin, dir),
-                  origin_a = glm::dot(origin, axis);
-      const float ray_ortho_v = -view.z, ray_ortho_d = -dir.z, ray_ortho_a = -axis.z;
-      // Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the
-      // side's sign of the angle, its hemisphere limit and the limit's cosine.
-      TapLanes lanes;
-      for (int m = 0; m < kChunkTaps; ++m) {
-        const bool pos = m < kChunkSteps;
-        lanes.sign[m] = pos ? 1.0f : -1.0f;
-        lanes.lim[m] = pos ? lim_pos : lim_neg;
-        lanes.cos_lim[m] = pos ? low_cos_pos : low_cos_neg;
-      }
-      const SliceFrame frame{origin, normal, view, dir, axis, origin_v, origin_d, origin_a,
-                             ray_ortho_v, ray_ortho_d, ray_ortho_a, r2, cos_n, sin_n,
-                             std::abs(cos_n), weight_neg, inv_total};
-      uint64_t occupied = 0;
-      SideState state[2];
-
-      for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
-        const int chunk = std::min(kChunkSteps, k.steps - j0);
-        // The chunk's tap pixels first, then their texels, then the taps' arithmetic in
-        // lanes, then the taps in order: the texel loads do not wait on each other's
-        // arithmetic, so their cache misses overlap (a tap's texel is anywhere within
-        // the radius), and the arithmetic has no branches.
-        TapChunk taps;
-        if (keep_indices) {
-          const int c = i * chunks_per_slice + j0 / kChunkSteps;
-          std::copy_n(row.index[xi][c], kChunkTaps, taps.index);
-          std::copy_n(row.skip[xi][c], kChunkSteps, taps.skip);
-        } else {
-          tap_indices(grid, pt.step_noise, pt.radius_px, x, y, i, d, j0, taps.index, taps.skip);
-        }
-        // Segment lengths: read by the visibility mask only (not by the height field).
-        if (!k.height_field) tap_thickness(texels, back, width, perspective, k.thickness_world, taps);
-        TapGeometry geo;
-        if (k.height_field)
-          perspective ? tap_geometry<true, false>(texels.data(), taps, lanes, frame, geo)
-                      : tap_geometry<false, false>(texels.data(), taps, lanes, frame, geo);
-        else
-          perspective ? tap_geometry<true, true>(texels.data(), taps, lanes, frame, geo)
-                      : tap_geometry<false, true>(texels.data(), taps, lanes, frame, geo);
-
-        for (int side = 0; side < 2; ++side) {
-          SideState& st = state[side];
-          float& horizon_cos = side == 0 ? horizon_cos_pos : horizon_cos_neg;
-          for (int jj = 0; jj < chunk; ++jj) {
-            if (taps.skip[jj]) continue;
-            const int m = side * kChunkSteps + jj;
-            if (taps.index[m] < 0) {  // off screen: nothing known, nothing connects
-              st.depth_view = -1.0f;
-              continue;
-            }
-            const size_t index = size_t(taps.index[m]);
-            const Texel& tx = texels[index];
-            const float depth_view = tx.depth_view;
-            if (depth_view < 0.0f) {  // background: no occluder, nothing connects
-              st.depth_view = -1.0f;
-              continue;
-            }
-            // A tap on or below the tangent plane cannot occlude the hemisphere (nor can
-            // the rest of its segment, which runs away from the eye, i.e. further down).
-            // Testing in 3D first matters: rounding taps to pixel centres moves them off
-            // the slice, and their slice angle alone would put tilted planes above
-            // their own tangent line.
-            if (!(geo.height[m] > 0.0f)) {
-              // Connects at the tangent limit: u = 1 on the positive side, 0 on the other.
-              const float u_lim = side == 0 ? 1.0f : 0.0f;
-              st = SideState{depth_view, u_lim, u_lim, index, true};
-              continue;
-            }
-            if (!(geo.dist_slice2[m] > 0.0f)) continue;
-            const float dist2 = geo.dist2[m], tap_cos = geo.tap_cos[m];
-            if (k.height_field) {
-              // Height-field horizon, weighted by the distance falloff.
-              const float w = falloff(std::sqrt(dist2));
-              const float low_cos = side == 0 ? low_cos_pos : low_cos_neg;
-              horizon_cos = std::max(horizon_cos, low_cos + (tap_cos - low_cos) * w);
-              continue;
-            }
-            // The bent normal's horizon in the mask model: taps within the radius.
-            if (dist2 <= r2) horizon_cos = std::max(horizon_cos, tap_cos);
-            const float u0 = geo.u0[m], u1 = geo.u1[m];
-            if (u0 > u1) {  // beyond the radius: nothing to occlude, nothing to connect
-              st.depth_view = -1.0f;
-              continue;
-            }
-            float h0 = u0, h1 = u1;
-            bool connected = false;
-            if (st.depth_view >= 0.0f) {
-              const Texel& pv = texels[st.texel];
-              if (st.below) {
-                // From the tangent plane: only when the two points are within the
-                // thickness of each other in 3D (a wall standing on the floor), never
-                // across the gap under a floating object.
-                const float ddx = tx.x - pv.x, ddy = tx.y - pv.y, ddz = tx.z - pv.z;
-                connected = ddx * ddx + ddy * ddy + ddz * ddz <= k.thickness_world * k.thickness_world;
-              } else {
-                connected = std::abs(depth_view - st.depth_view) <= k.thickness_world ||
-                            coplanar(planes[st.texel], planes[index], tx, k.thickness_world);
-              }
-            }
-            if (connected) {
-              h0 = std::min(h0, st.u0);
-              h1 = std::max(h1, st.u1);
-            }
-            occupied |= sector_bits(h0, h1);
-            st = SideState{depth_view, u0, u1, index, false};
-          }
-        }
-      }
-
-      const float pn_len = sl.projected_normal_length;
-      float visible;
-      if (k.height_field) {
-        // Horizon angles (GTAO Alg. 1 line 27): positive side +acos, negative -acos.
-        const float h_pos = fast_acos(horizon_cos_pos);
-        const float h_neg = -fast_acos(horizon_cos_neg);
-        const float sp = std::sqrt(std::max(0.0f, 1.0f - horizon_cos_pos * horizon_cos_pos));
-        const float sm = -std::sqrt(std::max(0.0f, 1.0f - horizon_cos_neg * horizon_cos_neg));
-        visible = inner_integral(h_pos, horizon_cos_pos, sp, cos_n, sin_n) +
-                  inner_integral(h_neg, horizon_cos_neg, sm, cos_n, sin_n);
-      } else {
-        const int free_sectors = kSectors - std::popcount(occupied);
-        visible = weight_total * float(free_sectors) * (1.0f / kSectors);
-      }
-      visible_sum += pn_len * visible;
-      open_sum += pn_len * weight_total;
-
-      // Bent normal between the horizons: h_pos = acos(cp) in [0, pi] has sin >= 0,
-      // h_neg = -acos(cm) has sin <= 0.
-      const float cp = horizon_cos_pos, sp = std::sqrt(std::max(0.0f, 1.0f - cp * cp));
-      const float cm = horizon_cos_neg, sm = -std::sqrt(std::max(0.0f, 1.0f - cm * cm));
-      const float a0 = bent_a(1.0f, 0.0f, cos_n, sin_n), b0 = bent_b(1.0f, 0.0f, cos_n, sin_n);
-      const float along_view = bent_a(cp, sp, cos_n, sin_n) + bent_a(cm, sm, cos_n, sin_n) - 2.0f * a0;
-      const float along_dir = bent_b(cp, sp, cos_n, sin_n) + bent_b(cm, sm, cos_n, sin_n) - 2.0f * b0;
-      bent += pn_len * (along_view * view + along_dir * sl.direction);
-    }
-
-    row.state[xi] = kShaded;
-    row.visible_sum[xi] = visible_sum;
-    row.open_sum[xi] = open_sum;
-    row.bent_x[xi] = bent.x;
-    row.bent_y[xi] = bent.y;
-    row.bent_z[xi] = bent.z;
-  };
-  // The outputs of pixels x0 .. x1 - 1 of row y from their sums (no branches: the loop
-  // vectorises). Background: AO 1 and no bent normal; no taps: AO 1 and the normal.
-  const auto finish_row = [&](int x0, int x1, int y, const TileRow& row) {
-    const cv::Vec3f* normal_row = in.normal_view.ptr<cv::Vec3f>(y);
-    const cv::Vec3f* albedo_row = k.multibounce ? in.albedo->ptr<cv::Vec3f>(y) : nullptr;
-    float* ao_row = out.ao.ptr<float>(y);
-    cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
-    const int n = x1 - x0;
-    for (int xi = 0; xi < n; ++xi) {
-      const int x = x0 + xi;
-      const bool shaded = row.state[xi] == kShaded;
-      const float visible_sum = row.visible_sum[xi], open_sum = row.open_sum[xi];
-      float ao = open_sum > 0.0f ? std::clamp(visible_sum / open_sum, 0.0f, 1.0f) : 1.0f;
-      ao_row[x] = shaded ? ao : 1.0f;
-    }
-    if (k.multibounce)
-      for (int xi = 0; xi < n; ++xi) {
-        const int x = x0 + xi;
-        if (row.state[xi] == kShaded)
-          ao_row[x] = std::min(multibounce(ao_row[x], albedo_luminance(albedo_row[x])), 1.0f);
-      }
-    for (int xi = 0; xi < n; ++xi) {
-      const int x = x0 + xi;
-      const uint8_t state = row.state[xi];
-      const glm::vec3 bent(row.bent_x[xi], row.bent_y[xi], row.bent_z[xi]);
-      const glm::vec3 normal(normal_row[x][0], normal_row[x][1], normal_row[x][2]);
-      const float bent_len = glm::length(bent);
-      glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
-      bn = state == kShaded ? bn : state == kNoTaps ? normal : glm::vec3(0.0f);
-      bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
-    }
-  };
-
+  CV_Assert(int64_t(k.grid.width) * int64_t(k.grid.height) <= int64_t(INT32_MAX));
+  Frame f{in, {}, {}, back_layer(in, k)};
+  build_texels(in, f.texels, f.planes, nthreads);
   // Tiles of kTileWidthPx x kTileHeightPx pixels: a pixel's taps land anywhere within its
   // radius, so the texels a tile reads are its footprint grown by the radius, which stays
   // in cache while the tile runs; row by row, the band of rows within the radius of a
@@ -670,42 +846,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
       [&](const cv::Range& rows) {
         for (int y0 = rows.start; y0 < rows.end; y0 += kTileHeightPx) {
           const int y1 = std::min(y0 + kTileHeightPx, rows.end);
-          for (int x0 = roi.x; x0 < roi.x + roi.width; x0 += kTileWidthPx) {
-            const int x1 = std::min(x0 + kTileWidthPx, roi.x + roi.width);
-            // Each row's tap patterns are computed, and their texels asked for, while the
-            // row above is shaded: a tap's texel is anywhere within the radius, mostly not
-            // in the nearest cache, and a row's worth of shading hides the wait.
-            // The tap indices are kept for the shading when they fit (kKeptChunks).
-            TileRow rows[2];
-            TileRow* shaded_row = &rows[0];
-            TileRow* next_row = &rows[1];
-            for (int y = y0; y <= y1; ++y) {
-              for (int x = x0; x < x1; ++x) {
-                const size_t xi = size_t(x - x0);
-                if (y < y1) {
-                  PixelTaps& p = next_row->pixel[xi];
-                  pixel_taps(x, y, p);
-                  // (Inline, not a function of its own: the compiler drops calls of a
-                  // function whose only effect is a prefetch.)
-                  for (int i = 0; i < k.slices && p.has_taps; ++i) {
-                    const glm::vec2 d = slice_direction(p, i);
-                    for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
-                      int32_t scratch_index[kChunkTaps], scratch_skip[kChunkSteps];
-                      const int c = i * chunks_per_slice + j0 / kChunkSteps;
-                      int32_t* index = keep_indices ? next_row->index[xi][c] : scratch_index;
-                      int32_t* skip = keep_indices ? next_row->skip[xi][c] : scratch_skip;
-                      tap_indices(grid, p.step_noise, p.radius_px, x, y, i, d, j0, index, skip);
-                      for (int m = 0; m < kChunkTaps; ++m)
-                        if (index[m] >= 0) __builtin_prefetch(texels.data() + index[m]);
-                    }
-                  }
-                }
-                if (y > y0) shade_pixel(x, y - 1, *shaded_row, xi);
-              }
-              if (y > y0) finish_row(x0, x1, y - 1, *shaded_row);
-              std::swap(shaded_row, next_row);
-            }
-          }
+          for (int x0 = roi.x; x0 < roi.x + roi.width; x0 += kTileWidthPx)
+            shade_tile(k, f, out, x0, std::min(x0 + kTileWidthPx, roi.x + roi.width), y0, y1);
         }
       },
       kTileHeightPx);

@@ -28,6 +28,7 @@
 // Bent normal: each half slice's cosine-weighted mean visible direction between its view
 // vector and its horizon (closed forms, as GTAO), weighted by |pn|, normalised.
 #include <array>
+#include <numbers>
 #include <vector>
 
 #include "kernels/ao_common.h"
@@ -36,117 +37,180 @@
 #include "core/parallel.h"
 
 namespace ssdo::detail {
+namespace {
+
+// The settings turned into what the pixel loop reads, once per call.
+struct Constants {
+  Falloff falloff;  // HBAO eq. 4's attenuation W(r) of a tap at distance r
+  ScreenToView screen_to_view;
+  int width, height;
+  int directions, steps;
+  float radius_world, max_radius_px, depth_bias_relative;
+  uint32_t seed;
+  bool multibounce;
+  // Direction angles i 2 pi / directions as (cos, sin), rotated per pixel by one angle.
+  std::vector<std::array<float, 2>> dir_rot;
+
+  Constants(const AoInputs& in, const AoSettings& s)
+      : falloff(s.radius_world, s.falloff_fraction),
+        screen_to_view(in.camera),
+        width(in.depth_view.cols),
+        height(in.depth_view.rows),
+        directions(s.directions),
+        steps(s.steps),
+        radius_world(s.radius_world),
+        max_radius_px(s.max_radius_px),
+        depth_bias_relative(s.depth_bias_relative),
+        seed(s.seed),
+        multibounce(s.multibounce && in.albedo != nullptr && !in.albedo->empty()),
+        dir_rot(static_cast<size_t>(s.directions)) {
+    for (int i = 0; i < directions; ++i) {
+      // The float pi widened to double (the direction angles' bits depend on it).
+      const double a = double(i) * 2.0 * double(std::numbers::pi_v<float>) / double(directions);
+      dir_rot[size_t(i)] = {float(std::cos(a)), float(std::sin(a))};
+    }
+  }
+};
+
+// The pixel being shaded: its position, biased origin, normal and view vector, its
+// projected radius and its step jitter.
+struct ShadedPixel {
+  int x, y;
+  glm::vec3 origin, normal, view;
+  float radius_px;
+  float step_noise;
+};
+
+// A direction's half slice (top of this file): its frame, the projected normal's angle n
+// (cos n, sin n) and the measure m(n + pi/2) of the whole half slice, up to the tangent.
+struct HalfSlice {
+  Slice slice;
+  float cos_n, sin_n;
+  float m_tangent;
+};
+
+inline HalfSlice half_slice(const Constants& k, const ShadedPixel& px, glm::vec2 d) {
+  const Slice sl = make_slice(k.screen_to_view(d.x, d.y), px.view, px.normal);
+  // sin n = sign(n) sqrt(1 - cos^2 n); the tangent angle n + pi/2 has cos = -sin n and
+  // sin = cos n: no trig per direction.
+  const float cos_n = sl.cos_n;
+  const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
+  const float tangent = sl.n + kHalfPi;  // tangent-plane angle on this side
+  return {sl, cos_n, sin_n, inner_integral(tangent, -sin_n, cos_n, cos_n, sin_n)};
+}
+
+// The horizon of a half slice as (cos, sin) from the view vector, and the occluded measure
+// below it.
+struct Horizon {
+  float cos, sin;
+  float occlusion;
+};
+
+// The horizon march along screen direction d (HBAO sec. 3): taps at `steps` jittered
+// distances out to the projected radius; each tap that raises the horizon adds the measure
+// it newly occludes, attenuated by its distance (HBAO eq. 4).
+inline Horizon march_horizon(const Constants& k, const AoInputs& in, const ShadedPixel& px, glm::vec2 d,
+                             const HalfSlice& hs) {
+  Horizon h{-hs.sin_n, hs.cos_n, 0.0f};  // the tangent: nothing occluded
+  float m_horizon = hs.m_tangent;
+  // The slice's orthonormal frame (view, direction, axis): a tap's slice-plane coordinates
+  // are two dot products.
+  const glm::vec3 dir = hs.slice.direction;
+  for (int j = 0; j < k.steps; ++j) {
+    float t = px.step_noise + float(j) * 0.618033988749895f;  // R1 offsets per step
+    t -= std::floor(t);
+    const float dist_px = kMinTapDistancePx + (float(j) + t) / float(k.steps) * (px.radius_px - kMinTapDistancePx);
+    const int sx = px.x + round_to_int(d.x * dist_px);
+    const int sy = px.y + round_to_int(d.y * dist_px);
+    if (sx == px.x && sy == px.y) continue;
+    if (sx < 0 || sy < 0 || sx >= k.width || sy >= k.height) break;  // left the image
+    if (!in.mask.ptr<uint8_t>(sy)[sx]) continue;  // background: no occluder
+    const glm::vec3 delta = load3(in.position_view, sx, sy) - px.origin;
+    // On or below the tangent plane: cannot occlude (tested in 3D: rounding to pixel
+    // centres moves taps off the slice, see ao_gtao.cpp).
+    if (!(glm::dot(delta, px.normal) > 0.0f)) continue;
+    const float dv = glm::dot(delta, px.view), dd = glm::dot(delta, dir);
+    const float len2 = dv * dv + dd * dd;
+    if (!(len2 > 0.0f)) continue;
+    const float inv_len = 1.0f / std::sqrt(len2);
+    const float c = dv * inv_len;
+    if (c <= h.cos) continue;
+    h.cos = c;
+    // The horizon angle h = acos(c) is in [0, pi]: sin h = |dd| / len.
+    h.sin = std::min(std::abs(dd) * inv_len, 1.0f);
+    const float m = inner_integral(fast_acos(c), c, h.sin, hs.cos_n, hs.sin_n);
+    h.occlusion += k.falloff(glm::length(delta)) * (m_horizon - m);
+    m_horizon = m;
+  }
+  return h;
+}
+
+// The half slice's bent normal, weighted by |pn|: the cosine-weighted mean visible
+// direction over [0, horizon] (closed forms, see bent_a and bent_b).
+inline glm::vec3 half_slice_bent_normal(const Horizon& h, const HalfSlice& hs, const glm::vec3& view) {
+  const float ch = h.cos, sh = h.sin, cos_n = hs.cos_n, sin_n = hs.sin_n;
+  const float along_view = bent_a(ch, sh, cos_n, sin_n) - bent_a(1.0f, 0.0f, cos_n, sin_n);
+  const float along_dir = bent_b(ch, sh, cos_n, sin_n) - bent_b(1.0f, 0.0f, cos_n, sin_n);
+  return hs.slice.projected_normal_length * (along_view * view + along_dir * hs.slice.direction);
+}
+
+// AO and bent normal of pixel (x, y): 1 and none on background, 1 and the normal when the
+// radius covers less than a tap.
+[[gnu::always_inline]] inline void shade_pixel(const Constants& k, const AoInputs& in, int x, int y, float& ao_out,
+                                              cv::Vec3f& bent_out) {
+  if (!in.mask.ptr<uint8_t>(y)[x]) {
+    ao_out = 1.0f;
+    bent_out = cv::Vec3f(0, 0, 0);
+    return;
+  }
+  const float depth = in.depth_view.ptr<float>(y)[x];
+  const glm::vec3 p = load3(in.position_view, x, y);
+  const glm::vec3 normal = load3(in.normal_view, x, y);
+  const float radius_px = projected_radius_px(in.camera, depth, k.radius_world, k.max_radius_px);
+  if (radius_px < 2.0f * kMinTapDistancePx) {
+    ao_out = 1.0f;
+    bent_out = cv::Vec3f(normal.x, normal.y, normal.z);
+    return;
+  }
+  const ShadedPixel px{x, y, biased_origin(p, normal, depth, k.depth_bias_relative), normal,
+                       view_vector(in.camera, p), radius_px, noise01(x, y, 1, k.seed)};
+  // Direction angles phi_i = (i + noise) 2 pi / directions as the fixed angles
+  // i 2 pi / directions rotated by the pixel's noise angle: one sin/cos per pixel.
+  const float rot = noise01(x, y, 0, k.seed) / float(k.directions) * (2.0f * std::numbers::pi_v<float>);
+  const float rot_c = std::cos(rot), rot_s = std::sin(rot);
+  float occlusion_sum = 0.0f, weight_sum = 0.0f;
+  glm::vec3 bent(0.0f);
+  for (int i = 0; i < k.directions; ++i) {
+    const std::array<float, 2>& r = k.dir_rot[size_t(i)];
+    const float cos_phi = rot_c * r[0] - rot_s * r[1];
+    const float sin_phi = rot_s * r[0] + rot_c * r[1];
+    const glm::vec2 d(cos_phi, -sin_phi);  // screen px, y down
+    const HalfSlice hs = half_slice(k, px, d);
+    const Horizon h = march_horizon(k, in, px, d, hs);
+    const float pn_len = hs.slice.projected_normal_length;
+    occlusion_sum += pn_len * h.occlusion;
+    weight_sum += pn_len * hs.m_tangent;
+    bent += half_slice_bent_normal(h, hs, px.view);
+  }
+  float ao = weight_sum > 0.0f ? 1.0f - occlusion_sum / weight_sum : 1.0f;
+  ao = std::clamp(ao, 0.0f, 1.0f);
+  if (k.multibounce) ao = multibounce(ao, albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
+  ao_out = std::min(ao, 1.0f);
+  const float bent_len = glm::length(bent);
+  const glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
+  bent_out = cv::Vec3f(bn.x, bn.y, bn.z);
+}
+
+}  // namespace
 
 void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi,
              int nthreads) {
-  const Camera& camera = in.camera;
-  const Falloff falloff(s.radius_world, s.falloff_fraction);
-  const ScreenToView screen_to_view(camera);
-  const int width = in.depth_view.cols, height = in.depth_view.rows;
-  const int directions = s.directions, steps = s.steps;
-  const bool use_multibounce = s.multibounce && in.albedo != nullptr && !in.albedo->empty();
-  // Direction angles i 2 pi / directions as (cos, sin), rotated per pixel by one angle.
-  std::vector<std::array<float, 2>> dir_rot(static_cast<size_t>(directions));
-  for (int i = 0; i < directions; ++i) {
-    const double a = double(i) * 2.0 * double(kPi) / double(directions);
-    dir_rot[size_t(i)] = {float(std::cos(a)), float(std::sin(a))};
-  }
-
+  const Constants k(in, s);
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      const float* depth_row = in.depth_view.ptr<float>(y);
       float* ao_row = out.ao.ptr<float>(y);
       cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
-      for (int x = roi.x; x < roi.x + roi.width; ++x) {
-        if (!mask_row[x]) {
-          ao_row[x] = 1.0f;
-          bent_row[x] = cv::Vec3f(0, 0, 0);
-          continue;
-        }
-        const float depth = depth_row[x];
-        const glm::vec3 p = load3(in.position_view, x, y);
-        const glm::vec3 normal = load3(in.normal_view, x, y);
-        const glm::vec3 view = view_vector(camera, p);
-        const float radius_px = projected_radius_px(camera, depth, s.radius_world, s.max_radius_px);
-        if (radius_px < 2.0f * kMinTapDistancePx) {
-          ao_row[x] = 1.0f;
-          bent_row[x] = cv::Vec3f(normal.x, normal.y, normal.z);
-          continue;
-        }
-        const glm::vec3 origin = biased_origin(p, normal, depth, s.depth_bias_relative);
-        const float angle_noise = noise01(x, y, 0, s.seed);
-        const float step_noise = noise01(x, y, 1, s.seed);
-
-        // Direction angles phi_i = (i + noise) 2 pi / directions as the fixed angles
-        // i 2 pi / directions rotated by the pixel's noise angle: one sin/cos per pixel.
-        const float rot = angle_noise / float(directions) * (2.0f * kPi);
-        const float rot_c = std::cos(rot), rot_s = std::sin(rot);
-
-        float occlusion_sum = 0.0f, weight_sum = 0.0f;
-        glm::vec3 bent(0.0f);
-        for (int i = 0; i < directions; ++i) {
-          const float cos_phi = rot_c * dir_rot[size_t(i)][0] - rot_s * dir_rot[size_t(i)][1];
-          const float sin_phi = rot_s * dir_rot[size_t(i)][0] + rot_c * dir_rot[size_t(i)][1];
-          const float dx = cos_phi, dy = -sin_phi;  // screen px, y down
-          const Slice sl = make_slice(screen_to_view(dx, dy), view, normal);
-          // sin n = sign(n) sqrt(1 - cos^2 n); the tangent angle n + pi/2 has cos = -sin n
-          // and sin = cos n: no trig per direction.
-          const float cos_n = sl.cos_n;
-          const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
-          const float tangent = sl.n + kHalfPi;  // tangent-plane angle on this side
-          const float m_tangent = inner_integral(tangent, -sin_n, cos_n, cos_n, sin_n);
-          float horizon_cos = -sin_n;
-          float horizon_sin = cos_n;
-          float m_horizon = m_tangent;
-          float occlusion = 0.0f;
-          // The slice's orthonormal frame (view, direction, axis): a tap's slice-plane
-          // coordinates are two dot products.
-          const glm::vec3 dir = sl.direction;
-          for (int j = 0; j < steps; ++j) {
-            float t = step_noise + float(j) * 0.618033988749895f;  // R1 offsets per step
-            t -= std::floor(t);
-            const float dist_px = kMinTapDistancePx + (float(j) + t) / float(steps) * (radius_px - kMinTapDistancePx);
-            const int sx = x + round_to_int(dx * dist_px);
-            const int sy = y + round_to_int(dy * dist_px);
-            if (sx == x && sy == y) continue;
-            if (sx < 0 || sy < 0 || sx >= width || sy >= height) break;  // left the image
-            if (!in.mask.ptr<uint8_t>(sy)[sx]) continue;  // background: no occluder
-            const glm::vec3 delta = load3(in.position_view, sx, sy) - origin;
-            // On or below the tangent plane: cannot occlude (tested in 3D: rounding to
-            // pixel centres moves taps off the slice, see ao_gtao.cpp).
-            if (!(glm::dot(delta, normal) > 0.0f)) continue;
-            const float dv = glm::dot(delta, view), dd = glm::dot(delta, dir);
-            const float len2 = dv * dv + dd * dd;
-            if (!(len2 > 0.0f)) continue;
-            const float inv_len = 1.0f / std::sqrt(len2);
-            const float c = dv * inv_len;
-            if (c <= horizon_cos) continue;
-            horizon_cos = c;
-            // The horizon angle h = acos(c) is in [0, pi]: sin h = |dd| / len.
-            horizon_sin = std::min(std::abs(dd) * inv_len, 1.0f);
-            const float h = fast_acos(c);
-            const float m = inner_integral(h, c, horizon_sin, cos_n, sin_n);
-            occlusion += falloff(glm::length(delta)) * (m_horizon - m);
-            m_horizon = m;
-          }
-          const float pn_len = sl.projected_normal_length;
-          occlusion_sum += pn_len * occlusion;
-          weight_sum += pn_len * m_tangent;
-          // Bent normal over the visible part [0, horizon] of this half slice.
-          const float ch = horizon_cos, sh = horizon_sin;
-          const float along_view = bent_a(ch, sh, cos_n, sin_n) - bent_a(1.0f, 0.0f, cos_n, sin_n);
-          const float along_dir = bent_b(ch, sh, cos_n, sin_n) - bent_b(1.0f, 0.0f, cos_n, sin_n);
-          bent += pn_len * (along_view * view + along_dir * sl.direction);
-        }
-        float ao = weight_sum > 0.0f ? 1.0f - occlusion_sum / weight_sum : 1.0f;
-        ao = std::clamp(ao, 0.0f, 1.0f);
-        if (use_multibounce) ao = multibounce(ao, albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
-        ao_row[x] = std::min(ao, 1.0f);
-        const float bent_len = glm::length(bent);
-        const glm::vec3 bn = bent_len > 1e-12f ? bent / bent_len : normal;
-        bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
-      }
+      for (int x = roi.x; x < roi.x + roi.width; ++x) shade_pixel(k, in, x, y, ao_row[x], bent_row[x]);
     }
   });
 }

@@ -14,9 +14,10 @@
 //   blocked  <=>  depth(q) > d_ref + bias   and   depth(q) - d_ref <= back(q) - depth(q_px) + bias
 //
 // (the thickness measured at the tap pixel centre, carried onto the tangent plane; a back
-// depth of +inf, e.g. a floor or a wall, is solid behind the surface). Visibility is binary with no falloff (Cycles' AO pass:
-// settings.falloff_fraction is not used), so AO = fraction of unblocked rays; with
-// cosine-weighted directions that is the cosine-weighted open fraction of the hemisphere.
+// depth of +inf, e.g. a floor or a wall, is solid behind the surface). Visibility is binary
+// with no falloff (Cycles' AO pass: settings.falloff_fraction is not used), so AO = fraction
+// of unblocked rays; with cosine-weighted directions that is the cosine-weighted open
+// fraction of the hemisphere.
 // Steps landing off-screen, behind the eye or on masked pixels never occlude (nothing is
 // known there); they are counted into the confidence output (ao_raymarch.h).
 //
@@ -111,14 +112,137 @@ void build_taps(const AoInputs& in, float thickness_world, std::vector<Tap>& tap
   });
 }
 
+// d_ref (top of this file): the depth where the view ray through step q meets the tap
+// pixel's tangent plane dot(n, x) = c, or the stored depth where that is ill-conditioned.
+// Perspective: x = a q, a = c / dot(n, q). Orthographic: x = (q.x, q.y, -d),
+// d = (n.x q.x + n.y q.y - c) / n.z.
+inline float reference_depth(const Tap& tap, const glm::vec3& q, float depth_q, bool perspective) {
+  constexpr float kMinTangentCos2 = kMinTangentCos * kMinTangentCos;
+  float depth_ref = tap.depth_view;
+  if (perspective) {
+    const float denom = tap.nx * q.x + tap.ny * q.y + tap.nz * q.z;
+    if (denom * denom >= kMinTangentCos2 * glm::dot(q, q)) {
+      const float d = tap.plane_c / denom * depth_q;
+      if (d > 0.0f) depth_ref = d;
+    }
+  } else if (std::abs(tap.nz) >= kMinTangentCos) {
+    const float d = (tap.nx * q.x + tap.ny * q.y - tap.plane_c) / tap.nz;
+    if (d > 0.0f) depth_ref = d;
+  }
+  return depth_ref;
+}
+
+// A pixel's ray origin: biased along the normal, and its clip-space image.
+struct RayOrigin {
+  glm::vec3 view;
+  glm::vec4 clip;
+};
+
+// A ray's verdict: blocked by a stored surface, or seen through a step that is unknown
+// (off screen, behind the eye or masked).
+struct RayVerdict {
+  bool blocked = false;
+  bool unknown = false;
+};
+
+// Marches direction w from the origin in `steps` jittered steps up to radius_world and tests
+// each step against the surface stored where it lands (the blocked rule at the top of this
+// file).
+inline RayVerdict march_ray(const Constants& k, const AoInputs& in, const std::vector<Tap>& taps,
+                            const RayOrigin& o, const glm::vec3& w, float jitter) {
+  const int width = in.depth_view.cols, height = in.depth_view.rows;
+  // clip(origin + s w) = clip(origin) + s P [w, 0]: the projection is linear in s.
+  const glm::vec4 clip_w = in.camera.view_to_clip * glm::vec4(w, 0.0f);
+  RayVerdict r;
+  bool entered = false;
+  for (int j = 0; j < k.steps && !r.blocked; ++j) {
+    // Step s_j = radius (j + 1 - jitter) / steps, jitter in [0, 1): one sample in each of
+    // the `steps` equal segments of (0, radius], the last at most radius.
+    const float s = k.radius_world * (float(j) + 1.0f - jitter) / float(k.steps);
+    const glm::vec4 clip = o.clip + s * clip_w;
+    // Off-screen and behind-the-eye steps are unknown. Both are final once the ray has been
+    // on screen: clip.w is linear in s (once <= 0, it stays so), and the screen path of a
+    // segment in front of the eye is a segment, which leaves the convex screen rectangle
+    // at most once.
+    if (!(clip.w > 0.0f)) {
+      r.unknown = true;
+      break;
+    }
+    const float inv_w = 1.0f / clip.w;
+    const float px = 0.5f * (clip.x * inv_w + 1.0f) * k.width_px;
+    const float py = 0.5f * (1.0f - clip.y * inv_w) * k.height_px;
+    if (!(px >= 0.0f && px < k.width_px && py >= 0.0f && py < k.height_px)) {
+      r.unknown = true;
+      if (entered) break;
+      continue;
+    }
+    entered = true;
+    const int tx = std::min(int(px), width - 1), ty = std::min(int(py), height - 1);
+    const Tap& tap = taps[size_t(ty) * size_t(width) + size_t(tx)];
+    if (tap.depth_view < 0.0f) {  // masked
+      r.unknown = true;
+      continue;
+    }
+    const glm::vec3 q = o.view + s * w;
+    const float depth_q = -q.z;
+    const float depth_ref = reference_depth(tap, q, depth_q, k.perspective);
+    // Bias relative to the stored depth: its rounding error is relative (float: 6e-8,
+    // half: 4.9e-4 of the value), so a fixed bias would be too large near the camera and
+    // too small far away. The default 1e-3 covers half-float depth.
+    const float bias = k.bias_relative * tap.depth_view;
+    // With a back layer the bias also widens the slab: a thin object's two layers carry
+    // the same relative rounding.
+    r.blocked = depth_q > depth_ref + bias &&
+                depth_q - depth_ref <= tap.thickness_world + (k.has_back ? bias : 0.0f);
+  }
+  return r;
+}
+
+// A pixel's outputs.
+struct PixelResult {
+  float ao;
+  glm::vec3 bent_normal;
+  float confidence;
+};
+
+// Foreground pixel (x, y): the open fraction of its cosine-weighted rays, their mean
+// direction, and the fraction of rays whose verdict rests on known samples only.
+inline PixelResult shade_pixel(const Constants& k, const AoInputs& in, const std::vector<Tap>& taps, int x, int y) {
+  const float depth = in.depth_view.ptr<float>(y)[x];
+  const glm::vec3 p = detail::load3(in.position_view, x, y);
+  const glm::vec3 n = detail::load3(in.normal_view, x, y);
+  // Start offset along the normal, relative to depth like the bias: the first steps land in
+  // the pixel's own footprint, and its reconstructed position carries the depth's relative
+  // rounding error.
+  const glm::vec3 origin = detail::biased_origin(p, n, depth, k.bias_relative);
+  const RayOrigin o{origin, in.camera.view_to_clip * glm::vec4(origin, 1.0f)};
+  glm::vec3 t, b;
+  sampling::orthonormal_basis(n, t, b);
+  const float shift_u = noise01(x, y, 0, k.seed), shift_v = noise01(x, y, 1, k.seed);
+  const uint32_t jitter_key = hash_pixel(x, y, 2, k.seed);
+  int open = 0, resolved = 0;
+  glm::vec3 bent(0.0f);
+  for (int i = 0; i < k.directions; ++i) {
+    float u, v;
+    r2_point(uint32_t(i), shift_u, shift_v, u, v);
+    const glm::vec3 w = sampling::cosine_hemisphere(n, t, b, u, v);
+    const RayVerdict r = march_ray(k, in, taps, o, w, unit_float(hash_u32(jitter_key + uint32_t(i))));
+    if (!r.blocked) {
+      ++open;
+      bent += w;
+    }
+    if (r.blocked || !r.unknown) ++resolved;
+  }
+  float ao = float(open) / float(k.directions);
+  if (k.multibounce) ao = detail::multibounce(ao, detail::albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
+  const float len = glm::length(bent);
+  return {ao, len > 0.0f ? bent / len : n, float(resolved) / float(k.directions)};
+}
+
 void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Mat* confidence,
                    const cv::Rect& roi, int nthreads) {
-  const Camera& cam = in.camera;
-  const glm::mat4& proj = cam.view_to_clip;
-  const int width = in.depth_view.cols, height = in.depth_view.rows;
   std::vector<Tap> taps;
   build_taps(in, k.thickness_world, taps, nthreads);
-  const float min_cos2 = kMinTangentCos * kMinTangentCos;
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
@@ -126,101 +250,11 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
       cv::Vec3f* bent_row = out.bent_normal_view.ptr<cv::Vec3f>(y);
       float* conf_row = confidence ? confidence->ptr<float>(y) : nullptr;
       for (int x = roi.x; x < roi.x + roi.width; ++x) {
-        if (mask_row[x] == 0) {
-          ao_row[x] = 1.0f;
-          bent_row[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
-          if (conf_row) conf_row[x] = 1.0f;
-          continue;
-        }
-        const float depth = in.depth_view.ptr<float>(y)[x];
-        const glm::vec3 p = detail::load3(in.position_view, x, y);
-        const glm::vec3 n = detail::load3(in.normal_view, x, y);
-        // Start offset along the normal, relative to depth like the bias: the first steps
-        // land in the pixel's own footprint, and its reconstructed position carries the
-        // depth's relative rounding error.
-        const glm::vec3 origin = detail::biased_origin(p, n, depth, k.bias_relative);
-        const glm::vec4 clip_origin = proj * glm::vec4(origin, 1.0f);
-        glm::vec3 t, b;
-        sampling::orthonormal_basis(n, t, b);
-        const float shift_u = noise01(x, y, 0, k.seed), shift_v = noise01(x, y, 1, k.seed);
-        const uint32_t jitter_key = hash_pixel(x, y, 2, k.seed);
-        int open = 0, resolved = 0;
-        glm::vec3 bent(0.0f);
-        for (int i = 0; i < k.directions; ++i) {
-          float u, v;
-          r2_point(uint32_t(i), shift_u, shift_v, u, v);
-          const glm::vec3 w = sampling::cosine_hemisphere(n, t, b, u, v);
-          // clip(origin + s w) = clip(origin) + s P [w, 0]: the projection is linear in s.
-          const glm::vec4 clip_w = proj * glm::vec4(w, 0.0f);
-          // Step s_j = radius (j + 1 - jitter) / steps, jitter in [0, 1): one sample in each
-          // of the `steps` equal segments of (0, radius], the last at most radius.
-          const float jitter = unit_float(hash_u32(jitter_key + uint32_t(i)));
-          bool blocked = false, unknown = false, entered = false;
-          for (int j = 0; j < k.steps && !blocked; ++j) {
-            const float s = k.radius_world * (float(j) + 1.0f - jitter) / float(k.steps);
-            const glm::vec4 clip = clip_origin + s * clip_w;
-            // Off-screen and behind-the-eye steps are unknown. Both are final once the ray
-            // has been on screen: clip.w is linear in s (once <= 0, it stays so), and the
-            // screen path of a segment in front of the eye is a segment, which leaves the
-            // convex screen rectangle at most once.
-            if (!(clip.w > 0.0f)) {
-              unknown = true;
-              break;
-            }
-            const float inv_w = 1.0f / clip.w;
-            const float px = 0.5f * (clip.x * inv_w + 1.0f) * k.width_px;
-            const float py = 0.5f * (1.0f - clip.y * inv_w) * k.height_px;
-            if (!(px >= 0.0f && px < k.width_px && py >= 0.0f && py < k.height_px)) {
-              unknown = true;
-              if (entered) break;
-              continue;
-            }
-            entered = true;
-            const int tx = std::min(int(px), width - 1), ty = std::min(int(py), height - 1);
-            const Tap& tap = taps[size_t(ty) * size_t(width) + size_t(tx)];
-            if (tap.depth_view < 0.0f) {  // masked
-              unknown = true;
-              continue;
-            }
-            const glm::vec3 q = origin + s * w;
-            const float depth_q = -q.z;
-            // d_ref: the tap's tangent plane dot(n, x) = c on the view ray through q (top of
-            // this file). Perspective: x = a q, a = c / dot(n, q). Orthographic: x = (q.x,
-            // q.y, -d), d = (n.x q.x + n.y q.y - c) / n.z.
-            float depth_ref = tap.depth_view;
-            if (k.perspective) {
-              const float denom = tap.nx * q.x + tap.ny * q.y + tap.nz * q.z;
-              if (denom * denom >= min_cos2 * glm::dot(q, q)) {
-                const float d = tap.plane_c / denom * depth_q;
-                if (d > 0.0f) depth_ref = d;
-              }
-            } else if (std::abs(tap.nz) >= kMinTangentCos) {
-              const float d = (tap.nx * q.x + tap.ny * q.y - tap.plane_c) / tap.nz;
-              if (d > 0.0f) depth_ref = d;
-            }
-            // Bias relative to the stored depth: its rounding error is relative (float:
-            // 6e-8, half: 4.9e-4 of the value), so a fixed bias would be too large near
-            // the camera and too small far away. The default 1e-3 covers half-float depth.
-            const float bias = k.bias_relative * tap.depth_view;
-            // With a back layer the bias also widens the slab: a thin object's two
-            // layers carry the same relative rounding.
-            blocked = depth_q > depth_ref + bias &&
-                      depth_q - depth_ref <= tap.thickness_world + (k.has_back ? bias : 0.0f);
-          }
-          if (!blocked) {
-            ++open;
-            bent += w;
-          }
-          if (blocked || !unknown) ++resolved;
-        }
-        float ao = float(open) / float(k.directions);
-        if (k.multibounce)
-          ao = detail::multibounce(ao, detail::albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
-        ao_row[x] = ao;
-        const float len = glm::length(bent);
-        const glm::vec3 bn = len > 0.0f ? bent / len : n;
-        bent_row[x] = cv::Vec3f(bn.x, bn.y, bn.z);
-        if (conf_row) conf_row[x] = float(resolved) / float(k.directions);
+        // Background: AO 1, no bent normal, confidence 1.
+        const PixelResult r = mask_row[x] ? shade_pixel(k, in, taps, x, y) : PixelResult{1.0f, glm::vec3(0.0f), 1.0f};
+        ao_row[x] = r.ao;
+        bent_row[x] = cv::Vec3f(r.bent_normal.x, r.bent_normal.y, r.bent_normal.z);
+        if (conf_row) conf_row[x] = r.confidence;
       }
     }
   });

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include <glm/glm.hpp>
 
@@ -27,8 +28,8 @@ inline void orthonormal_basis(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
 // lifted to the hemisphere by Malley's method: pdf(w) = cos(theta) / pi, so the mean of
 // f(w) over the samples estimates (1/pi) \int_H f(w) cos(theta) dw.
 inline glm::vec3 cosine_hemisphere_local(float u, float v) {
-  constexpr float kQuarterPi = 0.785398163397448310f;
-  constexpr float kHalfPi = 1.57079632679489661923f;
+  constexpr float kQuarterPi = std::numbers::pi_v<float> / 4.0f;
+  constexpr float kHalfPi = std::numbers::pi_v<float> / 2.0f;
   const float a = 2.0f * u - 1.0f, b = 2.0f * v - 1.0f;
   float r = 0.0f, phi = 0.0f;
   if (a == 0.0f && b == 0.0f) {
