@@ -323,7 +323,8 @@ cv::Mat filter_source(const cv::Mat& grid) {
       if (weight[t] > 0.0) {
         for (int c = 0; c < 3; ++c) v[c] = float(sum[3 * t + c] / weight[t]);
       } else {  // a source narrower than the target leaves gaps: sample at the centre
-        const glm::vec3 l = bilinear_equirect(grid, Environment::direction_from_equirect({ti + 0.5f, tj + 0.5f}, ssize));
+        const glm::vec3 d = Environment::direction_from_equirect({ti + 0.5f, tj + 0.5f}, ssize);
+        const glm::vec3 l = bilinear_equirect(grid, d);
         v = cv::Vec3f(l.x, l.y, l.z);
       }
     }
@@ -390,8 +391,9 @@ void row_intervals(const ConeFilter& f, int tj, std::vector<RowInterval>& out) {
     const double sin_sin = std::sin(theta_s) * std::sin(theta_t);
     const double k_low = cos_cos > 0.0 ? (double(f.cos_cone) - kDotError - sin_sin) / cos_cos : -2.0;
     if (k_low > 1.0) continue;  // no texel of the row reaches the cone
-    const double half_columns = k_low <= -1.0 ? double(f.ssize.width)
-                                              : std::acos(k_low) * f.ssize.width / (2.0 * std::numbers::pi) + kMarginColumns;
+    const double half_columns =
+        k_low <= -1.0 ? double(f.ssize.width)
+                      : std::acos(k_low) * f.ssize.width / (2.0 * std::numbers::pi) + kMarginColumns;
     out.push_back({j, 2.0 * half_columns + 1.0 >= double(f.ssize.width), half_columns});
   }
 }

@@ -593,7 +593,8 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   SampleSums sums;
   if (recorded) {
     for (int i = 0; i < n_samples; ++i)
-      if (recorded[i] >= 0 && want_indirect) add_sender(c, rcv, sender_direct, recorded[i] % width, recorded[i] / width, sums.indirect);
+      if (recorded[i] >= 0 && want_indirect)
+        add_sender(c, rcv, sender_direct, recorded[i] % width, recorded[i] / width, sums.indirect);
   } else {
     const RayFrame f = ray_frame(c, rcv, x, y);
     const SampleShift shift = sample_shift(c, x, y);
