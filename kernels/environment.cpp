@@ -4,27 +4,26 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 namespace ssdo {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 // Rows of the grid the analytic kinds are tabulated on for their SH projection: the
 // midpoint rule on 256 rows integrates the piecewise-linear sky to ~1e-5.
 constexpr int kAnalyticGridHeightPx = 256;
 // Rows of the source the cone filter averages: 64 rows = 2.8 deg per texel, fine against
-// cones of ~10-30 deg, and keeps the one-off filtering cost at a few tens of ms.
+// cones of ~10-30 deg, and keeps the one-off filtering cost small.
 constexpr int kFilterSourceHeightPx = 64;
 
 // Solid angle of a pixel of row j in an equirect of size W x H (exact: the band between
 // two elevations has area 2 pi (sin theta_top - sin theta_bottom)).
 double equirect_pixel_solid_angle(int j, cv::Size size) {
-  const double theta_top = kPi * (0.5 - double(j) / size.height);
-  const double theta_bottom = kPi * (0.5 - double(j + 1) / size.height);
-  return (2.0 * kPi / size.width) * (std::sin(theta_top) - std::sin(theta_bottom));
+  const double theta_top = std::numbers::pi * (0.5 - double(j) / size.height);
+  const double theta_bottom = std::numbers::pi * (0.5 - double(j + 1) / size.height);
+  return (2.0 * std::numbers::pi / size.width) * (std::sin(theta_top) - std::sin(theta_bottom));
 }
 
 // Bilinear lookup of an equirect image at continuous pixel coordinates p_px (pixel centres
@@ -70,8 +69,8 @@ inline float fast_atan2(float y, float x) {
   poly = poly * t2 - 0.332994597f;
   poly = poly * t2 + 0.999995630f;
   float a = poly * t;
-  a = ay > ax ? float(0.5 * kPi) - a : a;
-  a = x < 0.0f ? float(kPi) - a : a;
+  a = ay > ax ? float(0.5 * std::numbers::pi) - a : a;
+  a = x < 0.0f ? std::numbers::pi_v<float> - a : a;
   return y < 0.0f ? -a : a;
 }
 
@@ -81,8 +80,8 @@ inline float fast_atan2(float y, float x) {
 glm::vec2 equirect_from_direction_fast(const glm::vec3& d, cv::Size size) {
   const float theta = fast_atan2(d.z, std::sqrt(d.x * d.x + d.y * d.y));
   const float phi = fast_atan2(-d.x, d.y);
-  const float kPif = float(kPi);
-  return {0.5f * float(size.width) * (1.0f - phi / kPif), float(size.height) * (0.5f - theta / kPif)};
+  constexpr float pi = std::numbers::pi_v<float>;
+  return {0.5f * float(size.width) * (1.0f - phi / pi), float(size.height) * (0.5f - theta / pi)};
 }
 
 }  // namespace
@@ -90,7 +89,7 @@ glm::vec2 equirect_from_direction_fast(const glm::vec3& d, cv::Size size) {
 float filter_cone_half_angle_for_samples(int samples) {
   // Cone solid angle 2 pi (1 - cos a) = 2 pi / N  ->  cos a = 1 - 1 / N.
   if (samples < 1) return 90.0f;
-  return float(std::acos(std::clamp(1.0 - 1.0 / samples, 0.0, 1.0)) * 180.0 / kPi);
+  return float(std::acos(std::clamp(1.0 - 1.0 / samples, 0.0, 1.0)) * 180.0 / std::numbers::pi);
 }
 
 std::string validate(const EnvironmentSettings& s) {
@@ -104,33 +103,28 @@ std::string validate(const EnvironmentSettings& s) {
 
 Environment::Environment() { build(); }
 
-Environment Environment::constant(const glm::vec3& radiance_rgb, const EnvironmentSettings& s) {
+Environment::Environment(EnvironmentKind kind, const EnvironmentSettings& s) : kind_(kind), settings_(s) {
   CV_Assert(validate(s).empty());
-  Environment e;
-  e.kind_ = EnvironmentKind::constant;
-  e.settings_ = s;
+}
+
+Environment Environment::constant(const glm::vec3& radiance_rgb, const EnvironmentSettings& s) {
+  Environment e(EnvironmentKind::constant, s);
   e.constant_ = radiance_rgb;
   e.build();
   return e;
 }
 
 Environment Environment::sky(const SkyGradient& sky, const EnvironmentSettings& s) {
-  CV_Assert(validate(s).empty());
+  Environment e(EnvironmentKind::sky, s);
   CV_Assert(sky.up_begin < sky.up_end);
-  Environment e;
-  e.kind_ = EnvironmentKind::sky;
-  e.settings_ = s;
   e.sky_ = sky;
   e.build();
   return e;
 }
 
 Environment Environment::equirect(const cv::Mat& radiance_rgb, const EnvironmentSettings& s) {
-  CV_Assert(validate(s).empty());
+  Environment e(EnvironmentKind::equirect, s);
   CV_Assert(radiance_rgb.type() == CV_32FC3 && radiance_rgb.rows >= 1 && radiance_rgb.cols >= 1);
-  Environment e;
-  e.kind_ = EnvironmentKind::equirect;
-  e.settings_ = s;
   e.image_ = radiance_rgb;
   e.build();
   return e;
@@ -148,8 +142,8 @@ glm::mat3 Environment::env_from_world_matrix() const {
 }
 
 glm::vec3 Environment::direction_from_equirect(glm::vec2 pixel, cv::Size size) {
-  const double theta = kPi * (0.5 - double(pixel.y) / size.height);
-  const double phi = kPi * (1.0 - 2.0 * double(pixel.x) / size.width);
+  const double theta = std::numbers::pi * (0.5 - double(pixel.y) / size.height);
+  const double phi = std::numbers::pi * (1.0 - 2.0 * double(pixel.x) / size.width);
   const double c = std::cos(theta);
   return glm::vec3(float(-c * std::sin(phi)), float(c * std::cos(phi)), float(std::sin(theta)));
 }
@@ -158,9 +152,8 @@ glm::vec2 Environment::equirect_from_direction(const glm::vec3& d, cv::Size size
   // Inverse of direction_from_equirect: theta = asin(z), phi = atan2(-x, y).
   const float theta = std::asin(std::clamp(d.z, -1.0f, 1.0f));
   const float phi = std::atan2(-d.x, d.y);
-  const float kPif = float(kPi);
-  return {0.5f * float(size.width) * (1.0f - phi / kPif),
-          float(size.height) * (0.5f - theta / kPif)};
+  constexpr float pi = std::numbers::pi_v<float>;
+  return {0.5f * float(size.width) * (1.0f - phi / pi), float(size.height) * (0.5f - theta / pi)};
 }
 
 std::array<float, 9> Environment::sh_basis(const glm::vec3& d) {
@@ -199,238 +192,292 @@ glm::vec3 Environment::irradiance_over_pi_env(const glm::vec3& n) const {
   return e;
 }
 
+namespace {
+
+// The analytic sky on an equirect grid of kAnalyticGridHeightPx rows, at texel centres.
+// The sky depends on the up-component only, sin(theta), the same at every texel centre of
+// a row: one evaluation per row.
+cv::Mat tabulated_sky(const Environment& e) {
+  const cv::Size size(2 * kAnalyticGridHeightPx, kAnalyticGridHeightPx);
+  cv::Mat grid(size, CV_32FC3);
+  for (int j = 0; j < size.height; ++j) {
+    const glm::vec3 l = e.radiance_env(Environment::direction_from_equirect({0.5f, j + 0.5f}, size));
+    grid.row(j).setTo(cv::Scalar(l.x, l.y, l.z));
+  }
+  return grid;
+}
+
+// Moments of z = sin(elevation) over a row's band [z_bottom, z_top] (dw = dz dphi): of 1, z,
+// z^2, sqrt(1 - z^2) and z sqrt(1 - z^2).
+struct RowMoments {
+  double m0, mz, mzz, mc, mzc;
+};
+
+std::vector<RowMoments> row_moments(cv::Size size) {
+  auto z_antiderivatives = [](double z, double out[5]) {
+    const double c2 = std::max(0.0, 1.0 - z * z), c = std::sqrt(c2);
+    out[0] = z;                              // 1
+    out[1] = 0.5 * z * z;                    // z
+    out[2] = z * z * z / 3.0;                // z^2
+    out[3] = 0.5 * (z * c + std::asin(std::clamp(z, -1.0, 1.0)));  // sqrt(1 - z^2)
+    out[4] = -c2 * c / 3.0;                  // z sqrt(1 - z^2)
+  };
+  std::vector<RowMoments> rows(size_t(size.height));
+  for (int j = 0; j < size.height; ++j) {
+    double top[5], bottom[5];
+    z_antiderivatives(std::sin(std::numbers::pi * (0.5 - double(j) / size.height)), top);
+    z_antiderivatives(std::sin(std::numbers::pi * (0.5 - double(j + 1) / size.height)), bottom);
+    rows[j] = {top[0] - bottom[0], top[1] - bottom[1], top[2] - bottom[2], top[3] - bottom[3],
+               top[4] - bottom[4]};
+  }
+  return rows;
+}
+
+// Moments of the azimuth over a column's [phi(i + 1), phi(i)]: of 1, sin, cos, sin cos and
+// cos 2 phi.
+struct ColumnMoments {
+  double p0, ps, pc, psc, pcos2;
+};
+
+std::vector<ColumnMoments> column_moments(cv::Size size) {
+  std::vector<ColumnMoments> cols(size_t(size.width));
+  for (int i = 0; i < size.width; ++i) {
+    const double hi = std::numbers::pi * (1.0 - 2.0 * double(i) / size.width);
+    const double lo = std::numbers::pi * (1.0 - 2.0 * double(i + 1) / size.width);
+    cols[i] = {hi - lo,
+               -(std::cos(hi) - std::cos(lo)),                                  // sin
+               std::sin(hi) - std::sin(lo),                                     // cos
+               0.5 * (std::sin(hi) * std::sin(hi) - std::sin(lo) * std::sin(lo)),  // sin cos
+               0.5 * (std::sin(2.0 * hi) - std::sin(2.0 * lo))};                // cos 2phi
+  }
+  return cols;
+}
+
+// SH projection: L_lm = sum over pixels of L_pixel x (integral of Y_lm over the pixel).
+// The integrals are exact (each Y_lm is a polynomial in z = sin(elevation), sqrt(1 - z^2)
+// and sin/cos of the azimuth, integrated in closed form over the pixel's band and
+// column), so a piecewise-constant image is projected without quadrature error: a
+// constant image gives L_00 to float precision and every other coefficient 0.
+std::array<glm::vec3, 9> sh_projection(const cv::Mat& grid) {
+  const cv::Size size = grid.size();
+  const std::vector<RowMoments> rows = row_moments(size);
+  const std::vector<ColumnMoments> cols = column_moments(size);
+  // d = (-c sin(phi), c cos(phi), z), c = sqrt(1 - z^2); basis constants as sh_basis().
+  std::array<double, 27> acc{};
+  for (int j = 0; j < size.height; ++j) {
+    const RowMoments& m = rows[j];
+    const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
+    for (int i = 0; i < size.width; ++i) {
+      const ColumnMoments& p = cols[i];
+      const double y[9] = {
+          0.28209479177387814 * m.m0 * p.p0,
+          0.4886025119029199 * m.mc * p.pc,                   // y
+          0.4886025119029199 * m.mz * p.p0,                   // z
+          -0.4886025119029199 * m.mc * p.ps,                  // x
+          -1.0925484305920792 * (m.m0 - m.mzz) * p.psc,        // x y
+          1.0925484305920792 * m.mzc * p.pc,                  // y z
+          0.31539156525252005 * (3.0 * m.mzz - m.m0) * p.p0,  // 3 z^2 - 1
+          -1.0925484305920792 * m.mzc * p.ps,                 // x z
+          -0.5462742152960396 * (m.m0 - m.mzz) * p.pcos2,     // x^2 - y^2 = -c^2 cos 2phi
+      };
+      for (int k = 0; k < 9; ++k)
+        for (int c = 0; c < 3; ++c) acc[3 * k + c] += double(row[i][c]) * y[k];
+    }
+  }
+  std::array<glm::vec3, 9> sh;
+  for (int k = 0; k < 9; ++k) sh[k] = glm::vec3(float(acc[3 * k]), float(acc[3 * k + 1]), float(acc[3 * k + 2]));
+  return sh;
+}
+
+// The cone filter's source: the grid box-averaged (solid-angle weighted) down to at most
+// kFilterSourceHeightPx rows.
+cv::Mat filter_source(const cv::Mat& grid) {
+  if (grid.rows <= kFilterSourceHeightPx) return grid;
+  const cv::Size ssize(2 * kFilterSourceHeightPx, kFilterSourceHeightPx);
+  std::vector<double> sum(size_t(ssize.area()) * 3, 0.0), weight(size_t(ssize.area()), 0.0);
+  // Target column of each grid column: non-decreasing, so a row is a sequence of runs of
+  // columns that fall in the same target texel, each summed in column order.
+  std::vector<int> target_column(size_t(grid.cols) + 1);
+  for (int i = 0; i < grid.cols; ++i) target_column[i] = int(int64_t(i) * ssize.width / grid.cols);
+  target_column[grid.cols] = ssize.width;  // sentinel: ends the last run
+  for (int j = 0; j < grid.rows; ++j) {
+    const double d_omega = equirect_pixel_solid_angle(j, grid.size());
+    const int tj = int(int64_t(j) * ssize.height / grid.rows);
+    const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
+    for (int i = 0; i < grid.cols;) {
+      const int ti = target_column[i];
+      const size_t t = size_t(tj) * ssize.width + ti;
+      double r = sum[3 * t], g = sum[3 * t + 1], b = sum[3 * t + 2], w = weight[t];
+      for (; target_column[i] == ti; ++i) {
+        r += row[i][0] * d_omega, g += row[i][1] * d_omega, b += row[i][2] * d_omega;
+        w += d_omega;
+      }
+      sum[3 * t] = r, sum[3 * t + 1] = g, sum[3 * t + 2] = b, weight[t] = w;
+    }
+  }
+  cv::Mat source(ssize, CV_32FC3);
+  for (int tj = 0; tj < ssize.height; ++tj)
+    for (int ti = 0; ti < ssize.width; ++ti) {
+      const size_t t = size_t(tj) * ssize.width + ti;
+      cv::Vec3f& v = source.at<cv::Vec3f>(tj, ti);
+      if (weight[t] > 0.0) {
+        for (int c = 0; c < 3; ++c) v[c] = float(sum[3 * t + c] / weight[t]);
+      } else {  // a source narrower than the target leaves gaps: sample at the centre
+        const glm::vec3 d = Environment::direction_from_equirect({ti + 0.5f, tj + 0.5f}, ssize);
+        const glm::vec3 l = bilinear_equirect(grid, d);
+        v = cv::Vec3f(l.x, l.y, l.z);
+      }
+    }
+  return source;
+}
+
+// The columns of source row `row` that can hold a texel centre inside the cone around a
+// target texel (see row_intervals).
+struct RowInterval {
+  int row;              // source row j
+  bool whole_row;       // the interval covers every column
+  double half_columns;  // else: columns within this distance of the target's column
+};
+
+// The cone filter of a source onto a target lat-long: each target texel is the
+// solid-angle weighted mean of the source texels whose centre lies within the cone around
+// the target's centre direction.
+struct ConeFilter {
+  const cv::Mat& source;
+  cv::Size ssize, tsize;
+  double cone;      // half-angle, radians
+  float cos_cone;
+  double row_step;  // a source row's elevation span, radians
+  std::vector<glm::vec3> source_dir;       // centre direction of every source texel
+  std::vector<double> row_solid_angle;     // solid angle of a texel of each source row
+
+  ConeFilter(const cv::Mat& source, const EnvironmentSettings& s)
+      : source(source), ssize(source.size()), tsize(2 * s.filtered_height_px, s.filtered_height_px),
+        cone(s.filter_cone_half_angle_deg * std::numbers::pi / 180.0), cos_cone(float(std::cos(cone))),
+        row_step(std::numbers::pi / ssize.height), source_dir(size_t(ssize.area())),
+        row_solid_angle(size_t(ssize.height)) {
+    for (int j = 0; j < ssize.height; ++j) {
+      row_solid_angle[j] = equirect_pixel_solid_angle(j, ssize);
+      for (int i = 0; i < ssize.width; ++i)
+        source_dir[size_t(j) * ssize.width + i] = Environment::direction_from_equirect({i + 0.5f, j + 0.5f}, ssize);
+    }
+  }
+};
+
+// Which source columns of each row can hold a texel centre inside the cone around a target
+// texel of row tj. For unit directions at elevations theta_s, theta_t and azimuth
+// difference dphi,
+//   s . c = cos(theta_s) cos(theta_t) cos(dphi) + sin(theta_s) sin(theta_t),
+// so s . c >= cos_cone  <=>  cos(dphi) >= K = (cos_cone - sin sin) / (cos cos): the texels
+// of a row inside the cone are the columns within acos(K) of the target's azimuth, one
+// interval (wrapping around column 0). The interval is widened to be sure it holds every
+// texel the float test in cone_average accepts: K is lowered by kDotError / (cos cos),
+// kDotError bounding the float dot's error against the exact one (float directions and
+// three products and two sums of magnitude <= 1: < 1e-6), and kMarginColumns columns are
+// added on each side. Inside the interval the float test decides, so the accepted texels,
+// and the order in which they are summed (increasing column), are those of testing every
+// column of the row.
+void row_intervals(const ConeFilter& f, int tj, std::vector<RowInterval>& out) {
+  constexpr double kDotError = 1e-5;
+  constexpr double kMarginColumns = 2.0;
+  out.clear();
+  const double theta_t = std::numbers::pi * (0.5 - (tj + 0.5) / f.tsize.height);
+  for (int j = 0; j < f.ssize.height; ++j) {
+    // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
+    // a texel centre inside it.
+    const double theta_s = std::numbers::pi * (0.5 - (j + 0.5) / f.ssize.height);
+    if (std::abs(theta_s - theta_t) > f.cone + 0.5 * f.row_step) continue;
+    const double cos_cos = std::cos(theta_s) * std::cos(theta_t);
+    const double sin_sin = std::sin(theta_s) * std::sin(theta_t);
+    const double k_low = cos_cos > 0.0 ? (double(f.cos_cone) - kDotError - sin_sin) / cos_cos : -2.0;
+    if (k_low > 1.0) continue;  // no texel of the row reaches the cone
+    const double half_columns =
+        k_low <= -1.0 ? double(f.ssize.width)
+                      : std::acos(k_low) * f.ssize.width / (2.0 * std::numbers::pi) + kMarginColumns;
+    out.push_back({j, 2.0 * half_columns + 1.0 >= double(f.ssize.width), half_columns});
+  }
+}
+
+// Target texel (ti, tj): the mean over the source texels of `intervals` inside the cone,
+// in increasing row and column order.
+cv::Vec3f cone_average(const ConeFilter& f, const std::vector<RowInterval>& intervals, int ti, int tj) {
+  const int width = f.ssize.width;
+  const glm::vec3 c = Environment::direction_from_equirect({ti + 0.5f, tj + 0.5f}, f.tsize);
+  // The target's azimuth as a continuous source column (the centre of column i is at
+  // i + 0.5 in the layout's pixel coordinates).
+  const double column_t = (ti + 0.5) * width / f.tsize.width - 0.5;
+  double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
+  for (const RowInterval& interval : intervals) {
+    const int j = interval.row;
+    const cv::Vec3f* row = f.source.ptr<cv::Vec3f>(j);
+    const glm::vec3* dirs = &f.source_dir[size_t(j) * width];
+    const double d_omega = f.row_solid_angle[j];
+    auto add_columns = [&](int begin, int end) {
+      for (int i = begin; i < end; ++i) {
+        if (glm::dot(dirs[i], c) < f.cos_cone) continue;
+        for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * d_omega;
+        weight += d_omega;
+      }
+    };
+    if (interval.whole_row) {
+      add_columns(0, width);
+      continue;
+    }
+    // [first, last] spans fewer than width columns, so at most one end wraps and the
+    // two pieces of a wrapped interval do not overlap; the piece from column 0 comes
+    // first to keep the columns in increasing order.
+    const int first = int(std::ceil(column_t - interval.half_columns));
+    const int last = int(std::floor(column_t + interval.half_columns));
+    if (first < 0) {
+      add_columns(0, last + 1);
+      add_columns(first + width, width);
+    } else if (last >= width) {
+      add_columns(0, last - width + 1);
+      add_columns(first, width);
+    } else {
+      add_columns(first, last + 1);
+    }
+  }
+  if (weight > 0.0) return cv::Vec3f(float(sum[0] / weight), float(sum[1] / weight), float(sum[2] / weight));
+  // Cone narrower than a source texel: the point value.
+  const glm::vec3 l = bilinear_equirect(f.source, c);
+  return cv::Vec3f(l.x, l.y, l.z);
+}
+
+cv::Mat cone_filtered(const cv::Mat& source, const EnvironmentSettings& s) {
+  const ConeFilter f(source, s);
+  cv::Mat filtered(f.tsize, CV_32FC3);
+  // Target rows are independent: on OpenCV's pool (as sized by the caller; the same values
+  // for any thread count).
+  parallel_rows(cv::Range(0, f.tsize.height), 0, [&](const cv::Range& target_rows) {
+    std::vector<RowInterval> intervals;
+    intervals.reserve(size_t(f.ssize.height));
+    for (int tj = target_rows.start; tj < target_rows.end; ++tj) {
+      row_intervals(f, tj, intervals);
+      cv::Vec3f* out = filtered.ptr<cv::Vec3f>(tj);
+      for (int ti = 0; ti < f.tsize.width; ++ti) out[ti] = cone_average(f, intervals, ti, tj);
+    }
+  }, 1);
+  return filtered;
+}
+
+}  // namespace
+
+// The SH projection of the radiance (for irradiance_over_pi) and the cone-filtered map
+// (for radiance_filtered).
 void Environment::build() {
   if (kind_ == EnvironmentKind::constant) {
     // Exact: only L_00 = L * Y_00 * 4 pi is non-zero.
     sh_.fill(glm::vec3(0.0f));
-    sh_[0] = constant_ * float(0.28209479177387814 * 4.0 * kPi);
+    sh_[0] = constant_ * float(0.28209479177387814 * 4.0 * std::numbers::pi);
     filtered_ = cv::Mat(settings_.filtered_height_px, 2 * settings_.filtered_height_px, CV_32FC3,
                         cv::Scalar(constant_.x, constant_.y, constant_.z));
     return;
   }
-
   // The radiance on an equirect grid: the image itself, or the analytic sky at texel centres.
-  cv::Mat grid = image_;
-  if (kind_ == EnvironmentKind::sky) {
-    const cv::Size size(2 * kAnalyticGridHeightPx, kAnalyticGridHeightPx);
-    grid.create(size, CV_32FC3);
-    // The sky depends on the up-component only, sin(theta), the same at every texel centre
-    // of a row: one evaluation per row.
-    for (int j = 0; j < size.height; ++j) {
-      const glm::vec3 l = radiance_env(direction_from_equirect({0.5f, j + 0.5f}, size));
-      grid.row(j).setTo(cv::Scalar(l.x, l.y, l.z));
-    }
-  }
-
-  // SH projection: L_lm = sum over pixels of L_pixel x (integral of Y_lm over the pixel).
-  // The integrals are exact (each Y_lm is a polynomial in z = sin(elevation), sqrt(1 - z^2)
-  // and sin/cos of the azimuth, integrated in closed form over the pixel's band and
-  // column), so a piecewise-constant image is projected without quadrature error: a
-  // constant image gives L_00 to float precision and every other coefficient 0.
-  {
-    const cv::Size size = grid.size();
-    // Per row: moments of z over [z_bottom, z_top] (dw = dz dphi).
-    struct RowMoments { double m0, mz, mzz, mc, mzc; };
-    std::vector<RowMoments> rows(size_t(size.height));
-    auto z_antiderivatives = [](double z, double out[5]) {
-      const double c2 = std::max(0.0, 1.0 - z * z), c = std::sqrt(c2);
-      out[0] = z;                              // 1
-      out[1] = 0.5 * z * z;                    // z
-      out[2] = z * z * z / 3.0;                // z^2
-      out[3] = 0.5 * (z * c + std::asin(std::clamp(z, -1.0, 1.0)));  // sqrt(1 - z^2)
-      out[4] = -c2 * c / 3.0;                  // z sqrt(1 - z^2)
-    };
-    for (int j = 0; j < size.height; ++j) {
-      double top[5], bottom[5];
-      z_antiderivatives(std::sin(kPi * (0.5 - double(j) / size.height)), top);
-      z_antiderivatives(std::sin(kPi * (0.5 - double(j + 1) / size.height)), bottom);
-      rows[j] = {top[0] - bottom[0], top[1] - bottom[1], top[2] - bottom[2], top[3] - bottom[3],
-                 top[4] - bottom[4]};
-    }
-    // Per column: moments of the azimuth over [phi(i + 1), phi(i)].
-    struct ColumnMoments { double p0, ps, pc, psc, pcos2; };
-    std::vector<ColumnMoments> cols(size_t(size.width));
-    for (int i = 0; i < size.width; ++i) {
-      const double hi = kPi * (1.0 - 2.0 * double(i) / size.width);
-      const double lo = kPi * (1.0 - 2.0 * double(i + 1) / size.width);
-      cols[i] = {hi - lo,
-                 -(std::cos(hi) - std::cos(lo)),                                  // sin
-                 std::sin(hi) - std::sin(lo),                                     // cos
-                 0.5 * (std::sin(hi) * std::sin(hi) - std::sin(lo) * std::sin(lo)),  // sin cos
-                 0.5 * (std::sin(2.0 * hi) - std::sin(2.0 * lo))};                // cos 2phi
-    }
-    // d = (-c sin(phi), c cos(phi), z), c = sqrt(1 - z^2); basis constants as sh_basis().
-    std::array<double, 27> acc{};
-    for (int j = 0; j < size.height; ++j) {
-      const RowMoments& m = rows[j];
-      const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
-      for (int i = 0; i < size.width; ++i) {
-        const ColumnMoments& p = cols[i];
-        const double y[9] = {
-            0.28209479177387814 * m.m0 * p.p0,
-            0.4886025119029199 * m.mc * p.pc,                   // y
-            0.4886025119029199 * m.mz * p.p0,                   // z
-            -0.4886025119029199 * m.mc * p.ps,                  // x
-            -1.0925484305920792 * (m.m0 - m.mzz) * p.psc,        // x y
-            1.0925484305920792 * m.mzc * p.pc,                  // y z
-            0.31539156525252005 * (3.0 * m.mzz - m.m0) * p.p0,  // 3 z^2 - 1
-            -1.0925484305920792 * m.mzc * p.ps,                 // x z
-            -0.5462742152960396 * (m.m0 - m.mzz) * p.pcos2,     // x^2 - y^2 = -c^2 cos 2phi
-        };
-        for (int k = 0; k < 9; ++k)
-          for (int c = 0; c < 3; ++c) acc[3 * k + c] += double(row[i][c]) * y[k];
-      }
-    }
-    for (int k = 0; k < 9; ++k)
-      sh_[k] = glm::vec3(float(acc[3 * k]), float(acc[3 * k + 1]), float(acc[3 * k + 2]));
-  }
-
-  // Filter source: the grid box-averaged (solid-angle weighted) down to at most
-  // kFilterSourceHeightPx rows.
-  cv::Mat source = grid;
-  if (grid.rows > kFilterSourceHeightPx) {
-    const cv::Size ssize(2 * kFilterSourceHeightPx, kFilterSourceHeightPx);
-    std::vector<double> sum(size_t(ssize.area()) * 3, 0.0), weight(size_t(ssize.area()), 0.0);
-    // Target column of each grid column: non-decreasing, so a row is a sequence of runs of
-    // columns that fall in the same target texel, each summed in column order.
-    std::vector<int> target_column(size_t(grid.cols) + 1);
-    for (int i = 0; i < grid.cols; ++i) target_column[i] = int(int64_t(i) * ssize.width / grid.cols);
-    target_column[grid.cols] = ssize.width;  // sentinel: ends the last run
-    for (int j = 0; j < grid.rows; ++j) {
-      const double d_omega = equirect_pixel_solid_angle(j, grid.size());
-      const int tj = int(int64_t(j) * ssize.height / grid.rows);
-      const cv::Vec3f* row = grid.ptr<cv::Vec3f>(j);
-      for (int i = 0; i < grid.cols;) {
-        const int ti = target_column[i];
-        const size_t t = size_t(tj) * ssize.width + ti;
-        double r = sum[3 * t], g = sum[3 * t + 1], b = sum[3 * t + 2], w = weight[t];
-        for (; target_column[i] == ti; ++i) {
-          r += row[i][0] * d_omega, g += row[i][1] * d_omega, b += row[i][2] * d_omega;
-          w += d_omega;
-        }
-        sum[3 * t] = r, sum[3 * t + 1] = g, sum[3 * t + 2] = b, weight[t] = w;
-      }
-    }
-    source.create(ssize, CV_32FC3);
-    for (int tj = 0; tj < ssize.height; ++tj)
-      for (int ti = 0; ti < ssize.width; ++ti) {
-        const size_t t = size_t(tj) * ssize.width + ti;
-        cv::Vec3f& v = source.at<cv::Vec3f>(tj, ti);
-        if (weight[t] > 0.0) {
-          for (int c = 0; c < 3; ++c) v[c] = float(sum[3 * t + c] / weight[t]);
-        } else {  // a source narrower than the target leaves gaps: sample at the centre
-          const glm::vec3 l = bilinear_equirect(grid, direction_from_equirect({ti + 0.5f, tj + 0.5f}, ssize));
-          v = cv::Vec3f(l.x, l.y, l.z);
-        }
-      }
-  }
-
-  // Cone filter: each target texel is the solid-angle weighted mean of the source texels
-  // whose centre lies within the cone around the target's centre direction.
-  const cv::Size tsize(2 * settings_.filtered_height_px, settings_.filtered_height_px);
-  filtered_.create(tsize, CV_32FC3);
-  const double cone = settings_.filter_cone_half_angle_deg * kPi / 180.0;
-  const float cos_cone = float(std::cos(cone));
-  const cv::Size ssize = source.size();
-  std::vector<glm::vec3> source_dir(size_t(ssize.area()));
-  std::vector<double> row_solid_angle(size_t(ssize.height));
-  for (int j = 0; j < ssize.height; ++j) {
-    row_solid_angle[j] = equirect_pixel_solid_angle(j, ssize);
-    for (int i = 0; i < ssize.width; ++i)
-      source_dir[size_t(j) * ssize.width + i] = direction_from_equirect({i + 0.5f, j + 0.5f}, ssize);
-  }
-  const double row_step = kPi / ssize.height;
-  // Which source columns of row j can hold a texel centre inside the cone around a target
-  // texel of row tj. For unit directions at elevations theta_s, theta_t and azimuth
-  // difference dphi,
-  //   s . c = cos(theta_s) cos(theta_t) cos(dphi) + sin(theta_s) sin(theta_t),
-  // so s . c >= cos_cone  <=>  cos(dphi) >= K = (cos_cone - sin sin) / (cos cos): the texels
-  // of a row inside the cone are the columns within acos(K) of the target's azimuth, one
-  // interval (wrapping around column 0). The interval is widened to be sure it holds every
-  // texel the float test below accepts: K is lowered by kDotError / (cos cos), kDotError
-  // bounding the float dot's error against the exact one (float directions and three
-  // products and two sums of magnitude <= 1: < 1e-6), and kMarginColumns columns are added
-  // on each side. Inside the interval the float test decides, so the accepted texels, and
-  // the order in which they are summed (increasing column), are those of testing every
-  // column of the row.
-  constexpr double kDotError = 1e-5;
-  constexpr double kMarginColumns = 2.0;
-  struct RowInterval {
-    int row;              // source row j
-    bool whole_row;       // the interval covers every column
-    double half_columns;  // else: columns within this distance of the target's column
-  };
-  auto row_intervals = [&](int tj, std::vector<RowInterval>& out) {
-    out.clear();
-    const double theta_t = kPi * (0.5 - (tj + 0.5) / tsize.height);
-    for (int j = 0; j < ssize.height; ++j) {
-      // Rows whose elevation differs by more than the cone (plus half a row) cannot hold
-      // a texel centre inside it.
-      const double theta_s = kPi * (0.5 - (j + 0.5) / ssize.height);
-      if (std::abs(theta_s - theta_t) > cone + 0.5 * row_step) continue;
-      const double cos_cos = std::cos(theta_s) * std::cos(theta_t);
-      const double sin_sin = std::sin(theta_s) * std::sin(theta_t);
-      const double k_low = cos_cos > 0.0 ? (double(cos_cone) - kDotError - sin_sin) / cos_cos : -2.0;
-      if (k_low > 1.0) continue;  // no texel of the row reaches the cone
-      const double half_columns =
-          k_low <= -1.0 ? double(ssize.width) : std::acos(k_low) * ssize.width / (2.0 * kPi) + kMarginColumns;
-      out.push_back({j, 2.0 * half_columns + 1.0 >= double(ssize.width), half_columns});
-    }
-  };
-  // Target rows are independent: on OpenCV's pool (as sized by the caller; the same values
-  // for any thread count).
-  parallel_rows(cv::Range(0, tsize.height), 0, [&](const cv::Range& target_rows) {
-    std::vector<RowInterval> intervals;
-    intervals.reserve(size_t(ssize.height));
-    for (int tj = target_rows.start; tj < target_rows.end; ++tj) {
-      row_intervals(tj, intervals);
-      for (int ti = 0; ti < tsize.width; ++ti) {
-        const glm::vec3 c = direction_from_equirect({ti + 0.5f, tj + 0.5f}, tsize);
-        // The target's azimuth as a continuous source column (the centre of column i is at
-        // i + 0.5 in the layout's pixel coordinates).
-        const double column_t = (ti + 0.5) * ssize.width / tsize.width - 0.5;
-        double sum[3] = {0.0, 0.0, 0.0}, weight = 0.0;
-        for (const RowInterval& interval : intervals) {
-          const int j = interval.row;
-          const cv::Vec3f* row = source.ptr<cv::Vec3f>(j);
-          const glm::vec3* dirs = &source_dir[size_t(j) * ssize.width];
-          const double d_omega = row_solid_angle[j];
-          auto add_columns = [&](int begin, int end) {
-            for (int i = begin; i < end; ++i) {
-              if (glm::dot(dirs[i], c) < cos_cone) continue;
-              for (int k = 0; k < 3; ++k) sum[k] += row[i][k] * d_omega;
-              weight += d_omega;
-            }
-          };
-          if (interval.whole_row) {
-            add_columns(0, ssize.width);
-            continue;
-          }
-          // [first, last] spans fewer than width columns, so at most one end wraps and the
-          // two pieces of a wrapped interval do not overlap; the piece from column 0 comes
-          // first to keep the columns in increasing order.
-          const int first = int(std::ceil(column_t - interval.half_columns));
-          const int last = int(std::floor(column_t + interval.half_columns));
-          if (first < 0) {
-            add_columns(0, last + 1);
-            add_columns(first + ssize.width, ssize.width);
-          } else if (last >= ssize.width) {
-            add_columns(0, last - ssize.width + 1);
-            add_columns(first, ssize.width);
-          } else {
-            add_columns(first, last + 1);
-          }
-        }
-        cv::Vec3f& v = filtered_.at<cv::Vec3f>(tj, ti);
-        if (weight > 0.0) {
-          for (int k = 0; k < 3; ++k) v[k] = float(sum[k] / weight);
-        } else {  // cone narrower than a source texel: the point value
-          const glm::vec3 l = bilinear_equirect(source, c);
-          v = cv::Vec3f(l.x, l.y, l.z);
-        }
-      }
-    }
-  }, 1);
+  const cv::Mat grid = kind_ == EnvironmentKind::sky ? tabulated_sky(*this) : image_;
+  sh_ = sh_projection(grid);
+  filtered_ = cone_filtered(filter_source(grid), settings_);
 }
 
 }  // namespace ssdo

@@ -131,6 +131,8 @@ class Environment {
   static glm::vec2 equirect_from_direction(const glm::vec3& d_env, cv::Size size);
 
  private:
+  // The kind and its asserted-valid settings; a factory then sets the kind's radiance and builds.
+  Environment(EnvironmentKind kind, const EnvironmentSettings& s);
   void build();  // SH projection and filtered map from the kind's radiance
 
   EnvironmentKind kind_ = EnvironmentKind::constant;

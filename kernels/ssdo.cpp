@@ -7,9 +7,11 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <vector>
 
 #include "kernels/half_resolution.h"
+#include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
 #include "core/parallel.h"
 #include "core/uninitialized.h"
@@ -84,8 +86,6 @@ std::string validate(const SsdoSettings& s) {
 
 namespace {
 
-constexpr float kPi = 3.14159265358979323846f;
-
 // Largest relative change of the surface depth that q's tangent plane may apply at a
 // sub-pixel offset of at most half a pixel. A plane seen at an angle a from grazing changes
 // depth by ~(pixel angle) / tan(a) per pixel: at 160 px and 60 deg (pixel angle 0.0065 rad)
@@ -128,8 +128,7 @@ constexpr float kMipStartPx = 16.0f;
 // rows, tile by tile along them; one thread walks its whole range of rows tile column by
 // tile column): the taps of a tile's pixels overlap, so a tile reuses texels from cache
 // that row-by-row order (whose taps span 2 r rows of the whole width) fetches again.
-// Measured at 1080p (low, half grid): 64 px wide tiles took ~5% less time than 32 (and
-// than 128 or the whole width) with one thread, the same with two.
+// 64 px wide tiles suit the cache better than 32, 128 or the whole width.
 constexpr int kTileWidthPx = 64;
 constexpr int kStripRows = 32;
 constexpr int kMaxLevels = 8;
@@ -138,19 +137,34 @@ constexpr int kMaxLevels = 8;
 // every direction of the batch is tested (loops without branches over up to
 // kSampleBatch x kMaxSampleSteps points, which vectorise and whose texel reads and
 // divisions overlap), then each direction's march reads its points' results in order (the
-// points after the one that decides are tested but not used: ~7% of them at low on the
-// 1080p frame).
+// points after the one that decides are tested but not used).
 constexpr int kSampleBatch = 8;
+
+// The sender pass records each sample's sender when the record fits this budget (N x 4
+// bytes per pixel); above it the receiver pass marches again: same result, more time.
+constexpr size_t kRecordBudgetBytes = size_t(256) << 20;
+
+// The tap pyramid (method ssdo) and the senders' records of one frame, allocated once per
+// call, outside the per-pixel loops. The levels lie one below the other in one array of
+// rows of `width` texels: with H' = the height rounded up to a multiple of 2^(n_levels - 1),
+// level l has H' / 2^l rows from row 2 H' - 2 H' / 2^l on (its texels at the start of each
+// row), so that a tap's texel index is arithmetic, without a table per level.
+struct TapPyramid {
+  int width = 0;
+  int n_levels = 1;  // 1 = no pyramid (the oracle reads full resolution only)
+  int level_width[kMaxLevels] = {}, level_height[kMaxLevels] = {};
+  int64_t rows_2h = 0;  // 2 H'
+  UninitializedVector<TapTexel> taps;
+  UninitializedVector<SenderTexel> senders;  // row-major, width per row, every pixel
+
+  size_t level_row(int l, int y) const { return size_t(rows_2h - (rows_2h >> l) + y) * size_t(width); }
+};
 
 // Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {
-  // The pyramid's levels one below the other in one array of rows of width_px texels:
-  // with H' = the height rounded up to a multiple of 2^(n_levels - 1), level l has
-  // H' / 2^l rows from row 2 H' - 2 H' / 2^l on (its texels at the start of each row),
-  // so that a tap's texel index is arithmetic, without a table per level.
-  const TapTexel* pyramid;
-  int pyramid_rows_2h;         // 2 H'
-  int n_levels;                // 1 = no pyramid (the oracle reads full resolution only)
+  const TapTexel* pyramid;     // TapPyramid::taps
+  int pyramid_rows_2h;         // TapPyramid::rows_2h
+  int n_levels;
   const SenderTexel* senders;  // row-major, width_px per row
   const cv::Mat* depth;
   const cv::Mat* normal;
@@ -164,6 +178,11 @@ struct Constants {
   glm::mat3 env_from_view;  // = env_from_world * world_from_view (Camera::world_from_view_direction)
   float width_px, height_px;
   SsdoSettings s;
+  // The estimators the settings select, and d_min^2 of the form factor.
+  bool bent_normal;
+  bool control_variate;  // open_minus_occluded
+  bool form_factor;
+  float sender_distance_min2_world;
   // (cos, sin) of 2 pi a2 i for the samples i of the R2 sequence (a2 its second
   // generator): a pixel's azimuths 2 pi (shift_v + a2 i) are these rotated by 2 pi shift_v,
   // so the sample loop needs no trig (the fractional part the sequence takes does not
@@ -171,22 +190,11 @@ struct Constants {
   const float* azimuth_cos;
   const float* azimuth_sin;
 };
-
-// Orthonormal tangent frame about unit n (Duff et al. 2017, "Building an Orthonormal Basis,
-// Revisited", JCGT 6(1), listing 3).
-inline void tangent_frame(const glm::vec3& n, glm::vec3& t, glm::vec3& b) {
-  const float sign = std::copysign(1.0f, n.z);
-  const float a = -1.0f / (sign + n.z);
-  const float c = n.x * n.y * a;
-  t = glm::vec3(1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x);
-  b = glm::vec3(c, sign + n.y * n.y * a, -n.y);
-}
-
 // Cosine-distributed direction (pdf cos / pi) from (u, v) in [0, 1)^2 (Malley's method).
 inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const glm::vec3& b,
                                   const glm::vec3& n) {
   const float radius = std::sqrt(u);
-  const float phi = 2.0f * kPi * v;
+  const float phi = 2.0f * std::numbers::pi_v<float> * v;
   return t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u));
 }
 
@@ -308,234 +316,319 @@ inline float effective_radius(const Constants& c, float depth_view) {
   return std::min(c.s.radius_world, c.s.max_radius_px / ppu_max);
 }
 
+// A receiver P at pixel (x, y): its view-space position and normal and the radius r there.
+struct Receiver {
+  glm::vec3 p, n;
+  float r;
+};
+
+inline Receiver receiver_at(const Constants& c, int x, int y) {
+  const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
+  const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
+  return {p, n, effective_radius(c, c.depth->at<float>(y, x))};
+}
+
+// What the rays from a receiver share: the tangent frame (t, b, n), P in clip coordinates
+// and the pixel's centre.
+struct RayFrame {
+  glm::vec3 t, b;
+  glm::vec4 clip_p;
+  glm::vec2 origin_px;
+};
+
+inline RayFrame ray_frame(const Constants& c, const Receiver& rcv, int x, int y) {
+  RayFrame f;
+  sampling::orthonormal_basis(rcv.n, f.t, f.b);
+  f.clip_p = c.clip_from_view * glm::vec4(rcv.p, 1.0f);
+  f.origin_px = glm::vec2(float(x) + 0.5f, float(y) + 0.5f);
+  return f;
+}
+
+// The indirect light an occluded sample brings from its sender pixel q (P_q, n_q, L_q),
+// added to indirect_sum: L_q (solid angle), or L_q cos(theta_s) cos(theta_r) / max(d^2,
+// d_min^2) (form factor, paper eq. 2, its constant A_s / pi applied once per pixel).
+inline void add_sender(const Constants& c, const Receiver& rcv, const cv::Mat& sender_direct, int qx, int qy,
+                       glm::vec3& indirect_sum) {
+  const int width = int(c.width_px);
+  const SenderTexel& sender = c.senders[size_t(qy) * size_t(width) + size_t(qx)];
+  const glm::vec3& pq = sender.position_view;
+  const glm::vec3& nq = sender.normal_view;
+  const glm::vec3 to_receiver = rcv.p - pq;
+  const float d2 = glm::dot(to_receiver, to_receiver);
+  // A sender at P itself has no defined direction (a zero-area coincidence).
+  if (!(d2 > 0.0f)) return;
+  const float cos_s = glm::dot(nq, to_receiver);  // x d
+  if (!(cos_s > 0.0f)) return;                    // back-facing sender
+  if (c.form_factor) {
+    const float cos_r = -glm::dot(rcv.n, to_receiver);  // x d
+    if (!(cos_r > 0.0f)) return;
+    const float cos_cos = cos_s * cos_r / d2;
+    indirect_sum += sender_radiance(c, sender_direct, qx, qy) * (cos_cos / std::max(d2, c.sender_distance_min2_world));
+  } else {
+    indirect_sum += sender_radiance(c, sender_direct, qx, qy);
+  }
+}
+
+// A pixel's rotation of the R2 sequence (Cranley-Patterson shift (shift_u, shift_v)), with
+// cos and sin of the azimuth shift 2 pi shift_v.
+struct SampleShift {
+  float u, v;
+  float cos_v, sin_v;
+};
+
+inline SampleShift sample_shift(const Constants& c, int x, int y) {
+  SampleShift h;
+  h.u = noise01(x, y, 0, c.s.seed);
+  h.v = noise01(x, y, 1, c.s.seed);
+  sincos_turns(h.v, h.cos_v, h.sin_v);
+  return h;
+}
+
+// Up to kSampleBatch sample directions i = first + s: each direction's w and clip-space
+// direction, in arrays indexed by s so that the loops over directions vectorise, and per
+// point (index step x count + s) its distance lambda along w, depth, clip coordinates and
+// test result with its pixel.
+struct SampleBatch {
+  static constexpr int kPoints = kSampleBatch * kMaxSampleSteps;
+  int first, count;
+  float u_at[kSampleBatch], wx[kSampleBatch], wy[kSampleBatch], wz[kSampleBatch];
+  float cwx[kSampleBatch], cwy[kSampleBatch], cwz[kSampleBatch], cww[kSampleBatch];
+  float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
+  float lambda[kPoints], depth_s[kPoints];
+  float clip_x[kPoints], clip_y[kPoints];
+  float clip_w[kPoints];
+  Tap tap_at[kPoints];
+  int qx_at[kPoints], qy_at[kPoints];
+  float px_at[kPoints], py_at[kPoints];
+  int texel_at[kPoints];
+  int on_screen_at[kPoints];
+  TapTexel texels[kPoints];
+
+  glm::vec3 w(int s) const { return {wx[s], wy[s], wz[s]}; }
+  glm::vec4 clip_w_dir(int s) const { return {cwx[s], cwy[s], cwz[s], cww[s]}; }
+};
+
+// Sample directions (paper sec. 3.1): w_i cosine-distributed about n (pdf cos / pi, so
+// that the estimators of eq. 1 and 2 need no cos / pdf factor), from the R2 point i, and
+// the length m of the part of the radius each march covers.
+inline void sample_directions(const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleShift& shift,
+                              int x, int y, SampleBatch& b) {
+  for (int s = 0; s < b.count; ++s) {
+    float v;
+    r2_point(uint32_t(b.first + s), shift.u, shift.v, b.u_at[s], v);
+  }
+  const glm::mat4& m = c.clip_from_view;
+  const int steps = c.s.sample_steps;
+  for (int s = 0; s < b.count; ++s) {
+    const int i = b.first + s;
+    const float u = b.u_at[s];
+    // cosine_direction(u, v, t, b, n) with the azimuth 2 pi v by rotation (see Constants).
+    const float cos_phi = shift.cos_v * c.azimuth_cos[i] - shift.sin_v * c.azimuth_sin[i];
+    const float sin_phi = shift.sin_v * c.azimuth_cos[i] + shift.cos_v * c.azimuth_sin[i];
+    const float radius = std::sqrt(u);
+    const float along_t = radius * cos_phi, along_b = radius * sin_phi;
+    const float along_n = std::sqrt(std::max(0.0f, 1.0f - u));
+    b.wx[s] = f.t.x * along_t + f.b.x * along_b + rcv.n.x * along_n;
+    b.wy[s] = f.t.y * along_t + f.b.y * along_b + rcv.n.y * along_n;
+    b.wz[s] = f.t.z * along_t + f.b.z * along_b + rcv.n.z * along_n;
+    // clip_from_view * (w, 0), in glm's order of operations.
+    const glm::vec4 cw = (m[0] * b.wx[s] + m[1] * b.wy[s]) + (m[2] * b.wz[s] + m[3] * 0.0f);
+    b.cwx[s] = cw.x, b.cwy[s] = cw.y, b.cwz[s] = cw.z, b.cww[s] = cw.w;
+    // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
+    // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
+    // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
+    // occluder the ray meets anywhere within r is found (with the last point at
+    // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
+    // bias of the bounce of up to half against the oracle on the shared frames).
+    b.xi_at[s] = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
+    // The march covers the part of the radius that stays on screen: beyond the frame
+    // nothing can be tested, and a coarse step that leaps off screen would otherwise end
+    // the march before it tests an occluder at the frame's edge (walls that leave the
+    // frame, e.g.).
+    b.march_at[s] = rcv.r * on_screen_fraction(f.clip_p, cw, rcv.r);
+    b.denominator_at[s] = steps > 1 ? float(steps - 1) + b.xi_at[s] : 1.0f;
+  }
+}
+
+// The occlusion test (paper sec. 3.1: a point is occluded when it lies behind the depth
+// buffer) of every point of every direction of the batch, in four loops without branches:
+// the points, where they project (vectorises), their texels copied together (one 16-byte
+// read each), the tests (vectorises, reading the copies).
+inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame& f, SampleBatch& b) {
+  const int steps = c.s.sample_steps;
+  for (int j = 0; j < steps; ++j)
+    for (int s = 0; s < b.count; ++s) {
+      const int k = j * b.count + s;
+      b.lambda[k] = b.march_at[s] * (float(j) + b.xi_at[s]) / b.denominator_at[s];
+      b.depth_s[k] = -(rcv.p.z + b.lambda[k] * b.wz[s]);
+      b.clip_x[k] = f.clip_p.x + b.lambda[k] * b.cwx[s];
+      b.clip_y[k] = f.clip_p.y + b.lambda[k] * b.cwy[s];
+      b.clip_w[k] = f.clip_p.w + b.lambda[k] * b.cww[s];
+    }
+  const int points = b.count * steps;
+  for (int k = 0; k < points; ++k) {
+    const Projection q = project(c, f.origin_px, b.clip_x[k], b.clip_y[k], b.clip_w[k], false);
+    b.px_at[k] = q.px, b.py_at[k] = q.py, b.qx_at[k] = q.qx, b.qy_at[k] = q.qy;
+    b.texel_at[k] = q.texel;
+    b.on_screen_at[k] = int(q.on_screen);
+  }
+  for (int k = 0; k < points; ++k) b.texels[k] = c.pyramid[b.texel_at[k]];
+  for (int k = 0; k < points; ++k)
+    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, b.texels[k]);
+}
+
+// Bisection between lambda lo (in front of the depth buffer) and hi (behind it), on
+// full-resolution texels: sample_refinements halvings; each occluded midpoint becomes the
+// sample's occluder and sender (qx, qy). Both ends are on screen, so every point between is
+// (projection keeps segments convex).
+inline void bisect_entry(const Constants& c, const Receiver& rcv, const RayFrame& f, const glm::vec3& w,
+                         const glm::vec4& cw, float lo, float hi, Tap& tap, int& qx, int& qy) {
+  for (int h = 0; h < c.s.sample_refinements; ++h) {
+    const float mid = 0.5f * (lo + hi);
+    int mx = 0, my = 0;
+    const glm::vec4 clip = f.clip_p + mid * cw;
+    const Tap m = classify(c, f.origin_px, -(rcv.p + mid * w).z, clip.x, clip.y, clip.w, true, mx, my);
+    if (m == Tap::visible) {
+      lo = mid;
+      continue;
+    }
+    hi = mid;
+    if (m == Tap::occluded) {
+      tap = Tap::occluded;
+      qx = mx;
+      qy = my;
+    }
+  }
+}
+
+// The march of direction s of the batch: the first point behind the depth buffer within the
+// thickness decides; on `occluded`, (qx, qy) is the sender. Between two steps, bisection:
+// - after an occluded step, for the entry point (when locate_sender): the sender is the
+//   surface where w enters the occluder, not wherever a coarse step overshot to (an
+//   overshot point projects onto a face of the occluder that often faces away from P, which
+//   the back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
+// - after a step farther behind the surface than the thickness right after one in front:
+//   the ray crossed the stored surface in between, and the part within the thickness lies
+//   between the steps (large occluders seen face-on: deep inside, a point is farther than
+//   the thickness behind the front face the screen shows).
+inline Tap march_direction(const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleBatch& b, int s,
+                           bool locate_sender, int& qx, int& qy) {
+  const glm::vec3 w = b.w(s);
+  const glm::vec4 cw = b.clip_w_dir(s);
+  Tap tap = Tap::visible;
+  float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
+  bool after_front = true;
+  for (int j = 0; j < c.s.sample_steps && tap != Tap::occluded; ++j) {
+    const int k = j * b.count + s;
+    const Tap tj = b.tap_at[k];
+    if (tj == Tap::off_screen) break;
+    if (tj == Tap::visible) {
+      lambda_front = b.lambda[k];
+      after_front = true;
+      continue;
+    }
+    tap = tj;
+    qx = b.qx_at[k];
+    qy = b.qy_at[k];
+    if (tj == Tap::occluded ? locate_sender : after_front)
+      bisect_entry(c, rcv, f, w, cw, lambda_front, b.lambda[k], tap, qx, qy);
+    after_front = false;
+  }
+  return tap;
+}
+
+// A pixel's sums over its samples.
+struct SampleSums {
+  glm::vec3 direct{0.0f};    // per_sample: sum over visible w_i of L_env,filtered(w_i)
+  glm::vec3 bent{0.0f};      // bent_normal: sum of the visible w_i
+  glm::vec3 occluded{0.0f};  // open_minus_occluded: sum over occluded w_i of L_env,filtered(w_i)
+  glm::vec3 indirect{0.0f};  // sum over occluded w_i of the sender's light (add_sender)
+  int visible = 0;
+};
+
+// One sample's share: direct light from the environment through a visible w_i (paper
+// eq. 1), or through the occluded w_i for the control variate; indirect light from the
+// sender of an occluded w_i (eq. 2).
+inline void add_sample(const Constants& c, const Receiver& rcv, const cv::Mat& sender_direct, bool want_direct,
+                       bool want_indirect, const glm::vec3& w, bool occluded, int qx, int qy, SampleSums& sums) {
+  if (!occluded) {
+    if (want_direct) {
+      if (c.bent_normal) sums.bent += w;
+      else if (!c.control_variate) sums.direct += c.env->radiance_filtered_env(c.env_from_view * w);
+    }
+    ++sums.visible;
+    return;
+  }
+  if (want_direct && c.control_variate) sums.occluded += c.env->radiance_filtered_env(c.env_from_view * w);
+  if (want_indirect) add_sender(c, rcv, sender_direct, qx, qy, sums.indirect);
+}
+
+// direct = E / pi by the selected estimator (see ssdo.h) from a pixel's sums over N samples.
+inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, const SampleSums& sums, float inv_n) {
+  if (c.bent_normal) {
+    const float len = glm::length(sums.bent);
+    return len > 0.0f ? c.env->irradiance_over_pi_env(c.env_from_view * (sums.bent / len)) *
+                            (float(sums.visible) * inv_n)
+                      : glm::vec3(0.0f);
+  }
+  if (c.control_variate) {
+    // E_SH(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
+    // clamp removes negative values that noise can give where almost all is occluded.
+    return glm::max(c.env->irradiance_over_pi_env(c.env_from_view * rcv.n) - sums.occluded * inv_n, glm::vec3(0.0f));
+  }
+  return sums.direct * inv_n;
+}
+
 // One pixel of the SSDO estimator (method ssdo). want_direct / want_indirect select the
-// terms; sender_direct is the first pass (used only without `lighting`).
+// terms; sender_direct is the sender pass (used only without `lighting`).
 // record (may be null): receives, per sample, the sender's pixel index y W + x, or -1 when
 // the sample is visible. recorded (may be null): such a record from an earlier pass with
 // the same inputs and settings; the samples are then not marched again.
 void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
                 const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded,
                 glm::vec3& direct, glm::vec3& indirect) {
-  const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
-  const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
-  const float r = effective_radius(c, c.depth->at<float>(y, x));
+  const Receiver rcv = receiver_at(c, x, y);
   const int n_samples = c.s.samples;
-  const bool bent = c.s.direct_estimator == SsdoDirectEstimator::bent_normal;
-  const bool form_factor = c.s.indirect_estimator == SsdoIndirectEstimator::form_factor;
-  const float d_min2 = c.s.sender_distance_min_world * c.s.sender_distance_min_world;
-  const bool control_variate = c.s.direct_estimator == SsdoDirectEstimator::open_minus_occluded;
   const int width = int(c.width_px);
-
-  glm::vec3 direct_sum(0.0f), indirect_sum(0.0f), bent_sum(0.0f), occluded_sum(0.0f);
-  int visible = 0;
-  // The bounce of an occluded sample whose sender is pixel (qx, qy).
-  auto add_sender = [&](int qx, int qy) {
-    const SenderTexel& sender = c.senders[size_t(qy) * size_t(width) + size_t(qx)];
-    const glm::vec3& pq = sender.position_view;
-    const glm::vec3& nq = sender.normal_view;
-    const glm::vec3 to_receiver = p - pq;
-    const float d2 = glm::dot(to_receiver, to_receiver);
-    // A sender at P itself has no defined direction (a zero-area coincidence).
-    if (!(d2 > 0.0f)) return;
-    const float cos_s = glm::dot(nq, to_receiver);  // x d
-    if (!(cos_s > 0.0f)) return;                    // back-facing sender
-    if (form_factor) {
-      const float cos_r = -glm::dot(n, to_receiver);  // x d
-      if (!(cos_r > 0.0f)) return;
-      const float cos_cos = cos_s * cos_r / d2;
-      indirect_sum += sender_radiance(c, sender_direct, qx, qy) * (cos_cos / std::max(d2, d_min2));
-    } else {
-      indirect_sum += sender_radiance(c, sender_direct, qx, qy);
-    }
-  };
-
+  SampleSums sums;
   if (recorded) {
     for (int i = 0; i < n_samples; ++i)
-      if (recorded[i] >= 0 && want_indirect) add_sender(recorded[i] % width, recorded[i] / width);
+      if (recorded[i] >= 0 && want_indirect)
+        add_sender(c, rcv, sender_direct, recorded[i] % width, recorded[i] / width, sums.indirect);
   } else {
-    glm::vec3 t, b;
-    tangent_frame(n, t, b);
-    const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
-    const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
-    const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
-    float shift_c, shift_s;  // of the angle 2 pi shift_v
-    sincos_turns(shift_v, shift_c, shift_s);
-    const int steps = c.s.sample_steps;
-    const int refinements = c.s.sample_refinements;
-    // Per batch: each direction's w and clip-space direction, in arrays indexed by the
-    // direction s so that the loops over directions vectorise, and per point (index
-    // step x batch + s) its distance lambda along w, depth, clip coordinates and test
-    // result with its pixel.
-    float u_at[kSampleBatch], wx[kSampleBatch], wy[kSampleBatch], wz[kSampleBatch];
-    float cwx[kSampleBatch], cwy[kSampleBatch], cwz[kSampleBatch], cww[kSampleBatch];
-    float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
-    float lambda[kSampleBatch * kMaxSampleSteps], depth_s[kSampleBatch * kMaxSampleSteps];
-    float clip_x[kSampleBatch * kMaxSampleSteps], clip_y[kSampleBatch * kMaxSampleSteps];
-    float clip_w[kSampleBatch * kMaxSampleSteps];
-    Tap tap_at[kSampleBatch * kMaxSampleSteps];
-    int qx_at[kSampleBatch * kMaxSampleSteps], qy_at[kSampleBatch * kMaxSampleSteps];
-    float px_at[kSampleBatch * kMaxSampleSteps], py_at[kSampleBatch * kMaxSampleSteps];
-    int texel_at[kSampleBatch * kMaxSampleSteps];
-    int on_screen_at[kSampleBatch * kMaxSampleSteps];
-    TapTexel texels[kSampleBatch * kMaxSampleSteps];
-    const glm::mat4& m = c.clip_from_view;
+    const RayFrame f = ray_frame(c, rcv, x, y);
+    const SampleShift shift = sample_shift(c, x, y);
+    const bool locate_sender = want_indirect || record != nullptr;
+    SampleBatch b;
     for (int i0 = 0; i0 < n_samples; i0 += kSampleBatch) {
-      const int batch = std::min(kSampleBatch, n_samples - i0);
-      for (int s = 0; s < batch; ++s) {
-        float v;
-        r2_point(uint32_t(i0 + s), shift_u, shift_v, u_at[s], v);
-      }
-      for (int s = 0; s < batch; ++s) {
-        const int i = i0 + s;
-        const float u = u_at[s];
-        // cosine_direction(u, v, t, b, n) with the azimuth 2 pi v by rotation (see Constants).
-        const float cos_phi = shift_c * c.azimuth_cos[i] - shift_s * c.azimuth_sin[i];
-        const float sin_phi = shift_s * c.azimuth_cos[i] + shift_c * c.azimuth_sin[i];
-        const float radius = std::sqrt(u);
-        const float along_t = radius * cos_phi, along_b = radius * sin_phi;
-        const float along_n = std::sqrt(std::max(0.0f, 1.0f - u));
-        wx[s] = t.x * along_t + b.x * along_b + n.x * along_n;
-        wy[s] = t.y * along_t + b.y * along_b + n.y * along_n;
-        wz[s] = t.z * along_t + b.z * along_b + n.z * along_n;
-        // clip_from_view * (w, 0), in glm's order of operations.
-        const glm::vec4 cw = (m[0] * wx[s] + m[1] * wy[s]) + (m[2] * wz[s] + m[3] * 0.0f);
-        cwx[s] = cw.x, cwy[s] = cw.y, cwz[s] = cw.z, cww[s] = cw.w;
-        // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
-        // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
-        // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
-        // occluder the ray meets anywhere within r is found (with the last point at
-        // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
-        // bias of the bounce of up to half against the oracle on the shared frames).
-        xi_at[s] = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
-        // The march covers the part of the radius that stays on screen: beyond the frame
-        // nothing can be tested, and a coarse step that leaps off screen would otherwise end
-        // the march before it tests an occluder at the frame's edge (walls that leave the
-        // frame, e.g.).
-        march_at[s] = r * on_screen_fraction(clip_p, cw, r);
-        denominator_at[s] = steps > 1 ? float(steps - 1) + xi_at[s] : 1.0f;
-      }
-      for (int j = 0; j < steps; ++j)
-        for (int s = 0; s < batch; ++s) {
-          const int k = j * batch + s;
-          lambda[k] = march_at[s] * (float(j) + xi_at[s]) / denominator_at[s];
-          depth_s[k] = -(p.z + lambda[k] * wz[s]);
-          clip_x[k] = clip_p.x + lambda[k] * cwx[s];
-          clip_y[k] = clip_p.y + lambda[k] * cwy[s];
-          clip_w[k] = clip_p.w + lambda[k] * cww[s];
-        }
-      const int points = batch * steps;
-      // In three loops: where the points project (vectorises), their texels copied together
-      // (one 16-byte read each), the tests (vectorises, reading the copies).
-      for (int k = 0; k < points; ++k) {
-        const Projection q = project(c, origin_px, clip_x[k], clip_y[k], clip_w[k], false);
-        px_at[k] = q.px, py_at[k] = q.py, qx_at[k] = q.qx, qy_at[k] = q.qy;
-        texel_at[k] = q.texel;
-        on_screen_at[k] = int(q.on_screen);
-      }
-      for (int k = 0; k < points; ++k) texels[k] = c.pyramid[texel_at[k]];
-      for (int k = 0; k < points; ++k)
-        tap_at[k] = classify_at(c, depth_s[k], px_at[k], py_at[k], on_screen_at[k] != 0, texels[k]);
-
-      for (int s = 0; s < batch; ++s) {
-        const int i = i0 + s;
-        const glm::vec3 w(wx[s], wy[s], wz[s]);
-        const glm::vec4 cw(cwx[s], cwy[s], cwz[s], cww[s]);
-        // The first point behind the depth buffer within the thickness decides. Between
-        // two steps, bisection (sample_refinements halvings of the interval from the last
-        // point in front of the depth buffer):
-        // - after an occluded step, for the entry point: the sender is the surface where w
-        //   enters the occluder, not wherever a coarse step overshot to (an overshot point
-        //   projects onto a face of the occluder that often faces away from P, which the
-        //   back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
-        // - after a step farther behind the surface than the thickness right after one in
-        //   front: the ray crossed the stored surface in between, and the part within the
-        //   thickness lies between the steps (large occluders seen face-on: deep inside, a
-        //   point is farther than the thickness behind the front face the screen shows).
-        // Both ends are on screen, so every point between is (projection keeps segments convex).
-        Tap tap = Tap::visible;
+      b.first = i0;
+      b.count = std::min(kSampleBatch, n_samples - i0);
+      sample_directions(c, rcv, f, shift, x, y, b);
+      test_points(c, rcv, f, b);
+      for (int s = 0; s < b.count; ++s) {
         int qx = 0, qy = 0;
-        float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
-        bool after_front = true;
-        for (int j = 0; j < steps && tap != Tap::occluded; ++j) {
-          const int k = j * batch + s;
-          const Tap tj = tap_at[k];
-          if (tj == Tap::off_screen) break;
-          if (tj == Tap::visible) {
-            lambda_front = lambda[k];
-            after_front = true;
-            continue;
-          }
-          tap = tj;
-          qx = qx_at[k];
-          qy = qy_at[k];
-          if (tj == Tap::occluded ? (want_indirect || record != nullptr) : after_front) {
-            float lo = lambda_front, hi = lambda[k];
-            for (int h = 0; h < refinements; ++h) {
-              const float mid = 0.5f * (lo + hi);
-              int mx = 0, my = 0;
-              const glm::vec4 clip = clip_p + mid * cw;
-              const Tap m = classify(c, origin_px, -(p + mid * w).z, clip.x, clip.y, clip.w, true, mx, my);
-              if (m == Tap::visible) {
-                lo = mid;
-                continue;
-              }
-              hi = mid;
-              if (m == Tap::occluded) {
-                tap = Tap::occluded;
-                qx = mx;
-                qy = my;
-              }
-            }
-          }
-          after_front = false;
-        }
-        if (tap != Tap::occluded) {
-          if (want_direct) {
-            if (bent) bent_sum += w;
-            else if (!control_variate) direct_sum += c.env->radiance_filtered_env(c.env_from_view * w);
-          }
-          ++visible;
-          if (record) record[i] = -1;
-          continue;
-        }
-        if (record) record[i] = qy * width + qx;
-        if (want_direct && control_variate) occluded_sum += c.env->radiance_filtered_env(c.env_from_view * w);
-        if (want_indirect) add_sender(qx, qy);
+        const bool occluded = march_direction(c, rcv, f, b, s, locate_sender, qx, qy) == Tap::occluded;
+        if (record) record[i0 + s] = occluded ? qy * width + qx : -1;
+        add_sample(c, rcv, sender_direct, want_direct, want_indirect, b.w(s), occluded, qx, qy, sums);
       }
     }
   }
   const float inv_n = 1.0f / float(n_samples);
-  if (want_direct) {
-    if (bent) {
-      const float len = glm::length(bent_sum);
-      direct = len > 0.0f ? c.env->irradiance_over_pi_env(c.env_from_view * (bent_sum / len)) *
-                                (float(visible) * inv_n)
-                          : glm::vec3(0.0f);
-    } else if (control_variate) {
-      // E_SH(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
-      // clamp removes negative values that noise can give where almost all is occluded.
-      direct = glm::max(c.env->irradiance_over_pi_env(c.env_from_view * n) - occluded_sum * inv_n, glm::vec3(0.0f));
-    } else {
-      direct = direct_sum * inv_n;
-    }
-  }
+  if (want_direct) direct = direct_estimate(c, rcv, sums, inv_n);
   if (want_indirect) {
     // form factor: (A_s / pi) sum = (r^2 / N) sum; solid angle: (1 / N) sum.
-    const float scale = form_factor ? r * r * inv_n : inv_n;
-    indirect = indirect_sum * (scale * c.s.indirect_strength);
+    const float scale = c.form_factor ? rcv.r * rcv.r * inv_n : inv_n;
+    indirect = sums.indirect * (scale * c.s.indirect_strength);
   }
 }
 
 // One pixel of the oracle (method oracle).
 void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
                   const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
-  const glm::vec3 p = to_glm(c.position->at<cv::Vec3f>(y, x));
-  const glm::vec3 n = to_glm(c.normal->at<cv::Vec3f>(y, x));
-  const float r = effective_radius(c, c.depth->at<float>(y, x));
-  glm::vec3 t, b;
-  tangent_frame(n, t, b);
-  const glm::vec4 clip_p = c.clip_from_view * glm::vec4(p, 1.0f);
-  const glm::vec2 origin_px(float(x) + 0.5f, float(y) + 0.5f);
+  const Receiver rcv = receiver_at(c, x, y);
+  const glm::vec3& p = rcv.p;
+  const float r = rcv.r;
+  const RayFrame f = ray_frame(c, rcv, x, y);
   // Cranley-Patterson rotation of the stratified grid and of the step positions, per pixel.
   const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
   const float step_jitter = noise01(x, y, 2, c.s.seed);
@@ -549,15 +642,15 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
       float v = (float(bb) + 0.5f) / float(g) + shift_v;
       u -= std::floor(u);
       v -= std::floor(v);
-      const glm::vec3 w = cosine_direction(u, v, t, b, n);
+      const glm::vec3 w = cosine_direction(u, v, f.t, f.b, rcv.n);
       const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
       bool hit = false;
       int qx = 0, qy = 0;
       for (int k = 0; k < steps; ++k) {
         const float lambda = (float(k) + step_jitter) * step + 1e-7f * r;  // > 0 always
-        const glm::vec4 clip = clip_p + lambda * clip_w;
+        const glm::vec4 clip = f.clip_p + lambda * clip_w;
         if (!(clip.w > 0.0f)) break;
-        const Tap tap = classify(c, origin_px, -(p + lambda * w).z, clip.x, clip.y, clip.w, false, qx, qy);
+        const Tap tap = classify(c, f.origin_px, -(p + lambda * w).z, clip.x, clip.y, clip.w, false, qx, qy);
         if (tap == Tap::off_screen) break;
         if (tap == Tap::occluded) {
           hit = true;
@@ -585,6 +678,220 @@ void light_pixel(const Constants& c, int x, int y, bool want_direct, bool want_i
     oracle_pixel(c, x, y, want_direct, want_indirect, sender_direct, direct, indirect);
   else
     ssdo_pixel(c, x, y, want_direct, want_indirect, sender_direct, record, recorded, direct, indirect);
+}
+
+// The pyramid's levels (method ssdo only; the oracle is the full-resolution best case):
+// levels until one covers the largest tap distance (~2 max_radius_px: a sample point nearer
+// the camera than P projects farther out) or the image is one texel wide; the arrays
+// allocated, not written.
+TapPyramid allocate_tap_pyramid(cv::Size size, const SsdoSettings& settings) {
+  CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
+  TapPyramid p;
+  p.width = size.width;
+  p.level_width[0] = size.width;
+  p.level_height[0] = size.height;
+  const float max_rho_px = 2.0f * settings.max_radius_px;
+  while (settings.method == SsdoMethod::ssdo && p.n_levels < kMaxLevels &&
+         kMipStartPx * float(1 << (p.n_levels - 1)) < max_rho_px &&
+         (p.level_width[p.n_levels - 1] > 1 || p.level_height[p.n_levels - 1] > 1)) {
+    const int l = p.n_levels++;
+    p.level_width[l] = (p.level_width[l - 1] + 1) / 2;
+    p.level_height[l] = (p.level_height[l - 1] + 1) / 2;
+  }
+  const int64_t top_level_rows = (int64_t(size.height) + (1 << (p.n_levels - 1)) - 1) >> (p.n_levels - 1);
+  p.rows_2h = top_level_rows << p.n_levels;
+  const int64_t pyramid_rows = p.rows_2h - (p.rows_2h >> p.n_levels);
+  CV_Assert(pyramid_rows * size.width <= std::numeric_limits<int>::max());  // texel indices are int
+  // Not initialised: only the texels of each level are written, and only they are read.
+  p.taps.resize(size_t(pyramid_rows) * size_t(size.width));
+  p.senders.resize(size_t(size.area()));  // every element written by write_full_resolution
+  return p;
+}
+
+// Level 0 and the senders: each pixel's depth (+inf where nothing is), its position and
+// normal, and the screen gradients of 1 / depth of its tangent plane. Tangent plane
+// n . X = n . P of pixel q met by the eye ray through pixel (u, v), X = depth ray(u, v)
+// with ray(u, v) the view point at depth 1 (affine in u, v for a perspective camera):
+// 1 / depth = n . ray(u, v) / (n . P), so its gradients are n . ray_du / (n . P) and
+// n . ray_dv / (n . P).
+void write_full_resolution(const SsdoInputs& in, TapPyramid& p, int nthreads) {
+  const bool perspective = in.camera.is_perspective();
+  const glm::vec3 ray_00 = in.camera.view_from_pixel_depth({0.0f, 0.0f}, 1.0f);
+  const glm::vec3 ray_du = in.camera.view_from_pixel_depth({1.0f, 0.0f}, 1.0f) - ray_00;
+  const glm::vec3 ray_dv = in.camera.view_from_pixel_depth({0.0f, 1.0f}, 1.0f) - ray_00;
+  const int width = p.width;
+  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const uint8_t* m = in.mask.ptr<uint8_t>(y);
+      const float* d = in.depth_view.ptr<float>(y);
+      const cv::Vec3f* nrm = in.normal_view.ptr<cv::Vec3f>(y);
+      const cv::Vec3f* pos = in.position_view.ptr<cv::Vec3f>(y);
+      TapTexel* t = &p.taps[p.level_row(0, y)];
+      SenderTexel* snd = &p.senders[size_t(y) * size_t(width)];
+      for (int x = 0; x < width; ++x) {
+        snd[x].position_view = glm::vec3(pos[x][0], pos[x][1], pos[x][2]);
+        snd[x].normal_view = glm::vec3(nrm[x][0], nrm[x][1], nrm[x][2]);
+        const bool foreground = m[x] != 0 && d[x] > 0.0f && d[x] < std::numeric_limits<float>::infinity();
+        t[x].depth_view = foreground ? d[x] : std::numeric_limits<float>::infinity();
+        t[x].inv_depth_dx = t[x].inv_depth_dy = 0.0f;
+        t[x].source = uint32_t(x) | (uint32_t(y) << 16);
+        const float plane = glm::dot(snd[x].normal_view, snd[x].position_view);
+        // A plane through the eye (plane ~ 0) is seen edge-on: no usable gradient. The
+        // threshold is relative to the depth (|n . P| = depth x |cos| of the view angle),
+        // i.e. views within ~0.06 deg of grazing keep the centre depth.
+        if (foreground && perspective && std::abs(plane) > 1e-3f * d[x]) {
+          t[x].inv_depth_dx = glm::dot(snd[x].normal_view, ray_du) / plane;
+          t[x].inv_depth_dy = glm::dot(snd[x].normal_view, ray_dv) / plane;
+        }
+      }
+    }
+  });
+}
+
+// Level l > 0 from level l - 1: SAO's rotated grid, child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)),
+// clamped to the image.
+void write_coarse_levels(TapPyramid& p) {
+  for (int l = 1; l < p.n_levels; ++l)
+    for (int y = 0; y < p.level_height[l]; ++y) {
+      TapTexel* lt = &p.taps[p.level_row(l, y)];
+      for (int x = 0; x < p.level_width[l]; ++x) {
+        const int cx = std::min(2 * x + ((y & 1) ^ 1), p.level_width[l - 1] - 1);
+        const int cy = std::min(2 * y + ((x & 1) ^ 1), p.level_height[l - 1] - 1);
+        lt[x] = p.taps[p.level_row(l - 1, cy) + size_t(cx)];
+      }
+    }
+}
+
+// The tap pyramid of a frame (McGuire et al. 2012): level 0 from the G-buffer, then the
+// coarser levels.
+TapPyramid build_tap_pyramid(const SsdoInputs& in, const SsdoSettings& settings, int nthreads) {
+  TapPyramid p = allocate_tap_pyramid(in.depth_view.size(), settings);
+  write_full_resolution(in, p, nthreads);
+  write_coarse_levels(p);
+  return p;
+}
+
+// (cos, sin) of the R2 sequence's azimuths (Constants::azimuth_cos, azimuth_sin).
+struct SampleAzimuths {
+  std::vector<float> cos, sin;
+};
+
+SampleAzimuths sample_azimuths(int samples) {
+  SampleAzimuths a{std::vector<float>(size_t(samples)), std::vector<float>(size_t(samples))};
+  for (int i = 0; i < samples; ++i) {
+    constexpr double a2 = 0.5698402909980532;  // r2_point's second generator
+    const double angle = 2.0 * std::numbers::pi * (a2 * double(i) - std::floor(a2 * double(i)));
+    a.cos[size_t(i)] = float(std::cos(angle));
+    a.sin[size_t(i)] = float(std::sin(angle));
+  }
+  return a;
+}
+
+Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, const TapPyramid& p,
+                          const SampleAzimuths& azimuths) {
+  Constants c{};
+  c.pyramid = p.taps.data();
+  c.pyramid_rows_2h = int(p.rows_2h);
+  c.n_levels = p.n_levels;
+  c.senders = p.senders.data();
+  c.depth = &in.depth_view;
+  c.normal = &in.normal_view;
+  c.position = &in.position_view;
+  c.mask = &in.mask;
+  c.albedo = in.albedo && !in.albedo->empty() ? in.albedo : nullptr;
+  c.lighting = in.lighting && !in.lighting->empty() ? in.lighting : nullptr;
+  c.camera = &in.camera;
+  c.env = &in.environment;
+  c.clip_from_view = in.camera.view_to_clip;
+  c.env_from_view = in.environment.env_from_world_matrix() * glm::mat3(in.camera.view_to_world);
+  c.width_px = float(in.depth_view.cols);
+  c.height_px = float(in.depth_view.rows);
+  c.s = settings;
+  c.bent_normal = settings.direct_estimator == SsdoDirectEstimator::bent_normal;
+  c.control_variate = settings.direct_estimator == SsdoDirectEstimator::open_minus_occluded;
+  c.form_factor = settings.indirect_estimator == SsdoIndirectEstimator::form_factor;
+  c.sender_distance_min2_world = settings.sender_distance_min_world * settings.sender_distance_min_world;
+  c.azimuth_cos = azimuths.cos.data();
+  c.azimuth_sin = azimuths.sin.data();
+  return c;
+}
+
+// Each sample's sender from the sender pass (method ssdo, indirect wanted, no `lighting`),
+// so that the receiver pass need not march again: per pixel, per sample, the sender's
+// pixel index or -1 (ssdo_pixel). Empty when not wanted or over kRecordBudgetBytes.
+struct SenderRecord {
+  std::vector<int32_t> senders;
+  size_t width = 0, samples = 0;
+
+  int32_t* at(int x, int y) { return senders.empty() ? nullptr : &senders[offset(x, y)]; }
+  const int32_t* at(int x, int y) const { return senders.empty() ? nullptr : &senders[offset(x, y)]; }
+  size_t offset(int x, int y) const { return (size_t(y) * width + size_t(x)) * samples; }
+};
+
+SenderRecord sender_record(const Constants& c, cv::Size size, bool want_indirect) {
+  SenderRecord record;
+  record.width = size_t(size.width);
+  record.samples = size_t(c.s.samples);
+  const size_t record_size = size_t(size.area()) * size_t(c.s.samples);
+  if (want_indirect && !c.lighting && c.s.method == SsdoMethod::ssdo &&
+      record_size * sizeof(int32_t) <= kRecordBudgetBytes)
+    record.senders.resize(record_size);
+  return record;
+}
+
+// Sender pass (no `lighting`): direct light at every pixel, the senders' light
+// L_q = albedo_q x direct_q; method ssdo also records each sample's sender.
+void sender_pass(const Constants& c, SenderRecord& record, int nthreads, cv::Mat& sender_direct) {
+  const cv::Mat& mask = *c.mask;
+  const int width = mask.cols;
+  sender_direct.create(mask.size(), CV_32FC3);
+  parallel_rows(cv::Range(0, mask.rows), nthreads, [&](const cv::Range& rows) {
+    glm::vec3 direct(0.0f), unused(0.0f);
+    for (int x0 = 0; x0 < width; x0 += kTileWidthPx)
+      for (int y = rows.start; y < rows.end; ++y) {
+        const uint8_t* m = mask.ptr<uint8_t>(y);
+        cv::Vec3f* d = sender_direct.ptr<cv::Vec3f>(y);
+        for (int x = x0; x < std::min(x0 + kTileWidthPx, width); ++x) {
+          if (!m[x]) {
+            d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+            continue;
+          }
+          light_pixel(c, x, y, true, false, sender_direct, record.at(x, y), nullptr, direct, unused);
+          d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
+        }
+      }
+  }, kStripRows);
+}
+
+// Receiver pass over roi: direct (the sender pass's where there is one) and indirect at
+// every foreground pixel, 0 on background.
+void receiver_pass(const Constants& c, const cv::Mat& sender_direct, const SenderRecord& record, bool want_indirect,
+                   const cv::Rect& r, int nthreads, SsdoOutput& out) {
+  const cv::Mat& mask = *c.mask;
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int x0 = r.x; x0 < r.x + r.width; x0 += kTileWidthPx)
+      for (int y = rows.start; y < rows.end; ++y) {
+        const uint8_t* m = mask.ptr<uint8_t>(y);
+        cv::Vec3f* od = out.direct.ptr<cv::Vec3f>(y);
+        cv::Vec3f* oi = out.indirect.ptr<cv::Vec3f>(y);
+        for (int x = x0; x < std::min(x0 + kTileWidthPx, r.x + r.width); ++x) {
+          if (!m[x]) {
+            od[x] = oi[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
+            continue;
+          }
+          glm::vec3 direct(0.0f), indirect(0.0f);
+          if (!sender_direct.empty()) {
+            const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
+            direct = glm::vec3(d[0], d[1], d[2]);
+            light_pixel(c, x, y, false, true, sender_direct, nullptr, record.at(x, y), direct, indirect);
+          } else {
+            light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, direct, indirect);
+          }
+          od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
+          oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
+        }
+      }
+  }, kStripRows);
 }
 
 }  // namespace
@@ -629,162 +936,17 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
     return;
   }
 
-  // The packed per-pixel records the taps and senders read (allocated once per call,
-  // outside the per-pixel loops). Tangent plane n . X = n . P of pixel q met by the eye ray
-  // through pixel (u, v), X = depth ray(u, v) with ray(u, v) the view point at depth 1
-  // (affine in u, v for a perspective camera): 1 / depth = n . ray(u, v) / (n . P), so its
-  // gradients are n . ray_du / (n . P) and n . ray_dv / (n . P).
-  const bool perspective = in.camera.is_perspective();
-  const glm::vec3 ray_00 = in.camera.view_from_pixel_depth({0.0f, 0.0f}, 1.0f);
-  const glm::vec3 ray_du = in.camera.view_from_pixel_depth({1.0f, 0.0f}, 1.0f) - ray_00;
-  const glm::vec3 ray_dv = in.camera.view_from_pixel_depth({0.0f, 1.0f}, 1.0f) - ray_00;
-  // The pyramid (method ssdo only; the oracle is the full-resolution best case): levels
-  // until one covers the largest tap distance (~2 max_radius_px: a sample point nearer the
-  // camera than P projects farther out) or the image is one texel wide.
-  CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
-  Constants c{};
-  c.n_levels = 1;
-  int level_width[kMaxLevels] = {size.width}, level_height[kMaxLevels] = {size.height};
-  const float max_rho_px = 2.0f * settings.max_radius_px;
-  while (settings.method == SsdoMethod::ssdo && c.n_levels < kMaxLevels &&
-         kMipStartPx * float(1 << (c.n_levels - 1)) < max_rho_px &&
-         (level_width[c.n_levels - 1] > 1 || level_height[c.n_levels - 1] > 1)) {
-    const int l = c.n_levels++;
-    level_width[l] = (level_width[l - 1] + 1) / 2;
-    level_height[l] = (level_height[l - 1] + 1) / 2;
-  }
-  const int64_t top_level_rows = (int64_t(size.height) + (1 << (c.n_levels - 1)) - 1) >> (c.n_levels - 1);
-  const int64_t rows_2h = top_level_rows << c.n_levels;  // 2 H'
-  const int64_t pyramid_rows = rows_2h - (rows_2h >> c.n_levels);
-  CV_Assert(pyramid_rows * size.width <= std::numeric_limits<int>::max());  // texel indices are int
-  c.pyramid_rows_2h = int(rows_2h);
-  auto level_row = [&](int l, int y) { return size_t(rows_2h - (rows_2h >> l) + y) * size_t(size.width); };
-  // Not initialised: only the texels of each level are written, and only they are read.
-  UninitializedVector<TapTexel> taps(size_t(pyramid_rows) * size_t(size.width));
-  UninitializedVector<SenderTexel> senders(size_t(size.area()));  // every element written below
-  parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* m = in.mask.ptr<uint8_t>(y);
-      const float* d = in.depth_view.ptr<float>(y);
-      const cv::Vec3f* nrm = in.normal_view.ptr<cv::Vec3f>(y);
-      const cv::Vec3f* pos = in.position_view.ptr<cv::Vec3f>(y);
-      TapTexel* t = &taps[level_row(0, y)];
-      SenderTexel* snd = &senders[size_t(y) * size_t(size.width)];
-      for (int x = 0; x < size.width; ++x) {
-        snd[x].position_view = glm::vec3(pos[x][0], pos[x][1], pos[x][2]);
-        snd[x].normal_view = glm::vec3(nrm[x][0], nrm[x][1], nrm[x][2]);
-        const bool foreground = m[x] != 0 && d[x] > 0.0f && d[x] < std::numeric_limits<float>::infinity();
-        t[x].depth_view = foreground ? d[x] : std::numeric_limits<float>::infinity();
-        t[x].inv_depth_dx = t[x].inv_depth_dy = 0.0f;
-        t[x].source = uint32_t(x) | (uint32_t(y) << 16);
-        const float plane = glm::dot(snd[x].normal_view, snd[x].position_view);
-        // A plane through the eye (plane ~ 0) is seen edge-on: no usable gradient. The
-        // threshold is relative to the depth (|n . P| = depth x |cos| of the view angle),
-        // i.e. views within ~0.06 deg of grazing keep the centre depth.
-        if (foreground && perspective && std::abs(plane) > 1e-3f * d[x]) {
-          t[x].inv_depth_dx = glm::dot(snd[x].normal_view, ray_du) / plane;
-          t[x].inv_depth_dy = glm::dot(snd[x].normal_view, ray_dv) / plane;
-        }
-      }
-    }
-  });
-
-  // Level l > 0 from level l - 1: SAO's rotated grid, child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)),
-  // clamped to the image.
-  for (int l = 1; l < c.n_levels; ++l)
-    for (int y = 0; y < level_height[l]; ++y) {
-      TapTexel* lt = &taps[level_row(l, y)];
-      for (int x = 0; x < level_width[l]; ++x) {
-        const int cx = std::min(2 * x + ((y & 1) ^ 1), level_width[l - 1] - 1);
-        const int cy = std::min(2 * y + ((x & 1) ^ 1), level_height[l - 1] - 1);
-        lt[x] = taps[level_row(l - 1, cy) + size_t(cx)];
-      }
-    }
-  c.pyramid = taps.data();
-  c.senders = senders.data();
-  c.depth = &in.depth_view;
-  c.normal = &in.normal_view;
-  c.position = &in.position_view;
-  c.mask = &in.mask;
-  c.albedo = in.albedo && !in.albedo->empty() ? in.albedo : nullptr;
-  c.lighting = in.lighting && !in.lighting->empty() ? in.lighting : nullptr;
-  c.camera = &in.camera;
-  c.env = &in.environment;
-  c.clip_from_view = in.camera.view_to_clip;
-  c.env_from_view = in.environment.env_from_world_matrix() * glm::mat3(in.camera.view_to_world);
-  c.width_px = float(size.width);
-  c.height_px = float(size.height);
-  c.s = settings;
-  std::vector<float> azimuth_cos(size_t(settings.samples)), azimuth_sin(size_t(settings.samples));
-  for (int i = 0; i < settings.samples; ++i) {
-    constexpr double a2 = 0.5698402909980532;  // r2_point's second generator
-    const double a = 2.0 * 3.14159265358979323846 * (a2 * double(i) - std::floor(a2 * double(i)));
-    azimuth_cos[size_t(i)] = float(std::cos(a));
-    azimuth_sin[size_t(i)] = float(std::sin(a));
-  }
-  c.azimuth_cos = azimuth_cos.data();
-  c.azimuth_sin = azimuth_sin.data();
-
+  // Constants from the settings once, then the passes (Ritschel et al. 2009, sec. 3): the
+  // tap pyramid, the senders' direct light (when the frame has no `lighting`), the
+  // receivers' direct and indirect light.
+  const TapPyramid pyramid = build_tap_pyramid(in, settings, nthreads);
+  const SampleAzimuths azimuths = sample_azimuths(settings.samples);
+  const Constants c = frame_constants(in, settings, pyramid, azimuths);
   const bool want_indirect = settings.indirect_strength > 0.0f;
-  // First pass (no `lighting`): direct everywhere, the senders' light. Method ssdo also
-  // records each sample's sender so that the second pass need not march again, when the
-  // record fits the budget (N x 4 bytes per pixel; above it the second pass re-marches:
-  // same result, more time).
-  constexpr size_t kRecordBudgetBytes = size_t(256) << 20;
+  SenderRecord record = sender_record(c, size, want_indirect);
   cv::Mat sender_direct;
-  std::vector<int32_t> record;
-  const size_t record_size = size_t(size.area()) * size_t(settings.samples);
-  if (want_indirect && !c.lighting && settings.method == SsdoMethod::ssdo &&
-      record_size * sizeof(int32_t) <= kRecordBudgetBytes)
-    record.resize(record_size);
-  auto record_at = [&](int x, int y) -> int32_t* {
-    return record.empty() ? nullptr : &record[(size_t(y) * size_t(size.width) + size_t(x)) * size_t(settings.samples)];
-  };
-  if (want_indirect && !c.lighting) {
-    sender_direct.create(size, CV_32FC3);
-    parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
-      glm::vec3 direct(0.0f), unused(0.0f);
-      for (int x0 = 0; x0 < size.width; x0 += kTileWidthPx)
-        for (int y = rows.start; y < rows.end; ++y) {
-          const uint8_t* m = in.mask.ptr<uint8_t>(y);
-          cv::Vec3f* d = sender_direct.ptr<cv::Vec3f>(y);
-          for (int x = x0; x < std::min(x0 + kTileWidthPx, size.width); ++x) {
-            if (!m[x]) {
-              d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
-              continue;
-            }
-            light_pixel(c, x, y, true, false, sender_direct, record_at(x, y), nullptr, direct, unused);
-            d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
-          }
-        }
-    }, kStripRows);
-  }
-
-  const cv::Rect r = resolve_roi(roi, size);
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int x0 = r.x; x0 < r.x + r.width; x0 += kTileWidthPx)
-      for (int y = rows.start; y < rows.end; ++y) {
-        const uint8_t* m = in.mask.ptr<uint8_t>(y);
-        cv::Vec3f* od = out.direct.ptr<cv::Vec3f>(y);
-        cv::Vec3f* oi = out.indirect.ptr<cv::Vec3f>(y);
-        for (int x = x0; x < std::min(x0 + kTileWidthPx, r.x + r.width); ++x) {
-          if (!m[x]) {
-            od[x] = oi[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
-            continue;
-          }
-          glm::vec3 direct(0.0f), indirect(0.0f);
-          if (!sender_direct.empty()) {
-            const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
-            direct = glm::vec3(d[0], d[1], d[2]);
-            light_pixel(c, x, y, false, true, sender_direct, nullptr, record_at(x, y), direct, indirect);
-          } else {
-            light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, direct, indirect);
-          }
-          od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
-          oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
-        }
-      }
-  }, kStripRows);
+  if (want_indirect && !c.lighting) sender_pass(c, record, nthreads, sender_direct);
+  receiver_pass(c, sender_direct, record, want_indirect, resolve_roi(roi, size), nthreads, out);
 }
 
 }  // namespace ssdo
