@@ -226,8 +226,8 @@ void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const Upsa
   }
 }
 
-// Rows per strip of the upsample: a strip lays out each texel row it reads
-// once (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
+// Rows per strip of the upsample: a strip lays out each texel row it reads once
+// (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
 constexpr int kRowsPerStrip = 16;
 
 #ifdef SSDO_HALF_RESOLUTION_AVX2

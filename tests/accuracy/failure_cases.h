@@ -358,7 +358,7 @@ inline cv::Mat confidence_of(const Frame& f, const AoSettings& s) {
   cs.max_radius_px = s.max_radius_px;
   cv::Mat c;
   compute_confidence_at_resolution(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs, c,
-                     {}, 0);
+                                   {}, 0);
   return c;
 }
 

@@ -330,9 +330,9 @@ TEST(Confidence, OpenPlaneIsObservedAndThreadCountIndependent) {
   cs.radius_world = s.radius_world;
   cv::Mat serial, parallel;
   compute_confidence_at_resolution(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs,
-                     serial, {}, 1);
+                                   serial, {}, 1);
   compute_confidence_at_resolution(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs,
-                     parallel, {}, 4);
+                                   parallel, {}, 4);
   EXPECT_EQ(cv::norm(serial, parallel, cv::NORM_INF), 0.0);
   // At the border about half of the disk is off screen.
   double border = 0;

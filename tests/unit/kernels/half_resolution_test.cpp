@@ -275,18 +275,20 @@ TEST(HalfResolution, TexelPositionsFromDepthGiveTheBitsOfFullResolutionPositions
 
   const AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
   AoOutput with_positions, without_positions;
-  compute_ao_at_resolution({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, ao_settings, with_positions, {}, 2);
-  compute_ao_at_resolution({g.depth_view, g.normal_view, none, g.mask, g.camera}, ao_settings, without_positions, {}, 2);
+  compute_ao_at_resolution({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, ao_settings, with_positions,
+                           {}, 2);
+  compute_ao_at_resolution({g.depth_view, g.normal_view, none, g.mask, g.camera}, ao_settings, without_positions,
+                           {}, 2);
   EXPECT_EQ(cv::norm(with_positions.ao, without_positions.ao, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(with_positions.bent_normal_view, without_positions.bent_normal_view, cv::NORM_INF), 0.0);
 
   const Environment sky = Environment::sky(SkyGradient{});
   const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
   SsdoOutput lit_with, lit_without;
-  compute_ssdo_at_resolution({g.depth_view, g.normal_view, from_depth, g.mask, g.camera, sky, &g.albedo}, ssdo_settings, lit_with,
-               {}, 2);
-  compute_ssdo_at_resolution({g.depth_view, g.normal_view, none, g.mask, g.camera, sky, &g.albedo}, ssdo_settings, lit_without, {},
-               2);
+  compute_ssdo_at_resolution({g.depth_view, g.normal_view, from_depth, g.mask, g.camera, sky, &g.albedo},
+                             ssdo_settings, lit_with, {}, 2);
+  compute_ssdo_at_resolution({g.depth_view, g.normal_view, none, g.mask, g.camera, sky, &g.albedo},
+                             ssdo_settings, lit_without, {}, 2);
   EXPECT_EQ(cv::norm(lit_with.direct, lit_without.direct, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(lit_with.indirect, lit_without.indirect, cv::NORM_INF), 0.0);
   EXPECT_GT(cv::mean(lit_with.indirect)[0], 0.0);
