@@ -54,6 +54,10 @@ void run_parallel_for(const cv::Range& rows, const std::function<void(const cv::
 
 }  // namespace
 
+void set_thread_budget(int threads) {
+  if (threads > 0) cv::setNumThreads(threads);
+}
+
 cv::Rect resolve_roi(const cv::Rect& roi, cv::Size image) {
   if (roi.width <= 0 || roi.height <= 0) return {0, 0, image.width, image.height};
   return roi & cv::Rect(0, 0, image.width, image.height);
@@ -87,18 +91,11 @@ void parallel_rows(const cv::Range& rows, int nthreads,
   const int pool = nthreads > 1 ? std::min(nthreads, cv::getNumThreads()) : cv::getNumThreads();
   const int workers = std::max(1, std::min(pool, n_strips));
   std::atomic<int> next{0};
+  // One task per worker, each taking strips until none is left: at most `workers` threads
+  // of the pool run this call.
   const std::function<void(const cv::Range&)> take_strips = [&](const cv::Range&) {
     for (int i = next.fetch_add(1); i < n_strips; i = next.fetch_add(1)) body(strip(i));
   };
-  if (nthreads > 1) {
-    const int previous = cv::getNumThreads();
-    if (previous > nthreads) {
-      cv::setNumThreads(nthreads);
-      run_parallel_for(cv::Range(0, workers), take_strips, workers);
-      cv::setNumThreads(previous);
-      return;
-    }
-  }
   run_parallel_for(cv::Range(0, workers), take_strips, workers);
 }
 

@@ -5,6 +5,9 @@
 // OpenCV runs a nested or concurrent second parallel_for_ serially (a process-wide
 // flag), so the caller decides where parallelism lives: inside a frame (nthreads != 1)
 // or across frames (nthreads = 1 per frame). Results never depend on the split.
+//
+// The pool's size is a property of the process, set once where it starts (a worker, a
+// command: set_thread_budget); parallel_rows never changes it.
 #pragma once
 
 #include <functional>
@@ -13,12 +16,18 @@
 
 namespace ssdo {
 
+// Sizes OpenCV's pool for the whole process: threads > 0 = that many (1 = no pool: every
+// parallel_rows runs in its caller), 0 = OpenCV's default (every core). Call once, before
+// any parallel_rows, from the thread that starts the work.
+void set_thread_budget(int threads);
+
 // Rows of `roi` to process; an empty roi means the whole image of the given size.
 cv::Rect resolve_roi(const cv::Rect& roi, cv::Size image);
 
 // Runs body(rows) over strips covering [rows.start, rows.end).
-// nthreads: 1 = serially in the calling thread; 0 = OpenCV's thread pool as configured
-// (cv::setNumThreads); N > 1 = the pool, with at most N threads used for this call.
+// nthreads: 1 = serially in the calling thread; 0 = the pool as configured
+// (set_thread_budget); N > 1 = the pool, with at most N of its threads used for this call
+// (at most N strips in flight).
 // rows_per_strip: the strip height, >= 1 (independent of the thread count, so the split
 // never depends on it); small strips balance uneven rows, tiled kernels ask for their
 // tile height so that a tile's halo is read once per tile. The threads take the strips in

@@ -2,13 +2,10 @@
 
 #include "kernels/settings_check.h"
 
-#include <algorithm>
 #include <cmath>
 #include <limits>
-#include <vector>
 
 #include "kernels/ao_methods.h"
-#include "kernels/half_resolution.h"
 #include "core/parallel.h"
 
 namespace ssdo {
@@ -133,10 +130,8 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == in.depth_view.size());
+  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == in.depth_view.size());
   CV_Assert(validate(settings).empty());
-  // Positions may be omitted when the settings run on the half grid (which has its own).
-  CV_Assert((in.position_view.empty() && runs_on_half_grid(settings)) ||
-            (in.position_view.type() == CV_32FC3 && in.position_view.size() == in.depth_view.size()));
   AoSettings s = settings;
   s.thickness_world = effective_thickness_world(settings);
   const cv::Size size = in.depth_view.size();
@@ -147,44 +142,7 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   if (!has_bent_normal) out.bent_normal_view.release();
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
-  if (!runs_on_half_grid(s)) {
-    dispatch(in, s, out, r, nthreads);
-    return;
-  }
-  // Half grid (kernels/half_resolution.h), then the depth- and normal-aware upsample.
-  const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
-  HalfGrid own;
-  const HalfGrid& h = shared_or_own_half_grid(full, in.half_grid, own, true, nthreads);
-  cv::Mat half_albedo;
-  // Only multi-bounce reads albedo (every method).
-  if (settings.multibounce && in.albedo != nullptr && !in.albedo->empty())
-    sample_at_texels(h, *in.albedo, half_albedo, nthreads);
-  const AoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
-                         half_albedo.empty() ? nullptr : &half_albedo};
-  AoOutput half_out;
-  half_out.ao.create(h.depth_view.size(), CV_32FC1);
-  if (has_bent_normal) half_out.bent_normal_view.create(h.depth_view.size(), CV_32FC3);
-  dispatch(half_in, s, half_out, half_grid_roi(r, size), nthreads);
-  // No foreground texel near: nothing known, unoccluded (AO 1, bent normal = the normal,
-  // set below from the zero fallback).
-  std::vector<UpsampleImage> images{{half_out.ao, out.ao, cv::Scalar(1.0), cv::Scalar(1.0)}};
-  if (has_bent_normal) images.push_back({half_out.bent_normal_view, out.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)});
-  upsample_from_half_grid(full, h, images, r, nthreads);
-  // A weighted mean of AO values stays in [0, 1] up to rounding; of unit bent normals it
-  // is shorter than 1: renormalised (zero length: the pixel's normal).
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      float* ao_row = out.ao.ptr<float>(y);
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        ao_row[x] = std::clamp(ao_row[x], 0.0f, 1.0f);
-        if (!has_bent_normal || !mask_row[x]) continue;
-        cv::Vec3f& b = out.bent_normal_view.ptr<cv::Vec3f>(y)[x];
-        const float len = float(cv::norm(b));
-        b = len > 1e-12f ? b * (1.0f / len) : in.normal_view.ptr<cv::Vec3f>(y)[x];
-      }
-    }
-  });
+  dispatch(in, s, out, r, nthreads);
 }
 
 }  // namespace ssdo

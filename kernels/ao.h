@@ -18,8 +18,6 @@
 
 namespace ssdo {
 
-struct HalfGrid;  // kernels/half_resolution.h
-
 enum class AoMethod { hemisphere, hbao, gtao, raymarch };
 enum class Preset { low, medium, high, ultra };
 
@@ -66,7 +64,8 @@ struct AoSettings {
   // round to 4.9e-4 of the value, the default 1e-3 covers that twice).
   float depth_bias_relative = 1e-3f;
   // Grid the method runs on, [1, 2]: 1 = every pixel; 2 = one pixel of each 2x2 block
-  // (a quarter of the work), then a depth- and normal-aware upsample to full resolution.
+  // (a quarter of the work), then a depth- and normal-aware upsample to full resolution
+  // (compute_terms, kernels/half_resolution.h; compute_ao itself runs on the grid it gets).
   // AO varies at the scale of the radius, usually many pixels, so half resolution loses
   // little away from thin features (measured in the settings' tests and the benchmarks).
   int resolution_divisor = 1;
@@ -101,9 +100,7 @@ std::string validate(const AoSettings& s);
 struct AoInputs {
   const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
   const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals
-  // CV_32FC3 view-space positions (view_positions_from_depth); may be empty when the
-  // settings run on the half grid (its texels' positions are computed from depth).
-  const cv::Mat& position_view;
+  const cv::Mat& position_view;  // CV_32FC3 view-space positions (view_positions_from_depth)
   const cv::Mat& mask;           // CV_8UC1, 255 = foreground
   const Camera& camera;
   const cv::Mat* albedo = nullptr;  // CV_32FC3 or null (multi-bounce only)
@@ -112,10 +109,6 @@ struct AoInputs {
   // resolution) take each tap's own thickness depth_back_view - depth_view instead of
   // thickness_world (+inf back = solid behind).
   const cv::Mat* depth_back_view = nullptr;
-  // The frame's half-resolution grid, built from these inputs (build_half_grid with
-  // positions, and build_upsample_weights over the roi), when the kernels of one frame
-  // share it; null: built here when the settings run at half resolution.
-  const HalfGrid* half_grid = nullptr;
 };
 
 struct AoOutput {
@@ -124,8 +117,9 @@ struct AoOutput {
                              // method has none; (0,0,0) on background
 };
 
-// Computes AO for the pixels of `roi` (empty = all) with the method in settings.
-// Output images are allocated at the input size when empty; only roi is written.
+// Computes AO for the pixels of `roi` (empty = all) with the method in settings, on the
+// grid of the inputs (resolution_divisor is compute_terms' to apply). Output images are
+// allocated at the input size when empty; only roi is written.
 void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out,
                 cv::Rect roi = {}, int nthreads = 0);
 

@@ -18,7 +18,6 @@
 #include <string>
 #include <vector>
 
-#include "kernels/half_resolution.h"
 #include "kernels/noise.h"
 #include "core/parallel.h"
 #include "core/uninitialized.h"
@@ -369,10 +368,12 @@ std::string validate(const ConfidenceSettings& s) {
   return {};
 }
 
+bool runs_on_half_grid(const ConfidenceSettings& s) { return s.resolution_divisor == 2; }
+
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
-                        int nthreads, const HalfGrid* half_grid) {
+                        int nthreads) {
   CV_Assert(validate(s).empty());
   CV_Assert(depth_view.type() == CV_32FC1);
   const cv::Size size = depth_view.size();
@@ -383,21 +384,6 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     confidence.create(size, CV_32FC1);
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
-  if (s.resolution_divisor == 2) {
-    const cv::Mat no_positions;
-    const FullGrid full{depth_view, normal_view, no_positions, mask, camera};
-    HalfGrid own;
-    const HalfGrid& h = shared_or_own_half_grid(full, half_grid, own, false, nthreads);
-    ConfidenceSettings half_settings = s;
-    half_settings.resolution_divisor = 1;
-    cv::Mat half_confidence;
-    compute_confidence(h.depth_view, h.normal_view, h.mask, h.camera, half_settings, half_confidence,
-                       half_grid_roi(r, size), nthreads);
-    // Background and pixels with no foreground texel near: 1, as on background.
-    const UpsampleImage images[] = {{half_confidence, confidence, cv::Scalar(1.0), cv::Scalar(1.0)}};
-    upsample_from_half_grid(full, h, images, r, nthreads);
-    return;
-  }
   const Spiral spiral = vogel_spiral(s.taps);
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
   const TapFrame taps{make_ray_map(camera), spiral.x.data(), spiral.y.data(), s.taps,

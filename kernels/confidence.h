@@ -26,8 +26,6 @@
 
 namespace ssdo {
 
-struct HalfGrid;  // kernels/half_resolution.h
-
 struct ConfidenceSettings {
   // Radius of the sampled neighbourhood, scene units, (0, inf): the estimator's radius
   // (AoSettings::radius_world or SsdoSettings::radius_world).
@@ -44,10 +42,13 @@ struct ConfidenceSettings {
   float depth_bias_relative = 1e-3f;
   uint32_t seed = 0;  // per-pixel rotation of the tap pattern
   // 2 (default) = computed on the half-resolution grid and upsampled depth- and
-  // normal-aware (kernels/half_resolution.h): the confidence varies over the scale of the
-  // radius, not of a pixel, and a quarter of the taps suffice; 1 = every pixel.
+  // normal-aware (compute_terms, kernels/half_resolution.h): the confidence varies over the
+  // scale of the radius, not of a pixel, and a quarter of the taps suffice; 1 = every pixel.
   int resolution_divisor = 2;
 };
+
+// The confidence runs on the half-resolution grid (resolution_divisor 2).
+bool runs_on_half_grid(const ConfidenceSettings& s);
 
 // Empty when valid, else what is wrong (field, value, range).
 std::string validate(const ConfidenceSettings& s);
@@ -55,12 +56,11 @@ std::string validate(const ConfidenceSettings& s);
 // Writes confidence (CV_32FC1 in [0, 1], allocated at the input size when empty or of the
 // wrong size; only roi, empty = all, is written). depth_view CV_32FC1 planar depth (+inf on
 // background), normal_view CV_32FC3 unit view-space normals facing the camera, mask CV_8UC1
-// (255 = foreground). Deterministic: the same bytes for any thread count. half_grid: the
-// frame's half-resolution grid of these guides, shared with other kernels of the frame
-// (AoInputs::half_grid), or null (built here when the settings run at half resolution).
+// (255 = foreground). Deterministic: the same bytes for any thread count. Computed on the
+// grid of the inputs (resolution_divisor is compute_terms' to apply).
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& settings, cv::Mat& confidence,
-                        cv::Rect roi = {}, int nthreads = 0, const HalfGrid* half_grid = nullptr);
+                        cv::Rect roi = {}, int nthreads = 0);
 
 }  // namespace ssdo

@@ -16,6 +16,7 @@ extern "C" __m256 _ZGVdN8v_expf(__m256 x);
 #endif
 
 #include "core/parallel.h"
+#include "kernels/positions.h"
 
 namespace ssdo {
 
@@ -50,8 +51,7 @@ void write_scalar(float* dst, const cv::Scalar& v, int channels) {
 
 }  // namespace
 
-void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& h,
-                     int nthreads, bool with_positions) {
+void build_half_grid(const FullGrid& full, HalfGrid& h, int nthreads, bool with_positions) {
   const cv::Size size = full.depth_view.size();
   const cv::Size half((size.width + 1) / 2, (size.height + 1) / 2);
   h.depth_view.create(half, CV_32FC1);
@@ -63,10 +63,6 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
   else h.position_view.release();
   h.mask.create(half, CV_8UC1);
   h.source.create(half, CV_32SC2);
-  h.extras.assign(extras.size(), cv::Mat());
-  for (const cv::Mat* e : extras) CV_Assert(!e || e->empty() || (e->depth() == CV_32F && e->size() == size));
-  h.upsample_weights.release();
-  h.upsample_roi = {};
   h.camera = full.camera;
   h.camera.width_px = half.width;
   h.camera.height_px = half.height;
@@ -98,20 +94,6 @@ void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extra
         }
       }
   });
-  for (size_t e = 0; e < extras.size(); ++e)
-    if (extras[e] && !extras[e]->empty()) sample_at_texels(h, *extras[e], h.extras[e], nthreads);
-}
-
-const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* shared, HalfGrid& own,
-                                        bool need_positions, int nthreads) {
-  if (shared == nullptr) {
-    build_half_grid(full, {}, own, nthreads, need_positions);
-    return own;
-  }
-  const cv::Size size = full.depth_view.size();
-  CV_Assert(shared->depth_view.size() == cv::Size((size.width + 1) / 2, (size.height + 1) / 2));
-  CV_Assert(!need_positions || !shared->position_view.empty());
-  return *shared;
 }
 
 cv::Rect half_grid_roi(const cv::Rect& r, const cv::Size& size) {
@@ -199,23 +181,6 @@ inline void blend_any(const cv::Mat& half, const Footprint& f, const float w[4],
     default: blend<4>(half, f, w, wsum, out); break;
   }
 }
-// Weights of the pixels [x0, x1) of row y (`fy` its row footprint) into out[x0 .. x1), as
-// texel_weights, 0 on background pixels.
-void weights_span(const FullGrid& full, const HalfGrid& h, int y, const AxisFootprint& fy, int x0, int x1,
-                  cv::Vec4f* out) {
-  const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
-  Footprint f;
-  f.y = fy;
-  for (int x = x0; x < x1; ++x) {
-    if (!mask_row[x]) {
-      out[x] = cv::Vec4f(0, 0, 0, 0);
-      continue;
-    }
-    f.x = axis_footprint(x, h.depth_view.cols);
-    texel_weights(h, f, full.depth_view.ptr<float>(y)[x], full.normal_view.ptr<cv::Vec3f>(y)[x], &out[x][0]);
-  }
-}
-
 // Foreground pixel (x, y) of depth d and texel weights w of every image: the normalised
 // blend, or the texel closest in depth, or the fallback (header).
 void upsample_pixel(const HalfGrid& h, std::span<const UpsampleImage> images, const Footprint& f, float d,
@@ -240,9 +205,9 @@ void upsample_pixel(const HalfGrid& h, std::span<const UpsampleImage> images, co
     blend_any(im.half, f, w, wsum, im.full.ptr<float>(y) + size_t(x) * size_t(im.half.channels()));
 }
 
-// Pixels [x0, x1) of row y of every image; `kept_row` the row of kept weights or null.
-void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
-                   const cv::Vec4f* kept_row, int y, const AxisFootprint& fy, int x0, int x1) {
+// Pixels [x0, x1) of row y of every image.
+void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images, int y,
+                   const AxisFootprint& fy, int x0, int x1) {
   const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
   Footprint f;
   f.y = fy;
@@ -256,14 +221,13 @@ void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const Upsa
     const float d = full.depth_view.ptr<float>(y)[x];
     f.x = axis_footprint(x, h.depth_view.cols);
     float w[4];
-    if (kept_row != nullptr) std::copy_n(&kept_row[x][0], 4, w);
-    else texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
+    texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
     upsample_pixel(h, images, f, d, w, x, y);
   }
 }
 
-// Rows per strip of the weights and the upsample: a strip lays out each texel row it reads
-// once (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
+// Rows per strip of the upsample: a strip lays out each texel row it reads once
+// (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
 constexpr int kRowsPerStrip = 16;
 
 #ifdef SSDO_HALF_RESOLUTION_AVX2
@@ -295,33 +259,6 @@ inline void interleave_3(__m256 x, __m256 y, __m256 z, float* p) {
   _mm256_storeu_ps(p + 16, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b01001001), z, 0b10010010));
 }
 
-// The 4 weights of 8 pixels, stored as 8 cv::Vec4f and back.
-inline void store_weights(const __m256 w[4], cv::Vec4f* out) {
-  const __m256 t0 = _mm256_unpacklo_ps(w[0], w[1]), t1 = _mm256_unpackhi_ps(w[0], w[1]);
-  const __m256 t2 = _mm256_unpacklo_ps(w[2], w[3]), t3 = _mm256_unpackhi_ps(w[2], w[3]);
-  const __m256 p04 = _mm256_shuffle_ps(t0, t2, 0x44), p15 = _mm256_shuffle_ps(t0, t2, 0xEE);
-  const __m256 p26 = _mm256_shuffle_ps(t1, t3, 0x44), p37 = _mm256_shuffle_ps(t1, t3, 0xEE);
-  float* p = &out[0][0];
-  _mm256_storeu_ps(p, _mm256_permute2f128_ps(p04, p15, 0x20));
-  _mm256_storeu_ps(p + 8, _mm256_permute2f128_ps(p26, p37, 0x20));
-  _mm256_storeu_ps(p + 16, _mm256_permute2f128_ps(p04, p15, 0x31));
-  _mm256_storeu_ps(p + 24, _mm256_permute2f128_ps(p26, p37, 0x31));
-}
-
-inline void load_weights(const cv::Vec4f* in, __m256 w[4]) {
-  const float* p = &in[0][0];
-  const __m256 q01 = _mm256_loadu_ps(p), q23 = _mm256_loadu_ps(p + 8);
-  const __m256 q45 = _mm256_loadu_ps(p + 16), q67 = _mm256_loadu_ps(p + 24);
-  const __m256 p04 = _mm256_permute2f128_ps(q01, q45, 0x20), p15 = _mm256_permute2f128_ps(q01, q45, 0x31);
-  const __m256 p26 = _mm256_permute2f128_ps(q23, q67, 0x20), p37 = _mm256_permute2f128_ps(q23, q67, 0x31);
-  const __m256 t0 = _mm256_unpacklo_ps(p04, p15), t1 = _mm256_unpackhi_ps(p04, p15);
-  const __m256 t2 = _mm256_unpacklo_ps(p26, p37), t3 = _mm256_unpackhi_ps(p26, p37);
-  w[0] = _mm256_shuffle_ps(t0, t2, 0x44);
-  w[1] = _mm256_shuffle_ps(t0, t2, 0xEE);
-  w[2] = _mm256_shuffle_ps(t1, t3, 0x44);
-  w[3] = _mm256_shuffle_ps(t1, t3, 0xEE);
-}
-
 // All-ones lanes where the 8 mask bytes are nonzero.
 inline __m256 foreground(const uint8_t* mask) {
   const __m256i m = _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mask)));
@@ -329,7 +266,7 @@ inline __m256 foreground(const uint8_t* mask) {
 }
 
 // Texel rows of the half grid laid out for 8 pixels at a time: per row, one array per
-// quantity (when asked, the depth, the normal's x, y, z and the mask as all-ones or zero
+// quantity (the depth, the normal's x, y, z and the mask as all-ones or zero
 // bits; then each image's channels), indexed by texel column + 1, the edge texels repeated
 // at 0 and hw + 1 (axis_footprint's clamp). The texels of pixels x .. x + 7 are then lanes
 // 0 .. 4 of each array from m + 1, and a strip fills each row it reads once.
@@ -337,9 +274,9 @@ class TexelRows {
  public:
   static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kMask = 4;
 
-  TexelRows(const HalfGrid& h, bool geometry, std::span<const UpsampleImage> images)
-      : h_(h), images_(images), geometry_(geometry), hw_(h.depth_view.cols), length_(hw_ + 2 + 8) {
-    int arrays = geometry ? 5 : 0;
+  TexelRows(const HalfGrid& h, std::span<const UpsampleImage> images)
+      : h_(h), images_(images), hw_(h.depth_view.cols), length_(hw_ + 2 + 8) {
+    int arrays = kMask + 1;
     for (const UpsampleImage& im : images) {
       image_first_.push_back(arrays);
       arrays += im.half.channels();
@@ -373,16 +310,14 @@ class TexelRows {
 
   void fill(int s, int j) {
     float* base = slot(s);
-    if (geometry_) {
-      fill_array(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
-      const float* n = h_.normal_view.ptr<float>(j);
-      for (int c = 0; c < 3; ++c) fill_array(base + (kNormalX + c) * length_, n + c, 3);
-      const uint8_t* m = h_.mask.ptr<uint8_t>(j);
-      float* a = base + kMask * length_;
-      for (int i = 0; i < hw_; ++i) a[i + 1] = std::bit_cast<float>(m[i] ? ~uint32_t(0) : uint32_t(0));
-      a[0] = a[1];
-      a[hw_ + 1] = a[hw_];
-    }
+    fill_array(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
+    const float* n = h_.normal_view.ptr<float>(j);
+    for (int c = 0; c < 3; ++c) fill_array(base + (kNormalX + c) * length_, n + c, 3);
+    const uint8_t* m = h_.mask.ptr<uint8_t>(j);
+    float* a = base + kMask * length_;
+    for (int i = 0; i < hw_; ++i) a[i + 1] = std::bit_cast<float>(m[i] ? ~uint32_t(0) : uint32_t(0));
+    a[0] = a[1];
+    a[hw_ + 1] = a[hw_];
     for (size_t k = 0; k < images_.size(); ++k) {
       const int cn = images_[k].half.channels();
       const float* v = images_[k].half.ptr<float>(j);
@@ -393,7 +328,6 @@ class TexelRows {
 
   const HalfGrid& h_;
   std::span<const UpsampleImage> images_;
-  bool geometry_;
   int hw_, length_, arrays_ = 0;
   std::vector<int> image_first_;
   std::vector<float> data_;
@@ -411,7 +345,7 @@ inline __m256i column_lanes(int k) {
 }
 
 // texel_weights of the 8 pixels x .. x + 7 (x odd) of a row whose texel rows are r0, r1
-// (TexelRows with geometry) and vertical bilinear weights wy; 0 where `foreground` is not.
+// (TexelRows) and vertical bilinear weights wy; 0 where `foreground` is not.
 inline void texel_weights_8(const float* r0, const float* r1, int length, const float wy[2], int x,
                             const float* depth_row, const float* normal_row, __m256 foreground, __m256 w[4]) {
   const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
@@ -504,35 +438,6 @@ void sample_at_texels(const HalfGrid& h, const cv::Mat& full_image, cv::Mat& hal
   });
 }
 
-void build_upsample_weights(const FullGrid& full, HalfGrid& h, cv::Rect roi, int nthreads) {
-  const cv::Rect r = resolve_roi(roi, full.depth_view.size());
-  h.upsample_weights.create(full.depth_view.size(), CV_32FC4);
-  h.upsample_roi = r;
-  const int hh = h.depth_view.rows;
-  const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-#ifdef SSDO_HALF_RESOLUTION_AVX2
-    lanes::TexelRows texels(h, true, {});
-#endif
-    for (int y = rows.start; y < rows.end; ++y) {
-      cv::Vec4f* out = h.upsample_weights.ptr<cv::Vec4f>(y);
-      const AxisFootprint fy = axis_footprint(y, hh);
-      weights_span(full, h, y, fy, r.x, span.begin, out);
-#ifdef SSDO_HALF_RESOLUTION_AVX2
-      if (span.begin < span.end) {
-        const lanes::PixelRow row(texels, full, y, fy);
-        for (int x = span.begin; x < span.end; x += 8) {
-          __m256 w[4];
-          row.weights(x, lanes::foreground(row.mask + x), w);
-          lanes::store_weights(w, out + x);
-        }
-      }
-#endif
-      weights_span(full, h, y, fy, span.end, r.x + r.width, out);
-    }
-  }, kRowsPerStrip);
-}
-
 void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
                              const cv::Rect& r, int nthreads) {
   const int hh = h.depth_view.rows;
@@ -541,17 +446,14 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
     CV_Assert(im.full.type() == im.half.type() && im.full.size() == full.depth_view.size());
     CV_Assert(im.half.channels() <= kMaxChannels);
   }
-  const bool kept = !h.upsample_weights.empty() && h.upsample_weights.size() == full.depth_view.size() &&
-                    (h.upsample_roi & r) == r;
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
 #ifdef SSDO_HALF_RESOLUTION_AVX2
-    lanes::TexelRows texels(h, !kept, images);
+    lanes::TexelRows texels(h, images);
 #endif
     for (int y = rows.start; y < rows.end; ++y) {
-      const cv::Vec4f* kept_row = kept ? h.upsample_weights.ptr<cv::Vec4f>(y) : nullptr;
       const AxisFootprint fy = axis_footprint(y, hh);
-      upsample_span(full, h, images, kept_row, y, fy, r.x, span.begin);
+      upsample_span(full, h, images, y, fy, r.x, span.begin);
 #ifdef SSDO_HALF_RESOLUTION_AVX2
       if (span.begin < span.end) {
         const lanes::PixelRow row(texels, full, y, fy);
@@ -559,8 +461,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
         for (int x = span.begin; x < span.end; x += 8) {
           const __m256 fg = lanes::foreground(row.mask + x);
           __m256 w[4];
-          if (kept) lanes::load_weights(kept_row + x, w);
-          else row.weights(x, fg, w);
+          row.weights(x, fg, w);
           __m256 wsum = zero;
           for (int k = 0; k < 4; ++k) wsum = _mm256_add_ps(wsum, w[k]);
           // Foreground pixels whose weights are too small go pixel by pixel (below).
@@ -608,11 +509,182 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
         }
       }
 #endif
-      upsample_span(full, h, images, kept_row, y, fy, span.end, r.x + r.width);
+      upsample_span(full, h, images, y, fy, span.end, r.x + r.width);
     }
   }, kRowsPerStrip);
 }
 
 float upsample_depth_falloff(float x) { return depth_falloff(x); }
+
+namespace {
+
+// Which of the selected terms run on the half grid.
+struct HalfTerms {
+  bool ao, ssdo, confidence;
+  bool any() const { return ao || ssdo || confidence; }
+};
+
+HalfTerms half_terms(const TermSettings& s) {
+  return {s.ao != nullptr && runs_on_half_grid(*s.ao), s.ssdo != nullptr && runs_on_half_grid(*s.ssdo),
+          s.confidence != nullptr && runs_on_half_grid(*s.confidence)};
+}
+
+void allocate(cv::Mat& image, const cv::Size& size, int type) {
+  if (image.size() != size || image.type() != type) image.create(size, type);
+}
+
+// The full-resolution images the upsample writes, as the kernels allocate their outputs.
+void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, const cv::Size& size,
+                        TermOutputs& out) {
+  if (half.ao) {
+    allocate(out.ao.ao, size, CV_32FC1);
+    if (settings.ao->method == AoMethod::hemisphere) out.ao.bent_normal_view.release();
+    else allocate(out.ao.bent_normal_view, size, CV_32FC3);
+  }
+  if (half.ssdo) {
+    allocate(out.ssdo.direct, size, CV_32FC3);
+    allocate(out.ssdo.indirect, size, CV_32FC3);
+  }
+  if (half.confidence) allocate(out.confidence, size, CV_32FC1);
+}
+
+// AO on the grid. Only multi-bounce reads albedo (every method); the second depth layer
+// stays at full resolution (the grid has none).
+void ao_on_grid(const HalfGrid& h, const TermInputs& in, const AoSettings& s, const cv::Rect& half_roi,
+                AoOutput& out, int nthreads) {
+  cv::Mat albedo;
+  if (s.multibounce && in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, albedo, nthreads);
+  const AoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
+                      albedo.empty() ? nullptr : &albedo};
+  compute_ao(grid, s, out, half_roi, nthreads);
+}
+
+// SSDO on the grid. Albedo only scales the senders' direct light when the frame has no
+// lighting.
+void ssdo_on_grid(const HalfGrid& h, const TermInputs& in, const SsdoSettings& s, const cv::Rect& half_roi,
+                  SsdoOutput& out, int nthreads) {
+  cv::Mat albedo, lighting;
+  const bool lit = in.lighting != nullptr && !in.lighting->empty();
+  if (in.albedo != nullptr && !lit) sample_at_texels(h, *in.albedo, albedo, nthreads);
+  if (lit) sample_at_texels(h, *in.lighting, lighting, nthreads);
+  const SsdoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, *in.environment,
+                        albedo.empty() ? nullptr : &albedo, lighting.empty() ? nullptr : &lighting};
+  compute_ssdo(grid, s, out, half_roi, nthreads);
+}
+
+// A weighted mean of AO values stays in [0, 1] up to rounding; of unit bent normals it is
+// shorter than 1: renormalised (zero length: the pixel's normal).
+void finish_upsampled_ao(const TermInputs& in, AoOutput& out, const cv::Rect& r, int nthreads) {
+  const bool has_bent_normal = !out.bent_normal_view.empty();
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      float* ao_row = out.ao.ptr<float>(y);
+      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+      for (int x = r.x; x < r.x + r.width; ++x) {
+        ao_row[x] = std::clamp(ao_row[x], 0.0f, 1.0f);
+        if (!has_bent_normal || !mask_row[x]) continue;
+        cv::Vec3f& b = out.bent_normal_view.ptr<cv::Vec3f>(y)[x];
+        const float len = float(cv::norm(b));
+        b = len > 1e-12f ? b * (1.0f / len) : in.normal_view.ptr<cv::Vec3f>(y)[x];
+      }
+    }
+  });
+}
+
+// The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
+// it), each kernel on the texels the upsample of r reads, then one upsample of all their
+// images. Background and no foreground texel near: AO 1 (unoccluded), bent normal 0 (set
+// to the normal by finish_upsampled_ao), SSDO 0 (nothing known of the light), confidence 1.
+void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
+                          const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads) {
+  HalfGrid h;
+  build_half_grid(full, h, nthreads, /*with_positions=*/half.ao || half.ssdo);
+  const cv::Rect half_roi = half_grid_roi(r, full.depth_view.size());
+  TermOutputs grid;
+  std::vector<UpsampleImage> images;
+  if (half.ao) {
+    ao_on_grid(h, in, *settings.ao, half_roi, grid.ao, nthreads);
+    images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0)});
+    if (!grid.ao.bent_normal_view.empty())
+      images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)});
+  }
+  if (half.ssdo) {
+    ssdo_on_grid(h, in, *settings.ssdo, half_roi, grid.ssdo, nthreads);
+    images.push_back({grid.ssdo.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
+    images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
+  }
+  if (half.confidence) {
+    compute_confidence(h.depth_view, h.normal_view, h.mask, h.camera, *settings.confidence, grid.confidence,
+                       half_roi, nthreads);
+    images.push_back({grid.confidence, out.confidence, cv::Scalar(1.0), cv::Scalar(1.0)});
+  }
+  upsample_from_half_grid(full, h, images, r, nthreads);
+  if (half.ao) finish_upsampled_ao(in, out.ao, r, nthreads);
+}
+
+}  // namespace
+
+void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi,
+                   int nthreads) {
+  CV_Assert(settings.ssdo == nullptr || in.environment != nullptr);
+  const HalfTerms half = half_terms(settings);
+  // Full-resolution positions only for a kernel that runs there.
+  cv::Mat position_view = in.position_view;
+  if (position_view.empty() && ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo)))
+    view_positions_from_depth(in.depth_view, in.mask, in.camera, position_view, {}, nthreads);
+  if (settings.ao && !half.ao) {
+    const AoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, in.albedo,
+                           in.depth_back_view};
+    compute_ao(full_in, *settings.ao, out.ao, roi, nthreads);
+  }
+  if (settings.ssdo && !half.ssdo) {
+    const SsdoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, *in.environment,
+                             in.albedo, in.lighting};
+    compute_ssdo(full_in, *settings.ssdo, out.ssdo, roi, nthreads);
+  }
+  if (settings.confidence && !half.confidence)
+    compute_confidence(in.depth_view, in.normal_view, in.mask, in.camera, *settings.confidence, out.confidence,
+                       roi, nthreads);
+  if (!half.any()) return;
+  CV_Assert(in.depth_view.type() == CV_32FC1);
+  CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
+  CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == in.depth_view.size());
+  allocate_upsampled(settings, half, in.depth_view.size(), out);
+  const cv::Rect r = resolve_roi(roi, in.depth_view.size());
+  if (r.empty()) return;
+  const FullGrid full{in.depth_view, in.normal_view, position_view, in.mask, in.camera};
+  compute_on_half_grid(full, in, settings, half, out, r, nthreads);
+}
+
+void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi,
+                              int nthreads) {
+  const TermInputs terms{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera, nullptr,
+                         in.albedo, nullptr, in.depth_back_view};
+  TermOutputs result;
+  result.ao = std::move(out);  // the caller's images: only roi is written
+  compute_terms(terms, {&settings, nullptr, nullptr}, result, roi, nthreads);
+  out = std::move(result.ao);
+}
+
+void compute_ssdo_at_resolution(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out, cv::Rect roi,
+                                int nthreads) {
+  const TermInputs terms{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera, &in.environment,
+                         in.albedo, in.lighting, nullptr};
+  TermOutputs result;
+  result.ssdo = std::move(out);
+  compute_terms(terms, {nullptr, &settings, nullptr}, result, roi, nthreads);
+  out = std::move(result.ssdo);
+}
+
+void compute_confidence_at_resolution(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask,
+                                      const Camera& camera, const ConfidenceSettings& settings,
+                                      cv::Mat& confidence, cv::Rect roi, int nthreads) {
+  const cv::Mat no_positions;  // the confidence reads none
+  const TermInputs terms{depth_view, normal_view, no_positions, mask, camera};
+  TermOutputs result;
+  result.confidence = std::move(confidence);
+  compute_terms(terms, {nullptr, nullptr, &settings}, result, roi, nthreads);
+  confidence = std::move(result.confidence);
+}
 
 }  // namespace ssdo

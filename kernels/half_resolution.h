@@ -1,6 +1,9 @@
-// Half-resolution evaluation of a per-pixel kernel (AO, SSDO): the kernel runs on a grid
-// of half the width and height (a quarter of the pixels), and a depth- and normal-aware
-// upsample brings its outputs back to full resolution.
+// Half-resolution evaluation of the per-pixel kernels (AO, SSDO, confidence): a kernel runs
+// on a grid of half the width and height (a quarter of the pixels), and a depth- and
+// normal-aware upsample brings its outputs back to full resolution. The kernels compute on
+// whatever grid they are given; compute_terms() below decides which run on the half grid
+// (their settings' resolution_divisor), builds the grid once and upsamples their outputs
+// together.
 //
 // Texel (i, j) of the half grid stands for the 2x2 block of pixels (2i.., 2j..) and takes
 // the first foreground pixel of the block in the order (0,0), (1,0), (0,1), (1,1): its
@@ -17,11 +20,13 @@
 #pragma once
 
 #include <span>
-#include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "kernels/ao.h"
+#include "kernels/confidence.h"
+#include "kernels/ssdo.h"
 
 namespace ssdo {
 
@@ -30,16 +35,8 @@ struct HalfGrid {
   // The source pixels' view-space positions (the full-resolution positions' or, without
   // them, view_positions_from_depth's values); empty when built without positions.
   cv::Mat position_view;
-  std::vector<cv::Mat> extras;  // each extra input's value at the texel (0 where none)
-  cv::Mat source;               // CV_32SC2: the full-resolution pixel taken, (-1, -1) if none
-  Camera camera;                // the full camera with the half grid's size
-  // The upsample's texel weights of the full-resolution pixels of upsample_roi
-  // (build_upsample_weights; CV_32FC4, the full size, weight k of texel k of the 2x2 block
-  // the pixel reads, 0 on masked texels), for kernels of one frame that share the grid:
-  // they depend on the guides only, so every upsample from the grid reuses them. Empty:
-  // each upsample computes them itself (the same values).
-  cv::Mat upsample_weights;
-  cv::Rect upsample_roi;
+  cv::Mat source;  // CV_32SC2: the full-resolution pixel taken, (-1, -1) if none
+  Camera camera;   // the full camera with the half grid's size
 };
 
 // The full-resolution views of one frame (CV_32FC1 depth, +inf on background; CV_32FC3
@@ -53,19 +50,12 @@ struct FullGrid {
   const Camera& camera;
 };
 
-// Builds the whole half grid (kernels read taps anywhere on it, whatever the roi). Each
-// extra is a CV_32F image of the full size (any channel count) or empty (stays empty).
+// Builds the whole half grid (kernels read taps anywhere on it, whatever the roi).
 // with_positions: the texels' positions, copied from full.position_view or, when that is
 // empty, computed from the depth at the source pixels only (a full-resolution position
-// image is not needed by kernels that run on the grid).
-void build_half_grid(const FullGrid& full, std::span<const cv::Mat* const> extras, HalfGrid& half,
-                     int nthreads = 0, bool with_positions = true);
-
-// The half grid a kernel runs on: `shared` (the frame's, checked to be of the full
-// grid's half size, with positions when `need_positions`) or, when null, `own` built here
-// (with positions when `need_positions`).
-const HalfGrid& shared_or_own_half_grid(const FullGrid& full, const HalfGrid* shared, HalfGrid& own,
-                                        bool need_positions, int nthreads = 0);
+// image is not needed by kernels that run on the grid). Depth, normal and mask do not
+// depend on it.
+void build_half_grid(const FullGrid& full, HalfGrid& half, int nthreads = 0, bool with_positions = true);
 
 // Each texel's value of a full-resolution image: the value at the pixel the texel took
 // (HalfGrid::source), 0 on texels that took none. `full_image` CV_32F of any channel
@@ -77,10 +67,6 @@ void sample_at_texels(const HalfGrid& half, const cv::Mat& full_image, cv::Mat& 
 // libmvec's vector expf where the kernels are built with AVX2 (within 3 ulp of std::exp),
 // else std::exp.
 float upsample_depth_falloff(float x);
-
-// Computes and keeps in `half` the upsample weights of the full-resolution roi (empty =
-// all), for a grid that several kernels of one frame upsample from.
-void build_upsample_weights(const FullGrid& full, HalfGrid& half, cv::Rect roi = {}, int nthreads = 0);
 
 // The texels the upsample of the full-resolution roi reads.
 cv::Rect half_grid_roi(const cv::Rect& full_roi, const cv::Size& full_size);
@@ -95,10 +81,64 @@ struct UpsampleImage {
   cv::Scalar fallback;
 };
 
-// Writes the pixels of `roi` of every image, with the grid's kept weights when they cover
-// roi (bit-identical to computing them here).
+// Writes the pixels of `roi` of every image. The texel weights depend on the guides only:
+// they are computed once per pixel for all the images.
 void upsample_from_half_grid(const FullGrid& full, const HalfGrid& half,
                              std::span<const UpsampleImage> images, const cv::Rect& roi,
                              int nthreads = 0);
+
+// ---- The terms of a frame, each at the resolution its settings ask ----
+// The pipeline (service/pipeline.cpp) computes a frame's AO, SSDO and confidence with
+// compute_terms; the tests, accuracy suites and benchmarks of one kernel call the same
+// function through the compute_*_at_resolution wrappers, so every caller gets the bytes a
+// frame gets. It lives here, beside the grid it builds, rather than in service/: the
+// kernels' tests link the kernels only.
+
+// The frame's full-resolution inputs (as AoInputs and SsdoInputs).
+struct TermInputs {
+  const cv::Mat& depth_view;   // CV_32FC1 planar depth (+inf on background)
+  const cv::Mat& normal_view;  // CV_32FC3 unit view-space normals
+  // CV_32FC3 view-space positions, or empty: then computed here (view_positions_from_depth)
+  // when AO or SSDO runs at full resolution (the half grid computes its texels' own).
+  const cv::Mat& position_view;
+  const cv::Mat& mask;  // CV_8UC1, 255 = foreground
+  const Camera& camera;
+  const Environment* environment = nullptr;      // SSDO's light; required with SSDO
+  const cv::Mat* albedo = nullptr;               // CV_32FC3 or null
+  const cv::Mat* lighting = nullptr;             // CV_32FC3 or null (SSDO's senders)
+  const cv::Mat* depth_back_view = nullptr;      // CV_32FC1 or null (AO at full resolution)
+};
+
+// The terms to compute, each with its settings; null = not computed.
+struct TermSettings {
+  const AoSettings* ao = nullptr;
+  const SsdoSettings* ssdo = nullptr;
+  const ConfidenceSettings* confidence = nullptr;
+};
+
+struct TermOutputs {
+  AoOutput ao;
+  SsdoOutput ssdo;
+  cv::Mat confidence;  // CV_32FC1 (compute_confidence)
+};
+
+// Computes the selected terms for the pixels of roi (empty = all), each on the full grid or
+// on the frame's one half grid (runs_on_half_grid of its settings): the half grid is built
+// once (with positions when AO or SSDO runs on it), each half-resolution kernel runs on
+// the texels of the roi (AO with the albedo at the texels for multi-bounce only; SSDO with
+// the lighting at the texels when given, else the albedo), and their outputs are upsampled
+// in one pass (background and fallback: AO 1, bent normal 0, SSDO 0, confidence 1); then
+// AO is clamped to [0, 1] and the bent normals renormalised. Outputs as each kernel's.
+void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi = {},
+                   int nthreads = 0);
+
+// One term through compute_terms: what a frame computes for it.
+void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi = {},
+                              int nthreads = 0);
+void compute_ssdo_at_resolution(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out,
+                                cv::Rect roi = {}, int nthreads = 0);
+void compute_confidence_at_resolution(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask,
+                                      const Camera& camera, const ConfidenceSettings& settings,
+                                      cv::Mat& confidence, cv::Rect roi = {}, int nthreads = 0);
 
 }  // namespace ssdo

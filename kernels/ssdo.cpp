@@ -10,7 +10,6 @@
 #include <numbers>
 #include <vector>
 
-#include "kernels/half_resolution.h"
 #include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
 #include "core/parallel.h"
@@ -902,40 +901,13 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == size);
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
-  // Positions may be omitted when the settings run on the half grid (which has its own).
-  CV_Assert((in.position_view.empty() && runs_on_half_grid(settings)) ||
-            (in.position_view.type() == CV_32FC3 && in.position_view.size() == size));
+  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
   CV_Assert(!in.albedo || (in.albedo->type() == CV_32FC3 && in.albedo->size() == size));
   CV_Assert(!in.lighting || (in.lighting->type() == CV_32FC3 && in.lighting->size() == size));
   CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
   CV_Assert(validate(settings).empty());
   if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);
   if (out.indirect.size() != size || out.indirect.type() != CV_32FC3) out.indirect.create(size, CV_32FC3);
-  if (runs_on_half_grid(settings)) {
-    const cv::Rect full_roi = resolve_roi(roi, size);
-    if (full_roi.empty()) return;
-    const FullGrid full{in.depth_view, in.normal_view, in.position_view, in.mask, in.camera};
-    HalfGrid own;
-    const HalfGrid& h = shared_or_own_half_grid(full, in.half_grid, own, true, nthreads);
-    cv::Mat half_albedo, half_lighting;
-    // Albedo only scales the senders' direct light when the frame has no lighting.
-    const bool lit = in.lighting != nullptr && !in.lighting->empty();
-    if (in.albedo != nullptr && !lit) sample_at_texels(h, *in.albedo, half_albedo, nthreads);
-    if (lit) sample_at_texels(h, *in.lighting, half_lighting, nthreads);
-    const SsdoInputs half_in{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, in.environment,
-                             half_albedo.empty() ? nullptr : &half_albedo,
-                             half_lighting.empty() ? nullptr : &half_lighting};
-    SsdoSettings half_settings = settings;
-    half_settings.resolution_divisor = 1;
-    SsdoOutput half_out;
-    compute_ssdo(half_in, half_settings, half_out, half_grid_roi(full_roi, size), nthreads);
-    // No foreground texel near: nothing known of the light there, 0 (as on background).
-    const UpsampleImage images[] = {{half_out.direct, out.direct, cv::Scalar::all(0), cv::Scalar::all(0)},
-                                    {half_out.indirect, out.indirect, cv::Scalar::all(0), cv::Scalar::all(0)}};
-    upsample_from_half_grid(full, h, images, full_roi, nthreads);
-    return;
-  }
-
   // Constants from the settings once, then the passes (Ritschel et al. 2009, sec. 3): the
   // tap pyramid, the senders' direct light (when the frame has no `lighting`), the
   // receivers' direct and indirect light.

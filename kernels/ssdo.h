@@ -81,8 +81,6 @@
 
 namespace ssdo {
 
-struct HalfGrid;  // kernels/half_resolution.h
-
 enum class SsdoMethod { ssdo, oracle };
 enum class SsdoDirectEstimator {
   per_sample,   // (1/N) sum over visible samples of the cone-filtered radiance (paper)
@@ -138,8 +136,8 @@ struct SsdoSettings {
   // (whose area heuristic A_s = pi r^2 / N has no exact meaning for screen samples).
   SsdoIndirectEstimator indirect_estimator = SsdoIndirectEstimator::solid_angle;
   // 1 = every pixel; 2 = method ssdo runs on the half-resolution grid (a quarter of the
-  // pixels, kernels/half_resolution.h) and a depth- and normal-aware upsample fills the
-  // pixels in between. The oracle always runs at full resolution.
+  // pixels) and a depth- and normal-aware upsample fills the pixels in between (compute_terms,
+  // kernels/half_resolution.h). The oracle always runs at full resolution.
   int resolution_divisor = 1;
   // Oracle: g, the directions per axis of the stratified grid (g^2 directions), [1, 256],
   // and the steps per direction, [1, 4096].
@@ -163,17 +161,12 @@ bool runs_on_half_grid(const SsdoSettings& s);
 struct SsdoInputs {
   const cv::Mat& depth_view;     // CV_32FC1 planar depth (+inf on background)
   const cv::Mat& normal_view;    // CV_32FC3 unit view-space normals
-  // CV_32FC3 view-space positions (view_positions_from_depth); may be empty when the
-  // settings run on the half grid (its texels' positions are computed from depth).
-  const cv::Mat& position_view;
+  const cv::Mat& position_view;  // CV_32FC3 view-space positions (view_positions_from_depth)
   const cv::Mat& mask;           // CV_8UC1, 255 = foreground
   const Camera& camera;
   const Environment& environment;
   const cv::Mat* albedo = nullptr;    // CV_32FC3 or null (= white): sender albedo
   const cv::Mat* lighting = nullptr;  // CV_32FC3 or null: sender outgoing radiance
-  // The frame's half-resolution grid of these inputs, shared by the kernels of one frame
-  // (AoInputs::half_grid), or null: built here when the settings run at half resolution.
-  const HalfGrid* half_grid = nullptr;
 };
 
 struct SsdoOutput {
@@ -181,7 +174,8 @@ struct SsdoOutput {
   cv::Mat indirect;  // CV_32FC3, E_bounce / pi x indirect_strength; 0 on background
 };
 
-// Computes direct and indirect for the pixels of `roi` (empty = all). Outputs are allocated
+// Computes direct and indirect for the pixels of `roi` (empty = all), on the grid of the
+// inputs (resolution_divisor is compute_terms' to apply). Outputs are allocated
 // at the input size when empty or of another size/type; only roi is written. Without
 // `lighting` a first pass computes direct over the whole image (the senders of roi may lie
 // anywhere on screen). The result does not depend on nthreads or roi.

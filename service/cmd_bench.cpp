@@ -12,6 +12,7 @@
 #include "formats/chart.h"
 #include "kernels/metrics.h"
 #include "service/commands.h"
+#include "service/parallelism.h"
 
 namespace ssdo {
 
@@ -116,6 +117,7 @@ bool read_external(const std::string& path, std::vector<ChartSeries>& series, st
 }  // namespace
 
 int run_bench(const BenchArgs& args) {
+  apply_thread_budget(args.request.threads);  // frames are computed in this process
   std::error_code ec;
   std::filesystem::create_directories(args.output_dir, ec);
   if (ec) {

@@ -8,6 +8,7 @@
 
 #include "kernels/metrics.h"
 #include "service/commands.h"
+#include "service/parallelism.h"
 
 namespace ssdo {
 
@@ -61,6 +62,7 @@ nlohmann::json stats_json(const ErrorStats& s) {
 }  // namespace
 
 int run_eval(const EvalArgs& args) {
+  apply_thread_budget(args.request.threads);  // frames are computed in this process
   ErrorAccumulator overall;
   double overall_ms = 0;
   int failed = 0;

@@ -18,11 +18,11 @@
 #include <string>
 #include <thread>
 
-#include <OpenEXR/ImfThreading.h>
 #include <opencv2/core.hpp>
 
 #include "formats/oiio_module.h"
 #include "service/build_features.h"
+#include "service/parallelism.h"
 #include "service/protocol.h"
 #include "service/request_options.h"
 #include "service/worker_process.h"
@@ -169,8 +169,7 @@ int run_worker(const WorkerArgs& args) {
   // is loaded only if a request needs it (formats/oiio_module.h), possibly under the limit,
   // so it gets no pool: its work here is small, and a pool thread that cannot allocate as
   // it starts would end the worker.
-  cv::setNumThreads(args.threads);
-  Imf::setGlobalThreadCount(args.threads > 1 ? args.threads : 0);
+  apply_thread_budget(args.threads);
   oiio_module::set_threads(1);
   g_response_fd = args.response_fd;
   g_memory_limit_mb = args.memory_limit_mb;

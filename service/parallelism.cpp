@@ -5,7 +5,17 @@
 #include <algorithm>
 #include <thread>
 
+#include <OpenEXR/ImfThreading.h>
+
+#include "core/parallel.h"
+
 namespace ssdo {
+
+void apply_thread_budget(int threads) {
+  if (threads <= 0) return;
+  set_thread_budget(threads);
+  Imf::setGlobalThreadCount(threads > 1 ? threads : 0);
+}
 
 int available_cores() {
   cpu_set_t set;

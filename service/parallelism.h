@@ -19,6 +19,13 @@ struct Parallelism {
   int threads_per_frame = 1;
 };
 
+// Sizes the pools of this process once, where a worker or an in-process command starts:
+// OpenCV's (the kernels, core/parallel.h set_thread_budget) and OpenEXR's (decoding and
+// compression; one thread = in the calling thread, no pool). threads > 0: that many;
+// 0: both as the libraries start (OpenCV every core, OpenEXR none). Frames then pass the
+// same count as their thread budget (FrameRequest::threads), which never resizes a pool.
+void apply_thread_budget(int threads);
+
 // CPUs this process may run on (its affinity mask), at least 1.
 int available_cores();
 

@@ -7,7 +7,6 @@
 
 #include "kernels/confidence.h"
 #include "kernels/half_resolution.h"
-#include "kernels/positions.h"
 
 namespace ssdo {
 
@@ -114,55 +113,26 @@ ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
     return cs;
   }();
 
-  // One half-resolution grid and one set of upsample weights for every kernel of the frame
-  // that runs at half resolution (kernels/half_resolution.h): built once, not per kernel.
-  const bool ao_half = computed.ao && runs_on_half_grid(request.ao);
-  const bool ssdo_half = computed.ssdo && runs_on_half_grid(request.ssdo);
-  const bool confidence_half = confidence_wanted && confidence_settings.resolution_divisor == 2;
-  // View-space positions: the G-buffer's, else from depth, at full resolution only for a
-  // kernel that runs there (the half grid computes its texels' own).
-  cv::Mat position_view = g.position_view;
-  if (position_view.empty() && ((computed.ao && !ao_half) || (computed.ssdo && !ssdo_half)))
-    view_positions_from_depth(g.depth_view, g.mask, g.camera, position_view, {}, threads);
-  HalfGrid half_grid;
-  const HalfGrid* shared_grid = nullptr;
-  if (int(ao_half) + int(ssdo_half) + int(confidence_half) >= 2) {
-    const FullGrid full{g.depth_view, g.normal_view, position_view, g.mask, g.camera};
-    build_half_grid(full, {}, half_grid, threads, /*with_positions=*/ao_half || ssdo_half);
-    build_upsample_weights(full, half_grid, {}, threads);
-    shared_grid = &half_grid;
-  }
-
-  AoOutput ao;
-  if (computed.ao) {
-    const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera,
-                      g.has_albedo() ? &g.albedo : nullptr,
-                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view, shared_grid};
-    compute_ao(in, request.ao, ao, {}, threads);
-  }
-
+  // AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
+  // run at half resolution share one grid and one upsample (kernels/half_resolution.h).
+  // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
+  // samples (kernels/confidence.h), written with every AO or SSDO output.
   static const Environment kWhite;  // constant radiance 1
   const Environment& environment = request.environment ? *request.environment : kWhite;
-  SsdoOutput ssdo;
-  if (computed.ssdo) {
-    const SsdoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera, environment,
-                        g.has_albedo() ? &g.albedo : nullptr,
-                        g.lighting.empty() ? nullptr : &g.lighting, shared_grid};
-    compute_ssdo(in, request.ssdo, ssdo, {}, threads);
+  TermOutputs computed_terms;
+  {
+    const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &environment,
+                        g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
+                        g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
+    const TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
+                                confidence_wanted ? &confidence_settings : nullptr};
+    compute_terms(in, selected, computed_terms, {}, threads);
   }
-
-  // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
-  // samples (kernels/confidence.h), written with every AO or SSDO output. Computed while
-  // the shared grid exists; then the grid, its weights and the positions (no later step reads
-  // them) are released, and the denoised terms and the composite reuse their memory (the worker's
-  // heap keeps freed memory: fresh pages cost a fault each).
-  cv::Mat confidence;
-  if (confidence_wanted)
-    compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, confidence_settings, confidence, {},
-                       threads, shared_grid);
-  half_grid = HalfGrid();
-  shared_grid = nullptr;
-  position_view.release();
+  AoOutput& ao = computed_terms.ao;
+  SsdoOutput& ssdo = computed_terms.ssdo;
+  const cv::Mat& confidence = computed_terms.confidence;
+  // No later step reads the positions: the denoised terms and the composite reuse their
+  // memory (the worker's heap keeps freed memory: fresh pages cost a fault each).
   g.position_view.release();
 
   // The denoised terms, in one pass over the frame: the blur's weights depend only on the

@@ -46,7 +46,9 @@ struct FrameRequest {
   // when SSDO is computed (Cycles' DiffCol x (DiffDir + DiffInd)), else albedo x AO.
   std::vector<WeightedTerm> composite_terms;
   WriteOptions write;
-  int threads = 0;            // kernels' thread budget (0 = OpenCV's pool, 1 = serial)
+  // Threads of the kernels: 1 = serial, N > 1 = at most N of the process's pool, 0 = the
+  // whole pool (sized once per process: apply_thread_budget, service/parallelism.h).
+  int threads = 0;
   // I/O floor (benchmarks): read what the terms need and write the same channels (names,
   // types, size) with the frame's own normals standing in for every term, computing
   // nothing. process_frame's read and write times are then those of a full run.

@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "formats/gbuffer_reader.h"
+#include "kernels/half_resolution.h"
 #include "kernels/ao.h"
 #include "kernels/denoise.h"
 #include "kernels/metrics.h"
@@ -70,7 +71,7 @@ Result run(const Frame& f, AoMethod method, Preset preset) {
   const AoInputs in{f.g.depth_view, f.g.normal_view, f.position_view, f.g.mask, f.g.camera, nullptr};
   AoOutput out;
   const auto t0 = std::chrono::steady_clock::now();
-  compute_ao(in, s, out, {}, 0);
+  compute_ao_at_resolution(in, s, out, {}, 0);
   Result r;
   r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   denoise_bilateral(out.ao, f.g.depth_view, f.g.normal_view, f.g.mask, {}, r.ao, {}, 0);

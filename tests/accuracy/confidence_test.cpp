@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "formats/gbuffer_reader.h"
+#include "kernels/half_resolution.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/positions.h"
@@ -47,12 +48,12 @@ TEST(ConfidenceIntegration, CorrelatesWithErrorOnSharedFrames) {
       s.radius_world = radius;
       const AoInputs in{g.depth_view, g.normal_view, position_view, g.mask, g.camera};
       AoOutput out;
-      compute_ao(in, s, out);
+      compute_ao_at_resolution(in, s, out);
       ConfidenceSettings cs;
       cs.radius_world = s.radius_world;
       cs.max_radius_px = s.max_radius_px;
       cv::Mat confidence;
-      compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, confidence);
+      compute_confidence_at_resolution(g.depth_view, g.normal_view, g.mask, g.camera, cs, confidence);
       for (int y = 0; y < g.mask.rows; ++y)
         for (int x = 0; x < g.mask.cols; ++x) {
           if (!g.mask.at<uint8_t>(y, x)) continue;

@@ -19,6 +19,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "kernels/half_resolution.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/noise.h"
@@ -347,7 +348,7 @@ inline cv::Mat run(const Frame& f, const AoSettings& s, bool use_back = false) {
                     g.albedo.empty() ? nullptr : &g.albedo,
                     use_back && !g.depth_back_view.empty() ? &g.depth_back_view : nullptr};
   AoOutput out;
-  compute_ao(in, s, out, {}, 0);
+  compute_ao_at_resolution(in, s, out, {}, 0);
   return out.ao;
 }
 
@@ -356,8 +357,8 @@ inline cv::Mat confidence_of(const Frame& f, const AoSettings& s) {
   cs.radius_world = s.radius_world;
   cs.max_radius_px = s.max_radius_px;
   cv::Mat c;
-  compute_confidence(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs, c,
-                     {}, 0);
+  compute_confidence_at_resolution(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs, c,
+                                   {}, 0);
   return c;
 }
 

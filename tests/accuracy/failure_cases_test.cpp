@@ -11,6 +11,7 @@
 
 #include <gtest/gtest.h>
 
+#include "kernels/half_resolution.h"
 #include "kernels/ao_raymarch.h"
 #include "tests/accuracy/failure_cases.h"
 
@@ -328,10 +329,10 @@ TEST(Confidence, OpenPlaneIsObservedAndThreadCountIndependent) {
   ConfidenceSettings cs;
   cs.radius_world = s.radius_world;
   cv::Mat serial, parallel;
-  compute_confidence(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs,
-                     serial, {}, 1);
-  compute_confidence(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs,
-                     parallel, {}, 4);
+  compute_confidence_at_resolution(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs,
+                                   serial, {}, 1);
+  compute_confidence_at_resolution(f.input.depth_view, f.input.normal_view, f.input.mask, f.input.camera, cs,
+                                   parallel, {}, 4);
   EXPECT_EQ(cv::norm(serial, parallel, cv::NORM_INF), 0.0);
   // At the border about half of the disk is off screen.
   double border = 0;

@@ -6,6 +6,7 @@
 
 #include "formats/env_map.h"
 #include "formats/gbuffer_reader.h"
+#include "kernels/half_resolution.h"
 #include "kernels/denoise.h"
 #include "kernels/metrics.h"
 #include "kernels/positions.h"
@@ -74,8 +75,8 @@ TEST_P(SsdoOnSharedFrames, FastKernelStaysCloseToTheOracle) {
   const cv::Range band(f.g.height_px() / 2 - 24, f.g.height_px() / 2 + 24);
   const cv::Rect roi(0, band.start, f.g.width_px(), band.size());
   SsdoOutput fast_out, oracle_out;
-  compute_ssdo(in, fast, fast_out);
-  compute_ssdo(in, oracle, oracle_out, roi);
+  compute_ssdo_at_resolution(in, fast, fast_out);
+  compute_ssdo_at_resolution(in, oracle, oracle_out, roi);
   // The product writes the denoised terms; the oracle's many directions need no denoising.
   cv::Mat direct_denoised, indirect_denoised;
   denoise_bilateral(fast_out.direct, f.g.depth_view, f.g.normal_view, f.g.mask, {}, direct_denoised);
@@ -102,7 +103,7 @@ TEST(SsdoOnGreeble, DirectLightWithinTwentyPercentOfCycles) {
   const SsdoInputs in{f.g.depth_view, f.g.normal_view, f.position_view, f.g.mask, f.g.camera,
                       environment, &f.g.albedo, &f.g.lighting};
   SsdoOutput out;
-  compute_ssdo(in, ssdo_preset(SsdoMethod::ssdo, Preset::medium), out);
+  compute_ssdo_at_resolution(in, ssdo_preset(SsdoMethod::ssdo, Preset::medium), out);
   const cv::Mat& cycles_direct = f.g.references.at("DiffDir");
   const double rel = relative_mae(out.direct, cycles_direct, f.g.mask, cv::Range(0, f.g.height_px()));
   std::printf("greeble: direct vs Cycles DiffDir relative MAE %.3f\n", rel);

@@ -55,7 +55,7 @@ void BM_Ao(benchmark::State& state) {
   const ssdo::AoSettings s = ssdo::ao_preset(method, preset);
   const ssdo::AoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, nullptr};
   ssdo::AoOutput out;
-  for (auto _ : state) ssdo::compute_ao(in, s, out, {}, threads);
+  for (auto _ : state) ssdo::compute_ao_at_resolution(in, s, out, {}, threads);
   state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
                  " " + std::to_string(threads) + "t");
 }
@@ -85,7 +85,7 @@ void BM_Ssdo(benchmark::State& state) {
   const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, white,
                             g.has_albedo() ? &g.albedo : nullptr, nullptr};
   ssdo::SsdoOutput out;
-  for (auto _ : state) ssdo::compute_ssdo(in, s, out, {}, threads);
+  for (auto _ : state) ssdo::compute_ssdo_at_resolution(in, s, out, {}, threads);
   state.SetLabel("ssdo " + std::string(ssdo::to_string(preset)) + " " + std::to_string(threads) + "t");
 }
 
@@ -104,20 +104,23 @@ void BM_Frame(benchmark::State& state) {
                  std::to_string(request.threads) + "t");
 }
 
-// The confidence term at the default settings as the pipeline runs it: on the frame's
-// shared half grid (built once, outside the timing) and upsampled.
+// The confidence term at the default settings as the pipeline runs it: on the frame's half
+// grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
+// every half-resolution term).
 void BM_Confidence(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   const int threads = int(state.range(1));
   const ssdo::FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
   ssdo::HalfGrid half;
-  ssdo::build_half_grid(full, {}, half, threads);
-  ssdo::build_upsample_weights(full, half, {}, threads);
+  ssdo::build_half_grid(full, half, threads, /*with_positions=*/false);
   const ssdo::ConfidenceSettings s;
-  cv::Mat confidence;
-  for (auto _ : state)
-    ssdo::compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, confidence, {},
-                             threads, &half);
+  cv::Mat half_confidence, confidence(g.depth_view.size(), CV_32FC1);
+  const ssdo::UpsampleImage images[] = {{half_confidence, confidence, cv::Scalar(1.0), cv::Scalar(1.0)}};
+  for (auto _ : state) {
+    ssdo::compute_confidence(half.depth_view, half.normal_view, half.mask, half.camera, s, half_confidence, {},
+                             threads);
+    ssdo::upsample_from_half_grid(full, half, images, cv::Rect(0, 0, g.depth_view.cols, g.depth_view.rows), threads);
+  }
   state.SetLabel(std::to_string(threads) + "t");
 }
 

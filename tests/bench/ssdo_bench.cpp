@@ -11,6 +11,7 @@
 #include <filesystem>
 
 #include "formats/gbuffer_reader.h"
+#include "kernels/half_resolution.h"
 #include "kernels/composite.h"
 #include "kernels/environment.h"
 #include "kernels/positions.h"
@@ -73,7 +74,7 @@ void BM_Ssdo(benchmark::State& state) {
   const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera,
                             environment(), &g.albedo, with_lighting ? &g.lighting : nullptr};
   ssdo::SsdoOutput out;
-  for (auto _ : state) ssdo::compute_ssdo(in, s, out, {}, threads);
+  for (auto _ : state) ssdo::compute_ssdo_at_resolution(in, s, out, {}, threads);
   state.SetLabel(std::string(ssdo::to_string(preset)) + " N=" + std::to_string(s.samples) +
                  " k=" + std::to_string(s.sample_steps) + " " + std::to_string(threads) + "t" +
                  (with_lighting ? " lighting" : " own pass"));

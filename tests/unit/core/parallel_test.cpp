@@ -3,7 +3,10 @@
 #include "core/parallel.h"
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <mutex>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -54,6 +57,28 @@ TEST(ParallelRows, EveryRowOnceInStripsIndependentOfTheThreadCount) {
       ASSERT_EQ(one.size(), 1u);
       EXPECT_EQ(one[0], rows);
     }
+}
+
+// The pool's size is the process's (set_thread_budget), never changed by a call; a call
+// with N threads has at most N strips in flight.
+TEST(ParallelRows, LeavesThePoolSizeAndKeepsToItsThreads) {
+  const int before = cv::getNumThreads();
+  set_thread_budget(4);
+  ASSERT_EQ(cv::getNumThreads(), 4);
+  set_thread_budget(0);  // 0 leaves it as it is
+  EXPECT_EQ(cv::getNumThreads(), 4);
+  for (int threads : {2, 0}) {
+    std::atomic<int> running{0}, most{0};
+    parallel_rows(cv::Range(0, 64), threads, [&](const cv::Range&) {
+      const int now = ++running;
+      for (int m = most.load(); now > m && !most.compare_exchange_weak(m, now);) {}
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      --running;
+    }, 1);
+    EXPECT_EQ(cv::getNumThreads(), 4) << threads;
+    EXPECT_LE(most.load(), threads == 0 ? 4 : threads) << threads;
+  }
+  set_thread_budget(before);
 }
 
 }  // namespace

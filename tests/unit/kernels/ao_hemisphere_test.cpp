@@ -15,7 +15,7 @@ TEST(AoHemisphere, NoBentNormal) {
   const Frame f = render(raycast::corner_scene(), raycast::corner_camera(64, 36));
   AoOutput out;
   out.bent_normal_view = cv::Mat(f.g.depth_view.size(), CV_32FC3);
-  compute_ao(f.inputs(), ao_preset(AoMethod::hemisphere, Preset::low), out);
+  compute_ao_at_resolution(f.inputs(), ao_preset(AoMethod::hemisphere, Preset::low), out);
   EXPECT_TRUE(out.bent_normal_view.empty());
 }
 

@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include "kernels/half_resolution.h"
 #include "kernels/ao.h"
 #include "tests/support/raycast.h"
 
@@ -41,7 +42,7 @@ inline Frame render(const raycast::Scene& scene, const Camera& camera) {
 
 inline AoOutput run(const Frame& f, const AoSettings& s, int nthreads = 0, cv::Rect roi = {}) {
   AoOutput out;
-  compute_ao(f.inputs(), s, out, roi, nthreads);
+  compute_ao_at_resolution(f.inputs(), s, out, roi, nthreads);
   return out;
 }
 
@@ -138,7 +139,7 @@ inline void check_invariants(AoMethod method, Preset preset,
   if (method != AoMethod::hemisphere)
     r.bent_normal_view = cv::Mat(f.g.depth_view.size(), CV_32FC3, cv::Scalar::all(-7.0f));
   const cv::Rect roi(13, 9, 40, 31);
-  compute_ao(f.inputs(), s, r, roi, 2);
+  compute_ao_at_resolution(f.inputs(), s, r, roi, 2);
   for (int y = 0; y < r.ao.rows; ++y)
     for (int x = 0; x < r.ao.cols; ++x) {
       if (roi.contains({x, y})) {

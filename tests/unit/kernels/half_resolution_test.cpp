@@ -26,13 +26,10 @@ TEST(HalfResolution, GridTakesTheFirstForegroundPixelOfEachBlock) {
   const GBuffer g = frame();
   const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
   HalfGrid h;
-  const cv::Mat* extras[] = {&g.albedo, nullptr};
-  build_half_grid(full, extras, h, 2);
+  build_half_grid(full, h, 2);
   ASSERT_EQ(h.depth_view.size(), cv::Size(81, 46));
   EXPECT_EQ(h.camera.width_px, 81);
   EXPECT_EQ(h.camera.height_px, 46);
-  ASSERT_EQ(h.extras.size(), 2u);
-  EXPECT_TRUE(h.extras[1].empty());
   int foreground = 0;
   for (int j = 0; j < h.depth_view.rows; ++j)
     for (int i = 0; i < h.depth_view.cols; ++i) {
@@ -52,7 +49,6 @@ TEST(HalfResolution, GridTakesTheFirstForegroundPixelOfEachBlock) {
       EXPECT_EQ(h.depth_view.at<float>(j, i), g.depth_view.at<float>(src[1], src[0]));
       EXPECT_EQ(h.normal_view.at<cv::Vec3f>(j, i), g.normal_view.at<cv::Vec3f>(src[1], src[0]));
       EXPECT_EQ(h.position_view.at<cv::Vec3f>(j, i), g.position_view.at<cv::Vec3f>(src[1], src[0]));
-      EXPECT_EQ(h.extras[0].at<cv::Vec3f>(j, i), g.albedo.at<cv::Vec3f>(src[1], src[0]));
     }
   EXPECT_GT(foreground, 81 * 46 / 2);
 }
@@ -61,7 +57,7 @@ TEST(HalfResolution, UpsampleKeepsConstantsAndEachPixelsOwnSurface) {
   const GBuffer g = frame();
   const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
   HalfGrid h;
-  build_half_grid(full, {}, h, 2);
+  build_half_grid(full, h, 2);
   // A value that is the texel's depth: upsampled, a pixel gets a mean of depths of its own
   // surface (within a few percent of its own depth), never one across a silhouette.
   cv::Mat half_value = h.depth_view.clone();
@@ -100,29 +96,28 @@ TEST(HalfResolution, UpsampleKeepsConstantsAndEachPixelsOwnSurface) {
   EXPECT_GT(near_own_depth, 0.98 * checked);
 }
 
-TEST(HalfResolution, KeptWeightsGiveTheBitsOfWeightsComputedPerUpsample) {
+// One upsample of several images gives each image the bits of its upsample alone (the
+// weights are shared, the blend is per image).
+TEST(HalfResolution, UpsampleOfSeveralImagesGivesTheBitsOfEachAlone) {
   const GBuffer g = frame();
   const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
   HalfGrid h;
-  build_half_grid(full, {}, h, 2);
-  cv::Mat half_value(h.depth_view.size(), CV_32FC3);
-  cv::randu(half_value, 0.0f, 1.0f);
-  cv::Mat computed(g.depth_view.size(), CV_32FC3, cv::Scalar::all(-1)), kept = computed.clone();
+  build_half_grid(full, h, 2);
+  cv::Mat gray(h.depth_view.size(), CV_32FC1), color(h.depth_view.size(), CV_32FC3);
+  cv::randu(gray, 0.0f, 1.0f);
+  cv::randu(color, 0.0f, 1.0f);
+  cv::Mat gray_alone(g.depth_view.size(), CV_32FC1, cv::Scalar::all(-1)), gray_together = gray_alone.clone();
+  cv::Mat color_alone(g.depth_view.size(), CV_32FC3, cv::Scalar::all(-1)), color_together = color_alone.clone();
   const cv::Rect roi(3, 5, 150, 80);
-  upsample_from_half_grid(full, h, std::vector<UpsampleImage>{{half_value, computed, cv::Scalar::all(7), cv::Scalar::all(9)}},
-                          roi, 2);
-  build_upsample_weights(full, h, roi, 1);
-  ASSERT_EQ(h.upsample_roi, roi);
-  // Weights lie in [0, 1] (bilinear x exp x cos^4) and are 0 on background pixels.
-  double lo, hi;
-  cv::minMaxLoc(h.upsample_weights(roi).reshape(1), &lo, &hi);
-  EXPECT_GE(lo, 0.0);
-  EXPECT_LE(hi, 1.0);
-  EXPECT_GT(hi, 0.2);
-  upsample_from_half_grid(full, h, std::vector<UpsampleImage>{{half_value, kept, cv::Scalar::all(7), cv::Scalar::all(9)}},
-                          roi, 2);
-  EXPECT_EQ(cv::norm(computed, kept, cv::NORM_INF), 0.0);
-  EXPECT_EQ(cv::countNonZero(computed.reshape(1) == -1), 3 * (161 * 91 - roi.area()));
+  upsample_from_half_grid(full, h, std::vector<UpsampleImage>{{gray, gray_alone, cv::Scalar(7), cv::Scalar(9)}}, roi, 2);
+  upsample_from_half_grid(full, h, std::vector<UpsampleImage>{{color, color_alone, cv::Scalar::all(1), cv::Scalar::all(2)}},
+                          roi, 1);
+  const UpsampleImage together[] = {{gray, gray_together, cv::Scalar(7), cv::Scalar(9)},
+                                    {color, color_together, cv::Scalar::all(1), cv::Scalar::all(2)}};
+  upsample_from_half_grid(full, h, together, roi, 2);
+  EXPECT_EQ(cv::norm(gray_alone, gray_together, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(color_alone, color_together, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::countNonZero(gray_together == -1), 161 * 91 - roi.area());
 }
 
 // The header's formulas pixel by pixel, in the order the per-pixel code evaluates them
@@ -147,8 +142,7 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
   camera.height_px = size.height;
   const FullGrid full{depth, normal, no_positions, mask, camera};
   HalfGrid h;
-  build_half_grid(full, {}, h, 2);
-  build_upsample_weights(full, h, {}, 2);
+  build_half_grid(full, h, 2);
   cv::Mat gray(h.depth_view.size(), CV_32FC1), color(h.depth_view.size(), CV_32FC3);
   cv::randu(gray, -1.0f, 2.0f);
   cv::randu(color, -1.0f, 2.0f);
@@ -161,9 +155,7 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
   int blended = 0, underflowed = 0;
   for (int y = 0; y < size.height; ++y)
     for (int x = 0; x < size.width; ++x) {
-      const cv::Vec4f w = h.upsample_weights.at<cv::Vec4f>(y, x);
       if (!mask.at<uint8_t>(y, x)) {
-        EXPECT_EQ(w, cv::Vec4f(0, 0, 0, 0));
         EXPECT_EQ(up_gray.at<float>(y, x), 7.0f);
         continue;
       }
@@ -185,10 +177,7 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
         c *= c;
         ref[k] = wb * upsample_depth_falloff(-dz) * c * c;
       }
-      for (int k = 0; k < 4; ++k) {
-        EXPECT_EQ(std::bit_cast<uint32_t>(w[k]), std::bit_cast<uint32_t>(ref[k])) << x << ", " << y << " tap " << k;
-        wsum += ref[k];
-      }
+      for (int k = 0; k < 4; ++k) wsum += ref[k];
       if (!(wsum > 1e-4f)) continue;  // nearest in depth (UpsampleKeepsConstants...)
       ++blended;
       for (int k = 0; k < 4; ++k) {
@@ -208,57 +197,58 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
 TEST(HalfResolution, SampleAtTexelsTakesEachTexelsSourcePixel) {
   const GBuffer g = frame();
   const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
-  HalfGrid with_extra, plain;
-  const cv::Mat* extras[] = {&g.albedo};
-  build_half_grid(full, extras, with_extra, 2);
-  build_half_grid(full, {}, plain, 1);
+  HalfGrid plain;
+  build_half_grid(full, plain, 1);
   cv::Mat sampled;
   sample_at_texels(plain, g.albedo, sampled, 2);
   ASSERT_EQ(sampled.size(), cv::Size(81, 46));
-  EXPECT_EQ(cv::norm(sampled, with_extra.extras[0], cv::NORM_INF), 0.0);
-  // Texels that took no pixel hold 0.
+  // The source pixel's value; texels that took no pixel hold 0.
+  int taken = 0;
   for (int j = 0; j < 46; ++j)
-    for (int i = 0; i < 81; ++i)
-      if (plain.source.at<cv::Vec2i>(j, i)[0] < 0) {
+    for (int i = 0; i < 81; ++i) {
+      const cv::Vec2i src = plain.source.at<cv::Vec2i>(j, i);
+      if (src[0] < 0) {
         EXPECT_EQ(sampled.at<cv::Vec3f>(j, i), cv::Vec3f(0, 0, 0));
+        continue;
       }
+      ++taken;
+      EXPECT_EQ(sampled.at<cv::Vec3f>(j, i), g.albedo.at<cv::Vec3f>(src[1], src[0]));
+    }
+  EXPECT_GT(taken, 81 * 46 / 2);
 }
 
-// Kernels of one frame given a shared grid (with kept weights) return the bits they return
-// when each builds its own.
-TEST(HalfResolution, KernelsOnASharedGridGiveTheirOwnGridsBits) {
+// The terms of one frame computed together (one grid, one upsample) return the bits each
+// returns computed alone, at half resolution and with a term at full resolution.
+TEST(HalfResolution, TermsComputedTogetherGiveTheBitsOfEachAlone) {
   const GBuffer g = frame();
-  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
-  HalfGrid h;
-  build_half_grid(full, {}, h, 2);
-  build_upsample_weights(full, h, {}, 2);
   AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
   ao_settings.multibounce = true;
-  AoOutput own, shared;
-  compute_ao({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &g.albedo}, ao_settings, own, {}, 2);
-  compute_ao({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &g.albedo, nullptr, &h}, ao_settings,
-             shared, {}, 2);
-  EXPECT_EQ(cv::norm(own.ao, shared.ao, cv::NORM_INF), 0.0);
-  EXPECT_EQ(cv::norm(own.bent_normal_view, shared.bent_normal_view, cv::NORM_INF), 0.0);
-  EXPECT_LT(cv::mean(own.ao)[0], 0.99);  // something is occluded
-
   const Environment sky = Environment::sky(SkyGradient{});
   const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
-  SsdoOutput own_light, shared_light;
-  compute_ssdo({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, sky, &g.albedo, nullptr},
-               ssdo_settings, own_light, {}, 2);
-  compute_ssdo({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, sky, &g.albedo, nullptr, &h},
-               ssdo_settings, shared_light, {}, 2);
-  EXPECT_EQ(cv::norm(own_light.direct, shared_light.direct, cv::NORM_INF), 0.0);
-  EXPECT_EQ(cv::norm(own_light.indirect, shared_light.indirect, cv::NORM_INF), 0.0);
-  EXPECT_GT(cv::mean(own_light.indirect)[0], 0.0);
-
   ConfidenceSettings cs;
-  cv::Mat own_confidence, shared_confidence;
-  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, own_confidence, {}, 2);
-  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, cs, shared_confidence, {}, 2, &h);
-  EXPECT_EQ(cv::norm(own_confidence, shared_confidence, cv::NORM_INF), 0.0);
-  EXPECT_LT(cv::mean(own_confidence)[0], 1.0);
+  const AoInputs ao_in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &g.albedo};
+  const SsdoInputs ssdo_in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, sky, &g.albedo};
+  for (const int ao_divisor : {2, 1}) {
+    ao_settings.resolution_divisor = ao_divisor;
+    AoOutput ao;
+    SsdoOutput light;
+    cv::Mat confidence;
+    compute_ao_at_resolution(ao_in, ao_settings, ao, {}, 2);
+    compute_ssdo_at_resolution(ssdo_in, ssdo_settings, light, {}, 2);
+    compute_confidence_at_resolution(g.depth_view, g.normal_view, g.mask, g.camera, cs, confidence, {}, 2);
+    EXPECT_LT(cv::mean(ao.ao)[0], 0.99);  // something is occluded
+    EXPECT_GT(cv::mean(light.indirect)[0], 0.0);
+    EXPECT_LT(cv::mean(confidence)[0], 1.0);
+
+    const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo};
+    TermOutputs together;
+    compute_terms(in, {&ao_settings, &ssdo_settings, &cs}, together, {}, 2);
+    EXPECT_EQ(cv::norm(ao.ao, together.ao.ao, cv::NORM_INF), 0.0) << ao_divisor;
+    EXPECT_EQ(cv::norm(ao.bent_normal_view, together.ao.bent_normal_view, cv::NORM_INF), 0.0) << ao_divisor;
+    EXPECT_EQ(cv::norm(light.direct, together.ssdo.direct, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(light.indirect, together.ssdo.indirect, cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(confidence, together.confidence, cv::NORM_INF), 0.0);
+  }
 }
 
 // Without full-resolution positions the grid computes its texels' own from depth: the
@@ -270,28 +260,35 @@ TEST(HalfResolution, TexelPositionsFromDepthGiveTheBitsOfFullResolutionPositions
   view_positions_from_depth(g.depth_view, g.mask, g.camera, from_depth, {}, 2);
   const cv::Mat none;
   HalfGrid given, computed, without;
-  build_half_grid({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, {}, given, 2);
-  build_half_grid({g.depth_view, g.normal_view, none, g.mask, g.camera}, {}, computed, 2);
-  build_half_grid({g.depth_view, g.normal_view, none, g.mask, g.camera}, {}, without, 2, false);
+  build_half_grid({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, given, 2);
+  build_half_grid({g.depth_view, g.normal_view, none, g.mask, g.camera}, computed, 2);
+  build_half_grid({g.depth_view, g.normal_view, none, g.mask, g.camera}, without, 2, false);
   ASSERT_EQ(computed.position_view.size(), given.position_view.size());
   EXPECT_EQ(cv::norm(computed.position_view, given.position_view, cv::NORM_INF), 0.0);
   EXPECT_GT(cv::norm(computed.position_view, cv::NORM_INF), 1.0);  // not all zero
   EXPECT_TRUE(without.position_view.empty());
+  // Without positions, the same texels.
+  EXPECT_EQ(cv::norm(without.depth_view, given.depth_view, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(without.normal_view, given.normal_view, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(without.mask, given.mask, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(without.source, given.source, cv::NORM_INF), 0.0);
 
   const AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
   AoOutput with_positions, without_positions;
-  compute_ao({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, ao_settings, with_positions, {}, 2);
-  compute_ao({g.depth_view, g.normal_view, none, g.mask, g.camera}, ao_settings, without_positions, {}, 2);
+  compute_ao_at_resolution({g.depth_view, g.normal_view, from_depth, g.mask, g.camera}, ao_settings, with_positions,
+                           {}, 2);
+  compute_ao_at_resolution({g.depth_view, g.normal_view, none, g.mask, g.camera}, ao_settings, without_positions,
+                           {}, 2);
   EXPECT_EQ(cv::norm(with_positions.ao, without_positions.ao, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(with_positions.bent_normal_view, without_positions.bent_normal_view, cv::NORM_INF), 0.0);
 
   const Environment sky = Environment::sky(SkyGradient{});
   const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
   SsdoOutput lit_with, lit_without;
-  compute_ssdo({g.depth_view, g.normal_view, from_depth, g.mask, g.camera, sky, &g.albedo}, ssdo_settings, lit_with,
-               {}, 2);
-  compute_ssdo({g.depth_view, g.normal_view, none, g.mask, g.camera, sky, &g.albedo}, ssdo_settings, lit_without, {},
-               2);
+  compute_ssdo_at_resolution({g.depth_view, g.normal_view, from_depth, g.mask, g.camera, sky, &g.albedo},
+                             ssdo_settings, lit_with, {}, 2);
+  compute_ssdo_at_resolution({g.depth_view, g.normal_view, none, g.mask, g.camera, sky, &g.albedo},
+                             ssdo_settings, lit_without, {}, 2);
   EXPECT_EQ(cv::norm(lit_with.direct, lit_without.direct, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(lit_with.indirect, lit_without.indirect, cv::NORM_INF), 0.0);
   EXPECT_GT(cv::mean(lit_with.indirect)[0], 0.0);

@@ -1,5 +1,6 @@
 // SSDO direct and indirect light against closed forms, the reference ray caster
 // (tests/support/raycast.h, same light convention) and the kernel's own oracle.
+#include "kernels/half_resolution.h"
 #include "kernels/ssdo.h"
 
 #include <chrono>
@@ -31,7 +32,7 @@ SsdoOutput run(const Frame& f, const SsdoSettings& s, int nthreads = 0, cv::Rect
   const SsdoInputs in{f.g.depth_view, f.g.normal_view, f.g.position_view, f.g.mask,
                       f.g.camera,     f.env,           &f.g.albedo,       lighting};
   SsdoOutput out;
-  compute_ssdo(in, s, out, roi, nthreads);
+  compute_ssdo_at_resolution(in, s, out, roi, nthreads);
   return out;
 }
 
@@ -315,7 +316,7 @@ TEST(Ssdo, BitwiseIdenticalForOneAndTwoThreadsAndAnyRoi) {
     part.indirect = part.direct.clone();
     const SsdoInputs in{f.g.depth_view, f.g.normal_view, f.g.position_view, f.g.mask,
                         f.g.camera,     f.env,           &f.g.albedo};
-    compute_ssdo(in, s, part, roi, 2);
+    compute_ssdo_at_resolution(in, s, part, roi, 2);
     EXPECT_TRUE(bitwise_equal(part.direct(roi).clone(), one.direct(roi).clone()));
     EXPECT_TRUE(bitwise_equal(part.indirect(roi).clone(), one.indirect(roi).clone()));
     EXPECT_EQ(part.direct.at<cv::Vec3f>(0, 0)[0], -1.0f);
