@@ -12,6 +12,7 @@
 #include "formats/chart.h"
 #include "kernels/metrics.h"
 #include "service/commands.h"
+#include "service/frame_inputs.h"
 
 namespace ssdo {
 
@@ -142,6 +143,7 @@ int run_bench(const BenchArgs& args) {
     ReadOptions read = args.request.read;
     read.read_references = true;
     ReadResult r = read_gbuffer(file, read);
+    complete_gbuffer(r, read.threads);
     if (!r.ok()) {
       std::cerr << "ssdo bench: " << r.error << "\n";
       ++failed;

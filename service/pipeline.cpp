@@ -8,6 +8,7 @@
 #include "kernels/confidence.h"
 #include "kernels/half_resolution.h"
 #include "kernels/positions.h"
+#include "service/frame_inputs.h"
 
 namespace ssdo {
 
@@ -267,6 +268,7 @@ FrameResult process_frame(const FrameRequest& request) {
     auto t0 = std::chrono::steady_clock::now();
     const ReadOptions read = reads_for(request);
     ReadResult frame = read_gbuffer(request.input_path, read);
+    complete_gbuffer(frame, read.threads);
     result.times.read_ms = ms_since(t0);
     result.info = frame.info;
     if (!frame.ok()) {

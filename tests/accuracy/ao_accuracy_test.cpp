@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "formats/gbuffer_reader.h"
+#include "service/frame_inputs.h"
 #include "kernels/ao.h"
 #include "kernels/denoise.h"
 #include "kernels/metrics.h"
@@ -49,6 +50,7 @@ const Frame& load(const std::string& name) {
   ReadOptions options;
   options.read_references = true;
   ReadResult r = read_gbuffer((gbuffer_dir() / (name + ".exr")).string(), options);
+  complete_gbuffer(r, options.threads);
   EXPECT_TRUE(r.ok()) << r.error;
   f.g = std::move(r.gbuffer);
   if (r.info.ao_distance_world) f.radius_world = *r.info.ao_distance_world;
