@@ -886,8 +886,7 @@ RawExr zip_test_frame(int width, int height, int noise_from = 0, int noise_to = 
 ReadOptions zip_test_options() {
   ReadOptions o;
   o.fov_x_deg = 50.0f;
-  o.mapping.references["a"] = "A";
-  o.mapping.references["b"] = "B";
+  o.mapping.references = {{"a", "A"}, {"b", "B"}};
   return o;
 }
 
