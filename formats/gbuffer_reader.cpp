@@ -783,11 +783,10 @@ struct ForegroundRow {
   uint8_t* repair;
 };
 
-// One pixel of foreground_row, every case.
-[[gnu::always_inline]] inline void foreground_pixel(const ForegroundPass& pass,
-                                                    const glm::vec3& ray_row,
-                                                    const ForegroundRow& row, int x,
-                                                    RowCounts& counts) {
+// One pixel of foreground_row, every case (the four-pixel path's fallback and the row's
+// tail: left to the compiler to inline or call).
+void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
+                      const ForegroundRow& row, int x, RowCounts& counts) {
   float* depth = row.depth;
   cv::Vec3f* normal = row.normal;
   float d = depth[x];
