@@ -27,9 +27,14 @@ struct GBuffer {
   cv::Mat mask;
 
   // CV_32FC3. Unit view-space normals (x, y, z), facing the camera side of the surface.
-  // Always filled after reading: reconstructed from depth when the frame has none.
-  // (0, 0, 0) where mask is 0.
+  // (0, 0, 0) where mask is 0. The reader leaves it empty when the frame has none, and
+  // (0, 0, 0) where normal_missing is set; service/frame_inputs.h rebuilds both from depth
+  // before any kernel reads them.
   cv::Mat normal_view;
+
+  // CV_8UC1, empty when every foreground pixel has a usable normal. 1 on the foreground
+  // pixels whose stored normal is unusable ((0, 0, 0): a renderer's "no normal").
+  cv::Mat normal_missing;
 
   // CV_32FC1, optional (empty when absent). A second depth layer: planar depth of the
   // nearest back face on each pixel's ray (a back-face pass, or the second sample of a

@@ -72,6 +72,135 @@ bool mapping_is_empty(const ChannelMapping& m) {
          m.lighting.empty() && m.references.empty();
 }
 
+// " (part "NAME")" in a multi-part file, else "".
+std::string part_label(const std::vector<PartChannels>& parts, int p) {
+  return parts.size() == 1 ? std::string() : " (part \"" + parts[p].name + "\")";
+}
+
+// The part holding depth: options.part by name, else the first part in which the mapping
+// or a profile finds depth, else the first part; nullopt when options.part names no part.
+std::optional<int> depth_part(const std::string& path, const std::vector<PartChannels>& parts,
+                              const ReadOptions& options, std::string* error) {
+  const ChannelMapping& map = options.mapping;
+  if (!options.part.empty()) {
+    for (size_t i = 0; i < parts.size(); ++i)
+      if (parts[i].name == options.part) return int(i);
+    std::vector<std::string> names;
+    for (const auto& p : parts) names.push_back("\"" + p.name + "\"");
+    *error = path + ": no part named \"" + options.part + "\"; parts: " + join_names(names);
+    return std::nullopt;
+  }
+  for (size_t i = 0; i < parts.size(); ++i) {
+    const bool found = !map.depth.empty()
+                           ? find_scalar({parts[i]}, 0, "depth", map.depth, true).has_value()
+                           : blender_layer(parts[i]) || generic_depth(parts[i]);
+    if (found) return int(i);
+  }
+  return 0;
+}
+
+// The inputs a profile finds from the depth part `part`: "blender" (a <Layer>.Depth.Z
+// channel) or "generic" (Z or depth.Z); neither leaves `res` empty.
+void detect_profile(const std::vector<PartChannels>& parts, int part, ChannelResolution& res) {
+  const PartChannels& pc = parts[part];
+  auto add = [&](std::optional<ResolvedInput> r) {
+    if (r) res.inputs.push_back(*r);
+    return r.has_value();
+  };
+  if (auto layer = blender_layer(pc)) {
+    res.profile = "blender";
+    res.layer = *layer;
+    const std::string L = *layer + ".";
+    res.inputs.push_back({"depth", {L + "Depth.Z"}, part, Space::automatic});
+    add(find_vector(parts, part, "normal", L + "Normal", Space::world));
+    add(find_vector(parts, part, "position", L + "Position", Space::world));
+    add(find_vector(parts, part, "albedo", L + "DiffCol"));
+    add(find_vector(parts, part, "diffdir", L + "DiffDir"));
+    add(find_scalar(parts, part, "reference:AO", L + "AO.R", false));
+    for (const char* name : {"DiffDir", "DiffInd"})
+      add(find_vector(parts, part, std::string("reference:") + name, L + name));
+  } else if (auto depth = generic_depth(pc)) {
+    res.profile = "generic";
+    res.inputs.push_back({"depth", {*depth}, part, Space::automatic});
+    add(find_vector(parts, part, "normal", "N"));
+    add(find_vector(parts, part, "position", "P"));
+    for (const char* name : {"albedo", "diffuse_albedo"})
+      if (add(find_vector(parts, part, "albedo", name))) break;
+  }
+}
+
+// Replaces the inputs an explicit mapping names; a named channel or layer that does not
+// exist is an error listing the channels present.
+struct MappingApplier {
+  const std::string& path;
+  const std::vector<PartChannels>& parts;
+  int part;
+  ChannelResolution& res;
+  std::string* error;
+
+  std::string all_channels() const {
+    std::vector<std::string> all;
+    for (size_t i = 0; i < parts.size(); ++i)
+      for (const auto& c : parts[i].channels)
+        all.push_back(parts.size() == 1 ? c : parts[i].name + ":" + c);
+    return join_names(all);
+  }
+  void replace(const ResolvedInput& r) {
+    std::erase_if(res.inputs, [&](const ResolvedInput& x) { return x.input == r.input; });
+    res.inputs.push_back(r);
+  }
+  bool scalar(const std::string& input, const std::string& name) {
+    auto r = find_scalar(parts, part, input, name, true);
+    if (!r) {
+      *error = path + part_label(parts, part) + ": mapped " + input + " channel \"" + name +
+               "\" not found (tried " + name + " and " + name + ".{Z,R,Y,V}); channels present: " +
+               all_channels();
+      return false;
+    }
+    replace(*r);
+    return true;
+  }
+  bool vector(const std::string& input, const std::string& name, Space space) {
+    auto r = find_vector(parts, part, input, name, space);
+    if (!r) {
+      *error = path + part_label(parts, part) + ": mapped " + input + " layer \"" + name +
+               "\" not found (tried " + name + ".{X,Y,Z}, .{R,G,B}, .{x,y,z}); channels present: " +
+               all_channels();
+      return false;
+    }
+    replace(*r);
+    return true;
+  }
+
+  bool apply(const ChannelMapping& map) {
+    res.profile = "mapping";
+    if (!map.depth.empty() && !scalar("depth", map.depth)) return false;
+    if (!map.normal.empty() && !vector("normal", map.normal, map.normal_space)) return false;
+    if (!map.position.empty() && !vector("position", map.position, map.position_space))
+      return false;
+    if (!map.albedo.empty() && !vector("albedo", map.albedo, Space::automatic)) return false;
+    if (!map.lighting.empty()) {
+      if (!vector("lighting", map.lighting, Space::automatic)) return false;
+      std::erase_if(res.inputs, [](const ResolvedInput& x) { return x.input == "diffdir"; });
+    }
+    for (const auto& [name, channel] : map.references) {
+      const std::string input = "reference:" + name;
+      if (auto r = find_vector(parts, part, input, channel)) {
+        replace(*r);
+      } else if (!scalar(input, channel)) {
+        return false;
+      }
+    }
+    // Explicit spaces apply to detected channels too.
+    for (auto& r : res.inputs) {
+      if (r.input == "normal" && map.normal_space != Space::automatic) r.space = map.normal_space;
+      if (r.input == "position" && map.position_space != Space::automatic)
+        r.space = map.position_space;
+    }
+    return true;
+  }
+};
+
 }  // namespace
 
 std::string join_names(const std::vector<std::string>& names, size_t limit) {
@@ -109,140 +238,26 @@ std::optional<ChannelResolution> resolve_channels(const std::string& path,
                                                   const std::vector<PartChannels>& parts,
                                                   const ReadOptions& options,
                                                   std::string* error) {
-  const ChannelMapping& map = options.mapping;
-  ChannelResolution res;
   if (parts.empty()) {
     *error = path + ": the file has no parts";
     return std::nullopt;
   }
-  auto part_label = [&](int p) {
-    return parts.size() == 1 ? std::string() : " (part \"" + parts[p].name + "\")";
-  };
-
-  // 1. The part holding depth.
-  int part = -1;
-  if (!options.part.empty()) {
-    for (size_t i = 0; i < parts.size(); ++i)
-      if (parts[i].name == options.part) part = int(i);
-    if (part < 0) {
-      std::vector<std::string> names;
-      for (const auto& p : parts) names.push_back("\"" + p.name + "\"");
-      *error = path + ": no part named \"" + options.part + "\"; parts: " + join_names(names);
-      return std::nullopt;
-    }
-  } else {
-    for (size_t i = 0; i < parts.size() && part < 0; ++i) {
-      const bool found = !map.depth.empty()
-                             ? find_scalar({parts[i]}, 0, "depth", map.depth, true).has_value()
-                             : blender_layer(parts[i]) || generic_depth(parts[i]);
-      if (found) part = int(i);
-    }
-    if (part < 0) part = 0;
-  }
-  res.part = part;
-  const PartChannels& pc = parts[part];
-
-  // 2. Profile of that part.
-  if (auto layer = blender_layer(pc)) {
-    res.profile = "blender";
-    res.layer = *layer;
-    const std::string L = *layer + ".";
-    res.inputs.push_back({"depth", {L + "Depth.Z"}, part, Space::automatic});
-    if (auto r = find_vector(parts, part, "normal", L + "Normal", Space::world))
-      res.inputs.push_back(*r);
-    if (auto r = find_vector(parts, part, "position", L + "Position", Space::world))
-      res.inputs.push_back(*r);
-    if (auto r = find_vector(parts, part, "albedo", L + "DiffCol")) res.inputs.push_back(*r);
-    if (auto r = find_vector(parts, part, "diffdir", L + "DiffDir")) res.inputs.push_back(*r);
-    if (auto r = find_scalar(parts, part, "reference:AO", L + "AO.R", false))
-      res.inputs.push_back(*r);
-    for (const char* name : {"DiffDir", "DiffInd"})
-      if (auto r = find_vector(parts, part, std::string("reference:") + name, L + name))
-        res.inputs.push_back(*r);
-  } else if (auto depth = generic_depth(pc)) {
-    res.profile = "generic";
-    res.inputs.push_back({"depth", {*depth}, part, Space::automatic});
-    if (auto r = find_vector(parts, part, "normal", "N")) res.inputs.push_back(*r);
-    if (auto r = find_vector(parts, part, "position", "P")) res.inputs.push_back(*r);
-    for (const char* name : {"albedo", "diffuse_albedo"}) {
-      if (auto r = find_vector(parts, part, "albedo", name)) {
-        res.inputs.push_back(*r);
-        break;
-      }
-    }
-  }
-
-  // 3. The explicit mapping replaces what it names.
-  if (!mapping_is_empty(map)) {
-    res.profile = "mapping";
-    auto all_channels = [&]() {
-      std::vector<std::string> all;
-      for (size_t i = 0; i < parts.size(); ++i)
-        for (const auto& c : parts[i].channels)
-          all.push_back(parts.size() == 1 ? c : parts[i].name + ":" + c);
-      return join_names(all);
-    };
-    auto replace = [&](const ResolvedInput& r) {
-      std::erase_if(res.inputs, [&](const ResolvedInput& x) { return x.input == r.input; });
-      res.inputs.push_back(r);
-    };
-    auto map_scalar = [&](const std::string& input, const std::string& name) -> bool {
-      auto r = find_scalar(parts, part, input, name, true);
-      if (!r) {
-        *error = path + part_label(part) + ": mapped " + input + " channel \"" + name +
-                 "\" not found (tried " + name + " and " + name + ".{Z,R,Y,V}); channels present: " +
-                 all_channels();
-        return false;
-      }
-      replace(*r);
-      return true;
-    };
-    auto map_vector = [&](const std::string& input, const std::string& name, Space space) -> bool {
-      auto r = find_vector(parts, part, input, name, space);
-      if (!r) {
-        *error = path + part_label(part) + ": mapped " + input + " layer \"" + name +
-                 "\" not found (tried " + name + ".{X,Y,Z}, .{R,G,B}, .{x,y,z}); channels present: " +
-                 all_channels();
-        return false;
-      }
-      replace(*r);
-      return true;
-    };
-    if (!map.depth.empty() && !map_scalar("depth", map.depth)) return std::nullopt;
-    if (!map.normal.empty() && !map_vector("normal", map.normal, map.normal_space))
-      return std::nullopt;
-    if (!map.position.empty() && !map_vector("position", map.position, map.position_space))
-      return std::nullopt;
-    if (!map.albedo.empty() && !map_vector("albedo", map.albedo, Space::automatic))
-      return std::nullopt;
-    if (!map.lighting.empty()) {
-      if (!map_vector("lighting", map.lighting, Space::automatic)) return std::nullopt;
-      std::erase_if(res.inputs, [](const ResolvedInput& x) { return x.input == "diffdir"; });
-    }
-    for (const auto& [name, channel] : map.references) {
-      const std::string input = "reference:" + name;
-      if (auto r = find_vector(parts, part, input, channel)) {
-        replace(*r);
-      } else if (!map_scalar(input, channel)) {
-        return std::nullopt;
-      }
-    }
-    // Explicit spaces apply to detected channels too.
-    for (auto& r : res.inputs) {
-      if (r.input == "normal" && map.normal_space != Space::automatic) r.space = map.normal_space;
-      if (r.input == "position" && map.position_space != Space::automatic)
-        r.space = map.position_space;
-    }
-  }
-
-  // 4. Depth is the one required input.
+  const std::optional<int> part = depth_part(path, parts, options, error);
+  if (!part) return std::nullopt;
+  ChannelResolution res;
+  res.part = *part;
+  detect_profile(parts, *part, res);
+  if (!mapping_is_empty(options.mapping) &&
+      !MappingApplier{path, parts, *part, res, error}.apply(options.mapping))
+    return std::nullopt;
+  // Depth is the one required input.
   auto depth = std::find_if(res.inputs.begin(), res.inputs.end(),
                             [](const ResolvedInput& r) { return r.input == "depth"; });
   if (depth == res.inputs.end()) {
-    *error = path + part_label(part) +
+    *error = path + part_label(parts, *part) +
              ": required depth channel not found (looked for <Layer>.Depth.Z [blender], "
              "Z or depth.Z [generic]; give one with a channel mapping); channels present: " +
-             join_names(pc.channels);
+             join_names(parts[*part].channels);
     return std::nullopt;
   }
   res.part = depth->part;  // a mapped depth may live in another part

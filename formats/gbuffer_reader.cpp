@@ -35,9 +35,7 @@
 #include "formats/exr_header_check.h"
 #include "formats/half_samples.h"
 #include "formats/exr_zip.h"
-#include "kernels/normals.h"
 #include "core/parallel.h"
-#include "kernels/positions.h"
 
 namespace ssdo {
 
@@ -93,12 +91,25 @@ struct Prepared {
   std::vector<PartChannels> parts;
   ChannelResolution channels;
   PixelBox data, display;
+  // Lighting is albedo x the direct light pass (no lighting channel of its own).
+  bool lighting_from_passes = false;
   Camera camera;
   bool camera_has_world = false;  // sidecar or header: world_to_view is meaningful
   bool radial_depth = false;
+  bool depth_kind_stated = false;  // by the sidecar
   std::optional<float> background_depth;
   std::optional<std::string> sidecar_normal_space, sidecar_position_space;
 };
+
+bool fail(ReadResult& result, std::string message) {
+  result.error = std::move(message);
+  return false;
+}
+
+// " (part "NAME")" in a multi-part file, else "".
+std::string part_label(const Prepared& prep, int part) {
+  return prep.parts.size() > 1 ? " (part \"" + prep.parts[part].name + "\")" : "";
+}
 
 // Which resolved inputs the options ask to read.
 bool wanted(const ResolvedInput& r, const ReadOptions& o, bool lighting_from_passes) {
@@ -120,28 +131,19 @@ Space decide_space(Space resolved, const std::optional<std::string>& sidecar_say
   return camera_has_world ? Space::world : Space::view;
 }
 
-bool prepare(const std::string& path, const ReadOptions& options, ReadResult& result,
-             Prepared& prep) {
-  FrameInfo& info = result.info;
-  info.path = path;
+// The file's headers against the limits (formats/exr_header_check.h), before OpenEXR
+// allocates from them; then OpenEXR's reader and every part's name and channels.
+bool open_file(const std::string& path, const ReadOptions& options, ReadResult& result,
+               Prepared& prep) {
+  result.info.path = path;
   prep.path = path;
   std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) {
-    result.error = path + ": no such file";
-    return false;
-  }
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    result.error = path + ": not a regular file";
-    return false;
-  }
-  // The headers against the file and the limits, before OpenEXR allocates from them
-  // (formats/exr_header_check.h).
+  if (!std::filesystem::exists(path, ec)) return fail(result, path + ": no such file");
+  if (!std::filesystem::is_regular_file(path, ec))
+    return fail(result, path + ": not a regular file");
   const ExrHeaderCheck check =
       check_exr_headers(path, {options.max_pixels, options.max_decoded_bytes});
-  if (!check.ok()) {
-    result.error = check.error;
-    return false;
-  }
+  if (!check.ok()) return fail(result, check.error);
   const int threads = options.threads > 0 ? options.threads : Imf::globalThreadCount();
   // OpenEXR decodes on its process-wide pool; asking for N threads makes sure it has N.
   if (options.threads > 1 && Imf::globalThreadCount() < options.threads)
@@ -149,27 +151,28 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
   try {
     prep.file = std::make_unique<Imf::MultiPartInputFile>(path.c_str(), threads);
   } catch (const std::exception& e) {
-    result.error = path + ": cannot read the EXR header (" + read_failure(e) + "): " + e.what();
-    return false;
+    return fail(result, path + ": cannot read the EXR header (" + read_failure(e) + "): " + e.what());
   }
-  const int n_parts = prep.file->parts();
-  for (int i = 0; i < n_parts; ++i) {
+  for (int i = 0; i < prep.file->parts(); ++i) {
     const Imf::Header& h = prep.file->header(i);
     PartChannels pc;
     pc.name = h.hasName() ? h.name() : std::string();
     for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
       pc.channels.push_back(it.name());
-    info.parts.push_back(pc.name);
+    result.info.parts.push_back(pc.name);
     prep.parts.push_back(std::move(pc));
   }
+  return true;
+}
 
-  // Channels.
+// The channels to read (formats/channel_profiles.h) and the pixel grid, the depth part's
+// data window: absurd sizes are refused before anything is allocated.
+bool resolve_grid(const std::string& path, const ReadOptions& options, ReadResult& result,
+                  Prepared& prep) {
+  FrameInfo& info = result.info;
   std::string error;
   auto resolved = resolve_channels(path, prep.parts, options, &error);
-  if (!resolved) {
-    result.error = error;
-    return false;
-  }
+  if (!resolved) return fail(result, error);
   prep.channels = *resolved;
   const int part = prep.channels.part;
   const Imf::Header& header = prep.file->header(part);
@@ -188,160 +191,185 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
   info.display_height_px = int(std::min<int64_t>(prep.display.height(), INT_MAX));
   info.display_x = prep.display.min_x;
   info.display_y = prep.display.min_y;
-  const std::string part_label =
-      prep.parts.size() > 1 ? " (part \"" + prep.parts[part].name + "\")" : "";
-
-  // Absurd sizes are refused before anything is allocated.
   if (prep.data.width() <= 0 || prep.data.height() <= 0 || prep.data.width() > INT_MAX / 16 ||
       prep.data.height() > INT_MAX / 16 ||
-      prep.data.width() * prep.data.height() > options.max_pixels) {
-    result.error = path + part_label + ": data window " + describe_box(prep.data) +
-                   " refused (limit " + std::to_string(options.max_pixels) + " pixels)";
-    return false;
-  }
+      prep.data.width() * prep.data.height() > options.max_pixels)
+    return fail(result, path + part_label(prep, part) + ": data window " +
+                            describe_box(prep.data) + " refused (limit " +
+                            std::to_string(options.max_pixels) + " pixels)");
+  prep.lighting_from_passes = !prep.channels.find("lighting") && prep.channels.find("albedo") &&
+                              prep.channels.find("diffdir");
+  return true;
+}
 
-  // Every part a used channel comes from must share the depth part's pixel grid.
-  const bool lighting_from_passes =
-      !prep.channels.find("lighting") && prep.channels.find("albedo") &&
-      prep.channels.find("diffdir");
+// Every part a used channel comes from must share the depth part's pixel grid, with flat
+// (not deep) full-resolution channels.
+bool check_used_parts(const std::string& path, const ReadOptions& options, ReadResult& result,
+                      const Prepared& prep) {
+  const int part = prep.channels.part;
   for (const auto& r : prep.channels.inputs) {
-    if (!wanted(r, options, lighting_from_passes)) continue;
+    if (!wanted(r, options, prep.lighting_from_passes)) continue;
     const Imf::Header& h = prep.file->header(r.part);
-    if (h.type() == Imf::DEEPSCANLINE || h.type() == Imf::DEEPTILE) {
-      result.error = path + ": part \"" + prep.parts[r.part].name +
-                     "\" holds deep data, which a G-buffer cannot use";
-      return false;
-    }
-    if (box_of(h.dataWindow()) != prep.data) {
-      result.error = path + ": parts of different sizes: " + r.input + " channels in part \"" +
-                     prep.parts[r.part].name + "\" have data window " +
-                     describe_box(box_of(h.dataWindow())) + ", depth in part \"" +
-                     prep.parts[part].name + "\" has " + describe_box(prep.data);
-      return false;
-    }
+    if (h.type() == Imf::DEEPSCANLINE || h.type() == Imf::DEEPTILE)
+      return fail(result, path + ": part \"" + prep.parts[r.part].name +
+                              "\" holds deep data, which a G-buffer cannot use");
+    if (box_of(h.dataWindow()) != prep.data)
+      return fail(result, path + ": parts of different sizes: " + r.input + " channels in part \"" +
+                              prep.parts[r.part].name + "\" have data window " +
+                              describe_box(box_of(h.dataWindow())) + ", depth in part \"" +
+                              prep.parts[part].name + "\" has " + describe_box(prep.data));
     for (const auto& c : r.channels) {
       const Imf::Channel* ch = h.channels().findChannel(c);
-      if (ch && (ch->xSampling != 1 || ch->ySampling != 1)) {
-        result.error = path + part_label + ": channel " + c + " is subsampled (" +
-                       std::to_string(ch->xSampling) + "x" + std::to_string(ch->ySampling) +
-                       "), which a G-buffer cannot use";
-        return false;
-      }
+      if (ch && (ch->xSampling != 1 || ch->ySampling != 1))
+        return fail(result, path + part_label(prep, part) + ": channel " + c + " is subsampled (" +
+                                std::to_string(ch->xSampling) + "x" +
+                                std::to_string(ch->ySampling) +
+                                "), which a G-buffer cannot use");
     }
   }
+  return true;
+}
 
-  // Camera: sidecar, then header matrices, then --fov.
+// The camera of a JSON sidecar, re-targeted from the display window to the data window (a
+// sidecar of the data window's size is taken as it is).
+bool camera_from_sidecar(const std::string& path, const std::string& sidecar,
+                         const ReadOptions& options, ReadResult& result, Prepared& prep) {
+  FrameInfo& info = result.info;
+  std::string error;
+  const std::optional<SidecarCamera> side = read_camera_sidecar(sidecar, &error);
+  if (!side) return fail(result, path + ": " + error);
+  if (side->width_px == prep.display.width() && side->height_px == prep.display.height()) {
+    prep.camera = side->camera;
+    prep.camera.view_to_clip =
+        projection_for_data_window(side->camera.view_to_clip, prep.display, prep.data);
+  } else if (side->width_px == prep.data.width() && side->height_px == prep.data.height()) {
+    prep.camera = side->camera;
+    info.notes.push_back("sidecar size matches the data window, not the display window");
+  } else {
+    return fail(result, path + ": camera sidecar " + sidecar + " is for " +
+                            std::to_string(side->width_px) + "x" +
+                            std::to_string(side->height_px) +
+                            " pixels, but the frame's display window is " +
+                            describe_box(prep.display) + " and its data window " +
+                            describe_box(prep.data));
+  }
+  prep.camera.width_px = int(prep.data.width());
+  prep.camera.height_px = int(prep.data.height());
+  prep.camera_has_world = true;
+  info.camera_source = "sidecar " + sidecar;
+  info.ao_distance_world = side->ao_distance_world;
+  prep.background_depth = side->background_depth;
+  prep.sidecar_normal_space = side->normal_space;
+  prep.sidecar_position_space = side->position_space;
+  prep.depth_kind_stated = side->depth_kind.has_value();
+  if (options.depth_kind == DepthKind::automatic && side->depth_kind)
+    prep.radial_depth = *side->depth_kind == "radial";
+  return true;
+}
+
+// The part whose header holds worldToCamera and worldToNDC: the depth part first, then the
+// others in order; -1 when none does.
+int header_camera_part(const Prepared& prep) {
+  const int depth_part = prep.channels.part;
+  std::vector<int> order{depth_part};
+  for (int i = 0; i < prep.file->parts(); ++i)
+    if (i != depth_part) order.push_back(i);
+  for (int i : order) {
+    const Imf::Header& h = prep.file->header(i);
+    if (Imf::hasWorldToCamera(h) && Imf::hasWorldToNDC(h)) return i;
+  }
+  return -1;
+}
+
+// The camera of the OpenEXR header attributes worldToCamera + worldToNDC of `part` (and the
+// optional clipNear / clipFar), either camera convention (formats/camera_io.h).
+bool camera_from_header(const std::string& path, int part, ReadResult& result, Prepared& prep) {
+  const Imf::Header& h = prep.file->header(part);
+  ExrCameraMatrices m;
+  const Imath::M44f& w2c = Imf::worldToCamera(h);
+  const Imath::M44f& w2n = Imf::worldToNDC(h);
+  // Same 16 floats in the same order: Imath row-vector == glm column-vector form.
+  std::copy(&w2c.x[0][0], &w2c.x[0][0] + 16, &m.world_to_camera[0][0]);
+  std::copy(&w2n.x[0][0], &w2n.x[0][0] + 16, &m.world_to_ndc[0][0]);
+  float near_view = 0.0f, far_view = 0.0f;
+  if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipNearAttribute))
+    near_view = a->value();
+  if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipFarAttribute))
+    far_view = a->value();
+  std::string error, note;
+  // The matrices refer to this part's display window; the grid is the depth part's.
+  auto cam = camera_from_exr_matrices(m, box_of(h.displayWindow()), prep.data, near_view,
+                                      far_view, &error, &note);
+  if (!cam) return fail(result, path + ": " + error);
+  prep.camera = *cam;
+  prep.camera_has_world = true;
+  result.info.camera_source = "header worldToCamera/worldToNDC";
+  if (prep.parts.size() > 1) result.info.camera_source += " (part \"" + prep.parts[part].name + "\")";
+  result.info.notes.push_back(note);
+  return true;
+}
+
+// A camera from the caller's horizontal field of view, which spans the display window (the
+// full image), like a sidecar's.
+bool camera_from_fov(const std::string& path, const std::string& sidecar,
+                     const ReadOptions& options, ReadResult& result, Prepared& prep) {
+  if (!options.fov_x_deg)
+    return fail(result, path + ": no camera: give a JSON sidecar (" + sidecar +
+                            " or an explicit camera JSON path), store worldToCamera and "
+                            "worldToNDC attributes in the EXR header, or pass a horizontal "
+                            "field of view (--fov DEGREES)");
+  const float fov = *options.fov_x_deg;
+  if (!(fov > 0.0f && fov < 180.0f))
+    return fail(result, path + ": field of view " + std::to_string(fov) +
+                            " degrees is outside (0, 180)");
+  Camera cam = Camera::from_fov_x(int(prep.display.width()), int(prep.display.height()), fov);
+  cam.view_to_clip = projection_for_data_window(cam.view_to_clip, prep.display, prep.data);
+  cam.width_px = int(prep.data.width());
+  cam.height_px = int(prep.data.height());
+  cam.near_view = cam.far_view = 0.0f;  // defaults of from_fov_x, not known clips
+  prep.camera = cam;
+  std::ostringstream source;
+  source << "--fov " << fov;
+  result.info.camera_source = source.str();
+  if (prep.display != prep.data)
+    result.info.notes.push_back(
+        "field of view spans the display window; the data window sees a part of it");
+  return true;
+}
+
+// Camera: sidecar, then header matrices, then --fov; then the depth kind (the options',
+// else the sidecar's, else planar).
+bool resolve_camera(const std::string& path, const ReadOptions& options, ReadResult& result,
+                    Prepared& prep) {
+  FrameInfo& info = result.info;
   const std::string sidecar =
       options.camera_json.empty() ? sidecar_path_for(path) : options.camera_json;
-  std::optional<SidecarCamera> side;
-  if (!options.camera_json.empty() || std::filesystem::exists(sidecar, ec)) {
-    side = read_camera_sidecar(sidecar, &error);
-    if (!side) {
-      result.error = path + ": " + error;
-      return false;
-    }
-    if (side->width_px == prep.display.width() && side->height_px == prep.display.height()) {
-      prep.camera = side->camera;
-      prep.camera.view_to_clip =
-          projection_for_data_window(side->camera.view_to_clip, prep.display, prep.data);
-    } else if (side->width_px == prep.data.width() && side->height_px == prep.data.height()) {
-      prep.camera = side->camera;
-      info.notes.push_back("sidecar size matches the data window, not the display window");
-    } else {
-      result.error = path + ": camera sidecar " + sidecar + " is for " +
-                     std::to_string(side->width_px) + "x" + std::to_string(side->height_px) +
-                     " pixels, but the frame's display window is " + describe_box(prep.display) +
-                     " and its data window " + describe_box(prep.data);
-      return false;
-    }
-    prep.camera.width_px = int(prep.data.width());
-    prep.camera.height_px = int(prep.data.height());
-    prep.camera_has_world = true;
-    info.camera_source = "sidecar " + sidecar;
-    info.ao_distance_world = side->ao_distance_world;
-    prep.background_depth = side->background_depth;
-    prep.sidecar_normal_space = side->normal_space;
-    prep.sidecar_position_space = side->position_space;
-    if (options.depth_kind == DepthKind::automatic && side->depth_kind)
-      prep.radial_depth = *side->depth_kind == "radial";
-  } else {
-    // The depth part's header first, then any other part's.
-    std::vector<int> order{part};
-    for (int i = 0; i < n_parts; ++i)
-      if (i != part) order.push_back(i);
-    bool found = false;
-    for (int i : order) {
-      const Imf::Header& h = prep.file->header(i);
-      if (!Imf::hasWorldToCamera(h) || !Imf::hasWorldToNDC(h)) continue;
-      ExrCameraMatrices m;
-      const Imath::M44f& w2c = Imf::worldToCamera(h);
-      const Imath::M44f& w2n = Imf::worldToNDC(h);
-      // Same 16 floats in the same order: Imath row-vector == glm column-vector form.
-      std::copy(&w2c.x[0][0], &w2c.x[0][0] + 16, &m.world_to_camera[0][0]);
-      std::copy(&w2n.x[0][0], &w2n.x[0][0] + 16, &m.world_to_ndc[0][0]);
-      float near_view = 0.0f, far_view = 0.0f;
-      if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipNearAttribute))
-        near_view = a->value();
-      if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipFarAttribute))
-        far_view = a->value();
-      std::string note;
-      // The matrices refer to this part's display window; the grid is the depth part's.
-      auto cam = camera_from_exr_matrices(m, box_of(h.displayWindow()), prep.data, near_view,
-                                          far_view, &error, &note);
-      if (!cam) {
-        result.error = path + ": " + error;
-        return false;
-      }
-      prep.camera = *cam;
-      prep.camera_has_world = true;
-      info.camera_source = "header worldToCamera/worldToNDC";
-      if (n_parts > 1) info.camera_source += " (part \"" + prep.parts[i].name + "\")";
-      info.notes.push_back(note);
-      found = true;
-      break;
-    }
-    if (!found) {
-      if (!options.fov_x_deg) {
-        result.error =
-            path + ": no camera: give a JSON sidecar (" + sidecar +
-            " or an explicit camera JSON path), store worldToCamera and worldToNDC "
-            "attributes in the EXR header, or pass a horizontal field of view (--fov DEGREES)";
-        return false;
-      }
-      const float fov = *options.fov_x_deg;
-      if (!(fov > 0.0f && fov < 180.0f)) {
-        result.error = path + ": field of view " + std::to_string(fov) +
-                       " degrees is outside (0, 180)";
-        return false;
-      }
-      // The field of view spans the display window (the full image), like a sidecar.
-      Camera cam = Camera::from_fov_x(int(prep.display.width()), int(prep.display.height()), fov);
-      cam.view_to_clip = projection_for_data_window(cam.view_to_clip, prep.display, prep.data);
-      cam.width_px = int(prep.data.width());
-      cam.height_px = int(prep.data.height());
-      cam.near_view = cam.far_view = 0.0f;  // defaults of from_fov_x, not known clips
-      prep.camera = cam;
-      std::ostringstream source;
-      source << "--fov " << fov;
-      info.camera_source = source.str();
-      if (prep.display != prep.data)
-        info.notes.push_back("field of view spans the display window; the data window sees a part of it");
-    }
-  }
+  std::error_code ec;
+  bool ok = false;
+  if (!options.camera_json.empty() || std::filesystem::exists(sidecar, ec))
+    ok = camera_from_sidecar(path, sidecar, options, result, prep);
+  else if (const int part = header_camera_part(prep); part >= 0)
+    ok = camera_from_header(path, part, result, prep);
+  else
+    ok = camera_from_fov(path, sidecar, options, result, prep);
+  if (!ok) return false;
   if (options.fov_x_deg && prep.camera_has_world)
     info.notes.push_back("the given field of view is ignored: the frame's camera (" +
                          info.camera_source + ") takes precedence");
   if (options.depth_kind != DepthKind::automatic)
     prep.radial_depth = options.depth_kind == DepthKind::radial;
-  else if (!side || !side->depth_kind)
+  else if (!prep.depth_kind_stated)
     info.notes.push_back("depth kind not stated by the file or sidecar: planar assumed");
   info.depth_kind = prep.radial_depth ? "radial" : "planar";
   info.fov_x_deg = prep.camera.fov_x_deg();
   info.fov_y_deg = prep.camera.fov_y_deg();
   info.near_view = prep.camera.near_view;
   info.far_view = prep.camera.far_view;
+  return true;
+}
 
-  // What became what.
+// What became what: the space of normals and positions, and each used input's channels.
+void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
   for (auto& r : prep.channels.inputs) {
     if (r.input == "normal")
       r.space = decide_space(r.space, prep.sidecar_normal_space, prep.camera_has_world);
@@ -349,19 +377,28 @@ bool prepare(const std::string& path, const ReadOptions& options, ReadResult& re
       r.space = decide_space(r.space, prep.sidecar_position_space, prep.camera_has_world);
   }
   for (const auto& r : prep.channels.inputs) {
-    if (!wanted(r, options, lighting_from_passes) || r.input == "diffdir") continue;
+    if (!wanted(r, options, prep.lighting_from_passes) || r.input == "diffdir") continue;
     if (r.input == "albedo" && !options.read_albedo) continue;
     std::string channels = r.describe();
     if (prep.parts.size() > 1) channels = prep.parts[r.part].name + ":" + channels;
     info.uses.push_back({r.input, channels, space_name(r.space)});
   }
-  if (options.read_lighting && lighting_from_passes)
+  if (options.read_lighting && prep.lighting_from_passes)
     info.uses.push_back({"lighting",
                          prep.channels.find("albedo")->describe() + " * " +
                              prep.channels.find("diffdir")->describe() +
                              " (albedo x direct irradiance = sender radiance)",
                          ""});
   if (!prep.channels.find("normal")) info.normals_reconstructed = true;
+}
+
+bool prepare(const std::string& path, const ReadOptions& options, ReadResult& result,
+             Prepared& prep) {
+  if (!open_file(path, options, result, prep) || !resolve_grid(path, options, result, prep) ||
+      !check_used_parts(path, options, result, prep) ||
+      !resolve_camera(path, options, result, prep))
+    return false;
+  report_uses(options, prep, result.info);
   return true;
 }
 
@@ -491,11 +528,81 @@ void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, 
   }
 }
 
+// Where the chunk of the lines [y, y + lines) of a part is, how big it is, and why it is
+// refused ("" when it is not).
+std::string locate_chunk(exr_const_context_t context, int part, int y, int lines, int64_t width,
+                         const ZipPlan& plan, exr_chunk_info_t& info) {
+  info = exr_chunk_info_t{};
+  exr_core::forget_error();
+  if (const exr_result_t rv = exr_read_scanline_chunk_info(context, part, y, &info);
+      rv != EXR_ERR_SUCCESS)
+    return "cannot locate the chunk (" + exr_core::error_text(rv) + ")";
+  const uint64_t expected = uint64_t(lines) * plan.line_bytes;
+  // Core derives these from the header; checked all the same, since the conversion writes
+  // exactly `lines` rows of the images from exactly `expected` bytes.
+  if (info.start_y != y || info.height != lines || info.width != width ||
+      info.compression != uint8_t(plan.compression) || info.unpacked_size != expected)
+    return "chunk layout disagrees with the header (" + std::to_string(info.height) +
+           " lines from " + std::to_string(info.start_y) + ", " +
+           std::to_string(info.unpacked_size) + " bytes; expected " + std::to_string(lines) +
+           " lines from " + std::to_string(y) + ", " + std::to_string(expected) + " bytes)";
+  // A stored chunk is never larger than its pixels: the format stores the pixels as they
+  // are when compression does not make them smaller, and uncompressed parts always.
+  if (info.packed_size > expected ||
+      (plan.compression == EXR_COMPRESSION_NONE && info.packed_size != expected) ||
+      (info.packed_size == 0 && expected > 0))
+    return "chunk of " + std::to_string(info.packed_size) + " bytes for " +
+           std::to_string(expected) + " bytes of pixels";
+  return "";
+}
+
+// Converts `lines` packed lines, the first being row `row` of the data window, into every
+// target image.
+void unpack_lines(const uint8_t* pixels, size_t row, int lines, int64_t width, const ZipPlan& plan) {
+  for (int line = 0; line < lines; ++line, ++row) {
+    const uint8_t* from = pixels + size_t(line) * plan.line_bytes;
+    for (const ZipChannel& c : plan.channels) {
+      const ChannelTarget& t = *c.target;
+      float* to = reinterpret_cast<float*>(reinterpret_cast<uint8_t*>(t.first) + row * t.row_bytes);
+      convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats);
+    }
+  }
+}
+
+// Reads, inflates and converts one chunk into the images; "" on success, else what is wrong
+// with it. `stored` and `packed` are the calling thread's buffers.
+std::string decode_chunk(exr_const_context_t context, int part, const PixelBox& data,
+                         const ZipPlan& plan, int chunk, std::vector<uint8_t>& stored,
+                         std::vector<uint8_t>& packed) {
+  const int y = int(data.min_y + int64_t(chunk) * plan.lines_per_chunk);
+  const int lines = int(std::min<int64_t>(plan.lines_per_chunk, data.max_y - y + 1));
+  exr_chunk_info_t info;
+  if (std::string refused = locate_chunk(context, part, y, lines, data.width(), plan, info);
+      !refused.empty())
+    return refused;
+  const uint64_t expected = uint64_t(lines) * plan.line_bytes;
+  // Core checked packed_size against the file's size: this allocation is bounded by it.
+  stored.resize(size_t(info.packed_size));
+  exr_core::forget_error();
+  if (const exr_result_t rv = exr_read_chunk(context, part, &info, stored.data());
+      rv != EXR_ERR_SUCCESS)
+    return "cannot read the chunk (" + exr_core::error_text(rv) + ")";
+  const uint8_t* pixels = stored.data();
+  if (info.packed_size < expected) {
+    packed.resize(size_t(expected));
+    if (!exr_zip::decompress(stored, packed))
+      return "ZIP data of " + std::to_string(info.packed_size) +
+             " bytes does not inflate to the chunk's " + std::to_string(expected) + " bytes";
+    pixels = packed.data();
+  }
+  unpack_lines(pixels, size_t(y - data.min_y), lines, data.width(), plan);
+  return "";
+}
+
 // Reads, inflates and converts every chunk of the part; throws on the first damaged chunk
 // (the lowest scanline, whatever the thread count), naming the part and the scanline.
 void read_zip_part(exr_const_context_t context, int part, const std::string& part_name,
                    bool multi_part, const PixelBox& data, const ZipPlan& plan, int threads) {
-  const int64_t width = data.width();
   std::vector<std::string> errors(size_t(plan.chunks));
   std::atomic<int> first_failed{plan.chunks};
   std::atomic<bool> out_of_memory{false};
@@ -503,66 +610,6 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
     errors[size_t(chunk)] = std::move(message);
     int seen = first_failed.load();
     while (chunk < seen && !first_failed.compare_exchange_weak(seen, chunk)) {
-    }
-  };
-  auto read_chunk = [&](int chunk, std::vector<uint8_t>& stored, std::vector<uint8_t>& packed) {
-    const int y = int(data.min_y + int64_t(chunk) * plan.lines_per_chunk);
-    const int lines = int(std::min<int64_t>(plan.lines_per_chunk, data.max_y - y + 1));
-    exr_chunk_info_t info{};
-    exr_core::forget_error();
-    if (const exr_result_t rv = exr_read_scanline_chunk_info(context, part, y, &info);
-        rv != EXR_ERR_SUCCESS) {
-      fail(chunk, "cannot locate the chunk (" + exr_core::error_text(rv) + ")");
-      return;
-    }
-    const uint64_t expected = uint64_t(lines) * plan.line_bytes;
-    // Core derives these from the header; checked all the same, since the conversion below
-    // writes exactly `lines` rows of the images from exactly `expected` bytes.
-    if (info.start_y != y || info.height != lines || info.width != width ||
-        info.compression != uint8_t(plan.compression) || info.unpacked_size != expected) {
-      fail(chunk, "chunk layout disagrees with the header (" + std::to_string(info.height) +
-                      " lines from " + std::to_string(info.start_y) + ", " +
-                      std::to_string(info.unpacked_size) + " bytes; expected " +
-                      std::to_string(lines) + " lines from " + std::to_string(y) + ", " +
-                      std::to_string(expected) + " bytes)");
-      return;
-    }
-    // A stored chunk is never larger than its pixels: the format stores the pixels as they
-    // are when compression does not make them smaller, and uncompressed parts always.
-    if (info.packed_size > expected ||
-        (plan.compression == EXR_COMPRESSION_NONE && info.packed_size != expected) ||
-        (info.packed_size == 0 && expected > 0)) {
-      fail(chunk, "chunk of " + std::to_string(info.packed_size) + " bytes for " +
-                      std::to_string(expected) + " bytes of pixels");
-      return;
-    }
-    // Core checked packed_size against the file's size: this allocation is bounded by it.
-    stored.resize(size_t(info.packed_size));
-    exr_core::forget_error();
-    if (const exr_result_t rv = exr_read_chunk(context, part, &info, stored.data());
-        rv != EXR_ERR_SUCCESS) {
-      fail(chunk, "cannot read the chunk (" + exr_core::error_text(rv) + ")");
-      return;
-    }
-    const uint8_t* pixels = stored.data();
-    if (info.packed_size < expected) {
-      packed.resize(size_t(expected));
-      if (!exr_zip::decompress(stored, packed)) {
-        fail(chunk, "ZIP data of " + std::to_string(info.packed_size) +
-                        " bytes does not inflate to the chunk's " + std::to_string(expected) +
-                        " bytes");
-        return;
-      }
-      pixels = packed.data();
-    }
-    for (int line = 0; line < lines; ++line) {
-      const uint8_t* from = pixels + size_t(line) * plan.line_bytes;
-      const size_t row = size_t(y - data.min_y + line);
-      for (const ZipChannel& c : plan.channels) {
-        const ChannelTarget& t = *c.target;
-        float* to = reinterpret_cast<float*>(reinterpret_cast<uint8_t*>(t.first) + row * t.row_bytes);
-        convert_samples(from + c.line_offset_bytes, c.type, width, to, t.pixel_floats);
-      }
     }
   };
   // One strip per chunk (16 or 1 lines): the chunks are the unit of work.
@@ -573,7 +620,8 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
       // error is reported.
       if (chunk > first_failed.load()) break;
       try {
-        read_chunk(chunk, stored, packed);
+        std::string error = decode_chunk(context, part, data, plan, chunk, stored, packed);
+        if (!error.empty()) fail(chunk, std::move(error));
       } catch (const std::bad_alloc&) {
         out_of_memory = true;
         fail(chunk, "out of memory");
@@ -597,40 +645,47 @@ struct Images {
   std::map<std::string, cv::Mat> references;
 };
 
-// Reads the wanted channels of each part straight into the float images: one slice per
-// channel, interleaved by the slice strides; OpenEXR (or, for ZIP parts, read_zip_part)
-// converts half to float.
-void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_passes,
-                 Images& img, cv::Size size) {
+cv::Mat* image_for(const std::string& input, Images& img) {
+  if (input == "depth") return &img.depth;
+  if (input == "normal") return &img.normal;
+  if (input == "position") return &img.position;
+  if (input == "albedo") return &img.albedo;
+  if (input == "diffdir") return &img.diffdir;
+  if (input == "lighting") return &img.lighting;
+  return &img.references[input.substr(std::string("reference:").size())];
+}
+
+// Where each wanted channel goes: one slice per channel, interleaved by the slice strides,
+// per part for OpenEXR (buffers) and for read_zip_part (targets).
+struct SlicePlan {
   std::map<int, Imf::FrameBuffer> buffers;
-  std::map<int, std::vector<ChannelTarget>> targets;  // the same slices, for read_zip_part
-  std::map<std::string, cv::Mat*> read_into;
+  std::map<int, std::vector<ChannelTarget>> targets;
   std::vector<std::pair<cv::Mat*, cv::Mat*>> aliases;  // (alias, image read)
-  std::map<std::string, std::pair<cv::Mat*, int>> first_use;  // "part:channel" -> image, component
   struct Copy {
     cv::Mat* from;
     int from_component;
     cv::Mat* to;
     int to_component;
   };
-  std::vector<Copy> copies;
+  std::vector<Copy> copies;  // components read once and used twice
+};
+
+// Allocates the images of the wanted inputs and plans their slices.
+SlicePlan plan_slices(const Prepared& prep, const ReadOptions& options, Images& img) {
+  SlicePlan plan;
+  const cv::Size size(int(prep.data.width()), int(prep.data.height()));
+  std::map<std::string, cv::Mat*> read_into;
+  std::map<std::string, std::pair<cv::Mat*, int>> first_use;  // "part:channel" -> image, component
   const Imath::Box2i window(Imath::V2i(prep.data.min_x, prep.data.min_y),
                             Imath::V2i(prep.data.max_x, prep.data.max_y));
   for (const auto& r : prep.channels.inputs) {
-    if (!wanted(r, options, lighting_from_passes)) continue;
-    cv::Mat* target = nullptr;
-    if (r.input == "depth") target = &img.depth;
-    else if (r.input == "normal") target = &img.normal;
-    else if (r.input == "position") target = &img.position;
-    else if (r.input == "albedo") target = &img.albedo;
-    else if (r.input == "diffdir") target = &img.diffdir;
-    else if (r.input == "lighting") target = &img.lighting;
-    else target = &img.references[r.input.substr(std::string("reference:").size())];
+    if (!wanted(r, options, prep.lighting_from_passes)) continue;
+    cv::Mat* target = image_for(r.input, img);
     // Two inputs on the same channels (DiffDir as lighting factor and as reference) share
     // one image: OpenEXR takes one slice per channel name.
     const std::string key = std::to_string(r.part) + ":" + join_names(r.channels);
     if (auto it = read_into.find(key); it != read_into.end()) {
-      aliases.emplace_back(target, it->second);
+      plan.aliases.emplace_back(target, it->second);
       continue;
     }
     read_into[key] = target;
@@ -641,20 +696,26 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
       // the lighting layer, say) is copied after reading.
       const std::string channel_key = std::to_string(r.part) + ":" + r.channels[c];
       if (auto it = first_use.find(channel_key); it != first_use.end()) {
-        copies.push_back({it->second.first, it->second.second, target, c});
+        plan.copies.push_back({it->second.first, it->second.second, target, c});
         continue;
       }
       first_use[channel_key] = {target, c};
-      buffers[r.part].insert(r.channels[c],
-                             Imf::Slice::Make(Imf::FLOAT, target->ptr<float>() + c, window,
-                                              sizeof(float) * n, target->step[0]));
-      targets[r.part].push_back({r.channels[c], target->ptr<float>() + c, size_t(n),
-                                 target->step[0]});
+      plan.buffers[r.part].insert(r.channels[c],
+                                  Imf::Slice::Make(Imf::FLOAT, target->ptr<float>() + c, window,
+                                                   sizeof(float) * n, target->step[0]));
+      plan.targets[r.part].push_back({r.channels[c], target->ptr<float>() + c, size_t(n),
+                                      target->step[0]});
     }
   }
+  return plan;
+}
+
+// Decodes every planned part: ZIP parts with read_zip_part (ZipDecoder::libdeflate), the
+// others with OpenEXR, which converts half to float either way.
+void decode_parts(Prepared& prep, const ReadOptions& options, SlicePlan& plan) {
   exr_core::Context core;
   bool core_tried = false;
-  for (auto& [part, fb] : buffers) {
+  for (auto& [part, fb] : plan.buffers) {
     if (!prep.file->partComplete(part))
       throw std::runtime_error("incomplete or truncated file: part \"" + prep.parts[part].name +
                                "\" is missing pixel data");
@@ -664,9 +725,9 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
         open_core(prep.path, core);
       }
       if (core.get()) {
-        if (auto plan = plan_zip_part(core.get(), part, prep.data, targets[part])) {
+        if (auto zip = plan_zip_part(core.get(), part, prep.data, plan.targets[part])) {
           read_zip_part(core.get(), part, prep.parts[part].name, prep.parts.size() > 1,
-                        prep.data, *plan, options.threads);
+                        prep.data, *zip, options.threads);
           continue;
         }
       }
@@ -675,11 +736,17 @@ void read_pixels(Prepared& prep, const ReadOptions& options, bool lighting_from_
     in.setFrameBuffer(fb);
     in.readPixels(prep.data.min_y, prep.data.max_y);
   }
-  for (const Copy& c : copies) {
+}
+
+// Reads the wanted channels of each part straight into the float images.
+void read_pixels(Prepared& prep, const ReadOptions& options, Images& img) {
+  SlicePlan plan = plan_slices(prep, options, img);
+  decode_parts(prep, options, plan);
+  for (const SlicePlan::Copy& c : plan.copies) {
     const int pair[2] = {c.from_component, c.to_component};
     cv::mixChannels(c.from, 1, c.to, 1, pair, 1);
   }
-  for (auto& [alias, source] : aliases) *alias = *source;
+  for (auto& [alias, source] : plan.aliases) *alias = *source;
 }
 
 void set_nonfinite_to_zero(cv::Mat& m) {
@@ -708,175 +775,362 @@ struct ForegroundPass {
   glm::vec3 ray_step_x{0.0f};
 };
 
-// The pass after reading, one row: depth (radial -> planar) classified as foreground or
-// not, normals to view space, unit length and facing the camera. `ray_row` is the eye ray
-// through the row's first pixel centre; `normal` and `repair` are null without normals.
-// Background and unusable pixels get depth +inf, mask 0 and normal (0, 0, 0); foreground
-// pixels mask 255, and repair 1 where the normal is (0, 0, 0). `pass` is taken by value:
-// the mask's byte stores may alias anything behind a reference, which would be reloaded
-// per pixel.
-RowCounts foreground_row(const ForegroundPass pass, const glm::vec3 ray_row, float* depth,
-                         uint8_t* mask, cv::Vec3f* normal, uint8_t* repair) {
-  const float inf = std::numeric_limits<float>::infinity();
-  RowCounts counts;
-  // One pixel, every case.
-  auto pixel = [&](int x) {
-    float d = depth[x];
-    bool nonfinite = !std::isfinite(d);
-    glm::vec3 n(0.0f);
-    if (normal) {
-      n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
-      if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) nonfinite = true;
-    }
-    // The eye ray through the pixel centre (length arbitrary, z = -1 in perspective).
-    const glm::vec3 ray =
-        pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
-    // Radial distance from the eye -> planar depth along -Z: d_planar = d cos(angle
-    // to the axis) = d / |ray| for a ray with z = -1.
-    if (pass.radial && !nonfinite && pass.perspective) d /= glm::length(ray);
-    const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
-                            !(pass.far_view > 0.0f && d > pass.far_view) &&
-                            !(pass.has_background && depth[x] == pass.background);
-    if (!foreground) {
-      counts.nonfinite += nonfinite ? 1 : 0;
-      depth[x] = inf;
-      mask[x] = 0;
-      if (normal) normal[x] = cv::Vec3f(0, 0, 0);
-      return;
-    }
-    depth[x] = d;
-    mask[x] = 255;
-    ++counts.foreground;
-    counts.depth_min = std::min(counts.depth_min, d);
-    counts.depth_max = std::max(counts.depth_max, d);
-    if (normal) {
-      if (pass.normals_world) n = pass.normal_to_view * n;
-      const float len = glm::length(n);
-      if (!(len > kMinNormalLength)) {
-        repair[x] = 1;
-        ++counts.repaired;
-        normal[x] = cv::Vec3f(0, 0, 0);
-        return;
-      }
-      n /= len;
-      // Face the camera: a normal pointing away from the eye (back face, or a
-      // renderer that does not flip shading normals) is turned around, since the
-      // kernels integrate over the visible side's hemisphere.
-      if (glm::dot(n, ray) > 0.0f) n = -n;
-      normal[x] = cv::Vec3f(n.x, n.y, n.z);
-    }
-  };
-  int x = 0;
-#if defined(__SSE2__)
-  // Four pixels at a time while all four are foreground with a usable normal (nearly every
-  // group of a rendered frame); any other group goes pixel by pixel. The operations are
-  // `pixel`'s, in its order and without contraction (SSE2 has no FMA), so the bits are its.
+// The pointers of one row: `normal` and `repair` are null without normals.
+struct ForegroundRow {
+  float* depth;
+  uint8_t* mask;
+  cv::Vec3f* normal;
+  uint8_t* repair;
+};
+
+// One pixel of foreground_row, every case (the four-pixel path's fallback and the row's
+// tail: left to the compiler to inline or call).
+void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
+                      const ForegroundRow& row, int x, RowCounts& counts) {
+  float* depth = row.depth;
+  cv::Vec3f* normal = row.normal;
+  float d = depth[x];
+  bool nonfinite = !std::isfinite(d);
+  glm::vec3 n(0.0f);
   if (normal) {
-    const __m128 zero = _mm_setzero_ps();
-    const __m128 magnitude_bits = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-    const __m128 infinity = _mm_set1_ps(inf);
-    const __m128 sign_bit = _mm_set1_ps(-0.0f);
-    const __m128 background_depth = _mm_set1_ps(kBackgroundDepth);
-    // No far clip: +inf, which no depth exceeds; no background value: NaN, which no depth
-    // equals.
-    const __m128 far_view = _mm_set1_ps(pass.far_view > 0.0f ? pass.far_view : inf);
-    const __m128 background = _mm_set1_ps(
-        pass.has_background ? pass.background : std::numeric_limits<float>::quiet_NaN());
-    const __m128 min_length = _mm_set1_ps(kMinNormalLength);
-    const glm::mat3& m = pass.normal_to_view;
-    const __m128 m00 = _mm_set1_ps(m[0][0]), m10 = _mm_set1_ps(m[1][0]), m20 = _mm_set1_ps(m[2][0]);
-    const __m128 m01 = _mm_set1_ps(m[0][1]), m11 = _mm_set1_ps(m[1][1]), m21 = _mm_set1_ps(m[2][1]);
-    const __m128 m02 = _mm_set1_ps(m[0][2]), m12 = _mm_set1_ps(m[1][2]), m22 = _mm_set1_ps(m[2][2]);
-    const __m128 ray_row_x = _mm_set1_ps(ray_row.x), ray_row_y = _mm_set1_ps(ray_row.y),
-                 ray_row_z = _mm_set1_ps(ray_row.z);
-    const __m128 step_x = _mm_set1_ps(pass.ray_step_x.x), step_y = _mm_set1_ps(pass.ray_step_x.y),
-                 step_z = _mm_set1_ps(pass.ray_step_x.z);
-    const __m128 lanes = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-    __m128 depth_min = infinity, depth_max = _mm_set1_ps(-inf);
-    for (; x + 4 <= pass.width; x += 4) {
-      const __m128 stored = _mm_loadu_ps(depth + x);
-      // (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3) -> (x0 x1 x2 x3) (y0 ..) (z0 ..).
-      float* n_at = &normal[x][0];
-      const __m128 a = _mm_loadu_ps(n_at), b = _mm_loadu_ps(n_at + 4), c = _mm_loadu_ps(n_at + 8);
-      __m128 nx = _mm_shuffle_ps(a, _mm_shuffle_ps(b, c, _MM_SHUFFLE(1, 1, 2, 2)),
-                                 _MM_SHUFFLE(2, 0, 3, 0));
-      __m128 ny = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(0, 0, 1, 1)),
-                                 _mm_shuffle_ps(b, c, _MM_SHUFFLE(2, 2, 3, 3)),
-                                 _MM_SHUFFLE(2, 0, 2, 0));
-      __m128 nz = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(1, 1, 2, 2)), c,
-                                 _MM_SHUFFLE(3, 0, 2, 0));
-      // Finite: |v| < inf (false for NaN).
-      __m128 usable = _mm_and_ps(
-          _mm_and_ps(_mm_cmplt_ps(_mm_and_ps(stored, magnitude_bits), infinity),
-                     _mm_cmplt_ps(_mm_and_ps(nx, magnitude_bits), infinity)),
-          _mm_and_ps(_mm_cmplt_ps(_mm_and_ps(ny, magnitude_bits), infinity),
-                     _mm_cmplt_ps(_mm_and_ps(nz, magnitude_bits), infinity)));
-      __m128 ray_x = zero, ray_y = zero, ray_z = _mm_set1_ps(-1.0f);
-      if (pass.perspective) {
-        // float(x) + lane is float(x + lane): integers this small are exact.
-        const __m128 at = _mm_add_ps(_mm_set1_ps(float(x)), lanes);
-        ray_x = _mm_add_ps(ray_row_x, _mm_mul_ps(at, step_x));
-        ray_y = _mm_add_ps(ray_row_y, _mm_mul_ps(at, step_y));
-        ray_z = _mm_add_ps(ray_row_z, _mm_mul_ps(at, step_z));
-      }
-      __m128 d = stored;
-      if (pass.radial && pass.perspective)
-        d = _mm_div_ps(d, _mm_sqrt_ps(_mm_add_ps(
-                              _mm_add_ps(_mm_mul_ps(ray_x, ray_x), _mm_mul_ps(ray_y, ray_y)),
-                              _mm_mul_ps(ray_z, ray_z))));
-      usable = _mm_and_ps(usable, _mm_and_ps(_mm_cmpgt_ps(d, zero), _mm_cmplt_ps(d, background_depth)));
-      usable = _mm_andnot_ps(_mm_or_ps(_mm_cmpgt_ps(d, far_view), _mm_cmpeq_ps(stored, background)),
-                             usable);
-      if (pass.normals_world) {
-        const __m128 vx = nx, vy = ny, vz = nz;
-        nx = _mm_add_ps(_mm_add_ps(_mm_mul_ps(m00, vx), _mm_mul_ps(m10, vy)), _mm_mul_ps(m20, vz));
-        ny = _mm_add_ps(_mm_add_ps(_mm_mul_ps(m01, vx), _mm_mul_ps(m11, vy)), _mm_mul_ps(m21, vz));
-        nz = _mm_add_ps(_mm_add_ps(_mm_mul_ps(m02, vx), _mm_mul_ps(m12, vy)), _mm_mul_ps(m22, vz));
-      }
-      const __m128 len = _mm_sqrt_ps(
-          _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, nx), _mm_mul_ps(ny, ny)), _mm_mul_ps(nz, nz)));
-      usable = _mm_and_ps(usable, _mm_cmpgt_ps(len, min_length));
-      if (_mm_movemask_ps(usable) != 0xf) {
-        for (int i = 0; i < 4; ++i) pixel(x + i);
-        continue;
-      }
-      nx = _mm_div_ps(nx, len);
-      ny = _mm_div_ps(ny, len);
-      nz = _mm_div_ps(nz, len);
-      const __m128 facing = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, ray_x), _mm_mul_ps(ny, ray_y)),
-                                       _mm_mul_ps(nz, ray_z));
-      const __m128 flip = _mm_and_ps(_mm_cmpgt_ps(facing, zero), sign_bit);
-      nx = _mm_xor_ps(nx, flip);
-      ny = _mm_xor_ps(ny, flip);
-      nz = _mm_xor_ps(nz, flip);
-      _mm_storeu_ps(depth + x, d);
-      std::memset(mask + x, 255, 4);
-      // And back: (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3).
-      const __m128 xy = _mm_shuffle_ps(nx, ny, _MM_SHUFFLE(0, 0, 0, 0));  // x0 x0 y0 y0
-      const __m128 zx = _mm_shuffle_ps(nz, nx, _MM_SHUFFLE(1, 1, 0, 0));  // z0 z0 x1 x1
-      const __m128 yz = _mm_shuffle_ps(ny, nz, _MM_SHUFFLE(1, 1, 1, 1));  // y1 y1 z1 z1
-      const __m128 xy2 = _mm_shuffle_ps(nx, ny, _MM_SHUFFLE(2, 2, 2, 2));  // x2 x2 y2 y2
-      const __m128 zx3 = _mm_shuffle_ps(nz, nx, _MM_SHUFFLE(3, 3, 2, 2));  // z2 z2 x3 x3
-      const __m128 yz3 = _mm_shuffle_ps(ny, nz, _MM_SHUFFLE(3, 3, 3, 3));  // y3 y3 z3 z3
-      _mm_storeu_ps(n_at, _mm_shuffle_ps(xy, zx, _MM_SHUFFLE(2, 0, 2, 0)));
-      _mm_storeu_ps(n_at + 4, _mm_shuffle_ps(yz, xy2, _MM_SHUFFLE(2, 0, 2, 0)));
-      _mm_storeu_ps(n_at + 8, _mm_shuffle_ps(zx3, yz3, _MM_SHUFFLE(2, 0, 2, 0)));
+    n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
+    if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) nonfinite = true;
+  }
+  // The eye ray through the pixel centre (length arbitrary, z = -1 in perspective).
+  const glm::vec3 ray =
+      pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
+  // Radial distance from the eye -> planar depth along -Z: d_planar = d cos(angle to the
+  // axis) = d / |ray| for a ray with z = -1.
+  if (pass.radial && !nonfinite && pass.perspective) d /= glm::length(ray);
+  const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
+                          !(pass.far_view > 0.0f && d > pass.far_view) &&
+                          !(pass.has_background && depth[x] == pass.background);
+  if (!foreground) {
+    counts.nonfinite += nonfinite ? 1 : 0;
+    depth[x] = std::numeric_limits<float>::infinity();
+    row.mask[x] = 0;
+    if (normal) normal[x] = cv::Vec3f(0, 0, 0);
+    return;
+  }
+  depth[x] = d;
+  row.mask[x] = 255;
+  ++counts.foreground;
+  counts.depth_min = std::min(counts.depth_min, d);
+  counts.depth_max = std::max(counts.depth_max, d);
+  if (!normal) return;
+  if (pass.normals_world) n = pass.normal_to_view * n;
+  const float len = glm::length(n);
+  if (!(len > kMinNormalLength)) {
+    row.repair[x] = 1;
+    ++counts.repaired;
+    normal[x] = cv::Vec3f(0, 0, 0);
+    return;
+  }
+  n /= len;
+  // Face the camera: a normal pointing away from the eye (back face, or a renderer that
+  // does not flip shading normals) is turned around, since the kernels integrate over the
+  // visible side's hemisphere.
+  if (glm::dot(n, ray) > 0.0f) n = -n;
+  normal[x] = cv::Vec3f(n.x, n.y, n.z);
+}
+
+#if defined(__SSE2__)
+// Four pixels' (x, y, z) vectors, one component per register.
+struct Vec3x4 {
+  __m128 x, y, z;
+};
+
+// ForegroundPass and the row's first eye ray, broadcast to four lanes.
+struct ForegroundLanes {
+  __m128 zero, magnitude_bits, infinity, sign_bit, background_depth, far_view, background,
+      min_length;
+  __m128 m00, m10, m20, m01, m11, m21, m02, m12, m22;  // normal_to_view
+  __m128 ray_row_x, ray_row_y, ray_row_z, step_x, step_y, step_z, lanes;
+};
+
+[[gnu::always_inline]] inline ForegroundLanes broadcast(const ForegroundPass& pass,
+                                                        const glm::vec3& ray_row) {
+  const float inf = std::numeric_limits<float>::infinity();
+  ForegroundLanes c;
+  c.zero = _mm_setzero_ps();
+  c.magnitude_bits = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+  c.infinity = _mm_set1_ps(inf);
+  c.sign_bit = _mm_set1_ps(-0.0f);
+  c.background_depth = _mm_set1_ps(kBackgroundDepth);
+  // No far clip: +inf, which no depth exceeds; no background value: NaN, which no depth
+  // equals.
+  c.far_view = _mm_set1_ps(pass.far_view > 0.0f ? pass.far_view : inf);
+  c.background = _mm_set1_ps(pass.has_background ? pass.background
+                                                 : std::numeric_limits<float>::quiet_NaN());
+  c.min_length = _mm_set1_ps(kMinNormalLength);
+  const glm::mat3& m = pass.normal_to_view;
+  c.m00 = _mm_set1_ps(m[0][0]), c.m10 = _mm_set1_ps(m[1][0]), c.m20 = _mm_set1_ps(m[2][0]);
+  c.m01 = _mm_set1_ps(m[0][1]), c.m11 = _mm_set1_ps(m[1][1]), c.m21 = _mm_set1_ps(m[2][1]);
+  c.m02 = _mm_set1_ps(m[0][2]), c.m12 = _mm_set1_ps(m[1][2]), c.m22 = _mm_set1_ps(m[2][2]);
+  c.ray_row_x = _mm_set1_ps(ray_row.x), c.ray_row_y = _mm_set1_ps(ray_row.y),
+  c.ray_row_z = _mm_set1_ps(ray_row.z);
+  c.step_x = _mm_set1_ps(pass.ray_step_x.x), c.step_y = _mm_set1_ps(pass.ray_step_x.y),
+  c.step_z = _mm_set1_ps(pass.ray_step_x.z);
+  c.lanes = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
+  return c;
+}
+
+// (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3) -> (x0 x1 x2 x3) (y0 ..) (z0 ..).
+[[gnu::always_inline]] inline Vec3x4 load_normals4(const float* n_at) {
+  const __m128 a = _mm_loadu_ps(n_at), b = _mm_loadu_ps(n_at + 4), c = _mm_loadu_ps(n_at + 8);
+  Vec3x4 n;
+  n.x = _mm_shuffle_ps(a, _mm_shuffle_ps(b, c, _MM_SHUFFLE(1, 1, 2, 2)), _MM_SHUFFLE(2, 0, 3, 0));
+  n.y = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(0, 0, 1, 1)),
+                       _mm_shuffle_ps(b, c, _MM_SHUFFLE(2, 2, 3, 3)), _MM_SHUFFLE(2, 0, 2, 0));
+  n.z = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(1, 1, 2, 2)), c, _MM_SHUFFLE(3, 0, 2, 0));
+  return n;
+}
+
+// And back: (x0 x1 x2 x3) (y0 ..) (z0 ..) -> (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3).
+[[gnu::always_inline]] inline void store_normals4(float* n_at, const Vec3x4& n) {
+  const __m128 xy = _mm_shuffle_ps(n.x, n.y, _MM_SHUFFLE(0, 0, 0, 0));   // x0 x0 y0 y0
+  const __m128 zx = _mm_shuffle_ps(n.z, n.x, _MM_SHUFFLE(1, 1, 0, 0));   // z0 z0 x1 x1
+  const __m128 yz = _mm_shuffle_ps(n.y, n.z, _MM_SHUFFLE(1, 1, 1, 1));   // y1 y1 z1 z1
+  const __m128 xy2 = _mm_shuffle_ps(n.x, n.y, _MM_SHUFFLE(2, 2, 2, 2));  // x2 x2 y2 y2
+  const __m128 zx3 = _mm_shuffle_ps(n.z, n.x, _MM_SHUFFLE(3, 3, 2, 2));  // z2 z2 x3 x3
+  const __m128 yz3 = _mm_shuffle_ps(n.y, n.z, _MM_SHUFFLE(3, 3, 3, 3));  // y3 y3 z3 z3
+  _mm_storeu_ps(n_at, _mm_shuffle_ps(xy, zx, _MM_SHUFFLE(2, 0, 2, 0)));
+  _mm_storeu_ps(n_at + 4, _mm_shuffle_ps(yz, xy2, _MM_SHUFFLE(2, 0, 2, 0)));
+  _mm_storeu_ps(n_at + 8, _mm_shuffle_ps(zx3, yz3, _MM_SHUFFLE(2, 0, 2, 0)));
+}
+
+// Lanes whose depth and normal are finite: |v| < inf (false for NaN).
+[[gnu::always_inline]] inline __m128 finite4(const ForegroundLanes& c, __m128 depth,
+                                             const Vec3x4& n) {
+  auto finite = [&](__m128 v) { return _mm_cmplt_ps(_mm_and_ps(v, c.magnitude_bits), c.infinity); };
+  return _mm_and_ps(_mm_and_ps(finite(depth), finite(n.x)), _mm_and_ps(finite(n.y), finite(n.z)));
+}
+
+// The eye rays through the pixel centres x .. x + 3, as foreground_pixel steps them.
+[[gnu::always_inline]] inline Vec3x4 eye_rays4(const ForegroundLanes& c, bool perspective, int x) {
+  if (!perspective) return {c.zero, c.zero, _mm_set1_ps(-1.0f)};
+  // float(x) + lane is float(x + lane): integers this small are exact.
+  const __m128 at = _mm_add_ps(_mm_set1_ps(float(x)), c.lanes);
+  return {_mm_add_ps(c.ray_row_x, _mm_mul_ps(at, c.step_x)),
+          _mm_add_ps(c.ray_row_y, _mm_mul_ps(at, c.step_y)),
+          _mm_add_ps(c.ray_row_z, _mm_mul_ps(at, c.step_z))};
+}
+
+[[gnu::always_inline]] inline __m128 dot4(const Vec3x4& a, const Vec3x4& b) {
+  return _mm_add_ps(_mm_add_ps(_mm_mul_ps(a.x, b.x), _mm_mul_ps(a.y, b.y)), _mm_mul_ps(a.z, b.z));
+}
+
+// normal_to_view * v, as glm's mat3 * vec3 sums it.
+[[gnu::always_inline]] inline Vec3x4 to_view4(const ForegroundLanes& c, const Vec3x4& v) {
+  return {_mm_add_ps(_mm_add_ps(_mm_mul_ps(c.m00, v.x), _mm_mul_ps(c.m10, v.y)), _mm_mul_ps(c.m20, v.z)),
+          _mm_add_ps(_mm_add_ps(_mm_mul_ps(c.m01, v.x), _mm_mul_ps(c.m11, v.y)), _mm_mul_ps(c.m21, v.z)),
+          _mm_add_ps(_mm_add_ps(_mm_mul_ps(c.m02, v.x), _mm_mul_ps(c.m12, v.y)), _mm_mul_ps(c.m22, v.z))};
+}
+
+// foreground_pixel on the four pixels x .. x + 3 when all four are foreground with a usable
+// normal; false, with nothing written, otherwise. The operations are foreground_pixel's,
+// in its order and without contraction (SSE2 has no FMA), so the bits are its.
+[[gnu::always_inline]] inline bool foreground_group4(const ForegroundPass& pass,
+                                                     const ForegroundLanes& c,
+                                                     const ForegroundRow& row, int x,
+                                                     __m128& depth_min, __m128& depth_max) {
+  const __m128 stored = _mm_loadu_ps(row.depth + x);
+  float* n_at = &row.normal[x][0];
+  Vec3x4 n = load_normals4(n_at);
+  __m128 usable = finite4(c, stored, n);
+  const Vec3x4 ray = eye_rays4(c, pass.perspective, x);
+  __m128 d = stored;
+  if (pass.radial && pass.perspective) d = _mm_div_ps(d, _mm_sqrt_ps(dot4(ray, ray)));
+  usable = _mm_and_ps(usable, _mm_and_ps(_mm_cmpgt_ps(d, c.zero), _mm_cmplt_ps(d, c.background_depth)));
+  usable = _mm_andnot_ps(_mm_or_ps(_mm_cmpgt_ps(d, c.far_view), _mm_cmpeq_ps(stored, c.background)),
+                         usable);
+  if (pass.normals_world) n = to_view4(c, n);
+  const __m128 len = _mm_sqrt_ps(dot4(n, n));
+  usable = _mm_and_ps(usable, _mm_cmpgt_ps(len, c.min_length));
+  if (_mm_movemask_ps(usable) != 0xf) return false;
+  n = {_mm_div_ps(n.x, len), _mm_div_ps(n.y, len), _mm_div_ps(n.z, len)};
+  const __m128 flip = _mm_and_ps(_mm_cmpgt_ps(dot4(n, ray), c.zero), c.sign_bit);
+  n = {_mm_xor_ps(n.x, flip), _mm_xor_ps(n.y, flip), _mm_xor_ps(n.z, flip)};
+  _mm_storeu_ps(row.depth + x, d);
+  std::memset(row.mask + x, 255, 4);
+  store_normals4(n_at, n);
+  depth_min = _mm_min_ps(depth_min, d);
+  depth_max = _mm_max_ps(depth_max, d);
+  return true;
+}
+
+// foreground_row's pixels four at a time while all four are foreground with a usable
+// normal (nearly every group of a rendered frame); any other group goes pixel by pixel.
+// Returns the first pixel not done.
+[[gnu::always_inline]] inline int foreground_groups4(const ForegroundPass& pass,
+                                                     const glm::vec3& ray_row,
+                                                     const ForegroundRow& row,
+                                                     RowCounts& counts) {
+  const ForegroundLanes c = broadcast(pass, ray_row);
+  __m128 depth_min = c.infinity, depth_max = _mm_set1_ps(-std::numeric_limits<float>::infinity());
+  int x = 0;
+  for (; x + 4 <= pass.width; x += 4) {
+    if (foreground_group4(pass, c, row, x, depth_min, depth_max)) {
       counts.foreground += 4;
-      depth_min = _mm_min_ps(depth_min, d);
-      depth_max = _mm_max_ps(depth_max, d);
-    }
-    // Foreground depths are finite and positive: the extremes do not depend on the order.
-    alignas(16) float lo[4], hi[4];
-    _mm_store_ps(lo, depth_min);
-    _mm_store_ps(hi, depth_max);
-    for (int i = 0; i < 4; ++i) {
-      counts.depth_min = std::min(counts.depth_min, lo[i]);
-      counts.depth_max = std::max(counts.depth_max, hi[i]);
+    } else {
+      for (int i = 0; i < 4; ++i) foreground_pixel(pass, ray_row, row, x + i, counts);
     }
   }
+  // Foreground depths are finite and positive: the extremes do not depend on the order.
+  alignas(16) float lo[4], hi[4];
+  _mm_store_ps(lo, depth_min);
+  _mm_store_ps(hi, depth_max);
+  for (int i = 0; i < 4; ++i) {
+    counts.depth_min = std::min(counts.depth_min, lo[i]);
+    counts.depth_max = std::max(counts.depth_max, hi[i]);
+  }
+  return x;
+}
 #endif
-  for (; x < pass.width; ++x) pixel(x);
+
+// The pass after reading, one row: depth (radial -> planar) classified as foreground or
+// not, normals to view space, unit length and facing the camera. `ray_row` is the eye ray
+// through the row's first pixel centre. Background and unusable pixels get depth +inf,
+// mask 0 and normal (0, 0, 0); foreground pixels mask 255, and repair 1 where the normal
+// is (0, 0, 0). `pass` and `row` are taken by value: the mask's byte stores may alias
+// anything behind a reference, which would be reloaded per pixel.
+RowCounts foreground_row(const ForegroundPass pass, const glm::vec3 ray_row,
+                         const ForegroundRow row) {
+  RowCounts counts;
+  int x = 0;
+#if defined(__SSE2__)
+  if (row.normal) x = foreground_groups4(pass, ray_row, row, counts);
+#endif
+  for (; x < pass.width; ++x) foreground_pixel(pass, ray_row, row, x, counts);
   return counts;
+}
+
+// The foreground pass's constants from the camera and the resolved inputs.
+ForegroundPass foreground_pass(const Prepared& prep) {
+  const Camera& camera = prep.camera;
+  const ResolvedInput* normal_in = prep.channels.find("normal");
+  ForegroundPass pass;
+  pass.width = int(prep.data.width());
+  pass.far_view = camera.far_view;
+  pass.has_background = prep.background_depth.has_value();
+  pass.background = prep.background_depth.value_or(0.0f);
+  pass.radial = prep.radial_depth;
+  pass.perspective = camera.is_perspective();
+  pass.normals_world = normal_in && normal_in->space == Space::world;
+  // Normals transform with the inverse transpose (equal to the rotation for a rigid
+  // world_to_view, right for any affine one); they are renormalised afterwards.
+  pass.normal_to_view = glm::transpose(glm::inverse(glm::mat3(camera.world_to_view)));
+  // The view-space point at planar depth 1 is affine in the pixel coordinates for every
+  // projection whose clip.w does not depend on x and y (see Camera::view_from_pixel_depth),
+  // so rays are stepped across the image instead of solved per pixel.
+  pass.ray_step_x = camera.view_from_pixel_depth({1.5f, 0.5f}, 1.0f) -
+                    camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
+  return pass;
+}
+
+// Adds the rows' counts in row order (the same sums for every thread count).
+void add_row_counts(const std::vector<RowCounts>& rows, FrameInfo& info) {
+  for (const RowCounts& r : rows) {
+    info.foreground_pixels += r.foreground;
+    info.nonfinite_pixels += r.nonfinite;
+    info.repaired_normal_pixels += r.repaired;
+    if (r.foreground) {
+      info.depth_min_view = info.foreground_pixels == r.foreground
+                                ? r.depth_min
+                                : std::min(info.depth_min_view, r.depth_min);
+      info.depth_max_view = std::max(info.depth_max_view, r.depth_max);
+    }
+  }
+}
+
+// Depth, mask and normals in the internal conventions (foreground_row over every row), and
+// the counts. Foreground pixels with a zero normal are marked in normal_missing.
+void classify_foreground(const Prepared& prep, const ReadOptions& options, Images& img,
+                         ReadResult& result) {
+  GBuffer& g = result.gbuffer;
+  const Camera& camera = prep.camera;
+  const cv::Size size(int(prep.data.width()), int(prep.data.height()));
+  const bool has_normals = !img.normal.empty();
+  g.depth_view = img.depth;
+  g.mask.create(size, CV_8UC1);
+  cv::Mat repair;  // foreground pixels whose stored normal is (0, 0, 0)
+  if (has_normals) repair = cv::Mat::zeros(size, CV_8UC1);
+  std::vector<RowCounts> row_counts(size.height);
+  const ForegroundPass pass = foreground_pass(prep);
+  const glm::vec3 ray_origin = camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
+  const glm::vec3 ray_step_y = camera.view_from_pixel_depth({0.5f, 1.5f}, 1.0f) - ray_origin;
+  parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      row_counts[y] = foreground_row(
+          pass, ray_origin + float(y) * ray_step_y,
+          {g.depth_view.ptr<float>(y), g.mask.ptr<uint8_t>(y),
+           has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr,
+           has_normals ? repair.ptr<uint8_t>(y) : nullptr});
+  });
+  FrameInfo& info = result.info;
+  add_row_counts(row_counts, info);
+  info.masked_pixels = int64_t(size.area()) - info.foreground_pixels;
+  if (has_normals) g.normal_view = img.normal;
+  if (info.repaired_normal_pixels > 0) g.normal_missing = repair;
+}
+
+// The positions pass to view space (non-finite and background positions become 0), or, when
+// the frame has none, reported missing.
+void positions_to_view(const Prepared& prep, const ReadOptions& options, Images& img,
+                       ReadResult& result) {
+  GBuffer& g = result.gbuffer;
+  if (img.position.empty()) {
+    result.info.positions_missing = true;
+    return;
+  }
+  const ResolvedInput* position_in = prep.channels.find("position");
+  const bool positions_world = position_in && position_in->space == Space::world;
+  const Camera& camera = prep.camera;
+  g.position_view = img.position;
+  parallel_rows(cv::Range(0, g.position_view.rows), options.threads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      cv::Vec3f* p = g.position_view.ptr<cv::Vec3f>(y);
+      const uint8_t* m = g.mask.ptr<uint8_t>(y);
+      for (int x = 0; x < g.position_view.cols; ++x) {
+        if (!m[x] || !std::isfinite(p[x][0] + p[x][1] + p[x][2])) {
+          p[x] = cv::Vec3f(0, 0, 0);
+          continue;
+        }
+        if (positions_world) {
+          const glm::vec3 v = camera.view_from_world_point({p[x][0], p[x][1], p[x][2]});
+          p[x] = cv::Vec3f(v.x, v.y, v.z);
+        }
+      }
+    }
+  });
+}
+
+// Albedo, lighting and the reference passes. Kernels multiply with albedo and lighting:
+// non-finite values become 0 (the reference passes are left as the renderer wrote them).
+void shading_inputs(const ReadOptions& options, Images& img, GBuffer& g) {
+  set_nonfinite_to_zero(img.albedo);
+  if (options.read_lighting) {
+    if (!img.lighting.empty()) {
+      g.lighting = img.lighting;
+    } else if (!img.albedo.empty() && !img.diffdir.empty()) {
+      // Sender radiance of a Lambertian pixel under the renderer's direct light:
+      // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, see README),
+      // in the pass's own image unless a reference pass shares it.
+      bool shared = false;
+      for (const auto& [name, m] : img.references) shared = shared || m.data == img.diffdir.data;
+      if (shared) {
+        g.lighting = img.albedo.mul(img.diffdir);
+      } else {
+        cv::multiply(img.diffdir, img.albedo, img.diffdir);
+        g.lighting = img.diffdir;
+      }
+    }
+    set_nonfinite_to_zero(g.lighting);
+  }
+  if (options.read_albedo) g.albedo = img.albedo;
+  if (options.read_references) {
+    for (auto& [name, m] : img.references) g.references[name] = m;
+  }
 }
 
 }  // namespace
@@ -919,154 +1173,17 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
   try {
     Prepared prep;
     if (!prepare(path, options, result, prep)) return result;
-    FrameInfo& info = result.info;
-    GBuffer& g = result.gbuffer;
-    g.camera = prep.camera;
-    const Camera& camera = prep.camera;
-    const cv::Size size(int(prep.data.width()), int(prep.data.height()));
-    const bool lighting_from_passes =
-        !prep.channels.find("lighting") && prep.channels.find("albedo") &&
-        prep.channels.find("diffdir");
+    result.gbuffer.camera = prep.camera;
     Images img;
     try {
-      read_pixels(prep, options, lighting_from_passes, img, size);
+      read_pixels(prep, options, img);
     } catch (const std::exception& e) {
       result.error = path + ": cannot read pixels (" + read_failure(e) + "): " + e.what();
       return result;
     }
-
-    const ResolvedInput* normal_in = prep.channels.find("normal");
-    const ResolvedInput* position_in = prep.channels.find("position");
-    const bool normals_world = normal_in && normal_in->space == Space::world;
-    const bool positions_world = position_in && position_in->space == Space::world;
-    // Normals transform with the inverse transpose (equal to the rotation for a rigid
-    // world_to_view, right for any affine one); they are renormalised afterwards.
-    const glm::mat3 normal_to_view = glm::transpose(glm::inverse(glm::mat3(camera.world_to_view)));
-    const bool has_normals = !img.normal.empty();
-
-    g.depth_view = img.depth;
-    g.mask.create(size, CV_8UC1);
-    cv::Mat repair;  // foreground pixels whose stored normal is (0, 0, 0)
-    if (has_normals) repair = cv::Mat::zeros(size, CV_8UC1);
-    std::vector<int64_t> fg_rows(size.height, 0), nonfinite_rows(size.height, 0),
-        repair_rows(size.height, 0);
-    std::vector<float> min_rows(size.height, std::numeric_limits<float>::infinity()),
-        max_rows(size.height, -std::numeric_limits<float>::infinity());
-    const float far_view = camera.far_view;
-    const std::optional<float> background = prep.background_depth;
-    const bool radial = prep.radial_depth;
-    // The view-space point at planar depth 1 is affine in the pixel coordinates for every
-    // projection whose clip.w does not depend on x and y (see Camera::view_from_pixel_depth),
-    // so rays are stepped across the image instead of solved per pixel.
-    const bool perspective = camera.is_perspective();
-    const glm::vec3 ray_origin = camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
-    const glm::vec3 ray_step_x = camera.view_from_pixel_depth({1.5f, 0.5f}, 1.0f) - ray_origin;
-    const glm::vec3 ray_step_y = camera.view_from_pixel_depth({0.5f, 1.5f}, 1.0f) - ray_origin;
-
-    ForegroundPass pass;
-    pass.width = size.width;
-    pass.far_view = far_view;
-    pass.has_background = background.has_value();
-    pass.background = background.value_or(0.0f);
-    pass.radial = radial;
-    pass.perspective = perspective;
-    pass.normals_world = normals_world;
-    pass.normal_to_view = normal_to_view;
-    pass.ray_step_x = ray_step_x;
-    parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
-      for (int y = rows.start; y < rows.end; ++y) {
-        const RowCounts counts = foreground_row(
-            pass, ray_origin + float(y) * ray_step_y, g.depth_view.ptr<float>(y), g.mask.ptr<uint8_t>(y),
-            has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr,
-            has_normals ? repair.ptr<uint8_t>(y) : nullptr);
-        fg_rows[y] = counts.foreground;
-        nonfinite_rows[y] = counts.nonfinite;
-        repair_rows[y] = counts.repaired;
-        min_rows[y] = counts.depth_min;
-        max_rows[y] = counts.depth_max;
-      }
-    });
-
-    for (int y = 0; y < size.height; ++y) {
-      info.foreground_pixels += fg_rows[y];
-      info.nonfinite_pixels += nonfinite_rows[y];
-      info.repaired_normal_pixels += repair_rows[y];
-      if (fg_rows[y]) {
-        info.depth_min_view = info.foreground_pixels == fg_rows[y]
-                                  ? min_rows[y]
-                                  : std::min(info.depth_min_view, min_rows[y]);
-        info.depth_max_view = std::max(info.depth_max_view, max_rows[y]);
-      }
-    }
-    info.masked_pixels = int64_t(size.area()) - info.foreground_pixels;
-
-    if (has_normals) {
-      g.normal_view = img.normal;
-      if (info.repaired_normal_pixels > 0) {
-        cv::Mat rebuilt;
-        reconstruct_normals_from_depth(g.depth_view, g.mask, camera, rebuilt, {},
-                                       options.threads);
-        rebuilt.copyTo(g.normal_view, repair);
-        info.notes.push_back(std::to_string(info.repaired_normal_pixels) +
-                             " foreground pixels had a zero normal: reconstructed from depth");
-      }
-    } else {
-      reconstruct_normals_from_depth(g.depth_view, g.mask, camera, g.normal_view, {},
-                                     options.threads);
-      info.normals_reconstructed = true;
-    }
-
-    if (options.read_positions) {
-      if (!img.position.empty()) {
-        g.position_view = img.position;
-        parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
-          for (int y = rows.start; y < rows.end; ++y) {
-            cv::Vec3f* p = g.position_view.ptr<cv::Vec3f>(y);
-            const uint8_t* m = g.mask.ptr<uint8_t>(y);
-            for (int x = 0; x < size.width; ++x) {
-              if (!m[x] || !std::isfinite(p[x][0] + p[x][1] + p[x][2])) {
-                p[x] = cv::Vec3f(0, 0, 0);
-                continue;
-              }
-              if (positions_world) {
-                const glm::vec3 v = camera.view_from_world_point({p[x][0], p[x][1], p[x][2]});
-                p[x] = cv::Vec3f(v.x, v.y, v.z);
-              }
-            }
-          }
-        });
-      } else {
-        view_positions_from_depth(g.depth_view, g.mask, camera, g.position_view, {},
-                                  options.threads);
-        info.uses.push_back({"position", "computed from depth", "view"});
-      }
-    }
-
-    // Kernels multiply with albedo and lighting: non-finite values become 0 (the
-    // reference passes are left as the renderer wrote them).
-    set_nonfinite_to_zero(img.albedo);
-    if (options.read_lighting) {
-      if (!img.lighting.empty()) {
-        g.lighting = img.lighting;
-      } else if (!img.albedo.empty() && !img.diffdir.empty()) {
-        // Sender radiance of a Lambertian pixel under the renderer's direct light:
-        // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, see README),
-        // in the pass's own image unless a reference pass shares it.
-        bool shared = false;
-        for (const auto& [name, m] : img.references) shared = shared || m.data == img.diffdir.data;
-        if (shared) {
-          g.lighting = img.albedo.mul(img.diffdir);
-        } else {
-          cv::multiply(img.diffdir, img.albedo, img.diffdir);
-          g.lighting = img.diffdir;
-        }
-      }
-      set_nonfinite_to_zero(g.lighting);
-    }
-    if (options.read_albedo) g.albedo = img.albedo;
-    if (options.read_references) {
-      for (auto& [name, m] : img.references) g.references[name] = m;
-    }
+    classify_foreground(prep, options, img, result);
+    if (options.read_positions) positions_to_view(prep, options, img, result);
+    shading_inputs(options, img, result.gbuffer);
     return result;
   } catch (const std::exception& e) {
     result.error = path + ": " + e.what();

@@ -29,8 +29,9 @@
 // - normals: world -> view with the inverse transpose of world_to_view's 3x3, renormalised,
 //   and flipped to face the camera when they point away from the eye (back faces or
 //   unflipped shading normals; the kernels integrate over the visible hemisphere).
-//   A foreground normal of (0, 0, 0) is rebuilt from depth; a frame without normals gets
-//   all its normals from kernels/normals.h.
+//   A foreground normal of (0, 0, 0) is reported (GBuffer::normal_missing, zero normal
+//   left in place) and a frame without normals leaves GBuffer::normal_view empty: the
+//   reader does no geometry; service/frame_inputs.h rebuilds both from depth.
 // - NaN / Inf in depth or normals: the pixel is masked and counted (nonfinite_pixels);
 //   NaN / Inf in albedo or lighting become 0; reference passes are left as stored.
 // - Half channels are read as float.
@@ -67,7 +68,7 @@ struct ChannelMapping {
 // Who decodes the pixels of a scanline part stored with ZIP, ZIPS or no compression, with
 // every channel at full resolution (x and y sampling 1):
 // - libdeflate: the chunks are read raw with OpenEXRCore, inflated with libdeflate
-//   (formats/exr_zip.h; OpenEXR 3.1 inflates with zlib, about half as fast) and converted to
+//   (formats/exr_zip.h; OpenEXR 3.1 inflates with zlib, which is slower) and converted to
 //   float here, over ReadOptions::threads strips of chunks;
 // - openexr: OpenEXR's own decoder (Imf::InputPart), as for every other part.
 // Both give bit-identical pixels, and a damaged chunk is an error with either (worded by
@@ -83,7 +84,7 @@ struct ReadOptions {
   std::optional<float> fov_x_deg;       // intrinsics when the file has no camera, degrees
   DepthKind depth_kind = DepthKind::automatic;  // automatic: sidecar/header says, else planar
   std::string part;                     // multi-part file: the part that holds depth (and the rest)
-  bool read_positions = false;          // positions pass, when present (else computed from depth)
+  bool read_positions = false;          // positions pass, when present (else reported missing)
   bool read_albedo = true;
   bool read_lighting = true;
   bool read_references = true;          // e.g. the AO / DiffDir / DiffInd passes
@@ -121,12 +122,16 @@ struct FrameInfo {
   float fov_x_deg = 0, fov_y_deg = 0;         // full fields of view of the camera, degrees
   float near_view = 0, far_view = 0;          // clip distances, scene units (0 = unknown)
   std::string depth_kind;                     // "planar" | "radial", as converted
+  // The frame has no normals: normal_view is left empty, to be reconstructed from depth.
   bool normals_reconstructed = false;
+  // read_positions was asked and the frame has no positions pass: position_view is left
+  // empty, to be computed from depth.
+  bool positions_missing = false;
   std::optional<float> ao_distance_world;     // AO radius of the reference pass, if known
   float depth_min_view = 0, depth_max_view = 0;  // foreground depth range
   int64_t foreground_pixels = 0, masked_pixels = 0, nonfinite_pixels = 0;
-  // Foreground pixels whose normal was (0, 0, 0) in the file and was replaced by the
-  // normal reconstructed from depth.
+  // Foreground pixels whose normal is (0, 0, 0) in the file (GBuffer::normal_missing), to
+  // be replaced by the normal reconstructed from depth.
   int64_t repaired_normal_pixels = 0;
   std::vector<std::string> notes;             // assumptions made while converting
 };

@@ -1,6 +1,6 @@
 // OpenImageIO, loaded on first use. OpenImageIO and the ~250 shared libraries it depends on
-// (codecs, GDAL, GStreamer, ...) cost about 0.25 s of dynamic linking per process start,
-// more than reading a 1080p frame. The hot path (EXR frames in, EXR terms out) uses OpenEXR
+// (codecs, GDAL, GStreamer, ...) cost more dynamic linking per process start than reading
+// a 1080p frame takes. The hot path (EXR frames in, EXR terms out) uses OpenEXR
 // alone, so OpenImageIO lives in a module (libssdo_oiio.so, beside the ssdo binary) that
 // the functions below load the first time they need it: environment maps in formats other
 // than EXR, PNG previews and charts.

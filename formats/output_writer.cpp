@@ -259,24 +259,12 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
 constexpr size_t kBatchPackedBytes = size_t(32) << 20;
 constexpr int kBatchChunks = 256;
 
-// zip, zips and none with ChunkEncoder::own: the header and the chunk table are
-// OpenEXRCore's; the chunks are packed (and deflated, formats/exr_zip) here in parallel, in
-// batches, and written in increasing y order from one thread at a time, as OpenEXR's
-// writer orders them (lineOrder INCREASING_Y). The header carries the same attributes as
-// write_exr's, plus the "type" attribute ("scanlineimage") OpenEXRCore 3.1 writes into
-// every part (optional in single-part files, which readers accept); the zip level is not
-// among them (OpenEXR keeps it out of the file). Little-endian hosts only (the packed
-// samples are the in-memory bytes). Throws on failure (the caller removes the temp file).
-void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
-                   const Camera& camera, const WriteOptions& options, Imf::Compression compression,
-                   cv::Size size) {
-  exr_core::forget_error();
-  // Closed on failure (the caller removes the file), finished explicitly on success.
-  exr_core::Context file;
-  const exr_context_initializer_t init = exr_core::quiet_initializer();
-  check_core(exr_start_write(file.out(), temp.c_str(), EXR_WRITE_FILE_DIRECTLY, &init),
-             "cannot create the file");
-  exr_context_t context = file.get();
+// The header of write_own_exr's file, written: the part, its channels and the camera
+// attributes. Returns where each channel's samples come from, by channel name.
+std::map<std::string, ChannelSource> write_own_header(exr_context_t context, int& part,
+                                                      const std::vector<OutputTerm>& terms,
+                                                      const Camera& camera,
+                                                      Imf::Compression compression, cv::Size size) {
   // Channel names longer than 31 bytes need the long-names flag of the version field
   // (OpenEXR "Technical Introduction", "Version Field"); OpenEXR's writer sets it only then,
   // and so does OpenEXRCore once allowed.
@@ -284,7 +272,6 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
   for (const auto& t : terms)
     for (const auto& c : channel_names(t)) long_names = long_names || c.size() > 31;
   if (long_names) check_core(exr_set_longname_support(context, 1), "cannot allow long names");
-  int part = 0;
   check_core(exr_add_part(context, nullptr, EXR_STORAGE_SCANLINE, &part), "cannot add the part");
   check_core(exr_initialize_required_attr_simple(
                  context, part, size.width, size.height,
@@ -322,31 +309,62 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
     check_core(exr_attr_set_float(context, part, kClipFarAttribute, camera.far_view),
                "cannot set clipFar");
   check_core(exr_write_header(context), "cannot write the header");
+  return sources;
+}
 
-  // The chunk layout as the written header defines it: channels in its order, 16 (zip) or
-  // 1 (zips, none) scanlines per chunk.
-  const exr_attr_chlist_t* list = nullptr;
-  int32_t lines_per_chunk = 0, chunks = 0;
-  check_core(exr_get_channels(context, part, &list), "cannot read back the channels");
-  check_core(exr_get_scanlines_per_chunk(context, part, &lines_per_chunk),
-             "cannot read back the chunk height");
-  check_core(exr_get_chunk_count(context, part, &chunks), "cannot read back the chunk count");
+// The chunk layout as the written header defines it: channels in its order, 16 (zip) or
+// 1 (zips, none) scanlines per chunk.
+struct ChunkLayout {
   std::vector<ChannelSource> order;
-  size_t line_bytes = 0;
+  size_t line_bytes = 0;  // one packed line, every channel
+  int lines_per_chunk = 0, chunks = 0;
+};
+
+ChunkLayout chunk_layout(exr_const_context_t context, int part,
+                         const std::map<std::string, ChannelSource>& sources, cv::Size size) {
+  const exr_attr_chlist_t* list = nullptr;
+  ChunkLayout layout;
+  check_core(exr_get_channels(context, part, &list), "cannot read back the channels");
+  check_core(exr_get_scanlines_per_chunk(context, part, &layout.lines_per_chunk),
+             "cannot read back the chunk height");
+  check_core(exr_get_chunk_count(context, part, &layout.chunks), "cannot read back the chunk count");
   for (int c = 0; c < list->num_channels; ++c) {
     const exr_attr_chlist_entry_t& e = list->entries[c];
     const ChannelSource& source = sources.at(std::string(e.name.str, size_t(e.name.length)));
-    order.push_back(source);
-    line_bytes += size_t(size.width) * (source.is_half ? 2 : 4);
+    layout.order.push_back(source);
+    layout.line_bytes += size_t(size.width) * (source.is_half ? 2 : 4);
   }
-  if (lines_per_chunk < 1 || chunks != (size.height + lines_per_chunk - 1) / lines_per_chunk)
+  if (layout.lines_per_chunk < 1 ||
+      layout.chunks != (size.height + layout.lines_per_chunk - 1) / layout.lines_per_chunk)
     throw std::runtime_error("unexpected chunk layout");
+  return layout;
+}
 
-  const size_t chunk_bytes = line_bytes * size_t(lines_per_chunk);
+// The stored bytes of the chunk of scanlines [y0, y1): packed, then deflated unless
+// `deflate` is off. `packed` is the calling thread's scratch buffer.
+void encode_chunk(const ChunkLayout& layout, int width, int y0, int y1, bool deflate,
+                  int zip_level, std::vector<uint8_t>& packed, UninitializedVector<uint8_t>& out) {
+  if (!deflate) {  // stored as packed
+    out.resize(layout.line_bytes * size_t(y1 - y0));
+    pack_lines(layout.order, width, y0, y1, out.data());
+    return;
+  }
+  packed.resize(layout.line_bytes * size_t(y1 - y0));
+  pack_lines(layout.order, width, y0, y1, packed.data());
+  // A chunk deflate does not shrink is stored as packed; readers tell it by its size
+  // (OpenEXR "Technical Introduction", "ZIP compression"; ImfZipCompressor.cpp).
+  if (!exr_zip::compress(packed, zip_level, out)) out.assign(packed.begin(), packed.end());
+}
+
+// Encodes the chunks in batches on the pool and writes them in increasing y order from one
+// thread at a time.
+void write_own_chunks(exr_context_t context, int part, const ChunkLayout& layout,
+                      const WriteOptions& options, bool deflate, cv::Size size) {
+  const int chunks = layout.chunks, lines_per_chunk = layout.lines_per_chunk;
+  const size_t chunk_bytes = layout.line_bytes * size_t(lines_per_chunk);
   const int threads = options.threads > 0 ? options.threads : std::max(1, cv::getNumThreads());
   const int by_size = int(std::clamp<size_t>(kBatchPackedBytes / chunk_bytes, 1, kBatchChunks));
   const int batch = std::min(chunks, std::max(4 * threads, by_size));
-  const bool deflate = compression != Imf::NO_COMPRESSION;
   // Two sets of chunk buffers: while one batch is written to the file (a thread of its own:
   // the copy into the page cache is serial), the next is packed and compressed into the
   // other on the pool.
@@ -360,6 +378,19 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
     if (writing.joinable()) writing.join();
     if (write_error) std::rethrow_exception(write_error);
   };
+  const auto write_batch = [&](int first, int count, int b) {
+    try {
+      exr_core::forget_error();
+      for (int i = 0; i < count; ++i) {
+        const UninitializedVector<uint8_t>& bytes = stored[b][size_t(i)];
+        check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
+                                            bytes.data(), bytes.size()),
+                   "cannot write a chunk");
+      }
+    } catch (...) {
+      write_error = std::current_exception();
+    }
+  };
   try {
     for (int first = 0, b = 0; first < chunks; first += batch, b ^= 1) {
       const int count = std::min(batch, chunks - first);
@@ -370,39 +401,41 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
         for (int i = range.start; i < range.end; ++i) {
           const int y0 = (first + i) * lines_per_chunk;
           const int y1 = std::min(y0 + lines_per_chunk, size.height);
-          if (!deflate) {  // stored as packed
-            out[size_t(i)].resize(line_bytes * size_t(y1 - y0));
-            pack_lines(order, size.width, y0, y1, out[size_t(i)].data());
-            continue;
-          }
-          packed.resize(line_bytes * size_t(y1 - y0));
-          pack_lines(order, size.width, y0, y1, packed.data());
-          // A chunk deflate does not shrink is stored as packed; readers tell it by its size
-          // (OpenEXR "Technical Introduction", "ZIP compression"; ImfZipCompressor.cpp).
-          if (!exr_zip::compress(packed, options.zip_level, out[size_t(i)]))
-            out[size_t(i)].assign(packed.begin(), packed.end());
+          encode_chunk(layout, size.width, y0, y1, deflate, options.zip_level, packed, out[size_t(i)]);
         }
       }, 1);
       finish_writing();  // the previous batch, whose buffers the next one reuses
-      writing = std::thread([&, first, count, b] {
-        try {
-          exr_core::forget_error();
-          for (int i = 0; i < count; ++i) {
-            const UninitializedVector<uint8_t>& bytes = stored[b][size_t(i)];
-            check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
-                                                bytes.data(), bytes.size()),
-                       "cannot write a chunk");
-          }
-        } catch (...) {
-          write_error = std::current_exception();
-        }
-      });
+      writing = std::thread(write_batch, first, count, b);
     }
     finish_writing();
   } catch (...) {
     if (writing.joinable()) writing.join();
     throw;
   }
+}
+
+// zip, zips and none with ChunkEncoder::own: the header and the chunk table are
+// OpenEXRCore's; the chunks are packed (and deflated, formats/exr_zip) here in parallel, in
+// batches, and written in increasing y order from one thread at a time, as OpenEXR's
+// writer orders them (lineOrder INCREASING_Y). The header carries the same attributes as
+// write_exr's, plus the "type" attribute ("scanlineimage") OpenEXRCore 3.1 writes into
+// every part (optional in single-part files, which readers accept); the zip level is not
+// among them (OpenEXR keeps it out of the file). Little-endian hosts only (the packed
+// samples are the in-memory bytes). Throws on failure (the caller removes the temp file).
+void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
+                   const Camera& camera, const WriteOptions& options, Imf::Compression compression,
+                   cv::Size size) {
+  exr_core::forget_error();
+  // Closed on failure (the caller removes the file), finished explicitly on success.
+  exr_core::Context file;
+  const exr_context_initializer_t init = exr_core::quiet_initializer();
+  check_core(exr_start_write(file.out(), temp.c_str(), EXR_WRITE_FILE_DIRECTLY, &init),
+             "cannot create the file");
+  int part = 0;
+  const std::map<std::string, ChannelSource> sources =
+      write_own_header(file.get(), part, terms, camera, compression, size);
+  const ChunkLayout layout = chunk_layout(file.get(), part, sources, size);
+  write_own_chunks(file.get(), part, layout, options, compression != Imf::NO_COMPRESSION, size);
   // Writes the chunk offset table and closes the file.
   check_core(file.finish(), "cannot finish the file");
 }

@@ -26,11 +26,9 @@ struct OutputTerm {
 // (AO, confidence: float) and vector terms (bent normals) are always stored losslessly:
 // "dwaa" (lossy) is refused when a file holds any of them and is meant for files of
 // colour terms only. zip and zips deflate at level kFastZipLevel (OpenEXR's default is 4):
-// measured with zlib on a 1080p frame with AO and SSDO terms, level 1 writes 20% faster
-// for a file 2.4% larger. With ChunkEncoder::own, rle and none write that frame 1.3x and
-// 6x faster than zip, for files 29% and 123% larger (README.md, "Frame I/O"). The same
-// level means the same to both zip encoders (ChunkEncoder) and is checked against zlib's
-// range.
+// on rendered terms, level 1 writes markedly faster for a file only a few percent larger.
+// rle and none write faster still, for files much larger than zip's. The same level means
+// the same to both zip encoders (ChunkEncoder) and is checked against zlib's range.
 inline constexpr int kFastZipLevel = 1;
 
 // Who packs (and deflates) the chunks of zip, zips and none files. Both write files any
@@ -38,7 +36,7 @@ inline constexpr int kFastZipLevel = 1;
 enum class ChunkEncoder {
   // The writer packs the chunks itself, converting to half with the CPU's F16C
   // instructions where it has them, and deflates zip and zips chunks with libdeflate
-  // (formats/exr_zip: 2.7x faster than zlib at level 1, slightly smaller), on the thread
+  // (formats/exr_zip: faster than zlib, files slightly smaller), on the thread
   // pool; OpenEXRCore writes the header and the chunks.
   own,
   // OpenEXR's own writer (Imf::OutputFile, zlib), as every other compression uses.

@@ -13,6 +13,7 @@
 #include "kernels/metrics.h"
 #include "service/commands.h"
 #include "service/parallelism.h"
+#include "service/frame_inputs.h"
 
 namespace ssdo {
 
@@ -144,6 +145,7 @@ int run_bench(const BenchArgs& args) {
     ReadOptions read = args.request.read;
     read.read_references = true;
     ReadResult r = read_gbuffer(file, read);
+    complete_gbuffer(r, read.threads);
     if (!r.ok()) {
       std::cerr << "ssdo bench: " << r.error << "\n";
       ++failed;

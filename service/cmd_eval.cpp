@@ -9,6 +9,7 @@
 #include "kernels/metrics.h"
 #include "service/commands.h"
 #include "service/parallelism.h"
+#include "service/frame_inputs.h"
 
 namespace ssdo {
 
@@ -74,6 +75,7 @@ int run_eval(const EvalArgs& args) {
     ReadOptions read = args.request.read;
     read.read_references = true;
     ReadResult frame = read_gbuffer(file, read);
+    complete_gbuffer(frame, read.threads);
     if (!frame.ok()) {
       std::cerr << "ssdo eval: " << frame.error << "\n";
       ++failed;

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "service/commands.h"
+#include "service/frame_inputs.h"
 
 namespace ssdo {
 
@@ -104,7 +105,8 @@ int run_info(const InfoArgs& args) {
   int status = 0;
   nlohmann::json all = nlohmann::json::array();
   for (const auto& file : args.files) {
-    const ReadResult r = read_gbuffer(file, args.read);
+    ReadResult r = read_gbuffer(file, args.read);
+    complete_gbuffer(r, args.read.threads);  // what info reports is what the pipeline computes on
     if (!r.ok()) {
       std::cerr << "error: " << r.error << "\n";
       status = 1;

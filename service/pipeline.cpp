@@ -7,6 +7,7 @@
 
 #include "kernels/confidence.h"
 #include "kernels/half_resolution.h"
+#include "service/frame_inputs.h"
 
 namespace ssdo {
 
@@ -237,6 +238,7 @@ FrameResult process_frame(const FrameRequest& request) {
     auto t0 = std::chrono::steady_clock::now();
     const ReadOptions read = reads_for(request);
     ReadResult frame = read_gbuffer(request.input_path, read);
+    complete_gbuffer(frame, read.threads);
     result.times.read_ms = ms_since(t0);
     result.info = frame.info;
     if (!frame.ok()) {

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <optional>
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -36,82 +37,108 @@ double nice_step(double span, int ticks) {
   return 10 * p;
 }
 
-}  // namespace
+// The plot area and its axes: log10 decades [lx0, lx1] on x, [0, y_top] on y.
+struct PlotArea {
+  double lx0 = 0, lx1 = 1, y_step = 1, y_top = 1;
+  int left = 0, top = 0, pw = 0, ph = 0;  // pixels: top-left corner, width, height
+  int px(double x) const { return left + int(std::lround((std::log10(x) - lx0) / (lx1 - lx0) * pw)); }
+  int py(double y) const { return top + ph - int(std::lround(y / y_top * ph)); }
+};
 
-std::string render_chart_png(const std::string& path, const std::vector<ChartSeries>& series,
-                             const ChartOptions& o) {
-  if (o.width_px < 400 || o.width_px > 8192 || o.height_px < 300 || o.height_px > 8192)
-    return path + ": chart size out of range";
+bool plottable(const ChartPoint& p) { return p.x > 0 && std::isfinite(p.x) && std::isfinite(p.y); }
+
+// The axes' ranges from the series' points (x > 0, finite); nullopt without any.
+std::optional<PlotArea> plot_area(const std::vector<ChartSeries>& series, const ChartOptions& o) {
   double x_min = std::numeric_limits<double>::infinity(), x_max = 0, y_max = 0;
   for (const ChartSeries& s : series)
     for (const ChartPoint& p : s.points) {
-      if (!(p.x > 0) || !std::isfinite(p.x) || !std::isfinite(p.y)) continue;
+      if (!plottable(p)) continue;
       x_min = std::min(x_min, p.x);
       x_max = std::max(x_max, p.x);
       y_max = std::max(y_max, p.y);
     }
-  if (!(x_max > 0)) return path + ": no point to plot (times must be > 0)";
-  const double lx0 = std::floor(std::log10(x_min)), lx1 = std::max(lx0 + 1, std::ceil(std::log10(x_max)));
-  const double y_step = nice_step(std::max(y_max, 1e-6), 6);
-  const double y_top = std::ceil(std::max(y_max, 1e-6) * 1.08 / y_step) * y_step;
+  if (!(x_max > 0)) return std::nullopt;
+  PlotArea a;
+  a.lx0 = std::floor(std::log10(x_min));
+  a.lx1 = std::max(a.lx0 + 1, std::ceil(std::log10(x_max)));
+  a.y_step = nice_step(std::max(y_max, 1e-6), 6);
+  a.y_top = std::ceil(std::max(y_max, 1e-6) * 1.08 / a.y_step) * a.y_step;
+  const int right = 300, bottom = 90;  // margins: axis labels, legend
+  a.left = 110;
+  a.top = 70;
+  a.pw = o.width_px - a.left - right;
+  a.ph = o.height_px - a.top - bottom;
+  return a;
+}
 
-  const int w = o.width_px, h = o.height_px;
-  const int left = 110, right = 300, top = 70, bottom = 90;  // margins: axis labels, legend
-  const int pw = w - left - right, ph = h - top - bottom;
-  auto px = [&](double x) { return left + int(std::lround((std::log10(x) - lx0) / (lx1 - lx0) * pw)); };
-  auto py = [&](double y) { return top + ph - int(std::lround(y / y_top * ph)); };
+const float kWhite[3] = {1, 1, 1}, kGrid[3] = {0.88f, 0.88f, 0.88f}, kAxis[3] = {0.2f, 0.2f, 0.2f};
 
-  OIIO::ImageBuf img(OIIO::ImageSpec(w, h, 3, OIIO::TypeDesc::UINT8));
-  const float white[3] = {1, 1, 1}, grid[3] = {0.88f, 0.88f, 0.88f}, axis[3] = {0.2f, 0.2f, 0.2f};
-  OIIO::ImageBufAlgo::fill(img, white);
-  const bool text = std::filesystem::exists(o.font_path);
-  auto label = [&](int x, int y, const std::string& s, int size, const float* c,
-                   OIIO::ImageBufAlgo::TextAlignX ax = OIIO::ImageBufAlgo::TextAlignX::Left,
-                   OIIO::ImageBufAlgo::TextAlignY ay = OIIO::ImageBufAlgo::TextAlignY::Baseline) {
-    if (text) OIIO::ImageBufAlgo::render_text(img, x, y, s, size, o.font_path, {c, 3}, ax, ay);
-  };
+// The image and its text (none without the font).
+struct Canvas {
+  OIIO::ImageBuf img;
+  std::string font_path;
+  bool text = false;
+  void label(int x, int y, const std::string& s, int size, const float* c,
+             OIIO::ImageBufAlgo::TextAlignX ax = OIIO::ImageBufAlgo::TextAlignX::Left,
+             OIIO::ImageBufAlgo::TextAlignY ay = OIIO::ImageBufAlgo::TextAlignY::Baseline) {
+    if (text) OIIO::ImageBufAlgo::render_text(img, x, y, s, size, font_path, {c, 3}, ax, ay);
+  }
+};
 
-  // Grid and tick labels: decades (and 2x, 5x) on x, nice steps on y.
-  for (double d = lx0; d <= lx1 + 1e-9; d += 1) {
+// Grid and tick labels (decades, and 2x, 5x, on x; nice steps on y), frame and titles.
+void draw_axes(Canvas& canvas, const PlotArea& a, const ChartOptions& o) {
+  OIIO::ImageBuf& img = canvas.img;
+  for (double d = a.lx0; d <= a.lx1 + 1e-9; d += 1) {
     for (double m : {1.0, 2.0, 5.0}) {
       const double x = m * std::pow(10.0, d);
-      if (std::log10(x) > lx1 + 1e-9) break;
-      OIIO::ImageBufAlgo::render_line(img, px(x), top, px(x), top + ph, {grid, 3});
-      label(px(x), top + ph + 24, format_number(x), 16, axis, OIIO::ImageBufAlgo::TextAlignX::Center);
+      if (std::log10(x) > a.lx1 + 1e-9) break;
+      OIIO::ImageBufAlgo::render_line(img, a.px(x), a.top, a.px(x), a.top + a.ph, {kGrid, 3});
+      canvas.label(a.px(x), a.top + a.ph + 24, format_number(x), 16, kAxis,
+                   OIIO::ImageBufAlgo::TextAlignX::Center);
     }
   }
-  for (double y = 0; y <= y_top + 1e-12; y += y_step) {
-    OIIO::ImageBufAlgo::render_line(img, left, py(y), left + pw, py(y), {grid, 3});
-    label(left - 10, py(y), format_number(y), 16, axis, OIIO::ImageBufAlgo::TextAlignX::Right,
-          OIIO::ImageBufAlgo::TextAlignY::Center);
+  for (double y = 0; y <= a.y_top + 1e-12; y += a.y_step) {
+    OIIO::ImageBufAlgo::render_line(img, a.left, a.py(y), a.left + a.pw, a.py(y), {kGrid, 3});
+    canvas.label(a.left - 10, a.py(y), format_number(y), 16, kAxis,
+                 OIIO::ImageBufAlgo::TextAlignX::Right, OIIO::ImageBufAlgo::TextAlignY::Center);
   }
-  OIIO::ImageBufAlgo::render_box(img, left, top, left + pw, top + ph, {axis, 3});
-  label(left + pw / 2, h - 30, o.x_label, 20, axis, OIIO::ImageBufAlgo::TextAlignX::Center);
-  label(20, top - 20, o.y_label, 20, axis);
-  label(left + pw / 2, 35, o.title, 24, axis, OIIO::ImageBufAlgo::TextAlignX::Center);
+  OIIO::ImageBufAlgo::render_box(img, a.left, a.top, a.left + a.pw, a.top + a.ph, {kAxis, 3});
+  canvas.label(a.left + a.pw / 2, o.height_px - 30, o.x_label, 20, kAxis,
+               OIIO::ImageBufAlgo::TextAlignX::Center);
+  canvas.label(20, a.top - 20, o.y_label, 20, kAxis);
+  canvas.label(a.left + a.pw / 2, 35, o.title, 24, kAxis, OIIO::ImageBufAlgo::TextAlignX::Center);
+}
 
-  // Series: lines in x order, points as small squares with labels, a legend on the right.
-  for (size_t i = 0; i < series.size(); ++i) {
-    const float* c = kPalette[i % (sizeof kPalette / sizeof kPalette[0])];
-    std::vector<ChartPoint> pts;
-    for (const ChartPoint& p : series[i].points)
-      if (p.x > 0 && std::isfinite(p.x) && std::isfinite(p.y)) pts.push_back(p);
-    std::sort(pts.begin(), pts.end(), [](const ChartPoint& a, const ChartPoint& b) { return a.x < b.x; });
-    for (size_t k = 0; series[i].connect && k + 1 < pts.size(); ++k)
-      for (int t = -1; t <= 1; ++t)  // 3 px wide
-        OIIO::ImageBufAlgo::render_line(img, px(pts[k].x), py(pts[k].y) + t, px(pts[k + 1].x),
-                                        py(pts[k + 1].y) + t, {c, 3});
-    for (const ChartPoint& p : pts) {
-      OIIO::ImageBufAlgo::render_box(img, px(p.x) - 5, py(p.y) - 5, px(p.x) + 5, py(p.y) + 5, {c, 3}, true);
-      if (!p.label.empty()) label(px(p.x) + 8, py(p.y) - 8, p.label, 14, axis);
-    }
-    const int ly = top + 20 + int(i) * 30;
-    OIIO::ImageBufAlgo::render_box(img, left + pw + 25, ly - 12, left + pw + 45, ly + 4, {c, 3}, true);
-    label(left + pw + 55, ly + 2, series[i].name, 18, axis);
+// Series `i`: a line in x order, points as small squares with labels, a legend entry.
+void draw_series(Canvas& canvas, const PlotArea& a, const ChartSeries& s, size_t i) {
+  OIIO::ImageBuf& img = canvas.img;
+  const float* c = kPalette[i % (sizeof kPalette / sizeof kPalette[0])];
+  std::vector<ChartPoint> pts;
+  for (const ChartPoint& p : s.points)
+    if (plottable(p)) pts.push_back(p);
+  std::sort(pts.begin(), pts.end(), [](const ChartPoint& p, const ChartPoint& q) { return p.x < q.x; });
+  for (size_t k = 0; s.connect && k + 1 < pts.size(); ++k)
+    for (int t = -1; t <= 1; ++t)  // 3 px wide
+      OIIO::ImageBufAlgo::render_line(img, a.px(pts[k].x), a.py(pts[k].y) + t, a.px(pts[k + 1].x),
+                                      a.py(pts[k + 1].y) + t, {c, 3});
+  for (const ChartPoint& p : pts) {
+    OIIO::ImageBufAlgo::render_box(img, a.px(p.x) - 5, a.py(p.y) - 5, a.px(p.x) + 5, a.py(p.y) + 5,
+                                   {c, 3}, true);
+    if (!p.label.empty()) canvas.label(a.px(p.x) + 8, a.py(p.y) - 8, p.label, 14, kAxis);
   }
+  const int ly = a.top + 20 + int(i) * 30;
+  OIIO::ImageBufAlgo::render_box(img, a.left + a.pw + 25, ly - 12, a.left + a.pw + 45, ly + 4,
+                                 {c, 3}, true);
+  canvas.label(a.left + a.pw + 55, ly + 2, s.name, 18, kAxis);
+}
 
+// Writes the image as PNG through a temp file renamed into place.
+std::string write_png_file(const std::string& path, OIIO::ImageBuf& img) {
   const std::filesystem::path final_path(path);
-  const std::string tmp = (final_path.parent_path() / ("." + final_path.filename().string() + ".tmp.png")).string();
+  std::string tmp_name = final_path.filename().string();
+  tmp_name.insert(0, 1, '.');
+  tmp_name += ".tmp.png";
+  const std::string tmp = (final_path.parent_path() / tmp_name).string();
   if (!img.write(tmp)) {
     std::filesystem::remove(tmp);
     return path + ": cannot write the chart: " + img.geterror();
@@ -123,6 +150,22 @@ std::string render_chart_png(const std::string& path, const std::vector<ChartSer
     return path + ": cannot write the chart: " + ec.message();
   }
   return {};
+}
+
+}  // namespace
+
+std::string render_chart_png(const std::string& path, const std::vector<ChartSeries>& series,
+                             const ChartOptions& o) {
+  if (o.width_px < 400 || o.width_px > 8192 || o.height_px < 300 || o.height_px > 8192)
+    return path + ": chart size out of range";
+  const std::optional<PlotArea> area = plot_area(series, o);
+  if (!area) return path + ": no point to plot (times must be > 0)";
+  Canvas canvas{OIIO::ImageBuf(OIIO::ImageSpec(o.width_px, o.height_px, 3, OIIO::TypeDesc::UINT8)),
+                o.font_path, std::filesystem::exists(o.font_path)};
+  OIIO::ImageBufAlgo::fill(canvas.img, kWhite);
+  draw_axes(canvas, *area, o);
+  for (size_t i = 0; i < series.size(); ++i) draw_series(canvas, *area, series[i], i);
+  return write_png_file(path, canvas.img);
 }
 
 }  // namespace ssdo::oiio_module

@@ -1,7 +1,7 @@
 // The OpenImageIO module: every use of OpenImageIO in the product (images in formats other
 // than EXR, PNG previews, charts). Loaded by formats/oiio_module.cpp on first use, so that
 // processes which never need it (the workers on EXR frames) do not pay for loading it and
-// the ~250 shared libraries it depends on: about 0.25 s per process start.
+// the ~250 shared libraries it depends on at every process start.
 #include <OpenImageIO/imageio.h>
 
 #include "formats/oiio/module_api.h"

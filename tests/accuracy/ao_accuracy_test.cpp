@@ -23,6 +23,7 @@
 
 #include "formats/gbuffer_reader.h"
 #include "kernels/half_resolution.h"
+#include "service/frame_inputs.h"
 #include "kernels/ao.h"
 #include "kernels/denoise.h"
 #include "kernels/metrics.h"
@@ -50,6 +51,7 @@ const Frame& load(const std::string& name) {
   ReadOptions options;
   options.read_references = true;
   ReadResult r = read_gbuffer((gbuffer_dir() / (name + ".exr")).string(), options);
+  complete_gbuffer(r, options.threads);
   EXPECT_TRUE(r.ok()) << r.error;
   f.g = std::move(r.gbuffer);
   if (r.info.ao_distance_world) f.radius_world = *r.info.ao_distance_world;

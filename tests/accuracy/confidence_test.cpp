@@ -10,6 +10,7 @@
 
 #include "formats/gbuffer_reader.h"
 #include "kernels/half_resolution.h"
+#include "service/frame_inputs.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/positions.h"
@@ -36,6 +37,7 @@ TEST(ConfidenceIntegration, CorrelatesWithErrorOnSharedFrames) {
     ReadOptions options;
     options.read_references = true;
     ReadResult r = read_gbuffer((dir / (std::string(frames[fi]) + ".exr")).string(), options);
+    complete_gbuffer(r, options.threads);
     ASSERT_TRUE(r.ok()) << r.error;
     const GBuffer& g = r.gbuffer;
     cv::Mat reference = g.references.at("AO");
@@ -90,6 +92,7 @@ TEST(ConfidenceIntegration, PipelineWritesConfidenceWithAoAndSsdo) {
   const fs::path dir = fs::path(SSDO_SHARED_DIR) / "gbuffers";
   if (!fs::exists(dir / "depthgap.exr")) GTEST_SKIP() << "no shared frames at " << dir;
   ReadResult r = read_gbuffer((dir / "depthgap.exr").string());
+  complete_gbuffer(r, 0);
   ASSERT_TRUE(r.ok()) << r.error;
   for (const char* terms : {"ao", "ssdo"}) {
     FrameRequest request;

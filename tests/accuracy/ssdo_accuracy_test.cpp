@@ -7,6 +7,7 @@
 #include "formats/env_map.h"
 #include "formats/gbuffer_reader.h"
 #include "kernels/half_resolution.h"
+#include "service/frame_inputs.h"
 #include "kernels/denoise.h"
 #include "kernels/metrics.h"
 #include "kernels/positions.h"
@@ -27,6 +28,7 @@ struct Frame {
 Frame load(const std::string& name) {
   Frame f;
   ReadResult r = read_gbuffer((kShared / (name + ".exr")).string());
+  complete_gbuffer(r, 0);
   EXPECT_TRUE(r.ok()) << r.error;
   f.g = std::move(r.gbuffer);
   view_positions_from_depth(f.g.depth_view, f.g.mask, f.g.camera, f.position_view);

@@ -11,6 +11,7 @@
 #include <filesystem>
 
 #include "formats/gbuffer_reader.h"
+#include "service/frame_inputs.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/denoise.h"
@@ -29,6 +30,7 @@ ssdo::GBuffer load(int width) {
     ssdo::ReadOptions options;
     options.read_references = false;
     ssdo::ReadResult r = ssdo::read_gbuffer(file.string(), options);
+    ssdo::complete_gbuffer(r, options.threads);
     if (r.ok()) {
       ssdo::GBuffer g = std::move(r.gbuffer);
       if (g.position_view.empty())

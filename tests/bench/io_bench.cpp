@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "formats/gbuffer_reader.h"
+#include "service/frame_inputs.h"
 #include "formats/output_writer.h"
 #include "service/pipeline.h"
 
@@ -36,6 +37,7 @@ void BM_ReadFrame(benchmark::State& state) {
   const ssdo::ReadOptions options = read_options(int(state.range(0)), int(state.range(1)));
   for (auto _ : state) {
     ssdo::ReadResult r = ssdo::read_gbuffer(kFrame.string(), options);
+    ssdo::complete_gbuffer(r, options.threads);
     if (!r.ok()) {
       state.SkipWithError(r.error.c_str());
       return;
@@ -50,7 +52,8 @@ void BM_WriteTerms(benchmark::State& state) {
     state.SkipWithError(("no frame at " + kFrame.string()).c_str());
     return;
   }
-  const ssdo::ReadResult r = ssdo::read_gbuffer(kFrame.string(), read_options(0, 2));
+  ssdo::ReadResult r = ssdo::read_gbuffer(kFrame.string(), read_options(0, 2));
+  ssdo::complete_gbuffer(r, 2);
   if (!r.ok()) {
     state.SkipWithError(r.error.c_str());
     return;

@@ -12,6 +12,7 @@
 
 #include "formats/gbuffer_reader.h"
 #include "kernels/half_resolution.h"
+#include "service/frame_inputs.h"
 #include "kernels/composite.h"
 #include "kernels/environment.h"
 #include "kernels/positions.h"
@@ -27,6 +28,7 @@ ssdo::GBuffer load(int width) {
     ssdo::ReadOptions options;
     options.read_references = false;
     ssdo::ReadResult r = ssdo::read_gbuffer(file.string(), options);
+    ssdo::complete_gbuffer(r, options.threads);
     if (r.ok()) {
       ssdo::GBuffer g = std::move(r.gbuffer);
       if (g.position_view.empty())

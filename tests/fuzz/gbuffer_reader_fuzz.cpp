@@ -1,6 +1,7 @@
 // libFuzzer target: arbitrary bytes as an EXR file through the whole read_gbuffer path
 // (OpenEXR header and pixel decoding, profile detection, camera attributes, depth
-// conventions, masks, normal conversion and reconstruction).
+// conventions, masks, normal conversion) and its completion (service/frame_inputs.h:
+// normals and positions reconstructed from depth).
 //
 // The reader promises never to throw and to report every failure as a message; the
 // target checks that promise and the shape of a successful result. The options vary
@@ -11,6 +12,7 @@
 #include <cstdlib>
 
 #include "formats/gbuffer_reader.h"
+#include "service/frame_inputs.h"
 #include "tests/fuzz/fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -29,13 +31,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case 3: break;  // no camera unless the file has one
   }
   const ssdo::ReadResult header = ssdo::inspect_gbuffer(file.path(), options);
-  const ssdo::ReadResult r = ssdo::read_gbuffer(file.path(), options);
+  ssdo::ReadResult r = ssdo::read_gbuffer(file.path(), options);
+  ssdo::complete_gbuffer(r, options.threads);
   if (r.ok()) {
     const ssdo::GBuffer& g = r.gbuffer;
     // A successful read is a consistent G-buffer of the data window's size.
     if (g.depth_view.rows != r.info.height_px || g.depth_view.cols != r.info.width_px) std::abort();
     if (!g.mask.empty() && g.mask.size() != g.depth_view.size()) std::abort();
-    if (!g.normal_view.empty() && g.normal_view.size() != g.depth_view.size()) std::abort();
+    if (g.normal_view.size() != g.depth_view.size() || !g.normal_missing.empty()) std::abort();
+    if (options.read_positions && g.position_view.size() != g.depth_view.size()) std::abort();
   }
   (void)header;
   return 0;

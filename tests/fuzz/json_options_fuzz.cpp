@@ -18,6 +18,7 @@
 
 #include "formats/camera_io.h"
 #include "formats/gbuffer_reader.h"
+#include "service/frame_inputs.h"
 #include "service/pipeline.h"
 #include "service/request_options.h"
 #include "tests/fuzz/fuzz_util.h"
@@ -80,7 +81,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   request.read.threads = 1;
   if (!request.read.fov_x_deg) request.read.fov_x_deg = 50.0f;
   request.threads = 1;
-  const ssdo::ReadResult frame = ssdo::read_gbuffer(exr, request.read);
+  ssdo::ReadResult frame = ssdo::read_gbuffer(exr, request.read);
+  ssdo::complete_gbuffer(frame, request.read.threads);
   // The settings the boundary accepted, on the kernels (an 8 x 6 frame: cheap).
   if (frame.ok()) (void)ssdo::compute_frame(frame.gbuffer, request);
   return 0;

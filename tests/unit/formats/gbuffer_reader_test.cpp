@@ -14,7 +14,6 @@
 #include <OpenEXR/openexr.h>
 
 #include "formats_test_util.h"
-#include "kernels/positions.h"
 
 namespace ssdo::test {
 namespace {
@@ -41,6 +40,19 @@ RelError compare_positions(const cv::Mat& a, const cv::Mat& b, const cv::Mat& ma
       ++e.checked;
     }
   return e;
+}
+
+// View-space positions of the foreground pixels from the read depth and camera (pixel
+// centres), (0, 0, 0) elsewhere.
+cv::Mat positions_from_depth(const GBuffer& g) {
+  cv::Mat out(g.depth_view.size(), CV_32FC3, cv::Scalar::all(0));
+  for (int y = 0; y < out.rows; ++y)
+    for (int x = 0; x < out.cols; ++x) {
+      if (!g.mask.at<uint8_t>(y, x)) continue;
+      const glm::vec3 p = g.camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, g.depth_view.at<float>(y, x));
+      out.at<cv::Vec3f>(y, x) = cv::Vec3f(p.x, p.y, p.z);
+    }
+  return out;
 }
 
 // Positions from the frame's world-space Position pass, to view space with the sidecar's
@@ -124,8 +136,7 @@ TEST(SharedFrames, EveryFrameReadsAsBlenderWithSidecarCameraAndPositionsMatchDep
 
     // Acceptance: view positions from depth + camera equal the Position pass in view space
     // (sidecar world_to_camera) within 1e-3 relative on every foreground pixel.
-    cv::Mat from_depth;
-    view_positions_from_depth(g.depth_view, g.mask, g.camera, from_depth);
+    const cv::Mat from_depth = positions_from_depth(g);
     const cv::Mat from_file =
         file_positions_view(exr, json_matrix(side["world_to_camera"]), "ViewLayer.Position.");
     const RelError e = compare_positions(from_depth, from_file, g.mask, 1e-3);
@@ -290,8 +301,7 @@ void check_header_camera_frame(const std::string& scene, bool camera_looks_down_
     for (int row = 0; row < 4; ++row)
       EXPECT_NEAR(cam.world_to_view[c][row], world_to_camera[c][row], 1e-5);
 
-  cv::Mat from_depth;
-  view_positions_from_depth(r.gbuffer.depth_view, r.gbuffer.mask, cam, from_depth);
+  const cv::Mat from_depth = positions_from_depth(r.gbuffer);
   const cv::Mat from_file = file_positions_view(path, world_to_camera, "P.");
   const RelError e = compare_positions(from_depth, from_file, r.gbuffer.mask, 1e-3);
   EXPECT_GT(e.checked, 1000);
@@ -502,7 +512,7 @@ TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
   for (int i = 0; i < w * h; ++i) t.channels[3].values[i] = 1.0f;  // N.Z = +1, facing the camera
   t.channels[1].values[10] = nan;  // N.X
   t.channels[2].values[11] = inf;  // N.Y
-  t.channels[3].values[12] = 0.0f;  // zero normal: rebuilt from depth, not masked
+  t.channels[3].values[12] = 0.0f;  // zero normal: reported missing, not masked
   const fs::path path = dir / "nonfinite.exr";
   ASSERT_TRUE(t.write(path));
   ReadOptions options;
@@ -522,9 +532,13 @@ TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
   }
   // Under a --fov camera generic N is view space; (0, 0, 1) faces the camera everywhere.
   EXPECT_EQ(g.normal_view.at<cv::Vec3f>(3, 7), cv::Vec3f(0, 0, 1));
-  // The rebuilt normal of a fronto-parallel plane is (0, 0, 1) too.
-  const cv::Vec3f rebuilt = g.normal_view.at<cv::Vec3f>(12 / w, 12 % w);
-  EXPECT_NEAR(rebuilt[2], 1.0f, 1e-4);
+  // The zero normal stays (0, 0, 0), marked for reconstruction (service/frame_inputs.h).
+  EXPECT_EQ(g.mask.at<uint8_t>(12 / w, 12 % w), 255);
+  EXPECT_EQ(g.normal_view.at<cv::Vec3f>(12 / w, 12 % w), cv::Vec3f(0, 0, 0));
+  ASSERT_EQ(g.normal_missing.type(), CV_8UC1);
+  EXPECT_EQ(g.normal_missing.at<uint8_t>(12 / w, 12 % w), 1);
+  EXPECT_EQ(cv::countNonZero(g.normal_missing), 1);
+  EXPECT_TRUE(r.info.notes.empty() || !contains(r.info.notes.back(), "zero normal"));
   EXPECT_FLOAT_EQ(r.info.depth_min_view, 3.0f);
   EXPECT_FLOAT_EQ(r.info.depth_max_view, 3.0f);
   EXPECT_EQ(r.info.uses[1].space, "view");
@@ -548,12 +562,14 @@ TEST(ReadConversions, ConformanceNanInfImageIsMaskedAndCounted) {
   ASSERT_GT(nonfinite, 0);
   EXPECT_EQ(r.info.nonfinite_pixels, nonfinite);
   EXPECT_EQ(r.info.masked_pixels, nonfinite + background);
+  // No normals in the file: none read, reported for reconstruction.
+  EXPECT_TRUE(r.gbuffer.normal_view.empty());
+  EXPECT_TRUE(r.info.normals_reconstructed);
   for (int y = 0; y < r.gbuffer.height_px(); ++y)
     for (int x = 0; x < r.gbuffer.width_px(); ++x) {
       const float d = r.gbuffer.depth_view.at<float>(y, x);
       if (r.gbuffer.mask.at<uint8_t>(y, x)) {
         ASSERT_TRUE(std::isfinite(d));
-        ASSERT_TRUE(std::isfinite(cv::norm(r.gbuffer.normal_view.at<cv::Vec3f>(y, x))));
       } else {
         ASSERT_TRUE(std::isinf(d));
       }
@@ -619,6 +635,7 @@ TEST(ReadConversions, RadialDepthBecomesPlanar) {
   ReadOptions options;
   options.fov_x_deg = fov;
   options.depth_kind = DepthKind::radial;
+  options.read_positions = true;
   const ReadResult r = read_gbuffer(path.string(), options);
   ASSERT_TRUE(r.ok()) << r.error;
   EXPECT_EQ(r.info.depth_kind, "radial");
@@ -626,9 +643,13 @@ TEST(ReadConversions, RadialDepthBecomesPlanar) {
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) max_err = std::max(max_err, std::abs(r.gbuffer.depth_view.at<float>(y, x) - 5.0));
   EXPECT_LT(max_err, 1e-5);
-  // Reconstructed normals of that plane face the camera.
+  // Neither normals nor positions in the file: reported missing, left empty (they are
+  // rebuilt from depth by service/frame_inputs.h).
   EXPECT_TRUE(r.info.normals_reconstructed);
-  EXPECT_NEAR(r.gbuffer.normal_view.at<cv::Vec3f>(20, 30)[2], 1.0f, 1e-4);
+  EXPECT_TRUE(r.gbuffer.normal_view.empty());
+  EXPECT_TRUE(r.info.positions_missing);
+  EXPECT_TRUE(r.gbuffer.position_view.empty());
+  for (const ChannelUse& u : r.info.uses) EXPECT_NE(u.input, "position");
 }
 
 TEST(ReadConversions, HalfDepthIsReadAsFloat) {
@@ -865,8 +886,7 @@ RawExr zip_test_frame(int width, int height, int noise_from = 0, int noise_to = 
 ReadOptions zip_test_options() {
   ReadOptions o;
   o.fov_x_deg = 50.0f;
-  o.mapping.references["a"] = "A";
-  o.mapping.references["b"] = "B";
+  o.mapping.references = {{"a", "A"}, {"b", "B"}};
   return o;
 }
 
@@ -895,6 +915,7 @@ ReadResult expect_same_reads(const fs::path& path, ReadOptions options) {
     expect_bit_identical(a.depth_view, b.depth_view, "depth");
     expect_bit_identical(a.mask, b.mask, "mask");
     expect_bit_identical(a.normal_view, b.normal_view, "normal");
+    expect_bit_identical(a.normal_missing, b.normal_missing, "normal_missing");
     expect_bit_identical(a.position_view, b.position_view, "position");
     expect_bit_identical(a.albedo, b.albedo, "albedo");
     expect_bit_identical(a.lighting, b.lighting, "lighting");
