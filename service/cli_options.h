@@ -18,6 +18,13 @@ namespace ssdo {
 // `args`: names, help, groups, choices and ranges from the table (frame_options.h).
 void add_frame_options(CLI::App& app, FrameOptionArgs& args, int sets = kAllOptionSets);
 
+// What a subcommand's run callback owns: its own arguments and the frame options it takes.
+template <class Args>
+struct CommandState {
+  Args args;
+  FrameOptionArgs options;
+};
+
 // True when the command line gave the frame option `key` (a table name) to `app`.
 bool given(const CLI::App& app, const std::string& key);
 

@@ -167,12 +167,8 @@ int run_client(const ClientArgs& args) {
 }
 
 Command register_client(CLI::App& app) {
-  struct State {
-    ClientArgs client;
-    FrameOptionArgs options;
-  };
-  auto st = std::make_shared<State>();
-  ClientArgs& c = st->client;
+  auto st = std::make_shared<CommandState<ClientArgs>>();
+  ClientArgs& c = st->args;
   CLI::App* cmd = app.add_subcommand(
       "client", "Talk to a running 'ssdo serve --socket': ping, stats, or process FILE... (one JSON "
                 "response per line)");
@@ -189,8 +185,8 @@ Command register_client(CLI::App& app) {
   add_frame_options(*cmd, st->options);
   return {cmd, [st, cmd] {
             // Only the flags given: the service's own options fill the rest.
-            st->client.options = to_json(st->options, [&](const std::string& key) { return given(*cmd, key); });
-            return run_client(st->client);
+            st->args.options = to_json(st->options, [&](const std::string& key) { return given(*cmd, key); });
+            return run_client(st->args);
           }};
 }
 

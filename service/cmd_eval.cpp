@@ -164,12 +164,8 @@ int run_eval(const EvalArgs& args) {
 }
 
 Command register_eval(CLI::App& app) {
-  struct State {
-    EvalArgs eval;
-    FrameOptionArgs options;
-  };
-  auto st = std::make_shared<State>();
-  EvalArgs& e = st->eval;
+  auto st = std::make_shared<CommandState<EvalArgs>>();
+  EvalArgs& e = st->args;
   st->options.compute.preset = "high";
   CLI::App* cmd = app.add_subcommand(
       "eval", "Compare computed AO with a reference pass of the same frame (e.g. Cycles' "
@@ -191,7 +187,7 @@ Command register_eval(CLI::App& app) {
   cmd->add_option("--heatmap", e.heatmap_dir, "Write an error image per file into DIR");
   add_frame_options(*cmd, st->options, int(OptionSet::read) | int(OptionSet::compute));
   return {cmd, [st] {
-            EvalArgs& eval = st->eval;
+            EvalArgs& eval = st->args;
             const ComputeOptionArgs& compute = st->options.compute;
             std::string error;
             if (!resolve_read_options(st->options.read, eval.request.read, error) ||

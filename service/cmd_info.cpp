@@ -122,21 +122,17 @@ int run_info(const InfoArgs& args) {
 }
 
 Command register_info(CLI::App& app) {
-  struct State {
-    InfoArgs info;
-    FrameOptionArgs options;
-  };
-  auto st = std::make_shared<State>();
+  auto st = std::make_shared<CommandState<InfoArgs>>();
   CLI::App* cmd = app.add_subcommand(
       "info", "Print what a frame holds: resolution, parts, channels, detected profile, which "
               "channel becomes which input, camera and its source, depth range, masked pixels");
-  cmd->add_option("files", st->info.files, "EXR frames")->required();
-  cmd->add_flag("--json", st->info.json, "Print JSON instead of text");
+  cmd->add_option("files", st->args.files, "EXR frames")->required();
+  cmd->add_flag("--json", st->args.json, "Print JSON instead of text");
   add_frame_options(*cmd, st->options, int(OptionSet::read));
   return {cmd, [st] {
             std::string error;
-            if (!resolve_read_options(st->options.read, st->info.read, error)) return usage_error(error);
-            return run_info(st->info);
+            if (!resolve_read_options(st->options.read, st->args.read, error)) return usage_error(error);
+            return run_info(st->args);
           }};
 }
 

@@ -10,6 +10,7 @@
 
 #include "service/cli_options.h"
 #include "service/frame_options.h"
+#include "service/guard_band.h"
 #include "service/request_options.h"
 
 namespace ssdo {
@@ -182,6 +183,34 @@ TEST(FrameOptionTable, MarkdownHasARowPerOption) {
   const std::string md = frame_options_markdown();
   for (const FrameOption& o : frame_options())
     EXPECT_NE(md.find("| `--" + std::string(o.name) + "` |"), std::string::npos) << o.name;
+}
+
+// The cropped terms keep the rays of their pixels: a view-space point lands PX pixels
+// up and left of where the whole frame's camera put it.
+TEST(GuardBand, CropKeepsEachPixelsRay) {
+  Camera camera = Camera::from_fov_x(64, 48, 60.0f);
+  const Camera whole = camera;
+  ComputedFrame frame;
+  cv::Mat ao(48, 64, CV_32FC1);
+  for (int y = 0; y < ao.rows; ++y)
+    for (int x = 0; x < ao.cols; ++x) ao.at<float>(y, x) = float(y * 100 + x);
+  frame.terms.push_back({"ao", ao, SampleType::half, false});
+  ASSERT_EQ(crop_guard_band(frame, camera, 4), "");
+  EXPECT_EQ(camera.width_px, 56);
+  EXPECT_EQ(camera.height_px, 40);
+  ASSERT_EQ(frame.terms[0].image.size(), cv::Size(56, 40));
+  EXPECT_EQ(frame.terms[0].image.at<float>(0, 0), 404.0f);
+  for (const glm::vec3 p : {glm::vec3(0.3f, -0.2f, -2.0f), glm::vec3(-1.0f, 0.5f, -5.0f)}) {
+    const glm::vec2 a = whole.pixel_from_view(p), b = camera.pixel_from_view(p);
+    EXPECT_NEAR(b.x, a.x - 4.0f, 1e-3f);
+    EXPECT_NEAR(b.y, a.y - 4.0f, 1e-3f);
+  }
+  Camera tiny = Camera::from_fov_x(8, 8, 60.0f);
+  EXPECT_NE(crop_guard_band(frame, tiny, 4), "");
+  ComputedFrame untouched;
+  Camera same = whole;
+  EXPECT_EQ(crop_guard_band(untouched, same, 0), "");
+  EXPECT_EQ(same.view_to_clip, whole.view_to_clip);
 }
 
 }  // namespace
