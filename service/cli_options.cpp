@@ -2,99 +2,104 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <sstream>
+#include <type_traits>
+#include <variant>
 
 #include "formats/env_map.h"
 #include "service/quality.h"
+#include "service/request_options.h"
 
 namespace ssdo {
 
-void add_read_options(CLI::App& app, ReadOptionArgs& a) {
-  app.add_option("--map", a.maps,
-                 "Channel for an input, for renderers no profile knows: INPUT=CHANNEL, INPUT one of "
-                 "depth, normal, position, albedo, lighting, normal-space, position-space (world|view), "
-                 "or ref:NAME. A CHANNEL may be a layer (N -> N.X N.Y N.Z). Repeatable.")
-      ->group("Input");
-  app.add_option("--camera", a.camera_json,
-                 "Camera JSON sidecar (default: NAME.camera.json beside NAME.exr)")
-      ->group("Input");
-  app.add_option("--fov", a.fov_x_deg,
-                 "Horizontal field of view in degrees, for frames with neither a sidecar nor "
-                 "worldToCamera/worldToNDC header attributes")
-      ->check(CLI::Range(0.1f, 179.9f))
-      ->group("Input");
-  app.add_option("--depth-kind", a.depth_kind,
-                 "Depth convention: planar (distance along the view axis), radial (distance from "
-                 "the eye) or auto (as the sidecar says, else planar)")
-      ->check(CLI::IsMember({"auto", "planar", "radial"}))
-      ->group("Input");
-  app.add_option("--part", a.part, "Multi-part EXR: the part that holds depth")->group("Input");
+namespace {
+
+// A CLI11 validator running the table's own check, so that the command line and JSON
+// accept the same values with the same message.
+CLI::Validator table_check(const FrameOption& o) {
+  return CLI::Validator(
+      [&o](std::string& value) -> std::string {
+        if (o.kind == OptionKind::choice) return check_choice(o, value);
+        try {
+          size_t used = 0;
+          const double v = std::stod(value, &used);
+          if (used == value.size()) return check_number(o, v);
+        } catch (const std::exception&) {
+        }
+        return check_number(o, std::numeric_limits<double>::quiet_NaN());
+      },
+      "", o.name);
 }
 
-void add_compute_options(CLI::App& app, ComputeOptionArgs& a, bool with_terms) {
-  app.add_option("--method", a.method, "AO method: hemisphere, hbao, gtao, raymarch (slow oracle)")
-      ->check(CLI::IsMember({"hemisphere", "hbao", "gtao", "raymarch"}))
-      ->capture_default_str()
-      ->group("Compute");
-  app.add_option("--preset", a.preset, "Quality preset: low, medium, high, ultra")
-      ->check(CLI::IsMember({"low", "medium", "high", "ultra"}))
-      ->capture_default_str()
-      ->group("Compute");
-  app.add_option("--quality", a.quality,
-                 "auto: the fastest method and preset whose error on the shipped calibration "
-                 "frames (MAE against ray-traced AO) is at most --max-error; the choice is printed")
-      ->check(CLI::IsMember({"auto"}))
-      ->group("Compute");
-  app.add_option("--max-error", a.max_error, "Largest acceptable MAE for --quality auto")
-      ->check(CLI::Range(0.0f, 1.0f))
-      ->capture_default_str()
-      ->group("Compute");
-  app.add_option("--radius", a.radius_world,
-                 "AO radius in scene units (default: the frame's AO distance when its sidecar gives "
-                 "one, else 1)")
+// One table entry as a CLI11 option bound to its field in `args`.
+void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args) {
+  const std::string flag = "--" + std::string(o.name);
+  const std::string help = *o.unset ? std::string(o.help) + " (default: " + o.unset + ")" : std::string(o.help);
+  CLI::Option* opt = std::visit(
+      [&](auto field) -> CLI::Option* {
+        auto& value = field(args);
+        if constexpr (std::is_same_v<std::decay_t<decltype(value)>, bool>) return app.add_flag(flag, value, help);
+        else return app.add_option(flag, value, help);
+      },
+      o.field);
+  opt->group(o.group);
+  if (o.kind == OptionKind::choice || o.kind == OptionKind::number || o.kind == OptionKind::integer)
+    opt->check(table_check(o));
+  if (o.existing_file) opt->check(CLI::ExistingFile);
+  if (o.kind != OptionKind::flag && o.kind != OptionKind::list && !*o.unset) opt->capture_default_str();
+}
+
+}  // namespace
+
+void add_frame_options(CLI::App& app, FrameOptionArgs& args, int sets) {
+  for (const FrameOption& o : frame_options())
+    if ((sets & int(o.set)) != 0) add_frame_option(app, o, args);
+}
+
+bool given(const CLI::App& app, const std::string& key) {
+  const CLI::Option* opt = app.get_option_no_throw("--" + key);
+  return opt != nullptr && opt->count() > 0;
+}
+
+bool frame_options_over_config(const CLI::App& app, const std::string& config, FrameOptionArgs& options,
+                               std::string& error) {
+  if (!config.empty()) {
+    nlohmann::json j;
+    if (!load_json_file(config, j, error)) return false;
+    if (!apply_json(j, options, error, [&](const std::string& key) { return given(app, key); })) {
+      error = config + ": " + error;
+      return false;
+    }
+  }
+  // The workers read and build what they compute with; here only the checks.
+  FrameRequest check;
+  return resolve_frame_options(options, check, error, /*build_environment=*/false);
+}
+
+void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
+  cmd.add_option("-j,--jobs", jobs,
+                 "Worker processes = frames computed at once, each with cores/jobs threads (0 = "
+                 "process: 1 worker with every core; serve: one worker per core)")
+      ->check(CLI::Range(0, 256))
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
+      ->group("Workers");
+  cmd.add_option("--frame-timeout", limits.frame_timeout_s,
+                 "Seconds a frame may take (read + compute + write) before its worker is killed")
       ->check(CLI::PositiveNumber)
-      ->group("Compute");
-  app.add_option("--thickness", a.thickness_world,
-                 "Assumed thickness of surfaces in scene units (default: the method's)")
-      ->check(CLI::PositiveNumber)
-      ->group("Compute");
-  app.add_option("--threads", a.threads, "Threads for the kernels (0 = all cores)")
-      ->check(CLI::Range(0, 1024))
-      ->group("Compute");
-  if (!with_terms) return;
-  app.add_option("--terms", a.terms, "Terms to compute and write: ao (AO, bent normal), ssdo (SSDO direct and indirect, and the composite they light), composite, all")
       ->capture_default_str()
-      ->group("Compute");
-  app.add_option("--ssdo-method", a.ssdo_method,
-                 "SSDO method: ssdo (fast) or oracle (slow screen-space best case)")
-      ->check(CLI::IsMember({"ssdo", "oracle"}))
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
+      ->group("Workers");
+  cmd.add_option("--memory-limit", limits.memory_limit_mb, "Address-space limit of each worker, MiB")
+      ->check(CLI::Range(int64_t(256), int64_t(1) << 22))
       ->capture_default_str()
-      ->group("SSDO");
-  app.add_option("--ssdo-preset", a.ssdo_preset, "SSDO quality preset (default: --preset)")
-      ->check(CLI::IsMember({"low", "medium", "high", "ultra"}))
-      ->group("SSDO");
-  app.add_option("--env", a.env_path,
-                 "Environment light: an equirectangular radiance map (EXR; row 0 = straight up, "
-                 "centre column = +Y world as Blender/Cycles writes it)")
-      ->check(CLI::ExistingFile)
-      ->group("SSDO");
-  app.add_option("--sky", a.sky,
-                 "Environment light: a two-colour sky TOP,BOTTOM, each a grey level or R:G:B, "
-                 "e.g. --sky 0.25:0.5:1,1:0.35:0.08")
-      ->group("SSDO");
-  app.add_option("--env-constant", a.env_constant, "Environment light: uniform radiance (default 1)")
-      ->check(CLI::NonNegativeNumber)
-      ->group("SSDO");
-  app.add_option("--env-up", a.env_up, "World up axis of the environment: z (Blender) or y")
-      ->check(CLI::IsMember({"z", "y"}))
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
+      ->group("Workers");
+  cmd.add_option("--max-pixels", limits.max_pixels, "Largest frame (width x height) a worker decodes")
+      ->check(CLI::Range(int64_t(1), int64_t(1) << 34))
       ->capture_default_str()
-      ->group("SSDO");
-  app.add_option("--composite", a.composite,
-                 "Composite terms: a mode (off, ssao, ssdo, ssao+ssdo) or a weighted list of "
-                 "ambient, ambient_ao, ssdo_direct, ssdo_indirect, lighting, e.g. "
-                 "ambient_ao:0.5,ssdo_direct,ssdo_indirect (default: ssdo when SSDO is "
-                 "computed, else ssao)")
-      ->group("Compute");
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
+      ->group("Workers");
 }
 
 bool parse_sky(const std::string& spec, glm::vec3& top, glm::vec3& bottom, std::string& error) {
@@ -229,8 +234,11 @@ bool resolve_read_options(const ReadOptionArgs& a, ReadOptions& read, std::strin
   return true;
 }
 
-bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error,
-                             bool build_environment) {
+namespace {
+
+// AO and SSDO settings: the method and preset (or --quality auto's choice from the shipped
+// calibration), then the overrides, then the kernels' own validation.
+bool resolve_settings(const ComputeOptionArgs& a, FrameRequest& request, std::string& error) {
   auto method = parse_ao_method(a.method);
   auto preset = parse_preset(a.preset);
   if (a.quality == "auto") {
@@ -250,11 +258,7 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
   request.ao = ao_preset(*method, *preset);
   if (a.radius_world > 0) request.ao.radius_world = a.radius_world;
   if (a.thickness_world > 0) request.ao.thickness_world = a.thickness_world;
-  request.threads = a.threads;
-  if (!parse_terms(a.terms, request.terms, error)) {
-    error = "--terms: " + error;
-    return false;
-  }
+  request.ao.multibounce = a.multibounce;
   if (const std::string e = validate(request.ao); !e.empty()) {
     error = "AO settings: " + e;
     return false;
@@ -273,7 +277,12 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
     error = "SSDO settings: " + e;
     return false;
   }
+  return true;
+}
 
+// The one environment light of --env, --sky or --env-constant (none: radiance 1).
+bool resolve_environment(const ComputeOptionArgs& a, FrameRequest& request, std::string& error,
+                         bool build_environment) {
   const int env_sources = int(!a.env_path.empty()) + int(!a.sky.empty()) + int(a.env_constant > 0);
   if (env_sources > 1) {
     error = "give one environment: --env, --sky or --env-constant";
@@ -286,19 +295,16 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
     // Without building it (a process that only checks the options): what is known without
     // decoding the pixels; the worker that builds it reports the rest.
     if (!build_environment) {
-      if (std::string e = check_env_map(a.env_path); !e.empty()) {
-        error = e;
-        return false;
-      }
-    } else {
-      EnvMapResult env = read_env_map(a.env_path);
-      if (!env.ok()) {
-        error = env.error;
-        return false;
-      }
-      request.environment =
-          std::make_shared<const Environment>(Environment::equirect(env.radiance_rgb, env_settings));
+      error = check_env_map(a.env_path);
+      return error.empty();
     }
+    EnvMapResult env = read_env_map(a.env_path);
+    if (!env.ok()) {
+      error = env.error;
+      return false;
+    }
+    request.environment =
+        std::make_shared<const Environment>(Environment::equirect(env.radiance_rgb, env_settings));
   } else if (!a.sky.empty()) {
     SkyGradient sky;
     if (!parse_sky(a.sky, sky.top, sky.bottom, error)) return false;
@@ -307,7 +313,20 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
     request.environment =
         std::make_shared<const Environment>(Environment::constant(glm::vec3(a.env_constant), env_settings));
   }
+  return true;
+}
 
+}  // namespace
+
+bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error,
+                             bool build_environment) {
+  if (!resolve_settings(a, request, error)) return false;
+  request.threads = a.threads;
+  if (!parse_terms(a.terms, request.terms, error)) {
+    error = "--terms: " + error;
+    return false;
+  }
+  if (!resolve_environment(a, request, error, build_environment)) return false;
   if (!a.composite.empty() && !parse_composite(a.composite, request.composite_terms, error)) return false;
   return true;
 }

@@ -1,5 +1,5 @@
-// Command-line options shared by several subcommands (CLI11), and their conversion
-// into the request values the pipeline takes.
+// Command-line options shared by several subcommands (CLI11), and the conversion of the
+// typed frame options (frame_options.h) into the request values the pipeline takes.
 #pragma once
 
 #include <string>
@@ -8,41 +8,34 @@
 #include <CLI/CLI.hpp>
 
 #include "formats/gbuffer_reader.h"
+#include "service/frame_options.h"
 #include "service/pipeline.h"
+#include "service/worker_process.h"
 
 namespace ssdo {
 
-// Raw option values as typed; resolved into a request by resolve_*.
-struct ReadOptionArgs {
-  std::vector<std::string> maps;  // --map input=channel
-  std::string camera_json;
-  float fov_x_deg = 0;
-  std::string depth_kind = "auto";
-  std::string part;
+// The frame options of `sets` (OptionSet bits) as CLI11 options on `app`, bound to
+// `args`: names, help, groups, choices and ranges from the table (frame_options.h).
+void add_frame_options(CLI::App& app, FrameOptionArgs& args, int sets = kAllOptionSets);
+
+// What a subcommand's run callback owns: its own arguments and the frame options it takes.
+template <class Args>
+struct CommandState {
+  Args args;
+  FrameOptionArgs options;
 };
 
-struct ComputeOptionArgs {
-  std::string method = "gtao";
-  std::string preset = "medium";
-  float radius_world = 0;  // 0 = preset / frame default
-  float thickness_world = 0;
-  int threads = 0;
-  std::string terms = "ao,composite";
-  // SSDO and the environment
-  std::string ssdo_method = "ssdo";
-  std::string ssdo_preset;        // empty = --preset
-  std::string env_path;           // equirect radiance map
-  std::string sky;                // "TOP,BOTTOM" two-colour sky
-  float env_constant = 0;         // uniform radiance (0 = unset)
-  std::string env_up = "z";
-  std::string composite;          // mode or weighted term list
-  // --quality auto --max-error E: method and preset from the shipped calibration table
-  std::string quality;            // "" (method/preset as given) or "auto"
-  float max_error = 0.05f;        // MAE against ray-traced AO, for --quality auto
-};
+// True when the command line gave the frame option `key` (a table name) to `app`.
+bool given(const CLI::App& app, const std::string& key);
 
-void add_read_options(CLI::App& app, ReadOptionArgs& args);
-void add_compute_options(CLI::App& app, ComputeOptionArgs& args, bool with_terms);
+// The frame options of a command: its flags over its --config file (`config`, may be
+// empty), then every value checked (the environment map's header too) before any work.
+// False with a message naming the file and key.
+bool frame_options_over_config(const CLI::App& app, const std::string& config, FrameOptionArgs& options,
+                               std::string& error);
+
+// Limits of the worker processes (--jobs, --frame-timeout, --memory-limit, --max-pixels).
+void add_worker_limits(CLI::App& app, int& jobs, WorkerLimits& limits);
 
 // Fill the request; on a bad value return false with a message naming the option.
 bool resolve_read_options(const ReadOptionArgs& args, ReadOptions& read, std::string& error);

@@ -7,10 +7,14 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <memory>
 #include <sstream>
+
+#include <CLI/CLI.hpp>
 
 #include "formats/chart.h"
 #include "kernels/metrics.h"
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
@@ -237,6 +241,48 @@ int run_bench(const BenchArgs& args) {
   std::printf("wrote %s/bench.csv, %s/calibration.csv and %s\n", args.output_dir.c_str(),
               args.output_dir.c_str(), png.c_str());
   return failed ? 1 : 0;
+}
+
+Command register_bench(CLI::App& app) {
+  struct State {
+    BenchArgs bench;
+    FrameOptionArgs options;
+    std::vector<std::string> methods;
+    bool no_sweep = false;
+  };
+  auto st = std::make_shared<State>();
+  BenchArgs& b = st->bench;
+  CLI::App* cmd = app.add_subcommand(
+      "bench", "Run every AO method x preset (and a sweep of sample counts) on frames with a "
+               "reference pass; write bench.csv (method, preset, samples, resolution, median ms, "
+               "MAE, RMSE, bias, p95), calibration.csv (for --quality auto) and bench.png (error "
+               "against time, log time axis)");
+  cmd->add_option("files", b.files, "EXR frames holding the reference pass")->required();
+  cmd->add_option("--reference", b.reference, "Reference pass name")->capture_default_str();
+  cmd->add_option("-o,--out", b.output_dir, "Output folder")->required();
+  cmd->add_option("--runs", b.runs, "Runs per configuration (median time)")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  cmd->add_option("--methods", st->methods, "Methods to run (default hemisphere hbao gtao; raymarch is minutes per frame)")
+      ->check(CLI::IsMember({"hemisphere", "hbao", "gtao", "raymarch"}));
+  cmd->add_flag("--no-sweep", st->no_sweep, "Presets only, no sample-count sweep");
+  cmd->add_option("--external", b.external_csv,
+                  "CSV of an external reference's cost (series,label,ms,mae), e.g. a ray "
+                  "tracer at several sample counts, plotted beside the methods")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores)")->check(CLI::Range(0, 1024));
+  add_frame_options(*cmd, st->options, int(OptionSet::read));
+  return {cmd, [st] {
+            BenchArgs& bench = st->bench;
+            std::string error;
+            if (!resolve_read_options(st->options.read, bench.request.read, error)) return usage_error(error);
+            if (!st->methods.empty()) {
+              bench.methods.clear();
+              for (const std::string& m : st->methods) bench.methods.push_back(*parse_ao_method(m));
+            }
+            bench.sweep = !st->no_sweep;
+            return run_bench(bench);
+          }};
 }
 
 }  // namespace ssdo

@@ -11,7 +11,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 
+#include <CLI/CLI.hpp>
+
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/frame_list.h"
 
@@ -160,6 +164,30 @@ int run_client(const ClientArgs& args) {
   }
   ::close(fd);
   return failed > 0 ? 1 : 0;
+}
+
+Command register_client(CLI::App& app) {
+  auto st = std::make_shared<CommandState<ClientArgs>>();
+  ClientArgs& c = st->args;
+  CLI::App* cmd = app.add_subcommand(
+      "client", "Talk to a running 'ssdo serve --socket': ping, stats, or process FILE... (one JSON "
+                "response per line)");
+  cmd->add_option("--socket", c.socket_path, "The service's socket")->required();
+  cmd->add_option("action", c.action, "ping, stats or process")
+      ->required()
+      ->check(CLI::IsMember({"ping", "stats", "process"}));
+  cmd->add_option("files", c.files, "process: frames (paths the service may read, or sent with --inline)");
+  cmd->add_flag("--inline", c.inline_data, "Send the frames' bytes (and NAME.camera.json) and receive the outputs' bytes");
+  cmd->add_option("-o,--out", c.out_dir, "--inline: folder for the outputs")->capture_default_str();
+  cmd->add_option("--timeout", c.timeout_s, "Seconds to wait for each response")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  add_frame_options(*cmd, st->options);
+  return {cmd, [st, cmd] {
+            // Only the flags given: the service's own options fill the rest.
+            st->args.options = to_json(st->options, [&](const std::string& key) { return given(*cmd, key); });
+            return run_client(st->args);
+          }};
 }
 
 }  // namespace ssdo

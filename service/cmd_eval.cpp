@@ -3,10 +3,13 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include "kernels/metrics.h"
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
@@ -162,6 +165,43 @@ int run_eval(const EvalArgs& args) {
                 all.bias, all.p95, int(all.pixels), overall_ms);
   }
   return failed ? 1 : 0;
+}
+
+Command register_eval(CLI::App& app) {
+  auto st = std::make_shared<CommandState<EvalArgs>>();
+  EvalArgs& e = st->args;
+  st->options.compute.preset = "high";
+  CLI::App* cmd = app.add_subcommand(
+      "eval", "Compare computed AO with a reference pass of the same frame (e.g. Cycles' "
+              "ray-traced AO) over foreground pixels: MAE, RMSE, bias, 95th percentile, time");
+  cmd->add_option("files", e.files, "EXR frames holding the reference pass")->required();
+  cmd->add_option("--reference", e.reference, "Reference pass name (AO for Cycles dumps)")->capture_default_str();
+  cmd->add_option("--term", e.term,
+                  "Term to compare: ao (with --reference AO), ssdo_direct (--reference DiffDir) "
+                  "or ssdo_indirect (--reference DiffInd)")
+      ->check(CLI::IsMember({"ao", "ssdo_direct", "ssdo_indirect"}))
+      ->capture_default_str();
+  cmd->add_flag("--raw", e.raw, "Compare the raw term instead of the denoised one");
+  cmd->add_option("--against-oracle", e.oracle_preset,
+                  "Compare with the screen-space oracle at this preset (raymarch for AO, the "
+                  "SSDO oracle for light terms; same radius and thickness) instead of a pass: "
+                  "the method's estimator error alone")
+      ->check(CLI::IsMember({"low", "medium", "high", "ultra"}));
+  cmd->add_flag("--json", e.json, "Print JSON");
+  cmd->add_option("--heatmap", e.heatmap_dir, "Write an error image per file into DIR");
+  add_frame_options(*cmd, st->options, int(OptionSet::read) | int(OptionSet::compute));
+  return {cmd, [st] {
+            EvalArgs& eval = st->args;
+            const ComputeOptionArgs& compute = st->options.compute;
+            std::string error;
+            if (!resolve_read_options(st->options.read, eval.request.read, error) ||
+                !resolve_compute_options(compute, eval.request, error))
+              return usage_error(error);
+            eval.request.terms = {eval.term == "ao", eval.term != "ao", false};
+            eval.radius_from_frame = compute.radius_world <= 0;
+            eval.preset = compute.preset;
+            return run_eval(eval);
+          }};
 }
 
 }  // namespace ssdo

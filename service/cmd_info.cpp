@@ -2,10 +2,13 @@
 // depth range and the masked / non-finite counts need the pixels), prints text or JSON.
 #include <cstdio>
 #include <iostream>
+#include <memory>
 #include <sstream>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/frame_inputs.h"
 
@@ -118,6 +121,21 @@ int run_info(const InfoArgs& args) {
   }
   if (args.json) std::cout << all.dump(2) << "\n";
   return status;
+}
+
+Command register_info(CLI::App& app) {
+  auto st = std::make_shared<CommandState<InfoArgs>>();
+  CLI::App* cmd = app.add_subcommand(
+      "info", "Print what a frame holds: resolution, parts, channels, detected profile, which "
+              "channel becomes which input, camera and its source, depth range, masked pixels");
+  cmd->add_option("files", st->args.files, "EXR frames")->required();
+  cmd->add_flag("--json", st->args.json, "Print JSON instead of text");
+  add_frame_options(*cmd, st->options, int(OptionSet::read));
+  return {cmd, [st] {
+            std::string error;
+            if (!resolve_read_options(st->options.read, st->args.read, error)) return usage_error(error);
+            return run_info(st->args);
+          }};
 }
 
 }  // namespace ssdo

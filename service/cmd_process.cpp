@@ -9,9 +9,13 @@
 #include <cerrno>
 #include <filesystem>
 #include <iostream>
+#include <memory>
 #include <thread>
 
+#include <CLI/CLI.hpp>
+
 #include "service/batch_progress.h"
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/frame_list.h"
 #include "service/frame_range.h"
@@ -134,6 +138,69 @@ int run_process(const ProcessArgs& args) {
   for (std::thread& t : threads) t.join();
   const int failed = progress.summary(stop);
   return failed > 0 || stop ? 1 : 0;
+}
+
+namespace {
+
+// --shot-frames: --frames outside the shot are dropped (a farm's last task may overshoot).
+// False when nothing is left to do or on a usage error (then `exit_code` says which).
+bool clip_to_shot(ProcessArgs& process, const std::string& shot_frames, int& exit_code) {
+  if (shot_frames.empty()) return true;
+  if (process.frames.empty()) {
+    exit_code = usage_error("--shot-frames needs --frames");
+    return false;
+  }
+  std::string clipped, error;
+  size_t dropped = 0;
+  if (!clip_frame_ranges(process.frames, shot_frames, clipped, error, &dropped)) {
+    exit_code = usage_error("--frames " + process.frames + " --shot-frames " + shot_frames + ": " + error);
+    return false;
+  }
+  if (dropped > 0)
+    std::cerr << "ssdo process: --frames " << process.frames << " within the shot's frames " << shot_frames << ": "
+              << (clipped.empty() ? "none, nothing to do" : clipped) << "\n";
+  exit_code = 0;
+  process.frames = clipped;
+  return !clipped.empty();
+}
+
+}  // namespace
+
+Command register_process(CLI::App& app) {
+  struct State {
+    ProcessArgs process;
+    std::string config, shot_frames;
+  };
+  auto st = std::make_shared<State>();
+  ProcessArgs& p = st->process;
+  CLI::App* cmd = app.add_subcommand(
+      "process", "Compute the selected terms for frames and write one EXR per frame "
+                 "(OUT/NAME.ssdo.exr). Frames whose output is newer than the input are skipped.");
+  cmd->add_option("inputs", p.inputs,
+                  "EXR frames, folders of frames, or frame patterns (shot.####.exr, shot.%04d.exr) with --frames")
+      ->required();
+  cmd->add_option("--frames", p.frames, "Frame numbers for patterns, oiiotool-style: 1-100, 1-100x2, 1-10,20,30");
+  cmd->add_option("--chunk", p.chunk,
+                  "Process only the I-th of N equal slices of the frame list (I/N, I from 1): one task of a farm job");
+  cmd->add_option("-o,--out", p.output_dir, "Output folder")->required();
+  cmd->add_flag("--force", p.force, "Recompute frames whose output is up to date");
+  cmd->add_option("--config", st->config,
+                  "JSON file of options: the long flag names without '--' as keys, e.g. "
+                  "{\"method\": \"hbao\", \"terms\": \"all\"}; flags given override it")
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("-v,--verbose", p.verbose, "Per-stage timings (read, compute, write, isolation) and the worker plan");
+  add_frame_options(*cmd, p.options);
+  add_worker_limits(*cmd, p.jobs, p.limits);
+  cmd->add_option("--shot-frames", st->shot_frames,
+                  "The shot's frames, e.g. 1-240: --frames outside them are dropped (a farm's last task may ask for "
+                  "frames past the shot's end); a missing frame inside them still fails");
+  return {cmd, [st, cmd] {
+            std::string error;
+            if (!frame_options_over_config(*cmd, st->config, st->process.options, error)) return usage_error(error);
+            int exit_code = 0;
+            if (!clip_to_shot(st->process, st->shot_frames, exit_code)) return exit_code;
+            return run_process(st->process);
+          }};
 }
 
 }  // namespace ssdo

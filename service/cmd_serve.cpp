@@ -8,6 +8,9 @@
 #include <iostream>
 #include <memory>
 
+#include <CLI/CLI.hpp>
+
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/frame_list.h"
 #include "service/frame_service.h"
@@ -128,6 +131,56 @@ int run_serve(const ServeArgs& args) {
             << s.frames_skipped << "\n"
             << std::flush;
   return 0;
+}
+
+Command register_serve(CLI::App& app) {
+  struct State {
+    ServeArgs serve;
+    std::string config;
+    size_t max_inline_mb = 0;
+  };
+  auto st = std::make_shared<State>();
+  ServeArgs& s = st->serve;
+  st->max_inline_mb = s.protocol.max_inline_bytes >> 20;
+  CLI::App* cmd = app.add_subcommand(
+      "serve", "Run as a service: compute every frame dropped into --watch (and those already there "
+               "without output) and answer requests on --socket; SIGTERM/SIGINT stop it gracefully");
+  cmd->add_option("--watch", s.watch_dir, "Folder to watch for frames (*.exr)")->check(CLI::ExistingDirectory);
+  cmd->add_option("-o,--out", s.out_dir, "Output folder: NAME.ssdo.exr, or NAME.error.json")->required();
+  cmd->add_option("--poll", s.poll_s,
+                  "Also rescan --watch every SECONDS (network file systems, where inotify sees nothing)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--socket", s.socket_path, "Unix domain socket to serve requests on");
+  cmd->add_option("--socket-mode", s.socket_mode, "Permissions of the socket (octal)")->capture_default_str();
+  cmd->add_option("--allow", s.allow,
+                  "Folder socket requests may read frames (and camera/environment files) from; "
+                  "repeatable (default: the --watch folder)")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--queue", s.queue_capacity, "Socket requests waiting at most; beyond: busy")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  cmd->add_option("--max-clients", s.max_clients, "Socket connections at once; beyond: busy")
+      ->check(CLI::Range(1, 10000))
+      ->capture_default_str();
+  cmd->add_option("--client-timeout", s.client_timeout_s,
+                  "Seconds a client has to send a whole request (inline frame included) or take a reply")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--max-request-bytes", s.protocol.max_header_bytes, "Largest JSON request header")
+      ->check(CLI::Range(size_t(64), size_t(1) << 30))
+      ->capture_default_str();
+  cmd->add_option("--max-inline-mb", st->max_inline_mb, "Largest inline frame, MiB")
+      ->check(CLI::Range(size_t(1), size_t(1) << 16))
+      ->capture_default_str();
+  cmd->add_option("--config", st->config, "JSON file of frame options (as for process)")->check(CLI::ExistingFile);
+  add_frame_options(*cmd, s.options);
+  add_worker_limits(*cmd, s.jobs, s.limits);
+  return {cmd, [st, cmd] {
+            st->serve.protocol.max_inline_bytes = st->max_inline_mb << 20;
+            std::string error;
+            if (!frame_options_over_config(*cmd, st->config, st->serve.options, error)) return usage_error(error);
+            return run_serve(st->serve);
+          }};
 }
 
 }  // namespace ssdo

@@ -15,14 +15,17 @@
 #include <exception>
 #include <limits>
 #include <map>
+#include <memory>
 #include <string>
 #include <thread>
 
+#include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
 
 #include "formats/oiio_module.h"
 #include "service/build_features.h"
 #include "service/parallelism.h"
+#include "service/commands.h"
 #include "service/protocol.h"
 #include "service/request_options.h"
 #include "service/worker_process.h"
@@ -236,6 +239,16 @@ int run_worker(const WorkerArgs& args) {
     if (::getrusage(RUSAGE_SELF, &usage) == 0) response["peak_rss_mib"] = double(usage.ru_maxrss) / 1024.0;
     if (write_message(args.response_fd, to_wire(response), no_deadline()) != IoStatus::ok) return 1;
   }
+}
+
+Command register_worker(CLI::App& app) {
+  auto worker = std::make_shared<WorkerArgs>();
+  CLI::App* cmd = app.add_subcommand("worker", "Internal: a frame worker process")->group("");
+  cmd->add_option("--threads", worker->threads)->check(CLI::Range(1, 1024));
+  cmd->add_option("--memory-limit", worker->memory_limit_mb);
+  cmd->add_option("--max-pixels", worker->max_pixels);
+  cmd->add_option("--parent", worker->parent_pid);
+  return {cmd, [worker] { return run_worker(*worker); }};
 }
 
 }  // namespace ssdo

@@ -1,14 +1,42 @@
-// The ssdo subcommands. main.cpp parses the command line (CLI11) into these argument
-// structs and calls run_*; each returns the process exit code (0 ok, 1 a frame failed,
-// 2 usage error). Thin front ends: parse, call, report.
+// The ssdo subcommands. Each registers its options on the application (register_*,
+// beside its run_* in cmd_*.cpp), which parses the command line (CLI11) into its argument
+// struct; run_* returns the process exit code (0 ok, 1 a frame failed, 2 usage error).
+// Thin front ends: parse, call, report.
 #pragma once
 
+#include <functional>
+#include <iostream>
 #include <string>
 #include <vector>
 
 #include "formats/gbuffer_reader.h"
 
+namespace CLI {
+class App;
+}
+
 namespace ssdo {
+
+// A registered subcommand: its CLI11 app, and what runs when the command line chose it
+// (the run owns the parsed arguments).
+struct Command {
+  CLI::App* app;
+  std::function<int()> run;
+};
+Command register_info(CLI::App& app);
+Command register_process(CLI::App& app);
+Command register_serve(CLI::App& app);
+Command register_client(CLI::App& app);
+Command register_worker(CLI::App& app);  // internal: started by process and serve
+Command register_eval(CLI::App& app);
+Command register_bench(CLI::App& app);
+Command register_options(CLI::App& app);  // the frame options, e.g. as docs/options.md
+
+// A usage error: the message on stderr, exit code 2.
+inline int usage_error(const std::string& message) {
+  std::cerr << "ssdo: " << message << "\n";
+  return 2;
+}
 
 struct InfoArgs {
   std::vector<std::string> files;

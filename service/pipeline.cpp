@@ -8,6 +8,7 @@
 #include "kernels/confidence.h"
 #include "kernels/half_resolution.h"
 #include "service/frame_inputs.h"
+#include "service/guard_band.h"
 
 namespace ssdo {
 
@@ -249,11 +250,15 @@ FrameResult process_frame(const FrameRequest& request) {
     // The G-buffer's images are not written: compute_frame releases each once it is read
     // no more, and their memory goes to the later terms and the writer's buffers (images a
     // term shares stay alive with it).
-    const Camera camera = frame.gbuffer.camera;
+    Camera camera = frame.gbuffer.camera;
     t0 = std::chrono::steady_clock::now();
     ComputedFrame computed = request.io_only ? io_only_frame(frame.gbuffer, request)
                                              : compute_frame(std::move(frame.gbuffer), request);
     result.times.compute_ms = ms_since(t0);
+    if (std::string e = crop_guard_band(computed, camera, request.guard_band_px); !e.empty()) {
+      result.error = request.input_path + ": " + e;
+      return result;
+    }
 
     if (!request.output_path.empty()) {
       frame.gbuffer = GBuffer();

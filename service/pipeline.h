@@ -53,6 +53,9 @@ struct FrameRequest {
   // types, size) with the frame's own normals standing in for every term, computing
   // nothing. process_frame's read and write times are then those of a full run.
   bool io_only = false;
+  // Frames rendered with overscan: pixels cropped off each side of every term after
+  // computing on the whole frame, before writing (crop_guard_band, service/guard_band.h).
+  int guard_band_px = 0;
 };
 
 struct StageTimes {

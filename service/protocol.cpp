@@ -126,14 +126,15 @@ bool is_safe_name(std::string_view name) {
   });
 }
 
-bool parse_socket_request(std::string_view header, const ProtocolLimits& limits, SocketRequest& r,
-                          std::string& error) {
-  // nlohmann::json copies and dumps values recursively: a deeply nested "id", "sidecar" or
-  // "options" (a 1 MiB header holds 500,000 levels) would overflow the connection
-  // thread's stack and end the whole service. The parser itself is iterative; the depth
-  // is checked while parsing, before any copy.
+namespace {
+
+// The request header as JSON. nlohmann::json copies and dumps values recursively: a deeply
+// nested "id", "sidecar" or "options" (a 1 MiB header holds 500,000 levels) would overflow
+// the connection thread's stack and end the whole service. The parser itself is iterative;
+// the depth is checked while parsing, before any copy.
+bool parse_header(std::string_view header, nlohmann::json& j, std::string& error) {
   bool too_deep = false;
-  const nlohmann::json j = nlohmann::json::parse(
+  j = nlohmann::json::parse(
       header,
       [&](int depth, nlohmann::json::parse_event_t, nlohmann::json&) {
         if (depth > kMaxRequestDepth) too_deep = true;
@@ -152,7 +153,11 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
     error = "the request must be a JSON object";
     return false;
   }
-  r = SocketRequest{};
+  return true;
+}
+
+// "op" and "id", and no field the protocol does not know.
+bool parse_op(const nlohmann::json& j, SocketRequest& r, std::string& error) {
   if (j.contains("id")) r.id = j["id"];
   const auto op = j.find("op");
   if (op == j.end() || !op->is_string()) {
@@ -168,17 +173,12 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
       return false;
     }
   }
-  if (r.op == "ping" || r.op == "stats") {
-    if (j.size() > (j.contains("id") ? 2u : 1u)) {
-      error = "\"" + r.op + "\" takes no fields besides \"id\"";
-      return false;
-    }
-    return true;
-  }
-  if (r.op != "process") {
-    error = "unknown op \"" + r.op + "\" (ping, stats, process)";
-    return false;
-  }
+  return true;
+}
+
+// A process request's input: "input" (a path), or "inline_size" bytes after the header
+// with an optional "name" and camera "sidecar".
+bool parse_input(const nlohmann::json& j, const ProtocolLimits& limits, SocketRequest& r, std::string& error) {
   const bool has_input = j.contains("input"), has_inline = j.contains("inline_size");
   if (has_input == has_inline) {
     error = "process: give exactly one of \"input\" (a path) and \"inline_size\" (bytes that follow)";
@@ -225,6 +225,12 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
       r.sidecar = j["sidecar"];
     }
   }
+  return true;
+}
+
+// Where the output goes ("output", "reply") and the frame options, an object checked
+// against the option table by the service (apply_json, request_options.h).
+bool parse_output(const nlohmann::json& j, SocketRequest& r, std::string& error) {
   if (j.contains("output")) {
     if (!j["output"].is_string() || j["output"].get<std::string>().empty()) {
       error = "\"output\" must be a non-empty path string";
@@ -254,6 +260,28 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
     r.options = nlohmann::json::object();
   }
   return true;
+}
+
+}  // namespace
+
+bool parse_socket_request(std::string_view header, const ProtocolLimits& limits, SocketRequest& r,
+                          std::string& error) {
+  nlohmann::json j;
+  if (!parse_header(header, j, error)) return false;
+  r = SocketRequest{};
+  if (!parse_op(j, r, error)) return false;
+  if (r.op == "ping" || r.op == "stats") {
+    if (j.size() > (j.contains("id") ? 2u : 1u)) {
+      error = "\"" + r.op + "\" takes no fields besides \"id\"";
+      return false;
+    }
+    return true;
+  }
+  if (r.op != "process") {
+    error = "unknown op \"" + r.op + "\" (ping, stats, process)";
+    return false;
+  }
+  return parse_input(j, limits, r, error) && parse_output(j, r, error);
 }
 
 std::string to_wire(const nlohmann::json& j) {

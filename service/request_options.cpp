@@ -4,6 +4,10 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <type_traits>
+#include <variant>
+
+#include "service/frame_options.h"
 
 namespace ssdo {
 
@@ -11,85 +15,97 @@ namespace {
 
 using json = nlohmann::json;
 
-bool one_of(const std::string& v, std::initializer_list<const char*> set) {
-  return std::any_of(set.begin(), set.end(), [&](const char* s) { return v == s; });
-}
+std::string quoted(const FrameOption& o) { return "\"" + std::string(o.name) + "\""; }
 
-std::string list(std::initializer_list<const char*> set) {
-  std::string s;
-  for (const char* v : set) s += (s.empty() ? "" : ", ") + std::string(v);
-  return s;
-}
-
-bool get_string(const json& v, const std::string& key, std::string& out, std::string& error) {
+// A JSON value for a text or choice option.
+bool get_text(const json& v, const FrameOption& o, std::string& out, std::string& error) {
   if (!v.is_string()) {
-    error = "\"" + key + "\" must be a string";
+    error = quoted(o) + " must be a string";
     return false;
   }
-  out = v.get<std::string>();
-  return true;
-}
-
-bool get_choice(const json& v, const std::string& key, std::initializer_list<const char*> set, std::string& out,
-                std::string& error) {
-  std::string s;
-  if (!get_string(v, key, s, error)) return false;
-  if (!one_of(s, set)) {
-    error = "\"" + key + "\": '" + s + "' is not one of " + list(set);
-    return false;
+  const std::string s = v.get<std::string>();
+  if (o.kind == OptionKind::choice) {
+    if (std::string e = check_choice(o, s); !e.empty()) {
+      error = quoted(o) + ": " + e;
+      return false;
+    }
   }
   out = s;
   return true;
 }
 
-// A number in [lo, hi] (inclusive).
-bool get_number(const json& v, const std::string& key, double lo, double hi, float& out, std::string& error) {
-  if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < lo || v.get<double>() > hi) {
-    std::ostringstream s;
-    s << "\"" << key << "\" must be a number in [" << lo << ", " << hi << "]";
-    error = s.str();
+// A JSON value for a number or integer option, within the option's range.
+template <class T>
+bool get_number(const json& v, const FrameOption& o, T& out, std::string& error) {
+  // An integer option takes a JSON integer only (not 3.0), as the command line takes "3".
+  const bool typed = v.is_number() && (o.kind != OptionKind::integer || !v.is_number_float());
+  if (const std::string e = check_number(o, typed ? v.get<double>() : NAN); !e.empty()) {
+    error = quoted(o) + " " + e;
     return false;
   }
-  out = v.get<float>();
+  out = v.get<T>();
   return true;
+}
+
+bool get_flag(const json& v, const FrameOption& o, bool& out, std::string& error) {
+  if (!v.is_boolean()) {
+    error = quoted(o) + " must be true or false";
+    return false;
+  }
+  out = v.get<bool>();
+  return true;
+}
+
+// A list of strings, or one string (a list of one).
+bool get_list(const json& v, const FrameOption& o, std::vector<std::string>& out, std::string& error) {
+  if (v.is_string()) {
+    out = {v.get<std::string>()};
+    return true;
+  }
+  if (v.is_array() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_string(); })) {
+    out = v.get<std::vector<std::string>>();
+    return true;
+  }
+  error = quoted(o) + " must be a list of strings" + (std::string(o.name) == "map" ? " INPUT=CHANNEL" : "");
+  return false;
+}
+
+bool get_value(const json& v, const FrameOption& o, FrameOptionArgs& a, std::string& error) {
+  return std::visit(
+      [&](auto field) {
+        auto& out = field(a);
+        using T = std::decay_t<decltype(out)>;
+        if constexpr (std::is_same_v<T, std::string>) return get_text(v, o, out, error);
+        else if constexpr (std::is_same_v<T, bool>) return get_flag(v, o, out, error);
+        else if constexpr (std::is_same_v<T, std::vector<std::string>>) return get_list(v, o, out, error);
+        else return get_number(v, o, out, error);
+      },
+      o.field);
+}
+
+std::string known_keys() {
+  std::string s;
+  for (const std::string& key : frame_option_keys()) s += (s.empty() ? "" : ", ") + key;
+  return s;
 }
 
 }  // namespace
 
 const std::vector<std::string>& frame_option_keys() {
-  static const std::vector<std::string> keys = {
-      "map",  "camera", "fov",      "depth-kind",  "part",        "method", "preset",       "radius",
-      "thickness", "threads", "terms", "ssdo-method", "ssdo-preset", "env",    "sky", "env-constant",
-      "env-up", "composite", "compression", "png", "quality", "max-error", "io-only"};
+  static const std::vector<std::string> keys = [] {
+    std::vector<std::string> k;
+    for (const FrameOption& o : frame_options()) k.push_back(o.name);
+    return k;
+  }();
   return keys;
 }
 
 json to_json(const FrameOptionArgs& a) {
-  const ReadOptionArgs& r = a.read;
-  const ComputeOptionArgs& c = a.compute;
-  return json{{"map", r.maps},
-              {"camera", r.camera_json},
-              {"fov", r.fov_x_deg},
-              {"depth-kind", r.depth_kind},
-              {"part", r.part},
-              {"method", c.method},
-              {"preset", c.preset},
-              {"radius", c.radius_world},
-              {"thickness", c.thickness_world},
-              {"threads", c.threads},
-              {"terms", c.terms},
-              {"ssdo-method", c.ssdo_method},
-              {"ssdo-preset", c.ssdo_preset},
-              {"env", c.env_path},
-              {"sky", c.sky},
-              {"env-constant", c.env_constant},
-              {"env-up", c.env_up},
-              {"composite", c.composite},
-              {"quality", c.quality},
-              {"max-error", c.max_error},
-              {"compression", a.compression},
-              {"png", a.png},
-              {"io-only", a.io_only}};
+  FrameOptionArgs& values = const_cast<FrameOptionArgs&>(a);  // the fields are only read
+  json j = json::object();
+  for (const FrameOption& o : frame_options())
+    std::visit([&](auto field) { j[o.name] = field(values); }, o.field);
+  return j;
 }
 
 json to_json(const FrameOptionArgs& a, const std::function<bool(const std::string&)>& given) {
@@ -105,91 +121,14 @@ bool apply_json(const json& j, FrameOptionArgs& a, std::string& error,
     error = "options must be a JSON object";
     return false;
   }
-  ReadOptionArgs& r = a.read;
-  ComputeOptionArgs& c = a.compute;
   for (auto it = j.begin(); it != j.end(); ++it) {
-    const std::string& k = it.key();
-    const json& v = it.value();
-    const auto& keys = frame_option_keys();
-    if (std::find(keys.begin(), keys.end(), k) == keys.end()) {
-      error = "unknown option \"" + k + "\" (known: " + [&] {
-        std::string s;
-        for (const auto& key : keys) s += (s.empty() ? "" : ", ") + key;
-        return s;
-      }() + ")";
+    const FrameOption* o = find_frame_option(it.key());
+    if (o == nullptr) {
+      error = "unknown option \"" + it.key() + "\" (known: " + known_keys() + ")";
       return false;
     }
-    if (keep && keep(k)) continue;
-    bool ok = true;
-    if (k == "map") {
-      // A list of INPUT=CHANNEL strings, or one such string.
-      std::vector<std::string> maps;
-      if (v.is_string()) {
-        maps.push_back(v.get<std::string>());
-      } else if (v.is_array() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_string(); })) {
-        maps = v.get<std::vector<std::string>>();
-      } else {
-        error = "\"map\" must be a list of INPUT=CHANNEL strings";
-        return false;
-      }
-      r.maps = maps;
-    } else if (k == "camera") ok = get_string(v, k, r.camera_json, error);
-    else if (k == "fov") {
-      // 0 = unset, as on the command line's default.
-      ok = get_number(v, k, 0, 179.9, r.fov_x_deg, error);
-      if (ok && r.fov_x_deg > 0 && r.fov_x_deg < 0.1f) {
-        error = "\"fov\" must be 0 (unset) or in [0.1, 179.9] degrees";
-        ok = false;
-      }
-    } else if (k == "depth-kind") ok = get_choice(v, k, {"auto", "planar", "radial"}, r.depth_kind, error);
-    else if (k == "part") ok = get_string(v, k, r.part, error);
-    else if (k == "method") ok = get_choice(v, k, {"hemisphere", "hbao", "gtao", "raymarch"}, c.method, error);
-    else if (k == "preset") ok = get_choice(v, k, {"low", "medium", "high", "ultra"}, c.preset, error);
-    else if (k == "radius") ok = get_number(v, k, 0, 1e30, c.radius_world, error);
-    else if (k == "thickness") ok = get_number(v, k, 0, 1e30, c.thickness_world, error);
-    else if (k == "threads") {
-      float t = 0;
-      ok = get_number(v, k, 0, 1024, t, error);
-      if (ok && (!v.is_number_integer())) {
-        error = "\"threads\" must be an integer in [0, 1024]";
-        ok = false;
-      }
-      c.threads = int(t);
-    } else if (k == "terms") ok = get_string(v, k, c.terms, error);
-    else if (k == "ssdo-method") ok = get_choice(v, k, {"ssdo", "oracle"}, c.ssdo_method, error);
-    else if (k == "ssdo-preset") {
-      std::string s;
-      ok = get_string(v, k, s, error);
-      if (ok && !s.empty() && !one_of(s, {"low", "medium", "high", "ultra"})) {
-        error = "\"ssdo-preset\": '" + s + "' is not one of low, medium, high, ultra";
-        ok = false;
-      }
-      if (ok) c.ssdo_preset = s;
-    } else if (k == "env") ok = get_string(v, k, c.env_path, error);
-    else if (k == "sky") ok = get_string(v, k, c.sky, error);
-    else if (k == "env-constant") ok = get_number(v, k, 0, 1e30, c.env_constant, error);
-    else if (k == "env-up") ok = get_choice(v, k, {"z", "y"}, c.env_up, error);
-    else if (k == "composite") ok = get_string(v, k, c.composite, error);
-    else if (k == "quality") {
-      std::string q;
-      ok = get_string(v, k, q, error);
-      if (ok && !q.empty() && q != "auto") {
-        error = "\"quality\": '" + q + "' is not auto";
-        ok = false;
-      }
-      if (ok) c.quality = q;
-    } else if (k == "max-error") ok = get_number(v, k, 0, 1, c.max_error, error);
-    else if (k == "compression")
-      ok = get_choice(v, k, {"zip", "zips", "piz", "rle", "none", "dwaa"}, a.compression, error);
-    else if (k == "png" || k == "io-only") {
-      if (!v.is_boolean()) {
-        error = "\"" + k + "\" must be true or false";
-        ok = false;
-      } else {
-        (k == "png" ? a.png : a.io_only) = v.get<bool>();
-      }
-    }
-    if (!ok) return false;
+    if (keep && keep(it.key())) continue;
+    if (!get_value(it.value(), *o, a, error)) return false;
   }
   return true;
 }
@@ -221,6 +160,7 @@ bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std:
   request.write.compression = a.compression;
   request.write.png_previews = a.png;
   request.io_only = a.io_only;
+  request.guard_band_px = a.guard_band_px;
   return true;
 }
 

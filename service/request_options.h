@@ -2,9 +2,8 @@
 // (--config), the worker requests and the socket requests: the keys are the long flag
 // names without "--" and the values are what the flag takes, e.g.
 //   {"method": "gtao", "preset": "high", "terms": "ao,ssdo", "map": ["depth=Z"], "png": true}
-// Keys: map, camera, fov, depth-kind, part (reading); method, preset, radius, thickness,
-// threads, terms, ssdo-method, ssdo-preset, env, sky, env-constant, env-up, composite
-// (computing); compression, png (writing); io-only (benchmarks: the I/O floor).
+// The keys, types and ranges are the table frame_options() (frame_options.h; listed in
+// docs/options.md).
 #pragma once
 
 #include <functional>
@@ -17,16 +16,7 @@
 
 namespace ssdo {
 
-// Everything that decides one frame's output, as typed (strings and numbers).
-struct FrameOptionArgs {
-  ReadOptionArgs read;
-  ComputeOptionArgs compute;
-  std::string compression = "zip";  // zip | zips | piz | rle | none | dwaa
-  bool png = false;                  // sRGB PNG previews beside the EXR
-  bool io_only = false;              // read and write as the terms would, compute nothing
-};
-
-// The schema's keys, in the order above.
+// The schema's keys, in the table's order.
 const std::vector<std::string>& frame_option_keys();
 
 // Every key with its value; with `given`, only the keys it returns true for.

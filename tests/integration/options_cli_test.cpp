@@ -1,0 +1,123 @@
+// The frame options through the real binary: the generated reference is the one committed,
+// and the options that reach kernel capabilities (multi-bounce AO, the guard band of
+// overscan frames) change the outputs as they say.
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include "run_binary.h"
+
+namespace ssdo::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string example(const std::string& name) { return (source_dir() / "examples" / "frames" / name).string(); }
+
+struct Image {
+  int width = 0, height = 0;
+  std::vector<std::string> channels;
+  std::vector<float> pixels;  // interleaved
+  float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels.size() + c]; }
+  int channel(const std::string& name) const {
+    const auto it = std::find(channels.begin(), channels.end(), name);
+    return it == channels.end() ? -1 : int(it - channels.begin());
+  }
+};
+
+Image read_image(const std::string& path) {
+  Image img;
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return img;
+  const OIIO::ImageSpec& spec = in->spec();
+  img.width = spec.width;
+  img.height = spec.height;
+  img.channels = spec.channelnames;
+  img.pixels.resize(size_t(spec.width) * spec.height * spec.nchannels);
+  in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.pixels.data());
+  return img;
+}
+
+Image process(const ScratchDir& out, const std::string& name, const std::string& flags) {
+  const fs::path dir = out.path / name;
+  fs::create_directories(dir);
+  const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + dir.string() + " " + flags);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  return read_image((dir / "cornell.ssdo.exr").string());
+}
+
+TEST(OptionsCli, ReferenceInDocsIsWhatTheBinaryPrints) {
+  const RunResult r = run_ssdo("options --markdown");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::ifstream in(source_dir() / "docs" / "options.md");
+  std::stringstream committed;
+  committed << in.rdbuf();
+  EXPECT_EQ(r.output, committed.str())
+      << "docs/options.md is out of date: regenerate it with `ssdo options --markdown > docs/options.md`";
+}
+
+TEST(OptionsCli, OutOfRangeValuesAreUsageErrorsOnTheCommandLineAndInAConfig) {
+  ScratchDir out;
+  const std::string base = "process " + example("cornell.exr") + " -o " + out.path.string();
+  RunResult r = run_ssdo(base + " --guard-band -1");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("must be an integer in [0, 4096]"), std::string::npos) << r.output;
+  std::ofstream(out / "cfg.json") << R"({"guard-band": 5000})";
+  r = run_ssdo(base + " --config " + (out / "cfg.json"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("\"guard-band\" must be an integer in [0, 4096]"), std::string::npos) << r.output;
+}
+
+// --guard-band PX: every term is computed on the whole (overscan) frame, then cropped: the
+// output is the inner picture, pixel for pixel the inner pixels of the uncropped run.
+TEST(OptionsCli, GuardBandCropsEveryTermToTheInnerPicture) {
+  ScratchDir out;
+  const std::string flags = "--terms ao,composite --method gtao --preset low";
+  const Image whole = process(out, "whole", flags);
+  const Image inner = process(out, "inner", flags + " --guard-band 16");
+  ASSERT_EQ(whole.width, 640);
+  ASSERT_EQ(whole.height, 360);
+  EXPECT_EQ(inner.width, 640 - 32);
+  EXPECT_EQ(inner.height, 360 - 32);
+  ASSERT_EQ(inner.channels, whole.channels);
+  ASSERT_GE(whole.channel("ao"), 0);
+  size_t differing = 0;
+  for (int y = 0; y < inner.height; ++y)
+    for (int x = 0; x < inner.width; ++x)
+      for (size_t c = 0; c < inner.channels.size(); ++c)
+        differing += inner.at(x, y, int(c)) != whole.at(x + 16, y + 16, int(c));
+  EXPECT_EQ(differing, 0u);
+
+  ScratchDir small;
+  const RunResult r =
+      run_ssdo("process " + example("cornell.exr") + " -o " + small.path.string() + " --guard-band 180");
+  EXPECT_EQ(r.exit_code, 1) << r.output;  // the frame's error: nothing is left of 640x360
+  EXPECT_NE(r.output.find("leaves nothing"), std::string::npos) << r.output;
+}
+
+// --multibounce: Jimenez et al.'s fit only brightens AO (the light bounced between surfaces
+// of the frame's albedo), and does so somewhere on a frame with albedo.
+TEST(OptionsCli, MultibounceBrightensAoWithTheFramesAlbedo) {
+  ScratchDir out;
+  const std::string flags = "--terms ao --method gtao --preset low";
+  const Image single = process(out, "single", flags);
+  const Image multi = process(out, "multi", flags + " --multibounce");
+  const int c = single.channel("ao");
+  ASSERT_GE(c, 0);
+  ASSERT_EQ(multi.pixels.size(), single.pixels.size());
+  size_t darker = 0, brighter = 0;
+  for (int y = 0; y < single.height; ++y)
+    for (int x = 0; x < single.width; ++x) {
+      const float a = single.at(x, y, c), b = multi.at(x, y, c);
+      darker += b < a - 1e-3f;
+      brighter += b > a + 1e-3f;
+    }
+  EXPECT_EQ(darker, 0u);
+  EXPECT_GT(brighter, size_t(single.width) * single.height / 100);
+}
+
+}  // namespace
+}  // namespace ssdo::test
