@@ -1,7 +1,7 @@
 // The camera every kernel works with: an OpenGL-style projection plus the
 // world <-> view transforms, and the pixel grid of the frame.
 //
-// Conventions (see README "Conventions"; converted once, in formats/):
+// Conventions (docs/architecture.md, "Conventions"; converted once, in formats/):
 // - View space: right-handed, camera at the origin looking down -Z, +Y up, +X right.
 // - Planar depth: depth_view = -z_view > 0 (distance along the view axis).
 // - Pixel coordinates are continuous: pixel (i, j) covers [i, i+1) x [j, j+1) and has

@@ -27,7 +27,7 @@ struct PixelBox {
 };
 
 // Everything a camera.json sidecar says about a frame (see
-// /work/shared/gbuffers/README.md, "Coordinate conventions"). Matrices in the file are
+// ../shared/gbuffers/README.md, "Coordinate conventions"). Matrices in the file are
 // row-major and column-vector (p' = M p), camera looking down -Z: the same as our view space.
 struct SidecarCamera {
   Camera camera;                          // over the sidecar's width x height grid

@@ -48,7 +48,7 @@ const char* read_failure(const std::exception& e) {
 }
 
 // Depth at or beyond this is background: renderers write "no hit" as a huge finite value
-// (Cycles: 1e10, see /work/shared/gbuffers/README.md) rather than +inf.
+// (Cycles: 1e10, see ../shared/gbuffers/README.md) rather than +inf.
 constexpr float kBackgroundDepth = 1e9f;
 // A stored normal shorter than this is "no normal" (Cycles writes (0, 0, 0) where it has
 // none); unit normals in half precision are ~1 +- 1e-3.
@@ -1114,7 +1114,7 @@ void shading_inputs(const ReadOptions& options, Images& img, GBuffer& g) {
       g.lighting = img.lighting;
     } else if (!img.albedo.empty() && !img.diffdir.empty()) {
       // Sender radiance of a Lambertian pixel under the renderer's direct light:
-      // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, see README),
+      // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, docs/usage.md),
       // in the pass's own image unless a reference pass shares it.
       bool shared = false;
       for (const auto& [name, m] : img.references) shared = shared || m.data == img.diffdir.data;

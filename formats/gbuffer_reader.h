@@ -6,7 +6,7 @@
 //   .DiffDir.RGB / .DiffInd.RGB (references "DiffDir" / "DiffInd", CV_32FC3).
 //   lighting = DiffCol * DiffDir: the outgoing diffuse radiance of each pixel under the
 //   renderer's direct light (DiffDir is irradiance-like, divided by albedo; see
-//   /work/shared/gbuffers/README.md), i.e. the sender radiance of the SSDO bounce.
+//   ../shared/gbuffers/README.md), i.e. the sender radiance of the SSDO bounce.
 // - "generic": single-layer names Z | depth.Z, N.XYZ | N.RGB | N.xyz, P.XYZ,
 //   albedo.RGB | diffuse_albedo.RGB (Arnold-style AOVs). N and P are taken as world space
 //   when the camera has a world transform (sidecar or header), as view space under a bare

@@ -6,41 +6,25 @@
 #include <limits>
 
 #include "kernels/ao_methods.h"
+#include "core/enum_names.h"
 #include "core/parallel.h"
 
 namespace ssdo {
 
-std::string_view to_string(AoMethod m) {
-  switch (m) {
-    case AoMethod::hemisphere: return "hemisphere";
-    case AoMethod::hbao: return "hbao";
-    case AoMethod::gtao: return "gtao";
-    case AoMethod::raymarch: return "raymarch";
-  }
-  return "?";
-}
+namespace {
 
-std::string_view to_string(Preset p) {
-  switch (p) {
-    case Preset::low: return "low";
-    case Preset::medium: return "medium";
-    case Preset::high: return "high";
-    case Preset::ultra: return "ultra";
-  }
-  return "?";
-}
+constexpr std::pair<AoMethod, std::string_view> kAoMethodNames[] = {
+    {AoMethod::hemisphere, "hemisphere"}, {AoMethod::hbao, "hbao"}, {AoMethod::gtao, "gtao"},
+    {AoMethod::raymarch, "raymarch"}};
+constexpr std::pair<Preset, std::string_view> kPresetNames[] = {
+    {Preset::low, "low"}, {Preset::medium, "medium"}, {Preset::high, "high"}, {Preset::ultra, "ultra"}};
 
-std::optional<AoMethod> parse_ao_method(std::string_view s) {
-  for (AoMethod m : {AoMethod::hemisphere, AoMethod::hbao, AoMethod::gtao, AoMethod::raymarch})
-    if (s == to_string(m)) return m;
-  return std::nullopt;
-}
+}  // namespace
 
-std::optional<Preset> parse_preset(std::string_view s) {
-  for (Preset p : {Preset::low, Preset::medium, Preset::high, Preset::ultra})
-    if (s == to_string(p)) return p;
-  return std::nullopt;
-}
+std::string_view to_string(AoMethod m) { return enum_name<AoMethod>(kAoMethodNames, m); }
+std::string_view to_string(Preset p) { return enum_name<Preset>(kPresetNames, p); }
+std::optional<AoMethod> parse_ao_method(std::string_view s) { return parse_enum<AoMethod>(kAoMethodNames, s); }
+std::optional<Preset> parse_preset(std::string_view s) { return parse_enum<Preset>(kPresetNames, s); }
 
 AoSettings ao_preset(AoMethod method, Preset preset) {
   AoSettings s;

@@ -4,53 +4,32 @@
 #include <tuple>
 #include <vector>
 
+#include "core/enum_names.h"
 #include "core/parallel.h"
 
 namespace ssdo {
 
 namespace {
 
-constexpr CompositeTerm kAllTerms[] = {CompositeTerm::ambient, CompositeTerm::ambient_ao,
-                                       CompositeTerm::ssdo_direct, CompositeTerm::ssdo_indirect,
-                                       CompositeTerm::lighting};
-constexpr CompositeMode kAllModes[] = {CompositeMode::off, CompositeMode::ssao, CompositeMode::ssdo,
-                                       CompositeMode::ssao_ssdo};
+constexpr std::pair<CompositeTerm, std::string_view> kTermNames[] = {
+    {CompositeTerm::ambient, "ambient"},         {CompositeTerm::ambient_ao, "ambient_ao"},
+    {CompositeTerm::ssdo_direct, "ssdo_direct"}, {CompositeTerm::ssdo_indirect, "ssdo_indirect"},
+    {CompositeTerm::lighting, "lighting"}};
+constexpr std::pair<CompositeMode, std::string_view> kModeNames[] = {
+    {CompositeMode::off, "off"}, {CompositeMode::ssao, "ssao"}, {CompositeMode::ssdo, "ssdo"},
+    {CompositeMode::ssao_ssdo, "ssao+ssdo"}};
 
 bool usable(const cv::Mat* m) { return m && !m->empty(); }
 
 }  // namespace
 
-std::string_view to_string(CompositeTerm t) {
-  switch (t) {
-    case CompositeTerm::ambient: return "ambient";
-    case CompositeTerm::ambient_ao: return "ambient_ao";
-    case CompositeTerm::ssdo_direct: return "ssdo_direct";
-    case CompositeTerm::ssdo_indirect: return "ssdo_indirect";
-    case CompositeTerm::lighting: return "lighting";
-  }
-  return "?";
-}
-
-std::string_view to_string(CompositeMode m) {
-  switch (m) {
-    case CompositeMode::off: return "off";
-    case CompositeMode::ssao: return "ssao";
-    case CompositeMode::ssdo: return "ssdo";
-    case CompositeMode::ssao_ssdo: return "ssao+ssdo";
-  }
-  return "?";
-}
-
+std::string_view to_string(CompositeTerm t) { return enum_name<CompositeTerm>(kTermNames, t); }
+std::string_view to_string(CompositeMode m) { return enum_name<CompositeMode>(kModeNames, m); }
 std::optional<CompositeTerm> parse_composite_term(std::string_view s) {
-  for (CompositeTerm t : kAllTerms)
-    if (s == to_string(t)) return t;
-  return std::nullopt;
+  return parse_enum<CompositeTerm>(kTermNames, s);
 }
-
 std::optional<CompositeMode> parse_composite_mode(std::string_view s) {
-  for (CompositeMode m : kAllModes)
-    if (s == to_string(m)) return m;
-  return std::nullopt;
+  return parse_enum<CompositeMode>(kModeNames, s);
 }
 
 std::vector<WeightedTerm> composite_mode_terms(CompositeMode mode) {

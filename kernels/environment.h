@@ -55,7 +55,7 @@ enum class EnvironmentKind { constant, sky, equirect };
 
 // A two-colour sky: `top` for directions with up-component >= up_end, `bottom` for
 // up-component <= up_begin, linearly blended in between (up-component = sin(elevation)).
-// The defaults are the Cycles world of the shared G-buffers (README "Environment"):
+// The defaults are the Cycles world of the shared G-buffers (docs/usage.md, "Environment light"):
 //   t = clamp((d.z + 0.4) / 0.8, 0, 1),  L = (1 - t) bottom + t top.
 struct SkyGradient {
   glm::vec3 top{0.25f, 0.5f, 1.0f};     // radiance straight up (RGB)

@@ -12,23 +12,22 @@
 
 #include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
+#include "core/enum_names.h"
 #include "core/parallel.h"
 #include "core/uninitialized.h"
 
 namespace ssdo {
 
-std::string_view to_string(SsdoMethod m) {
-  switch (m) {
-    case SsdoMethod::ssdo: return "ssdo";
-    case SsdoMethod::oracle: return "oracle";
-  }
-  return "?";
-}
+namespace {
 
+constexpr std::pair<SsdoMethod, std::string_view> kSsdoMethodNames[] = {
+    {SsdoMethod::ssdo, "ssdo"}, {SsdoMethod::oracle, "oracle"}};
+
+}  // namespace
+
+std::string_view to_string(SsdoMethod m) { return enum_name<SsdoMethod>(kSsdoMethodNames, m); }
 std::optional<SsdoMethod> parse_ssdo_method(std::string_view s) {
-  for (SsdoMethod m : {SsdoMethod::ssdo, SsdoMethod::oracle})
-    if (s == to_string(m)) return m;
-  return std::nullopt;
+  return parse_enum<SsdoMethod>(kSsdoMethodNames, s);
 }
 
 SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {

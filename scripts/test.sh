@@ -18,7 +18,7 @@ scripts/build.sh
 # sample counts (the test preset's name filter: Ssdo.AccuracyAgainstOracle...,
 # Ssdo.CornerDirect..., Ssdo.OpenPlane*, Ssdo.IndirectUnits..., AoRaymarch.CornerMatches...;
 # 3 minutes of the stage's tests under ASan, and the same kernel code runs in the other
-# kernel tests). README.md, "Fuzzing and sanitizers".
+# kernel tests). docs/fuzzing.md.
 # Measured from a clean clone on the idle 2-core machine: main build about 4.5 min, its
 # tests 5.2 min (237), sanitizer build about 5 min, its tests 3.7 min (211): about 19 min.
 if [ "${SSDO_SANITIZE:-1}" != 0 ]; then

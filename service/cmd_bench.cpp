@@ -148,8 +148,7 @@ int run_bench(const BenchArgs& args) {
   for (const std::string& file : args.files) {
     ReadOptions read = args.request.read;
     read.read_references = true;
-    ReadResult r = read_gbuffer(file, read);
-    complete_gbuffer(r, read.threads);
+    ReadResult r = read_frame(file, read);
     if (!r.ok()) {
       std::cerr << "ssdo bench: " << r.error << "\n";
       ++failed;

@@ -1,4 +1,4 @@
-// `ssdo client`: speaks the service's socket protocol (README.md, "Socket protocol"), for
+// `ssdo client`: speaks the service's socket protocol (docs/service.md, "Wire protocol"), for
 // shell pipelines and tests. Prints one JSON response per line; exit 0 when every
 // request succeeded, 1 when any failed, 2 when the service cannot be reached.
 #include <fcntl.h>

@@ -77,8 +77,7 @@ int run_eval(const EvalArgs& args) {
   for (const std::string& file : args.files) {
     ReadOptions read = args.request.read;
     read.read_references = true;
-    ReadResult frame = read_gbuffer(file, read);
-    complete_gbuffer(frame, read.threads);
+    ReadResult frame = read_frame(file, read);
     if (!frame.ok()) {
       std::cerr << "ssdo eval: " << frame.error << "\n";
       ++failed;

@@ -108,8 +108,7 @@ int run_info(const InfoArgs& args) {
   int status = 0;
   nlohmann::json all = nlohmann::json::array();
   for (const auto& file : args.files) {
-    ReadResult r = read_gbuffer(file, args.read);
-    complete_gbuffer(r, args.read.threads);  // what info reports is what the pipeline computes on
+    ReadResult r = read_frame(file, args.read);  // what info reports is what the pipeline computes on
     if (!r.ok()) {
       std::cerr << "error: " << r.error << "\n";
       status = 1;

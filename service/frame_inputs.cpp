@@ -47,4 +47,10 @@ void complete_gbuffer(ReadResult& frame, int threads) {
   frame.gbuffer = GBuffer{};
 }
 
+ReadResult read_frame(const std::string& path, const ReadOptions& options) {
+  ReadResult frame = read_gbuffer(path, options);
+  complete_gbuffer(frame, options.threads);
+  return frame;
+}
+
 }  // namespace ssdo

@@ -3,6 +3,8 @@
 // geometry and every kernel finds normals (and positions when asked for) in the G-buffer.
 #pragma once
 
+#include <string>
+
 #include "formats/gbuffer_reader.h"
 
 namespace ssdo {
@@ -17,5 +19,9 @@ namespace ssdo {
 // `threads` as ReadOptions::threads (0 = OpenCV's pool, 1 = serial). Never throws: a
 // failure (out of memory) becomes frame.error, with the G-buffer released, as a failed read.
 void complete_gbuffer(ReadResult& frame, int threads);
+
+// read_gbuffer, then complete_gbuffer with the read's threads: the frame every kernel
+// computes on.
+ReadResult read_frame(const std::string& path, const ReadOptions& options = {});
 
 }  // namespace ssdo

@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
       "  ssdo info frame.exr                         what the frame holds and how it will be read\n"
       "  ssdo process frames/ -o out/                AO + composite for every frame in a folder\n"
       "  ssdo process f.exr -o out/ --terms all --env sky.exr\n"
-      "  ssdo serve --watch in/ -o out/ --socket /tmp/ssdo.sock   a service (see README)\n"
+      "  ssdo serve --watch in/ -o out/ --socket /tmp/ssdo.sock   a service (docs/service.md)\n"
       "  ssdo client --socket /tmp/ssdo.sock process in/f.exr\n"
       "  ssdo eval f.exr --reference AO --method gtao --preset high\n"
       "  ssdo eval f.exr --term ssdo_direct --reference DiffDir --env sky.exr\n"

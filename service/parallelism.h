@@ -2,7 +2,7 @@
 // and OpenEXR each keep their own pool, so frames are computed either one at
 // a time with every thread inside the frame, or several at once (one worker process per
 // frame, one thread each); never both.
-// Measured on 2 cores shared with other jobs (README.md, "Batch and service"): a batch
+// Measured on 2 cores shared with other jobs (docs/service.md, "Workers"): a batch
 // of 640x360 frames runs at the same speed both ways (within noise), a batch of 1080p
 // frames 7 % faster one frame at a time, which also needs one worker (one start-up, one
 // frame in memory). So a batch computes one frame at a time by default. A service runs

@@ -238,8 +238,7 @@ FrameResult process_frame(const FrameRequest& request) {
   try {
     auto t0 = std::chrono::steady_clock::now();
     const ReadOptions read = reads_for(request);
-    ReadResult frame = read_gbuffer(request.input_path, read);
-    complete_gbuffer(frame, read.threads);
+    ReadResult frame = read_frame(request.input_path, read);
     result.times.read_ms = ms_since(t0);
     result.info = frame.info;
     if (!frame.ok()) {

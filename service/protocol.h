@@ -2,7 +2,7 @@
 //
 // A message is a 4-byte big-endian unsigned length N followed by N bytes of UTF-8 JSON
 // (one object). A message whose JSON has "inline_size": K (K > 0) is followed directly by
-// K raw bytes (an EXR file): no base64, no second length. See README.md, "Socket protocol".
+// K raw bytes (an EXR file): no base64, no second length. See docs/service.md, "Wire protocol".
 //
 // All I/O takes an absolute deadline and works on blocking and non-blocking descriptors
 // alike (poll() before every read and write), so a silent peer costs at most its deadline.
@@ -57,7 +57,7 @@ struct ProtocolLimits {
   size_t max_inline_bytes = size_t(512) << 20;      // EXR bytes of one request: 512 MiB
 };
 
-// A socket request after validation (see README.md, "Socket protocol").
+// A socket request after validation (docs/service.md, "Wire protocol").
 struct SocketRequest {
   std::string op;                // "ping" | "stats" | "process"
   nlohmann::json id;             // echoed back when given (any JSON value)

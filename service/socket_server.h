@@ -1,5 +1,5 @@
 // The service socket of `ssdo serve --socket PATH`: a Unix domain stream socket speaking
-// length-prefixed JSON (service/protocol.h; README.md, "Socket protocol").
+// length-prefixed JSON (service/protocol.h; docs/service.md, "Wire protocol").
 // - One thread per connection, at most `max_clients` at once (beyond: "busy" and close);
 //   every read and write has a deadline (`client_timeout_s`), so a slow or silent client
 //   holds only its own thread, and only for that long.

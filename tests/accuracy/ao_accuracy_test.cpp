@@ -50,8 +50,7 @@ const Frame& load(const std::string& name) {
   Frame& f = cache[name];
   ReadOptions options;
   options.read_references = true;
-  ReadResult r = read_gbuffer((gbuffer_dir() / (name + ".exr")).string(), options);
-  complete_gbuffer(r, options.threads);
+  ReadResult r = read_frame((gbuffer_dir() / (name + ".exr")).string(), options);
   EXPECT_TRUE(r.ok()) << r.error;
   f.g = std::move(r.gbuffer);
   if (r.info.ao_distance_world) f.radius_world = *r.info.ao_distance_world;

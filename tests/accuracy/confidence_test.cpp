@@ -36,8 +36,7 @@ TEST(ConfidenceIntegration, CorrelatesWithErrorOnSharedFrames) {
   for (int fi = 0; fi < 3; ++fi) {
     ReadOptions options;
     options.read_references = true;
-    ReadResult r = read_gbuffer((dir / (std::string(frames[fi]) + ".exr")).string(), options);
-    complete_gbuffer(r, options.threads);
+    ReadResult r = read_frame((dir / (std::string(frames[fi]) + ".exr")).string(), options);
     ASSERT_TRUE(r.ok()) << r.error;
     const GBuffer& g = r.gbuffer;
     cv::Mat reference = g.references.at("AO");
@@ -91,8 +90,7 @@ TEST(ConfidenceIntegration, CorrelatesWithErrorOnSharedFrames) {
 TEST(ConfidenceIntegration, PipelineWritesConfidenceWithAoAndSsdo) {
   const fs::path dir = fs::path(SSDO_SHARED_DIR) / "gbuffers";
   if (!fs::exists(dir / "depthgap.exr")) GTEST_SKIP() << "no shared frames at " << dir;
-  ReadResult r = read_gbuffer((dir / "depthgap.exr").string());
-  complete_gbuffer(r, 0);
+  ReadResult r = read_frame((dir / "depthgap.exr").string());
   ASSERT_TRUE(r.ok()) << r.error;
   for (const char* terms : {"ao", "ssdo"}) {
     FrameRequest request;

@@ -2,7 +2,7 @@
 // reference ray caster (tests/support/raycast.h) where screen-space AO is known to fail, each
 // with its ray-traced reference, and the measurements the suite reports (MAE, max error,
 // temporal flicker). Shared by tests/accuracy/failure_cases_test.cpp (thresholds) and
-// tests/bench/failure_strips.cpp (the README's table and image strips).
+// tests/bench/failure_strips.cpp (the table and image strips of docs/accuracy.md).
 //
 // Every frame is 160x90 (the ray caster's test size), AO radius 1 scene unit (the Cycles
 // default), reference: 256 cosine-weighted rays per pixel within the radius (MC noise of
@@ -48,7 +48,7 @@ struct Frame {
 
 struct Case {
   std::string name;     // short id: thin, floating, edges, grazing, half, unorm16, ...
-  std::string title;    // for the README table
+  std::string title;    // for the table of docs/accuracy.md
   std::vector<Frame> frames;  // 1, or 8 for the camera pan
   raycast::Scene scene;
 };

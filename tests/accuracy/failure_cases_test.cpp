@@ -2,7 +2,7 @@
 // ray-traced references, with regression thresholds per case and estimator, the measured
 // gain of each mitigation (thickness, back-face depth, guard band, relative bias), the
 // edge policy (no occlusion from clamped taps) and the confidence output's correlation
-// with the real error. The printed tables are the README's "Where screen-space fails".
+// with the real error. The printed tables are docs/accuracy.md's "Where screen space fails".
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -68,7 +68,7 @@ Result evaluate(const Case& c, const AoSettings& s, bool use_back = false,
 double threshold(double measured) { return 1.2 * measured + 0.01; }
 
 // The measured MAE per case (columns in case_names() order, then the pan's flicker) and
-// estimator (rows): the values of the README table when it was written.
+// estimator (rows): the values of the table in docs/accuracy.md when it was written.
 const std::map<std::string, std::vector<double>>& measured_mae() {
   static const std::map<std::string, std::vector<double>> m = {
     {"hemisphere low", {0.084, 0.047, 0.029, 0.000, 0.191, 0.191, 0.190, 0.189, 0.191, 0.191, 0.065, 0.0081}},

@@ -27,8 +27,7 @@ struct Frame {
 
 Frame load(const std::string& name) {
   Frame f;
-  ReadResult r = read_gbuffer((kShared / (name + ".exr")).string());
-  complete_gbuffer(r, 0);
+  ReadResult r = read_frame((kShared / (name + ".exr")).string());
   EXPECT_TRUE(r.ok()) << r.error;
   f.g = std::move(r.gbuffer);
   view_positions_from_depth(f.g.depth_view, f.g.mask, f.g.camera, f.position_view);

@@ -29,8 +29,7 @@ ssdo::GBuffer load(int width) {
   if (std::filesystem::exists(file)) {
     ssdo::ReadOptions options;
     options.read_references = false;
-    ssdo::ReadResult r = ssdo::read_gbuffer(file.string(), options);
-    ssdo::complete_gbuffer(r, options.threads);
+    ssdo::ReadResult r = ssdo::read_frame(file.string(), options);
     if (r.ok()) {
       ssdo::GBuffer g = std::move(r.gbuffer);
       if (g.position_view.empty())

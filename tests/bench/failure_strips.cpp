@@ -1,5 +1,5 @@
 // Image strips of the failure-case suite (tests/accuracy/failure_cases.h) for the
-// README's "Where screen-space fails": one PNG per case, tiles left to right
+// docs/accuracy.md's "Where screen space fails": one PNG per case, tiles left to right
 //   input (view-facing shading of the input normals; masked pixels black) | reference |
 //   hemisphere high | hbao high | gtao high | raymarch low | raymarch low + back-face
 //   depth | |gtao high - reference| x 2 | confidence

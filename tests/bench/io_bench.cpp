@@ -36,8 +36,7 @@ void BM_ReadFrame(benchmark::State& state) {
   }
   const ssdo::ReadOptions options = read_options(int(state.range(0)), int(state.range(1)));
   for (auto _ : state) {
-    ssdo::ReadResult r = ssdo::read_gbuffer(kFrame.string(), options);
-    ssdo::complete_gbuffer(r, options.threads);
+    ssdo::ReadResult r = ssdo::read_frame(kFrame.string(), options);
     if (!r.ok()) {
       state.SkipWithError(r.error.c_str());
       return;
@@ -52,8 +51,7 @@ void BM_WriteTerms(benchmark::State& state) {
     state.SkipWithError(("no frame at " + kFrame.string()).c_str());
     return;
   }
-  ssdo::ReadResult r = ssdo::read_gbuffer(kFrame.string(), read_options(0, 2));
-  ssdo::complete_gbuffer(r, 2);
+  ssdo::ReadResult r = ssdo::read_frame(kFrame.string(), read_options(0, 2));
   if (!r.ok()) {
     state.SkipWithError(r.error.c_str());
     return;

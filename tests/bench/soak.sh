@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Soak test of `ssdo serve` (a benchmark, not a CI test; README.md, "Fuzzing and sanitizers").
+# Soak test of `ssdo serve` (a benchmark, not a CI test; docs/fuzzing.md).
 #
 #   tests/bench/soak.sh [--minutes N] [--clients K] [--ssdo PATH] [--keep]
 #

@@ -27,8 +27,7 @@ ssdo::GBuffer load(int width) {
   if (std::filesystem::exists(file)) {
     ssdo::ReadOptions options;
     options.read_references = false;
-    ssdo::ReadResult r = ssdo::read_gbuffer(file.string(), options);
-    ssdo::complete_gbuffer(r, options.threads);
+    ssdo::ReadResult r = ssdo::read_frame(file.string(), options);
     if (r.ok()) {
       ssdo::GBuffer g = std::move(r.gbuffer);
       if (g.position_view.empty())
@@ -47,7 +46,7 @@ const ssdo::GBuffer& frame(int width) {
   return width == 640 ? small : large;
 }
 
-// The README's world: t = clamp((d.z + 0.4) / 0.8, 0, 1), L = (1 - t) bottom + t top.
+// The shared frames' world (docs/usage.md, "Environment light"): t = clamp((d.z + 0.4) / 0.8, 0, 1), L = (1 - t) bottom + t top.
 cv::Mat sky_equirect() {
   const cv::Size size(512, 256);
   const ssdo::SkyGradient sky;

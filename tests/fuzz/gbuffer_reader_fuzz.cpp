@@ -31,8 +31,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case 3: break;  // no camera unless the file has one
   }
   const ssdo::ReadResult header = ssdo::inspect_gbuffer(file.path(), options);
-  ssdo::ReadResult r = ssdo::read_gbuffer(file.path(), options);
-  ssdo::complete_gbuffer(r, options.threads);
+  ssdo::ReadResult r = ssdo::read_frame(file.path(), options);
   if (r.ok()) {
     const ssdo::GBuffer& g = r.gbuffer;
     // A successful read is a consistent G-buffer of the data window's size.

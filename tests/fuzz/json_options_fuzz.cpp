@@ -81,8 +81,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   request.read.threads = 1;
   if (!request.read.fov_x_deg) request.read.fov_x_deg = 50.0f;
   request.threads = 1;
-  ssdo::ReadResult frame = ssdo::read_gbuffer(exr, request.read);
-  ssdo::complete_gbuffer(frame, request.read.threads);
+  ssdo::ReadResult frame = ssdo::read_frame(exr, request.read);
   // The settings the boundary accepted, on the kernels (an 8 x 6 frame: cheap).
   if (frame.ok()) (void)ssdo::compute_frame(frame.gbuffer, request);
   return 0;

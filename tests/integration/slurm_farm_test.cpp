@@ -1,4 +1,4 @@
-// The render-farm contract of `ssdo process` (examples/slurm/, README "Render farms"):
+// The render-farm contract of `ssdo process` (examples/slurm/, docs/usage.md, "Render farms"):
 // chunks never overlap and cover every frame, a task whose range overshoots the shot's end
 // is clipped with --shot-frames, a missing frame inside the shot still fails, and a task
 // run twice skips what it already wrote. The same contract under a real Slurm cluster:

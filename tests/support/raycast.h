@@ -1,6 +1,6 @@
 // The project's own exact references: a small deterministic ray caster over a handful of
 // analytic primitives that renders synthetic G-buffers and Monte-Carlo ray-traced AO and
-// light references in the conventions of the Cycles passes (see README "Reference frames").
+// light references in the conventions of the Cycles passes (docs/architecture.md, "Conventions").
 //
 // Conventions:
 // - World space: right-handed, Z up, scene units (as Blender); any orientation works, the

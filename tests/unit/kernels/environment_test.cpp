@@ -63,7 +63,7 @@ TEST(Environment, ConstantEquirectProjectsExactly) {
 TEST(Environment, CyclesSkyIrradianceMatchesIntegrationWithinOnePercent) {
   const SkyGradient sky;  // defaults = the Cycles world of the shared dumps
   const Environment env = Environment::sky(sky);
-  auto formula = [](const glm::vec3& d) {  // README "Environment", verbatim
+  auto formula = [](const glm::vec3& d) {  // docs/usage.md, "Environment light", verbatim
     const float t = std::clamp((d.z + 0.4f) / 0.8f, 0.0f, 1.0f);
     return (1.0f - t) * glm::vec3(1.0f, 0.35f, 0.08f) + t * glm::vec3(0.25f, 0.5f, 1.0f);
   };
