@@ -100,99 +100,118 @@ ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request)
   return compute_frame(std::move(shared), request);
 }
 
-ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
-  ComputedFrame frame;
-  const int threads = request.threads;
-  const TermSelection& terms = request.terms;
-  const TermsComputed computed = terms_computed(request);
-  const std::vector<WeightedTerm>& composite_terms = computed.composite_terms;
-  const bool confidence_wanted = terms.ao || terms.ssdo;
-  const ConfidenceSettings confidence_settings = [&] {
-    ConfidenceSettings cs;
-    cs.radius_world = terms.ao ? request.ao.radius_world : request.ssdo.radius_world;
-    cs.max_radius_px = terms.ao ? request.ao.max_radius_px : request.ssdo.max_radius_px;
-    cs.depth_bias_relative = request.ao.depth_bias_relative;
-    return cs;
-  }();
+namespace {
 
-  // AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
-  // run at half resolution share one grid and one upsample (kernels/half_resolution.h).
-  // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
-  // samples (kernels/confidence.h), written with every AO or SSDO output.
+const Environment& frame_environment(const FrameRequest& request) {
   static const Environment kWhite;  // constant radiance 1
-  const Environment& environment = request.environment ? *request.environment : kWhite;
-  TermOutputs computed_terms;
-  {
-    const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &environment,
-                        g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
-                        g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
-    const TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
-                                confidence_wanted ? &confidence_settings : nullptr};
-    compute_terms(in, selected, computed_terms, {}, threads);
+  return request.environment ? *request.environment : kWhite;
+}
+
+// The confidence measures the neighbourhood of the AO radius, else SSDO's.
+ConfidenceSettings confidence_settings(const FrameRequest& request) {
+  ConfidenceSettings cs;
+  cs.radius_world = request.terms.ao ? request.ao.radius_world : request.ssdo.radius_world;
+  cs.max_radius_px = request.terms.ao ? request.ao.max_radius_px : request.ssdo.max_radius_px;
+  cs.depth_bias_relative = request.ao.depth_bias_relative;
+  return cs;
+}
+
+// AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
+// run at half resolution share one grid and one upsample (kernels/half_resolution.h).
+// confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
+// samples (kernels/confidence.h), written with every AO or SSDO output.
+TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, const TermsComputed& computed) {
+  const bool confidence_wanted = request.terms.ao || request.terms.ssdo;
+  const ConfidenceSettings confidence = confidence_settings(request);
+  const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &frame_environment(request),
+                      g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
+                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
+  const TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
+                              confidence_wanted ? &confidence : nullptr};
+  TermOutputs out;
+  compute_terms(in, selected, out, {}, request.threads);
+  return out;
+}
+
+struct DenoisedTerms {
+  cv::Mat ao, direct, indirect;
+};
+
+// The denoised terms, in one pass over the frame: the blur's weights depend only on the
+// guides, so AO and the two SSDO terms share them (kernels/denoise.h).
+DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, TermOutputs& raw,
+                            const TermsComputed& computed) {
+  DenoisedTerms d;
+  std::vector<const cv::Mat*> sources;
+  std::vector<cv::Mat*> results;
+  if (computed.ao) sources.push_back(&raw.ao.ao), results.push_back(&d.ao);
+  if (computed.ssdo) {
+    sources.push_back(&raw.ssdo.direct), results.push_back(&d.direct);
+    sources.push_back(&raw.ssdo.indirect), results.push_back(&d.indirect);
   }
-  AoOutput& ao = computed_terms.ao;
-  SsdoOutput& ssdo = computed_terms.ssdo;
-  const cv::Mat& confidence = computed_terms.confidence;
+  if (!sources.empty())
+    denoise_bilateral(sources, g.depth_view, g.normal_view, g.mask, request.denoise, results, {}, request.threads);
+  return d;
+}
+
+// The written terms, in the output's channel order.
+void add_output_terms(const FrameRequest& request, const TermsComputed& computed, const TermOutputs& raw,
+                      const DenoisedTerms& d, ComputedFrame& frame) {
+  const TermSelection& terms = request.terms;
+  if (computed.ao && terms.ao) {
+    frame.terms.push_back({"ao", raw.ao.ao, SampleType::float32, false});
+    frame.terms.push_back({"ao_denoised", d.ao, SampleType::float32, false});
+    if (!raw.ao.bent_normal_view.empty())
+      frame.terms.push_back({"bent_normal", raw.ao.bent_normal_view, SampleType::half, true});
+  }
+  if (computed.ssdo && terms.ssdo) {
+    frame.terms.push_back({"ssdo_direct", raw.ssdo.direct, SampleType::half, false});
+    frame.terms.push_back({"ssdo_direct_denoised", d.direct, SampleType::half, false});
+    frame.terms.push_back({"ssdo_indirect", raw.ssdo.indirect, SampleType::half, false});
+    frame.terms.push_back({"ssdo_indirect_denoised", d.indirect, SampleType::half, false});
+  }
+  if (terms.ao || terms.ssdo) frame.terms.push_back({"confidence", raw.confidence, SampleType::float32, false});
+}
+
+// The composite of the selected terms (kernels/composite.h), over the frame's Env pass as
+// background when it has one.
+cv::Mat composite_frame(const GBuffer& g, const FrameRequest& request, const TermsComputed& computed,
+                        const DenoisedTerms& d) {
+  CompositeSettings settings;
+  settings.terms = computed.composite_terms;
+  const auto env_pass = g.references.find("Env");
+  const cv::Mat* background =
+      env_pass != g.references.end() && env_pass->second.type() == CV_32FC3 ? &env_pass->second : nullptr;
+  auto usable = [](const cv::Mat& m) { return m.empty() ? nullptr : &m; };
+  const CompositeInputs in{g.mask,         g.has_albedo() ? &g.albedo : nullptr,
+                           usable(d.ao),   usable(d.direct),
+                           usable(d.indirect), usable(g.lighting),
+                           background,     &frame_environment(request),
+                           &g.camera};
+  if (const std::string e = validate(in, settings); !e.empty()) throw std::invalid_argument("composite: " + e);
+  cv::Mat composite;
+  compute_composite(in, settings, composite, {}, request.threads);
+  return composite;
+}
+
+}  // namespace
+
+ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
+  const TermsComputed computed = terms_computed(request);
+  TermOutputs raw = compute_raw_terms(g, request, computed);
   // No later step reads the positions: the denoised terms and the composite reuse their
   // memory (the worker's heap keeps freed memory: fresh pages cost a fault each).
   g.position_view.release();
-
-  // The denoised terms, in one pass over the frame: the blur's weights depend only on the
-  // guides, so AO and the two SSDO terms share them (kernels/denoise.h).
-  cv::Mat ao_denoised, direct_denoised, indirect_denoised;
-  {
-    std::vector<const cv::Mat*> sources;
-    std::vector<cv::Mat*> results;
-    if (computed.ao) sources.push_back(&ao.ao), results.push_back(&ao_denoised);
-    if (computed.ssdo) {
-      sources.push_back(&ssdo.direct), results.push_back(&direct_denoised);
-      sources.push_back(&ssdo.indirect), results.push_back(&indirect_denoised);
-    }
-    if (!sources.empty())
-      denoise_bilateral(sources, g.depth_view, g.normal_view, g.mask, request.denoise, results, {}, threads);
-  }
+  const DenoisedTerms denoised = denoise_terms(g, request, raw, computed);
   // The guides of AO, SSDO, confidence and the denoise are read no more: their memory
   // goes to the composite.
   g.depth_view.release();
   g.normal_view.release();
   g.depth_back_view.release();
-  if (computed.ao && terms.ao) {
-    frame.terms.push_back({"ao", ao.ao, SampleType::float32, false});
-    frame.terms.push_back({"ao_denoised", ao_denoised, SampleType::float32, false});
-    if (!ao.bent_normal_view.empty())
-      frame.terms.push_back({"bent_normal", ao.bent_normal_view, SampleType::half, true});
-  }
-  if (computed.ssdo && terms.ssdo) {
-    frame.terms.push_back({"ssdo_direct", ssdo.direct, SampleType::half, false});
-    frame.terms.push_back({"ssdo_direct_denoised", direct_denoised, SampleType::half, false});
-    frame.terms.push_back({"ssdo_indirect", ssdo.indirect, SampleType::half, false});
-    frame.terms.push_back({"ssdo_indirect_denoised", indirect_denoised, SampleType::half, false});
-  }
-
-  if (confidence_wanted) frame.terms.push_back({"confidence", confidence, SampleType::float32, false});
-
-  if (terms.composite) {
-    CompositeSettings settings;
-    settings.terms = composite_terms;
-    const auto* background = [&]() -> const cv::Mat* {
-      const auto it = g.references.find("Env");
-      return it != g.references.end() && it->second.type() == CV_32FC3 ? &it->second : nullptr;
-    }();
-    const CompositeInputs in{g.mask,
-                             g.has_albedo() ? &g.albedo : nullptr,
-                             ao_denoised.empty() ? nullptr : &ao_denoised,
-                             direct_denoised.empty() ? nullptr : &direct_denoised,
-                             indirect_denoised.empty() ? nullptr : &indirect_denoised,
-                             g.lighting.empty() ? nullptr : &g.lighting,
-                             background,
-                             &environment,
-                             &g.camera};
-    if (const std::string e = validate(in, settings); !e.empty())
-      throw std::invalid_argument("composite: " + e);
-    cv::Mat composite;
-    compute_composite(in, settings, composite, {}, threads);
-    frame.terms.push_back({"composite", composite, SampleType::half, false});
-  }
+  ComputedFrame frame;
+  add_output_terms(request, computed, raw, denoised, frame);
+  if (request.terms.composite)
+    frame.terms.push_back({"composite", composite_frame(g, request, computed, denoised), SampleType::half, false});
   return frame;
 }
 
