@@ -1,6 +1,7 @@
-// Cosine-weighted hemisphere sampling shared by the reference ray caster (raycast.cpp) and
-// the raymarch AO oracle (ao_raymarch.cpp), so the two estimate the same integral with the
-// same directions. Header-only: the per-sample loops see through every call.
+// Cosine-weighted hemisphere sampling shared by the reference ray caster
+// (tests/support/raycast.cpp) and the raymarch AO oracle (ao_raymarch.cpp), so the two
+// estimate the same integral with the same directions; SSDO's sample frames use the same
+// orthonormal basis. Header-only: the per-sample loops see through every call.
 #pragma once
 
 #include <algorithm>
