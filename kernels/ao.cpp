@@ -73,6 +73,8 @@ AoSettings ao_preset(AoMethod method, Preset preset) {
   return s;
 }
 
+bool has_bent_normal(const AoSettings& s) { return s.method != AoMethod::hemisphere; }
+
 bool runs_on_half_grid(const AoSettings& s) {
   return s.resolution_divisor == 2 && s.method != AoMethod::raymarch;
 }
@@ -120,10 +122,10 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   s.thickness_world = effective_thickness_world(settings);
   const cv::Size size = in.depth_view.size();
   if (out.ao.size() != size || out.ao.type() != CV_32FC1) out.ao.create(size, CV_32FC1);
-  const bool has_bent_normal = s.method != AoMethod::hemisphere;
-  if (has_bent_normal && (out.bent_normal_view.size() != size || out.bent_normal_view.type() != CV_32FC3))
+  const bool bent_normal = has_bent_normal(s);
+  if (bent_normal && (out.bent_normal_view.size() != size || out.bent_normal_view.type() != CV_32FC3))
     out.bent_normal_view.create(size, CV_32FC3);
-  if (!has_bent_normal) out.bent_normal_view.release();
+  if (!bent_normal) out.bent_normal_view.release();
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
   dispatch(in, s, out, r, nthreads);

@@ -89,6 +89,8 @@ float effective_thickness_world(const AoSettings& s);
 // The method runs on the half-resolution grid (resolution_divisor 2; raymarch, the oracle,
 // always at full resolution).
 bool runs_on_half_grid(const AoSettings& s);
+// Whether the method writes a bent normal (every method but the hemisphere's point samples).
+bool has_bent_normal(const AoSettings& s);
 
 // The named presets of each method (values of AoSettings).
 AoSettings ao_preset(AoMethod method, Preset preset);

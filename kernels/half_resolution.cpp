@@ -538,8 +538,8 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
                         TermOutputs& out) {
   if (half.ao) {
     allocate(out.ao.ao, size, CV_32FC1);
-    if (settings.ao->method == AoMethod::hemisphere) out.ao.bent_normal_view.release();
-    else allocate(out.ao.bent_normal_view, size, CV_32FC3);
+    if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, CV_32FC3);
+    else out.ao.bent_normal_view.release();
   }
   if (half.ssdo) {
     allocate(out.ssdo.direct, size, CV_32FC3);

@@ -240,7 +240,7 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   if (c.ao && terms.ao) {
     scalar("ao");
     scalar("ao_denoised");
-    if (request.ao.method != AoMethod::hemisphere) colour("bent_normal", true);  // as compute_ao
+    if (has_bent_normal(request.ao)) colour("bent_normal", true);
   }
   if (c.ssdo && terms.ssdo)
     for (const char* name : {"ssdo_direct", "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"})
