@@ -8,12 +8,23 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
 
 namespace ssdo {
+
+// Another camera's depth of the same scene: a neighbouring frame of a shot (or any other
+// view with a known camera). The kernels treat it as an extra view of what this frame hides
+// (kernels/multiview.h): space it sees in front of its surfaces is free, space just behind
+// them is occupied.
+struct DepthView {
+  Camera camera;       // its own projection, grid and world_to_view (the same world as the frame's)
+  cv::Mat depth_view;  // CV_32FC1 planar depth in its camera, +infinity on background
+  std::string name;    // where it came from (a file), for notes
+};
 
 struct GBuffer {
   Camera camera;
@@ -56,6 +67,10 @@ struct GBuffer {
   // Named reference images from the frame (e.g. "AO": CV_32FC1 ray-traced ambient
   // occlusion; "DiffDir", "DiffInd": CV_32FC3 light passes). Same size as depth.
   std::map<std::string, cv::Mat> references;
+
+  // Extra views of the scene (neighbouring frames), empty for a frame computed alone. The
+  // service fills them (a shot's sequence context); formats/ never does.
+  std::vector<DepthView> views;
 
   int width_px() const { return depth_view.cols; }
   int height_px() const { return depth_view.rows; }
