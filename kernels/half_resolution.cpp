@@ -548,15 +548,31 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
   if (half.confidence) allocate(out.confidence, size, CV_32FC1);
 }
 
-// AO on the grid. Only multi-bounce reads albedo (every method); the second depth layer
-// stays at full resolution (the grid has none).
+// AO's second depth layer on a grid (depth, mask, camera of the grid; `file_back` the frame's
+// own layer on that grid, or empty): the occupancy of all views when there are views, else
+// the file's layer. Empty when neither.
+cv::Mat ao_back_layer(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
+                      const cv::Mat& file_back, const TermInputs& in, const AoSettings& s,
+                      std::vector<ViewUse>& uses, int nthreads) {
+  if (in.views.empty()) return file_back;
+  cv::Mat back;
+  const MultiViewInputs grid{depth_view, mask, camera, file_back.empty() ? nullptr : &file_back};
+  uses = occupancy_from_views(grid, in.views, multiview_settings(s), back, nthreads);
+  return back.empty() ? file_back : back;
+}
+
+// AO on the grid. Only multi-bounce reads albedo (every method); the second depth layer is
+// taken at the texels (and from the other views, when given).
 void ao_on_grid(const HalfGrid& h, const TermInputs& in, const AoSettings& s, const cv::Rect& half_roi,
-                AoOutput& out, int nthreads) {
-  cv::Mat albedo;
+                TermOutputs& out, int nthreads) {
+  cv::Mat albedo, file_back;
   if (s.multibounce && in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, albedo, nthreads);
+  if (in.depth_back_view != nullptr && !in.depth_back_view->empty())
+    sample_at_texels(h, *in.depth_back_view, file_back, nthreads);
+  const cv::Mat back = ao_back_layer(h.depth_view, h.mask, h.camera, file_back, in, s, out.views, nthreads);
   const AoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
-                      albedo.empty() ? nullptr : &albedo};
-  compute_ao(grid, s, out, half_roi, nthreads);
+                      albedo.empty() ? nullptr : &albedo, back.empty() ? nullptr : &back};
+  compute_ao(grid, s, out.ao, half_roi, nthreads);
 }
 
 // SSDO on the grid. Albedo only scales the senders' direct light when the frame has no
@@ -603,7 +619,8 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   TermOutputs grid;
   std::vector<UpsampleImage> images;
   if (half.ao) {
-    ao_on_grid(h, in, *settings.ao, half_roi, grid.ao, nthreads);
+    ao_on_grid(h, in, *settings.ao, half_roi, grid, nthreads);
+    out.views = std::move(grid.views);
     images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0)});
     if (!grid.ao.bent_normal_view.empty())
       images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)});
@@ -624,6 +641,15 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
 
 }  // namespace
 
+MultiViewSettings multiview_settings(const AoSettings& ao) {
+  MultiViewSettings m;
+  m.thickness_world = std::isfinite(effective_thickness_world(ao)) ? effective_thickness_world(ao)
+                                                                   : kThicknessPerRadius * ao.radius_world;
+  m.reach_world = 2.0f * ao.radius_world;
+  m.depth_bias_relative = ao.depth_bias_relative;
+  return m;
+}
+
 void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi,
                    int nthreads) {
   CV_Assert(settings.ssdo == nullptr || in.environment != nullptr);
@@ -633,8 +659,11 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
   if (position_view.empty() && ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo)))
     view_positions_from_depth(in.depth_view, in.mask, in.camera, position_view, {}, nthreads);
   if (settings.ao && !half.ao) {
+    const cv::Mat file_back = in.depth_back_view != nullptr ? *in.depth_back_view : cv::Mat();
+    const cv::Mat back = ao_back_layer(in.depth_view, in.mask, in.camera, file_back, in, *settings.ao, out.views,
+                                       nthreads);
     const AoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, in.albedo,
-                           in.depth_back_view};
+                           back.empty() ? nullptr : &back};
     compute_ao(full_in, *settings.ao, out.ao, roi, nthreads);
   }
   if (settings.ssdo && !half.ssdo) {

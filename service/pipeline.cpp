@@ -125,7 +125,7 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
   const ConfidenceSettings confidence = confidence_settings(request);
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &frame_environment(request),
                       g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
-                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view};
+                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
   const TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
                               confidence_wanted ? &confidence : nullptr};
   TermOutputs out;
@@ -199,6 +199,7 @@ cv::Mat composite_frame(const GBuffer& g, const FrameRequest& request, const Ter
 ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
   const TermsComputed computed = terms_computed(request);
   TermOutputs raw = compute_raw_terms(g, request, computed);
+  g.views.clear();
   // No later step reads the positions: the denoised terms and the composite reuse their
   // memory (the worker's heap keeps freed memory: fresh pages cost a fault each).
   g.position_view.release();
@@ -209,6 +210,7 @@ ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
   g.normal_view.release();
   g.depth_back_view.release();
   ComputedFrame frame;
+  frame.views = std::move(raw.views);
   add_output_terms(request, computed, raw, denoised, frame);
   if (request.terms.composite)
     frame.terms.push_back({"composite", composite_frame(g, request, computed, denoised), SampleType::half, false});

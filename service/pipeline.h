@@ -12,6 +12,7 @@
 #include "kernels/composite.h"
 #include "kernels/denoise.h"
 #include "kernels/environment.h"
+#include "kernels/multiview.h"
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
 
@@ -74,6 +75,7 @@ struct FrameResult {
 // The computed images of a frame, by output name, in the order they are written.
 struct ComputedFrame {
   std::vector<OutputTerm> terms;
+  std::vector<ViewUse> views;  // what each of the G-buffer's extra views contributed
   const cv::Mat* find(const std::string& name) const;
 };
 

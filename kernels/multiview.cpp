@@ -1,0 +1,246 @@
+#include "kernels/multiview.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/parallel.h"
+#include "kernels/settings_check.h"
+
+namespace ssdo {
+namespace {
+
+constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+// A view as seen from this frame: this frame's view space straight to the view's clip
+// space and planar depth (both affine, so along a pixel's ray they are linear in depth).
+struct ViewGeometry {
+  glm::mat4 clip_from_frame_view;  // view_to_clip_v * world_to_view_v * view_to_world
+  glm::vec4 depth_from_frame_view; // planar depth in the view: -(row z of the rigid part)
+  const cv::Mat* depth_view;
+  float width_px, height_px;
+};
+
+ViewGeometry view_geometry(const Camera& frame, const DepthView& v) {
+  const glm::mat4 rigid = v.camera.world_to_view * frame.view_to_world;
+  // glm is column-major: the z row is (m[0][2], m[1][2], m[2][2], m[3][2]).
+  const glm::vec4 depth_row(-rigid[0][2], -rigid[1][2], -rigid[2][2], -rigid[3][2]);
+  return {v.camera.view_to_clip * rigid, depth_row, &v.depth_view, float(v.camera.width_px),
+          float(v.camera.height_px)};
+}
+
+// What a view says about a point.
+enum class Verdict : uint8_t {
+  unknown,   // outside its image or behind its eye
+  free,      // in front of the surface it stores there
+  occupied,  // behind that surface, within the thickness
+  beyond,    // farther behind it than the thickness: no say
+};
+
+// A point along one pixel's ray, as seen by one view: clip = clip0 + d clip1 and planar
+// depth depth0 + d depth1 at planar depth d in this frame.
+struct RayInView {
+  glm::vec4 clip0, clip1;
+  float depth0, depth1;
+};
+
+Verdict classify(const ViewGeometry& v, const RayInView& r, float d, float bias_relative, float thickness) {
+  const glm::vec4 clip = r.clip0 + d * r.clip1;
+  if (!(clip.w > 0.0f)) return Verdict::unknown;
+  const float px = 0.5f * (clip.x / clip.w + 1.0f) * v.width_px;
+  const float py = 0.5f * (1.0f - clip.y / clip.w) * v.height_px;
+  if (!(px >= 0.0f && px < v.width_px && py >= 0.0f && py < v.height_px)) return Verdict::unknown;
+  const cv::Mat& depth = *v.depth_view;
+  const int w = depth.cols, h = depth.rows;
+  // The 2x2 pixel centres around (px, py), clamped at the image's edges.
+  const int x0 = std::clamp(int(std::floor(px - 0.5f)), 0, w - 1), x1 = std::min(x0 + 1, w - 1);
+  const int y0 = std::clamp(int(std::floor(py - 0.5f)), 0, h - 1), y1 = std::min(y0 + 1, h - 1);
+  const float* row0 = depth.ptr<float>(y0);
+  const float* row1 = depth.ptr<float>(y1);
+  const float nearest_surface = depth.ptr<float>(std::min(int(py), h - 1))[std::min(int(px), w - 1)];
+  const float min_surface = std::min(std::min(row0[x0], row0[x1]), std::min(row1[x0], row1[x1]));
+  const float depth_q = r.depth0 + d * r.depth1;
+  // +inf (background) at all four: the view sees through to the sky there.
+  if (depth_q < min_surface * (1.0f - bias_relative)) return Verdict::free;
+  if (depth_q > nearest_surface && depth_q - nearest_surface <= thickness) return Verdict::occupied;
+  return Verdict::beyond;
+}
+
+struct Constants {
+  MultiViewSettings s;
+  std::vector<ViewGeometry> views;
+};
+
+// One pixel's ray in every view, and which views may speak for it.
+struct PixelRay {
+  std::vector<RayInView> in_view;
+  std::vector<uint8_t> active;  // 0: the view sees this pixel's own surface as free space
+};
+
+void pixel_ray(const Constants& k, const Camera& camera, int x, int y, PixelRay& ray) {
+  const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
+  // The ray's points are affine in planar depth d: p(d) = a + d b (perspective: a = 0).
+  const glm::vec3 p1 = camera.view_from_pixel_depth(pixel, 1.0f);
+  const glm::vec3 b = camera.view_from_pixel_depth(pixel, 2.0f) - p1;
+  const glm::vec3 a = p1 - b;
+  for (size_t i = 0; i < k.views.size(); ++i) {
+    const ViewGeometry& v = k.views[i];
+    ray.in_view[i] = {v.clip_from_frame_view * glm::vec4(a, 1.0f), v.clip_from_frame_view * glm::vec4(b, 0.0f),
+                      glm::dot(v.depth_from_frame_view, glm::vec4(a, 1.0f)),
+                      glm::dot(v.depth_from_frame_view, glm::vec4(b, 0.0f))};
+  }
+}
+
+// Occupancy of the point at planar depth d on a pixel's ray (the rule in multiview.h);
+// `informed` is set when some view had a say.
+bool occupied_at(const Constants& k, const PixelRay& ray, float d, float own_back, bool& informed) {
+  bool voted = false;
+  for (size_t i = 0; i < k.views.size(); ++i) {
+    if (!ray.active[i]) continue;
+    const Verdict v = classify(k.views[i], ray.in_view[i], d, k.s.depth_bias_relative, k.s.thickness_world);
+    if (v == Verdict::free) {
+      informed = true;
+      return false;
+    }
+    voted |= v == Verdict::occupied;
+  }
+  if (d <= own_back) return true;
+  informed |= voted;
+  return voted;
+}
+
+// Walks the ray from the visible surface at `front` to front + reach_world: the depth of the
+// first change from occupied to free, refined by bisection; +inf when occupied throughout;
+// own_back when no view had a say.
+float back_depth(const Constants& k, const PixelRay& ray, float front, float own_back) {
+  const int n = k.s.samples;
+  bool informed = false;
+  float lo = front, hi = kInfinity;
+  for (int i = 1; i <= n; ++i) {
+    const float d = front + k.s.reach_world * float(i) / float(n);
+    if (!occupied_at(k, ray, d, own_back, informed)) {
+      hi = d;
+      break;
+    }
+    lo = d;
+  }
+  if (!informed) return own_back;
+  if (hi == kInfinity) return kInfinity;
+  for (int j = 0; j < k.s.refinements; ++j) {
+    const float mid = 0.5f * (lo + hi);
+    (occupied_at(k, ray, mid, own_back, informed) ? lo : hi) = mid;
+  }
+  return 0.5f * (lo + hi);
+}
+
+// This frame's own occluder interval ends at the file's back layer, or at the thickness.
+float own_back_depth(const MultiViewInputs& in, const MultiViewSettings& s, int x, int y, float front) {
+  if (in.depth_back_view == nullptr || in.depth_back_view->empty()) return front + s.thickness_world;
+  const float b = in.depth_back_view->ptr<float>(y)[x];
+  return b > front ? b : front;
+}
+
+// Per view, over this frame's foreground surface points: how many it can see, and how
+// many of those it sees free space in front of (counts per row, summed in row order).
+void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<ViewUse>& uses, int nthreads) {
+  const int rows = in.depth_view.rows, nv = int(k.views.size());
+  std::vector<int64_t> seen(size_t(rows) * size_t(nv), 0), contradicted(seen.size(), 0);
+  parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& range) {
+    PixelRay ray{std::vector<RayInView>(size_t(nv)), std::vector<uint8_t>(size_t(nv), 1)};
+    for (int y = range.start; y < range.end; ++y) {
+      const float* depth_row = in.depth_view.ptr<float>(y);
+      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+      for (int x = 0; x < in.depth_view.cols; ++x) {
+        if (!mask_row[x]) continue;
+        pixel_ray(k, in.camera, x, y, ray);
+        for (int i = 0; i < nv; ++i) {
+          const Verdict v = classify(k.views[size_t(i)], ray.in_view[size_t(i)], depth_row[x],
+                                     k.s.depth_bias_relative, k.s.thickness_world);
+          seen[size_t(y) * size_t(nv) + size_t(i)] += v != Verdict::unknown;
+          contradicted[size_t(y) * size_t(nv) + size_t(i)] += v == Verdict::free;
+        }
+      }
+    }
+  });
+  const int64_t foreground = std::max(1, cv::countNonZero(in.mask));
+  for (int i = 0; i < nv; ++i) {
+    int64_t s = 0, c = 0;
+    for (int y = 0; y < rows; ++y) {
+      s += seen[size_t(y) * size_t(nv) + size_t(i)];
+      c += contradicted[size_t(y) * size_t(nv) + size_t(i)];
+    }
+    uses[size_t(i)].overlap = float(double(s) / double(foreground));
+    uses[size_t(i)].contradiction = s > 0 ? float(double(c) / double(s)) : 0.0f;
+    uses[size_t(i)].used = s > 0 && uses[size_t(i)].contradiction <= k.s.max_contradiction;
+  }
+}
+
+void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& back, int nthreads) {
+  const size_t nv = k.views.size();
+  back.create(in.depth_view.size(), CV_32FC1);
+  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
+    PixelRay ray{std::vector<RayInView>(nv), std::vector<uint8_t>(nv, 1)};
+    for (int y = range.start; y < range.end; ++y) {
+      const float* depth_row = in.depth_view.ptr<float>(y);
+      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+      float* back_row = back.ptr<float>(y);
+      for (int x = 0; x < in.depth_view.cols; ++x) {
+        if (!mask_row[x]) {
+          back_row[x] = kInfinity;
+          continue;
+        }
+        const float front = depth_row[x];
+        pixel_ray(k, in.camera, x, y, ray);
+        // A view that sees this pixel's own surface as free space disagrees with this frame
+        // here (an object that moved): it has no say on this pixel's ray.
+        for (size_t i = 0; i < nv; ++i)
+          ray.active[i] = classify(k.views[i], ray.in_view[i], front, k.s.depth_bias_relative,
+                                   k.s.thickness_world) != Verdict::free;
+        back_row[x] = back_depth(k, ray, front, own_back_depth(in, k.s, x, y, front));
+      }
+    }
+  });
+}
+
+}  // namespace
+
+std::string validate(const MultiViewSettings& s) {
+  using detail::out_of_range;
+  if (!(s.thickness_world > 0.0f && std::isfinite(s.thickness_world)))
+    return out_of_range("thickness_world", s.thickness_world, "(0, inf)");
+  if (!(s.reach_world > 0.0f && std::isfinite(s.reach_world)))
+    return out_of_range("reach_world", s.reach_world, "(0, inf)");
+  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
+    return out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (s.samples < 2 || s.samples > 64) return out_of_range("samples", float(s.samples), "[2, 64]");
+  if (s.refinements < 0 || s.refinements > 16) return out_of_range("refinements", float(s.refinements), "[0, 16]");
+  if (!(s.max_contradiction >= 0.0f && s.max_contradiction <= 1.0f))
+    return out_of_range("max_contradiction", s.max_contradiction, "[0, 1]");
+  return {};
+}
+
+std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<const DepthView> views,
+                                          const MultiViewSettings& s, cv::Mat& depth_back_view, int nthreads) {
+  CV_Assert(validate(s).empty());
+  CV_Assert(in.depth_view.type() == CV_32FC1 && in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
+  std::vector<ViewUse> uses(views.size());
+  Constants k{s, {}};
+  for (size_t i = 0; i < views.size(); ++i) {
+    uses[i].name = views[i].name;
+    CV_Assert(views[i].depth_view.type() == CV_32FC1 &&
+              views[i].depth_view.cols == views[i].camera.width_px &&
+              views[i].depth_view.rows == views[i].camera.height_px);
+    k.views.push_back(view_geometry(in.camera, views[i]));
+  }
+  depth_back_view.release();
+  if (views.empty()) return uses;
+  measure_views(in, k, uses, nthreads);
+  Constants used{s, {}};
+  for (size_t i = 0; i < views.size(); ++i)
+    if (uses[i].used) used.views.push_back(k.views[i]);
+  if (used.views.empty()) return uses;
+  write_back_layer(in, used, depth_back_view, nthreads);
+  return uses;
+}
+
+}  // namespace ssdo

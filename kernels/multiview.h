@@ -1,0 +1,93 @@
+// Other views of the scene (the neighbouring frames of a shot) as knowledge of what this
+// frame hides: the occupied depth interval behind each visible surface.
+//
+// One depth buffer cannot tell a thin pole from a wall: behind every visible surface the
+// estimators assume thickness_world of solid, then free space. Other cameras of the same
+// scene observe some of that space. The rule (the SSDO paper's remedy for hidden geometry,
+// Ritschel et al. 2009, sec. 3.3, with additional cameras in place of extra renders):
+//
+//   a point q is occupied  <=>  no view sees free space at q, and some view has q behind
+//                               its visible surface within the thickness
+//
+// where a view sees free space at q when q projects inside its image in front of the
+// surface it stores there. This frame is one of the views (its own interval is
+// [front, front + thickness], or [front, back] with a back layer from the file).
+//
+// Walking each pixel's view ray from its visible surface backwards, the first point that
+// is not occupied ends the pixel's occluder: that depth is the pixel's back layer, which the
+// estimators that model thickness already take (AoInputs::depth_back_view: GTAO's
+// visibility mask, the raymarch oracle). Occupancy is only ever changed behind this frame's
+// visible surfaces, never in front of them (what this frame sees to be free stays free), so
+// a view that disagrees (a moving object) can at worst change a surface's thickness.
+//
+// Conservative free-space test: a view's depth is a sample at each pixel centre, and a point
+// on a surface seen at a grazing angle may lie in front of the sample nearest to it. The
+// test compares with the smallest depth of the 2x2 pixel centres around the projected
+// point (on a plane, the surface between those centres is never nearer than the smallest
+// of them), less a relative bias for the depth's rounding.
+#pragma once
+
+#include <span>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "core/gbuffer.h"
+
+namespace ssdo {
+
+struct MultiViewSettings {
+  // Assumed thickness behind every visible surface of this frame, scene units, (0, inf):
+  // the estimators' (effective_thickness_world of the AO settings).
+  float thickness_world = 0.5f;
+  // How far behind each visible surface occupancy is decided, scene units, (0, inf). Past
+  // it the occluder counts as solid (back = +inf) if still occupied. Twice the AO radius
+  // covers every point of a tap's segment that lies within the radius of a pixel at most a
+  // radius away.
+  float reach_world = 2.0f;
+  // Depth bias of the free-space test relative to the view's depth, [0, 0.1]: a view sees
+  // q free only when q is nearer than its surface by more than this fraction (the
+  // estimators' depth_bias_relative; 1e-3 covers half-float depth twice).
+  float depth_bias_relative = 1e-3f;
+  // Points sampled along [front, front + reach_world], [2, 64], then `refinements`
+  // bisection steps, [0, 16], on the first change from occupied to free.
+  int samples = 12;
+  int refinements = 4;
+  // A view is not used when it sees free space in front of more than this fraction of the
+  // surface points of this frame it can see, [0, 1]: a cut, a wrong camera or a different
+  // scene. Consistent views of a static scene contradict no point.
+  float max_contradiction = 0.05f;
+};
+
+std::string validate(const MultiViewSettings& s);
+
+// What one view contributed.
+struct ViewUse {
+  std::string name;           // DepthView::name
+  bool used = false;          // false: rejected (contradiction above the limit, or no overlap)
+  float overlap = 0.0f;       // fraction of this frame's foreground surface points in the view
+  float contradiction = 0.0f; // fraction of those it sees free space in front of
+};
+
+// The frame's own inputs.
+struct MultiViewInputs {
+  const cv::Mat& depth_view;  // CV_32FC1 planar depth, +inf on background
+  const cv::Mat& mask;        // CV_8UC1, 255 = foreground
+  const Camera& camera;
+  // CV_32FC1 back layer from the file (GBuffer::depth_back_view) or null: this frame's own
+  // interval is [front, back] instead of [front, front + thickness].
+  const cv::Mat* depth_back_view = nullptr;
+};
+
+// Writes `depth_back_view` (CV_32FC1 at the frame's size): for each foreground pixel the
+// planar depth where its occluder ends by the rule above (+inf: solid as far as
+// reach_world), +inf on background. Leaves it empty, and returns every view as unused,
+// when no view is usable: the frame is then computed exactly as alone. Deterministic and
+// independent of nthreads.
+std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<const DepthView> views,
+                                          const MultiViewSettings& s, cv::Mat& depth_back_view,
+                                          int nthreads = 0);
+
+}  // namespace ssdo
