@@ -105,6 +105,21 @@ void BM_Frame(benchmark::State& state) {
                  std::to_string(request.threads) + "t");
 }
 
+// The compute step of `ssdo process --terms ao --views K` (no I/O) at the medium preset: 2K
+// extra views, each the frame's own depth and camera (a consistent view whose occupancy
+// walk runs to the thickness boundary on every pixel, as on a static shot), against K = 0.
+void BM_FrameViews(benchmark::State& state) {
+  ssdo::GBuffer g = frame(int(state.range(0)));
+  const int k = int(state.range(1));
+  for (int i = 0; i < 2 * k; ++i) g.views.push_back({g.camera, g.depth_view, "copy"});
+  ssdo::FrameRequest request;
+  request.terms = {true, false, false};
+  request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, ssdo::Preset::medium);
+  request.threads = int(state.range(2));
+  for (auto _ : state) benchmark::DoNotOptimize(ssdo::compute_frame(g, request));
+  state.SetLabel("ao medium, " + std::to_string(2 * k) + " views, " + std::to_string(request.threads) + "t");
+}
+
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
 // grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
 // every half-resolution term).
@@ -157,6 +172,7 @@ BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseReal
 BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 3}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();
