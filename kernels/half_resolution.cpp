@@ -548,43 +548,49 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
   if (half.confidence) allocate(out.confidence, size, CV_32FC1);
 }
 
-// AO's second depth layer on a grid (depth, mask, camera of the grid; `file_back` the frame's
-// own layer on that grid, or empty): the occupancy of all views when there are views, else
-// the file's layer. Empty when neither.
-cv::Mat ao_back_layer(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
-                      const cv::Mat& file_back, const TermInputs& in, const AoSettings& s,
-                      std::vector<ViewUse>& uses, int nthreads) {
+// The second depth layer on a grid (depth, mask, camera of the grid; `file_back` the
+// frame's own layer on that grid, or empty): the occupancy of all views when there are
+// views, else the file's layer. Empty when neither.
+cv::Mat grid_back_layer(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
+                        const cv::Mat& file_back, const TermInputs& in, const TermSettings& settings,
+                        std::vector<ViewUse>& uses, int nthreads) {
   if (in.views.empty()) return file_back;
   cv::Mat back;
   const MultiViewInputs grid{depth_view, mask, camera, file_back.empty() ? nullptr : &file_back};
-  uses = occupancy_from_views(grid, in.views, multiview_settings(s), back, nthreads);
+  uses = occupancy_from_views(grid, in.views, multiview_settings(settings), back, nthreads);
   return back.empty() ? file_back : back;
 }
 
-// AO on the grid. Only multi-bounce reads albedo (every method); the second depth layer is
-// taken at the texels (and from the other views, when given).
-void ao_on_grid(const HalfGrid& h, const TermInputs& in, const AoSettings& s, const cv::Rect& half_roi,
-                TermOutputs& out, int nthreads) {
-  cv::Mat albedo, file_back;
-  if (s.multibounce && in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, albedo, nthreads);
+// The second depth layer at the texels of the half grid (see grid_back_layer).
+cv::Mat half_grid_back_layer(const HalfGrid& h, const TermInputs& in, const TermSettings& settings,
+                             std::vector<ViewUse>& uses, int nthreads) {
+  cv::Mat file_back;
   if (in.depth_back_view != nullptr && !in.depth_back_view->empty())
     sample_at_texels(h, *in.depth_back_view, file_back, nthreads);
-  const cv::Mat back = ao_back_layer(h.depth_view, h.mask, h.camera, file_back, in, s, out.views, nthreads);
+  return grid_back_layer(h.depth_view, h.mask, h.camera, file_back, in, settings, uses, nthreads);
+}
+
+// AO on the grid. Only multi-bounce reads albedo (every method).
+void ao_on_grid(const HalfGrid& h, const TermInputs& in, const AoSettings& s, const cv::Mat& back,
+                const cv::Rect& half_roi, AoOutput& out, int nthreads) {
+  cv::Mat albedo;
+  if (s.multibounce && in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, albedo, nthreads);
   const AoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
                       albedo.empty() ? nullptr : &albedo, back.empty() ? nullptr : &back};
-  compute_ao(grid, s, out.ao, half_roi, nthreads);
+  compute_ao(grid, s, out, half_roi, nthreads);
 }
 
 // SSDO on the grid. Albedo only scales the senders' direct light when the frame has no
 // lighting.
-void ssdo_on_grid(const HalfGrid& h, const TermInputs& in, const SsdoSettings& s, const cv::Rect& half_roi,
-                  SsdoOutput& out, int nthreads) {
+void ssdo_on_grid(const HalfGrid& h, const TermInputs& in, const SsdoSettings& s, const cv::Mat& back,
+                  const cv::Rect& half_roi, SsdoOutput& out, int nthreads) {
   cv::Mat albedo, lighting;
   const bool lit = in.lighting != nullptr && !in.lighting->empty();
   if (in.albedo != nullptr && !lit) sample_at_texels(h, *in.albedo, albedo, nthreads);
   if (lit) sample_at_texels(h, *in.lighting, lighting, nthreads);
   const SsdoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, *in.environment,
-                        albedo.empty() ? nullptr : &albedo, lighting.empty() ? nullptr : &lighting};
+                        albedo.empty() ? nullptr : &albedo, lighting.empty() ? nullptr : &lighting,
+                        back.empty() ? nullptr : &back};
   compute_ssdo(grid, s, out, half_roi, nthreads);
 }
 
@@ -617,16 +623,16 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   build_half_grid(full, h, nthreads, /*with_positions=*/half.ao || half.ssdo);
   const cv::Rect half_roi = half_grid_roi(r, full.depth_view.size());
   TermOutputs grid;
+  const cv::Mat back = half.ao || half.ssdo ? half_grid_back_layer(h, in, settings, out.views, nthreads) : cv::Mat();
   std::vector<UpsampleImage> images;
   if (half.ao) {
-    ao_on_grid(h, in, *settings.ao, half_roi, grid, nthreads);
-    out.views = std::move(grid.views);
+    ao_on_grid(h, in, *settings.ao, back, half_roi, grid.ao, nthreads);
     images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0)});
     if (!grid.ao.bent_normal_view.empty())
       images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)});
   }
   if (half.ssdo) {
-    ssdo_on_grid(h, in, *settings.ssdo, half_roi, grid.ssdo, nthreads);
+    ssdo_on_grid(h, in, *settings.ssdo, back, half_roi, grid.ssdo, nthreads);
     images.push_back({grid.ssdo.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
     images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
   }
@@ -641,12 +647,15 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
 
 }  // namespace
 
-MultiViewSettings multiview_settings(const AoSettings& ao) {
+MultiViewSettings multiview_settings(const TermSettings& settings) {
   MultiViewSettings m;
-  m.thickness_world = std::isfinite(effective_thickness_world(ao)) ? effective_thickness_world(ao)
-                                                                   : kThicknessPerRadius * ao.radius_world;
-  m.reach_world = 2.0f * ao.radius_world;
-  m.depth_bias_relative = ao.depth_bias_relative;
+  const float radius = settings.ao ? settings.ao->radius_world : settings.ssdo ? settings.ssdo->radius_world : 1.0f;
+  const float thickness = settings.ao     ? effective_thickness_world(*settings.ao)
+                          : settings.ssdo ? settings.ssdo->thickness_world
+                                          : kThicknessPerRadius * radius;
+  m.thickness_world = std::isfinite(thickness) ? thickness : kThicknessPerRadius * radius;
+  m.reach_world = 2.0f * radius;
+  if (settings.ao) m.depth_bias_relative = settings.ao->depth_bias_relative;
   return m;
 }
 
@@ -658,17 +667,20 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
   cv::Mat position_view = in.position_view;
   if (position_view.empty() && ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo)))
     view_positions_from_depth(in.depth_view, in.mask, in.camera, position_view, {}, nthreads);
+  // The second depth layer at full resolution, for the kernels that run there.
+  cv::Mat back;
+  if ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo))
+    back = grid_back_layer(in.depth_view, in.mask, in.camera,
+                           in.depth_back_view != nullptr ? *in.depth_back_view : cv::Mat(), in, settings, out.views,
+                           nthreads);
   if (settings.ao && !half.ao) {
-    const cv::Mat file_back = in.depth_back_view != nullptr ? *in.depth_back_view : cv::Mat();
-    const cv::Mat back = ao_back_layer(in.depth_view, in.mask, in.camera, file_back, in, *settings.ao, out.views,
-                                       nthreads);
     const AoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, in.albedo,
                            back.empty() ? nullptr : &back};
     compute_ao(full_in, *settings.ao, out.ao, roi, nthreads);
   }
   if (settings.ssdo && !half.ssdo) {
     const SsdoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, *in.environment,
-                             in.albedo, in.lighting};
+                             in.albedo, in.lighting, back.empty() ? nullptr : &back};
     compute_ssdo(full_in, *settings.ssdo, out.ssdo, roi, nthreads);
   }
   if (settings.confidence && !half.confidence)

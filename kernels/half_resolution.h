@@ -107,11 +107,12 @@ struct TermInputs {
   const Environment* environment = nullptr;      // SSDO's light; required with SSDO
   const cv::Mat* albedo = nullptr;               // CV_32FC3 or null
   const cv::Mat* lighting = nullptr;             // CV_32FC3 or null (SSDO's senders)
-  // CV_32FC1 second depth layer or null (GBuffer::depth_back_view): AO's occluder thickness,
-  // sampled at the texels when AO runs on the half grid.
+  // CV_32FC1 second depth layer or null (GBuffer::depth_back_view): the occluder thickness of
+  // AO and SSDO, sampled at the texels on the half grid.
   const cv::Mat* depth_back_view = nullptr;
-  // Other views of the scene (GBuffer::views): AO's occluders get the occupied interval all
-  // views agree on (occupancy_from_views, kernels/multiview.h) on the grid AO runs on.
+  // Other views of the scene (GBuffer::views): the occluders of AO and SSDO get the occupied
+  // interval all views agree on (occupancy_from_views, kernels/multiview.h), computed once
+  // on each grid a kernel runs on, in place of depth_back_view.
   std::span<const DepthView> views = {};
 };
 
@@ -122,16 +123,16 @@ struct TermSettings {
   const ConfidenceSettings* confidence = nullptr;
 };
 
+// The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
+// bias (else SSDO's), decided as far as twice the radius behind each surface.
+MultiViewSettings multiview_settings(const TermSettings& settings);
+
 struct TermOutputs {
   AoOutput ao;
   SsdoOutput ssdo;
   cv::Mat confidence;  // CV_32FC1 (compute_confidence)
-  std::vector<ViewUse> views;  // what each of TermInputs::views contributed (AO only)
+  std::vector<ViewUse> views;  // what each of TermInputs::views contributed
 };
-
-// The multi-view occupancy settings that go with AO settings: AO's thickness and depth
-// bias, decided as far as twice the radius behind each surface.
-MultiViewSettings multiview_settings(const AoSettings& ao);
 
 // Computes the selected terms for the pixels of roi (empty = all), each on the full grid or
 // on the frame's one half grid (runs_on_half_grid of its settings): the half grid is built

@@ -154,6 +154,7 @@ struct TapPyramid {
   int64_t rows_2h = 0;  // 2 H'
   UninitializedVector<TapTexel> taps;
   UninitializedVector<SenderTexel> senders;  // row-major, width per row, every pixel
+  std::vector<float> thickness;  // per texel of `taps` (Constants::pyramid_thickness), or empty
 
   size_t level_row(int l, int y) const { return size_t(rows_2h - (rows_2h >> l) + y) * size_t(width); }
 };
@@ -161,6 +162,9 @@ struct TapPyramid {
 // Per-frame constants: the views, the camera folded into matrices, the settings.
 struct Constants {
   const TapTexel* pyramid;     // TapPyramid::taps
+  // Per texel of the pyramid, the thickness of its source pixel's occluder from the second
+  // depth layer (SsdoInputs::depth_back_view), or null: s.thickness_world everywhere.
+  const float* pyramid_thickness;
   int pyramid_rows_2h;         // TapPyramid::rows_2h
   int n_levels;
   const SenderTexel* senders;  // row-major, width_px per row
@@ -260,10 +264,17 @@ inline Projection project(const Constants& c, const glm::vec2& origin_px, float 
   return q;
 }
 
+// The occluder thickness behind pyramid texel `texel`: its source pixel's, from the second
+// depth layer, or the settings' thickness_world.
+inline float tap_thickness(const Constants& c, int texel) {
+  return c.pyramid_thickness ? c.pyramid_thickness[texel] : c.s.thickness_world;
+}
+
 // Occlusion test of view-space point S at planar depth depth_s projected to q (see
 // ssdo.h), with t = the texel q reads. Without branches (every case is computed and
 // selected), so that a loop over many points has no branch to mispredict.
-inline Tap classify_at(const Constants& c, float depth_s, float px, float py, bool on_screen, const TapTexel& t) {
+inline Tap classify_at(const Constants& c, float depth_s, float px, float py, bool on_screen, const TapTexel& t,
+                       float thickness_world) {
   // The texel's tangent plane is its source pixel's.
   const int sx = int(t.source & 0xFFFFu), sy = int(t.source >> 16);
   const float depth_q = t.depth_view;
@@ -275,7 +286,7 @@ inline Tap classify_at(const Constants& c, float depth_s, float px, float py, bo
   const float depth_surface = inv > 0.0f ? std::clamp(1.0f / inv, depth_q - limit, depth_q + limit) : depth_q;
   const float behind = depth_s - depth_surface;
   const bool beyond_bias = behind > c.s.depth_bias_relative * depth_s;
-  const bool within_thickness = behind < c.s.thickness_world;
+  const bool within_thickness = behind < thickness_world;
   const Tap in_view = !beyond_bias ? Tap::visible : within_thickness ? Tap::occluded : Tap::behind;
   return !on_screen ? Tap::off_screen : background ? Tap::visible : in_view;
 }
@@ -287,7 +298,7 @@ inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_
   const Projection q = project(c, origin_px, clip_x, clip_y, clip_w, full_resolution);
   qx = q.qx;
   qy = q.qy;
-  return classify_at(c, depth_s, q.px, q.py, q.on_screen, c.pyramid[q.texel]);
+  return classify_at(c, depth_s, q.px, q.py, q.on_screen, c.pyramid[q.texel], tap_thickness(c, q.texel));
 }
 
 // Outgoing radiance of sender pixel q (see ssdo.h).
@@ -472,7 +483,8 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
   }
   for (int k = 0; k < points; ++k) b.texels[k] = c.pyramid[b.texel_at[k]];
   for (int k = 0; k < points; ++k)
-    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, b.texels[k]);
+    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, b.texels[k],
+                              tap_thickness(c, b.texel_at[k]));
 }
 
 // Bisection between lambda lo (in front of the depth buffer) and hi (behind it), on
@@ -760,12 +772,28 @@ void write_coarse_levels(TapPyramid& p) {
     }
 }
 
+// Each texel's occluder thickness from the second depth layer: back - front of its source
+// pixel, as a planar depth difference (classify_at compares planar depths); 0 where the
+// back layer is not behind the front one (only the bias' allowance then).
+void write_thickness(const SsdoInputs& in, TapPyramid& p) {
+  p.thickness.assign(p.taps.size(), 0.0f);
+  for (int l = 0; l < p.n_levels; ++l)
+    for (int y = 0; y < p.level_height[l]; ++y)
+      for (int x = 0; x < p.level_width[l]; ++x) {
+        const size_t i = p.level_row(l, y) + size_t(x);
+        const int sx = int(p.taps[i].source & 0xFFFFu), sy = int(p.taps[i].source >> 16);
+        const float front = in.depth_view.ptr<float>(sy)[sx], back = in.depth_back_view->ptr<float>(sy)[sx];
+        p.thickness[i] = back > front ? back - front : 0.0f;
+      }
+}
+
 // The tap pyramid of a frame (McGuire et al. 2012): level 0 from the G-buffer, then the
-// coarser levels.
+// coarser levels, and the texels' thickness when there is a second depth layer.
 TapPyramid build_tap_pyramid(const SsdoInputs& in, const SsdoSettings& settings, int nthreads) {
   TapPyramid p = allocate_tap_pyramid(in.depth_view.size(), settings);
   write_full_resolution(in, p, nthreads);
   write_coarse_levels(p);
+  if (in.depth_back_view != nullptr && !in.depth_back_view->empty()) write_thickness(in, p);
   return p;
 }
 
@@ -789,6 +817,7 @@ Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, co
                           const SampleAzimuths& azimuths) {
   Constants c{};
   c.pyramid = p.taps.data();
+  c.pyramid_thickness = p.thickness.empty() ? nullptr : p.thickness.data();
   c.pyramid_rows_2h = int(p.rows_2h);
   c.n_levels = p.n_levels;
   c.senders = p.senders.data();
@@ -903,6 +932,8 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
   CV_Assert(!in.albedo || (in.albedo->type() == CV_32FC3 && in.albedo->size() == size));
   CV_Assert(!in.lighting || (in.lighting->type() == CV_32FC3 && in.lighting->size() == size));
+  CV_Assert(!in.depth_back_view || in.depth_back_view->empty() ||
+            (in.depth_back_view->type() == CV_32FC1 && in.depth_back_view->size() == size));
   CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
   CV_Assert(validate(settings).empty());
   if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);

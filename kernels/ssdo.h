@@ -167,6 +167,10 @@ struct SsdoInputs {
   const Environment& environment;
   const cv::Mat* albedo = nullptr;    // CV_32FC3 or null (= white): sender albedo
   const cv::Mat* lighting = nullptr;  // CV_32FC3 or null: sender outgoing radiance
+  // CV_32FC1 second depth layer (GBuffer::depth_back_view) or null: each tap's occluder is
+  // back - front of the pixel it reads instead of thickness_world (depth peeling, Ritschel
+  // et al. 2009, sec. 3.3).
+  const cv::Mat* depth_back_view = nullptr;
 };
 
 struct SsdoOutput {
