@@ -113,7 +113,8 @@ std::string part_label(const Prepared& prep, int part) {
 
 // Which resolved inputs the options ask to read.
 bool wanted(const ResolvedInput& r, const ReadOptions& o, bool lighting_from_passes) {
-  if (r.input == "depth" || r.input == "normal") return true;
+  if (r.input == "depth") return true;
+  if (r.input == "normal") return o.read_normals;
   if (r.input == "position") return o.read_positions;
   if (r.input == "albedo") return o.read_albedo || (o.read_lighting && lighting_from_passes);
   if (r.input == "lighting") return o.read_lighting;
@@ -1134,6 +1135,15 @@ void shading_inputs(const ReadOptions& options, Images& img, GBuffer& g) {
 }
 
 }  // namespace
+
+ReadOptions depth_only(ReadOptions options) {
+  options.read_normals = false;
+  options.read_positions = false;
+  options.read_albedo = false;
+  options.read_lighting = false;
+  options.read_references = false;
+  return options;
+}
 
 ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options) {
   ReadResult result;

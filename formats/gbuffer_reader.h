@@ -84,6 +84,7 @@ struct ReadOptions {
   std::optional<float> fov_x_deg;       // intrinsics when the file has no camera, degrees
   DepthKind depth_kind = DepthKind::automatic;  // automatic: sidecar/header says, else planar
   std::string part;                     // multi-part file: the part that holds depth (and the rest)
+  bool read_normals = true;             // false: normal_view stays empty (a depth-only read)
   bool read_positions = false;          // positions pass, when present (else reported missing)
   bool read_albedo = true;
   bool read_lighting = true;
@@ -145,6 +146,10 @@ struct ReadResult {
 
 // Reads a frame. Never throws; every failure is an error message.
 ReadResult read_gbuffer(const std::string& path, const ReadOptions& options = {});
+
+// `options` reading depth (and the mask and camera) only: what a frame costs as another
+// frame's extra view (GBuffer::views). Nothing else is converted or held.
+ReadOptions depth_only(ReadOptions options);
 
 // Reads only the header: profile, channels, camera source (info.* filled, gbuffer empty).
 ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options = {});

@@ -77,6 +77,7 @@ void BatchProgress::finished(const std::string& input, const std::string& output
                   r.times.read_ms, r.times.compute_ms, r.times.write_ms, r.handled_ms,
                   std::max(0.0, r.wall_ms - r.handled_ms), r.peak_rss_mib);
     line += stages;
+    for (const std::string& note : r.notes) line += "\n  note: " + note;
   }
   if (!bar_) {
     std::cout << line << "\n" << std::flush;

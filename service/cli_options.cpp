@@ -322,6 +322,8 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
                              bool build_environment) {
   if (!resolve_settings(a, request, error)) return false;
   request.threads = a.threads;
+  request.radius_given_world = a.radius_world;
+  request.views_per_side = a.views;
   if (!parse_terms(a.terms, request.terms, error)) {
     error = "--terms: " + error;
     return false;

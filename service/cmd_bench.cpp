@@ -162,7 +162,7 @@ int run_bench(const BenchArgs& args) {
     }
     cv::Mat ref = it->second;
     if (ref.channels() == 3) cv::transform(ref, ref, cv::Matx<float, 1, 3>(1.0f / 3, 1.0f / 3, 1.0f / 3));
-    frames.push_back({file, std::move(r.gbuffer), ref, r.info.ao_distance_world.value_or(args.request.ao.radius_world)});
+    frames.push_back({file, std::move(r.gbuffer), ref, resolve_radius_world(args.request.radius_given_world, r.info)});
   }
   if (frames.empty()) {
     std::cerr << "ssdo bench: no frame with a reference to measure\n";

@@ -92,11 +92,14 @@ int run_eval(const EvalArgs& args) {
       ++failed;
       continue;
     }
+    // The radius as process computes it: the frame's AO distance (the AO reference's
+    // radius) unless --radius is given.
     FrameRequest request = args.request;
-    // The frame's AO distance is the AO reference's radius; light passes (DiffDir,
-    // DiffInd) see occluders at any distance, so the SSDO radius stays as requested.
-    if (args.radius_from_frame && frame.info.ao_distance_world)
-      request.ao.radius_world = *frame.info.ao_distance_world;
+    if (std::string error; !resolve_frame_radius(request, frame.info, error)) {
+      std::cerr << "ssdo eval: " << error << "\n";
+      ++failed;
+      continue;
+    }
 
     const auto t0 = std::chrono::steady_clock::now();
     const ComputedFrame computed = compute_frame(frame.gbuffer, request);
@@ -197,7 +200,6 @@ Command register_eval(CLI::App& app) {
                 !resolve_compute_options(compute, eval.request, error))
               return usage_error(error);
             eval.request.terms = {eval.term == "ao", eval.term != "ao", false};
-            eval.radius_from_frame = compute.radius_world <= 0;
             eval.preset = compute.preset;
             return run_eval(eval);
           }};

@@ -8,7 +8,9 @@
 #include <atomic>
 #include <cerrno>
 #include <filesystem>
+#include <algorithm>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <thread>
 
@@ -21,14 +23,18 @@
 #include "service/frame_range.h"
 #include "service/parallelism.h"
 #include "service/request_options.h"
+#include "service/sequence.h"
+#include "service/view_selection.h"
 
 namespace ssdo {
 
 namespace {
 
 // Inputs -> the ordered frame list of this batch (patterns expanded with --frames),
-// then this chunk's slice of it.
-bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, std::string& error) {
+// then this chunk's slice of it. `all`: the whole list, whose frames outside the chunk are
+// still its frames' neighbours.
+bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, std::vector<std::string>& all,
+                    std::string& error) {
   std::vector<int> numbers;
   if (!args.frames.empty() && !parse_frame_ranges(args.frames, numbers, error)) {
     error = "--frames: " + error;
@@ -51,6 +57,7 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
     for (int n : numbers) frames.push_back(expand_frame_pattern(input, n));
   }
   if (!expand_inputs(plain, frames, error)) return false;
+  all = frames;
   if (!args.chunk.empty()) {
     int index = 0, count = 0;
     if (!parse_chunk(args.chunk, index, count, error)) return false;
@@ -59,12 +66,66 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
   return true;
 }
 
+// The frames of one worker thread: with extra views, the thread's consecutive slice of
+// `todo` in order (each worker reads a neighbour once for the frames around it); without,
+// the next frame not yet taken by any thread.
+class FrameTurns {
+ public:
+  FrameTurns(std::atomic<size_t>& next, size_t count, int thread, int threads, bool slices)
+      : next_(next), count_(count), slices_(slices) {
+    if (!slices) return;
+    // chunk_slice's bounds (service/frame_range.h) over the indices of todo.
+    next_own_ = count * size_t(thread) / size_t(threads);
+    end_own_ = count * size_t(thread + 1) / size_t(threads);
+  }
+  // The next frame's index into todo; `count` when there is none.
+  size_t take() {
+    if (!slices_) return std::min(next_.fetch_add(1), count_);
+    return next_own_ < end_own_ ? next_own_++ : count_;
+  }
+  // True when this thread computes todo[index] after the frame taken last.
+  bool later(size_t index) const { return slices_ && index >= next_own_ && index < end_own_; }
+
+ private:
+  std::atomic<size_t>& next_;
+  const size_t count_;
+  const bool slices_;
+  size_t next_own_ = 0, end_own_ = 0;
+};
+
+// The neighbours of each frame to compute (by path), from the whole frame list: a chunk's
+// frames see the frames just outside it.
+std::map<std::string, std::vector<NeighbourFrame>> neighbours_by_frame(const std::vector<std::string>& all,
+                                                                       int views_per_side) {
+  std::map<std::string, std::vector<NeighbourFrame>> by_frame;
+  if (views_per_side <= 0) return by_frame;
+  const auto lists = sequence_neighbours(all, kCandidateFramesPerView * views_per_side);
+  for (size_t i = 0; i < all.size(); ++i) by_frame[all[i]] = lists[i];
+  return by_frame;
+}
+
+// The job of todo[index]: its paths, options and neighbours (which of them this thread
+// computes later).
+WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const ProcessArgs& args,
+                  const nlohmann::json& options, const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
+                  const std::map<std::string, size_t>& todo_index, const FrameTurns& turns) {
+  WorkerJob job{todo[index], output_path_for(todo[index], args.output_dir), options, {}};
+  const auto it = neighbours.find(todo[index]);
+  if (it == neighbours.end()) return job;
+  job.neighbours = it->second;
+  for (NeighbourFrame& n : job.neighbours) {
+    const auto at = todo_index.find(n.path);
+    n.computed_later = at != todo_index.end() && turns.later(at->second);
+  }
+  return job;
+}
+
 }  // namespace
 
 int run_process(const ProcessArgs& args) {
-  std::vector<std::string> frames;
+  std::vector<std::string> frames, all;
   std::string error;
-  if (!collect_frames(args, frames, error)) {
+  if (!collect_frames(args, frames, all, error)) {
     std::cerr << "ssdo process: " << error << "\n";
     return 2;
   }
@@ -92,6 +153,10 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: " << todo.size() << " frames, " << plan.workers << " worker processes x "
               << plan.threads_per_frame << " threads\n";
   const nlohmann::json options = to_json(args.options);
+  const int views_per_side = args.options.compute.views;
+  const auto neighbours = neighbours_by_frame(all, views_per_side);
+  std::map<std::string, size_t> todo_index;
+  for (size_t i = 0; i < todo.size(); ++i) todo_index.emplace(todo[i], i);
 
   // SIGINT / SIGTERM are taken by this thread with sigtimedwait (blocked everywhere, so
   // no handler and no global flag); the worker threads check `stop` between frames. The
@@ -114,11 +179,12 @@ int run_process(const ProcessArgs& args) {
   const int n_threads = int(std::min<size_t>(size_t(plan.workers), todo.size()));
   for (int t = 0; t < n_threads; ++t) {
     ++running;
-    threads.emplace_back([&]() {
+    threads.emplace_back([&, t]() {
       {
         WorkerProcess worker(limits);
-        for (size_t i; !stop && (i = next.fetch_add(1)) < todo.size();) {
-          WorkerJob job{todo[i], output_path_for(todo[i], args.output_dir), options};
+        FrameTurns turns(next, todo.size(), t, n_threads, views_per_side > 0);
+        for (size_t i; !stop && (i = turns.take()) < todo.size();) {
+          const WorkerJob job = job_for(todo, i, args, options, neighbours, todo_index, turns);
           progress.finished(job.input_path, job.output_path, worker.run(job));
         }
         // Every output is in place: the batch need not wait for the worker to exit.

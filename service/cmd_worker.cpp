@@ -28,6 +28,7 @@
 #include "service/commands.h"
 #include "service/protocol.h"
 #include "service/request_options.h"
+#include "service/sequence_context.h"
 #include "service/worker_process.h"
 
 namespace ssdo {
@@ -129,6 +130,16 @@ void start_pool_threads(int threads, Deadline until) {
   }
 }
 
+// The request's "neighbours" ([{"path", "offset", "later"}], service/worker_process.h).
+std::vector<NeighbourFrame> neighbours_of(const nlohmann::json& j) {
+  std::vector<NeighbourFrame> out;
+  if (!j.contains("neighbours") || !j["neighbours"].is_array()) return out;
+  for (const nlohmann::json& n : j["neighbours"])
+    if (n.is_object() && n.value("path", nlohmann::json()).is_string() && n.value("offset", 0) != 0)
+      out.push_back({n["path"].get<std::string>(), n.value("offset", 0), n.value("later", false)});
+  return out;
+}
+
 std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
   const bool no_memory = error.find("bad_alloc") != std::string::npos ||
                          error.find("Insufficient memory") != std::string::npos ||
@@ -186,6 +197,7 @@ int run_worker(const WorkerArgs& args) {
   }
 
   std::map<std::string, FrameRequest> resolved;  // options JSON -> request template
+  SequenceContext sequence;  // the shot's frames read so far, for the extra views
   for (bool first = true;; first = false) {
     // After a frame, a worker idle for kIdleTrimSeconds returns its free memory, then waits.
     if (!first && !request_within(args.request_fd, kIdleTrimSeconds)) ::malloc_trim(0);
@@ -219,7 +231,8 @@ int run_worker(const WorkerArgs& args) {
         request.threads = args.threads;
         request.read.threads = args.threads;
         request.read.max_pixels = args.max_pixels;
-        const FrameResult r = process_frame(request);
+        request.neighbours = neighbours_of(j);
+        const FrameResult r = process_frame(request, &sequence);
         response["ok"] = r.ok();
         if (!r.ok()) response["error"] = describe_memory_error(r.error, args.memory_limit_mb);
         response["read_ms"] = r.times.read_ms;
@@ -228,6 +241,7 @@ int run_worker(const WorkerArgs& args) {
         response["terms"] = r.terms_written;
         response["width"] = r.info.width_px;
         response["height"] = r.info.height_px;
+        response["notes"] = r.info.notes;
       }
     }
     // Everything the worker spent on this request: the parent's wall time minus this is

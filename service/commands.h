@@ -77,7 +77,6 @@ struct EvalArgs {
   // the estimator's own error, apart from what the screen lacks. Empty = use the pass.
   std::string oracle_preset;
   FrameRequest request;             // method, preset, read options
-  bool radius_from_frame = true;    // AO radius from the frame's sidecar when known
   bool json = false;
   std::string heatmap_dir;
 };

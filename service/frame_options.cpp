@@ -81,6 +81,12 @@ std::vector<FrameOption> compute_options() {
       {.name = "max-error", .kind = OptionKind::number, .set = OptionSet::compute, .group = "Compute",
        .help = "Largest acceptable MAE for --quality auto", .lo = 0, .hi = 1,
        .field = +[](A& a) -> float& { return a.compute.max_error; }},
+      {.name = "views", .kind = OptionKind::integer, .set = OptionSet::compute, .group = "Compute",
+       .help = "A frame of a sequence (a pattern with --frames, or files whose names differ in a frame number) "
+               "uses up to K neighbouring frames on each side as extra views of what it hides: among the frames "
+               "within 3K, the ones whose camera moved enough to see something new; only their depth and camera "
+               "are read, once each. 0 = every frame alone",
+       .lo = 0, .hi = 8, .field = +[](A& a) -> int& { return a.compute.views; }},
   };
 }
 

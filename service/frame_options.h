@@ -16,6 +16,10 @@
 
 namespace ssdo {
 
+// --views when not given: neighbouring frames used on each side of a frame as extra views
+// (0 = every frame alone).
+inline constexpr int kDefaultViewsPerSide = 0;
+
 // Raw option values as typed; resolved into a request by resolve_* (cli_options.h).
 struct ReadOptionArgs {
   std::vector<std::string> maps;  // --map input=channel
@@ -44,6 +48,7 @@ struct ComputeOptionArgs {
   // --quality auto --max-error E: method and preset from the shipped calibration table
   std::string quality;            // "" (method/preset as given) or "auto"
   float max_error = 0.05f;        // MAE against ray-traced AO, for --quality auto
+  int views = kDefaultViewsPerSide;  // neighbouring frames per side as extra views
 };
 
 // Everything that decides one frame's output, as typed (strings and numbers).

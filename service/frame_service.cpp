@@ -10,6 +10,8 @@
 #include <iostream>
 
 #include "service/frame_list.h"
+#include "service/sequence.h"
+#include "service/view_selection.h"
 
 namespace ssdo {
 
@@ -199,7 +201,7 @@ void FrameService::dispatch_loop() {
 }
 
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
-  const WorkerResult r = worker.run({task.input, task.output, task.options});
+  const WorkerResult r = worker.run({task.input, task.output, task.options, task.neighbours});
   record(r);
   if (!task.error_path.empty()) {
     std::error_code ec;
@@ -227,7 +229,10 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   } else if (before.size == 0) {
     r.error = input + ": empty file (0 bytes)";
   } else {
-    r = worker.run({input, output, options_.watch_options});
+    // The frames of its sequence already in the folder are its neighbours.
+    const int views_per_side = options_.watch_options.value("views", 0);
+    r = worker.run({input, output, options_.watch_options,
+                    folder_neighbours(input, kCandidateFramesPerView * views_per_side)});
     const FileVersion after = version_of(input);
     if (after.exists && !(after == before)) {
       // Replaced or rewritten while computed: the result is of an old version.

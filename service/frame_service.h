@@ -43,6 +43,7 @@ struct FrameTask {
   std::string input, output;             // resolved paths
   std::string error_path;                // NAME.error.json to write on failure; empty = none
   nlohmann::json options = nlohmann::json::object();
+  std::vector<NeighbourFrame> neighbours;  // the request's "views" (resolved)
   std::function<void(const WorkerResult&)> done;  // called once, from a dispatcher thread
   Clock::time_point queued_at = Clock::now();
 };

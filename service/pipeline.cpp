@@ -252,20 +252,39 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   return frame;
 }
 
-FrameResult process_frame(const FrameRequest& request) {
+float resolve_radius_world(float radius_given_world, const FrameInfo& info) {
+  if (radius_given_world > 0) return radius_given_world;
+  if (info.ao_distance_world && *info.ao_distance_world > 0) return *info.ao_distance_world;
+  return kDefaultRadiusWorld;
+}
+
+bool resolve_frame_radius(FrameRequest& request, const FrameInfo& info, std::string& error) {
+  const float radius_world = resolve_radius_world(request.radius_given_world, info);
+  request.ao.radius_world = radius_world;
+  request.ssdo.radius_world = radius_world;
+  std::string e = validate(request.ao);
+  if (e.empty()) e = validate(request.ssdo);
+  if (!e.empty()) error = info.path + ": the radius " + std::to_string(radius_world) + " (" +
+                          (request.radius_given_world > 0 ? "--radius" : "the sidecar's ao_distance") + "): " + e;
+  return e.empty();
+}
+
+FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
   FrameResult result;
-  result.input_path = request.input_path;
-  result.output_path = request.output_path;
+  result.input_path = given.input_path;
+  result.output_path = given.output_path;
+  FrameRequest request = given;
   try {
     auto t0 = std::chrono::steady_clock::now();
     const ReadOptions read = reads_for(request);
-    ReadResult frame = read_frame(request.input_path, read);
+    ReadResult frame = source ? source->read(request, read) : read_frame(request.input_path, read);
     result.times.read_ms = ms_since(t0);
     result.info = frame.info;
     if (!frame.ok()) {
       result.error = frame.error;
       return result;
     }
+    if (!resolve_frame_radius(request, frame.info, result.error)) return result;
 
     // The G-buffer's images are not written: compute_frame releases each once it is read
     // no more, and their memory goes to the later terms and the writer's buffers (images a

@@ -15,6 +15,7 @@
 #include "kernels/multiview.h"
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
+#include "service/sequence.h"
 
 namespace ssdo {
 
@@ -57,7 +58,28 @@ struct FrameRequest {
   // Frames rendered with overscan: pixels cropped off each side of every term after
   // computing on the whole frame, before writing (crop_guard_band, service/guard_band.h).
   int guard_band_px = 0;
+  // --radius as given; 0 = not given: the frame's own AO distance, else 1
+  // (resolve_radius_world). ao.radius_world and ssdo.radius_world hold it when given.
+  float radius_given_world = 0;
+  // Extra views (GBuffer::views): up to views_per_side of `neighbours` on each side of the
+  // frame, chosen by parallax (service/view_selection.h) and read by the worker's sequence
+  // context (service/sequence_context.h). 0 = the frame alone.
+  int views_per_side = 0;
+  std::vector<NeighbourFrame> neighbours;
 };
+
+// The AO distance a frame gets when neither --radius nor the frame gives one.
+inline constexpr float kDefaultRadiusWorld = 1.0f;
+
+// The AO and SSDO radius of a frame, the same in every command (process, serve, eval,
+// bench): --radius when given (> 0), else the frame's own AO distance (its sidecar's
+// "ao_distance": the radius its renderer's AO pass used), else kDefaultRadiusWorld.
+float resolve_radius_world(float radius_given_world, const FrameInfo& info);
+
+// `request` with ao.radius_world and ssdo.radius_world resolved for the frame. False with
+// a message naming the frame when the frame's AO distance is unusable for the settings
+// (e.g. larger than max_radius_px allows).
+bool resolve_frame_radius(FrameRequest& request, const FrameInfo& info, std::string& error);
 
 struct StageTimes {
   double read_ms = 0, compute_ms = 0, write_ms = 0;
@@ -97,7 +119,16 @@ ComputedFrame io_only_frame(const GBuffer& gbuffer, const FrameRequest& request)
 // (OpenEXR still inflates whole chunks: every channel of a ZIP block is in one stream).
 ReadOptions reads_for(const FrameRequest& request);
 
+// Where process_frame gets its frame: read and completed (service/frame_inputs.h), with
+// its extra views attached (GBuffer::views). Without one: read_frame, no views.
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  // `read`: the request's read options narrowed to its terms (reads_for).
+  virtual ReadResult read(const FrameRequest& request, const ReadOptions& read) = 0;
+};
+
 // Reads, computes and writes one frame. Never throws: failures are in result.error.
-FrameResult process_frame(const FrameRequest& request);
+FrameResult process_frame(const FrameRequest& request, FrameSource* source = nullptr);
 
 }  // namespace ssdo

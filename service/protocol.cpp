@@ -165,7 +165,8 @@ bool parse_op(const nlohmann::json& j, SocketRequest& r, std::string& error) {
     return false;
   }
   r.op = op->get<std::string>();
-  static const char* kKeys[] = {"op", "id", "input", "inline_size", "name", "sidecar", "output", "reply", "options"};
+  static const char* kKeys[] = {"op",     "id",    "input",   "inline_size", "name",
+                                "sidecar", "output", "reply", "options",     "views"};
   for (auto it = j.begin(); it != j.end(); ++it) {
     if (std::find_if(std::begin(kKeys), std::end(kKeys), [&](const char* k) { return it.key() == k; }) ==
         std::end(kKeys)) {
@@ -262,6 +263,21 @@ bool parse_output(const nlohmann::json& j, SocketRequest& r, std::string& error)
   return true;
 }
 
+// "views": neighbour frames of the same shot, paths the service confines like "input".
+bool parse_views(const nlohmann::json& j, SocketRequest& r, std::string& error) {
+  if (!j.contains("views")) return true;
+  const nlohmann::json& v = j["views"];
+  const bool paths = v.is_array() && std::all_of(v.begin(), v.end(), [](const nlohmann::json& p) {
+    return p.is_string() && !p.get<std::string>().empty() && p.get<std::string>().find('\0') == std::string::npos;
+  });
+  if (!paths || v.size() > kMaxRequestViews) {
+    error = "\"views\" must be a list of at most " + std::to_string(kMaxRequestViews) + " non-empty path strings";
+    return false;
+  }
+  r.views = v.get<std::vector<std::string>>();
+  return true;
+}
+
 }  // namespace
 
 bool parse_socket_request(std::string_view header, const ProtocolLimits& limits, SocketRequest& r,
@@ -281,7 +297,7 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
     error = "unknown op \"" + r.op + "\" (ping, stats, process)";
     return false;
   }
-  return parse_input(j, limits, r, error) && parse_output(j, r, error);
+  return parse_input(j, limits, r, error) && parse_output(j, r, error) && parse_views(j, r, error);
 }
 
 std::string to_wire(const nlohmann::json& j) {

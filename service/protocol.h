@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -68,7 +69,11 @@ struct SocketRequest {
   std::string output;            // explicit output path (under --out); empty = OUT/NAME.ssdo.exr
   bool reply_inline = false;     // return the output EXR bytes instead of its path
   nlohmann::json options;        // frame options (the CLI flag names), an object
+  std::vector<std::string> views;  // neighbour frames of the same shot (extra views with "views" > 0)
 };
+
+// Most neighbour frames a request may name (twice the largest --views).
+constexpr size_t kMaxRequestViews = 16;
 
 // Deepest nesting of arrays and objects a request header may have (a sidecar needs 3).
 constexpr int kMaxRequestDepth = 64;

@@ -15,6 +15,7 @@
 #include "service/frame_list.h"
 #include "service/path_policy.h"
 #include "service/request_options.h"
+#include "service/sequence.h"
 #include "service/version.h"
 
 namespace ssdo {
@@ -316,6 +317,12 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     std::error_code ec;
     if (!fs::is_regular_file(input, ec)) return refuse("bad_request", request.input + ": not a regular file");
   }
+  std::vector<std::string> views;
+  for (const std::string& view : request.views) {
+    std::string resolved;
+    if (!resolve_allowed_input(view, options_.allow_roots, resolved, error)) return refuse("forbidden", error);
+    views.push_back(resolved);
+  }
   std::string output, error_path;
   if (request.reply_inline) {
     std::error_code ec;
@@ -344,6 +351,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   task.output = output;
   task.error_path = error_path;
   task.options = to_json(options);
+  task.neighbours = named_neighbours(input, views);
   task.done = [outcome](const WorkerResult& r) {
     std::lock_guard<std::mutex> lock(outcome->mutex);
     outcome->result = r;

@@ -164,8 +164,13 @@ void WorkerProcess::stop(bool kill_now) {
 WorkerResult WorkerProcess::run(const WorkerJob& job) {
   WorkerResult result;
   const auto t0 = Clock::now();
-  const std::string request =
-      to_wire(nlohmann::json{{"input", job.input_path}, {"output", job.output_path}, {"options", job.options}});
+  nlohmann::json message{{"input", job.input_path}, {"output", job.output_path}, {"options", job.options}};
+  if (!job.neighbours.empty()) {
+    nlohmann::json& list = message["neighbours"] = nlohmann::json::array();
+    for (const NeighbourFrame& n : job.neighbours)
+      list.push_back({{"path", n.path}, {"offset", n.frame_offset}, {"later", n.computed_later}});
+  }
+  const std::string request = to_wire(message);
   const Deadline deadline = deadline_in(limits_.frame_timeout_s);
   // A worker may have died while idle; then the request cannot be written: start a new
   // one and send again (once).
@@ -229,6 +234,12 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   if (j.contains("terms") && j["terms"].is_array())
     for (const auto& t : j["terms"])
       if (t.is_string()) result.terms.push_back(t.get<std::string>());
+  if (j.contains("notes") && j["notes"].is_array())
+    for (const auto& t : j["notes"])
+      if (t.is_string()) result.notes.push_back(t.get<std::string>());
+  for (std::string& note : result.notes)
+    for (char& c : note)
+      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   if (j.value("exiting", false)) {  // the worker's last words (an uncaught exception)
     reap_reason();
     result.worker_replaced = true;

@@ -37,6 +37,8 @@ struct WorkerJob {
   std::string input_path;
   std::string output_path;
   nlohmann::json options = nlohmann::json::object();  // service/request_options.h keys
+  // Frames of the same shot it may use as extra views (with the "views" option).
+  std::vector<NeighbourFrame> neighbours;
 };
 
 struct WorkerResult {
@@ -47,6 +49,7 @@ struct WorkerResult {
   double peak_rss_mib = 0;            // the worker's peak resident memory so far
   std::vector<std::string> terms;     // terms written
   int width_px = 0, height_px = 0;
+  std::vector<std::string> notes;     // the reader's and the sequence context's notes
   bool worker_replaced = false;       // the worker died or was killed during this frame
   bool worker_started = false;        // a worker was started for this frame (wall_ms includes it)
   bool ok() const { return error.empty(); }

@@ -195,6 +195,25 @@ TEST(SharedFrames, LightingIsAlbedoTimesDirectAndReferencesAreRead) {
   EXPECT_TRUE(lighting_listed);
 }
 
+TEST(SharedFrames, DepthOnlyReadsDepthMaskAndCameraAndNothingElse) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.exr");
+  const std::string exr = (gbuffer_dir() / "cornell.exr").string();
+  const ReadResult whole = read_gbuffer(exr);
+  const ReadResult depth = read_gbuffer(exr, depth_only(ReadOptions{}));
+  ASSERT_TRUE(whole.ok() && depth.ok()) << whole.error << depth.error;
+  const GBuffer& g = depth.gbuffer;
+  EXPECT_TRUE(g.normal_view.empty() && g.albedo.empty() && g.lighting.empty() && g.position_view.empty());
+  EXPECT_TRUE(g.references.empty());
+  EXPECT_EQ(cv::norm(g.mask, whole.gbuffer.mask, cv::NORM_INF), 0.0);
+  cv::Mat fg_depth, fg_whole;
+  g.depth_view.copyTo(fg_depth, g.mask);
+  whole.gbuffer.depth_view.copyTo(fg_whole, g.mask);
+  EXPECT_EQ(cv::norm(fg_depth, fg_whole, cv::NORM_INF), 0.0);
+  EXPECT_EQ(g.camera.world_to_view, whole.gbuffer.camera.world_to_view);
+  ASSERT_EQ(depth.info.uses.size(), 1u);
+  EXPECT_EQ(depth.info.uses[0].input, "depth");
+}
+
 TEST(SharedFrames, InspectReadsTheHeaderOnly) {
   SSDO_SKIP_WITHOUT(gbuffer_dir() / "greeble.exr");
   const ReadResult r = inspect_gbuffer((gbuffer_dir() / "greeble.exr").string());

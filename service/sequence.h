@@ -1,0 +1,45 @@
+// A shot's frames as a sequence: which files are frames of one shot, their order, and the
+// neighbours each frame may use as extra views (service/view_selection.h chooses among
+// them, service/sequence_context.h reads them).
+//
+// Files of one folder whose names differ only in the last run of digits before the
+// extension are frames of one sequence, ordered by that number: shot.0001.exr,
+// shot.0002.exr; orbit_f0.exr, orbit_f1.exr; a pattern's expansion (shot.####.exr with
+// --frames) is the same. A name without digits is a frame alone.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ssdo {
+
+// A frame another frame may use as an extra view.
+struct NeighbourFrame {
+  std::string path;
+  int frame_offset = 0;         // its frame number minus the frame's (never 0)
+  bool computed_later = false;  // the same worker computes it later: read it whole, once
+};
+
+struct SequencePlace {
+  std::string sequence;  // folder / name with the frame number taken out
+  long number = 0;       // the frame number
+};
+
+// The place of `path` in its sequence; nullopt for a name without a frame number.
+std::optional<SequencePlace> sequence_place(const std::string& path);
+
+// For each of `frames`, the other frames of its sequence among `frames` within
+// `window` places before and after it (in frame-number order), nearest first per side.
+// Frames that are not part of a sequence get none; window 0 gives none.
+std::vector<std::vector<NeighbourFrame>> sequence_neighbours(const std::vector<std::string>& frames, int window);
+
+// The frames of `path`'s sequence in its folder (frame files, service/frame_list.h) within
+// `window` places of it: the neighbours of a frame that arrives in a watched folder.
+std::vector<NeighbourFrame> folder_neighbours(const std::string& path, int window);
+
+// The neighbours of a frame named explicitly (a socket request's "views"): offsets from
+// the frame numbers when they share the frame's sequence, else 1, 2, ... in the given order.
+std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std::vector<std::string>& views);
+
+}  // namespace ssdo

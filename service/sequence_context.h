@@ -1,0 +1,62 @@
+// A worker's sequence context: the frames of a shot it has read, so that each file is read
+// once per batch while its frames use their neighbours as extra views (GBuffer::views).
+//
+// For a frame with views_per_side > 0 and neighbours, read():
+// 1. reads the frame whole (or takes it whole from the cache when an earlier frame read it
+//    as a view), and keeps its depth and camera as a view for the frames after it;
+// 2. learns the candidates' cameras from their headers (inspect_gbuffer: the header and
+//    the sidecar, no pixels) and chooses the views by parallax at the frame's median
+//    depth (service/view_selection.h);
+// 3. reads each chosen view not in the cache: whole when the same worker computes it
+//    later (NeighbourFrame::computed_later: it is then read once for both uses), else its
+//    depth only (ReadOptions depth_only);
+// 4. drops what no frame of the current window needs (a sliding window: frames are
+//    computed in order within a worker).
+// Memory: at most one depth map and camera per frame of the window (2 x 3K + 1) and the
+// whole frames of the views ahead (at most K). A neighbour that cannot be used (unreadable,
+// no camera, another size, beyond a cut) is a note in the frame's info, never an error.
+// With views_per_side 0 the frame is read exactly as read_frame does, and nothing is kept.
+#pragma once
+
+#include <map>
+#include <optional>
+#include <string>
+
+#include "service/pipeline.h"
+
+namespace ssdo {
+
+class SequenceContext : public FrameSource {
+ public:
+  ReadResult read(const FrameRequest& request, const ReadOptions& read) override;
+
+  // Files read since the worker started: frames read whole, views read depth-only, and
+  // headers inspected for a candidate's camera.
+  struct Reads {
+    long whole = 0, depth_only = 0, headers = 0, frames = 0;
+  };
+  const Reads& reads() const { return reads_; }
+
+ private:
+  struct Entry {
+    std::optional<ReadResult> whole;   // read whole for a frame computed later
+    std::optional<DepthView> view;     // its depth and camera
+    std::optional<Camera> camera;      // from its header
+    bool camera_has_world = false;
+    std::string error;                 // why it cannot be a view
+  };
+  Entry& candidate(const NeighbourFrame& n, const ReadOptions& read);
+  bool load_view(const NeighbourFrame& n, const ReadOptions& read, Entry& e);
+  void attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame);
+  void keep_window(const FrameRequest& request);
+
+  std::map<std::string, Entry> cache_;
+  std::string read_key_;  // the read options the whole frames were read with
+  Reads reads_;
+};
+
+// The foreground's median planar depth (every 4th pixel of every 4th row): the scene depth
+// parallax is measured at. 0 without foreground.
+float median_foreground_depth(const cv::Mat& depth_view, const cv::Mat& mask);
+
+}  // namespace ssdo

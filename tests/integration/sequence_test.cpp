@@ -1,0 +1,227 @@
+// A shot's frames as extra views of each other (--views): which neighbours each frame gets,
+// each file read once per batch, a farm chunk's neighbours outside it, inconsistent
+// neighbours skipped, resumption after kill -9; and the radius every command takes from
+// the frame's sidecar.
+#include <fstream>
+#include <regex>
+#include <set>
+
+#include <OpenImageIO/imageio.h>
+#include <nlohmann/json.hpp>
+
+#include "service_harness.h"
+
+namespace ssdo::test {
+namespace {
+
+fs::path orbit(int n, const char* ext) { return shared_dir() / "gbuffers" / ("orbit_f" + std::to_string(n) + ext); }
+
+// The orbit frames 0..count-1 (5 degrees per frame) as DIR/STEM<N>.exr + sidecars.
+void copy_orbit(const fs::path& dir, const std::string& stem, int count, int first_number = 0) {
+  fs::create_directories(dir);
+  for (int i = 0; i < count; ++i) {
+    const std::string name = numbered(stem.c_str(), first_number + i);
+    fs::copy_file(orbit(i, ".camera.json"), dir / (name + ".camera.json"));
+    fs::copy_file(orbit(i, ".exr"), dir / (name + ".exr"));
+  }
+}
+
+// The "views: ..." note of the frame line of `input` (the lines after it up to the next frame).
+std::string views_note(const std::string& log, const std::string& input) {
+  const size_t at = log.find(input + " -> ");
+  if (at == std::string::npos) return "";
+  const size_t note = log.find("note: views:", at);
+  const size_t next = log.find("\n[", at);
+  if (note == std::string::npos || (next != std::string::npos && note > next)) return "";
+  return log.substr(note, log.find('\n', note) - note);
+}
+
+// The frame numbers of the views a note names ("views: f1 f3 (...)" -> {1, 3}).
+std::vector<int> view_numbers(const std::string& note, const std::string& stem) {
+  std::vector<int> n;
+  const std::string names = note.substr(0, note.find(" ("));
+  const std::regex re(stem + "(\\d+)\\.exr");
+  for (std::sregex_iterator it(names.begin(), names.end(), re), end; it != end; ++it) n.push_back(std::stoi((*it)[1]));
+  return n;
+}
+
+// From the last "views:" note of a batch: files read in all and read whole.
+struct Reads {
+  int files = -1, whole = -1;
+};
+Reads last_reads(const std::string& log) {
+  const std::regex re("\\(read (\\d+) files for \\d+ frames: (\\d+) whole");
+  Reads r;
+  for (std::sregex_iterator it(log.begin(), log.end(), re), end; it != end; ++it)
+    r = {std::stoi((*it)[1]), std::stoi((*it)[2])};
+  return r;
+}
+
+std::vector<float> channel(const std::string& path, const std::string& name) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return {};
+  const auto& names = in->spec().channelnames;
+  const int c = int(std::find(names.begin(), names.end(), name) - names.begin());
+  if (c == int(names.size())) return {};
+  std::vector<float> pixels(size_t(in->spec().width) * size_t(in->spec().height));
+  in->read_image(0, 0, c, c + 1, OIIO::TypeDesc::FLOAT, pixels.data());
+  return pixels;
+}
+
+TEST(Sequence, EachFrameGetsViewsOnBothSidesAndEveryFileIsReadOnce) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 7);
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --views 1 --terms ao --preset low --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (int i = 0; i < 7; ++i) {
+    const std::string note = views_note(r.output, dir / ("in/" + numbered("orbit_f", i) + ".exr"));
+    ASSERT_FALSE(note.empty()) << i << "\n" << r.output;
+    const std::vector<int> views = view_numbers(note, "orbit_f");
+    // One view on each side where the frame has neighbours on that side, never itself.
+    const int before = int(std::count_if(views.begin(), views.end(), [&](int v) { return v < i; }));
+    const int after = int(std::count_if(views.begin(), views.end(), [&](int v) { return v > i; }));
+    EXPECT_EQ(before, i > 0 ? 1 : 0) << note;
+    EXPECT_EQ(after, i < 6 ? 1 : 0) << note;
+  }
+  // One worker computing the whole shot: every file read once, whole (the views ahead are
+  // read whole and kept for their own frame).
+  const Reads reads = last_reads(r.output);
+  EXPECT_EQ(reads.files, 7) << r.output;
+  EXPECT_EQ(reads.whole, 7) << r.output;
+}
+
+TEST(Sequence, ViewsZeroIsTheFrameAlone) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 3);
+  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "out0" + " --terms ao --preset low -v");
+  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  EXPECT_EQ(alone.output.find("views:"), std::string::npos) << alone.output;
+  const RunResult zero =
+      run_ssdo("process " + dir / "in" + " -o " + dir / "outz" + " --views 0 --terms ao --preset low");
+  ASSERT_EQ(zero.exit_code, 0) << zero.output;
+  for (int i = 0; i < 3; ++i) {
+    const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
+    EXPECT_EQ(read_text(dir.path / "out0" / name), read_text(dir.path / "outz" / name)) << name;
+  }
+}
+
+TEST(Sequence, AChunkReadsTheFramesJustOutsideItAsViewsOnly) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "shot.000", 7);  // shot.0000.exr .. shot.0006.exr
+  // Chunk 2 of 3 of frames 0-6: frames 2 and 3.
+  const RunResult r = run_ssdo("process '" + dir / "in/shot.####.exr" + "' --frames 0-6 --chunk 2/3 -o " +
+                               dir / "out" + " --views 1 --terms ao --preset low --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::vector<std::string> written;
+  for (const auto& e : fs::directory_iterator(dir.path / "out")) written.push_back(e.path().filename().string());
+  std::sort(written.begin(), written.end());
+  EXPECT_EQ(written, (std::vector<std::string>{"shot.0002.ssdo.exr", "shot.0003.ssdo.exr"}));
+  const std::vector<int> views2 = view_numbers(views_note(r.output, dir / "in/shot.0002.exr"), "shot\\.");
+  ASSERT_EQ(views2.size(), 2u) << r.output;
+  EXPECT_LT(views2[0], 2) << r.output;  // outside the chunk, read for its depth only
+  // Frames 2 and 3 read whole once each; the views outside the chunk depth-only, once each.
+  std::set<int> files = {2, 3};
+  for (const char* frame : {"in/shot.0002.exr", "in/shot.0003.exr"})
+    for (int v : view_numbers(views_note(r.output, dir / frame), "shot\\."))
+      files.insert(v);
+  const Reads reads = last_reads(r.output);
+  EXPECT_EQ(reads.files, int(files.size())) << r.output;
+  EXPECT_EQ(reads.whole, 2) << r.output;
+}
+
+TEST(Sequence, ANeighbourWithoutACameraIsSkippedWithANote) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 3);
+  fs::remove(dir.path / "in/orbit_f1.camera.json");  // f1: only --fov, no world
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --views 2 --fov 40 --terms ao --preset low --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("orbit_f1.exr: skipped as a view (no camera with a world transform)"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(view_numbers(views_note(r.output, dir / "in/orbit_f0.exr"), "orbit_f"), (std::vector<int>{2}))
+      << r.output;
+}
+
+TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  constexpr int kFrames = 7;
+  copy_orbit(dir.path / "in", "orbit_f", kFrames);
+  const fs::path out = dir.path / "out";
+  auto outputs = [&] {
+    int n = 0;
+    for (int i = 0; i < kFrames; ++i) n += path_exists(out / (numbered("orbit_f", i) + ".ssdo.exr"));
+    return n;
+  };
+  int finished_before = 0;
+  {
+    SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--views", "2", "--terms", "ao",
+                       "--method", "raymarch", "--preset", "medium"},
+                      dir.path / "batch1.log");
+    ASSERT_TRUE(wait_until([&] { return outputs() >= 1; }, 120)) << batch.log();
+    ASSERT_EQ(batch.signal_and_wait(SIGKILL, 10), 128 + SIGKILL);
+    EXPECT_TRUE(wait_until([&] { return workers_of(batch.pid()).empty(); }, 10));
+    finished_before = outputs();
+  }
+  ASSERT_LT(finished_before, kFrames) << "the batch finished before it was killed";
+  const RunResult r =
+      run_ssdo("process " + dir / "in" + " -o " + out.string() + " --jobs 2 --views 2 --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  char summary[64];
+  std::snprintf(summary, sizeof summary, "done %d, skipped %d, failed 0", kFrames - finished_before, finished_before);
+  EXPECT_NE(r.output.find(summary), std::string::npos) << r.output;
+  EXPECT_EQ(outputs(), kFrames);
+  EXPECT_TRUE(temp_files(out).empty());
+}
+
+// A frame whose sidecar says its AO pass used ao_distance `distance`, as DIR/STEM.exr.
+void frame_with_ao_distance(const fs::path& dir, const std::string& stem, double distance) {
+  fs::create_directories(dir);
+  nlohmann::json sidecar = nlohmann::json::parse(read_text(example_frame("cornell.camera.json")));
+  sidecar["ao_distance"] = distance;
+  std::ofstream(dir / (stem + ".camera.json")) << sidecar.dump(2);
+  fs::copy_file(example_frame("cornell.exr"), dir / (stem + ".exr"));
+}
+
+TEST(Radius, TheSidecarsAoDistanceIsTheDefaultAndTheFlagWins) {
+  ScratchDir dir;
+  frame_with_ao_distance(dir.path / "two", "f", 2.0);
+  frame_with_ao_distance(dir.path / "one", "f", 1.0);
+  auto run = [&](const std::string& in, const std::string& out, const std::string& flags) {
+    const RunResult r = run_ssdo("process " + dir / in + " -o " + dir / out + " --terms ao --preset low " + flags);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return channel(dir / (out + "/f.ssdo.exr"), "ao");
+  };
+  const std::vector<float> sidecar_two = run("two", "a", "");
+  const std::vector<float> flag_two = run("one", "b", "--radius 2");
+  const std::vector<float> sidecar_one = run("one", "c", "");
+  const std::vector<float> flag_one_over_two = run("two", "d", "--radius 1");
+  ASSERT_FALSE(sidecar_two.empty());
+  EXPECT_EQ(sidecar_two, flag_two);
+  EXPECT_NE(sidecar_two, sidecar_one);
+  EXPECT_EQ(flag_one_over_two, sidecar_one);
+
+  // serve (the watch folder) resolves it the same way.
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("radius");
+  SsdoProcess service({"serve", "--watch", dir / "in", "-o", dir / "served", "--socket", socket, "--terms", "ao",
+                       "--preset", "low"},
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  frame_with_ao_distance(dir.path / "in", "f", 2.0);
+  ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "served/f.ssdo.exr"); }, 60)) << service.log();
+  ASSERT_TRUE(service.wait_for_log("ok ", 10)) << service.log();
+  EXPECT_EQ(channel(dir / "served/f.ssdo.exr", "ao"), flag_two);
+
+  // eval reports the radius it used.
+  const RunResult eval = run_ssdo("eval " + dir / "two/f.exr" + " --reference AO --preset low --json");
+  EXPECT_NE(eval.output.find("\"radius\": 2.0"), std::string::npos) << eval.output;
+}
+
+}  // namespace
+}  // namespace ssdo::test
