@@ -13,6 +13,9 @@
 #include "service/commands.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
+#include "service/sequence.h"
+#include "service/sequence_context.h"
+#include "service/view_selection.h"
 
 namespace ssdo {
 
@@ -74,10 +77,20 @@ int run_eval(const EvalArgs& args) {
   const std::string method(to_string(args.request.ao.method));
   if (!args.heatmap_dir.empty()) std::filesystem::create_directories(args.heatmap_dir);
 
-  for (const std::string& file : args.files) {
+  // With --views, the files of one shot are each other's extra views, read once each as
+  // `process` reads them.
+  const int views = args.request.views_per_side;
+  const auto neighbours = sequence_neighbours(args.files, kCandidateFramesPerView * views);
+  SequenceContext sequence;
+  for (size_t index = 0; index < args.files.size(); ++index) {
+    const std::string& file = args.files[index];
     ReadOptions read = args.request.read;
     read.read_references = true;
-    ReadResult frame = read_frame(file, read);
+    FrameRequest sequence_request = args.request;
+    sequence_request.input_path = file;
+    sequence_request.neighbours = neighbours[index];
+    for (NeighbourFrame& n : sequence_request.neighbours) n.computed_later = n.frame_offset > 0;
+    ReadResult frame = sequence.read(sequence_request, read);
     if (!frame.ok()) {
       std::cerr << "ssdo eval: " << frame.error << "\n";
       ++failed;

@@ -1,6 +1,7 @@
 #include "service/pipeline.h"
 
 #include <chrono>
+#include <cstdio>
 #include <exception>
 #include <stdexcept>
 #include <sstream>
@@ -269,6 +270,25 @@ bool resolve_frame_radius(FrameRequest& request, const FrameInfo& info, std::str
   return e.empty();
 }
 
+namespace {
+
+// A note for each extra view the kernels did not use, with the reason (kernels/multiview.h).
+void note_view_uses(const std::vector<ViewUse>& uses, std::vector<std::string>& notes) {
+  for (const ViewUse& u : uses) {
+    if (u.used) continue;
+    char reason[160];
+    if (u.overlap <= 0.0f) std::snprintf(reason, sizeof reason, "it sees none of this frame's surfaces");
+    else
+      std::snprintf(reason, sizeof reason,
+                    "it sees free space in front of %.1f%% of this frame's surfaces it can see (a cut, a moving "
+                    "object or a wrong camera)",
+                    100.0 * u.contradiction);
+    notes.push_back("view " + u.name + " not used: " + reason);
+  }
+}
+
+}  // namespace
+
 FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
   FrameResult result;
   result.input_path = given.input_path;
@@ -294,6 +314,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     ComputedFrame computed = request.io_only ? io_only_frame(frame.gbuffer, request)
                                              : compute_frame(std::move(frame.gbuffer), request);
     result.times.compute_ms = ms_since(t0);
+    note_view_uses(computed.views, result.info.notes);
     if (std::string e = crop_guard_band(computed, camera, request.guard_band_px); !e.empty()) {
       result.error = request.input_path + ": " + e;
       return result;
