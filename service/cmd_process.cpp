@@ -118,7 +118,7 @@ int run_process(const ProcessArgs& args) {
       {
         WorkerProcess worker(limits);
         for (size_t i; !stop && (i = next.fetch_add(1)) < todo.size();) {
-          WorkerJob job{todo[i], output_path_for(todo[i], args.output_dir), options};
+          WorkerJob job{todo[i], output_path_for(todo[i], args.output_dir), options, {}};
           progress.finished(job.input_path, job.output_path, worker.run(job));
         }
         // Every output is in place: the batch need not wait for the worker to exit.
