@@ -1,9 +1,12 @@
 #include "formats/output_writer.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <bit>
+#include <cerrno>
 #include <cctype>
 #include <cmath>
 #include <cstring>
@@ -49,6 +52,70 @@ std::string temp_file_host() {
 
 namespace {
 
+// ".NAME.tmp-<host>-<pid>-<random>" beside the final file: same file system, so rename()
+// is atomic, and hidden, so watchers of the folder skip it. The host name lets a task on a
+// render farm that shares the output folder tell its own host's abandoned temp files
+// (dead pid) from another host's files in progress (service/frame_list.h).
+std::filesystem::path temp_path_for(const std::filesystem::path& final_path) {
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  std::ostringstream s;
+  s << "." << final_path.filename().string() << ".tmp-" << temp_file_host() << "-" << ::getpid()
+    << "-" << std::hex << rng();
+  return final_path.parent_path() / s.str();
+}
+
+}  // namespace
+
+TempFile::~TempFile() {
+  if (fd_ >= 0) ::close(fd_);
+  std::error_code ec;
+  if (!committed_ && !path_.empty()) std::filesystem::remove(path_, ec);
+}
+
+bool TempFile::create(const std::filesystem::path& final_path, std::string& error) {
+  // A random name taken by someone else (EEXIST) is drawn again.
+  for (int attempt = 0; attempt < 16; ++attempt) {
+    const std::filesystem::path candidate = temp_path_for(final_path);
+    fd_ = ::open(candidate.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0666);
+    if (fd_ >= 0) {
+      path_ = candidate;
+      return true;
+    }
+    if (errno != EEXIST) break;
+  }
+  const std::filesystem::path folder = final_path.has_parent_path() ? final_path.parent_path() : ".";
+  error = folder.string() + ": cannot create a temp file: " + std::strerror(errno);
+  return false;
+}
+
+std::string TempFile::commit(const std::filesystem::path& final_path) {
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+  struct stat st {};
+  if (::lstat(final_path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    return final_path.string() + ": is a folder; the output must be a file name";
+  std::error_code ec;
+  std::filesystem::rename(path_, final_path, ec);
+  if (ec) return final_path.string() + ": cannot rename the temp file into place: " + ec.message();
+  committed_ = true;
+  return {};
+}
+
+std::string write_file_atomically(const std::filesystem::path& path, const std::string& bytes) {
+  TempFile temp;
+  std::string error;
+  if (!temp.create(path, error)) return error;
+  for (size_t done = 0; done < bytes.size();) {
+    const ssize_t n = ::write(temp.fd(), bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return path.string() + ": cannot write: " + std::strerror(errno);
+    done += size_t(n);
+  }
+  return temp.commit(path);
+}
+
+namespace {
+
 namespace fs = std::filesystem;
 
 // Header attribute names of the clip distances (OpenEXR has no standard one); read back by
@@ -70,29 +137,6 @@ std::vector<std::string> channel_names(const OutputTerm& t) {
   if (t.image.channels() == 1) return {t.name};
   if (t.vector) return {t.name + ".X", t.name + ".Y", t.name + ".Z"};
   return {t.name + ".R", t.name + ".G", t.name + ".B"};
-}
-
-// ".NAME.tmp-<host>-<pid>-<random>" beside the final file: same file system, so rename()
-// is atomic, and hidden, so watchers of the folder skip it. The host name lets a task on a
-// render farm that shares the output folder tell its own host's abandoned temp files
-// (dead pid) from another host's files in progress (service/frame_list.h).
-fs::path temp_path_for(const fs::path& final_path) {
-  static thread_local std::mt19937_64 rng{std::random_device{}()};
-  std::ostringstream s;
-  s << "." << final_path.filename().string() << ".tmp-" << temp_file_host() << "-" << ::getpid()
-    << "-" << std::hex << rng();
-  return final_path.parent_path() / s.str();
-}
-
-// Moves a finished temp file into place; removes it on failure.
-std::string commit(const fs::path& temp, const fs::path& final_path) {
-  std::error_code ec;
-  fs::rename(temp, final_path, ec);
-  if (ec) {
-    fs::remove(temp, ec);
-    return final_path.string() + ": cannot rename the temp file into place: " + ec.message();
-  }
-  return {};
 }
 
 Imath::M44f to_imath(const glm::mat4& m) {
@@ -125,14 +169,12 @@ std::string write_png(const fs::path& final_path, const OutputTerm& t) {
     uint8_t* out = pixels.ptr<uint8_t>(y);
     for (int i = 0; i < w * nc; ++i) out[i] = t.vector ? vector8(row[i]) : srgb8(row[i]);
   }
-  const fs::path temp = temp_path_for(final_path);
-  const std::string error = oiio_module::write_png(temp.string(), pixels, t.vector ? "Linear" : "sRGB");
-  if (!error.empty()) {
-    std::error_code ec;
-    fs::remove(temp, ec);
-    return final_path.string() + ": cannot write PNG preview: " + error;
-  }
-  return commit(temp, final_path);
+  TempFile temp;
+  std::string error;
+  if (!temp.create(final_path, error)) return error;
+  error = oiio_module::write_png(temp.write_name(), pixels, t.vector ? "Linear" : "sRGB");
+  if (!error.empty()) return final_path.string() + ": cannot write PNG preview: " + error;
+  return temp.commit(final_path);
 }
 
 // OpenEXR's writer: every compression, and zip, zips and none with ChunkEncoder::openexr.
@@ -476,19 +518,20 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   const fs::path folder = final_path.has_parent_path() ? final_path.parent_path() : fs::path(".");
   if (!fs::is_directory(folder, ec)) return path + ": output folder does not exist";
 
-  const fs::path temp = temp_path_for(final_path);
+  if (fs::is_directory(final_path, ec)) return path + ": is a folder; the output must be a file name";
+  TempFile temp;
+  if (std::string error; !temp.create(final_path, error)) return error;
   try {
     const bool own = *compression == Imf::ZIP_COMPRESSION || *compression == Imf::ZIPS_COMPRESSION ||
                      *compression == Imf::NO_COMPRESSION;
     if (own && options.chunk_encoder == ChunkEncoder::own && std::endian::native == std::endian::little)
-      write_own_exr(temp, terms, camera, options, *compression, size);
+      write_own_exr(temp.write_name(), terms, camera, options, *compression, size);
     else
-      write_exr(temp, terms, camera, options, *compression, size);
+      write_exr(temp.write_name(), terms, camera, options, *compression, size);
   } catch (const std::exception& e) {
-    fs::remove(temp, ec);
     return path + ": cannot write EXR: " + e.what();
   }
-  if (std::string error = commit(temp, final_path); !error.empty()) return error;
+  if (std::string error = temp.commit(final_path); !error.empty()) return error;
 
   if (options.png_previews) {
     const fs::path stem = final_path.parent_path() / final_path.stem();

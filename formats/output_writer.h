@@ -2,6 +2,7 @@
 // and optional tonemapped sRGB PNG previews.
 #pragma once
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -57,6 +58,37 @@ struct WriteOptions {
 // This host's name as it appears in temp file names (".NAME.tmp-<host>-<pid>-<random>"):
 // letters, digits, '.' and '_' only.
 std::string temp_file_host();
+
+// A temp file ".NAME.tmp-<host>-<pid>-<random>" beside `final_path`, created with
+// O_CREAT | O_EXCL | O_NOFOLLOW (open(2)): always a new regular file of this process, never
+// an existing file or a symbolic link planted at the name. The descriptor stays open while
+// the file is written; a writer that opens by name uses write_name() ("/proc/self/fd/N",
+// proc(5): the same file, whatever happens to the folder's names meanwhile).
+class TempFile {
+ public:
+  TempFile() = default;
+  ~TempFile();  // closes; removes the file unless it was committed
+  TempFile(const TempFile&) = delete;
+  TempFile& operator=(const TempFile&) = delete;
+
+  // False with a message naming the folder.
+  bool create(const std::filesystem::path& final_path, std::string& error);
+  std::string write_name() const { return "/proc/self/fd/" + std::to_string(fd_); }
+  int fd() const { return fd_; }
+  const std::filesystem::path& path() const { return path_; }
+  // Renames the temp file onto `final_path` (rename(2): atomic in one folder); on failure
+  // removes it and returns a message naming `final_path`.
+  std::string commit(const std::filesystem::path& final_path);
+
+ private:
+  std::filesystem::path path_;
+  int fd_ = -1;
+  bool committed_ = false;
+};
+
+// Writes `bytes` to `path` through a TempFile and rename: complete or absent. Empty on
+// success, else a message naming `path`.
+std::string write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
 
 // Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<host>-<pid>-<rnd>"
 // in the same folder and renamed into place, so the file is complete or absent (on failure

@@ -15,6 +15,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "formats/output_writer.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/frame_list.h"
@@ -81,21 +82,6 @@ bool exchange(int fd, json request, const std::string& payload_file, json& respo
   return true;
 }
 
-// Writes `bytes` to `path` through a temp file and rename (complete or absent).
-bool write_file_atomically(const std::string& path, const std::string& bytes) {
-  const std::string temp = (fs::path(path).parent_path() / ("." + fs::path(path).filename().string() + ".tmp-" +
-                                                            std::to_string(::getpid()) + "-client"))
-                               .string();
-  {
-    std::ofstream out(temp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    if (!out) return false;
-  }
-  std::error_code ec;
-  fs::rename(temp, path, ec);
-  return !ec;
-}
-
 }  // namespace
 
 int run_client(const ClientArgs& args) {
@@ -150,9 +136,9 @@ int run_client(const ClientArgs& args) {
     }
     if (!bytes.empty()) {
       const std::string out = output_path_for(args.files[i], args.out_dir);
-      if (!write_file_atomically(out, bytes)) {
+      if (const std::string written = write_file_atomically(out, bytes); !written.empty()) {
         response["ok"] = false;
-        response["error"] = out + ": cannot write";
+        response["error"] = written;
       } else {
         response["output"] = out;
       }

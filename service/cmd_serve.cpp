@@ -73,6 +73,7 @@ int run_serve(const ServeArgs& args) {
   const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, true);
   FrameServiceOptions service_options;
   service_options.out_dir = out_dir;
+  service_options.watch_dir = watch_dir;
   service_options.watch_options = to_json(args.options);
   service_options.workers = plan.workers;
   service_options.limits = args.limits;
@@ -102,7 +103,7 @@ int run_serve(const ServeArgs& args) {
   if (!watch_dir.empty()) {
     watcher = std::make_unique<DirectoryWatcher>(
         watch_dir, args.poll_s, [&](const std::string& path) { frames.enqueue_watched(path); },
-        [](const std::string& line) { std::cout << line << "\n" << std::flush; });
+        [](const std::string& line) { std::cout << printable(line) << "\n" << std::flush; });
     if (!watcher->start(error)) {
       if (server) server->stop();
       frames.stop();

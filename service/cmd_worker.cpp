@@ -26,6 +26,7 @@
 #include "service/build_features.h"
 #include "service/parallelism.h"
 #include "service/commands.h"
+#include "service/job_files.h"
 #include "service/protocol.h"
 #include "service/request_options.h"
 #include "service/sequence_context.h"
@@ -152,6 +153,61 @@ std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
          std::to_string(limit_mb) + " MiB, see --memory-limit)";
 }
 
+// Resolves the request's options (cached per option set) and computes its frame, every
+// file opened confined by the worker (service/job_files.h).
+void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<std::string, FrameRequest>& resolved,
+                    SequenceContext& sequence, nlohmann::json& response) {
+  const Confinement confine = Confinement::from_json(j.value("confine", nlohmann::json::object()));
+  JobFiles files;
+  const nlohmann::json options_json = j.value("options", nlohmann::json::object());
+  // The cache key holds the roots too: a set resolved for one client's roots is not another's.
+  const std::string options_key = options_json.dump() + confine.to_json().dump();
+  auto it = resolved.find(options_key);
+  std::string error;
+  if (it == resolved.end()) {
+    FrameOptionArgs options;
+    FrameRequest request;
+    if (apply_json(options_json, options, error) && files.open_environment(confine, options.compute.env_path, error) &&
+        resolve_frame_options(options, request, error)) {
+      if (resolved.size() >= kMaxCachedOptionSets) resolved.clear();
+      it = resolved.emplace(options_key, std::move(request)).first;
+    }
+  }
+  if (it == resolved.end()) {
+    response["error"] = "options: " + files.named(error);
+    return;
+  }
+  FrameRequest request = it->second;
+  request.input_path = j["input"].get<std::string>();
+  request.output_path = j.value("output", std::string());
+  request.threads = args.threads;
+  request.read.threads = args.threads;
+  request.read.max_pixels = args.max_pixels;
+  request.neighbours = neighbours_of(j);
+  if (!files.open(confine, request, error)) {
+    response["error"] = error;
+    return;
+  }
+  // A confined request's neighbours are opened like its input, and read through a context of
+  // its own: descriptor names are this request's only.
+  std::vector<std::string> view_notes;
+  SequenceContext confined;
+  const bool is_confined = !confine.input_roots.empty();
+  if (is_confined) files.open_neighbours(confine, request.neighbours, view_notes);
+  FrameResult r = process_frame(request, is_confined ? &confined : &sequence);
+  r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
+  for (std::string& note : r.info.notes) note = files.named(note);
+  response["ok"] = r.ok();
+  if (!r.ok()) response["error"] = files.named(describe_memory_error(r.error, args.memory_limit_mb));
+  response["read_ms"] = r.times.read_ms;
+  response["compute_ms"] = r.times.compute_ms;
+  response["write_ms"] = r.times.write_ms;
+  response["terms"] = r.terms_written;
+  response["width"] = r.info.width_px;
+  response["height"] = r.info.height_px;
+  response["notes"] = r.info.notes;
+}
+
 }  // namespace
 
 int run_worker(const WorkerArgs& args) {
@@ -210,39 +266,7 @@ int run_worker(const WorkerArgs& args) {
     if (j.is_discarded() || !j.is_object() || !j.contains("input") || !j["input"].is_string()) {
       response["error"] = "malformed worker request";
     } else {
-      const std::string options_key = j.value("options", nlohmann::json::object()).dump();
-      auto it = resolved.find(options_key);
-      std::string error;
-      if (it == resolved.end()) {
-        FrameOptionArgs options;
-        FrameRequest request;
-        if (apply_json(j.value("options", nlohmann::json::object()), options, error) &&
-            resolve_frame_options(options, request, error)) {
-          if (resolved.size() >= kMaxCachedOptionSets) resolved.clear();
-          it = resolved.emplace(options_key, std::move(request)).first;
-        }
-      }
-      if (it == resolved.end()) {
-        response["error"] = "options: " + error;
-      } else {
-        FrameRequest request = it->second;
-        request.input_path = j["input"].get<std::string>();
-        request.output_path = j.value("output", std::string());
-        request.threads = args.threads;
-        request.read.threads = args.threads;
-        request.read.max_pixels = args.max_pixels;
-        request.neighbours = neighbours_of(j);
-        const FrameResult r = process_frame(request, &sequence);
-        response["ok"] = r.ok();
-        if (!r.ok()) response["error"] = describe_memory_error(r.error, args.memory_limit_mb);
-        response["read_ms"] = r.times.read_ms;
-        response["compute_ms"] = r.times.compute_ms;
-        response["write_ms"] = r.times.write_ms;
-        response["terms"] = r.terms_written;
-        response["width"] = r.info.width_px;
-        response["height"] = r.info.height_px;
-        response["notes"] = r.info.notes;
-      }
+      handle_request(j, args, resolved, sequence, response);
     }
     // Everything the worker spent on this request: the parent's wall time minus this is
     // the cost of isolation (pipes, scheduling).

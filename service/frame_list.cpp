@@ -83,10 +83,37 @@ bool output_up_to_date(const std::string& input, const std::string& output) {
   return !later(changed, out.st_mtim);
 }
 
+namespace {
+
+// The writer's pid of a temp file of this host: ".NAME.tmp-HOST-PID-RANDOM"
+// (formats/output_writer.h), or the older ".NAME.tmp-PID-err" and ".NAME.tmp-PID-client"
+// of this host's error files and client downloads. 0 when `name` is none of these.
+long temp_file_pid(const std::string& name, const std::string& host) {
+  const size_t at = name.rfind(".tmp-");
+  if (name.empty() || name[0] != '.' || at == std::string::npos) return 0;
+  const std::string rest = name.substr(at + 5);
+  const size_t last_dash = rest.rfind('-');
+  if (last_dash == std::string::npos || last_dash == 0) return 0;
+  std::string pid_text;
+  const std::string suffix = rest.substr(last_dash + 1);
+  if (suffix == "err" || suffix == "client") {
+    pid_text = rest.substr(0, last_dash);
+  } else {
+    const size_t pid_dash = rest.rfind('-', last_dash - 1);
+    if (pid_dash == std::string::npos || rest.substr(0, pid_dash) != host) return 0;
+    pid_text = rest.substr(pid_dash + 1, last_dash - pid_dash - 1);
+  }
+  if (pid_text.empty() || pid_text.find_first_not_of("0123456789") != std::string::npos || pid_text.size() > 9)
+    return 0;
+  return std::stol(pid_text);
+}
+
+}  // namespace
+
 int remove_stale_temp_files(const std::string& dir, double wait_s) {
-  // ".NAME.tmp-HOST-PID-RANDOM" (formats/output_writer.cpp). Only this host's files whose
-  // process is gone are abandoned: on a farm, another host's temp file in the shared
-  // folder belongs to a task still writing it.
+  // Only this host's files whose process is gone are abandoned: on a farm, another host's
+  // temp file in the shared folder belongs to a task still writing it. Subfolders too
+  // (explicit outputs may be written there); symbolic links to folders are not followed.
   const std::string host = temp_file_host();
   int removed = 0;
   struct Owned {
@@ -95,22 +122,10 @@ int remove_stale_temp_files(const std::string& dir, double wait_s) {
   };
   std::vector<Owned> owned;
   std::error_code ec;
-  for (const fs::directory_entry& e : fs::directory_iterator(dir, ec)) {
-    const std::string name = e.path().filename().string();
-    const size_t at = name.rfind(".tmp-");
-    if (name.empty() || name[0] != '.' || at == std::string::npos) continue;
-    const std::string rest = name.substr(at + 5);  // HOST-PID-RANDOM
-    const size_t random_dash = rest.rfind('-');
-    if (random_dash == std::string::npos || random_dash == 0) continue;
-    const size_t pid_dash = rest.rfind('-', random_dash - 1);
-    if (pid_dash == std::string::npos || rest.substr(0, pid_dash) != host) continue;
-    long pid = 0;
-    try {
-      pid = std::stol(rest.substr(pid_dash + 1, random_dash - pid_dash - 1));
-    } catch (const std::exception&) {
-      continue;
-    }
-    owned.push_back({e.path(), pid_t(pid)});
+  for (auto it = fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (const long pid = temp_file_pid(it->path().filename().string(), host); pid > 0)
+      owned.push_back({it->path(), pid_t(pid)});
   }
   // Each file whose writer is gone (or whose pid is not one) is removed; the others are
   // checked again until wait_s.

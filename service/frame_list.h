@@ -29,8 +29,9 @@ std::string error_path_for(const std::string& input, const std::string& output_d
 bool output_up_to_date(const std::string& input, const std::string& output);
 
 // Removes the temp files of this host's output writers that no longer run
-// (".NAME.tmp-HOST-PID-*" in `dir` with HOST this host and no process PID: left by a
-// kill -9); other hosts' files sharing the folder are left alone. A writer that still runs
+// (".NAME.tmp-HOST-PID-*", and the older ".NAME.tmp-PID-err" / "-client", in `dir` and its
+// subfolders, with HOST this host and no process PID: left by a kill -9); other hosts'
+// files sharing the folder are left alone. A writer that still runs
 // is waited for up to wait_s seconds: the worker of a batch or service killed just before
 // this one started takes a moment to die (it is killed with its parent, and freeing a
 // frame's memory takes ~0.1 s). Returns how many.

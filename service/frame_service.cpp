@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "formats/output_writer.h"
 #include "service/frame_list.h"
 #include "service/sequence.h"
 #include "service/view_selection.h"
@@ -64,18 +65,8 @@ std::string timing(const WorkerResult& r) {
 }  // namespace
 
 bool write_error_file(const std::string& path, const std::string& input, const std::string& error) {
-  const std::string temp = (fs::path(path).parent_path() / ("." + fs::path(path).filename().string() + ".tmp-" +
-                                                            std::to_string(::getpid()) + "-err"))
-                               .string();
-  {
-    std::ofstream out(temp, std::ios::trunc);
-    out << nlohmann::json{{"input", input}, {"error", error}, {"time", utc_now()}}.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
-    if (!out) return false;
-  }
-  std::error_code ec;
-  fs::rename(temp, path, ec);
-  if (ec) fs::remove(temp, ec);
-  return !ec;
+  const nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}};
+  return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n").empty();
 }
 
 FrameService::FrameService(FrameServiceOptions options) : options_(std::move(options)) {}
@@ -148,9 +139,16 @@ ServiceStats FrameService::stats() const {
   return s;
 }
 
+bool FrameService::claim_output(const std::string& output, const std::string& input, std::string& owner) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto [it, added] = output_owner_.emplace(output, input);
+  owner = it->second;
+  return added || it->second == input;
+}
+
 void FrameService::log(const std::string& line) {
   std::lock_guard<std::mutex> lock(log_mutex_);
-  std::cout << line << "\n" << std::flush;
+  std::cout << printable(line) << "\n" << std::flush;
 }
 
 void FrameService::record(const WorkerResult& r) {
@@ -201,7 +199,7 @@ void FrameService::dispatch_loop() {
 }
 
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
-  const WorkerResult r = worker.run({task.input, task.output, task.options, task.neighbours});
+  const WorkerResult r = worker.run({task.input, task.output, task.options, task.neighbours, task.confine});
   record(r);
   if (!task.error_path.empty()) {
     std::error_code ec;
@@ -223,16 +221,21 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   }
   const FileVersion before = version_of(input);
   WorkerResult r;
-  if (!before.exists) {
+  if (std::string owner; !claim_output(output, input, owner)) {
+    r.error = input + ": its output " + output + " is already written for " + owner;
+  } else if (!before.exists) {
     // Gone between its event and now: deleted, or renamed away.
     r.error = input + ": the file was deleted or renamed while queued";
   } else if (before.size == 0) {
     r.error = input + ": empty file (0 bytes)";
   } else {
-    // The frames of its sequence already in the folder are its neighbours.
+    // The frames of its sequence already in the folder are its neighbours; the watch
+    // folder's own rules: the input, its sidecar and the neighbours inside it (a symbolic
+    // link pointing out of it is refused); the service's options are the administrator's.
     const int views_per_side = options_.watch_options.value("views", 0);
     r = worker.run({input, output, options_.watch_options,
-                    folder_neighbours(input, kCandidateFramesPerView * views_per_side)});
+                    folder_neighbours(input, kCandidateFramesPerView * views_per_side),
+                    {{options_.watch_dir}, {}, options_.out_dir}});
     const FileVersion after = version_of(input);
     if (after.exists && !(after == before)) {
       // Replaced or rewritten while computed: the result is of an old version.

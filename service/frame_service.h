@@ -32,6 +32,7 @@ namespace ssdo {
 
 struct FrameServiceOptions {
   std::string out_dir;                   // canonical output folder
+  std::string watch_dir;                 // canonical watch folder: watched inputs and sidecars stay in it
   nlohmann::json watch_options = nlohmann::json::object();  // options of watched frames
   int workers = 1;                       // worker processes (dispatcher threads)
   WorkerLimits limits;
@@ -44,6 +45,7 @@ struct FrameTask {
   std::string error_path;                // NAME.error.json to write on failure; empty = none
   nlohmann::json options = nlohmann::json::object();
   std::vector<NeighbourFrame> neighbours;  // the request's "views" (resolved)
+  Confinement confine;                   // where the worker may open the task's files
   std::function<void(const WorkerResult&)> done;  // called once, from a dispatcher thread
   Clock::time_point queued_at = Clock::now();
 };
@@ -71,6 +73,10 @@ class FrameService {
   // flight finish; dispatchers and workers end. Idempotent.
   void stop();
   ServiceStats stats() const;
+  // Records that `output` is written for `input`. False, with `owner` = the other input,
+  // when another input already claimed it in this run: two inputs of one name in different
+  // folders (a/x.exr, b/x.exr -> OUT/x.ssdo.exr) must not replace each other's result.
+  bool claim_output(const std::string& output, const std::string& input, std::string& owner);
 
  private:
   void dispatch_loop();
@@ -88,6 +94,7 @@ class FrameService {
   std::map<std::string, bool> watched_;  // pending watched input -> forced (changed while computed)
   std::set<std::string> watched_in_flight_;
   std::set<std::string> watched_again_;  // reported again while in flight
+  std::map<std::string, std::string> output_owner_;  // output -> the input it is written for
   bool stopping_ = false, started_ = false;
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;

@@ -56,6 +56,10 @@ bool resolve_allowed_output(const std::string& path, const std::string& root, st
   // An existing symlink at the output name could point anywhere: refuse it (the writer
   // renames over the link itself, but a reader of the reply would follow it).
   std::error_code ec;
+  if (fs::is_directory(fs::symlink_status(resolved, ec))) {
+    error = path + ": is a folder; the output must be a file name";
+    return false;
+  }
   if (fs::is_symlink(fs::symlink_status(resolved, ec))) {
     error = path + ": the output name is a symbolic link";
     return false;

@@ -35,6 +35,10 @@ std::string to_string(const TermSelection& terms);
 
 struct FrameRequest {
   std::string input_path;
+  // The name the request gave for the input when input_path is an opened descriptor's
+  // ("/proc/self/fd/N", service/job_files.h): the frame's identity in its sequence. Empty =
+  // input_path.
+  std::string input_name;
   std::string output_path;    // the EXR to write; empty = compute only (eval)
   ReadOptions read;
   TermSelection terms;

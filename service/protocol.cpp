@@ -305,9 +305,32 @@ std::string to_wire(const nlohmann::json& j) {
 }
 
 nlohmann::json error_response(const std::string& code, const std::string& message, const nlohmann::json& id) {
-  nlohmann::json j{{"ok", false}, {"code", code}, {"error", message}};
+  nlohmann::json j{{"ok", false}, {"code", code}, {"error", printable(message)}};
   if (!id.is_null()) j["id"] = id;
   return j;
+}
+
+std::string printable(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char c : text) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 0x20 && u != 0x7f) {
+      out += c;
+    } else if (c == '\n') {
+      out += "\\n";
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (c == '\r') {
+      out += "\\r";
+    } else {
+      static const char hex[] = "0123456789abcdef";
+      out += "\\x";
+      out += hex[u >> 4];
+      out += hex[u & 15];
+    }
+  }
+  return out;
 }
 
 }  // namespace ssdo

@@ -93,4 +93,8 @@ std::string to_wire(const nlohmann::json& j);
 nlohmann::json error_response(const std::string& code, const std::string& message,
                               const nlohmann::json& id = nullptr);
 
+// `text` with its control characters (C0, DEL) written as \n, \t, \r or \xNN, for a
+// log line or a message: a file name holding a newline cannot forge a line of its own.
+std::string printable(const std::string& text);
+
 }  // namespace ssdo

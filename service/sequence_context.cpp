@@ -21,7 +21,8 @@ std::string file_name(const std::string& path) { return std::filesystem::path(pa
 // options reads its frame again).
 std::string read_key(const ReadOptions& r) {
   const ChannelMapping& m = r.mapping;
-  std::string key = r.camera_json + "|" + r.part + "|" + std::to_string(int(r.depth_kind)) + "|" +
+  // Not camera_json: a frame's own sidecar (each frame its own) is not a read option of the batch.
+  std::string key = r.part + "|" + std::to_string(int(r.depth_kind)) + "|" +
                     (r.fov_x_deg ? std::to_string(*r.fov_x_deg) : "") + "|" + m.depth + "|" + m.normal + "|" +
                     m.position + "|" + m.albedo + "|" + m.lighting + "|" + std::to_string(int(m.normal_space)) +
                     std::to_string(int(m.position_space)) + std::to_string(r.read_normals) +
@@ -29,6 +30,13 @@ std::string read_key(const ReadOptions& r) {
                     std::to_string(r.read_lighting) + std::to_string(r.read_references);
   for (const auto& [name, channel] : m.references) key += "|" + name + "=" + channel;
   return key;
+}
+
+// A neighbour's read: the frame's options with the neighbour's own camera (its sidecar).
+ReadOptions neighbour_read(const NeighbourFrame& n, const ReadOptions& read) {
+  ReadOptions r = read;
+  r.camera_json = n.camera_json;
+  return r;
 }
 
 }  // namespace
@@ -56,7 +64,8 @@ ReadResult SequenceContext::read(const FrameRequest& request, const ReadOptions&
     read_key_ = key;
   }
   ReadResult frame;
-  Entry& self = cache_[request.input_path];
+  const std::string& name = request.input_name.empty() ? request.input_path : request.input_name;
+  Entry& self = cache_[name];
   if (self.whole) {
     frame = std::move(*self.whole);
     self.whole.reset();
@@ -68,7 +77,7 @@ ReadResult SequenceContext::read(const FrameRequest& request, const ReadOptions&
   if (frame.ok()) {
     // The frame's depth image is shared, not copied: compute_frame releases only its own
     // reference.
-    self.view = DepthView{frame.gbuffer.camera, frame.gbuffer.depth_view, file_name(request.input_path)};
+    self.view = DepthView{frame.gbuffer.camera, frame.gbuffer.depth_view, file_name(name)};
     self.camera = frame.gbuffer.camera;
     self.camera_has_world = has_world(frame.info);
     if (self.camera_has_world)
@@ -83,7 +92,7 @@ ReadResult SequenceContext::read(const FrameRequest& request, const ReadOptions&
 SequenceContext::Entry& SequenceContext::candidate(const NeighbourFrame& n, const ReadOptions& read) {
   Entry& e = cache_[n.path];
   if (e.camera || !e.error.empty()) return e;
-  const ReadResult header = inspect_gbuffer(n.path, read);
+  const ReadResult header = inspect_gbuffer(n.open_path.empty() ? n.path : n.open_path, neighbour_read(n, read));
   ++reads_.headers;
   if (!header.ok()) {
     e.error = header.error;
@@ -96,7 +105,9 @@ SequenceContext::Entry& SequenceContext::candidate(const NeighbourFrame& n, cons
 
 bool SequenceContext::load_view(const NeighbourFrame& n, const ReadOptions& read, Entry& e) {
   if (e.view) return true;
-  ReadResult r = n.computed_later ? read_frame(n.path, read) : read_gbuffer(n.path, depth_only(read));
+  const std::string& path = n.open_path.empty() ? n.path : n.open_path;
+  ReadResult r = n.computed_later ? read_frame(path, neighbour_read(n, read))
+                                  : read_gbuffer(path, depth_only(neighbour_read(n, read)));
   ++(n.computed_later ? reads_.whole : reads_.depth_only);
   if (!r.ok()) {
     e.error = r.error;
@@ -145,7 +156,7 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
 }
 
 void SequenceContext::keep_window(const FrameRequest& request) {
-  std::set<std::string> window{request.input_path};
+  std::set<std::string> window{request.input_name.empty() ? request.input_path : request.input_name};
   for (const NeighbourFrame& n : request.neighbours) window.insert(n.path);
   for (auto it = cache_.begin(); it != cache_.end();) it = window.count(it->first) ? std::next(it) : cache_.erase(it);
 }

@@ -283,6 +283,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   }
 
   // Where the frame comes from and where its output goes.
+  const bool inline_input = request.inline_size > 0;
   const unsigned long spool_id = ++next_spool_id_;
   const fs::path spool = fs::path(options_.spool_dir) / ("r" + std::to_string(spool_id));
   struct SpoolGuard {
@@ -331,11 +332,16 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     output = (spool / (fs::path(input).stem().string() + ".ssdo.exr")).string();
   } else if (!request.output.empty()) {
     if (!resolve_allowed_output(request.output, options_.out_dir, output, error)) return refuse("forbidden", error);
+    if (path_is_under(output, options_.spool_dir))
+      return refuse("forbidden", request.output + ": inside the service's private spool folder");
     error_path = (fs::path(output).parent_path() / (fs::path(output).stem().string() + ".error.json")).string();
   } else {
     output = output_path_for(input, options_.out_dir);
     error_path = error_path_for(input, options_.out_dir);
   }
+  // Refused rather than renamed: a client finds its result where it expects it, or is told.
+  if (std::string owner; !request.reply_inline && !frames_.claim_output(output, inline_input ? "inline upload " + request.name : input, owner))
+    return refuse("conflict", output + " is already the output of " + owner + "; give this frame another \"output\"");
 
   // Queue it and wait for the result (a dispatcher always calls back: with the frame's
   // result, or "stopping" for a queued frame when the service stops).
@@ -352,6 +358,11 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   task.error_path = error_path;
   task.options = to_json(options);
   task.neighbours = named_neighbours(input, views);
+  // The worker opens every file again itself, confined the same way (service/job_files.h):
+  // the checks above give early, precise refusals; the worker's opens are the ones that hold.
+  task.confine.input_roots = inline_input ? std::vector<std::string>{spool.string()} : options_.allow_roots;
+  task.confine.option_roots = options_.allow_roots;
+  task.confine.output_root = request.reply_inline ? spool.string() : options_.out_dir;
   task.done = [outcome](const WorkerResult& r) {
     std::lock_guard<std::mutex> lock(outcome->mutex);
     outcome->result = r;

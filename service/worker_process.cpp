@@ -36,6 +36,24 @@ void set_nonblocking(int fd) { ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NON
 
 }  // namespace
 
+nlohmann::json Confinement::to_json() const {
+  return nlohmann::json{{"input_roots", input_roots}, {"option_roots", option_roots}, {"output_root", output_root}};
+}
+
+Confinement Confinement::from_json(const nlohmann::json& j) {
+  Confinement c;
+  if (!j.is_object()) return c;
+  auto strings = [&](const char* key, std::vector<std::string>& out) {
+    if (j.contains(key) && j[key].is_array())
+      for (const auto& s : j[key])
+        if (s.is_string()) out.push_back(s.get<std::string>());
+  };
+  strings("input_roots", c.input_roots);
+  strings("option_roots", c.option_roots);
+  c.output_root = j.value("output_root", std::string());
+  return c;
+}
+
 std::string signal_description(int sig) {
   const char* abbrev = ::sigabbrev_np(sig);
   const char* text = ::sigdescr_np(sig);
@@ -164,7 +182,10 @@ void WorkerProcess::stop(bool kill_now) {
 WorkerResult WorkerProcess::run(const WorkerJob& job) {
   WorkerResult result;
   const auto t0 = Clock::now();
-  nlohmann::json message{{"input", job.input_path}, {"output", job.output_path}, {"options", job.options}};
+  nlohmann::json message{{"input", job.input_path},
+                         {"output", job.output_path},
+                         {"options", job.options},
+                         {"confine", job.confine.to_json()}};
   if (!job.neighbours.empty()) {
     nlohmann::json& list = message["neighbours"] = nlohmann::json::array();
     for (const NeighbourFrame& n : job.neighbours)
@@ -220,9 +241,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     return result;
   }
   // Messages may quote names read from a damaged file: no control characters in logs.
-  result.error = j.value("error", std::string());
-  for (char& c : result.error)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  result.error = printable(j.value("error", std::string()));
   if (!j.value("ok", false) && result.error.empty()) result.error = "the worker reported a failure";
   result.times.read_ms = j.value("read_ms", 0.0);
   result.times.compute_ms = j.value("compute_ms", 0.0);

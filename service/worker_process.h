@@ -33,12 +33,24 @@ struct WorkerLimits {
   int64_t max_pixels = int64_t(1) << 26;  // larger data windows are refused before decoding (8K x 8K)
 };
 
+// Where a job's files may be (service/confined_open.h); the worker opens each of them
+// itself, confined, and reads and writes only through the descriptors it opened.
+struct Confinement {
+  std::vector<std::string> input_roots;   // the input and its NAME.camera.json; empty = anywhere
+  std::vector<std::string> option_roots;  // the options' camera and environment files; empty = anywhere
+  std::string output_root;                // the output's folder; empty = the output path as given
+  nlohmann::json to_json() const;
+  static Confinement from_json(const nlohmann::json& j);
+};
+
 struct WorkerJob {
   std::string input_path;
   std::string output_path;
   nlohmann::json options = nlohmann::json::object();  // service/request_options.h keys
   // Frames of the same shot it may use as extra views (with the "views" option).
   std::vector<NeighbourFrame> neighbours;
+  // Where the worker may open the job's files (the input, its camera, the neighbours).
+  Confinement confine;
 };
 
 struct WorkerResult {
