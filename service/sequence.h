@@ -17,10 +17,10 @@ namespace ssdo {
 // A frame another frame may use as an extra view.
 struct NeighbourFrame {
   std::string path;             // its name: its identity in the sequence
-  std::string open_path;        // what to read: an opened descriptor's name, or empty = path
-  std::string camera_json;      // its camera file when opened for it, else empty = beside it
   int frame_offset = 0;         // its frame number minus the frame's (never 0)
   bool computed_later = false;  // the same worker computes it later: read it whole, once
+  std::string open_path;        // what to read: an opened descriptor's name, or empty = path
+  std::string camera_json;      // its camera file when opened for it, else empty = beside it
 };
 
 struct SequencePlace {
