@@ -27,6 +27,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
 #include <Imath/half.h>
@@ -195,6 +196,8 @@ void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const
     header.insert(kClipNearAttribute, Imf::FloatAttribute(camera.near_view));
   if (camera.far_view > 0.0f)
     header.insert(kClipFarAttribute, Imf::FloatAttribute(camera.far_view));
+  for (const auto& [name, value] : options.string_attributes)
+    header.insert(name, Imf::StringAttribute(value));
 
   // OpenEXR writes a slice only into a channel of the same pixel type, so half terms are
   // converted into an interleaved half buffer first; float terms are written in place.
@@ -306,6 +309,7 @@ constexpr int kBatchChunks = 256;
 std::map<std::string, ChannelSource> write_own_header(exr_context_t context, int& part,
                                                       const std::vector<OutputTerm>& terms,
                                                       const Camera& camera,
+                                                      const WriteOptions& options,
                                                       Imf::Compression compression, cv::Size size) {
   // Channel names longer than 31 bytes need the long-names flag of the version field
   // (OpenEXR "Technical Introduction", "Version Field"); OpenEXR's writer sets it only then,
@@ -350,6 +354,9 @@ std::map<std::string, ChannelSource> write_own_header(exr_context_t context, int
   if (camera.far_view > 0.0f)
     check_core(exr_attr_set_float(context, part, kClipFarAttribute, camera.far_view),
                "cannot set clipFar");
+  for (const auto& [name, value] : options.string_attributes)
+    check_core(exr_attr_set_string(context, part, name.c_str(), value.c_str()),
+               "cannot set a string attribute");
   check_core(exr_write_header(context), "cannot write the header");
   return sources;
 }
@@ -475,7 +482,7 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
              "cannot create the file");
   int part = 0;
   const std::map<std::string, ChannelSource> sources =
-      write_own_header(file.get(), part, terms, camera, compression, size);
+      write_own_header(file.get(), part, terms, camera, options, compression, size);
   const ChunkLayout layout = chunk_layout(file.get(), part, sources, size);
   write_own_chunks(file.get(), part, layout, options, compression != Imf::NO_COMPRESSION, size);
   // Writes the chunk offset table and closes the file.

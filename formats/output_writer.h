@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -49,6 +50,11 @@ struct WriteOptions {
   int zip_level = kFastZipLevel;    // deflate level of zip / zips, [1, 9]
   ChunkEncoder chunk_encoder = ChunkEncoder::own;  // zip, zips and none only
   bool png_previews = false;        // NAME.<term>.png beside the EXR
+  // Further string attributes of the header, (name, UTF-8 value), e.g. the producing
+  // program's version and options ("ssdo/version", "ssdo/options"), so a file found later
+  // says how it was made. Names must not be those the writer sets itself (the required
+  // attributes, worldToCamera, worldToNDC, clipNear, clipFar).
+  std::vector<std::pair<std::string, std::string>> string_attributes;
   // Threads that convert and compress: 0 = OpenEXR's global pool and OpenCV's pool as
   // configured; 1 = serial in the calling thread; N = N threads. ChunkEncoder::own packs
   // and compresses chunks on OpenCV's pool (parallel_rows) only.
@@ -97,7 +103,8 @@ std::string write_file_atomically(const std::filesystem::path& path, const std::
 // and refused for 1-channel (numeric) and vector terms.
 // The camera is carried over as worldToCamera (OpenEXR convention: camera looks down +Z,
 // i.e. our view space with z negated) and worldToNDC (display window = the terms' grid),
-// plus float attributes clipNear / clipFar when known: read_gbuffer reads them back.
+// plus float attributes clipNear / clipFar when known: read_gbuffer reads them back; then
+// options.string_attributes, in their order.
 // png_previews: "DIR/STEM.<term>.png" beside "DIR/STEM.exr", 8-bit, clamped to [0, 1]
 // and sRGB-encoded; vector terms are shown as 0.5 v + 0.5 without sRGB encoding (the usual
 // normal-map colours). Previews are written through temp files too.

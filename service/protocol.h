@@ -51,6 +51,11 @@ IoStatus skip_bytes(int fd, size_t size, Deadline deadline);
 void encode_length(uint32_t size, unsigned char out[4]);
 uint32_t decode_length(const unsigned char in[4]);
 
+// The socket protocol's revision, sent in the "ping" reply as "protocol". It grows when a
+// request or reply changes in a way an existing client would misread (a field removed or
+// its meaning changed); added optional fields and ops keep it. docs/service.md, "Versioning".
+constexpr int kProtocolVersion = 1;
+
 // Limits of the service socket. Defaults are generous for film frames and small enough
 // that 16 clients at the limit fit in memory.
 struct ProtocolLimits {

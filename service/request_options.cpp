@@ -8,6 +8,7 @@
 #include <variant>
 
 #include "service/frame_options.h"
+#include "service/version.h"
 
 namespace ssdo {
 
@@ -159,9 +160,18 @@ bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std:
     return false;
   request.write.compression = a.compression;
   request.write.png_previews = a.png;
+  request.write.string_attributes = output_attributes(a);
   request.io_only = a.io_only;
   request.guard_band_px = a.guard_band_px;
   return true;
+}
+
+std::vector<std::pair<std::string, std::string>> output_attributes(const FrameOptionArgs& a) {
+  // Every option but "threads": outputs are the same bytes for any thread count, and so
+  // are their headers.
+  json options = to_json(a, [](const std::string& key) { return key != "threads"; });
+  return {{kVersionAttribute, version_string()},
+          {kOptionsAttribute, options.dump(-1, ' ', false, json::error_handler_t::replace)}};
 }
 
 std::vector<std::string> option_paths(const FrameOptionArgs& a) {

@@ -8,6 +8,7 @@
 
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -39,6 +40,13 @@ bool load_json_file(const std::string& path, nlohmann::json& j, std::string& err
 // its header when build_environment is false, see resolve_compute_options).
 bool resolve_frame_options(const FrameOptionArgs& args, FrameRequest& request, std::string& error,
                            bool build_environment = true);
+
+// Header attributes of an output EXR that say how it was made: kVersionAttribute holds
+// version_string() ("ssdo 0.1.0"), kOptionsAttribute the frame options as one JSON object
+// (to_json's keys and values, all but "threads"). docs/usage.md, "What a file says about itself".
+inline constexpr const char* kVersionAttribute = "ssdo/version";
+inline constexpr const char* kOptionsAttribute = "ssdo/options";
+std::vector<std::pair<std::string, std::string>> output_attributes(const FrameOptionArgs& args);
 
 // The paths an options object names (camera, env): the service checks them against its
 // allowed roots before a worker opens them.

@@ -252,7 +252,7 @@ bool SocketServer::handle_request(int fd, const std::string& header) {
     return false;
   }
   if (request.op == "ping") {
-    json pong{{"ok", true}, {"op", "ping"}, {"version", version_string()}};
+    json pong{{"ok", true}, {"op", "ping"}, {"version", version_string()}, {"protocol", kProtocolVersion}};
     if (!request.id.is_null()) pong["id"] = request.id;
     return reply(fd, pong);
   }
