@@ -225,7 +225,8 @@ bool is_deep(const Imf::Header& h) {
 void choose_back_layer(const ReadOptions& options, Prepared& prep) {
   if (!is_deep(prep.file->header(prep.channels.part)) || !options.mapping.depth_back.empty())
     return;
-  std::erase_if(prep.channels.inputs, [](const ResolvedInput& r) { return r.input == "depth_back"; });
+  std::erase_if(prep.channels.inputs,
+                [](const ResolvedInput& r) { return r.input == "depth_back"; });
   prep.deep_back = options.read_depth_back;
 }
 
@@ -417,10 +418,12 @@ void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
   const ResolvedInput& depth = *prep.channels.find("depth");
   if (prep.deep_back) {
     info.back_layer = "deep samples of " + depth.channels[0];
-    info.uses.push_back({"depth_back", depth.channels[0] + " (deep: the next surface behind the nearest sample)", ""});
-  } else if (const ResolvedInput* back = prep.channels.find("depth_back"); back && options.read_depth_back) {
-    info.back_layer = "channel " + back->describe();
+    info.uses.push_back(
+        {"depth_back", depth.channels[0] + " (deep: the next surface behind the nearest sample)", ""});
+    return;
   }
+  const ResolvedInput* back = prep.channels.find("depth_back");
+  if (back && options.read_depth_back) info.back_layer = "channel " + back->describe();
 }
 
 bool prepare(const std::string& path, const ReadOptions& options, ReadResult& result,
@@ -762,7 +765,8 @@ struct DeepPixels {
   std::vector<std::vector<float>> values;  // per channel, every sample
 };
 
-DeepChannels deep_channels(const Prepared& prep, int part, const std::vector<ChannelTarget>& targets) {
+DeepChannels deep_channels(const Prepared& prep, int part,
+                           const std::vector<ChannelTarget>& targets) {
   const Imf::ChannelList& list = prep.file->header(part).channels();
   DeepChannels ch;
   for (const ChannelTarget& t : targets) ch.names.push_back(t.channel);
@@ -806,12 +810,14 @@ void allocate_deep_samples(const std::string& part_name, const Imf::Header& h,
   px.first.back() = size_t(total);
   const uint64_t per_sample = uint64_t(deep_sample_bytes(h, ch));
   if (total > uint64_t(options.max_decoded_bytes) / per_sample)
-    throw LimitExceeded("deep part" + (part_name.empty() ? "" : " \"" + part_name + "\"") + " holds " + std::to_string(total) +
+    throw LimitExceeded("deep part" + (part_name.empty() ? "" : " \"" + part_name + "\"") +
+                        " holds " + std::to_string(total) +
                         " samples of " + std::to_string(per_sample) + " bytes, over the limit of " +
                         std::to_string(options.max_decoded_bytes) + " decoded bytes");
   px.values.assign(ch.names.size(), std::vector<float>(size_t(total)));
   for (size_t c = 0; c < ch.names.size(); ++c)
-    for (size_t i = 0; i < px.counts.size(); ++i) pointers[c][i] = px.values[c].data() + px.first[i];
+    for (size_t i = 0; i < px.counts.size(); ++i)
+      pointers[c][i] = px.values[c].data() + px.first[i];
 }
 
 // Reads the samples of a deep scanline or deep tiled part (level 0) with OpenEXR.
@@ -853,7 +859,8 @@ void read_deep_samples(Prepared& prep, int part, const DeepChannels& ch, const R
 // One pixel's samples flattened: the index of the nearest (smallest depth; -1 when none has
 // a depth) and the depth of the next surface behind it (+inf when none): the nearest depth
 // beyond max(Z, ZBack) of the nearest sample by kDeepSurfaceGapRelative of it.
-std::pair<int64_t, float> nearest_and_next(const DeepPixels& px, const DeepChannels& ch, size_t pixel) {
+std::pair<int64_t, float> nearest_and_next(const DeepPixels& px, const DeepChannels& ch,
+                                           size_t pixel) {
   const float* z = px.values[size_t(ch.depth)].data() + px.first[pixel];
   const int64_t n = px.counts[pixel];
   int64_t nearest = -1;
@@ -862,7 +869,8 @@ std::pair<int64_t, float> nearest_and_next(const DeepPixels& px, const DeepChann
   float next = std::numeric_limits<float>::infinity();
   if (nearest < 0) return {nearest, next};
   float end = z[nearest];
-  if (ch.depth_end >= 0) end = std::max(end, px.values[size_t(ch.depth_end)][px.first[pixel] + size_t(nearest)]);
+  if (ch.depth_end >= 0)
+    end = std::max(end, px.values[size_t(ch.depth_end)][px.first[pixel] + size_t(nearest)]);
   const float beyond = end + kDeepSurfaceGapRelative * std::abs(end);
   for (int64_t k = 0; k < n; ++k)
     if (z[k] > beyond && z[k] < next) next = z[k];
@@ -1029,7 +1037,8 @@ void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
     if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) nonfinite = true;
   }
   const glm::vec3 ray = eye_ray(pass, ray_row, x);
-  const float d = nonfinite ? std::numeric_limits<float>::infinity() : planar_depth(pass, ray, depth[x]);
+  const float d =
+      nonfinite ? std::numeric_limits<float>::infinity() : planar_depth(pass, ray, depth[x]);
   if (d == std::numeric_limits<float>::infinity()) {
     counts.nonfinite += nonfinite ? 1 : 0;
     depth[x] = std::numeric_limits<float>::infinity();
