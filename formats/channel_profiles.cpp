@@ -67,9 +67,15 @@ std::optional<std::string> generic_depth(const PartChannels& p) {
   return std::nullopt;
 }
 
+// Flat channels a renderer would write a back-face depth pass to (an AOV of the depth of
+// the nearest back face, e.g. a second render with front faces culled). No renderer we
+// know has a standard name for it. "ZBack" is not one of them: in a deep image it is
+// each sample's back (OpenEXR, "Interpreting OpenEXR Deep Pixels"), not a second surface.
+const std::vector<std::string> kGenericBackDepth = {"Z.back", "depth_back"};
+
 bool mapping_is_empty(const ChannelMapping& m) {
-  return m.depth.empty() && m.normal.empty() && m.position.empty() && m.albedo.empty() &&
-         m.lighting.empty() && m.references.empty();
+  return m.depth.empty() && m.depth_back.empty() && m.normal.empty() && m.position.empty() &&
+         m.albedo.empty() && m.lighting.empty() && m.references.empty();
 }
 
 // " (part "NAME")" in a multi-part file, else "".
@@ -100,7 +106,8 @@ std::optional<int> depth_part(const std::string& path, const std::vector<PartCha
 }
 
 // The inputs a profile finds from the depth part `part`: "blender" (a <Layer>.Depth.Z
-// channel) or "generic" (Z or depth.Z); neither leaves `res` empty.
+// channel) or "generic" (Z or depth.Z); neither leaves `res` empty. A back-face depth
+// ("depth_back") is <Layer>.DepthBack (an AOV) or Z.back / depth_back.
 void detect_profile(const std::vector<PartChannels>& parts, int part, ChannelResolution& res) {
   const PartChannels& pc = parts[part];
   auto add = [&](std::optional<ResolvedInput> r) {
@@ -116,6 +123,7 @@ void detect_profile(const std::vector<PartChannels>& parts, int part, ChannelRes
     add(find_vector(parts, part, "position", L + "Position", Space::world));
     add(find_vector(parts, part, "albedo", L + "DiffCol"));
     add(find_vector(parts, part, "diffdir", L + "DiffDir"));
+    add(find_scalar(parts, part, "depth_back", L + "DepthBack", true));
     add(find_scalar(parts, part, "reference:AO", L + "AO.R", false));
     for (const char* name : {"DiffDir", "DiffInd"})
       add(find_vector(parts, part, std::string("reference:") + name, L + name));
@@ -126,6 +134,8 @@ void detect_profile(const std::vector<PartChannels>& parts, int part, ChannelRes
     add(find_vector(parts, part, "position", "P"));
     for (const char* name : {"albedo", "diffuse_albedo"})
       if (add(find_vector(parts, part, "albedo", name))) break;
+    for (const std::string& name : kGenericBackDepth)
+      if (add(find_scalar(parts, part, "depth_back", name, true))) break;
   }
 }
 
@@ -175,6 +185,7 @@ struct MappingApplier {
   bool apply(const ChannelMapping& map) {
     res.profile = "mapping";
     if (!map.depth.empty() && !scalar("depth", map.depth)) return false;
+    if (!map.depth_back.empty() && !scalar("depth_back", map.depth_back)) return false;
     if (!map.normal.empty() && !vector("normal", map.normal, map.normal_space)) return false;
     if (!map.position.empty() && !vector("position", map.position, map.position_space))
       return false;

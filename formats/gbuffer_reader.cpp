@@ -12,6 +12,7 @@
 #include <memory>
 #include <new>
 #include <sstream>
+#include <stdexcept>
 
 #include <Imath/half.h>
 #if defined(__SSE2__)
@@ -19,6 +20,9 @@
 #endif
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDeepFrameBuffer.h>
+#include <OpenEXR/ImfDeepScanLineInputPart.h>
+#include <OpenEXR/ImfDeepTiledInputPart.h>
 #include <OpenEXR/ImfFloatAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -41,9 +45,15 @@ namespace ssdo {
 
 namespace {
 
+// A resource limit of ReadOptions refused the read (not a damaged file).
+struct LimitExceeded : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // What a failed OpenEXR read is called: OpenEXR passes an allocation that failed (e.g.
 // under the worker's --memory-limit) on as an exception whose text is std::bad_alloc's.
 const char* read_failure(const std::exception& e) {
+  if (dynamic_cast<const LimitExceeded*>(&e)) return "over the resource limits";
   return std::strstr(e.what(), "bad_alloc") ? "out of memory" : "damaged or truncated file";
 }
 
@@ -99,6 +109,8 @@ struct Prepared {
   bool depth_kind_stated = false;  // by the sidecar
   std::optional<float> background_depth;
   std::optional<std::string> sidecar_normal_space, sidecar_position_space;
+  // The back-face depth is the deep depth part's next surface (no back channel mapped).
+  bool deep_back = false;
 };
 
 bool fail(ReadResult& result, std::string message) {
@@ -115,6 +127,7 @@ std::string part_label(const Prepared& prep, int part) {
 bool wanted(const ResolvedInput& r, const ReadOptions& o, bool lighting_from_passes) {
   if (r.input == "depth") return true;
   if (r.input == "normal") return o.read_normals;
+  if (r.input == "depth_back") return o.read_depth_back;
   if (r.input == "position") return o.read_positions;
   if (r.input == "albedo") return o.read_albedo || (o.read_lighting && lighting_from_passes);
   if (r.input == "lighting") return o.read_lighting;
@@ -203,17 +216,29 @@ bool resolve_grid(const std::string& path, const ReadOptions& options, ReadResul
   return true;
 }
 
-// Every part a used channel comes from must share the depth part's pixel grid, with flat
-// (not deep) full-resolution channels.
+bool is_deep(const Imf::Header& h) {
+  return h.type() == Imf::DEEPSCANLINE || h.type() == Imf::DEEPTILE;
+}
+
+// A deep depth part gives the back-face depth from its samples, unless a channel is mapped
+// to it: a back channel the profile found in the deep part itself is that part's nearest
+// sample of it, not a second surface.
+void choose_back_layer(const ReadOptions& options, Prepared& prep) {
+  if (!is_deep(prep.file->header(prep.channels.part)) || !options.mapping.depth_back.empty())
+    return;
+  std::erase_if(prep.channels.inputs,
+                [](const ResolvedInput& r) { return r.input == "depth_back"; });
+  prep.deep_back = options.read_depth_back;
+}
+
+// Every part a used channel comes from must share the depth part's pixel grid, with
+// full-resolution channels (flat or deep).
 bool check_used_parts(const std::string& path, const ReadOptions& options, ReadResult& result,
                       const Prepared& prep) {
   const int part = prep.channels.part;
   for (const auto& r : prep.channels.inputs) {
     if (!wanted(r, options, prep.lighting_from_passes)) continue;
     const Imf::Header& h = prep.file->header(r.part);
-    if (h.type() == Imf::DEEPSCANLINE || h.type() == Imf::DEEPTILE)
-      return fail(result, path + ": part \"" + prep.parts[r.part].name +
-                              "\" holds deep data, which a G-buffer cannot use");
     if (box_of(h.dataWindow()) != prep.data)
       return fail(result, path + ": parts of different sizes: " + r.input + " channels in part \"" +
                               prep.parts[r.part].name + "\" have data window " +
@@ -391,14 +416,24 @@ void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
                              " (albedo x direct irradiance = sender radiance)",
                          ""});
   if (!prep.channels.find("normal")) info.normals_reconstructed = true;
+  const ResolvedInput& depth = *prep.channels.find("depth");
+  if (prep.deep_back) {
+    info.back_layer = "deep samples of " + depth.channels[0];
+    info.uses.push_back(
+        {"depth_back", depth.channels[0] + " (deep: the next surface behind the nearest sample)", ""});
+    return;
+  }
+  const ResolvedInput* back = prep.channels.find("depth_back");
+  if (back && options.read_depth_back) info.back_layer = "channel " + back->describe();
 }
 
 bool prepare(const std::string& path, const ReadOptions& options, ReadResult& result,
              Prepared& prep) {
   if (!open_file(path, options, result, prep) || !resolve_grid(path, options, result, prep) ||
-      !check_used_parts(path, options, result, prep) ||
-      !resolve_camera(path, options, result, prep))
+      !check_used_parts(path, options, result, prep))
     return false;
+  choose_back_layer(options, prep);
+  if (!resolve_camera(path, options, result, prep)) return false;
   report_uses(options, prep, result.info);
   return true;
 }
@@ -642,12 +677,13 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
 }
 
 struct Images {
-  cv::Mat depth, normal, position, albedo, diffdir, lighting;
+  cv::Mat depth, depth_back, normal, position, albedo, diffdir, lighting;
   std::map<std::string, cv::Mat> references;
 };
 
 cv::Mat* image_for(const std::string& input, Images& img) {
   if (input == "depth") return &img.depth;
+  if (input == "depth_back") return &img.depth_back;
   if (input == "normal") return &img.normal;
   if (input == "position") return &img.position;
   if (input == "albedo") return &img.albedo;
@@ -711,15 +747,188 @@ SlicePlan plan_slices(const Prepared& prep, const ReadOptions& options, Images& 
   return plan;
 }
 
+// ---------------------------------------------------------------------------------------
+// Deep parts (OpenEXR "Interpreting OpenEXR Deep Pixels"): every sample of the wanted
+// channels is read, then each pixel is flattened to its nearest sample.
+
+// The channels read from a deep part: the wanted ones (the targets, in their order), then
+// the depth ordering the samples and the ZBack ending the nearest one when not among them.
+struct DeepChannels {
+  std::vector<std::string> names;
+  int depth = -1;
+  int depth_end = -1;  // ZBack, or -1 when the part has none
+};
+
+// Every sample of a part's DeepChannels, as float, pixel after pixel in row order.
+struct DeepPixels {
+  std::vector<uint32_t> counts;            // samples per pixel of the data window
+  std::vector<size_t> first;               // each pixel's first sample; pixels + 1 entries
+  std::vector<std::vector<float>> values;  // per channel, every sample
+};
+
+DeepChannels deep_channels(const Prepared& prep, int part,
+                           const std::vector<ChannelTarget>& targets) {
+  const Imf::ChannelList& list = prep.file->header(part).channels();
+  DeepChannels ch;
+  for (const ChannelTarget& t : targets) ch.names.push_back(t.channel);
+  auto index_of = [&](const std::string& name) {
+    const auto it = std::find(ch.names.begin(), ch.names.end(), name);
+    if (it != ch.names.end()) return int(it - ch.names.begin());
+    ch.names.push_back(name);
+    return int(ch.names.size()) - 1;
+  };
+  // The samples are ordered by the frame's depth channel, else by the part's own Z.
+  std::string depth = prep.channels.find("depth")->channels[0];
+  if (!list.findChannel(depth)) depth = "Z";
+  if (!list.findChannel(depth))
+    throw std::runtime_error("deep part \"" + prep.parts[part].name +
+                             "\" has no depth channel (" + depth + ") to order its samples by");
+  ch.depth = index_of(depth);
+  if (list.findChannel("ZBack")) ch.depth_end = index_of("ZBack");
+  return ch;
+}
+
+// Bytes a sample costs: decoding every channel of the part as stored (OpenEXR decodes them
+// all) and keeping the read ones as float.
+int64_t deep_sample_bytes(const Imf::Header& h, const DeepChannels& ch) {
+  int64_t bytes = int64_t(sizeof(float)) * int64_t(ch.names.size());
+  for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
+    bytes += it.channel().type == Imf::HALF ? 2 : 4;
+  return bytes;
+}
+
+// After the sample counts are read: refuses more samples than the limits allow, then sizes
+// the sample arrays and points each pixel's slice pointers into them.
+void allocate_deep_samples(const std::string& part_name, const Imf::Header& h,
+                           const DeepChannels& ch, const ReadOptions& options, DeepPixels& px,
+                           std::vector<std::vector<float*>>& pointers) {
+  px.first.resize(px.counts.size() + 1);
+  uint64_t total = 0;
+  for (size_t i = 0; i < px.counts.size(); ++i) {
+    px.first[i] = size_t(total);
+    total += px.counts[i];
+  }
+  px.first.back() = size_t(total);
+  const uint64_t per_sample = uint64_t(deep_sample_bytes(h, ch));
+  if (total > uint64_t(options.max_decoded_bytes) / per_sample)
+    throw LimitExceeded("deep part" + (part_name.empty() ? "" : " \"" + part_name + "\"") +
+                        " holds " + std::to_string(total) +
+                        " samples of " + std::to_string(per_sample) + " bytes, over the limit of " +
+                        std::to_string(options.max_decoded_bytes) + " decoded bytes");
+  px.values.assign(ch.names.size(), std::vector<float>(size_t(total)));
+  for (size_t c = 0; c < ch.names.size(); ++c)
+    for (size_t i = 0; i < px.counts.size(); ++i)
+      pointers[c][i] = px.values[c].data() + px.first[i];
+}
+
+// Reads the samples of a deep scanline or deep tiled part (level 0) with OpenEXR.
+void read_deep_samples(Prepared& prep, int part, const DeepChannels& ch, const ReadOptions& options,
+                       DeepPixels& px) {
+  const Imf::Header& h = prep.file->header(part);
+  const PixelBox& data = prep.data;
+  const size_t width = size_t(data.width()), pixels = width * size_t(data.height());
+  const Imath::Box2i window(Imath::V2i(data.min_x, data.min_y), Imath::V2i(data.max_x, data.max_y));
+  px.counts.assign(pixels, 0);
+  std::vector<std::vector<float*>> pointers(ch.names.size(), std::vector<float*>(pixels, nullptr));
+  Imf::DeepFrameBuffer fb;
+  fb.insertSampleCountSlice(Imf::Slice::Make(Imf::UINT, px.counts.data(), window, 4, 4 * width));
+  for (size_t c = 0; c < ch.names.size(); ++c) {
+    // OpenEXR addresses pixel (x, y) at base + x * xStride + y * yStride (as Slice::Make).
+    const intptr_t base = reinterpret_cast<intptr_t>(pointers[c].data()) -
+                          (intptr_t(data.min_x) + intptr_t(data.min_y) * intptr_t(width)) *
+                              intptr_t(sizeof(float*));
+    fb.insert(ch.names[c], Imf::DeepSlice(Imf::FLOAT, reinterpret_cast<char*>(base), sizeof(float*),
+                                          sizeof(float*) * width, sizeof(float)));
+  }
+  const std::string& name = prep.parts[part].name;
+  if (h.type() == Imf::DEEPSCANLINE) {
+    Imf::DeepScanLineInputPart in(*prep.file, part);
+    in.setFrameBuffer(fb);
+    in.readPixelSampleCounts(data.min_y, data.max_y);
+    allocate_deep_samples(name, h, ch, options, px, pointers);
+    in.readPixels(data.min_y, data.max_y);
+  } else {
+    Imf::DeepTiledInputPart in(*prep.file, part);
+    in.setFrameBuffer(fb);
+    const int tiles_x = in.numXTiles(0), tiles_y = in.numYTiles(0);
+    in.readPixelSampleCounts(0, tiles_x - 1, 0, tiles_y - 1);
+    allocate_deep_samples(name, h, ch, options, px, pointers);
+    in.readTiles(0, tiles_x - 1, 0, tiles_y - 1);
+  }
+}
+
+// One pixel's samples flattened: the index of the nearest (smallest depth; -1 when none has
+// a depth) and the depth of the next surface behind it (+inf when none): the nearest depth
+// beyond max(Z, ZBack) of the nearest sample by kDeepSurfaceGapRelative of it.
+std::pair<int64_t, float> nearest_and_next(const DeepPixels& px, const DeepChannels& ch,
+                                           size_t pixel) {
+  const float* z = px.values[size_t(ch.depth)].data() + px.first[pixel];
+  const int64_t n = px.counts[pixel];
+  int64_t nearest = -1;
+  for (int64_t k = 0; k < n; ++k)
+    if (!std::isnan(z[k]) && (nearest < 0 || z[k] < z[nearest])) nearest = k;
+  float next = std::numeric_limits<float>::infinity();
+  if (nearest < 0) return {nearest, next};
+  float end = z[nearest];
+  if (ch.depth_end >= 0)
+    end = std::max(end, px.values[size_t(ch.depth_end)][px.first[pixel] + size_t(nearest)]);
+  const float beyond = end + kDeepSurfaceGapRelative * std::abs(end);
+  for (int64_t k = 0; k < n; ++k)
+    if (z[k] > beyond && z[k] < next) next = z[k];
+  return {nearest, next};
+}
+
+// Float `x` of row `y` of a target image.
+inline float& target_at(const ChannelTarget& t, int y, int64_t x) {
+  return reinterpret_cast<float*>(reinterpret_cast<uint8_t*>(t.first) + size_t(y) * t.row_bytes)
+      [size_t(x) * t.pixel_floats];
+}
+
+// Each pixel's nearest sample into the targets (0 where the pixel has no sample: background;
+// NaN where no sample has a depth) and the next surface's depth into `back` when given.
+void flatten_deep(const DeepPixels& px, const DeepChannels& ch,
+                  const std::vector<ChannelTarget>& targets, const ChannelTarget* back,
+                  const PixelBox& data, int threads) {
+  const int64_t width = data.width();
+  parallel_rows(cv::Range(0, int(data.height())), threads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int64_t x = 0; x < width; ++x) {
+        const size_t pixel = size_t(y) * size_t(width) + size_t(x);
+        const auto [nearest, next] = nearest_and_next(px, ch, pixel);
+        const float none = px.counts[pixel] == 0 ? 0.0f : std::numeric_limits<float>::quiet_NaN();
+        for (size_t c = 0; c < targets.size(); ++c)
+          target_at(targets[c], y, x) =
+              nearest >= 0 ? px.values[c][px.first[pixel] + size_t(nearest)] : none;
+        if (back) target_at(*back, y, x) = next;
+      }
+  });
+}
+
+// Reads a deep part into the targets' images, flattened (formats/gbuffer_reader.h, "Deep
+// parts"); `back` receives the next surface's depth when given.
+void read_deep_part(Prepared& prep, const ReadOptions& options, int part,
+                    const std::vector<ChannelTarget>& targets, const ChannelTarget* back) {
+  const DeepChannels ch = deep_channels(prep, part, targets);
+  DeepPixels px;
+  read_deep_samples(prep, part, ch, options, px);
+  flatten_deep(px, ch, targets, back, prep.data, options.threads);
+}
+
 // Decodes every planned part: ZIP parts with read_zip_part (ZipDecoder::libdeflate), the
 // others with OpenEXR, which converts half to float either way.
-void decode_parts(Prepared& prep, const ReadOptions& options, SlicePlan& plan) {
+void decode_parts(Prepared& prep, const ReadOptions& options, SlicePlan& plan,
+                  const ChannelTarget* deep_back) {
   exr_core::Context core;
   bool core_tried = false;
   for (auto& [part, fb] : plan.buffers) {
     if (!prep.file->partComplete(part))
       throw std::runtime_error("incomplete or truncated file: part \"" + prep.parts[part].name +
                                "\" is missing pixel data");
+    if (is_deep(prep.file->header(part))) {
+      read_deep_part(prep, options, part, plan.targets[part],
+                     part == prep.channels.part ? deep_back : nullptr);
+      continue;
+    }
     if (options.zip_decoder == ZipDecoder::libdeflate) {
       if (!core_tried) {
         core_tried = true;
@@ -742,7 +951,12 @@ void decode_parts(Prepared& prep, const ReadOptions& options, SlicePlan& plan) {
 // Reads the wanted channels of each part straight into the float images.
 void read_pixels(Prepared& prep, const ReadOptions& options, Images& img) {
   SlicePlan plan = plan_slices(prep, options, img);
-  decode_parts(prep, options, plan);
+  ChannelTarget deep_back;
+  if (prep.deep_back) {
+    img.depth_back.create(int(prep.data.height()), int(prep.data.width()), CV_32FC1);
+    deep_back = {"", img.depth_back.ptr<float>(), 1, img.depth_back.step[0]};
+  }
+  decode_parts(prep, options, plan, prep.deep_back ? &deep_back : nullptr);
   for (const SlicePlan::Copy& c : plan.copies) {
     const int pair[2] = {c.from_component, c.to_component};
     cv::mixChannels(c.from, 1, c.to, 1, pair, 1);
@@ -774,7 +988,34 @@ struct ForegroundPass {
   bool radial = false, perspective = false, normals_world = false;
   glm::mat3 normal_to_view{1.0f};
   glm::vec3 ray_step_x{0.0f};
+  glm::vec3 ray_origin{0.0f}, ray_step_y{0.0f};  // the ray through pixel (0, 0), per row
 };
+
+// The eye ray through the first pixel centre of row y (see eye_ray).
+inline glm::vec3 row_ray(const ForegroundPass& pass, int y) {
+  return pass.ray_origin + float(y) * pass.ray_step_y;
+}
+
+// The eye ray through pixel x of the row whose first ray is `ray_row` (length arbitrary,
+// z = -1 in perspective).
+inline glm::vec3 eye_ray(const ForegroundPass& pass, const glm::vec3& ray_row, int x) {
+  return pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
+}
+
+// A stored depth sample as planar depth, or +inf when it is background: non-finite, <= 0,
+// >= kBackgroundDepth, beyond the far clip or the sidecar's background value. Radial
+// distance from the eye -> planar depth along -Z: d_planar = d cos(angle to the axis) =
+// d / |ray| for a ray with z = -1.
+inline float planar_depth(const ForegroundPass& pass, const glm::vec3& ray, float stored) {
+  const float inf = std::numeric_limits<float>::infinity();
+  if (!std::isfinite(stored)) return inf;
+  float d = stored;
+  if (pass.radial && pass.perspective) d /= glm::length(ray);
+  const bool foreground = d > 0.0f && d < kBackgroundDepth &&
+                          !(pass.far_view > 0.0f && d > pass.far_view) &&
+                          !(pass.has_background && stored == pass.background);
+  return foreground ? d : inf;
+}
 
 // The pointers of one row: `normal` and `repair` are null without normals.
 struct ForegroundRow {
@@ -790,23 +1031,16 @@ void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
                       const ForegroundRow& row, int x, RowCounts& counts) {
   float* depth = row.depth;
   cv::Vec3f* normal = row.normal;
-  float d = depth[x];
-  bool nonfinite = !std::isfinite(d);
+  bool nonfinite = !std::isfinite(depth[x]);
   glm::vec3 n(0.0f);
   if (normal) {
     n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
     if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) nonfinite = true;
   }
-  // The eye ray through the pixel centre (length arbitrary, z = -1 in perspective).
-  const glm::vec3 ray =
-      pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
-  // Radial distance from the eye -> planar depth along -Z: d_planar = d cos(angle to the
-  // axis) = d / |ray| for a ray with z = -1.
-  if (pass.radial && !nonfinite && pass.perspective) d /= glm::length(ray);
-  const bool foreground = !nonfinite && d > 0.0f && d < kBackgroundDepth &&
-                          !(pass.far_view > 0.0f && d > pass.far_view) &&
-                          !(pass.has_background && depth[x] == pass.background);
-  if (!foreground) {
+  const glm::vec3 ray = eye_ray(pass, ray_row, x);
+  const float d =
+      nonfinite ? std::numeric_limits<float>::infinity() : planar_depth(pass, ray, depth[x]);
+  if (d == std::numeric_limits<float>::infinity()) {
     counts.nonfinite += nonfinite ? 1 : 0;
     depth[x] = std::numeric_limits<float>::infinity();
     row.mask[x] = 0;
@@ -1024,8 +1258,9 @@ ForegroundPass foreground_pass(const Prepared& prep) {
   // The view-space point at planar depth 1 is affine in the pixel coordinates for every
   // projection whose clip.w does not depend on x and y (see Camera::view_from_pixel_depth),
   // so rays are stepped across the image instead of solved per pixel.
-  pass.ray_step_x = camera.view_from_pixel_depth({1.5f, 0.5f}, 1.0f) -
-                    camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
+  pass.ray_origin = camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
+  pass.ray_step_x = camera.view_from_pixel_depth({1.5f, 0.5f}, 1.0f) - pass.ray_origin;
+  pass.ray_step_y = camera.view_from_pixel_depth({0.5f, 1.5f}, 1.0f) - pass.ray_origin;
   return pass;
 }
 
@@ -1049,7 +1284,6 @@ void add_row_counts(const std::vector<RowCounts>& rows, FrameInfo& info) {
 void classify_foreground(const Prepared& prep, const ReadOptions& options, Images& img,
                          ReadResult& result) {
   GBuffer& g = result.gbuffer;
-  const Camera& camera = prep.camera;
   const cv::Size size(int(prep.data.width()), int(prep.data.height()));
   const bool has_normals = !img.normal.empty();
   g.depth_view = img.depth;
@@ -1058,12 +1292,10 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
   if (has_normals) repair = cv::Mat::zeros(size, CV_8UC1);
   std::vector<RowCounts> row_counts(size.height);
   const ForegroundPass pass = foreground_pass(prep);
-  const glm::vec3 ray_origin = camera.view_from_pixel_depth({0.5f, 0.5f}, 1.0f);
-  const glm::vec3 ray_step_y = camera.view_from_pixel_depth({0.5f, 1.5f}, 1.0f) - ray_origin;
   parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
       row_counts[y] = foreground_row(
-          pass, ray_origin + float(y) * ray_step_y,
+          pass, row_ray(pass, y),
           {g.depth_view.ptr<float>(y), g.mask.ptr<uint8_t>(y),
            has_normals ? img.normal.ptr<cv::Vec3f>(y) : nullptr,
            has_normals ? repair.ptr<uint8_t>(y) : nullptr});
@@ -1073,6 +1305,30 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
   info.masked_pixels = int64_t(size.area()) - info.foreground_pixels;
   if (has_normals) g.normal_view = img.normal;
   if (info.repaired_normal_pixels > 0) g.normal_missing = repair;
+}
+
+// The back-face depth in the depth's conventions (planar_depth), +inf off the foreground and
+// where the stored value is background, never in front of the pixel's own depth (the far
+// side of a surface is behind it; a back pass rendered at another precision may differ by
+// a rounding).
+void back_layer_to_planar(const Prepared& prep, const ReadOptions& options, Images& img,
+                          GBuffer& g) {
+  if (img.depth_back.empty()) return;
+  const ForegroundPass pass = foreground_pass(prep);
+  parallel_rows(cv::Range(0, img.depth_back.rows), options.threads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      float* back = img.depth_back.ptr<float>(y);
+      const float* front = g.depth_view.ptr<float>(y);
+      const uint8_t* mask = g.mask.ptr<uint8_t>(y);
+      const glm::vec3 ray_row = row_ray(pass, y);
+      for (int x = 0; x < img.depth_back.cols; ++x) {
+        const float b = mask[x] ? planar_depth(pass, eye_ray(pass, ray_row, x), back[x])
+                                : std::numeric_limits<float>::infinity();
+        back[x] = std::max(b, front[x]);
+      }
+    }
+  });
+  g.depth_back_view = img.depth_back;
 }
 
 // The positions pass to view space (non-finite and background positions become 0), or, when
@@ -1142,6 +1398,7 @@ ReadOptions depth_only(ReadOptions options) {
   options.read_albedo = false;
   options.read_lighting = false;
   options.read_references = false;
+  options.read_depth_back = false;
   return options;
 }
 
@@ -1192,6 +1449,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
       return result;
     }
     classify_foreground(prep, options, img, result);
+    back_layer_to_planar(prep, options, img, result.gbuffer);
     if (options.read_positions) positions_to_view(prep, options, img, result);
     shading_inputs(options, img, result.gbuffer);
     return result;

@@ -13,6 +13,14 @@
 //   --fov camera; a sidecar's "normal_space" / "position_space" or the mapping overrides.
 // - "mapping": channels named by the caller (ChannelMapping); inputs it leaves empty keep
 //   what the detected profile found.
+// - back-face depth (GBuffer::depth_back_view), any profile: a flat channel <Layer>.DepthBack
+//   (blender), Z.back or depth_back (generic), or mapped; or, in a deep part, the next
+//   surface behind the nearest sample (below).
+// Deep parts (DeepScanLine, DeepTile; OpenEXR "Interpreting OpenEXR Deep Pixels"): per
+// pixel the nearest sample (smallest Z) gives depth and every other channel; the nearest
+// sample whose Z lies beyond the nearest one's max(Z, ZBack) by more than
+// kDeepSurfaceGapRelative of it gives the back-face depth (unless one is mapped). The
+// samples of a pixel may be in any order. A pixel without samples is background.
 // In a multi-part file, depth comes from ReadOptions::part or the first part holding a
 // depth channel; other inputs from that part, else from another part of the same size.
 //
@@ -26,6 +34,8 @@
 // Conversions, done once here:
 // - depth: radial -> planar along the eye ray. Background = non-finite, <= 0, >= 1e9,
 //   beyond the far clip or equal to the sidecar's background_depth: mask 0, depth +inf.
+//   The back-face depth gets the same conversion, is +inf where the pixel is background or
+//   its own value is, and is raised to the pixel's depth where it lies in front of it.
 // - normals: world -> view with the inverse transpose of world_to_view's 3x3, renormalised,
 //   and flipped to face the camera when they point away from the eye (back faces or
 //   unflipped shading normals; the kernels integrate over the visible hemisphere).
@@ -56,6 +66,7 @@ enum class Space { automatic, world, view };
 // ("N" -> N.X N.Y N.Z | N.R N.G N.B | N.x N.y N.z). Empty = use the detected profile.
 struct ChannelMapping {
   std::string depth;
+  std::string depth_back;  // a back-face depth pass (GBuffer::depth_back_view)
   std::string normal;
   std::string position;
   std::string albedo;
@@ -78,6 +89,12 @@ enum class ZipDecoder { libdeflate, openexr };
 
 // Defaults read the depth, normals, albedo, lighting and reference passes of the chosen
 // part with OpenEXR's global thread pool (ZIP parts: OpenCV's pool, see ZipDecoder).
+// Deep samples of one pixel belong to different surfaces when their depths differ by more
+// than this fraction of the nearer: a renderer writes one surface as several samples at
+// nearly the same depth (fragments of one pixel, float rounding), while the two faces of an
+// object 1% of its distance thick are 10x further apart.
+inline constexpr float kDeepSurfaceGapRelative = 1e-3f;
+
 struct ReadOptions {
   ChannelMapping mapping;
   std::string camera_json;              // explicit sidecar path; empty = look beside the frame
@@ -89,6 +106,7 @@ struct ReadOptions {
   bool read_albedo = true;
   bool read_lighting = true;
   bool read_references = true;          // e.g. the AO / DiffDir / DiffInd passes
+  bool read_depth_back = true;          // the back-face depth, when the frame has one
   // Refused before anything is allocated (checked on every part's header, see
   // formats/exr_header_check.h): a data window, chunk, tile or row of tiles of more than
   // max_pixels pixels, or of more than max_decoded_bytes with every channel of its part
@@ -123,6 +141,9 @@ struct FrameInfo {
   float fov_x_deg = 0, fov_y_deg = 0;         // full fields of view of the camera, degrees
   float near_view = 0, far_view = 0;          // clip distances, scene units (0 = unknown)
   std::string depth_kind;                     // "planar" | "radial", as converted
+  // Where GBuffer::depth_back_view comes from: "channel NAME", "deep samples of NAME" or
+  // "" (none read).
+  std::string back_layer;
   // The frame has no normals: normal_view is left empty, to be reconstructed from depth.
   bool normals_reconstructed = false;
   // read_positions was asked and the frame has no positions pass: position_view is left

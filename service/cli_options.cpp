@@ -218,6 +218,7 @@ bool resolve_read_options(const ReadOptionArgs& a, ReadOptions& read, std::strin
       return true;
     };
     if (key == "depth") map.depth = value;
+    else if (key == "depth-back") map.depth_back = value;
     else if (key == "normal") map.normal = value;
     else if (key == "position") map.position = value;
     else if (key == "albedo") map.albedo = value;
@@ -227,7 +228,8 @@ bool resolve_read_options(const ReadOptionArgs& a, ReadOptions& read, std::strin
     else if (key.rfind("ref:", 0) == 0 && key.size() > 4) map.references[key.substr(4)] = value;
     else {
       error = "--map: unknown input '" + key +
-              "' (depth, normal, position, albedo, lighting, normal-space, position-space, ref:NAME)";
+              "' (depth, depth-back, normal, position, albedo, lighting, normal-space, position-space, "
+              "ref:NAME)";
       return false;
     }
   }

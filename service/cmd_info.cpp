@@ -47,6 +47,7 @@ nlohmann::json info_json(const ReadResult& r) {
                  {"fov_y_deg", i.fov_y_deg},  {"near", i.near_view},
                  {"far", i.far_view},         {"perspective", r.gbuffer.camera.is_perspective()}};
   j["depth_kind"] = i.depth_kind;
+  if (!i.back_layer.empty()) j["back_layer"] = i.back_layer;
   if (i.ao_distance_world) j["ao_distance"] = *i.ao_distance_world;
   if (i.foreground_pixels > 0)
     j["depth_range"] = {i.depth_min_view, i.depth_max_view};
@@ -93,6 +94,7 @@ std::string info_text(const ReadResult& r) {
   s << "  depth          " << i.depth_kind;
   if (i.foreground_pixels > 0) s << ", foreground range " << i.depth_min_view << " .. " << i.depth_max_view;
   s << "\n";
+  if (!i.back_layer.empty()) s << "  back layer     " << i.back_layer << "\n";
   if (i.ao_distance_world) s << "  AO distance    " << *i.ao_distance_world << "\n";
   s << "  pixels         " << i.foreground_pixels << " foreground, " << i.masked_pixels
     << " masked (" << i.nonfinite_pixels << " non-finite)";

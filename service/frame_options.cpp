@@ -20,9 +20,9 @@ using A = FrameOptionArgs;
 std::vector<FrameOption> read_options() {
   return {
       {.name = "map", .kind = OptionKind::list, .set = OptionSet::read, .group = "Input",
-       .help = "Channel for an input, for renderers no profile knows: INPUT=CHANNEL, INPUT one of depth, normal, "
-               "position, albedo, lighting, normal-space, position-space (world|view), or ref:NAME. A CHANNEL may "
-               "be a layer (N -> N.X N.Y N.Z). Repeatable.",
+       .help = "Channel for an input, for renderers no profile knows: INPUT=CHANNEL, INPUT one of depth, depth-back "
+               "(a back-face depth pass), normal, position, albedo, lighting, normal-space, position-space "
+               "(world|view), or ref:NAME. A CHANNEL may be a layer (N -> N.X N.Y N.Z). Repeatable.",
        .field = +[](A& a) -> std::vector<std::string>& { return a.read.maps; }},
       {.name = "camera", .kind = OptionKind::text, .set = OptionSet::read, .group = "Input",
        .help = "Camera JSON sidecar", .unset = "NAME.camera.json beside NAME.exr",

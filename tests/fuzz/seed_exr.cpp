@@ -6,6 +6,9 @@
 #include <vector>
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfDeepFrameBuffer.h>
+#include <OpenEXR/ImfDeepScanLineOutputFile.h>
+#include <OpenEXR/ImfDeepTiledOutputFile.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfMultiPartOutputFile.h>
@@ -74,6 +77,50 @@ void add_camera(Imf::Header& h) {
   Imf::addWorldToNDC(h, ndc);
   h.insert("clipNear", Imf::FloatAttribute(0.1f));
   h.insert("clipFar", Imf::FloatAttribute(100.0f));
+}
+
+// A deep frame: pixel i holds i % 4 samples (none: background) of Z = the flat depth plus
+// 0.5 per sample, farthest first, and N; scanline (ZIPS) or tiled 4 x 4 (RLE).
+void write_deep_seed(const std::string& path, const Imath::Box2i& window, bool tiled) {
+  Imf::Header h(window, window, 1, Imath::V2f(0, 0), 1, Imf::INCREASING_Y,
+                tiled ? Imf::RLE_COMPRESSION : Imf::ZIPS_COMPRESSION);
+  h.setType(tiled ? Imf::DEEPTILE : Imf::DEEPSCANLINE);
+  if (tiled) h.setTileDescription(Imf::TileDescription(4, 4, Imf::ONE_LEVEL));
+  const std::vector<float> z = depth_values();
+  const char* names[4] = {"Z", "N.X", "N.Y", "N.Z"};
+  std::vector<unsigned> counts(kW * kH);
+  std::vector<std::vector<float>> values(4);
+  for (int i = 0; i < kW * kH; ++i) {
+    counts[i] = unsigned(i % 4);
+    for (int k = int(counts[i]) - 1; k >= 0; --k) {
+      values[0].push_back(z[i] + 0.5f * float(k));
+      values[1].push_back(0.0f);
+      values[2].push_back(0.0f);
+      values[3].push_back(k == 0 ? 1.0f : -1.0f);
+    }
+  }
+  std::vector<std::vector<float*>> pointers(4, std::vector<float*>(kW * kH));
+  Imf::DeepFrameBuffer fb;
+  fb.insertSampleCountSlice(Imf::Slice(Imf::UINT, reinterpret_cast<char*>(counts.data()), 4, 4 * kW));
+  for (int c = 0; c < 4; ++c) {
+    h.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+    size_t at = 0;
+    for (int i = 0; i < kW * kH; ++i) {
+      pointers[c][i] = values[c].data() + at;
+      at += counts[i];
+    }
+    fb.insert(names[c], Imf::DeepSlice(Imf::FLOAT, reinterpret_cast<char*>(pointers[c].data()),
+                                       sizeof(float*), sizeof(float*) * kW, sizeof(float)));
+  }
+  if (tiled) {
+    Imf::DeepTiledOutputFile out(path.c_str(), h, 1);
+    out.setFrameBuffer(fb);
+    out.writeTiles(0, out.numXTiles() - 1, 0, out.numYTiles() - 1);
+  } else {
+    Imf::DeepScanLineOutputFile out(path.c_str(), h, 1);
+    out.setFrameBuffer(fb);
+    out.writePixels(kH);
+  }
 }
 
 }  // namespace
@@ -170,6 +217,8 @@ bool write_seed_exr(const std::string& path, int variant) {
         p1.writePixels(kH - 1);
         return true;
       }
+      case 5:
+      case 6: write_deep_seed(path, window, variant == 6); return true;
       default: return false;
     }
   } catch (const std::exception&) {

@@ -13,8 +13,10 @@ namespace ssdo::fuzz {
 // 1 generic Z + N.XYZ as half, ZIP, data window inside a larger display window;
 // 2 generic depth.Z + P.XYZ + albedo.RGB, RLE, no camera;
 // 3 tiled Z + N.RGB, PIZ;
-// 4 two parts ("depth" with Z, "color" with R G B) of different data windows.
-constexpr int kSeedExrVariants = 5;
+// 4 two parts ("depth" with Z, "color" with R G B) of different data windows;
+// 5 deep scanline Z + N.XYZ, 0 to 3 samples per pixel, ZIPS;
+// 6 the same deep tiled, RLE.
+constexpr int kSeedExrVariants = 7;
 
 // Writes variant `variant` to `path`. False on failure.
 bool write_seed_exr(const std::string& path, int variant);

@@ -47,6 +47,30 @@ TEST(Cli, InfoJsonIsParseable) {
   EXPECT_NE(r.output.find("\"blender\""), std::string::npos);
 }
 
+// A frame with a back-face depth channel: `ssdo info` says where the back layer comes from,
+// for a name the generic profile knows and for a mapped one.
+TEST(Cli, InfoShowsTheBackLayer) {
+  ScratchDir dir;
+  const std::string path = (dir / "back.exr");
+  OIIO::ImageSpec spec(4, 2, 3, OIIO::TypeDesc::FLOAT);
+  spec.channelnames = {"Z", "Z.back", "backface"};
+  std::vector<float> pixels;
+  for (int i = 0; i < 8; ++i) pixels.insert(pixels.end(), {2.0f, 2.5f, 3.0f});
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out && out->open(path, spec) && out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) && out->close());
+  RunResult r = run_ssdo("info " + path + " --fov 60");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("back layer     channel Z.back"), std::string::npos) << r.output;
+  r = run_ssdo("info --json " + path + " --fov 60 --map depth-back=backface 2>/dev/null");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.output;
+  EXPECT_NE(r.output.find("\"back_layer\": \"channel backface\""), std::string::npos) << r.output;
+  r = run_ssdo("info " + path + " --fov 60 --map depth-back=missing");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("mapped depth_back channel \"missing\" not found"), std::string::npos) << r.output;
+}
+
 TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {
   ScratchDir out;
   RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() +

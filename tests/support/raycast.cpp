@@ -283,6 +283,44 @@ cv::Mat render_depth_back(const Scene& scene, const Camera& camera, int nthreads
   return depth_back;
 }
 
+std::vector<std::vector<float>> render_depth_samples(const Scene& scene, const Camera& camera,
+                                                    int nthreads) {
+  CV_Assert(camera.width_px > 0 && camera.height_px > 0);
+  std::vector<std::vector<float>> samples(size_t(camera.width_px) * size_t(camera.height_px));
+  parallel_rows(cv::Range(0, camera.height_px), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < camera.width_px; ++x) {
+        const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
+        const glm::vec3 origin_view =
+            camera.is_perspective() ? glm::vec3(0.0f) : camera.view_from_pixel_depth(pixel, 0.0f);
+        const glm::vec3 o = glm::vec3(camera.view_to_world * glm::vec4(origin_view, 1.0f));
+        const glm::vec3 d =
+            glm::normalize(camera.world_from_view_direction(camera.view_ray_direction(pixel)));
+        std::vector<float> ts;
+        for (const Plane& p : scene.planes) ts.push_back(intersect_plane(p, o, d));
+        for (const Sphere& sp : scene.spheres) {
+          float t0, t1;
+          if (intersect_sphere(sp, o, d, t0, t1)) ts.insert(ts.end(), {t0, t1});
+        }
+        for (const Box& bx : scene.boxes) {
+          float tn, tf, sn, sf;
+          int an, af;
+          if (intersect_box(bx, o, d, tn, tf, an, sn, af, sf)) ts.insert(ts.end(), {tn, tf});
+        }
+        // A plane bounds a half-space solid (as in render_depth_back): nothing behind its
+        // hit is seen.
+        float t_end = kInf;
+        for (const Plane& p : scene.planes)
+          if (const float t = intersect_plane(p, o, d); t > 0.0f) t_end = std::min(t_end, t);
+        std::sort(ts.begin(), ts.end());
+        std::vector<float>& out = samples[size_t(y) * size_t(camera.width_px) + size_t(x)];
+        for (float t : ts)
+          if (t > 0.0f && t <= t_end && t < kInf) out.push_back(-camera.view_from_world_point(o + t * d).z);
+      }
+  });
+  return samples;
+}
+
 namespace {
 
 // Estimators shared by the point and image entry points; `offset_world` is the origin

@@ -92,6 +92,14 @@ GBuffer render_gbuffer(const Scene& scene, const Camera& camera, int nthreads = 
 // with the G-buffer's mask. CV_32FC1 of the camera's size.
 cv::Mat render_depth_back(const Scene& scene, const Camera& camera, int nthreads = 0);
 
+// Every surface crossing of each pixel's ray, as a deep render without culling writes them
+// (one sample per surface, opaque): the planar depths of the entry and exit of each sphere
+// and box in front of the eye, nearest first, up to the first plane hit (included): a plane
+// bounds a half-space with no far side (render_depth_back). Row-major, one vector per pixel
+// (empty on background). Where solids overlap, the crossings inside another are listed too.
+std::vector<std::vector<float>> render_depth_samples(const Scene& scene, const Camera& camera,
+                                                    int nthreads = 0);
+
 // Offset of a secondary ray's origin along the surface normal, scene units:
 // kRayOffsetRelative * max(1, |p_world|, depth_view). Why: hit points are computed in float
 // (relative error ~1e-7 of the coordinates and of the camera distance, amplified a few
