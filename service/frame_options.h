@@ -18,7 +18,7 @@ namespace ssdo {
 
 // --views when not given: neighbouring frames used on each side of a frame as extra views
 // (0 = every frame alone).
-inline constexpr int kDefaultViewsPerSide = 0;
+inline constexpr int kDefaultViewsPerSide = 2;
 
 // Raw option values as typed; resolved into a request by resolve_* (cli_options.h).
 struct ReadOptionArgs {
