@@ -194,7 +194,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   if (s == IoStatus::timeout) {
     ::kill(pid_, SIGKILL);
     reap_reason();
-    result.worker_replaced = true;
+    result.worker_replaced = result.transient = true;
     char text[128];
     std::snprintf(text, sizeof text, "timed out after %.0f s (worker killed and replaced; see --frame-timeout)",
                   limits_.frame_timeout_s);
@@ -203,7 +203,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   }
   if (s != IoStatus::ok) {
     result.error = reap_reason() + " while processing the frame";
-    result.worker_replaced = true;
+    result.worker_replaced = result.transient = true;
     return result;
   }
   const nlohmann::json j = nlohmann::json::parse(response, nullptr, false);
@@ -219,6 +219,8 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   for (char& c : result.error)
     if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   if (!j.value("ok", false) && result.error.empty()) result.error = "the worker reported a failure";
+  // cmd_worker.cpp's describe_memory_error marks every allocation failure this way.
+  result.transient = result.error.find("out of memory") != std::string::npos;
   result.times.read_ms = j.value("read_ms", 0.0);
   result.times.compute_ms = j.value("compute_ms", 0.0);
   result.times.write_ms = j.value("write_ms", 0.0);
@@ -231,7 +233,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
       if (t.is_string()) result.terms.push_back(t.get<std::string>());
   if (j.value("exiting", false)) {  // the worker's last words (an uncaught exception)
     reap_reason();
-    result.worker_replaced = true;
+    result.worker_replaced = result.transient = true;
   }
   return result;
 }
