@@ -283,38 +283,47 @@ TEST(ServeLifetimes, IdleConnectionsDoNotLockOthersOut) {
 
 // --- 16: memory estimated from the header; one pixel limit ------------------------------
 
-// 8192 x 8192, three half channels of zeros, ZIP: a few hundred KB that decode to 384 MiB.
-void write_zip_bomb(const fs::path& path, int size_px) {
-  OIIO::ImageSpec spec(size_px, size_px, 3, OIIO::TypeDesc::HALF);
-  spec.channelnames = {"Z", "N.X", "N.Y"};
-  spec.attribute("compression", "zip");
-  auto out = OIIO::ImageOutput::create(path.string());
-  ASSERT_TRUE(out && out->open(path.string(), spec));
-  const std::vector<uint16_t> rows(size_t(size_px) * 3 * 16, 0);
-  for (int y = 0; y < size_px; y += 16)
-    out->write_scanlines(y, y + 16, 0, OIIO::TypeDesc::HALF, rows.data());
-  out->close();
+// 8208 x 8208 (just over 2^26 pixels), three half channels of zeros, ZIP: a few hundred KB
+// that decode to 385 MiB. Written once per test program (it takes seconds).
+const fs::path& zip_bomb() {
+  static const struct File {
+    fs::path path = fs::temp_directory_path() / ("ssdo_it_" + std::to_string(::getpid()) + "_bomb.exr");
+    File() {
+      constexpr int kSide = 8208;
+      OIIO::ImageSpec spec(kSide, kSide, 3, OIIO::TypeDesc::HALF);
+      spec.channelnames = {"Z", "N.X", "N.Y"};
+      spec.attribute("compression", "zip");
+      auto out = OIIO::ImageOutput::create(path.string());
+      if (!out || !out->open(path.string(), spec)) return;
+      const std::vector<uint16_t> rows(size_t(kSide) * 3 * 16, 0);
+      for (int y = 0; y < kSide; y += 16)
+        out->write_scanlines(y, std::min(y + 16, kSide), 0, OIIO::TypeDesc::HALF, rows.data());
+      out->close();
+    }
+    ~File() { fs::remove(path); }
+  } file;
+  return file.path;
 }
 
 TEST(ServeLifetimes, DecodeLargerThanTheMemoryLimitIsRefusedWithTheReason) {
   ScratchDir dir;
-  write_zip_bomb(dir.path / "bomb.exr", 8192);
-  const RunResult r = run_ssdo("process " + (dir / "bomb.exr") + " -o " + (dir / "out") + " --memory-limit 1024");
+  const RunResult r = run_ssdo("process " + zip_bomb().string() + " -o " + (dir / "out") +
+                               " --memory-limit 1024 --max-pixels 70000000");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_EQ(r.output.find("damaged or truncated"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("needs an estimated"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("1024 MiB"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--memory-limit"), std::string::npos) << r.output;
 }
 
 TEST(ServeLifetimes, InfoAndProcessShareThePixelLimit) {
   ScratchDir dir;
-  write_zip_bomb(dir.path / "big.exr", 8208);  // 8208^2 > 2^26
-  const RunResult info = run_ssdo("info " + (dir / "big.exr"));
-  const RunResult process = run_ssdo("process " + (dir / "big.exr") + " -o " + (dir / "out"));
+  const RunResult info = run_ssdo("info " + zip_bomb().string());
+  const RunResult process = run_ssdo("process " + zip_bomb().string() + " -o " + (dir / "out"));
   EXPECT_NE(info.exit_code, 0) << info.output;
   EXPECT_NE(process.exit_code, 0) << process.output;
-  EXPECT_NE(info.output.find("67108864"), std::string::npos) << info.output;
-  EXPECT_NE(process.output.find("67108864"), std::string::npos) << process.output;
+  EXPECT_NE(info.output.find("limit 67108864 pixels"), std::string::npos) << info.output;
+  EXPECT_NE(process.output.find("limit 67108864 pixels"), std::string::npos) << process.output;
 }
 
 }  // namespace
