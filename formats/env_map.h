@@ -8,6 +8,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "formats/exr_header_check.h"
+
 namespace ssdo {
 
 struct EnvMapResult {
@@ -19,12 +21,12 @@ struct EnvMapResult {
 // Reads the first three channels (R, G, B; a single channel is replicated). Refuses
 // images larger than max_pixels before allocating; non-finite or negative radiance is
 // clamped to 0.
-EnvMapResult read_env_map(const std::string& path, long long max_pixels = 1ll << 26);
+EnvMapResult read_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);
 
 // What read_env_map would refuse that is known without decoding the pixels: for EXR the
 // header (formats/exr_header_check.h), the size limit and the channels; any other format
 // is read whole (read_env_map). Empty on success, else the error read_env_map gives. For
 // a process that checks options before a worker reads the map.
-std::string check_env_map(const std::string& path, long long max_pixels = 1ll << 26);
+std::string check_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);
 
 }  // namespace ssdo

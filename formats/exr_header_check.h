@@ -39,6 +39,10 @@
 
 namespace ssdo {
 
+// The largest data window read by default, everywhere a frame is read (ssdo info, process,
+// serve and their workers): 8192 x 8192.
+constexpr int64_t kDefaultMaxPixels = int64_t(1) << 26;
+
 // What the walk learnt of one part (the fields OpenEXR sizes its buffers from).
 struct ExrPartLayout {
   std::string type;             // "scanlineimage" | "tiledimage" | "deepscanline" | "deeptile" | other
@@ -49,11 +53,14 @@ struct ExrPartLayout {
   int64_t bytes_per_pixel = 0;  // every channel, as stored (half 2, float 4, uint 4)
   int channels = 0;
   int64_t chunks = 0;           // chunk offset table entries
+  int64_t pixels() const { return (max_x - min_x + 1) * (max_y - min_y + 1); }
+  // What reading the part decodes: its data window with every channel as stored.
+  int64_t decoded_bytes() const { return pixels() * bytes_per_pixel; }
 };
 
 struct ExrLimits {
-  int64_t max_pixels = int64_t(1) << 28;
-  int64_t max_decoded_bytes = int64_t(1) << 34;
+  int64_t max_pixels = kDefaultMaxPixels;
+  int64_t max_decoded_bytes = int64_t(1) << 34;  // 64 float channels at kDefaultMaxPixels
 };
 
 struct ExrHeaderCheck {

@@ -55,6 +55,7 @@
 #include <vector>
 
 #include "core/gbuffer.h"
+#include "formats/exr_header_check.h"
 
 namespace ssdo {
 
@@ -111,7 +112,7 @@ struct ReadOptions {
   // formats/exr_header_check.h): a data window, chunk, tile or row of tiles of more than
   // max_pixels pixels, or of more than max_decoded_bytes with every channel of its part
   // as stored (OpenEXR decodes them all).
-  int64_t max_pixels = int64_t(1) << 28;
+  int64_t max_pixels = kDefaultMaxPixels;
   int64_t max_decoded_bytes = int64_t(1) << 34;  // 16 GiB: 64 float channels at max_pixels
   int threads = 0;                      // OpenEXR decoding threads (0 = its global pool) and
                                         // conversion strips and ZIP chunk strips (0 =

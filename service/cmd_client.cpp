@@ -47,7 +47,7 @@ int connect_to(const std::string& path, std::string& error) {
 // Sends `request` (+ the bytes of `payload_file`) and reads the response (+ its inline
 // bytes into `inline_out`). False with a message on a transport failure.
 bool exchange(int fd, json request, const std::string& payload_file, json& response, std::string& inline_out,
-              Deadline deadline, std::string& error) {
+              size_t max_inline_mb, Deadline deadline, std::string& error) {
   std::string payload;
   if (!payload_file.empty()) {
     std::ifstream in(payload_file, std::ios::binary);
@@ -72,7 +72,19 @@ bool exchange(int fd, json request, const std::string& payload_file, json& respo
     error = "malformed response";
     return false;
   }
-  if (const auto n = response.value("inline_size", uint64_t(0)); n > 0) {
+  const json& size = response.contains("inline_size") ? response["inline_size"] : json(0);
+  if (!size.is_number_unsigned() && !(size.is_number_integer() && size.get<int64_t>() >= 0)) {
+    error = "malformed response: inline_size is not a byte count";
+    return false;
+  }
+  if (const auto n = size.get<uint64_t>(); n > 0) {
+    // The reply is held in memory before it is written: a size beyond the limit is refused,
+    // whatever the service announces.
+    if (n > uint64_t(max_inline_mb) << 20) {
+      error = "the service announced an inline reply of " + std::to_string(n) + " bytes, over the limit of " +
+              std::to_string(max_inline_mb) + " MiB (--max-inline-mb)";
+      return false;
+    }
     inline_out.resize(n);
     if (read_exact(fd, inline_out.data(), n, deadline) != IoStatus::ok) {
       error = "the output's bytes were cut short";
@@ -129,7 +141,8 @@ int run_client(const ClientArgs& args) {
   for (size_t i = 0; i < requests.size(); ++i) {
     json response;
     std::string bytes;
-    if (!exchange(fd, requests[i], payloads[i], response, bytes, deadline_in(args.timeout_s), error)) {
+    if (!exchange(fd, requests[i], payloads[i], response, bytes, args.max_inline_mb, deadline_in(args.timeout_s),
+                  error)) {
       std::cerr << "ssdo client: " << (i < args.files.size() ? args.files[i] + ": " : "") << error << "\n";
       ::close(fd);
       return 2;
@@ -165,6 +178,9 @@ Command register_client(CLI::App& app) {
   cmd->add_option("files", c.files, "process: frames (paths the service may read, or sent with --inline)");
   cmd->add_flag("--inline", c.inline_data, "Send the frames' bytes (and NAME.camera.json) and receive the outputs' bytes");
   cmd->add_option("-o,--out", c.out_dir, "--inline: folder for the outputs")->capture_default_str();
+  cmd->add_option("--max-inline-mb", c.max_inline_mb, "--inline: largest output the service may send back, MiB")
+      ->check(CLI::Range(size_t(1), size_t(1) << 20))
+      ->capture_default_str();
   cmd->add_option("--timeout", c.timeout_s, "Seconds to wait for each response")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();

@@ -1,8 +1,14 @@
 // `ssdo serve`: a long-running service. Frames dropped into --watch and frames asked for
 // on --socket are computed by worker processes (service/frame_service.h); SIGTERM or
 // SIGINT stop it gracefully (no new work, frames in flight finish, exit 0).
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <filesystem>
 #include <iostream>
@@ -22,6 +28,36 @@
 namespace ssdo {
 
 namespace fs = std::filesystem;
+
+namespace {
+
+// One service per output folder: OUT/.ssdo-serve.lock held with flock(2) (LOCK_EX |
+// LOCK_NB) for the service's life, so a second instance cannot remove the first one's
+// spool or race it for the same outputs. The kernel drops the lock when the process ends,
+// kill -9 included; the descriptor is close-on-exec, so workers never hold it.
+int lock_output_folder(const std::string& out_dir, std::string& error) {
+  const std::string path = (fs::path(out_dir) / ".ssdo-serve.lock").string();
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0600);
+  if (fd < 0) {
+    error = path + ": cannot open the lock file: " + std::strerror(errno);
+    return -1;
+  }
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    char pid[32] = {};
+    (void)!::pread(fd, pid, sizeof pid - 1, 0);
+    error = out_dir + ": another ssdo serve uses this output folder (pid " + std::string(pid) +
+            ", lock " + path + "); give each instance its own -o";
+    ::close(fd);
+    return -1;
+  }
+  const std::string text = std::to_string(::getpid());
+  if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, text.data(), text.size(), 0) < 0) {
+    // The pid is for people reading the refusal; the lock holds without it.
+  }
+  return fd;
+}
+
+}  // namespace
 
 int run_serve(const ServeArgs& args) {
   auto usage = [](const std::string& message) {
@@ -53,6 +89,11 @@ int run_serve(const ServeArgs& args) {
     return usage("--socket-mode " + args.socket_mode + ": expected octal permissions such as 0600");
   }
 
+  const int lock_fd = lock_output_folder(out_dir, error);
+  if (lock_fd < 0) {
+    std::cerr << "ssdo serve: " << error << "\n";
+    return 1;
+  }
   // Inline frames are spooled here; leftovers of a killed run are removed.
   const std::string spool = (fs::path(out_dir) / ".ssdo-spool").string();
   fs::remove_all(spool, ec);
@@ -79,7 +120,15 @@ int run_serve(const ServeArgs& args) {
   service_options.limits = args.limits;
   service_options.limits.threads = plan.threads_per_frame;
   service_options.queue_capacity = args.queue_capacity;
+  service_options.retries = args.retries;
   FrameService frames(service_options);
+
+  // Constructed now (started below, after the workers) so that stats can report on it.
+  std::unique_ptr<DirectoryWatcher> watcher;
+  if (!watch_dir.empty())
+    watcher = std::make_unique<DirectoryWatcher>(
+        watch_dir, args.poll_s, [&](const std::string& path) { frames.enqueue_watched(path); },
+        [](const std::string& line) { std::cout << printable(line) << "\n" << std::flush; });
 
   std::unique_ptr<SocketServer> server;
   if (!args.socket_path.empty()) {
@@ -93,23 +142,24 @@ int run_serve(const ServeArgs& args) {
     o.client_timeout_s = args.client_timeout_s;
     o.frame_timeout_s = args.limits.frame_timeout_s;
     o.max_clients = args.max_clients;
+    o.max_spool_bytes = args.max_spool_mb << 20;
     o.default_options = to_json(args.options);
+    if (watcher)
+      o.watch_status = [w = watcher.get(), watch_dir] {
+        const DirectoryWatcher::Status st = w->status();
+        return nlohmann::json{
+            {"dir", watch_dir}, {"state", st.watching ? "watching" : "lost"}, {"reestablished", st.reestablished}};
+      };
     server = std::make_unique<SocketServer>(o, frames);
     if (!server->bind(error)) return usage(error);
   }
   frames.start();
   if (server) server->start();
-  std::unique_ptr<DirectoryWatcher> watcher;
-  if (!watch_dir.empty()) {
-    watcher = std::make_unique<DirectoryWatcher>(
-        watch_dir, args.poll_s, [&](const std::string& path) { frames.enqueue_watched(path); },
-        [](const std::string& line) { std::cout << printable(line) << "\n" << std::flush; });
-    if (!watcher->start(error)) {
-      if (server) server->stop();
-      frames.stop();
-      std::cerr << "ssdo serve: " << error << "\n";
-      return 1;
-    }
+  if (watcher && !watcher->start(error)) {
+    if (server) server->stop();
+    frames.stop();
+    std::cerr << "ssdo serve: " << error << "\n";
+    return 1;
   }
   std::cout << "ssdo serve: ready" << (watch_dir.empty() ? "" : "; watching " + watch_dir)
             << (args.socket_path.empty() ? "" : "; socket " + args.socket_path) << "; output " << out_dir << "; "
@@ -172,6 +222,15 @@ Command register_serve(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-inline-mb", st->max_inline_mb, "Largest inline frame, MiB")
       ->check(CLI::Range(size_t(1), size_t(1) << 16))
+      ->capture_default_str();
+  cmd->add_option("--retries", s.retries,
+                  "Attempts again, on a new worker, of a frame whose worker was killed, timed out or ran "
+                  "out of memory")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  cmd->add_option("--max-spool-mb", s.max_spool_mb,
+                  "Disk the inline frames being served may take together, MiB; beyond: busy")
+      ->check(CLI::Range(size_t(1), size_t(1) << 24))
       ->capture_default_str();
   cmd->add_option("--config", st->config, "JSON file of frame options (as for process)")->check(CLI::ExistingFile);
   add_frame_options(*cmd, s.options);

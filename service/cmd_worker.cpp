@@ -22,6 +22,7 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
 
+#include "formats/exr_header_check.h"
 #include "formats/oiio_module.h"
 #include "service/build_features.h"
 #include "service/parallelism.h"
@@ -141,6 +142,35 @@ std::vector<NeighbourFrame> neighbours_of(const nlohmann::json& j) {
   return out;
 }
 
+// Memory a frame needs besides its decoded channels, per pixel: a lower bound (the G-buffer's
+// float depth and normal, the term computed, the reader's conversion of one channel), so
+// that a frame refused here could never have been computed under the limit. (A 1080p frame
+// with every term peaks at about 250 bytes per pixel, worker_process.h.)
+constexpr int64_t kWorkingBytesPerPixel = 64;
+
+// The refusal of an EXR whose decode alone, estimated from its headers, needs more than the
+// worker's memory limit (a highly compressed file declaring a large data window would
+// otherwise fail in the middle of decoding with a misleading message); empty when it may
+// fit, or when the headers are unsound (the reader then says why).
+std::string memory_estimate_refusal(const std::string& path, int64_t max_pixels, int64_t limit_mb) {
+  if (limit_mb <= 0) return {};
+  ExrLimits limits;
+  limits.max_pixels = max_pixels;
+  const ExrHeaderCheck check = check_exr_headers(path, limits);
+  if (!check.ok()) return {};
+  for (const ExrPartLayout& part : check.parts) {
+    const int64_t bytes = part.decoded_bytes() + part.pixels() * kWorkingBytesPerPixel;
+    if (bytes <= (limit_mb << 20)) continue;
+    return path + ": the frame needs an estimated " + std::to_string(bytes >> 20) + " MiB (" +
+           std::to_string(part.max_x - part.min_x + 1) + " x " + std::to_string(part.max_y - part.min_y + 1) +
+           " pixels: " + std::to_string(part.channels) + " channels decoded at " +
+           std::to_string(part.bytes_per_pixel) + " bytes per pixel, and at least " +
+           std::to_string(kWorkingBytesPerPixel) + " bytes per pixel to compute), over the worker's memory limit of " +
+           std::to_string(limit_mb) + " MiB (--memory-limit)";
+  }
+  return {};
+}
+
 std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
   const bool no_memory = error.find("bad_alloc") != std::string::npos ||
                          error.find("Insufficient memory") != std::string::npos ||
@@ -194,7 +224,9 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   SequenceContext confined;
   const bool is_confined = !confine.input_roots.empty();
   if (is_confined) files.open_neighbours(confine, request.neighbours, view_notes);
-  FrameResult r = process_frame(request, is_confined ? &confined : &sequence);
+  FrameResult r;
+  r.error = memory_estimate_refusal(request.input_path, args.max_pixels, args.memory_limit_mb);
+  if (r.error.empty()) r = process_frame(request, is_confined ? &confined : &sequence);
   r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
   for (std::string& note : r.info.notes) note = files.named(note);
   response["ok"] = r.ok();

@@ -101,6 +101,8 @@ struct ServeArgs {
   size_t queue_capacity = 64;        // socket requests waiting; beyond: "busy"
   int max_clients = 64;              // socket connections at once
   double client_timeout_s = 30;      // to send a whole request / receive a reply
+  int retries = 2;                   // new attempts of a frame after a transient failure
+  size_t max_spool_mb = 2048;        // inline frames in the spool, all requests together
   ProtocolLimits protocol;
 };
 int run_serve(const ServeArgs& args);
@@ -113,6 +115,7 @@ struct ClientArgs {
   std::string out_dir = ".";         // --inline: where outputs are written
   nlohmann::json options = nlohmann::json::object();  // only the flags given
   double timeout_s = 600;            // per request, queueing included
+  size_t max_inline_mb = 2048;       // --inline: largest output accepted back (held in memory)
 };
 int run_client(const ClientArgs& args);
 

@@ -10,6 +10,7 @@
 #include <thread>
 #include <vector>
 
+#include "formats/camera_io.h"
 #include "formats/output_writer.h"
 
 namespace ssdo {
@@ -30,6 +31,14 @@ bool is_frame_file(const std::string& path) {
   std::string lower = name;
   std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
   return ends_with(lower, ".exr") && !ends_with(lower, ".ssdo.exr") && name[0] != '.';
+}
+
+std::string frame_for_sidecar(const std::string& path) {
+  static const std::string suffix = ".camera.json";
+  const std::string name = fs::path(path).filename().string();
+  if (name.size() <= suffix.size() || name[0] == '.' || !ends_with(name, suffix)) return {};
+  const std::string frame = path.substr(0, path.size() - suffix.size()) + ".exr";
+  return sidecar_path_for(frame) == path && is_frame_file(frame) ? frame : std::string();
 }
 
 bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::string>& frames,
@@ -109,6 +118,12 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 }
 
 }  // namespace
+
+bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output) {
+  const std::string sidecar = sidecar_path_for(input);
+  struct stat st {};
+  return output_up_to_date(input, output) && (::stat(sidecar.c_str(), &st) != 0 || output_up_to_date(sidecar, output));
+}
 
 int remove_stale_temp_files(const std::string& dir, double wait_s) {
   // Only this host's files whose process is gone are abandoned: on a farm, another host's

@@ -17,6 +17,10 @@ bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::stri
 // not hidden (".NAME", which is also how temp files are named).
 bool is_frame_file(const std::string& path);
 
+// For a camera sidecar "DIR/NAME.camera.json" (formats/camera_io.h, sidecar_path_for):
+// its frame "DIR/NAME.exr"; empty for any other name (hidden names included).
+std::string frame_for_sidecar(const std::string& path);
+
 // OUT_DIR/STEM.ssdo.exr for INPUT = .../STEM.exr.
 std::string output_path_for(const std::string& input, const std::string& output_dir);
 
@@ -27,6 +31,10 @@ std::string error_path_for(const std::string& input, const std::string& output_d
 // of its modification and status-change times, so a file renamed into place (whose
 // mtime may be old) still counts as new.
 bool output_up_to_date(const std::string& input, const std::string& output);
+
+// output_up_to_date for the frame and for its camera sidecar when it has one: a sidecar
+// that arrives or changes after the output makes the output stale too.
+bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output);
 
 // Removes the temp files of this host's output writers that no longer run
 // (".NAME.tmp-HOST-PID-*", and the older ".NAME.tmp-PID-err" / "-client", in `dir` and its

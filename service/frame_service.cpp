@@ -11,6 +11,7 @@
 
 #include "formats/output_writer.h"
 #include "service/frame_list.h"
+#include "service/frame_options.h"
 #include "service/sequence.h"
 #include "service/view_selection.h"
 
@@ -64,9 +65,16 @@ std::string timing(const WorkerResult& r) {
 
 }  // namespace
 
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error) {
-  const nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}};
+bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry) {
+  const nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}, {"retry", retry}};
   return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n").empty();
+}
+
+bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
+                          const WorkerResult& result) {
+  std::error_code ec;
+  fs::remove(output, ec);
+  return write_error_file(error_path, input, result.error, result.transient);
 }
 
 FrameService::FrameService(FrameServiceOptions options) : options_(std::move(options)) {}
@@ -92,7 +100,14 @@ bool FrameService::submit(FrameTask task) {
   return true;
 }
 
-void FrameService::enqueue_watched(const std::string& input) {
+void FrameService::enqueue_watched(const std::string& reported) {
+  // A sidecar stands for its frame (when the frame is there: it may come later).
+  std::string input = reported;
+  if (const std::string frame = frame_for_sidecar(reported); !frame.empty()) {
+    struct stat st {};
+    if (::stat(frame.c_str(), &st) != 0) return;
+    input = frame;
+  }
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopping_ || watched_.count(input)) return;
@@ -135,6 +150,7 @@ ServiceStats FrameService::stats() const {
   s.mean_frame_ms = done_ > 0 ? done_ms_ / double(done_) : 0;
   s.workers = options_.workers;
   s.workers_replaced = replaced_;
+  s.frames_retried = retried_;
   s.uptime_s = std::chrono::duration<double>(Clock::now() - started_at_).count();
   return s;
 }
@@ -198,13 +214,31 @@ void FrameService::dispatch_loop() {
   }
 }
 
+WorkerResult FrameService::run_with_retries(WorkerProcess& worker, const WorkerJob& job) {
+  WorkerResult r = worker.run(job);
+  for (int attempt = 1; !r.ok() && r.transient && attempt <= options_.retries; ++attempt) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (stopping_) break;
+      ++retried_;
+      if (r.worker_replaced) ++replaced_;
+    }
+    log("retrying " + job.input_path + " (" + std::to_string(attempt) + " of " + std::to_string(options_.retries) +
+        " after a transient failure: " + r.error + ")");
+    const double first_ms = r.wall_ms;
+    r = worker.run(job);
+    r.wall_ms += first_ms;
+  }
+  return r;
+}
+
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
-  const WorkerResult r = worker.run({task.input, task.output, task.options, task.neighbours, task.confine});
+  const WorkerResult r = run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine});
   record(r);
   if (!task.error_path.empty()) {
     std::error_code ec;
     if (r.ok()) fs::remove(task.error_path, ec);
-    else write_error_file(task.error_path, task.input, r.error);
+    else record_frame_failure(task.output, task.error_path, task.input, r);
   }
   log(r.ok() ? "ok " + task.input + " -> " + task.output + " (" + timing(r) + ")"
              : "FAILED " + task.input + ": " + r.error);
@@ -214,7 +248,7 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
 bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, bool force) {
   const std::string output = output_path_for(input, options_.out_dir);
   const std::string error_path = error_path_for(input, options_.out_dir);
-  if (!force && (output_up_to_date(input, output) || output_up_to_date(input, error_path))) {
+  if (!force && watched_frame_done(input, output, error_path)) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++skipped_;
     return false;
@@ -232,10 +266,10 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     // The frames of its sequence already in the folder are its neighbours; the watch
     // folder's own rules: the input, its sidecar and the neighbours inside it (a symbolic
     // link pointing out of it is refused); the service's options are the administrator's.
-    const int views_per_side = options_.watch_options.value("views", 0);
-    r = worker.run({input, output, options_.watch_options,
-                    folder_neighbours(input, kCandidateFramesPerView * views_per_side),
-                    {{options_.watch_dir}, {}, options_.out_dir}});
+    const int views_per_side = options_.watch_options.value("views", kDefaultViewsPerSide);
+    r = run_with_retries(worker, {input, output, options_.watch_options,
+                                  folder_neighbours(input, kCandidateFramesPerView * views_per_side),
+                                  {{options_.watch_dir}, {}, options_.out_dir}});
     const FileVersion after = version_of(input);
     if (after.exists && !(after == before)) {
       // Replaced or rewritten while computed: the result is of an old version.
@@ -246,15 +280,33 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     }
   }
   record(r);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (r.ok()) given_up_.erase(input);
+    else given_up_.insert(input);
+  }
   std::error_code ec;
   if (r.ok()) {
     fs::remove(error_path, ec);
     log("ok " + input + " -> " + output + " (" + timing(r) + ")");
   } else {
-    write_error_file(error_path, input, r.error);
+    record_frame_failure(output, error_path, input, r);
     log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
   }
   return false;
+}
+
+bool FrameService::watched_frame_done(const std::string& input, const std::string& output,
+                                      const std::string& error_path) {
+  if (output_up_to_date_with_sidecar(input, output)) return true;
+  if (!output_up_to_date_with_sidecar(input, error_path)) return false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (given_up_.count(input)) return true;
+  }
+  std::ifstream in(error_path);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  return !(j.is_object() && j.value("retry", false));
 }
 
 }  // namespace ssdo

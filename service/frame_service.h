@@ -9,8 +9,14 @@
 //   often it is reported). A watched frame is computed when neither its output nor its
 //   error file is at least as new as its last change, checked when a dispatcher takes it,
 //   so rescans and events never compute a frame twice, and restarts skip finished frames.
-// Socket tasks go first (someone is waiting for them). Failed frames get
-// OUT/NAME.error.json (written through a temp file); a later success removes it.
+//   A camera sidecar (NAME.camera.json) counts as part of its frame: its arrival or change
+//   queues the frame again, and an output or error file older than it is stale.
+// Socket tasks go first (someone is waiting for them). A transient failure (the worker
+// killed, timed out or out of memory: WorkerResult::transient) is tried again on a new
+// worker, `retries` times at most. Failed frames get OUT/NAME.error.json (written through
+// a temp file) and lose their old output (it described an older version of the input);
+// a later success removes the error file. An error file of a transient failure says
+// "retry": true, and a restarted service computes such a frame again.
 #pragma once
 
 #include <condition_variable>
@@ -37,6 +43,7 @@ struct FrameServiceOptions {
   int workers = 1;                       // worker processes (dispatcher threads)
   WorkerLimits limits;
   size_t queue_capacity = 64;            // socket tasks waiting; beyond: "busy"
+  int retries = 2;                       // new attempts after a transient failure
 };
 
 // One frame asked for over the socket.
@@ -56,6 +63,7 @@ struct ServiceStats {
   double mean_frame_ms = 0;              // wall time of successful frames
   int workers = 0;
   long workers_replaced = 0;
+  long frames_retried = 0;               // attempts after a transient failure
   double uptime_s = 0;
 };
 
@@ -83,6 +91,11 @@ class FrameService {
   // True when the input changed while it was computed (to be computed again).
   bool run_watched(WorkerProcess& worker, const std::string& input, bool force);
   void run_task(WorkerProcess& worker, FrameTask& task);
+  // Runs the job, again on a new worker after a transient failure (options_.retries times).
+  WorkerResult run_with_retries(WorkerProcess& worker, const WorkerJob& job);
+  // True when a watched input needs no computing: its output, or an error file that is
+  // final (not a transient failure, or one this run already gave up on), is up to date.
+  bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);
   void record(const WorkerResult& r);
   void log(const std::string& line);
 
@@ -98,13 +111,21 @@ class FrameService {
   bool stopping_ = false, started_ = false;
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;
-  long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0;
+  std::set<std::string> given_up_;       // inputs whose transient failure this run gave up on
+  long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0, retried_ = 0;
   double done_ms_ = 0;
   Clock::time_point started_at_ = Clock::now();
   std::mutex log_mutex_;
 };
 
-// Writes NAME.error.json ({"input", "error", "time"}) through a temp file and rename.
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error);
+// Writes NAME.error.json ({"input", "error", "time", "retry"}) through a temp file and
+// rename; "retry" is true for a transient failure (a restart tries the frame again).
+bool write_error_file(const std::string& path, const std::string& input, const std::string& error,
+                      bool retry = false);
+
+// Records a failed frame: removes its output (an older version's result, which would
+// otherwise sit beside the newer error) and writes its error file.
+bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
+                          const WorkerResult& result);
 
 }  // namespace ssdo

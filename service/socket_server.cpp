@@ -30,6 +30,25 @@ constexpr double kBusyReplySeconds = 0.5;
 // How long stop() waits for connections to finish their request, beyond the deadlines
 // they already have.
 constexpr double kStopMarginSeconds = 5;
+// Request headers held at once (being read, or parsed and waiting for their frame), in
+// units of --max-request-bytes: a parsed JSON header takes several times its bytes, and
+// 16 at the 1 MiB default stay within a few hundred MiB.
+constexpr size_t kHeaderBudgetRequests = 16;
+// Headers this small (a ping, stats, a process request by path) are outside the budget, so
+// clients sending large ones cannot keep them out; at most --max-clients of them at once.
+constexpr size_t kSmallHeaderBytes = 4096;
+
+// Waits until `fd` has a byte to read (or its end), at most until `deadline`.
+IoStatus wait_for_request(int fd, Deadline deadline) {
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+    if (left <= 0) return IoStatus::timeout;
+    pollfd p{fd, POLLIN, 0};
+    const int n = ::poll(&p, 1, int(std::min<long long>(left, 1 << 30)));
+    if (n > 0) return IoStatus::ok;
+    if (n < 0 && errno != EINTR) return IoStatus::error;
+  }
+}
 
 bool stream_to_file(int socket_fd, const std::string& path, size_t size, Deadline deadline, std::string& error) {
   const int out = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
@@ -75,6 +94,7 @@ json stats_json(const ServiceStats& s, int clients) {
               {"mean_frame_ms", s.mean_frame_ms},
               {"workers", s.workers},
               {"workers_replaced", s.workers_replaced},
+              {"frames_retried", s.frames_retried},
               {"clients", clients},
               {"uptime_s", s.uptime_s}};
 }
@@ -125,13 +145,26 @@ bool SocketServer::bind(std::string& error) {
     error = "--socket " + options_.path + ": " + std::strerror(bind_errno);
     return false;
   }
+  struct stat bound {};
+  if (::lstat(options_.path.c_str(), &bound) == 0) {
+    socket_dev_ = bound.st_dev;
+    socket_ino_ = bound.st_ino;
+  }
   if (::chmod(options_.path.c_str(), options_.mode) != 0 || ::listen(listen_fd_, 128) != 0 ||
       ::pipe2(stop_pipe_, O_CLOEXEC | O_NONBLOCK) != 0) {
     error = "--socket " + options_.path + ": " + std::strerror(errno);
-    ::unlink(options_.path.c_str());
+    unlink_own_socket();
     return false;
   }
   return true;
+}
+
+void SocketServer::unlink_own_socket() {
+  // The path may have been removed and bound again by another instance since: the file is
+  // ours only while it is the inode bind() created (stat(2) st_dev + st_ino).
+  struct stat now {};
+  if (::lstat(options_.path.c_str(), &now) == 0 && now.st_dev == socket_dev_ && now.st_ino == socket_ino_)
+    ::unlink(options_.path.c_str());
 }
 
 void SocketServer::start() { accept_thread_ = std::thread([this] { accept_loop(); }); }
@@ -145,7 +178,7 @@ void SocketServer::stop_accepting() {
   if (listen_fd_ >= 0) {
     ::close(listen_fd_);
     listen_fd_ = -1;
-    ::unlink(options_.path.c_str());
+    unlink_own_socket();
   }
 }
 
@@ -155,7 +188,7 @@ void SocketServer::stop() {
   stopping_ = true;
   // Wake connections waiting for a request; one inside a request finishes it (its reply
   // can still be written) and then sees the end of its input.
-  for (int fd : connections_) ::shutdown(fd, SHUT_RD);
+  for (const auto& [fd, connection] : connections_) ::shutdown(fd, SHUT_RD);
   all_closed_.wait_for(lock, std::chrono::duration<double>(options_.client_timeout_s + kStopMarginSeconds),
                        [&] { return connections_.empty(); });
   lock.unlock();
@@ -175,7 +208,7 @@ void SocketServer::accept_loop() {
     const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (fd < 0) continue;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (stopping_ || int(connections_.size()) >= options_.max_clients) {
+    if (stopping_ || (open_slots() <= 0 && !evict_idle_connection())) {
       const json busy = error_response(
           "busy", stopping_ ? "the service is stopping"
                             : "too many clients (" + std::to_string(options_.max_clients) + "); try again later");
@@ -183,28 +216,95 @@ void SocketServer::accept_loop() {
       ::close(fd);
       continue;
     }
-    connections_.insert(fd);
+    connections_.emplace(fd, Connection{});
     ++clients_;
     std::thread([this, fd] { serve_connection(fd); }).detach();
   }
 }
 
+int SocketServer::open_slots() const {
+  int taken = 0;
+  for (const auto& [fd, connection] : connections_) taken += connection.evicted ? 0 : 1;
+  return options_.max_clients - taken;
+}
+
+bool SocketServer::evict_idle_connection() {
+  auto oldest = connections_.end();
+  for (auto it = connections_.begin(); it != connections_.end(); ++it)
+    if (!it->second.evicted && it->second.idle_since != Clock::time_point::max() &&
+        (oldest == connections_.end() || it->second.idle_since < oldest->second.idle_since))
+      oldest = it;
+  if (oldest == connections_.end()) return false;
+  oldest->second.evicted = true;
+  write_message(oldest->first,
+                to_wire(error_response("timeout", "idle connection closed: every slot (--max-clients " +
+                                                      std::to_string(options_.max_clients) +
+                                                      ") was taken and another client connected")),
+                deadline_in(kBusyReplySeconds));
+  ::shutdown(oldest->first, SHUT_RDWR);  // its thread sees the end and closes it
+  return true;
+}
+
+bool SocketServer::set_idle(int fd, bool idle) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Connection& c = connections_[fd];
+  c.idle_since = idle ? Clock::now() : Clock::time_point::max();
+  return !c.evicted;
+}
+
+bool SocketServer::take(size_t& used, size_t limit, size_t bytes) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (bytes > limit - std::min(used, limit)) return false;
+  used += bytes;
+  return true;
+}
+
+void SocketServer::give(size_t& used, size_t bytes) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  used -= std::min(used, bytes);
+}
+
+IoStatus SocketServer::read_header(int fd, std::string& header, bool& over_budget) {
+  const Deadline deadline = deadline_in(options_.client_timeout_s);
+  unsigned char prefix[4];
+  if (const IoStatus s = read_exact(fd, prefix, 4, deadline); s != IoStatus::ok) return s;
+  const uint32_t size = decode_length(prefix);
+  if (size > options_.limits.max_header_bytes) return IoStatus::too_large;
+  if (size > kSmallHeaderBytes) {
+    over_budget = !take(header_bytes_, kHeaderBudgetRequests * options_.limits.max_header_bytes, size);
+    if (over_budget) return IoStatus::error;
+  }
+  header.resize(size);
+  const IoStatus s = read_exact(fd, header.data(), size, deadline);
+  return s == IoStatus::closed ? IoStatus::truncated : s;
+}
+
 void SocketServer::serve_connection(int fd) {
   for (;;) {
+    if (!set_idle(fd, true)) break;
+    IoStatus s = wait_for_request(fd, deadline_in(options_.client_timeout_s));
+    if (!set_idle(fd, false)) break;
     std::string header;
-    const IoStatus s = read_message(fd, header, options_.limits.max_header_bytes, deadline_in(options_.client_timeout_s));
+    bool over_budget = false;
+    if (s == IoStatus::ok) s = read_header(fd, header, over_budget);
+    if (over_budget) {
+      reply(fd, error_response("busy", "the service holds as many request headers as it may (" +
+                                           std::to_string(kHeaderBudgetRequests) +
+                                           " x --max-request-bytes); try again later"));
+      break;
+    }
     if (s == IoStatus::timeout) {
       reply(fd, error_response("timeout", "no complete request within " +
                                               std::to_string(int(options_.client_timeout_s)) + " s (--client-timeout)"));
-      break;
-    }
-    if (s == IoStatus::too_large) {
+    } else if (s == IoStatus::too_large) {
       reply(fd, error_response("too_large", "the request header exceeds " +
                                                 std::to_string(options_.limits.max_header_bytes) +
                                                 " bytes (--max-request-bytes)"));
-      break;
     }
-    if (s != IoStatus::ok || !handle_request(fd, header)) break;
+    // The header's bytes stay taken while its request is served (its parsed form lives as long).
+    const bool go_on = s == IoStatus::ok && handle_request(fd, header);
+    if (header.size() > kSmallHeaderBytes) give(header_bytes_, header.size());
+    if (!go_on) break;
   }
   std::lock_guard<std::mutex> lock(mutex_);
   connections_.erase(fd);
@@ -258,6 +358,7 @@ bool SocketServer::handle_request(int fd, const std::string& header) {
   }
   if (request.op == "stats") {
     json stats = stats_json(frames_.stats(), clients_);
+    if (options_.watch_status) stats["watch"] = options_.watch_status();
     if (!request.id.is_null()) stats["id"] = request.id;
     return reply(fd, stats);
   }
@@ -294,8 +395,18 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
       if (used) fs::remove_all(dir, ec);
     }
   } guard{spool};
+  // The inline frame's bytes are taken out of the spool budget until the request is done.
+  struct SpoolBytes {
+    SocketServer& server;
+    size_t bytes = 0;
+    ~SpoolBytes() { server.give(server.spool_bytes_, bytes); }
+  } spool_bytes{*this};
   std::string input;
   if (request.inline_size > 0) {
+    if (!take(spool_bytes_, options_.max_spool_bytes, request.inline_size))
+      return refuse("busy", "the spool holds as many inline frames as it may (" +
+                                std::to_string(options_.max_spool_bytes >> 20) + " MiB, --max-spool-mb); try again later");
+    spool_bytes.bytes = request.inline_size;
     std::error_code ec;
     fs::create_directory(spool, ec);
     guard.used = true;

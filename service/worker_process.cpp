@@ -220,7 +220,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   if (s == IoStatus::timeout) {
     ::kill(pid_, SIGKILL);
     reap_reason();
-    result.worker_replaced = true;
+    result.worker_replaced = result.transient = true;
     char text[128];
     std::snprintf(text, sizeof text, "timed out after %.0f s (worker killed and replaced; see --frame-timeout)",
                   limits_.frame_timeout_s);
@@ -229,7 +229,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   }
   if (s != IoStatus::ok) {
     result.error = reap_reason() + " while processing the frame";
-    result.worker_replaced = true;
+    result.worker_replaced = result.transient = true;
     return result;
   }
   const nlohmann::json j = nlohmann::json::parse(response, nullptr, false);
@@ -243,6 +243,8 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   // Messages may quote names read from a damaged file: no control characters in logs.
   result.error = printable(j.value("error", std::string()));
   if (!j.value("ok", false) && result.error.empty()) result.error = "the worker reported a failure";
+  // cmd_worker.cpp's describe_memory_error marks every allocation failure this way.
+  result.transient = result.error.find("out of memory") != std::string::npos;
   result.times.read_ms = j.value("read_ms", 0.0);
   result.times.compute_ms = j.value("compute_ms", 0.0);
   result.times.write_ms = j.value("write_ms", 0.0);
@@ -261,7 +263,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
       if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
   if (j.value("exiting", false)) {  // the worker's last words (an uncaught exception)
     reap_reason();
-    result.worker_replaced = true;
+    result.worker_replaced = result.transient = true;
   }
   return result;
 }

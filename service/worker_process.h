@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "formats/exr_header_check.h"
 #include "service/pipeline.h"
 #include "service/protocol.h"
 
@@ -30,7 +31,7 @@ struct WorkerLimits {
                                       // 1080p frame with every term peaks at 510 MiB resident
                                       // and runs under a 1024 MiB limit
   double frame_timeout_s = 300;       // wall time of one frame (read + compute + write)
-  int64_t max_pixels = int64_t(1) << 26;  // larger data windows are refused before decoding (8K x 8K)
+  int64_t max_pixels = kDefaultMaxPixels;  // larger data windows are refused before decoding (8K x 8K)
 };
 
 // Where a job's files may be (service/confined_open.h); the worker opens each of them
@@ -64,6 +65,9 @@ struct WorkerResult {
   std::vector<std::string> notes;     // the reader's and the sequence context's notes
   bool worker_replaced = false;       // the worker died or was killed during this frame
   bool worker_started = false;        // a worker was started for this frame (wall_ms includes it)
+  // The worker was killed (a signal, the frame timeout) or ran out of memory: the same
+  // frame may succeed on a new worker, so the service tries it again (--retries).
+  bool transient = false;
   bool ok() const { return error.empty(); }
 };
 
@@ -109,7 +113,7 @@ struct WorkerArgs {
   int request_fd = 3, response_fd = 4;
   int threads = 1;
   int64_t memory_limit_mb = 4096;
-  int64_t max_pixels = int64_t(1) << 26;
+  int64_t max_pixels = kDefaultMaxPixels;
   int64_t parent_pid = 0;  // exit at once when the parent is already gone
 };
 int run_worker(const WorkerArgs& args);

@@ -114,7 +114,9 @@ TEST(ServeWatch, FailedFramesCorruptMissingChannelsEmptyDeletedReplaced) {
   const fs::path in = dir.path / "in", out = dir.path / "out";
   const std::string socket = socket_path_for("failures");
   // One worker, so frames queue behind a slow one and can be changed while queued.
-  SsdoProcess service(serve_args(dir, socket, {"--jobs", "1", "--allow", dir / "busy", "--frame-timeout", "10"}),
+  // No retries: the busy frame may time out, and should do so once.
+  SsdoProcess service(serve_args(dir, socket, {"--jobs", "1", "--allow", dir / "busy", "--frame-timeout", "10",
+                                               "--retries", "0"}),
                       dir.path / "serve.log");
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
 
