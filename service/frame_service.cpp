@@ -34,6 +34,12 @@ struct FileVersion {
   }
 };
 
+// One string for a version, to remember it.
+std::string version_key(const FileVersion& v) {
+  return std::to_string(v.ino) + ":" + std::to_string(v.size) + ":" + std::to_string(v.mtime.tv_sec) + "." +
+         std::to_string(v.mtime.tv_nsec) + ":" + std::to_string(v.ctime.tv_sec) + "." + std::to_string(v.ctime.tv_nsec);
+}
+
 FileVersion version_of(const std::string& path) {
   FileVersion v;
   struct stat st {};
@@ -282,8 +288,13 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   record(r);
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (r.ok()) given_up_.erase(input);
-    else given_up_.insert(input);
+    if (r.ok()) {
+      given_up_.erase(input);
+      failed_version_.erase(input);
+    } else {
+      given_up_.insert(input);
+      failed_version_[input] = version_key(before);
+    }
   }
   std::error_code ec;
   if (r.ok()) {
@@ -302,6 +313,8 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    const auto failed = failed_version_.find(input);
+    if (failed != failed_version_.end() && failed->second != version_key(version_of(input))) return false;
     if (given_up_.count(input)) return true;
   }
   std::ifstream in(error_path);

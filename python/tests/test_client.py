@@ -127,7 +127,7 @@ class BusyQueueTest(unittest.TestCase):
     """--queue 1 --jobs 1: one frame computing, one waiting, the next one refused."""
 
     def test_full_queue_answers_busy(self) -> None:
-        service = Service(FAST + ["--queue", "1", "--frame-timeout", "2"])
+        service = Service(FAST + ["--queue", "1", "--frame-timeout", "2", "--retries", "0"])
         self.addCleanup(service.stop)
         errors: List[str] = []
 
