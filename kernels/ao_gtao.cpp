@@ -230,23 +230,37 @@ inline void tap_indices(const TapGrid& g, float step_noise, float radius_px, int
   }
 }
 
-// The occluder segments' lengths of the taps of a chunk.
-inline void tap_thickness(const UninitializedVector<Texel>& texels, const cv::Mat* back, int width,
-                          bool perspective, float thickness_world, TapChunk& taps) {
-  for (int m = 0; m < kChunkTaps; ++m) taps.thickness_world[m] = thickness_world;
-  if (back == nullptr) return;
-  for (int m = 0; m < kChunkTaps; ++m) {
-    const int32_t index = taps.index[m];
-    if (index < 0) continue;
-    // With a back-face layer (AoInputs::depth_back_view) the segment is the tap's own
-    // thickness, back - front in planar depth, as a length along its view ray: divided
-    // by |r.z| (= depth / |tap| in perspective, 1 orthographic).
-    const Texel& tx = texels[size_t(index)];
-    const float d_back = back->ptr<float>(index / width)[index % width];
-    const float planar = d_back > tx.depth_view ? d_back - tx.depth_view : 0.0f;
-    const float tap_length = std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z);
-    taps.thickness_world[m] = perspective ? planar * tap_length / tx.depth_view : planar;
+// Each texel's occluder segment length from the second depth layer (AoInputs::
+// depth_back_view), once per texel rather than per tap: back - front in planar depth, as a
+// length along its view ray, i.e. divided by |r.z| (= depth / |tap| in perspective, 1
+// orthographic). Background texels are never read.
+void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const UninitializedVector<Texel>& texels,
+                           bool perspective, UninitializedVector<float>& thickness, int nthreads) {
+  const int width = in.depth_view.cols;
+  thickness.resize(texels.size());  // before the parallel loop, which writes every element
+  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* back_row = back.ptr<float>(y);
+      for (int x = 0; x < width; ++x) {
+        const size_t index = size_t(y) * size_t(width) + size_t(x);
+        const Texel& tx = texels[index];
+        const float planar = back_row[x] > tx.depth_view ? back_row[x] - tx.depth_view : 0.0f;
+        const float tap_length = std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z);
+        thickness[index] = perspective ? planar * tap_length / tx.depth_view : planar;
+      }
+    }
+  });
+}
+
+// The occluder segments' lengths of the taps of a chunk: the texels' own (above) with a
+// second depth layer, else the settings' thickness.
+inline void tap_thickness(const UninitializedVector<float>& texel_thickness, float thickness_world, TapChunk& taps) {
+  if (texel_thickness.empty()) {
+    for (int m = 0; m < kChunkTaps; ++m) taps.thickness_world[m] = thickness_world;
+    return;
   }
+  for (int m = 0; m < kChunkTaps; ++m)
+    taps.thickness_world[m] = taps.index[m] >= 0 ? texel_thickness[size_t(taps.index[m])] : thickness_world;
 }
 
 // The taps' coordinates in the slice frame, every lane alike (no branches: the loop
@@ -424,7 +438,9 @@ struct Frame {
   const AoInputs& in;
   UninitializedVector<Texel> texels;
   UninitializedVector<TexelPlane> planes;
-  const cv::Mat* back;  // AoInputs::depth_back_view, or nullptr
+  // Per texel, its occluder segment's length from the second depth layer; empty without one
+  // (or with height-field occluders, which have no thickness).
+  UninitializedVector<float> thickness;
 };
 
 const cv::Mat* back_layer(const AoInputs& in, const Constants& k) {
@@ -666,7 +682,7 @@ inline float height_field_integral(const Horizons& h, float cos_n, float sin_n) 
     const int chunk = std::min(kChunkSteps, k.steps - j0);
     TapChunk taps;
     chunk_indices(k, px, i, d, j0, taps);
-    tap_thickness(f.texels, f.back, k.grid.width, k.perspective, k.thickness_world, taps);
+    tap_thickness(f.thickness, k.thickness_world, taps);
     TapGeometry geo;
     k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, b.lanes, b.frame, geo)
                   : tap_geometry<false, true>(f.texels.data(), taps, b.lanes, b.frame, geo);
@@ -835,8 +851,9 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const Constants k(in, s);
   // Texel indices are 32-bit.
   CV_Assert(int64_t(k.grid.width) * int64_t(k.grid.height) <= int64_t(INT32_MAX));
-  Frame f{in, {}, {}, back_layer(in, k)};
+  Frame f{in, {}, {}, {}};
   build_texels(in, f.texels, f.planes, nthreads);
+  if (const cv::Mat* back = back_layer(in, k)) build_texel_thickness(in, *back, f.texels, k.perspective, f.thickness, nthreads);
   // Tiles of kTileWidthPx x kTileHeightPx pixels: a pixel's taps land anywhere within its
   // radius, so the texels a tile reads are its footprint grown by the radius, which stays
   // in cache while the tile runs; row by row, the band of rows within the radius of a
