@@ -166,9 +166,9 @@ TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
   int finished_before = 0;
   {
     SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--views", "2", "--terms", "ao",
-                       "--method", "raymarch", "--preset", "medium"},
+                       "--method", "raymarch", "--preset", "low"},
                       dir.path / "batch1.log");
-    ASSERT_TRUE(wait_until([&] { return outputs() >= 1; }, 120)) << batch.log();
+    ASSERT_TRUE(wait_until([&] { return outputs() >= 1; }, 300)) << batch.log();
     ASSERT_EQ(batch.signal_and_wait(SIGKILL, 10), 128 + SIGKILL);
     EXPECT_TRUE(wait_until([&] { return workers_of(batch.pid()).empty(); }, 10));
     finished_before = outputs();
