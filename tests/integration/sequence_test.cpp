@@ -184,6 +184,33 @@ TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
   EXPECT_TRUE(temp_files(out).empty());
 }
 
+// A socket request names its neighbours: they change the frame's AO, and each is confined
+// like the input (one outside --allow is refused).
+TEST(Sequence, SocketRequestViewsChangeTheFrameAndAreConfinedLikeItsInput) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 3);
+  copy_orbit(dir.path / "outside", "orbit_f", 3);
+  const std::string socket = socket_path_for("views");
+  SsdoProcess service({"serve", "--socket", socket, "-o", dir / "out", "--allow", dir / "in", "--terms", "ao",
+                       "--preset", "low", "--frame-timeout", "60"},
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  Client c(socket);
+  const std::string input = dir / "in/orbit_f1.exr", output = dir / "out/orbit_f1.ssdo.exr";
+  const json alone = c.request({{"op", "process"}, {"input", input}});
+  ASSERT_TRUE(alone.value("ok", false)) << alone.dump() << service.log();
+  const std::vector<float> ao_alone = channel(output, "ao");
+  const json with = c.request(
+      {{"op", "process"}, {"input", input}, {"views", {dir / "in/orbit_f0.exr", dir / "in/orbit_f2.exr"}}});
+  ASSERT_TRUE(with.value("ok", false)) << with.dump() << service.log();
+  const std::vector<float> ao_with = channel(output, "ao");
+  ASSERT_EQ(ao_alone.size(), ao_with.size());
+  EXPECT_NE(ao_alone, ao_with);
+  const json outside = c.request({{"op", "process"}, {"input", input}, {"views", {dir / "outside/orbit_f0.exr"}}});
+  EXPECT_EQ(outside.value("code", ""), "forbidden") << outside.dump();
+}
+
 // A frame whose sidecar says its AO pass used ao_distance `distance`, as DIR/STEM.exr.
 void frame_with_ao_distance(const fs::path& dir, const std::string& stem, double distance) {
   fs::create_directories(dir);
