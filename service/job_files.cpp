@@ -22,17 +22,22 @@ bool JobFiles::open_file(std::string& path, const std::vector<std::string>& root
   return true;
 }
 
+bool JobFiles::open_sidecar(const std::string& frame, const std::vector<std::string>& roots, std::string& camera_json,
+                            std::string& error) {
+  // The sidecar beside a frame obeys the frame's roots. lstat: a symbolic link or a FIFO
+  // there is opened (and refused) like any other sidecar, not skipped.
+  std::string sidecar = sidecar_path_for(frame);
+  struct stat st {};
+  if (::lstat(sidecar.c_str(), &st) != 0) return true;
+  if (!open_file(sidecar, roots, error)) return false;
+  camera_json = sidecar;
+  return true;
+}
+
 bool JobFiles::open_camera(const Confinement& confine, const std::string& input, FrameRequest& request,
                            std::string& error) {
   if (!request.read.camera_json.empty()) return open_file(request.read.camera_json, confine.option_roots, error);
-  // The sidecar beside the input obeys the input's roots. lstat: a symbolic link or a
-  // FIFO there is opened (and refused) like any other sidecar, not skipped.
-  std::string sidecar = sidecar_path_for(input);
-  struct stat st {};
-  if (::lstat(sidecar.c_str(), &st) != 0) return true;
-  if (!open_file(sidecar, confine.input_roots, error)) return false;
-  request.read.camera_json = sidecar;
-  return true;
+  return open_sidecar(input, confine.input_roots, request.read.camera_json, error);
 }
 
 bool JobFiles::open_output_folder(const Confinement& confine, std::string& output, std::string& error) {
@@ -61,17 +66,13 @@ void JobFiles::open_neighbours(const Confinement& confine, std::vector<Neighbour
                                std::vector<std::string>& notes) {
   std::vector<NeighbourFrame> opened;
   for (NeighbourFrame n : neighbours) {
-    std::string path = n.path, error;
-    std::string sidecar = sidecar_path_for(n.path);
-    struct stat st {};
-    const bool has_sidecar = ::lstat(sidecar.c_str(), &st) == 0;
-    if (!open_file(path, confine.input_roots, error) ||
-        (has_sidecar && !open_file(sidecar, confine.input_roots, error))) {
+    std::string path = n.path, camera_json, error;
+    if (!open_file(path, confine.input_roots, error) || !open_sidecar(n.path, confine.input_roots, camera_json, error)) {
       notes.push_back(n.path + ": skipped as a view (" + error + ")");
       continue;
     }
     n.open_path = path;
-    n.camera_json = has_sidecar ? sidecar : std::string();
+    n.camera_json = camera_json;
     opened.push_back(std::move(n));
   }
   neighbours = std::move(opened);

@@ -33,6 +33,10 @@ class JobFiles {
  private:
   // Opens `path` confined to `roots`; `path` becomes the descriptor's name.
   bool open_file(std::string& path, const std::vector<std::string>& roots, std::string& error);
+  // Opens NAME.camera.json beside `frame` when there is one (camera_json = its descriptor's
+  // name; left as it is when there is none).
+  bool open_sidecar(const std::string& frame, const std::vector<std::string>& roots, std::string& camera_json,
+                    std::string& error);
   bool open_camera(const Confinement& confine, const std::string& input, FrameRequest& request, std::string& error);
   bool open_output_folder(const Confinement& confine, std::string& output, std::string& error);
 

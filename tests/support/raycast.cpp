@@ -111,6 +111,19 @@ inline bool pixel_point(const GBuffer& g, int x, int y, glm::vec3& p_world, glm:
   return true;
 }
 
+// The world-space ray through the centre of pixel (x, y): from the eye (perspective) or from
+// the pixel on the near plane (orthographic), unit direction.
+struct PixelRay {
+  glm::vec3 origin_world, dir_world;
+};
+
+PixelRay pixel_ray(const Camera& camera, int x, int y) {
+  const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
+  const glm::vec3 origin_view = camera.is_perspective() ? glm::vec3(0.0f) : camera.view_from_pixel_depth(pixel, 0.0f);
+  return {glm::vec3(camera.view_to_world * glm::vec4(origin_view, 1.0f)),
+          glm::normalize(camera.world_from_view_direction(camera.view_ray_direction(pixel)))};
+}
+
 }  // namespace
 
 Hit intersect(const Scene& scene, const glm::vec3& o, const glm::vec3& d, float t_max) {
@@ -209,12 +222,8 @@ GBuffer render_gbuffer(const Scene& scene, const Camera& camera, int nthreads) {
       cv::Vec3f* position = g.position_view.ptr<cv::Vec3f>(y);
       cv::Vec3f* albedo = g.albedo.ptr<cv::Vec3f>(y);
       for (int x = 0; x < size.width; ++x) {
-        const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
-        const glm::vec3 origin_view =
-            camera.is_perspective() ? glm::vec3(0.0f) : camera.view_from_pixel_depth(pixel, 0.0f);
-        const glm::vec3 origin_world = glm::vec3(camera.view_to_world * glm::vec4(origin_view, 1.0f));
-        const glm::vec3 dir_world =
-            glm::normalize(camera.world_from_view_direction(camera.view_ray_direction(pixel)));
+        const PixelRay ray = pixel_ray(camera, x, y);
+        const glm::vec3 origin_world = ray.origin_world, dir_world = ray.dir_world;
         const Hit hit = intersect(scene, origin_world, dir_world);
         const float depth_view = hit.valid() ? -camera.view_from_world_point(origin_world + hit.t * dir_world).z
                                              : kInf;
@@ -227,7 +236,7 @@ GBuffer render_gbuffer(const Scene& scene, const Camera& camera, int nthreads) {
         glm::vec3 n_world = hit.normal_world;
         if (glm::dot(n_world, dir_world) > 0.0f) n_world = -n_world;  // face the camera
         const glm::vec3 n_view = glm::normalize(camera.view_from_world_direction(n_world));
-        const glm::vec3 p_view = camera.view_from_pixel_depth(pixel, depth_view);
+        const glm::vec3 p_view = camera.view_from_pixel_depth(glm::vec2(float(x) + 0.5f, float(y) + 0.5f), depth_view);
         depth[x] = depth_view;
         mask[x] = 255;
         normal[x] = cv::Vec3f(n_view.x, n_view.y, n_view.z);
@@ -246,12 +255,8 @@ cv::Mat render_depth_back(const Scene& scene, const Camera& camera, int nthreads
     for (int y = rows.start; y < rows.end; ++y) {
       float* out = depth_back.ptr<float>(y);
       for (int x = 0; x < depth_back.cols; ++x) {
-        const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
-        const glm::vec3 origin_view =
-            camera.is_perspective() ? glm::vec3(0.0f) : camera.view_from_pixel_depth(pixel, 0.0f);
-        const glm::vec3 o = glm::vec3(camera.view_to_world * glm::vec4(origin_view, 1.0f));
-        const glm::vec3 d =
-            glm::normalize(camera.world_from_view_direction(camera.view_ray_direction(pixel)));
+        const PixelRay ray = pixel_ray(camera, x, y);
+        const glm::vec3 o = ray.origin_world, d = ray.dir_world;
         // The nearest front face decides whether a plane is hit first (then: no exit).
         const Hit front = intersect(scene, o, d);
         float best = kInf;
@@ -290,12 +295,8 @@ std::vector<std::vector<float>> render_depth_samples(const Scene& scene, const C
   parallel_rows(cv::Range(0, camera.height_px), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < camera.width_px; ++x) {
-        const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
-        const glm::vec3 origin_view =
-            camera.is_perspective() ? glm::vec3(0.0f) : camera.view_from_pixel_depth(pixel, 0.0f);
-        const glm::vec3 o = glm::vec3(camera.view_to_world * glm::vec4(origin_view, 1.0f));
-        const glm::vec3 d =
-            glm::normalize(camera.world_from_view_direction(camera.view_ray_direction(pixel)));
+        const PixelRay ray = pixel_ray(camera, x, y);
+        const glm::vec3 o = ray.origin_world, d = ray.dir_world;
         std::vector<float> ts;
         for (const Plane& p : scene.planes) ts.push_back(intersect_plane(p, o, d));
         for (const Sphere& sp : scene.spheres) {
