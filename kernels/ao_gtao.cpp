@@ -489,8 +489,9 @@ struct TileRow {
   // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
   if (p.radius_px < 2.0f * kMinTapDistancePx) return;
   p.has_taps = true;
-  const float slice_noise = noise01(x, y, 0, k.seed);
-  p.step_noise = noise01(x, y, 1, k.seed);
+  const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
+  const float slice_noise = noise01(nx, ny, 0, k.seed);
+  p.step_noise = noise01(nx, ny, 1, k.seed);
   // The rotation slice_noise pi / slices, in turns.
   sincos_turns(slice_noise / float(2 * k.slices), p.rot_c, p.rot_s);
 }

@@ -172,11 +172,12 @@ inline glm::vec3 half_slice_bent_normal(const Horizon& h, const HalfSlice& hs, c
     bent_out = cv::Vec3f(normal.x, normal.y, normal.z);
     return;
   }
+  const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
   const ShadedPixel px{x, y, biased_origin(p, normal, depth, k.depth_bias_relative), normal,
-                       view_vector(in.camera, p), radius_px, noise01(x, y, 1, k.seed)};
+                       view_vector(in.camera, p), radius_px, noise01(nx, ny, 1, k.seed)};
   // Direction angles phi_i = (i + noise) 2 pi / directions as the fixed angles
   // i 2 pi / directions rotated by the pixel's noise angle: one sin/cos per pixel.
-  const float rot = noise01(x, y, 0, k.seed) / float(k.directions) * (2.0f * std::numbers::pi_v<float>);
+  const float rot = noise01(nx, ny, 0, k.seed) / float(k.directions) * (2.0f * std::numbers::pi_v<float>);
   const float rot_c = std::cos(rot), rot_s = std::sin(rot);
   float occlusion_sum = 0.0f, weight_sum = 0.0f;
   glm::vec3 bent(0.0f);

@@ -218,8 +218,9 @@ inline PixelResult shade_pixel(const Constants& k, const AoInputs& in, const std
   const RayOrigin o{origin, in.camera.view_to_clip * glm::vec4(origin, 1.0f)};
   glm::vec3 t, b;
   sampling::orthonormal_basis(n, t, b);
-  const float shift_u = noise01(x, y, 0, k.seed), shift_v = noise01(x, y, 1, k.seed);
-  const uint32_t jitter_key = hash_pixel(x, y, 2, k.seed);
+  const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
+  const float shift_u = noise01(nx, ny, 0, k.seed), shift_v = noise01(nx, ny, 1, k.seed);
+  const uint32_t jitter_key = hash_pixel(nx, ny, 2, k.seed);
   int open = 0, resolved = 0;
   glm::vec3 bent(0.0f);
   for (int i = 0; i < k.directions; ++i) {

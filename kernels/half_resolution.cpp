@@ -16,6 +16,7 @@ extern "C" __m256 _ZGVdN8v_expf(__m256 x);
 #endif
 
 #include "core/parallel.h"
+#include "kernels/normals.h"
 #include "kernels/positions.h"
 
 namespace ssdo {
@@ -570,28 +571,112 @@ cv::Mat half_grid_back_layer(const HalfGrid& h, const TermInputs& in, const Term
   return grid_back_layer(h.depth_view, h.mask, h.camera, file_back, in, settings, uses, nthreads);
 }
 
-// AO on the grid. Only multi-bounce reads albedo (every method).
-void ao_on_grid(const HalfGrid& h, const TermInputs& in, const AoSettings& s, const cv::Mat& back,
-                const cv::Rect& half_roi, AoOutput& out, int nthreads) {
-  cv::Mat albedo;
-  if (s.multibounce && in.albedo != nullptr && !in.albedo->empty()) sample_at_texels(h, *in.albedo, albedo, nthreads);
-  const AoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera,
-                      albedo.empty() ? nullptr : &albedo, back.empty() ? nullptr : &back};
-  compute_ao(grid, s, out, half_roi, nthreads);
+// One grid's inputs to AO and SSDO: the half grid's texels or the full-resolution images,
+// extended by a guard band of off-screen texels when the views saw past the edges (the
+// frame's grid then starts at `origin` in these images).
+struct GridInputs {
+  cv::Mat depth_view, normal_view, position_view, mask;
+  Camera camera;
+  cv::Mat albedo, lighting, back;  // empty when the kernels do not read them
+  cv::Point origin{0, 0};
+};
+
+// Whether AO's multi-bounce or SSDO's senders read the albedo, and SSDO the lighting.
+bool reads_albedo(const TermInputs& in, const TermSettings& s) {
+  const bool lit = in.lighting != nullptr && !in.lighting->empty();
+  return in.albedo != nullptr && !in.albedo->empty() && ((s.ao && s.ao->multibounce) || (s.ssdo && !lit));
+}
+bool reads_lighting(const TermInputs& in, const TermSettings& s) {
+  return s.ssdo && in.lighting != nullptr && !in.lighting->empty();
 }
 
-// SSDO on the grid. Albedo only scales the senders' direct light when the frame has no
-// lighting.
-void ssdo_on_grid(const HalfGrid& h, const TermInputs& in, const SsdoSettings& s, const cv::Mat& back,
-                  const cv::Rect& half_roi, SsdoOutput& out, int nthreads) {
-  cv::Mat albedo, lighting;
-  const bool lit = in.lighting != nullptr && !in.lighting->empty();
-  if (in.albedo != nullptr && !lit) sample_at_texels(h, *in.albedo, albedo, nthreads);
-  if (lit) sample_at_texels(h, *in.lighting, lighting, nthreads);
-  const SsdoInputs grid{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, *in.environment,
-                        albedo.empty() ? nullptr : &albedo, lighting.empty() ? nullptr : &lighting,
-                        back.empty() ? nullptr : &back};
-  compute_ssdo(grid, s, out, half_roi, nthreads);
+GridInputs half_grid_inputs(const HalfGrid& h, const TermInputs& in, const TermSettings& s, const cv::Mat& back,
+                            int nthreads) {
+  GridInputs g{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, {}, {}, back};
+  if (reads_albedo(in, s)) sample_at_texels(h, *in.albedo, g.albedo, nthreads);
+  if (reads_lighting(in, s)) sample_at_texels(h, *in.lighting, g.lighting, nthreads);
+  return g;
+}
+
+GridInputs full_grid_inputs(const TermInputs& in, const TermSettings& s, const cv::Mat& position_view,
+                            const cv::Mat& back) {
+  GridInputs g{in.depth_view, in.normal_view, position_view, in.mask, in.camera, {}, {}, back};
+  if (reads_albedo(in, s)) g.albedo = *in.albedo;
+  if (reads_lighting(in, s)) g.lighting = *in.lighting;
+  return g;
+}
+
+// The grid extended by the guard band (kernels/multiview.h) when some view is used and taps
+// leave the picture. Band texels get positions and normals reconstructed from the views'
+// depth, and no albedo or lighting (0: a sender the frame has no light for stays dark).
+void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSettings& s,
+                            std::span<const ViewUse> uses, int nthreads) {
+  if (g.back.empty() || std::none_of(uses.begin(), uses.end(), [](const ViewUse& u) { return u.used; })) return;
+  const float radius = s.ao ? s.ao->radius_world : s.ssdo->radius_world;
+  const float max_radius_px = std::max(s.ao ? s.ao->max_radius_px : 0.0f, s.ssdo ? s.ssdo->max_radius_px : 0.0f);
+  const int margin = guard_band_texels(g.depth_view, g.mask, g.camera, radius, max_radius_px, nthreads);
+  if (margin == 0) return;
+  GuardBand band;
+  extend_with_views({g.depth_view, g.mask, g.camera}, g.back, in.views, uses, multiview_settings(s), margin, band,
+                    nthreads);
+  const cv::Rect inside = band.inside();
+  const auto pad = [margin](cv::Mat& image) {
+    if (!image.empty()) cv::copyMakeBorder(image, image, margin, margin, margin, margin, cv::BORDER_CONSTANT, 0);
+  };
+  cv::Mat normal_view, position_view;
+  reconstruct_normals_from_depth(band.depth_view, band.mask, band.camera, normal_view, {}, nthreads);
+  g.normal_view.copyTo(normal_view(inside));
+  if (!g.position_view.empty()) {
+    view_positions_from_depth(band.depth_view, band.mask, band.camera, position_view, {}, nthreads);
+    g.position_view.copyTo(position_view(inside));
+  }
+  pad(g.albedo);
+  pad(g.lighting);
+  g.depth_view = band.depth_view;
+  g.mask = band.mask;
+  g.back = band.depth_back_view;
+  g.camera = band.camera;
+  g.normal_view = normal_view;
+  g.position_view = position_view;
+  g.origin = {margin, margin};
+}
+
+// `roi` of the grid's own images from the extended images (only roi is written, as the
+// kernels write; `out` allocated at the grid's size when needed).
+void crop_from_band(const cv::Mat& extended, const GridInputs& g, const cv::Rect& roi, cv::Mat& out) {
+  if (extended.empty()) {
+    out.release();
+    return;
+  }
+  const cv::Size size(g.camera.width_px - 2 * g.origin.x, g.camera.height_px - 2 * g.origin.y);
+  if (out.size() != size || out.type() != extended.type()) out.create(size, extended.type());
+  extended(roi + g.origin).copyTo(out(roi));
+}
+
+// AO on the grid's pixels of roi.
+void ao_on_grid(const GridInputs& g, const AoSettings& s, const cv::Rect& roi, AoOutput& out, int nthreads) {
+  const AoInputs grid{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera,
+                      g.albedo.empty() ? nullptr : &g.albedo, g.back.empty() ? nullptr : &g.back, g.origin};
+  if (g.origin == cv::Point(0, 0)) return compute_ao(grid, s, out, roi, nthreads);
+  AoOutput extended;
+  compute_ao(grid, s, extended, roi + g.origin, nthreads);
+  crop_from_band(extended.ao, g, roi, out.ao);
+  crop_from_band(extended.bent_normal_view, g, roi, out.bent_normal_view);
+}
+
+// SSDO on the grid's pixels of roi. Albedo only scales the senders' direct light when the
+// frame has no lighting.
+void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings& s, const cv::Rect& roi,
+                  SsdoOutput& out, int nthreads) {
+  const bool lit = !g.lighting.empty();
+  const SsdoInputs grid{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, *in.environment,
+                        g.albedo.empty() || lit ? nullptr : &g.albedo, lit ? &g.lighting : nullptr,
+                        g.back.empty() ? nullptr : &g.back, g.origin};
+  if (g.origin == cv::Point(0, 0)) return compute_ssdo(grid, s, out, roi, nthreads);
+  SsdoOutput extended;
+  compute_ssdo(grid, s, extended, roi + g.origin, nthreads);
+  crop_from_band(extended.direct, g, roi, out.direct);
+  crop_from_band(extended.indirect, g, roi, out.indirect);
 }
 
 // A weighted mean of AO values stays in [0, 1] up to rounding; of unit bent normals it is
@@ -623,16 +708,20 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   build_half_grid(full, h, nthreads, /*with_positions=*/half.ao || half.ssdo);
   const cv::Rect half_roi = half_grid_roi(r, full.depth_view.size());
   TermOutputs grid;
-  const cv::Mat back = half.ao || half.ssdo ? half_grid_back_layer(h, in, settings, out.views, nthreads) : cv::Mat();
+  GridInputs g;
+  if (half.ao || half.ssdo) {
+    g = half_grid_inputs(h, in, settings, half_grid_back_layer(h, in, settings, out.views, nthreads), nthreads);
+    extend_grid_with_views(g, in, settings, out.views, nthreads);
+  }
   std::vector<UpsampleImage> images;
   if (half.ao) {
-    ao_on_grid(h, in, *settings.ao, back, half_roi, grid.ao, nthreads);
+    ao_on_grid(g, *settings.ao, half_roi, grid.ao, nthreads);
     images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0)});
     if (!grid.ao.bent_normal_view.empty())
       images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)});
   }
   if (half.ssdo) {
-    ssdo_on_grid(h, in, *settings.ssdo, back, half_roi, grid.ssdo, nthreads);
+    ssdo_on_grid(g, in, *settings.ssdo, half_roi, grid.ssdo, nthreads);
     images.push_back({grid.ssdo.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
     images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
   }
@@ -673,15 +762,12 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
     back = grid_back_layer(in.depth_view, in.mask, in.camera,
                            in.depth_back_view != nullptr ? *in.depth_back_view : cv::Mat(), in, settings, out.views,
                            nthreads);
-  if (settings.ao && !half.ao) {
-    const AoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, in.albedo,
-                           back.empty() ? nullptr : &back};
-    compute_ao(full_in, *settings.ao, out.ao, roi, nthreads);
-  }
-  if (settings.ssdo && !half.ssdo) {
-    const SsdoInputs full_in{in.depth_view, in.normal_view, position_view, in.mask, in.camera, *in.environment,
-                             in.albedo, in.lighting, back.empty() ? nullptr : &back};
-    compute_ssdo(full_in, *settings.ssdo, out.ssdo, roi, nthreads);
+  if ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo)) {
+    GridInputs g = full_grid_inputs(in, settings, position_view, back);
+    extend_grid_with_views(g, in, settings, out.views, nthreads);
+    const cv::Rect r = resolve_roi(roi, in.depth_view.size());
+    if (settings.ao && !half.ao) ao_on_grid(g, *settings.ao, r, out.ao, nthreads);
+    if (settings.ssdo && !half.ssdo) ssdo_on_grid(g, in, *settings.ssdo, r, out.ssdo, nthreads);
   }
   if (settings.confidence && !half.confidence)
     compute_confidence(in.depth_view, in.normal_view, in.mask, in.camera, *settings.confidence, out.confidence,

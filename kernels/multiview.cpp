@@ -1,6 +1,7 @@
 #include "kernels/multiview.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 
@@ -253,6 +254,123 @@ std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<c
   if (used.views.empty()) return uses;
   write_back_layer(in, used, depth_back_view, nthreads);
   return uses;
+}
+
+// ---- The guard band ----
+
+namespace {
+
+// The reach past the edges of the pixels of rows [range): per row, the largest
+// (projected radius - distance to an edge) over its foreground pixels.
+void band_reach_of_rows(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, float radius_world,
+                        float max_radius_px, const cv::Range& range, float* reach_per_row) {
+  const float w = float(depth_view.cols), h = float(depth_view.rows);
+  for (int y = range.start; y < range.end; ++y) {
+    const float* depth_row = depth_view.ptr<float>(y);
+    const uint8_t* mask_row = mask.ptr<uint8_t>(y);
+    const float to_edge_y = std::min(float(y) + 0.5f, h - float(y) - 0.5f);
+    float reach = 0.0f;
+    for (int x = 0; x < depth_view.cols; ++x) {
+      if (!mask_row[x] || !(depth_row[x] > 0.0f && std::isfinite(depth_row[x]))) continue;
+      const glm::vec2 radius_px = glm::min(glm::vec2(max_radius_px), radius_world * camera.pixels_per_unit(depth_row[x]));
+      const float to_edge_x = std::min(float(x) + 0.5f, w - float(x) - 0.5f);
+      reach = std::max({reach, radius_px.x - to_edge_x, radius_px.y - to_edge_y});
+    }
+    reach_per_row[y] = reach;
+  }
+}
+
+// Keeps the smaller of `slot` and `value`, whatever other threads write to it.
+inline void atomic_min(float& slot, float value) {
+  std::atomic_ref<float> a(slot);
+  float current = a.load(std::memory_order_relaxed);
+  while (value < current && !a.compare_exchange_weak(current, value, std::memory_order_relaxed)) {
+  }
+}
+
+// Forward-projects view v's surfaces (one pixel of each stride x stride block) into the
+// widened camera; the nearest depth of those landing in the band is kept.
+void splat_view_into_band(const DepthView& v, const Camera& frame, const GuardBand& band, int stride_px,
+                          cv::Mat& depth_view, int nthreads) {
+  const glm::mat4 frame_from_view = frame.world_to_view * v.camera.view_to_world;
+  const glm::mat4 clip_from_view = band.camera.view_to_clip * frame_from_view;
+  const cv::Rect inside = band.inside();
+  const float w = float(band.camera.width_px), h = float(band.camera.height_px);
+  const int rows = (v.depth_view.rows + stride_px - 1) / stride_px;
+  parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& range) {
+    for (int j = range.start; j < range.end; ++j) {
+      const int y = j * stride_px;
+      const float* source_row = v.depth_view.ptr<float>(y);
+      for (int x = 0; x < v.depth_view.cols; x += stride_px) {
+        const float d = source_row[x];
+        if (!(d > 0.0f && std::isfinite(d))) continue;
+        const glm::vec4 p(v.camera.view_from_pixel_depth({float(x) + 0.5f, float(y) + 0.5f}, d), 1.0f);
+        const glm::vec4 clip = clip_from_view * p;
+        if (!(clip.w > 0.0f)) continue;
+        const float px = 0.5f * (clip.x / clip.w + 1.0f) * w, py = 0.5f * (1.0f - clip.y / clip.w) * h;
+        if (!(px >= 0.0f && px < w && py >= 0.0f && py < h)) continue;
+        const cv::Point texel{int(px), int(py)};
+        if (inside.contains(texel)) continue;
+        const float depth_in_frame = -(frame_from_view * p).z;
+        if (depth_in_frame > 0.0f) atomic_min(depth_view.ptr<float>(texel.y)[texel.x], depth_in_frame);
+      }
+    }
+  });
+}
+
+}  // namespace
+
+int guard_band_texels(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, float radius_world,
+                      float max_radius_px, int nthreads) {
+  CV_Assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 && mask.size() == depth_view.size());
+  std::vector<float> reach_per_row(size_t(depth_view.rows), 0.0f);
+  parallel_rows(cv::Range(0, depth_view.rows), nthreads, [&](const cv::Range& range) {
+    band_reach_of_rows(depth_view, mask, camera, radius_world, max_radius_px, range, reach_per_row.data());
+  });
+  const float reach = reach_per_row.empty() ? 0.0f : *std::max_element(reach_per_row.begin(), reach_per_row.end());
+  if (!(reach > 0.0f)) return 0;
+  const int largest = std::max(depth_view.cols, depth_view.rows) / 4 / 4 * 4;
+  return std::min(largest, (int(std::ceil(reach)) + 3) / 4 * 4);
+}
+
+Camera widened_camera(const Camera& camera, int margin_px) {
+  Camera wide = camera;
+  wide.width_px = camera.width_px + 2 * margin_px;
+  wide.height_px = camera.height_px + 2 * margin_px;
+  const float sx = float(camera.width_px) / float(wide.width_px), sy = float(camera.height_px) / float(wide.height_px);
+  for (int c = 0; c < 4; ++c) {  // rows 0 and 1 of the projection: NDC x and y
+    wide.view_to_clip[c][0] *= sx;
+    wide.view_to_clip[c][1] *= sy;
+  }
+  return wide;
+}
+
+cv::Rect GuardBand::inside() const {
+  return {margin_px, margin_px, camera.width_px - 2 * margin_px, camera.height_px - 2 * margin_px};
+}
+
+void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::span<const DepthView> views,
+                       std::span<const ViewUse> uses, const MultiViewSettings& s, int margin_px, GuardBand& band,
+                       int nthreads) {
+  CV_Assert(validate(s).empty() && margin_px >= 0 && uses.size() == views.size());
+  CV_Assert(depth_back_view.type() == CV_32FC1 && depth_back_view.size() == in.depth_view.size());
+  band.margin_px = margin_px;
+  band.camera = widened_camera(in.camera, margin_px);
+  const cv::Rect inside = band.inside();
+  const cv::Size size(band.camera.width_px, band.camera.height_px);
+  band.depth_view.create(size, CV_32FC1);
+  band.depth_view.setTo(kInfinity);
+  for (size_t i = 0; i < views.size(); ++i) {
+    if (!uses[i].used) continue;
+    const int stride_px = std::max(1, views[i].camera.width_px / std::max(1, in.camera.width_px));
+    splat_view_into_band(views[i], in.camera, band, stride_px, band.depth_view, nthreads);
+  }
+  in.depth_view.copyTo(band.depth_view(inside));
+  // Band texels with a surface are foreground, with the assumed thickness behind them.
+  band.mask = band.depth_view < kInfinity;
+  in.mask.copyTo(band.mask(inside));
+  band.depth_back_view = band.depth_view + s.thickness_world;
+  depth_back_view.copyTo(band.depth_back_view(inside));
 }
 
 }  // namespace ssdo

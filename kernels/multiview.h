@@ -90,4 +90,47 @@ std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<c
                                           const MultiViewSettings& s, cv::Mat& depth_back_view,
                                           int nthreads = 0);
 
+// ---- Off-screen taps: the grid extended past the screen's edges ----
+// A tap that leaves the picture finds nothing in one frame, so an occluder just outside the
+// frame is missed. A neighbouring view that saw past the edge knows what is there: its
+// surfaces, forward-projected into this camera, fill a guard band of texels around the
+// grid, where the estimators' taps find them as occluders. The estimators shade only the
+// inside (their roi) and take the band's texels as they take any other: depth, position,
+// and the assumed thickness behind.
+
+// The band's width in texels: how far past an edge the taps of the grid's pixels reach,
+// max over foreground pixels p within reach of an edge of (projected radius at p - p's
+// distance to that edge), the projected radius min(max_radius_px, radius_world x pixels per
+// unit at p's depth); rounded up to a multiple of 4 and at most a quarter of the grid's
+// larger side (past that the band would cost more than the frame). 0 when no tap leaves.
+int guard_band_texels(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, float radius_world,
+                      float max_radius_px, int nthreads = 0);
+
+// `camera` with margin_px more pixels on each side and the same ray through every pixel of
+// the original grid: pixel (x, y) of the original is (x + margin, y + margin) of this one.
+// Its projection is the original's with NDC x and y scaled by W / (W + 2 margin) and
+// H / (H + 2 margin).
+Camera widened_camera(const Camera& camera, int margin_px);
+
+// A grid extended by a guard band: `depth_view`, `mask` and `depth_back_view` at the widened
+// camera's size, the original grid inside (at (margin_px, margin_px)), and in the band the
+// nearest surface the views saw there (planar depth in this camera; +inf and mask 0 where no
+// view saw any), with the assumed thickness behind it (back = depth + thickness_world).
+struct GuardBand {
+  int margin_px = 0;
+  Camera camera;
+  cv::Mat depth_view, mask, depth_back_view;
+  cv::Rect inside() const;  // the original grid in the extended images
+};
+
+// Fills `band` from the grid (in, with the occupancy's back layer `depth_back_view`, or
+// empty for front + thickness) and the views marked used in `uses` (occupancy_from_views):
+// every view pixel of `stride_px` x `stride_px` (a view denser than the grid needs a
+// sample per texel, not per pixel) is lifted to the world and projected into the widened
+// camera; where it lands in the band, the nearest depth wins (a minimum: the same result
+// for any order and thread count). Deterministic.
+void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view,
+                       std::span<const DepthView> views, std::span<const ViewUse> uses,
+                       const MultiViewSettings& s, int margin_px, GuardBand& band, int nthreads = 0);
+
 }  // namespace ssdo

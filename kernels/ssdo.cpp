@@ -191,6 +191,7 @@ struct Constants {
   // change an angle's cosine or sine).
   const float* azimuth_cos;
   const float* azimuth_sin;
+  cv::Point frame_origin_px;  // SsdoInputs::frame_origin_px: the noise is the frame pixel's
 };
 // Cosine-distributed direction (pdf cos / pi) from (u, v) in [0, 1)^2 (Malley's method).
 inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const glm::vec3& b,
@@ -387,8 +388,9 @@ struct SampleShift {
 
 inline SampleShift sample_shift(const Constants& c, int x, int y) {
   SampleShift h;
-  h.u = noise01(x, y, 0, c.s.seed);
-  h.v = noise01(x, y, 1, c.s.seed);
+  const int frame_x = x - c.frame_origin_px.x, frame_y = y - c.frame_origin_px.y;
+  h.u = noise01(frame_x, frame_y, 0, c.s.seed);
+  h.v = noise01(frame_x, frame_y, 1, c.s.seed);
   sincos_turns(h.v, h.cos_v, h.sin_v);
   return h;
 }
@@ -422,6 +424,7 @@ struct SampleBatch {
 // the length m of the part of the radius each march covers.
 inline void sample_directions(const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleShift& shift,
                               int x, int y, SampleBatch& b) {
+  const int frame_x = x - c.frame_origin_px.x, frame_y = y - c.frame_origin_px.y;  // the noise's pixel
   for (int s = 0; s < b.count; ++s) {
     float v;
     r2_point(uint32_t(b.first + s), shift.u, shift.v, b.u_at[s], v);
@@ -449,7 +452,7 @@ inline void sample_directions(const Constants& c, const Receiver& rcv, const Ray
     // occluder the ray meets anywhere within r is found (with the last point at
     // m (k - 1 + xi) / k, occluders in the last interval were missed at random: a dark
     // bias of the bounce of up to half against the oracle on the shared frames).
-    b.xi_at[s] = 1.0f - noise01(x, y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
+    b.xi_at[s] = 1.0f - noise01(frame_x, frame_y, 2u + uint32_t(i), c.s.seed);  // (0, 1]
     // The march covers the part of the radius that stays on screen: beyond the frame
     // nothing can be tested, and a coarse step that leaps off screen would otherwise end
     // the march before it tests an occluder at the frame's edge (walls that leave the
@@ -640,8 +643,9 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
   const float r = rcv.r;
   const RayFrame f = ray_frame(c, rcv, x, y);
   // Cranley-Patterson rotation of the stratified grid and of the step positions, per pixel.
-  const float shift_u = noise01(x, y, 0, c.s.seed), shift_v = noise01(x, y, 1, c.s.seed);
-  const float step_jitter = noise01(x, y, 2, c.s.seed);
+  const int nx = x - c.frame_origin_px.x, ny = y - c.frame_origin_px.y;  // the frame's pixel
+  const float shift_u = noise01(nx, ny, 0, c.s.seed), shift_v = noise01(nx, ny, 1, c.s.seed);
+  const float step_jitter = noise01(nx, ny, 2, c.s.seed);
   const int g = c.s.oracle_grid, steps = c.s.oracle_steps;
   const float step = r / float(steps);
 
@@ -817,6 +821,7 @@ Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, co
                           const SampleAzimuths& azimuths) {
   Constants c{};
   c.pyramid = p.taps.data();
+  c.frame_origin_px = in.frame_origin_px;
   c.pyramid_thickness = p.thickness.empty() ? nullptr : p.thickness.data();
   c.pyramid_rows_2h = int(p.rows_2h);
   c.n_levels = p.n_levels;
