@@ -3,9 +3,9 @@
 // trucks sideways over a floor and a wall scattered with boxes, slabs and thin poles, so
 // occluders enter and leave the picture across its edges, and hidden ones (the back of a
 // pole, a box behind a box) come into view from the neighbours. The denoised AO of each
-// frame computed alone and with the frames t-K..t+K of the shot as views, against the ray
-// traced AO: the shot must improve and no frame may get worse by more than 2% of its
-// single-frame error. The error is also printed over the border band, the pixels whose AO
+// frame computed alone, with the views the service picks for the default `--views`, and
+// with every frame t-K..t+K of the shot as a view, against the ray-traced AO: the shot must
+// improve and no frame may get worse by more than 2% of its single-frame error. The error is also printed over the border band, the pixels whose AO
 // neighbourhood reaches past the left or right screen edge (there only off-screen taps can
 // help), and there for the frame rendered with overscan (every off-screen tap known).
 #include <cmath>
@@ -112,6 +112,16 @@ const ShotFrame& shot_frame(int t) {
   return f;
 }
 
+// The border band's share of the shot's foreground pixels.
+double border_fraction() {
+  double band = 0, foreground = 0;
+  for (int t = 0; t < kFrames; ++t) {
+    band += cv::countNonZero(shot_frame(t).border);
+    foreground += cv::countNonZero(shot_frame(t).g.mask);
+  }
+  return band / foreground;
+}
+
 // The projected radius at the nearest depth of the shot: overscan by this much holds
 // every off-screen tap of every pixel.
 int overscan_px() {
@@ -135,53 +145,92 @@ ErrorStats overscan_border_error(int t, AoMethod method, Preset preset) {
   return compare_images(ao, shot_frame(t).reference, shot_frame(t).border);
 }
 
-shot::Measured measure(int t, int k, AoMethod method, Preset preset) {
+// Which neighbours a frame gets: none, every frame within K (t-K..t+K), or those the
+// service picks for `--views K` by parallax (service/view_selection.h).
+enum class Views { none, window, chosen };
+
+GBuffer frame_with_views(int t, Views views) {
+  const shot::FrameOf frame = [](int u) -> const GBuffer& { return shot_frame(u).g; };
+  const shot::NameOf name = [](int u) { return "shot_f" + std::to_string(u); };
+  if (views == Views::chosen) return shot::with_chosen_views(t, kDefaultViewsPerSide, kFrames, frame, name);
+  return shot::with_views(t, views == Views::window ? kDefaultViewsPerSide : 0, kFrames, frame, name);
+}
+
+shot::Measured measure(const GBuffer& g, int t, AoMethod method, Preset preset) {
   const ShotFrame& f = shot_frame(t);
-  const GBuffer g = shot::with_views(
-      t, k, kFrames, [](int u) -> const GBuffer& { return shot_frame(u).g; },
-      [](int u) { return "shot_f" + std::to_string(u); });
   return shot::measure_denoised_ao(g, method, preset, kRadiusWorld, f.reference, f.g.mask, f.border);
 }
 
 // The shot's mean error with the default views must be at least this much below the frames
-// computed alone (measured: 9-10% lower for each estimator).
+// computed alone (measured: 11-19% lower with the service's choice, 9% with t-2..t+2).
 constexpr double kMinMeanGain = 0.05;
 
+struct ShotMeans {
+  double alone = 0, window = 0, chosen = 0;
+};
+
+// One row of the printed table (markdown): frame t's errors and times; asserts that no
+// choice of views makes it worse by more than 2%. The raymarch oracle is the test's cost:
+// it runs alone and with the service's views only (no t-K..t+K window, no overscan frame
+// of 3.2x the pixels).
+void measure_frame(int t, AoMethod method, Preset preset, ShotMeans& whole, ShotMeans& border, double& overscan) {
+  const bool all = method != AoMethod::raymarch;
+  const GBuffer chosen_g = frame_with_views(t, Views::chosen);
+  const shot::Measured a = measure(frame_with_views(t, Views::none), t, method, preset);
+  const shot::Measured c = measure(chosen_g, t, method, preset);
+  const shot::Measured w = all ? measure(frame_with_views(t, Views::window), t, method, preset) : a;
+  std::string names;
+  for (const DepthView& v : chosen_g.views) {
+    if (!names.empty()) names += ' ';
+    names += v.name;
+  }
+  auto gain = [&](const shot::Measured& m) { return 100.0 * (m.whole.mae / a.whole.mae - 1.0); };
+  std::printf("| f%d | %s | %.4f | ", t, names.c_str(), a.whole.mae);
+  if (all) std::printf("%.4f (%+.0f%%)", w.whole.mae, gain(w));
+  std::printf(" | %.4f (%+.0f%%) | %.4f | ", c.whole.mae, gain(c), a.border.mae);
+  if (all) std::printf("%.4f", w.border.mae);
+  std::printf(" | %.4f | ", c.border.mae);
+  if (all) {
+    const double e = overscan_border_error(t, method, preset).mae;
+    std::printf("%.4f", e);
+    overscan += e / kFrames;
+  }
+  std::printf(" | %.0f | ", a.ms);
+  if (all) std::printf("%.0f", w.ms);
+  std::printf(" | %.0f |\n", c.ms);
+  for (const shot::Measured* v : {&w, &c})
+    EXPECT_LE(v->whole.mae, a.whole.mae * 1.02) << to_string(method) << " " << to_string(preset) << " frame " << t
+                                                << (v == &w ? ", t-2..t+2" : ", chosen views");
+  whole.alone += a.whole.mae / kFrames, whole.window += w.whole.mae / kFrames, whole.chosen += c.whole.mae / kFrames;
+  border.alone += a.border.mae / kFrames, border.window += w.border.mae / kFrames;
+  border.chosen += c.border.mae / kFrames;
+}
+
 TEST(SequenceAccuracy, SyntheticShotImprovesAndNoFrameGetsWorse) {
-  const int k = kDefaultViewsPerSide;
   for (const auto& [method, preset] : {std::pair{AoMethod::gtao, Preset::medium}, std::pair{AoMethod::gtao, Preset::high},
                                        std::pair{AoMethod::raymarch, Preset::low}}) {
-    // The raymarch oracle over the overscan frames (3.2x the pixels) would double the test's time.
-    const bool overscan = method != AoMethod::raymarch;
-    std::printf("%s %s: MAE against the ray-traced AO, compute ms per frame\n",
-                std::string(to_string(method)).c_str(), std::string(to_string(preset)).c_str());
-    std::printf("| frame | whole alone | whole K=%d | border alone | border K=%d | border px | border, overscan alone "
-                "| ms alone | ms K=%d |\n", k, k, k);
-    double alone = 0, with = 0, border_alone = 0, border_with = 0, border_overscan = 0;
-    for (int t = 0; t < kFrames; ++t) {
-      const shot::Measured a = measure(t, 0, method, preset);
-      const shot::Measured v = measure(t, k, method, preset);
-      std::printf("| f%d | %.4f | %.4f (%+.0f%%) | %.4f | %.4f | %.0f%% | ", t, a.whole.mae, v.whole.mae,
-                  100.0 * (v.whole.mae / a.whole.mae - 1.0), a.border.mae, v.border.mae,
-                  100.0 * double(a.border.pixels) / double(a.whole.pixels));
-      if (overscan) {
-        const double e = overscan_border_error(t, method, preset).mae;
-        std::printf("%.4f", e);
-        border_overscan += e;
-      }
-      std::printf(" | %.0f | %.0f |\n", a.ms, v.ms);
-      EXPECT_LE(v.whole.mae, a.whole.mae * 1.02) << to_string(method) << " " << to_string(preset) << " frame " << t;
-      alone += a.whole.mae;
-      with += v.whole.mae;
-      border_alone += a.border.mae;
-      border_with += v.border.mae;
+    std::printf("%s %s: MAE against the ray-traced AO (whole frame, then the border band: %.0f%% of the pixels), "
+                "ms of compute per frame\n", std::string(to_string(method)).c_str(),
+                std::string(to_string(preset)).c_str(), 100.0 * border_fraction());
+    std::printf("| frame | views chosen | alone | t-%d..t+%d | --views %d | border alone | t-%d..t+%d | --views %d | "
+                "overscan, alone | ms alone | ms t-%d..t+%d | ms --views %d |\n", kDefaultViewsPerSide,
+                kDefaultViewsPerSide, kDefaultViewsPerSide, kDefaultViewsPerSide, kDefaultViewsPerSide,
+                kDefaultViewsPerSide, kDefaultViewsPerSide, kDefaultViewsPerSide, kDefaultViewsPerSide);
+    ShotMeans whole, border;
+    double overscan = 0;
+    for (int t = 0; t < kFrames; ++t) measure_frame(t, method, preset, whole, border, overscan);
+    const bool all = method != AoMethod::raymarch;
+    std::printf("| mean | | %.4f | ", whole.alone);
+    if (all) std::printf("%.4f (%+.0f%%)", whole.window, 100.0 * (whole.window / whole.alone - 1.0));
+    std::printf(" | %.4f (%+.0f%%) | %.4f | ", whole.chosen, 100.0 * (whole.chosen / whole.alone - 1.0), border.alone);
+    if (all) std::printf("%.4f", border.window);
+    std::printf(" | %.4f | ", border.chosen);
+    if (all) std::printf("%.4f", overscan);
+    std::printf(" | | | |\n");
+    EXPECT_LE(whole.chosen, whole.alone * (1.0 - kMinMeanGain)) << to_string(method) << " " << to_string(preset);
+    if (all) {
+      EXPECT_LE(whole.window, whole.alone * (1.0 - kMinMeanGain)) << to_string(method) << " " << to_string(preset);
     }
-    alone /= kFrames, with /= kFrames;
-    std::printf("| mean | %.4f | %.4f (%+.0f%%) | %.4f | %.4f | | ", alone, with, 100.0 * (with / alone - 1.0),
-                border_alone / kFrames, border_with / kFrames);
-    if (overscan) std::printf("%.4f", border_overscan / kFrames);
-    std::printf(" | | |\n");
-    EXPECT_LE(with, alone * (1.0 - kMinMeanGain)) << to_string(method) << " " << to_string(preset) << ": mean MAE";
   }
 }
 

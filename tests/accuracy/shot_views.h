@@ -8,11 +8,14 @@
 #include <chrono>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
 #include "kernels/metrics.h"
 #include "service/pipeline.h"
+#include "service/sequence_context.h"
+#include "service/view_selection.h"
 
 namespace ssdo::shot {
 
@@ -27,6 +30,27 @@ inline GBuffer with_views(int t, int k, int frames, const FrameOf& frame, const 
   GBuffer g = frame(t);
   for (int u = std::max(0, t - k); u <= std::min(frames - 1, t + k); ++u)
     if (u != t) g.views.push_back({frame(u).camera, frame(u).depth_view, name(u)});
+  return g;
+}
+
+// Frame t with the views the service picks for `--views k` (service/view_selection.h: by
+// parallax at the frame's median foreground depth, among the frames within
+// kCandidateFramesPerView x k of it inside the shot). k = 0: the frame alone.
+inline GBuffer with_chosen_views(int t, int k, int frames, const FrameOf& frame, const NameOf& name) {
+  GBuffer g = frame(t);
+  std::vector<ViewCandidate> candidates;
+  const int window = kCandidateFramesPerView * k;
+  for (int u = std::max(0, t - window); u <= std::min(frames - 1, t + window); ++u)
+    if (u != t)
+      candidates.push_back({name(u), u - t, true, frame(u).width_px(), frame(u).height_px(), frame(u).camera.view_to_world});
+  ViewSelectionSettings settings;
+  settings.views_per_side = k;
+  const ViewChoice choice = select_views(g.camera.view_to_world, g.width_px(), g.height_px(),
+                                         median_foreground_depth(g.depth_view, g.mask), candidates, settings);
+  for (size_t i : choice.chosen) {
+    const int u = t + candidates[i].frame_offset;
+    g.views.push_back({frame(u).camera, frame(u).depth_view, name(u)});
+  }
   return g;
 }
 
