@@ -3,16 +3,14 @@
 // unit): the denoised AO of each frame computed alone and with its neighbours' depth,
 // against Cycles' AO pass. The shot must improve and no frame may get worse by more than
 // 2% of its single-frame error.
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <map>
 
 #include <gtest/gtest.h>
 
-#include "kernels/metrics.h"
 #include "service/frame_inputs.h"
-#include "service/pipeline.h"
+#include "shot_views.h"
 
 namespace ssdo {
 namespace {
@@ -42,45 +40,32 @@ const OrbitFrame& orbit(int t) {
   return f;
 }
 
-struct Measured {
-  double mae = 0, ms = 0;
-};
-
 // Frame t's denoised AO with the frames t-k..t+k (within the shot) as views.
-Measured measure(int t, int k, AoMethod method, Preset preset) {
+shot::Measured measure(int t, int k, AoMethod method, Preset preset) {
   const OrbitFrame& f = orbit(t);
-  GBuffer g = f.g;
-  for (int u = std::max(0, t - k); u <= std::min(kOrbitFrames - 1, t + k); ++u)
-    if (u != t) g.views.push_back({orbit(u).g.camera, orbit(u).g.depth_view, "orbit_f" + std::to_string(u)});
-  FrameRequest request;
-  request.ao = ao_preset(method, preset);
-  request.ao.radius_world = f.radius_world;
-  request.terms.composite = false;
-  const auto t0 = std::chrono::steady_clock::now();
-  const ComputedFrame out = compute_frame(g, request);
-  Measured m;
-  m.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  m.mae = compare_images(*out.find("ao_denoised"), f.reference, f.g.mask).mae;
-  return m;
+  const GBuffer g = shot::with_views(
+      t, k, kOrbitFrames, [](int u) -> const GBuffer& { return orbit(u).g; },
+      [](int u) { return "orbit_f" + std::to_string(u); });
+  return shot::measure_denoised_ao(g, method, preset, f.radius_world, f.reference, f.g.mask);
 }
 
 TEST(MultiViewAccuracy, OrbitImprovesAndNoFrameGetsWorse) {
   for (const auto& [method, preset] : {std::pair{AoMethod::gtao, Preset::medium}, std::pair{AoMethod::gtao, Preset::high}}) {
     double alone = 0, with = 0;
     for (int t = 0; t < kOrbitFrames; ++t) {
-      const Measured a = measure(t, 0, method, preset);
+      const shot::Measured a = measure(t, 0, method, preset);
       std::printf("%s %s f%d:", std::string(to_string(method)).c_str(), std::string(to_string(preset)).c_str(), t);
-      std::printf("  K=0 %.4f (%.0f ms)", a.mae, a.ms);
+      std::printf("  K=0 %.4f (%.0f ms)", a.whole.mae, a.ms);
       for (int k : {1, 2, 3}) {
-        const Measured v = measure(t, k, method, preset);
-        std::printf("  K=%d %.4f (%.0f ms)", k, v.mae, v.ms);
+        const shot::Measured v = measure(t, k, method, preset);
+        std::printf("  K=%d %.4f (%.0f ms)", k, v.whole.mae, v.ms);
         if (k == 3) {
-          EXPECT_LE(v.mae, a.mae * 1.02) << "frame " << t;
-          with += v.mae;
+          EXPECT_LE(v.whole.mae, a.whole.mae * 1.02) << "frame " << t;
+          with += v.whole.mae;
         }
       }
       std::printf("\n");
-      alone += a.mae;
+      alone += a.whole.mae;
     }
     EXPECT_LT(with, alone);
   }
