@@ -367,9 +367,15 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
   }
   in.depth_view.copyTo(band.depth_view(inside));
   // Band texels with a surface are foreground, with the assumed thickness behind them.
+  // Band texels with a surface are foreground; behind them, the occupancy of the views as
+  // for the frame's own pixels (their own interval: the assumed thickness).
   band.mask = band.depth_view < kInfinity;
+  band.mask(inside).setTo(0);
+  Constants used{s, {}};
+  for (size_t i = 0; i < views.size(); ++i)
+    if (uses[i].used) used.views.push_back(view_geometry(in.camera, views[i]));
+  write_back_layer({band.depth_view, band.mask, band.camera}, used, band.depth_back_view, nthreads);
   in.mask.copyTo(band.mask(inside));
-  band.depth_back_view = band.depth_view + s.thickness_world;
   depth_back_view.copyTo(band.depth_back_view(inside));
 }
 

@@ -115,7 +115,8 @@ Camera widened_camera(const Camera& camera, int margin_px);
 // A grid extended by a guard band: `depth_view`, `mask` and `depth_back_view` at the widened
 // camera's size, the original grid inside (at (margin_px, margin_px)), and in the band the
 // nearest surface the views saw there (planar depth in this camera; +inf and mask 0 where no
-// view saw any), with the assumed thickness behind it (back = depth + thickness_world).
+// view saw any), with the occupancy of the views behind it (the rule above; a band texel's
+// own interval is the assumed thickness).
 struct GuardBand {
   int margin_px = 0;
   Camera camera;
