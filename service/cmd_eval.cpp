@@ -70,7 +70,7 @@ nlohmann::json stats_json(const ErrorStats& s) {
 nlohmann::json deciles_json(const ConfidenceDeciles& d) {
   nlohmann::json bins = nlohmann::json::array();
   for (int b = 0; b < ConfidenceDeciles::kBins; ++b)
-    bins.push_back({{"lo", 0.1 * b}, {"hi", 0.1 * (b + 1)}, {"pixels", d.pixels(b)}, {"mae", d.mae(b)}});
+    bins.push_back({{"lo", b / 10.0}, {"hi", (b + 1) / 10.0}, {"pixels", d.pixels(b)}, {"mae", d.mae(b)}});
   return bins;
 }
 
