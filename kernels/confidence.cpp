@@ -14,7 +14,9 @@
 #include "kernels/settings_check.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -93,7 +95,38 @@ struct TapFrame {
   // front of the stored surface, 0 where the tap is unknown; one more unknown texel at
   // index width * height, for off-screen taps.
   const float* surface;
+  // With other views (else null): their verdicts, and per known texel (indexed as surface)
+  // the bins of [surface, surface + view_bins x bin_depth] behind it that they decide
+  // (bin_decided), filled on first use; per tap, where along an unknown tap's chord the
+  // views are asked, [0, 1).
+  const PointVerdicts* verdicts;
+  const float* chord_offsets;
+  uint16_t* decided_bins;
+  int view_bins;
+  float bin_depth;  // ray parameter units (planar depth)
 };
+
+// A decided_bins entry: bit i (i < 8) = bin i is decided, bit 8 + i = bin i was asked.
+constexpr int kAskedShift = 8;
+
+// Whether the views decide the point at the centre of bin i behind a known texel's surface,
+// on the ray through the texel's centre. A chord through the neighbourhood is at most 2
+// radii long and |u| >= 1, so 2 radii of planar depth behind a tap's surface hold every
+// hidden part of its chords. Asked on first use: only bins some chord reaches ask the views
+// (on a plane, none). Threads asking the same bin compute the same verdict, so the result
+// does not depend on which stores it.
+bool bin_decided(const TapFrame& frame, int index, int i) {
+  std::atomic_ref<uint16_t> entry(frame.decided_bins[index]);
+  const unsigned stored = entry.load(std::memory_order_relaxed);
+  if (stored & (1u << (kAskedShift + i))) return (stored >> i) & 1u;
+  const float cx = float(index % frame.width) + 0.5f, cy = float(index / frame.width) + 0.5f;
+  const glm::vec3 o = frame.rays.o0 + cx * frame.rays.ox + cy * frame.rays.oy;
+  const glm::vec3 u = frame.rays.u0 + cx * frame.rays.ux + cy * frame.rays.uy;
+  const bool decided =
+      frame.verdicts->decided(o + (frame.surface[index] + (float(i) + 0.5f) * frame.bin_depth) * u);
+  entry.fetch_or(uint16_t((1u << (kAskedShift + i)) | (unsigned(decided) << i)), std::memory_order_relaxed);
+  return decided;
+}
 
 // Pass 1 of sum_chords, every tap of every lane (no branch: 8 lanes per instruction): the
 // tap pixel, and the chord [s0, s1] of the hemisphere along the ray through its centre
@@ -188,6 +221,74 @@ inline void add_chords(int n_taps, const TapLanes& __restrict tap, double (&obse
   }
 }
 
+// Where a tap is unknown to this frame (off-screen, masked), every kUnknownTapStride-th of a
+// pixel's unknown taps asks the views, and the decided fraction of their chords stands for
+// all its unknown chords. Unknown taps come in regions (past the frame's edge, over the
+// sky) that the views see alike, so the fraction varies little among them; asking a
+// quarter of them costs a quarter (at 1080p with four views, the whole view pass stays
+// within 0.2x of a frame's compute).
+constexpr int kUnknownTapStride = 4;
+
+// Whether the views decide the hidden part [begin, s1] of a known tap (its surface
+// s_surface > 0): the overlap of the part with each decided bin of its texel.
+float decided_behind_surface(const TapFrame& frame, const TapLanes& tap, int k, int j) {
+  const float s0 = tap.s0[k][j], s1 = tap.s1[k][j], s_surface = tap.surface[k][j];
+  const float w = frame.bin_depth, bins = float(frame.view_bins);
+  const float begin = std::max(s0, s_surface);
+  // The bins [begin, s1] overlaps: from the one holding begin to the one holding s1.
+  const int first = int(std::min((begin - s_surface) / w, bins));
+  const int last = int(std::min((s1 - s_surface) / w, bins - 1.0f));
+  float decided = 0.0f;
+  for (int i = first; i <= last; ++i) {
+    const float lo = s_surface + float(i) * w;
+    const float overlap = std::min(lo + w, s1) - std::max(lo, begin);
+    if (overlap > 0.0f && bin_decided(frame, tap.index[k][j], i)) decided += overlap;
+  }
+  return decided;
+}
+
+// Pass 5 of sum_chords, with views only: the part of each tap's chord this frame does not
+// see, as far as the other views decide it, added to the observed sums. Behind a known
+// tap's surface, [max(s0, s_surface), s1] overlaps the bins of its texel (bin_decided):
+// each decided bin adds its overlap. An unknown tap's whole chord is asked at one point,
+// offset along it per tap by the golden-ratio sequence (the taps of a pixel spread their
+// points evenly over the chords); only every kUnknownTapStride-th unknown tap asks.
+void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&observed)[kLanes]) {
+  const RayMap& rays = frame.rays;
+  // The hidden taps first (no branch: 8 lanes per instruction), then only those are asked.
+  alignas(32) uint8_t hidden[kMaxTaps][kLanes];
+  for (int k = 0; k < frame.n_taps; ++k) {
+#pragma GCC unroll 1
+    for (int j = 0; j < kLanes; ++j) {
+      const float begin = std::max(tap.s0[k][j], tap.surface[k][j]);  // surface 0 where unknown
+      hidden[k][j] = tap.s1[k][j] > begin;                            // false on empty chords and NaN
+    }
+  }
+  for (int j = 0; j < kLanes; ++j) {
+    float behind_surface = 0.0f, unknown = 0.0f, unknown_asked = 0.0f, unknown_decided = 0.0f;
+    int n_unknown = 0;
+    for (int k = 0; k < frame.n_taps; ++k) {
+      if (!hidden[k][j]) continue;
+      const float len_scale = tap.len_scale[k][j];
+      if (tap.surface[k][j] > 0.0f) {
+        behind_surface += decided_behind_surface(frame, tap, k, j) * len_scale;
+        continue;
+      }
+      const float s0 = tap.s0[k][j], s1 = tap.s1[k][j];
+      unknown += (s1 - s0) * len_scale;
+      if (n_unknown++ % kUnknownTapStride != 0) continue;
+      const float cx = tap.x[k][j] + 0.5f, cy = tap.y[k][j] + 0.5f;
+      const glm::vec3 o = rays.o0 + cx * rays.ox + cy * rays.oy;
+      const glm::vec3 u = rays.u0 + cx * rays.ux + cy * rays.uy;
+      unknown_asked += (s1 - s0) * len_scale;
+      if (frame.verdicts->decided(o + (s0 + frame.chord_offsets[k] * (s1 - s0)) * u))
+        unknown_decided += (s1 - s0) * len_scale;
+    }
+    const float unknown_observed = unknown_asked > 0.0f ? unknown * (unknown_decided / unknown_asked) : 0.0f;
+    observed[j] += double(behind_surface + unknown_observed);
+  }
+}
+
 // The sums of the confidence's ratio (confidence.h) of the pixels in the lanes.
 // kPerspective: the rays start at o = o0 + cx ox + cy oy = +0 exactly (o0, ox, oy are +0,
 // so each product is +-0 and the sums +0) for every tap with a finite centre, and f, c and
@@ -200,6 +301,7 @@ void sum_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
   hemisphere_chords<kPerspective>(frame, lane, tap);
   surface_at_taps(frame, tap);
   add_chords(frame.n_taps, tap, observed, total);
+  if (frame.verdicts != nullptr) add_observed_by_views(frame, tap, observed);
 }
 
 // The unrotated Vogel spiral: equal-area rings (rho = sqrt((k + 0.5) / N)), golden-angle
@@ -363,6 +465,7 @@ std::string validate(const ConfidenceSettings& s) {
   if (s.taps < 4 || s.taps > kMaxTaps) return detail::out_of_range("taps", s.taps, "[4, 256]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
     return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (s.view_bins < 1 || s.view_bins > 8) return detail::out_of_range("view_bins", s.view_bins, "[1, 8]");
   if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
     return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
   return {};
@@ -373,7 +476,7 @@ bool runs_on_half_grid(const ConfidenceSettings& s) { return s.resolution_diviso
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
-                        int nthreads) {
+                        int nthreads, const ConfidenceViews& views) {
   CV_Assert(validate(s).empty());
   CV_Assert(depth_view.type() == CV_32FC1);
   const cv::Size size = depth_view.size();
@@ -386,8 +489,19 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   if (r.empty()) return;
   const Spiral spiral = vogel_spiral(s.taps);
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
-  const TapFrame taps{make_ray_map(camera), spiral.x.data(), spiral.y.data(), s.taps,
-                      size.width, size.height, surface.data()};
+  std::unique_ptr<PointVerdicts> verdicts;
+  if (!views.views.empty()) verdicts = std::make_unique<PointVerdicts>(camera, views.views, views.settings);
+  TapFrame taps{make_ray_map(camera), spiral.x.data(), spiral.y.data(), s.taps, size.width, size.height,
+                surface.data(), verdicts.get(), nullptr, nullptr, s.view_bins, 2.0f * s.radius_world / float(s.view_bins)};
+  std::vector<uint16_t> decided_bins;
+  std::vector<float> chord_offsets;
+  if (verdicts) {
+    decided_bins.assign(size_t(size.width) * size_t(size.height), 0);
+    taps.decided_bins = decided_bins.data();
+    // The golden-ratio sequence: the taps of a pixel spread their points evenly over [0, 1).
+    for (int k = 0; k < s.taps; ++k) chord_offsets.push_back(std::fmod(0.5f + 0.6180339887f * float(k), 1.0f));
+    taps.chord_offsets = chord_offsets.data();
+  }
   const PixelFrame frame{depth_view, normal_view, mask, camera, s, taps, camera.is_perspective()};
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads,
                 [&](const cv::Range& rows) { confidence_rows(frame, rows, r, confidence); });

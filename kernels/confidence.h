@@ -18,11 +18,24 @@
 // is its share of the volume). 1 = every point of the neighbourhood was in front of the
 // stored surfaces: an open plane, a corner seen from outside. 0 = none was. 1 on background
 // and where H covers no tap (projected radius below a pixel: the pixel itself is all).
+//
+// With other views of the scene (the neighbouring frames of a shot, kernels/multiview.h),
+// observed means observed by any view: the part of a chord this frame does not see (behind
+// the stored surface, off-screen, masked) is observed where some view decides it, i.e. sees
+// it as free space or has it behind its own surface within the thickness (PointVerdicts).
+// Behind a tap's surface the views are asked at view_bins points of the texel's ray, each
+// standing for its bin of depth; where the tap reads no surface (off-screen, masked) they
+// are asked at one point of the chord, which stands for all of it, and only every 4th
+// unknown tap of a pixel asks: their decided fraction stands for all its unknown chords.
 #pragma once
+
+#include <span>
 
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "core/gbuffer.h"
+#include "kernels/multiview.h"
 
 namespace ssdo {
 
@@ -41,6 +54,14 @@ struct ConfidenceSettings {
   // value), so that a tap on the pixel's own plane counts as observed.
   float depth_bias_relative = 1e-3f;
   uint32_t seed = 0;  // per-pixel rotation of the tap pattern
+  // With views only: bins of planar depth behind each texel's surface, [1, 8], over 2
+  // radii (the longest hidden part of a chord); the views are asked once per bin, at its
+  // centre, for each bin some chord reaches, and a tap's hidden part counts the decided
+  // bins it overlaps. 2 (bins of a radius): each ask projects a point into every view
+  // until one decides it (a scattered read of its depth), the cost of the view pass; 4
+  // bins separate the orbit's deciles a little more (mean error 0.032 instead of 0.048 at
+  // [0.8, 0.9)) for about 5% more of a frame's compute.
+  int view_bins = 2;
   // 2 (default) = computed on the half-resolution grid and upsampled depth- and
   // normal-aware (compute_terms, kernels/half_resolution.h): the confidence varies over the
   // scale of the radius, not of a pixel, and a quarter of the taps suffice; 1 = every pixel.
@@ -53,14 +74,21 @@ bool runs_on_half_grid(const ConfidenceSettings& s);
 // Empty when valid, else what is wrong (field, value, range).
 std::string validate(const ConfidenceSettings& s);
 
+// Other views of the scene that the confidence counts as observers.
+struct ConfidenceViews {
+  std::span<const DepthView> views;  // only the usable ones (measure_view_use: used); empty = none
+  MultiViewSettings settings;        // the thickness and depth bias of their verdicts
+};
+
 // Writes confidence (CV_32FC1 in [0, 1], allocated at the input size when empty or of the
 // wrong size; only roi, empty = all, is written). depth_view CV_32FC1 planar depth (+inf on
 // background), normal_view CV_32FC3 unit view-space normals facing the camera, mask CV_8UC1
 // (255 = foreground). Deterministic: the same bytes for any thread count. Computed on the
-// grid of the inputs (resolution_divisor is compute_terms' to apply).
+// grid of the inputs (resolution_divisor is compute_terms' to apply). Without views the
+// frame's own observation only.
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& settings, cv::Mat& confidence,
-                        cv::Rect roi = {}, int nthreads = 0);
+                        cv::Rect roi = {}, int nthreads = 0, const ConfidenceViews& views = {});
 
 }  // namespace ssdo

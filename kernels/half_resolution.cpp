@@ -562,6 +562,20 @@ cv::Mat grid_back_layer(const cv::Mat& depth_view, const cv::Mat& mask, const Ca
   return back.empty() ? file_back : back;
 }
 
+// The views the confidence counts as observers (a grid's depth, mask and camera): those the
+// occupancy pass used, measured here when no AO or SSDO ran it. Empty without views.
+std::vector<DepthView> confidence_observers(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
+                                            const TermInputs& in, const TermSettings& settings,
+                                            std::vector<ViewUse>& uses, int nthreads) {
+  if (in.views.empty()) return {};
+  if (uses.size() != in.views.size())
+    uses = measure_view_use({depth_view, mask, camera}, in.views, multiview_settings(settings), nthreads);
+  std::vector<DepthView> used;
+  for (size_t i = 0; i < uses.size(); ++i)
+    if (uses[i].used) used.push_back(in.views[i]);
+  return used;
+}
+
 // The second depth layer at the texels of the half grid (see grid_back_layer).
 cv::Mat half_grid_back_layer(const HalfGrid& h, const TermInputs& in, const TermSettings& settings,
                              std::vector<ViewUse>& uses, int nthreads) {
@@ -726,8 +740,10 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
     images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
   }
   if (half.confidence) {
+    const std::vector<DepthView> observers = confidence_observers(h.depth_view, h.mask, h.camera, in, settings,
+                                                                  out.views, nthreads);
     compute_confidence(h.depth_view, h.normal_view, h.mask, h.camera, *settings.confidence, grid.confidence,
-                       half_roi, nthreads);
+                       half_roi, nthreads, {observers, multiview_settings(settings)});
     images.push_back({grid.confidence, out.confidence, cv::Scalar(1.0), cv::Scalar(1.0)});
   }
   upsample_from_half_grid(full, h, images, r, nthreads);
@@ -738,7 +754,10 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
 
 MultiViewSettings multiview_settings(const TermSettings& settings) {
   MultiViewSettings m;
-  const float radius = settings.ao ? settings.ao->radius_world : settings.ssdo ? settings.ssdo->radius_world : 1.0f;
+  const float radius = settings.ao           ? settings.ao->radius_world
+                       : settings.ssdo       ? settings.ssdo->radius_world
+                       : settings.confidence ? settings.confidence->radius_world
+                                             : 1.0f;
   const float thickness = settings.ao     ? effective_thickness_world(*settings.ao)
                           : settings.ssdo ? settings.ssdo->thickness_world
                                           : kThicknessPerRadius * radius;
@@ -769,9 +788,12 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
     if (settings.ao && !half.ao) ao_on_grid(g, *settings.ao, r, out.ao, nthreads);
     if (settings.ssdo && !half.ssdo) ssdo_on_grid(g, in, *settings.ssdo, r, out.ssdo, nthreads);
   }
-  if (settings.confidence && !half.confidence)
+  if (settings.confidence && !half.confidence) {
+    const std::vector<DepthView> observers = confidence_observers(in.depth_view, in.mask, in.camera, in, settings,
+                                                                  out.views, nthreads);
     compute_confidence(in.depth_view, in.normal_view, in.mask, in.camera, *settings.confidence, out.confidence,
-                       roi, nthreads);
+                       roi, nthreads, {observers, multiview_settings(settings)});
+  }
   if (!half.any()) return;
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());

@@ -112,7 +112,8 @@ struct TermInputs {
   const cv::Mat* depth_back_view = nullptr;
   // Other views of the scene (GBuffer::views): the occluders of AO and SSDO get the occupied
   // interval all views agree on (occupancy_from_views, kernels/multiview.h), computed once
-  // on each grid a kernel runs on, in place of depth_back_view.
+  // on each grid a kernel runs on, in place of depth_back_view; the confidence counts what
+  // the used views observe (ConfidenceViews, kernels/confidence.h).
   std::span<const DepthView> views = {};
 };
 
@@ -124,7 +125,8 @@ struct TermSettings {
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
-// bias (else SSDO's), decided as far as twice the radius behind each surface.
+// bias (else SSDO's, else the confidence's radius), decided as far as twice the radius
+// behind each surface.
 MultiViewSettings multiview_settings(const TermSettings& settings);
 
 struct TermOutputs {

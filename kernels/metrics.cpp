@@ -14,9 +14,10 @@ inline float channel_mean(const float* p, int channels) {
   return s / float(channels);
 }
 
-}  // namespace
-
-void ErrorAccumulator::add(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask) {
+// Calls fn(x, y, estimate, reference) for every compared pixel (mask != 0, both channel
+// means finite), in row-major order.
+template <typename Fn>
+void for_each_compared_pixel(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask, Fn&& fn) {
   CV_Assert(estimate.size() == reference.size() && estimate.type() == reference.type());
   CV_Assert(estimate.depth() == CV_32F);
   CV_Assert(mask.empty() || (mask.type() == CV_8UC1 && mask.size() == estimate.size()));
@@ -29,16 +30,23 @@ void ErrorAccumulator::add(const cv::Mat& estimate, const cv::Mat& reference, co
       if (m && !m[x]) continue;
       const float ev = channel_mean(e + x * channels, channels);
       const float rv = channel_mean(r + x * channels, channels);
-      if (!std::isfinite(ev) || !std::isfinite(rv)) continue;
-      const double d = double(ev) - double(rv);
-      abs_errors_.push_back(float(std::abs(d)));
-      sum_abs_ += std::abs(d);
-      sum_sq_ += d * d;
-      sum_signed_ += d;
-      sum_reference_ += rv;
-      max_abs_ = std::max(max_abs_, std::abs(d));
+      if (std::isfinite(ev) && std::isfinite(rv)) fn(x, y, ev, rv);
     }
   }
+}
+
+}  // namespace
+
+void ErrorAccumulator::add(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask) {
+  for_each_compared_pixel(estimate, reference, mask, [&](int, int, float ev, float rv) {
+    const double d = double(ev) - double(rv);
+    abs_errors_.push_back(float(std::abs(d)));
+    sum_abs_ += std::abs(d);
+    sum_sq_ += d * d;
+    sum_signed_ += d;
+    sum_reference_ += rv;
+    max_abs_ = std::max(max_abs_, std::abs(d));
+  });
 }
 
 ErrorStats ErrorAccumulator::result() const {
@@ -56,6 +64,39 @@ ErrorStats ErrorAccumulator::result() const {
   std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
   s.p95 = sorted[k];
   return s;
+}
+
+int ConfidenceDeciles::bin(float confidence) {
+  // The bounds are the floats nearest b/10 (0.9f opens the last bin): c x 10 in float may
+  // round across a bound, so the bin is corrected by comparing with its bounds.
+  int b = std::clamp(int(std::floor(confidence * float(kBins))), 0, kBins - 1);
+  if (b + 1 < kBins && confidence >= float(b + 1) / float(kBins)) ++b;
+  if (b > 0 && confidence < float(b) / float(kBins)) --b;
+  return b;
+}
+
+void ConfidenceDeciles::add(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& confidence,
+                            const cv::Mat& mask) {
+  CV_Assert(confidence.type() == CV_32FC1 && confidence.size() == estimate.size());
+  for_each_compared_pixel(estimate, reference, mask, [&](int x, int y, float ev, float rv) {
+    const float c = confidence.ptr<float>(y)[x];
+    if (!std::isfinite(c)) return;
+    const size_t b = size_t(bin(c));
+    ++pixels_[b];
+    sum_abs_[b] += std::abs(double(ev) - double(rv));
+  });
+}
+
+void ConfidenceDeciles::add(const ConfidenceDeciles& other) {
+  for (size_t b = 0; b < size_t(kBins); ++b) {
+    pixels_[b] += other.pixels_[b];
+    sum_abs_[b] += other.sum_abs_[b];
+  }
+}
+
+double ConfidenceDeciles::mae(int bin) const {
+  const size_t b = size_t(bin);
+  return pixels_[b] > 0 ? sum_abs_[b] / double(pixels_[b]) : 0.0;
 }
 
 ErrorStats compare_images(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask) {

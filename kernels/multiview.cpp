@@ -380,3 +380,48 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
 }
 
 }  // namespace ssdo
+
+namespace ssdo {
+
+std::vector<ViewUse> measure_view_use(const MultiViewInputs& in, std::span<const DepthView> views,
+                                      const MultiViewSettings& s, int nthreads) {
+  CV_Assert(validate(s).empty());
+  std::vector<ViewUse> uses(views.size());
+  Constants k{s, {}};
+  for (size_t i = 0; i < views.size(); ++i) {
+    uses[i].name = views[i].name;
+    k.views.push_back(view_geometry(in.camera, views[i]));
+  }
+  if (!views.empty()) measure_views(in, k, uses, nthreads);
+  return uses;
+}
+
+struct PointVerdicts::Impl {
+  Constants k;
+};
+
+PointVerdicts::PointVerdicts(const Camera& frame_camera, std::span<const DepthView> views,
+                             const MultiViewSettings& s) {
+  CV_Assert(validate(s).empty());
+  auto impl = std::make_unique<Impl>(Impl{{s, {}}});
+  for (const DepthView& v : views) impl->k.views.push_back(view_geometry(frame_camera, v));
+  impl_ = std::move(impl);
+}
+
+PointVerdicts::~PointVerdicts() = default;
+
+bool PointVerdicts::empty() const { return impl_->k.views.empty(); }
+
+bool PointVerdicts::decided(const glm::vec3& point_view) const {
+  const Constants& k = impl_->k;
+  const glm::vec4 q(point_view, 1.0f);
+  for (const ViewGeometry& v : k.views) {
+    // The point as a ray of zero direction, read at d = 0.
+    const RayInView at_point{v.clip_from_frame_view * q, glm::vec4(0.0f), glm::dot(v.depth_from_frame_view, q), 0.0f};
+    const Verdict verdict = classify(v, at_point, 0.0f, k.s.depth_bias_relative, k.s.thickness_world);
+    if (verdict == Verdict::free || verdict == Verdict::occupied) return true;
+  }
+  return false;
+}
+
+}  // namespace ssdo

@@ -27,6 +27,7 @@
 // of them), less a relative bias for the depth's rounding.
 #pragma once
 
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -133,5 +134,36 @@ struct GuardBand {
 void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view,
                        std::span<const DepthView> views, std::span<const ViewUse> uses,
                        const MultiViewSettings& s, int margin_px, GuardBand& band, int nthreads = 0);
+
+}  // namespace ssdo
+
+namespace ssdo {
+
+// The views' usefulness alone (the `used`, `overlap` and `contradiction` occupancy_from_views
+// reports, measured the same way), for a kernel that asks the views about points without
+// needing the back layer.
+std::vector<ViewUse> measure_view_use(const MultiViewInputs& in, std::span<const DepthView> views,
+                                      const MultiViewSettings& s, int nthreads = 0);
+
+// The views' verdicts on single points of a frame's view space, by the rule above: a point
+// is decided when some view sees it as free space, or has it behind its visible surface
+// within thickness_world (the free-space test as occupancy_from_views', the same bias).
+// What the confidence (kernels/confidence.h) counts as observed behind this frame's
+// surfaces. Pass only the views to trust (those measure_view_use reports used).
+class PointVerdicts {
+ public:
+  PointVerdicts(const Camera& frame_camera, std::span<const DepthView> views, const MultiViewSettings& s);
+  ~PointVerdicts();
+  PointVerdicts(const PointVerdicts&) = delete;
+  PointVerdicts& operator=(const PointVerdicts&) = delete;
+
+  bool empty() const;  // no view: nothing is decided
+  // point_view: a point of the frame's view space.
+  bool decided(const glm::vec3& point_view) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<const Impl> impl_;
+};
 
 }  // namespace ssdo

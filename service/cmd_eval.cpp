@@ -66,11 +66,29 @@ nlohmann::json stats_json(const ErrorStats& s) {
           {"pixels", s.pixels}};
 }
 
+// Mean |error| per confidence decile, as JSON: one object per bin, [lo, hi), pixels, mae.
+nlohmann::json deciles_json(const ConfidenceDeciles& d) {
+  nlohmann::json bins = nlohmann::json::array();
+  for (int b = 0; b < ConfidenceDeciles::kBins; ++b)
+    bins.push_back({{"lo", b / 10.0}, {"hi", (b + 1) / 10.0}, {"pixels", d.pixels(b)}, {"mae", d.mae(b)}});
+  return bins;
+}
+
+// The same as a table under the frame's (or the run's) line: the confidence predicts the
+// error where low-confidence bins err more.
+void print_deciles(const ConfidenceDeciles& d) {
+  std::printf("  confidence     pixels   MAE\n");
+  for (int b = 0; b < ConfidenceDeciles::kBins; ++b)
+    std::printf("  [%.1f, %.1f%c %9lld   %.4f\n", 0.1 * b, 0.1 * (b + 1), b + 1 == ConfidenceDeciles::kBins ? ']' : ')',
+                (long long)d.pixels(b), d.mae(b));
+}
+
 }  // namespace
 
 int run_eval(const EvalArgs& args) {
   apply_thread_budget(args.request.threads);  // frames are computed in this process
   ErrorAccumulator overall;
+  ConfidenceDeciles overall_deciles;
   double overall_ms = 0;
   int failed = 0;
   nlohmann::json files = nlohmann::json::array();
@@ -136,6 +154,10 @@ int run_eval(const EvalArgs& args) {
     }
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
     overall.add(estimate, reference, frame.gbuffer.mask);
+    ConfidenceDeciles deciles;
+    if (const cv::Mat* confidence = computed.find("confidence"))
+      deciles.add(estimate, reference, *confidence, frame.gbuffer.mask);
+    overall_deciles.add(deciles);
     overall_ms += ms;
 
     nlohmann::json j = stats_json(s);
@@ -147,12 +169,14 @@ int run_eval(const EvalArgs& args) {
     j["preset"] = args.preset;
     j["radius"] = request.ao.radius_world;
     j["ms"] = ms;
+    j["confidence_deciles"] = deciles_json(deciles);
     files.push_back(j);
     if (!args.json) {
       std::printf("%s: %s %s r=%.3g  MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
                   file.c_str(), args.term.c_str(), j["method"].get<std::string>().c_str(),
                   request.ao.radius_world, s.mae, 100.0 * j["relative_mae"].get<double>(), s.rmse,
                   s.bias, s.p95, int(s.pixels), ms);
+      print_deciles(deciles);
     }
     if (!args.heatmap_dir.empty()) {
       const std::string stem = std::filesystem::path(file).stem().string();
@@ -173,11 +197,13 @@ int run_eval(const EvalArgs& args) {
     o["ms"] = overall_ms;
     o["files"] = int(files.size());
     o["relative_mae"] = all.mean_reference > 0 ? all.mae / all.mean_reference : 0.0;
+    o["confidence_deciles"] = deciles_json(overall_deciles);
     std::cout << nlohmann::json{{"files", files}, {"overall", o}}.dump(2) << "\n";
   } else if (args.files.size() > 1) {
     std::printf("overall: MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
                 all.mae, all.mean_reference > 0 ? 100.0 * all.mae / all.mean_reference : 0.0, all.rmse,
                 all.bias, all.p95, int(all.pixels), overall_ms);
+    print_deciles(overall_deciles);
   }
   return failed ? 1 : 0;
 }
@@ -188,7 +214,8 @@ Command register_eval(CLI::App& app) {
   st->options.compute.preset = "high";
   CLI::App* cmd = app.add_subcommand(
       "eval", "Compare computed AO with a reference pass of the same frame (e.g. Cycles' "
-              "ray-traced AO) over foreground pixels: MAE, RMSE, bias, 95th percentile, time");
+              "ray-traced AO) over foreground pixels: MAE, RMSE, bias, 95th percentile, time, and "
+              "the MAE per confidence decile (pixels binned by the confidence channel)");
   cmd->add_option("files", e.files, "EXR frames holding the reference pass")->required();
   cmd->add_option("--reference", e.reference, "Reference pass name (AO for Cycles dumps)")->capture_default_str();
   cmd->add_option("--term", e.term,

@@ -147,5 +147,45 @@ TEST(Confidence, GivesTheReferenceBitsWithAnOrthographicCamera) {
   EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 2), reference));
 }
 
+// Thin posts 1.2 in front of a wall above a floor, seen from x = 0; views from x = +-1 see
+// past the posts. Alone, the wall behind each post is hidden (the space behind a post's
+// front is unknown); with the views most of it is observed.
+TEST(Confidence, OtherViewsObserveWhatThisFrameHides) {
+  raycast::Scene scene;
+  scene.planes.push_back({{0.0f, 3.0f, 0.0f}, {0.0f, -1.0f, 0.0f}, glm::vec3(0.8f)});
+  scene.planes.push_back({{0.0f, 0.0f, -1.0f}, {0.0f, 0.0f, 1.0f}, glm::vec3(0.8f)});
+  for (float x : {-1.2f, -0.4f, 0.4f, 1.2f})
+    scene.boxes.push_back({{x, 1.8f, 0.0f}, {0.04f, 0.04f, 1.0f}, glm::mat3(1.0f), glm::vec3(0.8f)});
+  auto camera_at = [](float x) {
+    return raycast::look_at({x, -3.0f, 0.0f}, {x, 3.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, 160, 90, 60.0f);
+  };
+  const GBuffer g = raycast::render_gbuffer(scene, camera_at(0.0f), 2);
+  const std::vector<DepthView> views = {{camera_at(-1.0f), raycast::render_gbuffer(scene, camera_at(-1.0f), 2).depth_view, "left"},
+                                        {camera_at(1.0f), raycast::render_gbuffer(scene, camera_at(1.0f), 2).depth_view, "right"}};
+  ConfidenceSettings s;
+  s.radius_world = 1.0f;
+  cv::Mat alone, alone_no_views, seen_1, seen_2;
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, alone, {}, 2);
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, alone_no_views, {}, 2, ConfidenceViews{});
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, seen_1, {}, 1, {views, MultiViewSettings{}});
+  compute_confidence(g.depth_view, g.normal_view, g.mask, g.camera, s, seen_2, {}, 2, {views, MultiViewSettings{}});
+  ASSERT_EQ(cv::norm(alone, alone_no_views, cv::NORM_INF), 0.0) << "no views: the frame's own observation";
+  ASSERT_EQ(std::memcmp(seen_1.data, seen_2.data, seen_1.total() * sizeof(float)), 0)
+      << "the views' verdicts are filled on first use by whichever thread: the same bytes";
+  // Views only add observers: no pixel loses confidence. Where the frame alone saw less
+  // than 0.8 of the neighbourhood, the views observe most of the rest.
+  double sum_alone = 0, sum_seen = 0;
+  int hidden = 0;
+  for (int y = 0; y < g.mask.rows; ++y)
+    for (int x = 0; x < g.mask.cols; ++x) {
+      const float a = alone.at<float>(y, x), v = seen_2.at<float>(y, x);
+      EXPECT_GE(v, a) << x << "," << y;
+      if (!g.mask.at<uint8_t>(y, x) || a >= 0.8f) continue;
+      ++hidden, sum_alone += a, sum_seen += v;
+    }
+  ASSERT_GT(hidden, 500);
+  EXPECT_GT(sum_seen / hidden, sum_alone / hidden + 0.15) << "alone " << sum_alone / hidden;
+}
+
 }  // namespace
 }  // namespace ssdo
