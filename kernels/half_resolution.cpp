@@ -637,21 +637,21 @@ void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSetti
   const auto pad = [margin](cv::Mat& image) {
     if (!image.empty()) cv::copyMakeBorder(image, image, margin, margin, margin, margin, cv::BORDER_CONSTANT, 0);
   };
-  cv::Mat normal_view, position_view;
-  reconstruct_normals_from_depth(band.depth_view, band.mask, band.camera, normal_view, {}, nthreads);
-  g.normal_view.copyTo(normal_view(inside));
-  if (!g.position_view.empty()) {
-    view_positions_from_depth(band.depth_view, band.mask, band.camera, position_view, {}, nthreads);
-    g.position_view.copyTo(position_view(inside));
-  }
+  pad(g.normal_view);
+  pad(g.position_view);
   pad(g.albedo);
   pad(g.lighting);
+  const int w = band.camera.width_px, h = band.camera.height_px;
+  for (const cv::Rect& side : {cv::Rect(0, 0, w, margin), cv::Rect(0, h - margin, w, margin),
+                               cv::Rect(0, margin, margin, inside.height), cv::Rect(w - margin, margin, margin, inside.height)}) {
+    reconstruct_normals_from_depth(band.depth_view, band.mask, band.camera, g.normal_view, side, nthreads);
+    if (!g.position_view.empty())
+      view_positions_from_depth(band.depth_view, band.mask, band.camera, g.position_view, side, nthreads);
+  }
   g.depth_view = band.depth_view;
   g.mask = band.mask;
   g.back = band.depth_back_view;
   g.camera = band.camera;
-  g.normal_view = normal_view;
-  g.position_view = position_view;
   g.origin = {margin, margin};
 }
 
