@@ -109,7 +109,7 @@ std::map<std::string, std::vector<NeighbourFrame>> neighbours_by_frame(const std
 WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const ProcessArgs& args,
                   const nlohmann::json& options, const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
                   const std::map<std::string, size_t>& todo_index, const FrameTurns& turns) {
-  WorkerJob job{todo[index], output_path_for(todo[index], args.output_dir), options, {}};
+  WorkerJob job{todo[index], output_path_for(todo[index], args.output_dir), options, {}, {}};
   const auto it = neighbours.find(todo[index]);
   if (it == neighbours.end()) return job;
   job.neighbours = it->second;

@@ -138,7 +138,7 @@ std::vector<NeighbourFrame> neighbours_of(const nlohmann::json& j) {
   if (!j.contains("neighbours") || !j["neighbours"].is_array()) return out;
   for (const nlohmann::json& n : j["neighbours"])
     if (n.is_object() && n.value("path", nlohmann::json()).is_string() && n.value("offset", 0) != 0)
-      out.push_back({n["path"].get<std::string>(), n.value("offset", 0), n.value("later", false)});
+      out.push_back({n["path"].get<std::string>(), n.value("offset", 0), n.value("later", false), {}, {}});
   return out;
 }
 
