@@ -628,11 +628,13 @@ void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSetti
   if (g.back.empty() || std::none_of(uses.begin(), uses.end(), [](const ViewUse& u) { return u.used; })) return;
   const float radius = s.ao ? s.ao->radius_world : s.ssdo->radius_world;
   const float max_radius_px = std::max(s.ao ? s.ao->max_radius_px : 0.0f, s.ssdo ? s.ssdo->max_radius_px : 0.0f);
-  const int margin = guard_band_texels(g.depth_view, g.mask, g.camera, radius, max_radius_px, nthreads);
-  if (margin == 0) return;
+  const int reach_px = guard_band_texels(g.depth_view, g.mask, g.camera, radius, max_radius_px, nthreads);
+  if (reach_px == 0) return;
   GuardBand band;
-  extend_with_views({g.depth_view, g.mask, g.camera}, g.back, in.views, uses, multiview_settings(s), margin, band,
+  extend_with_views({g.depth_view, g.mask, g.camera}, g.back, in.views, uses, multiview_settings(s), reach_px, band,
                     nthreads);
+  const int margin = band.margin_px;
+  if (margin == 0) return;
   const cv::Rect inside = band.inside();
   const auto pad = [margin](cv::Mat& image) {
     if (!image.empty()) cv::copyMakeBorder(image, image, margin, margin, margin, margin, cv::BORDER_CONSTANT, 0);

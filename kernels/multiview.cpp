@@ -349,6 +349,43 @@ cv::Rect GuardBand::inside() const {
   return {margin_px, margin_px, camera.width_px - 2 * margin_px, camera.height_px - 2 * margin_px};
 }
 
+namespace {
+
+// How far past the frame's edges the band's farthest surface lies, texels, rounded up to a
+// multiple of 4 (as guard_band_texels); 0 when no view saw anything there.
+int band_extent(const cv::Mat& depth_view, const cv::Rect& inside) {
+  int extent = 0;
+  for (int y = 0; y < depth_view.rows; ++y) {
+    const float* row = depth_view.ptr<float>(y);
+    const int dy = std::max({0, inside.y - y, y - (inside.br().y - 1)});
+    for (int x = 0; x < depth_view.cols; ++x) {
+      if (!(row[x] < kInfinity)) continue;
+      const int dx = std::max({0, inside.x - x, x - (inside.br().x - 1)});
+      extent = std::max({extent, dx, dy});
+    }
+  }
+  return (extent + 3) / 4 * 4;
+}
+
+// The band's mask (its surfaces) and back layer (the occupancy of the views behind them, as
+// for the frame's own pixels; their own interval the assumed thickness), then the frame's
+// own inside.
+void fill_band(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::span<const DepthView> views,
+               std::span<const ViewUse> uses, const MultiViewSettings& s, GuardBand& band, int nthreads) {
+  const cv::Rect inside = band.inside();
+  band.mask = band.depth_view < kInfinity;
+  band.mask(inside).setTo(0);
+  Constants used{s, {}};
+  for (size_t i = 0; i < views.size(); ++i)
+    if (uses[i].used) used.views.push_back(view_geometry(in.camera, views[i]));
+  write_back_layer({band.depth_view, band.mask, band.camera}, used, band.depth_back_view, nthreads);
+  in.depth_view.copyTo(band.depth_view(inside));
+  in.mask.copyTo(band.mask(inside));
+  depth_back_view.copyTo(band.depth_back_view(inside));
+}
+
+}  // namespace
+
 void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::span<const DepthView> views,
                        std::span<const ViewUse> uses, const MultiViewSettings& s, int margin_px, GuardBand& band,
                        int nthreads) {
@@ -356,7 +393,6 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
   CV_Assert(depth_back_view.type() == CV_32FC1 && depth_back_view.size() == in.depth_view.size());
   band.margin_px = margin_px;
   band.camera = widened_camera(in.camera, margin_px);
-  const cv::Rect inside = band.inside();
   const cv::Size size(band.camera.width_px, band.camera.height_px);
   band.depth_view.create(size, CV_32FC1);
   band.depth_view.setTo(kInfinity);
@@ -365,18 +401,16 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
     const int stride_px = std::max(1, views[i].camera.width_px / std::max(1, in.camera.width_px));
     splat_view_into_band(views[i], in.camera, band, stride_px, band.depth_view, nthreads);
   }
-  in.depth_view.copyTo(band.depth_view(inside));
-  // Band texels with a surface are foreground, with the assumed thickness behind them.
-  // Band texels with a surface are foreground; behind them, the occupancy of the views as
-  // for the frame's own pixels (their own interval: the assumed thickness).
-  band.mask = band.depth_view < kInfinity;
-  band.mask(inside).setTo(0);
-  Constants used{s, {}};
-  for (size_t i = 0; i < views.size(); ++i)
-    if (uses[i].used) used.views.push_back(view_geometry(in.camera, views[i]));
-  write_back_layer({band.depth_view, band.mask, band.camera}, used, band.depth_back_view, nthreads);
-  in.mask.copyTo(band.mask(inside));
-  depth_back_view.copyTo(band.depth_back_view(inside));
+  // Only as wide as the views saw: a band of nothing costs the estimators its area for no
+  // occluder (views of the same pose, or that turned away, see nothing past the edges).
+  const int extent_px = std::min(margin_px, band_extent(band.depth_view, band.inside()));
+  if (extent_px < margin_px) {
+    const int cut = margin_px - extent_px;
+    band.depth_view = band.depth_view(cv::Rect(cut, cut, size.width - 2 * cut, size.height - 2 * cut)).clone();
+    band.margin_px = extent_px;
+    band.camera = widened_camera(in.camera, extent_px);
+  }
+  fill_band(in, depth_back_view, views, uses, s, band, nthreads);
 }
 
 }  // namespace ssdo

@@ -130,7 +130,9 @@ struct GuardBand {
 // every view pixel of `stride_px` x `stride_px` (a view denser than the grid needs a
 // sample per texel, not per pixel) is lifted to the world and projected into the widened
 // camera; where it lands in the band, the nearest depth wins (a minimum: the same result
-// for any order and thread count). Deterministic.
+// for any order and thread count); the band is then narrowed to the farthest surface it got
+// (band.margin_px <= margin_px; 0 when the views saw nothing past the edges: the frame as it
+// is). Deterministic.
 void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view,
                        std::span<const DepthView> views, std::span<const ViewUse> uses,
                        const MultiViewSettings& s, int margin_px, GuardBand& band, int nthreads = 0);

@@ -225,6 +225,27 @@ TEST(GuardBand, ANeighbourFillsTheBandWithWhatItSaw) {
   EXPECT_GT(right, covered * 95 / 100);
 }
 
+TEST(GuardBand, IsNoWiderThanWhatTheViewsSaw) {
+  const raycast::Scene scene = box_off_screen_scene();
+  const GBuffer g = raycast::render_gbuffer(scene, camera_at(0.0f), 2);
+  // A view from the same pose sees nothing past the edges: no band.
+  const std::vector<DepthView> same{view_of(scene, g.camera, "same")};
+  std::vector<ViewUse> uses;
+  const cv::Mat back = back_layer(g, same, &uses);
+  ASSERT_TRUE(uses[0].used);
+  GuardBand band;
+  extend_with_views({g.depth_view, g.mask, g.camera}, back, same, uses, MultiViewSettings{}, 24, band, 2);
+  EXPECT_EQ(band.margin_px, 0);
+  EXPECT_EQ(band.camera.width_px, kWidth);
+  // A view 0.05 to the left sees a few pixels past the left edge only.
+  const std::vector<DepthView> near{view_of(scene, camera_at(-0.05f), "near")};
+  const cv::Mat near_back = back_layer(g, near, &uses);
+  extend_with_views({g.depth_view, g.mask, g.camera}, near_back, near, uses, MultiViewSettings{}, 24, band, 2);
+  EXPECT_GT(band.margin_px, 0);
+  EXPECT_LT(band.margin_px, 24);
+  EXPECT_EQ(band.margin_px % 4, 0);
+}
+
 double left_strip_error(const cv::Mat& ao, const cv::Mat& reference, const cv::Mat& mask, int width_px) {
   const cv::Rect strip(0, 0, width_px, ao.rows);
   return compare_images(ao(strip), reference(strip), mask(strip)).mae;
