@@ -1,7 +1,7 @@
 // A shot's frames as extra views of each other (--views): which neighbours each frame gets,
 // each file read once per batch, a farm chunk's neighbours outside it, inconsistent
-// neighbours skipped, resumption after kill -9; and the radius every command takes from
-// the frame's sidecar.
+// neighbours skipped, resumption after kill -9, the watch mode's neighbours from its
+// folder; and the radius every command takes from the frame's sidecar.
 #include <fstream>
 #include <regex>
 #include <set>
@@ -16,14 +16,17 @@ namespace {
 
 fs::path orbit(int n, const char* ext) { return shared_dir() / "gbuffers" / ("orbit_f" + std::to_string(n) + ext); }
 
+// Orbit frame `n` as DIR/NAME.exr + its sidecar (sidecar first: the frame is the file a
+// watching service reacts to).
+void copy_orbit_frame(const fs::path& dir, const std::string& name, int n) {
+  fs::copy_file(orbit(n, ".camera.json"), dir / (name + ".camera.json"));
+  fs::copy_file(orbit(n, ".exr"), dir / (name + ".exr"));
+}
+
 // The orbit frames 0..count-1 (5 degrees per frame) as DIR/STEM<N>.exr + sidecars.
 void copy_orbit(const fs::path& dir, const std::string& stem, int count, int first_number = 0) {
   fs::create_directories(dir);
-  for (int i = 0; i < count; ++i) {
-    const std::string name = numbered(stem.c_str(), first_number + i);
-    fs::copy_file(orbit(i, ".camera.json"), dir / (name + ".camera.json"));
-    fs::copy_file(orbit(i, ".exr"), dir / (name + ".exr"));
-  }
+  for (int i = 0; i < count; ++i) copy_orbit_frame(dir, numbered(stem.c_str(), first_number + i), i);
 }
 
 // The "views: ..." note of the frame line of `input` (the lines after it up to the next frame).
@@ -209,6 +212,114 @@ TEST(Sequence, SocketRequestViewsChangeTheFrameAndAreConfinedLikeItsInput) {
   EXPECT_NE(ao_alone, ao_with);
   const json outside = c.request({{"op", "process"}, {"input", input}, {"views", {dir / "outside/orbit_f0.exr"}}});
   EXPECT_EQ(outside.value("code", ""), "forbidden") << outside.dump();
+}
+
+// What the watch tests compute, for `serve` and for `process` alike: AO only, cheap.
+const std::vector<std::string> kWatchCompute = {"--terms", "ao", "--preset", "low", "--threads", "2"};
+
+// kWatchCompute as command-line words for run_ssdo, each after a space.
+std::string process_compute() {
+  std::string flags;
+  for (const std::string& word : kWatchCompute) flags += " " + word;
+  return flags;
+}
+
+// `ssdo serve --watch DIR/in -o DIR/served` with one worker.
+std::vector<std::string> watch_args(const ScratchDir& dir, const std::string& socket,
+                                    const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> args = {"serve", "--watch", dir / "in", "-o", dir / "served", "--socket", socket,
+                                   "--jobs", "1", "--frame-timeout", "60"};
+  args.insert(args.end(), kWatchCompute.begin(), kWatchCompute.end());
+  args.insert(args.end(), extra.begin(), extra.end());
+  return args;
+}
+
+// Waits until OUT holds STEM0..STEM<count-1>.ssdo.exr and the service has nothing queued
+// or in flight.
+bool wait_for_outputs(const std::string& socket, const fs::path& out, const std::string& stem, int count) {
+  return wait_until(
+      [&] {
+        for (int i = 0; i < count; ++i)
+          if (!path_exists(out / (numbered(stem.c_str(), i) + ".ssdo.exr"))) return false;
+        const json s = stats(socket);
+        return s.value("queue_depth", 1) == 0 && s.value("in_flight", 1) == 0;
+      },
+      60);
+}
+
+// The watch mode gives a frame the frames of its sequence already in the folder as views:
+// with the whole shot there before the service starts, each output is byte for byte what
+// `ssdo process` writes for the folder, and its AO is not the frame's alone.
+TEST(SequenceWatch, FramesAlreadyInTheFolderAreViewsAsInProcess) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  constexpr int kFrames = 4;
+  copy_orbit(dir.path / "in", "orbit_f", kFrames);
+  const std::string socket = socket_path_for("watchviews");
+  SsdoProcess service(watch_args(dir, socket), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", kFrames)) << service.log();
+  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + process_compute());
+  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "alone" + " --views 0" + process_compute());
+  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  for (int i = 0; i < kFrames; ++i) {
+    const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
+    const std::vector<float> served = channel(dir / ("served/" + name), "ao");
+    ASSERT_FALSE(served.empty()) << name;
+    EXPECT_TRUE(read_text(dir.path / "served" / name) == read_text(dir.path / "batch" / name)) << name;
+    EXPECT_NE(served, channel(dir / ("alone/" + name), "ao")) << name;
+  }
+}
+
+// --views 0 in the watch mode: every frame of a sequence alone, byte for byte what
+// `ssdo process --views 0` writes.
+TEST(SequenceWatch, ViewsZeroIsEachFrameAloneAsInProcess) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  constexpr int kFrames = 3;
+  copy_orbit(dir.path / "in", "orbit_f", kFrames);
+  const std::string socket = socket_path_for("watchviews0");
+  SsdoProcess service(watch_args(dir, socket, {"--views", "0"}), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", kFrames)) << service.log();
+  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "alone" + " --views 0" + process_compute());
+  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  for (int i = 0; i < kFrames; ++i) {
+    const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
+    ASSERT_TRUE(exr_has_channel(dir / ("served/" + name), "ao")) << name;
+    EXPECT_TRUE(read_text(dir.path / "served" / name) == read_text(dir.path / "alone" / name)) << name;
+  }
+}
+
+// Exactly once: a frame computed before the rest of its sequence arrives keeps the output
+// it got alone; the frames arriving later do not make it computed again.
+TEST(SequenceWatch, AFrameComputedBeforeItsNeighboursArriveIsNotComputedAgain) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("lateviews");
+  SsdoProcess service(watch_args(dir, socket), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  copy_orbit_frame(dir.path / "in", "orbit_f0", 0);
+  ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", 1)) << service.log();
+  const fs::path first = dir.path / "served/orbit_f0.ssdo.exr";
+  struct stat before {};
+  ASSERT_EQ(::stat(first.c_str(), &before), 0);
+  for (int i = 1; i < 4; ++i) copy_orbit_frame(dir.path / "in", numbered("orbit_f", i), i);
+  ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", 4)) << service.log();
+  struct stat after {};
+  ASSERT_EQ(::stat(first.c_str(), &after), 0);
+  EXPECT_EQ(after.st_ino, before.st_ino) << "orbit_f0's output was written again";
+  EXPECT_EQ(count_occurrences(service.log(), "ok " + dir / "in/orbit_f0.exr" + " ->"), 1) << service.log();
+  // Written with the default --views, but nothing else of its sequence was there: its AO
+  // is the frame's alone.
+  const RunResult alone =
+      run_ssdo("process " + dir / "in/orbit_f0.exr" + " -o " + dir / "alone" + " --views 0" + process_compute());
+  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  const std::vector<float> served = channel(first.string(), "ao");
+  ASSERT_FALSE(served.empty());
+  EXPECT_EQ(served, channel(dir / "alone/orbit_f0.ssdo.exr", "ao"));
 }
 
 // A frame whose sidecar says its AO pass used ao_distance `distance`, as DIR/STEM.exr.
