@@ -25,58 +25,16 @@
 namespace ssdo {
 namespace {
 
-constexpr int kFrames = 7;
+constexpr int kFrames = raycast::kTruckShotFrames;
 constexpr int kWidth = 192, kHeight = 108;
-constexpr float kFovXDeg = 55.0f;
-constexpr float kTruckStepWorld = 0.5f;  // camera travel per frame along +X
 constexpr float kRadiusWorld = 1.0f;     // Cycles' default AO distance
 // Reference: cosine-weighted rays per pixel within the radius (MC noise of a pixel: standard
 // deviation <= 0.5 / sqrt(128) = 0.044, far less over a frame's mean error).
 constexpr int kReferenceRays = 128;
 constexpr uint32_t kReferenceSeed = 11;
 
-raycast::Box box(glm::vec3 lo, glm::vec3 hi) {
-  raycast::Box b;
-  b.centre_world = 0.5f * (lo + hi);
-  b.half_extents_world = 0.5f * (hi - lo);
-  return b;
-}
-
-// Floor z = 0 and a wall y = 3.5 (facing -Y), with, from the camera's side back:
-// - low boxes (0.5 cube) near the camera, 2.4 apart: they pass the left and right screen
-//   edges during the shot and darken the floor beside them on screen while off screen;
-// - box pairs: a 0.6 cube and, 0.2 behind it, a taller box (0.4 x 0.4 x 1.2) it hides;
-// - thin slabs (0.8 wide, 0.04 deep, 1 tall) 0.6 in front of the wall, and thin poles
-//   (0.06 square, 1.8 tall) 0.3-1.0 in front of it: a depth buffer sees them as solid
-//   0.5 deep (the assumed thickness), so the wall and floor behind get a dark halo.
-raycast::Scene shot_scene() {
-  raycast::Scene s;
-  s.planes.push_back({glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f), glm::vec3(0.8f)});
-  s.planes.push_back({glm::vec3(0.0f, 3.5f, 0.0f), glm::vec3(0.0f, -1.0f, 0.0f), glm::vec3(0.8f)});
-  for (float x : {-3.0f, -0.6f, 1.8f, 4.2f}) s.boxes.push_back(box({x - 0.25f, 0.05f, 0.0f}, {x + 0.25f, 0.55f, 0.5f}));
-  for (float x : {-2.0f, 0.8f, 3.4f}) {
-    s.boxes.push_back(box({x - 0.3f, 1.0f, 0.0f}, {x + 0.3f, 1.6f, 0.6f}));
-    s.boxes.push_back(box({x - 0.1f, 1.8f, 0.0f}, {x + 0.3f, 2.2f, 1.2f}));
-  }
-  for (float x : {-2.6f, 2.0f}) s.boxes.push_back(box({x - 0.4f, 2.88f, 0.0f}, {x + 0.4f, 2.92f, 1.0f}));
-  constexpr float kPoleX[] = {-3.6f, -1.3f, -0.2f, 0.5f, 1.3f, 2.8f, 3.9f};
-  constexpr float kPoleGap[] = {0.5f, 0.8f, 0.3f, 1.0f, 0.6f, 0.4f, 0.9f};
-  for (int k = 0; k < 7; ++k) {
-    const float y = 3.5f - kPoleGap[k];
-    s.boxes.push_back(box({kPoleX[k] - 0.03f, y - 0.03f, 0.0f}, {kPoleX[k] + 0.03f, y + 0.03f, 1.8f}));
-  }
-  return s;
-}
-
-// Frame t: eye and target truck along +X, centred on x = 0 at the middle frame. With
-// guard_px > 0: the same camera rendered with guard_px more pixels on each side (the same
-// projection per pixel; overscan, as a renderer's guard band).
-Camera shot_camera(int t, int guard_px = 0) {
-  const float x = kTruckStepWorld * float(t - kFrames / 2);
-  const float tan_half = std::tan(glm::radians(0.5f * kFovXDeg)) * float(kWidth + 2 * guard_px) / float(kWidth);
-  return raycast::look_at({x, -3.0f, 2.0f}, {x, 2.0f, 0.3f}, {0.0f, 0.0f, 1.0f}, kWidth + 2 * guard_px,
-                          kHeight + 2 * guard_px, glm::degrees(2.0f * std::atan(tan_half)));
-}
+// The shot's scene and cameras: raycast::truck_shot_scene (tests/support/raycast.h).
+Camera shot_camera(int t, int guard_px = 0) { return raycast::truck_shot_camera(t, kWidth, kHeight, guard_px); }
 
 // Foreground pixels whose AO neighbourhood (the radius projected at the pixel's depth)
 // reaches past the left or right edge of the screen: the only pixels off-screen occluders
@@ -94,7 +52,7 @@ cv::Mat border_band(const GBuffer& g, float radius_world) {
 }
 
 const raycast::Scene& scene() {
-  static const raycast::Scene s = shot_scene();
+  static const raycast::Scene s = raycast::truck_shot_scene();
   return s;
 }
 

@@ -9,6 +9,7 @@
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
+#include <map>
 
 #include "formats/gbuffer_reader.h"
 #include "service/frame_inputs.h"
@@ -120,6 +121,35 @@ void BM_FrameViews(benchmark::State& state) {
   state.SetLabel("ao medium, " + std::to_string(2 * k) + " views, " + std::to_string(request.threads) + "t");
 }
 
+// The same on a moving camera: the middle frame of the ray caster's trucking shot
+// (raycast::truck_shot_scene: occluders enter and leave the picture, hide behind others)
+// at width x 9/16, with the frames t-K..t+K as views (neighbours that see past the edges
+// and behind the occluders, as in a real shot), against K = 0.
+const std::vector<ssdo::GBuffer>& truck_shot(int width) {
+  static std::map<int, std::vector<ssdo::GBuffer>> shots;
+  std::vector<ssdo::GBuffer>& shot = shots[width];
+  if (shot.empty()) {
+    const ssdo::raycast::Scene scene = ssdo::raycast::truck_shot_scene();
+    for (int t = 0; t < ssdo::raycast::kTruckShotFrames; ++t)
+      shot.push_back(ssdo::raycast::render_gbuffer(scene, ssdo::raycast::truck_shot_camera(t, width, width * 9 / 16), 2));
+  }
+  return shot;
+}
+
+void BM_ShotViews(benchmark::State& state) {
+  const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
+  const int k = int(state.range(1)), middle = ssdo::raycast::kTruckShotFrames / 2;
+  ssdo::GBuffer g = shot[size_t(middle)];
+  for (int t = middle - k; t <= middle + k; ++t)
+    if (t != middle) g.views.push_back({shot[size_t(t)].camera, shot[size_t(t)].depth_view, "f" + std::to_string(t)});
+  ssdo::FrameRequest request;
+  request.terms = {true, false, false};
+  request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, ssdo::Preset::medium);
+  request.threads = int(state.range(2));
+  for (auto _ : state) benchmark::DoNotOptimize(ssdo::compute_frame(g, request));
+  state.SetLabel("truck shot, ao medium, " + std::to_string(2 * k) + " views, " + std::to_string(request.threads) + "t");
+}
+
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
 // grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
 // every half-resolution term).
@@ -173,6 +203,7 @@ BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRea
 BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
+BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();

@@ -612,4 +612,31 @@ Camera floating_camera(int width_px, int height_px) {
   return look_at({0.0f, -3.0f, 1.0f}, {0.0f, 7.0f, 1.0f}, kZ, width_px, height_px, 60.0f);
 }
 
+Scene truck_shot_scene() {
+  Scene s;
+  s.planes.push_back({glm::vec3(0.0f), glm::vec3(0.0f, 0.0f, 1.0f), kGrey});
+  s.planes.push_back({glm::vec3(0.0f, 3.5f, 0.0f), glm::vec3(0.0f, -1.0f, 0.0f), kGrey});
+  for (float x : {-3.0f, -0.6f, 1.8f, 4.2f}) s.boxes.push_back(aabb({x - 0.25f, 0.05f, 0.0f}, {x + 0.25f, 0.55f, 0.5f}, kGrey));
+  for (float x : {-2.0f, 0.8f, 3.4f}) {
+    s.boxes.push_back(aabb({x - 0.3f, 1.0f, 0.0f}, {x + 0.3f, 1.6f, 0.6f}, kGrey));
+    s.boxes.push_back(aabb({x - 0.1f, 1.8f, 0.0f}, {x + 0.3f, 2.2f, 1.2f}, kGrey));
+  }
+  for (float x : {-2.6f, 2.0f}) s.boxes.push_back(aabb({x - 0.4f, 2.88f, 0.0f}, {x + 0.4f, 2.92f, 1.0f}, kGrey));
+  constexpr float kPoleX[] = {-3.6f, -1.3f, -0.2f, 0.5f, 1.3f, 2.8f, 3.9f};
+  constexpr float kPoleGap[] = {0.5f, 0.8f, 0.3f, 1.0f, 0.6f, 0.4f, 0.9f};
+  for (int k = 0; k < 7; ++k) {
+    const float y = 3.5f - kPoleGap[k];
+    s.boxes.push_back(aabb({kPoleX[k] - 0.03f, y - 0.03f, 0.0f}, {kPoleX[k] + 0.03f, y + 0.03f, 1.8f}, kGrey));
+  }
+  return s;
+}
+
+Camera truck_shot_camera(int t, int width_px, int height_px, int guard_px) {
+  const float x = kTruckShotStepWorld * float(t - kTruckShotFrames / 2);
+  const float tan_half =
+      std::tan(glm::radians(0.5f * kTruckShotFovXDeg)) * float(width_px + 2 * guard_px) / float(width_px);
+  return look_at({x, -3.0f, 2.0f}, {x, 2.0f, 0.3f}, kZ, width_px + 2 * guard_px, height_px + 2 * guard_px,
+                 glm::degrees(2.0f * std::atan(tan_half)));
+}
+
 }  // namespace ssdo::raycast

@@ -221,4 +221,19 @@ Camera poles_camera(int width_px = 160, int height_px = 90);
 Scene floating_scene();
 Camera floating_camera(int width_px = 160, int height_px = 90);
 
+// A shot: the camera trucks sideways along +X over a floor z = 0 towards a wall y = 3.5
+// (facing -Y), kTruckShotStepWorld per frame, 55 degrees wide, centred on x = 0 at frame
+// kTruckShotFrames / 2. From the camera's side back: low boxes (0.5 cubes, 2.4 apart) that
+// pass the left and right screen edges during the shot and darken the floor beside them
+// while off screen; box pairs, a 0.6 cube hiding a taller box (0.4 x 0.4 x 1.2) 0.2 behind
+// it; thin slabs (0.8 wide, 0.04 deep, 1 tall) 0.6 in front of the wall, and thin poles
+// (0.06 square, 1.8 tall) 0.3-1.0 in front of it, which a depth buffer takes for solids.
+inline constexpr int kTruckShotFrames = 7;
+inline constexpr float kTruckShotStepWorld = 0.5f;
+inline constexpr float kTruckShotFovXDeg = 55.0f;
+Scene truck_shot_scene();
+// Frame t of the shot at width_px x height_px; with guard_px > 0, the same camera with
+// guard_px more pixels on each side (the same projection per pixel: overscan).
+Camera truck_shot_camera(int t, int width_px, int height_px, int guard_px = 0);
+
 }  // namespace ssdo::raycast
