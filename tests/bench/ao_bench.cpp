@@ -109,16 +109,20 @@ void BM_Frame(benchmark::State& state) {
 // The compute step of `ssdo process --terms ao --views K` (no I/O) at the medium preset: 2K
 // extra views, each the frame's own depth and camera (a consistent view whose occupancy
 // walk runs to the thickness boundary on every pixel, as on a static shot), against K = 0.
-void BM_FrameViews(benchmark::State& state) {
-  ssdo::GBuffer g = frame(int(state.range(0)));
-  const int k = int(state.range(1));
-  for (int i = 0; i < 2 * k; ++i) g.views.push_back({g.camera, g.depth_view, "copy"});
+// compute_frame of g (with its views), --terms ao at the medium preset, on `threads`.
+void time_ao_medium_frame(benchmark::State& state, const ssdo::GBuffer& g, int threads, const std::string& what) {
   ssdo::FrameRequest request;
   request.terms = {true, false, false};
   request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, ssdo::Preset::medium);
-  request.threads = int(state.range(2));
+  request.threads = threads;
   for (auto _ : state) benchmark::DoNotOptimize(ssdo::compute_frame(g, request));
-  state.SetLabel("ao medium, " + std::to_string(2 * k) + " views, " + std::to_string(request.threads) + "t");
+  state.SetLabel(what + "ao medium, " + std::to_string(g.views.size()) + " views, " + std::to_string(threads) + "t");
+}
+
+void BM_FrameViews(benchmark::State& state) {
+  ssdo::GBuffer g = frame(int(state.range(0)));
+  for (int i = 0; i < 2 * int(state.range(1)); ++i) g.views.push_back({g.camera, g.depth_view, "copy"});
+  time_ao_medium_frame(state, g, int(state.range(2)), "");
 }
 
 // The same on a moving camera: the middle frame of the ray caster's trucking shot
@@ -142,12 +146,7 @@ void BM_ShotViews(benchmark::State& state) {
   ssdo::GBuffer g = shot[size_t(middle)];
   for (int t = middle - k; t <= middle + k; ++t)
     if (t != middle) g.views.push_back({shot[size_t(t)].camera, shot[size_t(t)].depth_view, "f" + std::to_string(t)});
-  ssdo::FrameRequest request;
-  request.terms = {true, false, false};
-  request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, ssdo::Preset::medium);
-  request.threads = int(state.range(2));
-  for (auto _ : state) benchmark::DoNotOptimize(ssdo::compute_frame(g, request));
-  state.SetLabel("truck shot, ao medium, " + std::to_string(2 * k) + " views, " + std::to_string(request.threads) + "t");
+  time_ao_medium_frame(state, g, int(state.range(2)), "truck shot, ");
 }
 
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
