@@ -4,7 +4,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
-scripts/build.sh
+# Only what CTest runs (target ssdo_tests: no benchmarks), test programs in unity batches,
+# precompiled headers for the service library (cmake/build_speed.cmake).
+scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_PRECOMPILE_HEADERS=ON --target ssdo_tests
 (cd "${BUILD_DIR:-build}" && ctest --output-on-failure -j "${JOBS:-$(nproc)}" "$@")
 
 # Second stage, on by default (CI runs it; SSDO_SANITIZE=0 leaves it out): the suite built
