@@ -1,0 +1,41 @@
+# Clean-build speed (CI builds from a fresh clone without a compiler cache; most of its
+# compile time is the test programs).
+#   SSDO_UNITY_TESTS         each test program compiles its sources in batches of
+#                            SSDO_UNITY_BATCH files, one translation unit per batch: the
+#                            GoogleTest, JSON and OpenCV templates every test file
+#                            instantiates are compiled once per batch instead of once per
+#                            file. For clean builds (scripts/test.sh turns it on): a batch
+#                            recompiles whole when one of its files changes.
+#   SSDO_PRECOMPILE_HEADERS  ssdo_service (31 files, most of them including OpenCV core,
+#                            GLM, nlohmann-json and CLI11) parses those headers once.
+#                            Left out when a compiler launcher is set: ccache caches
+#                            nothing that reads a precompiled header.
+# Test programs are compiled with -O1 in every build type: the code under test keeps its
+# own flags (the libraries'), and -O3 on test files costs a third more compile time for
+# assertions and fixtures that run once.
+option(SSDO_UNITY_TESTS "Compile each test program's sources in batches" OFF)
+set(SSDO_UNITY_BATCH 8 CACHE STRING "Source files per unity batch of a test program")
+option(SSDO_PRECOMPILE_HEADERS "Precompiled third-party headers for ssdo_service" OFF)
+if(SSDO_PRECOMPILE_HEADERS AND CMAKE_CXX_COMPILER_LAUNCHER)
+  message(STATUS "ssdo: precompiled headers off: the compiler launcher (${CMAKE_CXX_COMPILER_LAUNCHER}) cannot cache them")
+  set(SSDO_PRECOMPILE_HEADERS OFF)
+endif()
+
+# ssdo_precompile(TARGET HEADER...): only third-party headers the target's sources already
+# include (directly or through the project's headers), so that no layer gets a library
+# its own code does not include.
+function(ssdo_precompile target)
+  if(SSDO_PRECOMPILE_HEADERS)
+    list(TRANSFORM ARGN PREPEND "<")
+    list(TRANSFORM ARGN APPEND ">")
+    target_precompile_headers(${target} PRIVATE ${ARGN})
+  endif()
+endfunction()
+
+# ssdo_test_build_flags(TARGET): a test program's compile settings above.
+function(ssdo_test_build_flags target)
+  target_compile_options(${target} PRIVATE -O1)
+  if(SSDO_UNITY_TESTS)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${SSDO_UNITY_BATCH})
+  endif()
+endfunction()
