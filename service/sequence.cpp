@@ -51,7 +51,7 @@ std::vector<std::vector<NeighbourFrame>> sequence_neighbours(const std::vector<s
       for (long d = 1; d <= window; ++d)
         for (const long j : {k - d, k + d})
           if (j >= 0 && j < n && members[j].first != members[k].first)
-            list.push_back({frames[members[j].second], int(members[j].first - members[k].first), false});
+            list.push_back({frames[members[j].second], int(members[j].first - members[k].first), false, {}, {}});
     }
   }
   return out;
@@ -81,7 +81,7 @@ std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std:
   for (size_t i = 0; i < views.size(); ++i) {
     const auto other = sequence_place(views[i]);
     const bool same = place && other && other->sequence == place->sequence && other->number != place->number;
-    out.push_back({views[i], same ? int(other->number - place->number) : int(i + 1), false});
+    out.push_back({views[i], same ? int(other->number - place->number) : int(i + 1), false, {}, {}});
   }
   return out;
 }
