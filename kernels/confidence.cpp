@@ -38,6 +38,10 @@ constexpr int kMaxTaps = 256;
 struct RayMap {
   glm::vec3 o0, ox, oy;  // o(px, py) = o0 + px ox + py oy
   glm::vec3 u0, ux, uy;  // u(px, py) = u0 + px ux + py uy
+  // The point at ray parameter t of the ray through pixel coordinates (px, py).
+  glm::vec3 point(float px, float py, float t) const {
+    return o0 + px * ox + py * oy + t * (u0 + px * ux + py * uy);
+  }
 };
 
 RayMap make_ray_map(const Camera& cam) {
@@ -120,10 +124,8 @@ bool bin_decided(const TapFrame& frame, int index, int i) {
   const unsigned stored = entry.load(std::memory_order_relaxed);
   if (stored & (1u << (kAskedShift + i))) return (stored >> i) & 1u;
   const float cx = float(index % frame.width) + 0.5f, cy = float(index / frame.width) + 0.5f;
-  const glm::vec3 o = frame.rays.o0 + cx * frame.rays.ox + cy * frame.rays.oy;
-  const glm::vec3 u = frame.rays.u0 + cx * frame.rays.ux + cy * frame.rays.uy;
-  const bool decided =
-      frame.verdicts->decided(o + (frame.surface[index] + (float(i) + 0.5f) * frame.bin_depth) * u);
+  const float t = frame.surface[index] + (float(i) + 0.5f) * frame.bin_depth;
+  const bool decided = frame.verdicts->decided(frame.rays.point(cx, cy, t));
   entry.fetch_or(uint16_t((1u << (kAskedShift + i)) | (unsigned(decided) << i)), std::memory_order_relaxed);
   return decided;
 }
@@ -225,8 +227,7 @@ inline void add_chords(int n_taps, const TapLanes& __restrict tap, double (&obse
 // pixel's unknown taps asks the views, and the decided fraction of their chords stands for
 // all its unknown chords. Unknown taps come in regions (past the frame's edge, over the
 // sky) that the views see alike, so the fraction varies little among them; asking a
-// quarter of them costs a quarter (at 1080p with four views, the whole view pass stays
-// within 0.2x of a frame's compute).
+// quarter of them costs a quarter.
 constexpr int kUnknownTapStride = 4;
 
 // Whether the views decide the hidden part [begin, s1] of a known tap (its surface
@@ -254,7 +255,6 @@ float decided_behind_surface(const TapFrame& frame, const TapLanes& tap, int k, 
 // offset along it per tap by the golden-ratio sequence (the taps of a pixel spread their
 // points evenly over the chords); only every kUnknownTapStride-th unknown tap asks.
 void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&observed)[kLanes]) {
-  const RayMap& rays = frame.rays;
   // The hidden taps first (no branch: 8 lanes per instruction), then only those are asked.
   alignas(32) uint8_t hidden[kMaxTaps][kLanes];
   for (int k = 0; k < frame.n_taps; ++k) {
@@ -277,11 +277,9 @@ void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&
       const float s0 = tap.s0[k][j], s1 = tap.s1[k][j];
       unknown += (s1 - s0) * len_scale;
       if (n_unknown++ % kUnknownTapStride != 0) continue;
-      const float cx = tap.x[k][j] + 0.5f, cy = tap.y[k][j] + 0.5f;
-      const glm::vec3 o = rays.o0 + cx * rays.ox + cy * rays.oy;
-      const glm::vec3 u = rays.u0 + cx * rays.ux + cy * rays.uy;
       unknown_asked += (s1 - s0) * len_scale;
-      if (frame.verdicts->decided(o + (s0 + frame.chord_offsets[k] * (s1 - s0)) * u))
+      const float t = s0 + frame.chord_offsets[k] * (s1 - s0);
+      if (frame.verdicts->decided(frame.rays.point(tap.x[k][j] + 0.5f, tap.y[k][j] + 0.5f, t)))
         unknown_decided += (s1 - s0) * len_scale;
     }
     const float unknown_observed = unknown_asked > 0.0f ? unknown * (unknown_decided / unknown_asked) : 0.0f;
@@ -389,8 +387,7 @@ void set_up_lanes(const PixelFrame& frame, const PendingPixels& pending, PixelLa
   }
   for (int j = 0; j < kLanes; ++j) {
     const float d = depth[j], pxc = lane.pxc[j], pyc = lane.pyc[j];
-    const glm::vec3 p = rays.o0 + pxc * rays.ox + pyc * rays.oy +
-                        d * (rays.u0 + pxc * rays.ux + pyc * rays.uy);
+    const glm::vec3 p = rays.point(pxc, pyc, d);
     // The estimator's neighbourhood: the radius, shrunk where its projection exceeds
     // max_radius_px (the methods shrink theirs the same way).
     float radius = s.radius_world;

@@ -215,6 +215,15 @@ void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& ba
   });
 }
 
+// The views measure_views marked used, as seen from `frame`.
+Constants views_in_use(const Camera& frame, std::span<const DepthView> views, std::span<const ViewUse> uses,
+                       const MultiViewSettings& s) {
+  Constants used{s, {}};
+  for (size_t i = 0; i < views.size(); ++i)
+    if (uses[i].used) used.views.push_back(view_geometry(frame, views[i]));
+  return used;
+}
+
 }  // namespace
 
 std::string validate(const MultiViewSettings& s) {
@@ -234,25 +243,10 @@ std::string validate(const MultiViewSettings& s) {
 
 std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<const DepthView> views,
                                           const MultiViewSettings& s, cv::Mat& depth_back_view, int nthreads) {
-  CV_Assert(validate(s).empty());
-  CV_Assert(in.depth_view.type() == CV_32FC1 && in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
-  std::vector<ViewUse> uses(views.size());
-  Constants k{s, {}};
-  for (size_t i = 0; i < views.size(); ++i) {
-    uses[i].name = views[i].name;
-    CV_Assert(views[i].depth_view.type() == CV_32FC1 &&
-              views[i].depth_view.cols == views[i].camera.width_px &&
-              views[i].depth_view.rows == views[i].camera.height_px);
-    k.views.push_back(view_geometry(in.camera, views[i]));
-  }
+  const std::vector<ViewUse> uses = measure_view_use(in, views, s, nthreads);
   depth_back_view.release();
-  if (views.empty()) return uses;
-  measure_views(in, k, uses, nthreads);
-  Constants used{s, {}};
-  for (size_t i = 0; i < views.size(); ++i)
-    if (uses[i].used) used.views.push_back(k.views[i]);
-  if (used.views.empty()) return uses;
-  write_back_layer(in, used, depth_back_view, nthreads);
+  const Constants used = views_in_use(in.camera, views, uses, s);
+  if (!used.views.empty()) write_back_layer(in, used, depth_back_view, nthreads);
   return uses;
 }
 
@@ -375,10 +369,8 @@ void fill_band(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::s
   const cv::Rect inside = band.inside();
   band.mask = band.depth_view < kInfinity;
   band.mask(inside).setTo(0);
-  Constants used{s, {}};
-  for (size_t i = 0; i < views.size(); ++i)
-    if (uses[i].used) used.views.push_back(view_geometry(in.camera, views[i]));
-  write_back_layer({band.depth_view, band.mask, band.camera}, used, band.depth_back_view, nthreads);
+  write_back_layer({band.depth_view, band.mask, band.camera}, views_in_use(in.camera, views, uses, s),
+                   band.depth_back_view, nthreads);
   in.depth_view.copyTo(band.depth_view(inside));
   in.mask.copyTo(band.mask(inside));
   depth_back_view.copyTo(band.depth_back_view(inside));
@@ -413,17 +405,16 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
   fill_band(in, depth_back_view, views, uses, s, band, nthreads);
 }
 
-}  // namespace ssdo
-
-namespace ssdo {
-
 std::vector<ViewUse> measure_view_use(const MultiViewInputs& in, std::span<const DepthView> views,
                                       const MultiViewSettings& s, int nthreads) {
   CV_Assert(validate(s).empty());
+  CV_Assert(in.depth_view.type() == CV_32FC1 && in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
   std::vector<ViewUse> uses(views.size());
   Constants k{s, {}};
   for (size_t i = 0; i < views.size(); ++i) {
     uses[i].name = views[i].name;
+    CV_Assert(views[i].depth_view.type() == CV_32FC1 && views[i].depth_view.cols == views[i].camera.width_px &&
+              views[i].depth_view.rows == views[i].camera.height_px);
     k.views.push_back(view_geometry(in.camera, views[i]));
   }
   if (!views.empty()) measure_views(in, k, uses, nthreads);

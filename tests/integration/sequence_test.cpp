@@ -247,6 +247,25 @@ bool wait_for_outputs(const std::string& socket, const fs::path& out, const std:
       60);
 }
 
+// The shot orbit_f0..f<frames-1> put in DIR/in, then served by the watch mode (watch_args
+// with `extra`) until every frame has its output.
+testing::AssertionResult serve_shot_already_there(const ScratchDir& dir, int frames, const std::string& name,
+                                                  const std::vector<std::string>& extra = {}) {
+  copy_orbit(dir.path / "in", "orbit_f", frames);
+  const std::string socket = socket_path_for(name);
+  SsdoProcess service(watch_args(dir, socket, extra), dir.path / "serve.log");
+  if (!service.wait_for_log("ready", 30)) return testing::AssertionFailure() << "not ready: " << service.log();
+  if (!wait_for_outputs(socket, dir.path / "served", "orbit_f", frames))
+    return testing::AssertionFailure() << "outputs missing: " << service.log();
+  return testing::AssertionSuccess();
+}
+
+// `ssdo process DIR/in -o DIR/<out> <extra>` with the watch tests' compute options.
+void process_folder(const ScratchDir& dir, const std::string& out, const std::string& extra = "") {
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / out + extra + process_compute());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+}
+
 // The watch mode gives a frame the frames of its sequence already in the folder as views:
 // with the whole shot there before the service starts, each output is byte for byte what
 // `ssdo process` writes for the folder, and its AO is not the frame's alone.
@@ -254,15 +273,9 @@ TEST(SequenceWatch, FramesAlreadyInTheFolderAreViewsAsInProcess) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   constexpr int kFrames = 4;
-  copy_orbit(dir.path / "in", "orbit_f", kFrames);
-  const std::string socket = socket_path_for("watchviews");
-  SsdoProcess service(watch_args(dir, socket), dir.path / "serve.log");
-  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
-  ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", kFrames)) << service.log();
-  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + process_compute());
-  ASSERT_EQ(batch.exit_code, 0) << batch.output;
-  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "alone" + " --views 0" + process_compute());
-  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  ASSERT_TRUE(serve_shot_already_there(dir, kFrames, "watchviews"));
+  ASSERT_NO_FATAL_FAILURE(process_folder(dir, "batch"));
+  ASSERT_NO_FATAL_FAILURE(process_folder(dir, "alone", " --views 0"));
   for (int i = 0; i < kFrames; ++i) {
     const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
     const std::vector<float> served = channel(dir / ("served/" + name), "ao");
@@ -278,13 +291,8 @@ TEST(SequenceWatch, ViewsZeroIsEachFrameAloneAsInProcess) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   constexpr int kFrames = 3;
-  copy_orbit(dir.path / "in", "orbit_f", kFrames);
-  const std::string socket = socket_path_for("watchviews0");
-  SsdoProcess service(watch_args(dir, socket, {"--views", "0"}), dir.path / "serve.log");
-  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
-  ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", kFrames)) << service.log();
-  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "alone" + " --views 0" + process_compute());
-  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  ASSERT_TRUE(serve_shot_already_there(dir, kFrames, "watchviews0", {"--views", "0"}));
+  ASSERT_NO_FATAL_FAILURE(process_folder(dir, "alone", " --views 0"));
   for (int i = 0; i < kFrames; ++i) {
     const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
     ASSERT_TRUE(exr_has_channel(dir / ("served/" + name), "ao")) << name;
