@@ -164,12 +164,10 @@ struct TapLanes {
   alignas(32) float cos_lim[kChunkTaps];  // its cosine
 };
 
-// The taps of a chunk: texel index (-1: off screen or past the last step), and the length
-// of their occluder segments.
+// The taps of a chunk: texel index (-1: off screen or past the last step).
 struct TapChunk {
   alignas(32) int32_t index[kChunkTaps];
   alignas(32) int32_t skip[kChunkSteps];  // the step has no tap: its offset rounds to (0, 0)
-  alignas(32) float thickness_world[kChunkTaps];
 };
 
 // The pixel's point and the slice's frame, as the taps' arithmetic needs them.
@@ -180,6 +178,9 @@ struct SliceFrame {
   float r2;                                     // radius_world^2
   float cos_n, sin_n, abs_cos_n;                // the projected normal's angle n
   float weight_neg, inv_total;                  // slice measure of the negative side, 1 / total
+  // The occluder segments' lengths: per texel (build_texel_thickness) or, when null, one.
+  const float* texel_thickness;
+  float thickness_world;
 };
 
 // Per lane: the tap's coordinates in the slice frame, its height above the tangent plane
@@ -252,17 +253,6 @@ void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const Uninit
   });
 }
 
-// The occluder segments' lengths of the taps of a chunk: the texels' own (above) with a
-// second depth layer, else the settings' thickness.
-inline void tap_thickness(const UninitializedVector<float>& texel_thickness, float thickness_world, TapChunk& taps) {
-  if (texel_thickness.empty()) {
-    for (int m = 0; m < kChunkTaps; ++m) taps.thickness_world[m] = thickness_world;
-    return;
-  }
-  for (int m = 0; m < kChunkTaps; ++m)
-    taps.thickness_world[m] = taps.index[m] >= 0 ? texel_thickness[size_t(taps.index[m])] : thickness_world;
-}
-
 // The taps' coordinates in the slice frame, every lane alike (no branches: the loop
 // vectorises); nonzero when some lane is an occluder the ordered pass reads (on screen,
 // foreground, above the tangent plane, off the slice's centre).
@@ -304,9 +294,11 @@ inline void tap_thickness(const UninitializedVector<float>& texel_thickness, flo
 
 // The occluded interval [u0, u1] of each lane's occluder segment, in fractions of the slice
 // measure (the visibility mask's sectors), every lane alike (u0 > u1: no interval).
-template <bool perspective>
+template <bool perspective, bool per_texel_thickness>
 [[gnu::always_inline]] inline void segment_intervals(const TapChunk& taps, const TapLanes& lanes,
                                                      const SliceFrame& f, TapGeometry& __restrict g) {
+  const float* texel_thickness = f.texel_thickness;
+  const float thickness_world = f.thickness_world;
   const float origin_v = f.origin_v, origin_d = f.origin_d, origin_a = f.origin_a;
   const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
   const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
@@ -329,7 +321,10 @@ template <bool perspective>
     const float disc = b * b - c;
     // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
     const float root = std::sqrt(disc);
-    const float thickness = taps.thickness_world[m];
+    // Lanes without a texel read texel 0's, for nobody (no conditional load: the loop
+    // stays vectorised, the read a gather next to the texel's).
+    float thickness = thickness_world;
+    if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(taps.index[m], 0)];
     const float t0 = std::max(0.0f, -b - root);
     const float t1 = std::min(thickness, -b + root);
     // Cosines and sines (unsigned angles from the view vector) of the segment's two ends
@@ -381,7 +376,8 @@ void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lan
                   const SliceFrame& f, TapGeometry& __restrict g) {
   const int occluders = slice_coordinates(texels, taps, f, g);
   if (!segments || !occluders) return;
-  segment_intervals<perspective>(taps, lanes, f, g);
+  if (f.texel_thickness != nullptr) segment_intervals<perspective, true>(taps, lanes, f, g);
+  else segment_intervals<perspective, false>(taps, lanes, f, g);
 }
 
 // The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
@@ -523,7 +519,8 @@ struct SliceBasis {
   float low_cos_pos, low_cos_neg;  // the tangent limits' cosines: the lowest horizons
 };
 
-[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const ShadedPixel& px, glm::vec2 d) {
+[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const Frame& f, const ShadedPixel& px,
+                                                     glm::vec2 d) {
   const Slice sl = make_slice(k.screen_to_view(d.x, d.y), px.view, px.normal);
   // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
   // n +- pi/2 have cos = -+sin n: no trig per slice.
@@ -540,7 +537,8 @@ struct SliceBasis {
   const glm::vec3 &origin = px.origin, &view = px.view, &dir = sl.direction, &axis = sl.axis;
   SliceBasis b{SliceFrame{origin, px.normal, view, dir, axis, glm::dot(origin, view), glm::dot(origin, dir),
                           glm::dot(origin, axis), -view.z, -dir.z, -axis.z, k.r2, cos_n, sin_n,
-                          std::abs(cos_n), weight_neg, inv_total},
+                          std::abs(cos_n), weight_neg, inv_total,
+                          f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
                {}, sl.projected_normal_length, weight_total, low_cos_pos, low_cos_neg};
   // Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the side's
   // sign of the angle, its hemisphere limit and the limit's cosine.
@@ -683,7 +681,6 @@ inline float height_field_integral(const Horizons& h, float cos_n, float sin_n) 
     const int chunk = std::min(kChunkSteps, k.steps - j0);
     TapChunk taps;
     chunk_indices(k, px, i, d, j0, taps);
-    tap_thickness(f.thickness, k.thickness_world, taps);
     TapGeometry geo;
     k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, b.lanes, b.frame, geo)
                   : tap_geometry<false, true>(f.texels.data(), taps, b.lanes, b.frame, geo);
@@ -729,7 +726,7 @@ struct PixelSums {
 [[gnu::always_inline]] inline void integrate_slice(const Constants& k, const Frame& f, const ShadedPixel& px, int i,
                                                    PixelSums& sums) {
   const glm::vec2 d = slice_direction(k, px.row.pixel[px.xi], i);
-  const SliceBasis b = slice_basis(k, px, d);
+  const SliceBasis b = slice_basis(k, f, px, d);
   Horizons h{b.low_cos_pos, b.low_cos_neg};
   float visible;
   if (k.height_field) {
