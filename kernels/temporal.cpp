@@ -23,6 +23,23 @@ struct Neighbour {
   Reprojection reprojection;
 };
 
+// max(0, c)^power for c in (0, 1]: integer powers (the default 16) by squaring, the rest
+// with std::pow (per tap, std::pow costs more than the rest of the weight together).
+inline float normal_lobe(float c, float power) {
+  if (power == 16.0f) {  // the default: four squarings
+    const float c2 = c * c, c4 = c2 * c2, c8 = c4 * c4;
+    return c8 * c8;
+  }
+  const unsigned n = unsigned(power);
+  if (float(n) != power) return std::pow(c, power);
+  float result = 1.0f;
+  for (unsigned bit = 1u << 8; bit != 0; bit >>= 1) {
+    result *= result;
+    if (n & bit) result *= c;
+  }
+  return result;
+}
+
 inline glm::vec3 normal_at(const cv::Mat& normal_view, int x, int y) {
   const float* n = normal_view.ptr<float>(y) + 3 * x;
   return {n[0], n[1], n[2]};
@@ -30,18 +47,19 @@ inline glm::vec3 normal_at(const cv::Mat& normal_view, int x, int y) {
 
 // The weight of texel (tx, ty) of a neighbour for the carried point p of a pixel at planar
 // depth depth_view (temporal.h), without the bilinear factor; 0 outside the image, on
-// background or on another surface.
-float texel_weight(const Neighbour& n, const Reprojection::Carried& p, float depth_view, int tx, int ty,
-                   const TemporalSettings& s) {
+// background or on another surface. inverse_tolerance = 1 / (depth_tolerance_relative x
+// depth_view), the pixel's.
+inline float texel_weight(const Neighbour& n, const Reprojection::Carried& p, float inverse_tolerance, int tx, int ty,
+                          const TemporalSettings& s) {
   const TemporalFrame& u = *n.frame;
   if (tx < 0 || ty < 0 || tx >= u.depth_view.cols || ty >= u.depth_view.rows || !u.mask.ptr<uint8_t>(ty)[tx])
     return 0.0f;
-  const float e = n.reprojection.plane_distance(p, tx, ty, u.depth_view.ptr<float>(ty)[tx]);
-  const float w_plane = 1.0f - e / (s.depth_tolerance_relative * depth_view);
+  const float e = Reprojection::plane_distance(p, tx, ty, u.depth_view.ptr<float>(ty)[tx]);
+  const float w_plane = 1.0f - e * inverse_tolerance;
   if (!(w_plane > 0.0f)) return 0.0f;
   const float c = glm::dot(p.normal_view, normal_at(u.normal_view, tx, ty));
   if (!(c > 0.0f)) return 0.0f;
-  return w_plane * std::pow(c, s.normal_power);
+  return w_plane * normal_lobe(c, s.normal_power);
 }
 
 // Adds w x the texel's channels (every term in order) to sum.
@@ -58,6 +76,7 @@ void add_texel(const TemporalFrame& u, int tx, int ty, float w, Channels& sum) {
 float neighbour_taps(std::span<const Neighbour> neighbours, const TemporalFrame& f, int x, int y,
                      const TemporalSettings& s, Channels& sum) {
   const float depth_view = f.depth_view.ptr<float>(y)[x];
+  const float inverse_tolerance = 1.0f / (s.depth_tolerance_relative * depth_view);
   const glm::vec3 normal = normal_at(f.normal_view, x, y);
   float total = 0.0f;
   for (const Neighbour& n : neighbours) {
@@ -74,7 +93,7 @@ float neighbour_taps(std::span<const Neighbour> neighbours, const TemporalFrame&
     for (int i = 0; i < 4; ++i) {
       const int tx = x0 + (i & 1), ty = y0 + (i >> 1);
       if (!(bilinear[i] > 0.0f)) continue;
-      const float w = bilinear[i] * texel_weight(n, p, depth_view, tx, ty, s);
+      const float w = bilinear[i] * texel_weight(n, p, inverse_tolerance, tx, ty, s);
       if (!(w > 0.0f)) continue;
       add_texel(*n.frame, tx, ty, w, sum);
       total += w;
@@ -117,7 +136,8 @@ void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const Tempora
             p.pixel.y < float(depth_u.rows)))
         continue;
       ++seen;
-      disagree += texel_weight(n, p, depth_row[x], int(p.pixel.x), int(p.pixel.y), s) <= 0.0f;
+      const float inverse_tolerance = 1.0f / (s.depth_tolerance_relative * depth_row[x]);
+      disagree += texel_weight(n, p, inverse_tolerance, int(p.pixel.x), int(p.pixel.y), s) <= 0.0f;
     }
   }
   use.overlap = foreground > 0 ? float(double(seen) / double(foreground)) : 0.0f;

@@ -156,7 +156,12 @@ std::vector<cv::Mat*> term_slots(DenoisedTerms& d, const TermsComputed& computed
 
 // The raw terms filtered over the neighbours' (kernels/temporal.h), into `filtered`; uses:
 // what each neighbour contributed. Without neighbours nothing is written.
-void filter_over_time(const RawFrame& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request,
+struct FrameAndRaw {
+  const GBuffer& g;
+  const TermOutputs& raw;
+};
+
+void filter_over_time(const FrameAndRaw& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request,
                       const TermsComputed& computed, DenoisedTerms& filtered, std::vector<TemporalUse>& uses) {
   if (neighbours.empty()) return;
   const std::vector<const cv::Mat*> terms = raw_terms(f.raw, computed);
@@ -168,7 +173,7 @@ void filter_over_time(const RawFrame& f, std::span<const RawFrame* const> neighb
     frames.push_back({n->gbuffer.camera, n->gbuffer.depth_view, n->gbuffer.normal_view, n->gbuffer.mask,
                       neighbour_terms.back()});
   }
-  const GBuffer& g = f.gbuffer;
+  const GBuffer& g = f.g;
   const std::vector<cv::Mat*> results = term_slots(filtered, computed);
   uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, request.temporal, results, {},
                          request.threads);
@@ -228,24 +233,26 @@ cv::Mat composite_frame(const GBuffer& g, const FrameRequest& request, const Ter
 
 }  // namespace
 
-RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
-  RawFrame f;
-  f.raw = compute_raw_terms(g, request, terms_computed(request));
+namespace {
+
+// The raw terms of g; then releases what no later step reads: its views and its positions
+// (the denoised terms and the composite reuse their memory: the worker's heap keeps freed
+// memory, and fresh pages cost a fault each).
+TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
+  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request));
   g.views.clear();
-  // No later step reads the positions: the denoised terms and the composite reuse their
-  // memory (the worker's heap keeps freed memory: fresh pages cost a fault each).
   g.position_view.release();
-  f.gbuffer = std::move(g);
-  return f;
+  return raw;
 }
 
-ComputedFrame finish_frame(RawFrame&& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request) {
+// finish_frame on the frame's own images (released as they are read no more).
+ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawFrame* const> neighbours,
+                              const FrameRequest& request) {
   const TermsComputed computed = terms_computed(request);
-  GBuffer& g = f.gbuffer;
   ComputedFrame frame;
   DenoisedTerms filtered;
-  filter_over_time(f, neighbours, request, computed, filtered, frame.temporal);
-  std::vector<const cv::Mat*> sources = raw_terms(f.raw, computed);
+  filter_over_time({g, raw}, neighbours, request, computed, filtered, frame.temporal);
+  std::vector<const cv::Mat*> sources = raw_terms(raw, computed);
   if (!neighbours.empty()) {
     const std::vector<cv::Mat*> slots = term_slots(filtered, computed);
     sources.assign(slots.begin(), slots.end());
@@ -256,15 +263,29 @@ ComputedFrame finish_frame(RawFrame&& f, std::span<const RawFrame* const> neighb
   g.depth_view.release();
   g.normal_view.release();
   g.depth_back_view.release();
-  frame.views = std::move(f.raw.views);
-  add_output_terms(request, computed, f.raw, denoised, frame);
+  frame.views = std::move(raw.views);
+  add_output_terms(request, computed, raw, denoised, frame);
   if (request.terms.composite)
     frame.terms.push_back({"composite", composite_frame(g, request, computed, denoised), SampleType::half, false});
   return frame;
 }
 
+}  // namespace
+
+RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
+  RawFrame f;
+  f.raw = raw_terms_releasing(g, request);
+  f.gbuffer = std::move(g);
+  return f;
+}
+
+ComputedFrame finish_frame(RawFrame&& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request) {
+  return finish_in_place(f.gbuffer, f.raw, neighbours, request);
+}
+
 ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
-  return finish_frame(compute_raw_frame(std::move(g), request), {}, request);
+  TermOutputs raw = raw_terms_releasing(g, request);
+  return finish_in_place(g, raw, {}, request);
 }
 
 RawFrame temporal_part(const RawFrame& f) {
@@ -373,6 +394,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     Camera camera = frame.gbuffer.camera;
     t0 = std::chrono::steady_clock::now();
     ComputedFrame computed = request.io_only ? io_only_frame(frame.gbuffer, request)
+                             : source        ? source->compute(request, read, std::move(frame.gbuffer), result.info.notes)
                                              : compute_frame(std::move(frame.gbuffer), request);
     result.times.compute_ms = ms_since(t0);
     note_view_uses(computed.views, result.info.notes);

@@ -159,6 +159,15 @@ class FrameSource {
   virtual ~FrameSource() = default;
   // `read`: the request's read options narrowed to its terms (reads_for).
   virtual ReadResult read(const FrameRequest& request, const ReadOptions& read) = 0;
+  // The frame's terms from the G-buffer read() returned. With temporal filtering
+  // (FrameRequest::temporal_per_side > 0) a source that knows the frame's sequence filters
+  // over its neighbours' raw terms, each computed once (service/sequence_context.h), and
+  // adds a note for each neighbour it could not use; this one computes the frame alone.
+  virtual ComputedFrame compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
+                                std::vector<std::string>& notes) {
+    (void)read, (void)notes;
+    return compute_frame(std::move(frame), request);
+  }
 };
 
 // Reads, computes and writes one frame. Never throws: failures are in result.error.
