@@ -137,6 +137,7 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
     }
   }
   ComputedFrame out = finish_frame(std::move(raw), neighbours, request);
+  drop_raw_outside(request);
   std::string used;
   for (size_t i = 0; i < out.temporal.size(); ++i)
     if (out.temporal[i].used) used += " " + names[i];
@@ -243,6 +244,13 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
                        std::to_string(reads_.frames) + " frames: " + std::to_string(reads_.whole) + " whole, " +
                        std::to_string(reads_.depth_only) + " depth only; " + std::to_string(reads_.headers) +
                        " headers)");
+}
+
+void SequenceContext::drop_raw_outside(const FrameRequest& request) {
+  std::set<std::string> window{request.input_name.empty() ? request.input_path : request.input_name};
+  for (const NeighbourFrame& n : within_places(request.neighbours, request.temporal_per_side)) window.insert(n.path);
+  for (auto& [name, e] : cache_)
+    if (!window.count(name)) e.raw_part.reset();
 }
 
 void SequenceContext::keep_window(const FrameRequest& request) {

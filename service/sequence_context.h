@@ -76,6 +76,9 @@ class SequenceContext : public FrameSource {
   ReadResult read_in_window(const FrameRequest& request, const ReadOptions& read);
   const RawFrame* neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);
   void keep_window(const FrameRequest& request);
+  // Releases the raw terms of the frames beyond the request's temporal window (frames are
+  // computed in order: no later frame of the worker reads them).
+  void drop_raw_outside(const FrameRequest& request);
 
   std::map<std::string, Entry> cache_;
   std::string read_key_;  // the read options the whole frames were read with
