@@ -2,8 +2,9 @@
 // its shot, past and future: the same surface seen in frames t-K..t+K had its term estimated
 // K times more, each with another noise pattern and another half-resolution grid under it.
 //
-// Backward reprojection (as TAA's history fetch, with exact depth and both cameras instead
-// of motion vectors): each foreground pixel p of frame t is lifted to the world with its
+// Backward reprojection (the reverse reprojection cache of Nehab et al. 2007, "Accelerating
+// Real-Time Shading with Reverse Reprojection Caching", as TAA's history fetch, with exact
+// depth and both cameras instead of motion vectors): each foreground pixel p of frame t is lifted to the world with its
 // depth, projected into neighbour u (kernels/reprojection.h) and the neighbour's raw term is
 // fetched bilinearly from the 2x2 texels around the projected point, each texel weighted by
 //   w = bilinear x max(0, 1 - e / (depth_tolerance_relative x d_p)) x max(0, n_p . n_q)^normal_power
