@@ -1,7 +1,9 @@
 // Temporal filtering of a shot (--temporal K, kernels/temporal.h) through the real binary:
 // the denoised terms change and the raw ones do not; each frame's raw terms are computed
 // once per batch; a farm's chunks, which compute the frames just outside them without
-// writing them, write the same bytes as the whole shot in one batch.
+// writing them, write the same bytes as the whole shot in one batch; the watch mode, whose
+// frames find their neighbours in the folder, and a socket request naming its neighbours
+// write what the batch writes.
 #include <regex>
 
 #include <OpenImageIO/imageio.h>
@@ -76,6 +78,49 @@ TEST(Temporal, ChunksWriteTheBytesOfTheWholeShot) {
     EXPECT_EQ(read_text(e.path()), read_text(dir.path / "whole" / e.path().filename())) << e.path();
   }
   EXPECT_EQ(written, 5u);  // the neighbours outside a chunk are computed, not written
+}
+
+// The watch mode with the shot already in the folder: each frame's temporal neighbours are
+// the folder's frames, computed for it, and every output is byte for byte the batch's.
+TEST(Temporal, TheWatchModeWritesTheBytesOfTheBatch) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  constexpr int kFrames = 3;
+  copy_temporal_shot(dir.path / "in", kFrames);
+  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + kTemporalShotArgs);
+  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+  const std::string socket = socket_path_for("temporal");
+  SsdoProcess service({"serve", "--watch", dir / "in", "-o", dir / "served", "--socket", socket, "--jobs", "1",
+                       "--frame-timeout", "60", "--terms", "ao", "--preset", "low", "--views", "1", "--temporal", "1"},
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (int i = 0; i < kFrames; ++i)
+          if (!path_exists(dir.path / "served" / (numbered("shot.000", i) + ".ssdo.exr"))) return false;
+        const json st = stats(socket);
+        return st.value("queue_depth", 1) == 0 && st.value("in_flight", 1) == 0;
+      },
+      60))
+      << service.log();
+  for (int i = 0; i < kFrames; ++i) {
+    const std::string name = numbered("shot.000", i) + ".ssdo.exr";
+    EXPECT_TRUE(read_text(dir.path / "served" / name) == read_text(dir.path / "batch" / name)) << name;
+  }
+  // A socket request with the option and its neighbours named writes the same bytes (and
+  // with --temporal 0, other ones).
+  Client c(socket);
+  auto request = [&](int temporal) {
+    const json r = c.request({{"op", "process"},
+                              {"input", dir / "in/shot.0001.exr"},
+                              {"options", {{"terms", "ao"}, {"preset", "low"}, {"views", 1}, {"temporal", temporal}}},
+                              {"views", {dir / "in/shot.0000.exr", dir / "in/shot.0002.exr"}}});
+    EXPECT_TRUE(r.value("ok", false)) << r.dump() << service.log();
+    return read_text(dir.path / "served/shot.0001.ssdo.exr");
+  };
+  const std::string expected = read_text(dir.path / "batch/shot.0001.ssdo.exr");
+  EXPECT_FALSE(request(0) == expected);
+  EXPECT_TRUE(request(1) == expected);
 }
 
 }  // namespace
