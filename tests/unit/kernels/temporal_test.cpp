@@ -112,7 +112,8 @@ double brute_force(const Frame& f, const std::vector<Frame>& neighbours, int x, 
   if (!f.g.mask.at<uint8_t>(y, x)) return f.ao.at<float>(y, x);
   const Camera& c = f.g.camera;
   const double d = f.g.depth_view.at<float>(y, x);
-  const glm::dvec3 p_world(glm::dmat4(c.view_to_world) * glm::dvec4(c.view_from_pixel_depth({x + 0.5f, y + 0.5f}, float(d)), 1.0));
+  const glm::dvec3 p_world(glm::dmat4(c.view_to_world) *
+                           glm::dvec4(c.view_from_pixel_depth({x + 0.5f, y + 0.5f}, float(d)), 1.0));
   const cv::Vec3f nf = f.g.normal_view.at<cv::Vec3f>(y, x);
   const glm::dvec3 n_world(glm::dmat4(c.view_to_world) * glm::dvec4(nf[0], nf[1], nf[2], 0.0));
   double sum = f.ao.at<float>(y, x), total = 1.0;
@@ -130,7 +131,8 @@ double brute_force(const Frame& f, const std::vector<Frame>& neighbours, int x, 
                                  glm::dvec4(cu.view_from_pixel_depth({tx + 0.5f, ty + 0.5f}, du), 1.0));
         const double w_plane = 1.0 - std::abs(glm::dot(n_world, q_world - p_world)) / (s.depth_tolerance_relative * d);
         const cv::Vec3f nu = u.g.normal_view.at<cv::Vec3f>(ty, tx);
-        const double cosine = glm::dot(n_world, glm::dvec3(glm::dmat4(cu.view_to_world) * glm::dvec4(nu[0], nu[1], nu[2], 0.0)));
+        const double cosine =
+            glm::dot(n_world, glm::dvec3(glm::dmat4(cu.view_to_world) * glm::dvec4(nu[0], nu[1], nu[2], 0.0)));
         if (w_plane <= 0 || cosine <= 0) continue;
         const double w = bilinear * w_plane * std::pow(cosine, double(s.normal_power));
         sum += w * u.ao.at<float>(ty, tx);
@@ -151,7 +153,8 @@ TEST(Temporal, MatchesTheFilterWrittenOut) {
     const Filtered out = filter(f, neighbours, 0, {}, s);
     double worst = 0;
     for (int y = 0; y < kHeight; ++y)
-      for (int x = 0; x < kWidth; ++x) worst = std::max(worst, std::abs(out.ao.at<float>(y, x) - brute_force(f, neighbours, x, y, s)));
+      for (int x = 0; x < kWidth; ++x)
+        worst = std::max(worst, std::abs(out.ao.at<float>(y, x) - brute_force(f, neighbours, x, y, s)));
     EXPECT_LT(worst, 1e-4) << power;  // float against double (measured: 4e-6)
   }
 }
