@@ -116,6 +116,10 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
                                        std::vector<std::string>& notes) {
   if (request.temporal_per_side <= 0 || request.neighbours.empty()) return compute_frame(std::move(frame), request);
   Entry& self = cache_[request.input_name.empty() ? request.input_path : request.input_name];
+  if (!self.camera_has_world) {
+    notes.push_back("temporal: none (the frame's camera has no world transform to relate others to)");
+    return compute_frame(std::move(frame), request);
+  }
   RawFrame raw;
   if (self.raw_whole) {
     raw = std::move(*self.raw_whole);
@@ -168,7 +172,8 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
   ReadResult f = read_in_window(r, neighbour_read(n, read));
   Entry& e = cache_[n.path];  // std::map: references stay valid
   if (!f.ok()) e.raw_error = f.error;
-  if (!f.ok() || !resolve_frame_radius(r, f.info, e.raw_error)) return nullptr;
+  else if (!has_world(f.info)) e.raw_error = "no camera with a world transform";
+  if (!e.raw_error.empty() || !resolve_frame_radius(r, f.info, e.raw_error)) return nullptr;
   RawFrame raw = compute_raw_frame(std::move(f.gbuffer), r);
   ++reads_.raw_terms;
   e.raw_part = std::make_shared<const RawFrame>(temporal_part(raw));

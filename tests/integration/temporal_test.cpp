@@ -80,6 +80,21 @@ TEST(Temporal, ChunksWriteTheBytesOfTheWholeShot) {
   EXPECT_EQ(written, 5u);  // the neighbours outside a chunk are computed, not written
 }
 
+TEST(Temporal, ANeighbourWithoutACameraIsSkippedWithANote) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_temporal_shot(dir.path / "in", 3);
+  fs::remove(dir.path / "in/shot.0001.camera.json");  // frame 1: only --fov, no world
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --terms ao --preset low --views 0 --temporal 1 --fov 40 --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("shot.0001.exr: not used for temporal filtering (no camera with a world transform)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("temporal: none (the frame's camera has no world transform"), std::string::npos)
+      << r.output;
+}
+
 // The watch mode with the shot already in the folder: each frame's temporal neighbours are
 // the folder's frames, computed for it, and every output is byte for byte the batch's.
 TEST(Temporal, TheWatchModeWritesTheBytesOfTheBatch) {
