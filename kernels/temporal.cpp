@@ -1,6 +1,7 @@
 #include "kernels/temporal.h"
 
 #include <array>
+#include <atomic>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
@@ -121,25 +122,33 @@ void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours, c
 
 // Per neighbour, over every kMeasureStridePx-th pixel of every kMeasureStridePx-th row of
 // the frame's foreground: the points that project into it and those whose nearest texel
-// holds another surface (background, or the plane or normal test fails).
-void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const TemporalSettings& s, TemporalUse& use) {
-  int64_t foreground = 0, seen = 0, disagree = 0;
+// holds another surface (background, or the plane or normal test fails). Integer counts:
+// the same for any split of the rows.
+void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const TemporalSettings& s, TemporalUse& use,
+                       int nthreads) {
+  std::atomic<int64_t> foreground{0}, seen{0}, disagree{0};
   const cv::Mat& depth_u = n.frame->depth_view;
-  for (int y = 0; y < f.depth_view.rows; y += kMeasureStridePx) {
-    const float* depth_row = f.depth_view.ptr<float>(y);
-    const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
-    for (int x = 0; x < f.depth_view.cols; x += kMeasureStridePx) {
-      if (!mask_row[x]) continue;
-      ++foreground;
-      const Reprojection::Carried p = n.reprojection.carry(x, y, depth_row[x], normal_at(f.normal_view, x, y));
-      if (!(p.pixel.x >= 0.0f && p.pixel.y >= 0.0f && p.pixel.x < float(depth_u.cols) &&
-            p.pixel.y < float(depth_u.rows)))
-        continue;
-      ++seen;
-      const float inverse_tolerance = 1.0f / (s.depth_tolerance_relative * depth_row[x]);
-      disagree += texel_weight(n, p, inverse_tolerance, int(p.pixel.x), int(p.pixel.y), s) <= 0.0f;
+  const int measured_rows = (f.depth_view.rows + kMeasureStridePx - 1) / kMeasureStridePx;
+  parallel_rows(cv::Range(0, measured_rows), nthreads, [&](const cv::Range& rows) {
+    int64_t strip_foreground = 0, strip_seen = 0, strip_disagree = 0;
+    for (int y = rows.start * kMeasureStridePx; y < rows.end * kMeasureStridePx && y < f.depth_view.rows;
+         y += kMeasureStridePx) {
+      const float* depth_row = f.depth_view.ptr<float>(y);
+      const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
+      for (int x = 0; x < f.depth_view.cols; x += kMeasureStridePx) {
+        if (!mask_row[x]) continue;
+        ++strip_foreground;
+        const Reprojection::Carried p = n.reprojection.carry(x, y, depth_row[x], normal_at(f.normal_view, x, y));
+        if (!(p.pixel.x >= 0.0f && p.pixel.y >= 0.0f && p.pixel.x < float(depth_u.cols) &&
+              p.pixel.y < float(depth_u.rows)))
+          continue;
+        ++strip_seen;
+        const float inverse_tolerance = 1.0f / (s.depth_tolerance_relative * depth_row[x]);
+        strip_disagree += texel_weight(n, p, inverse_tolerance, int(p.pixel.x), int(p.pixel.y), s) <= 0.0f;
+      }
     }
-  }
+    foreground += strip_foreground, seen += strip_seen, disagree += strip_disagree;
+  });
   use.overlap = foreground > 0 ? float(double(seen) / double(foreground)) : 0.0f;
   use.disagreement = seen > 0 ? float(double(disagree) / double(seen)) : 0.0f;
   use.used = seen > 0 && use.disagreement <= s.max_disagreement;
@@ -186,7 +195,7 @@ std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<c
   for (size_t i = 0; i < neighbours.size(); ++i) {
     assert(same_layout(frame, neighbours[i]));
     const Neighbour n{&neighbours[i], Reprojection(frame.camera, neighbours[i].camera)};
-    measure_neighbour(frame, n, settings, uses[i]);
+    measure_neighbour(frame, n, settings, uses[i], nthreads);
     if (uses[i].used) used.push_back(n);
   }
   const cv::Rect r = resolve_roi(roi, frame.depth_view.size());
