@@ -70,4 +70,22 @@ glm::vec2 Camera::pixels_per_unit(float depth_view) const {
           0.5f * float(height_px) * std::abs(view_to_clip[1][1]) / w};
 }
 
+PixelRays pixel_rays(const Camera& camera) {
+  PixelRays m;
+  auto point = [&](float px, float py, float depth) { return camera.view_from_pixel_depth({px, py}, depth); };
+  if (camera.is_perspective()) {
+    m.o0 = m.ox = m.oy = glm::vec3(0.0f);
+    m.u0 = point(0.0f, 0.0f, 1.0f);
+    m.ux = point(1.0f, 0.0f, 1.0f) - m.u0;
+    m.uy = point(0.0f, 1.0f, 1.0f) - m.u0;
+  } else {
+    m.o0 = point(0.0f, 0.0f, 0.0f);
+    m.ox = point(1.0f, 0.0f, 0.0f) - m.o0;
+    m.oy = point(0.0f, 1.0f, 0.0f) - m.o0;
+    m.u0 = glm::vec3(0.0f, 0.0f, -1.0f);
+    m.ux = m.uy = glm::vec3(0.0f);
+  }
+  return m;
+}
+
 }  // namespace ssdo

@@ -67,4 +67,23 @@ struct Camera {
   }
 };
 
+// A camera's pixel rays parametrised by planar depth s: the view-space point through pixel
+// coordinates (px, py) at depth s is o(px, py) + s u(px, py), u.z = -1 (perspective: o = 0
+// exactly and u the point at depth 1; orthographic: o the point at depth 0, u = (0, 0, -1)).
+// Both are affine in (px, py): view_from_pixel_depth solves a linear system whose matrix
+// does not depend on the pixel for projections whose clip w depends on z only (pinhole and
+// orthographic cameras). Kernels walking many pixels' rays use it in place of a solve per
+// pixel.
+struct PixelRays {
+  glm::vec3 o0, ox, oy;  // o(px, py) = o0 + px ox + py oy
+  glm::vec3 u0, ux, uy;  // u(px, py) = u0 + px ux + py uy
+  glm::vec3 origin(float px, float py) const { return o0 + px * ox + py * oy; }
+  glm::vec3 direction(float px, float py) const { return u0 + px * ux + py * uy; }
+  glm::vec3 point(float px, float py, float depth) const {
+    return o0 + px * ox + py * oy + depth * (u0 + px * ux + py * uy);
+  }
+};
+
+PixelRays pixel_rays(const Camera& camera);
+
 }  // namespace ssdo

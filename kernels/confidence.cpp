@@ -1,10 +1,8 @@
 // Confidence: the observed fraction of the sampled neighbourhood (definition in
 // confidence.h).
 //
-// Rays are parametrised by planar depth s: x(s) = o + s u with u.z = -1 (perspective: o = 0
-// and u = the view-space point of the pixel at depth 1; orthographic: o = the point at depth
-// 0, u = (0, 0, -1)). Both are affine in the continuous pixel position (view_from_pixel_depth
-// solves a linear system at fixed depth), so one pixel's ray costs two multiply-adds. In s,
+// Rays are parametrised by planar depth s: x(s) = o + s u with u.z = -1 (PixelRays,
+// core/camera.h: affine in the pixel position, so one pixel's ray costs two multiply-adds). In s,
 // the sphere |x(s) - p| = R is the quadratic (u.u) s^2 + 2 (u.f) s + (f.f - R^2) = 0 with
 // f = o - p, the tangent plane n.(x(s) - p) = 0 is s* = -(n.f) / (n.u), and the stored
 // surface at the tap is s = depth_view(tap). Lengths in s scale to lengths along the ray by
@@ -14,7 +12,6 @@
 #include "kernels/settings_check.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -34,35 +31,6 @@ constexpr float kGoldenAngle = 2.39996322972865332f;
 
 // ConfidenceSettings::taps' upper bound: a pixel's taps fit in fixed arrays.
 constexpr int kMaxTaps = 256;
-
-struct RayMap {
-  glm::vec3 o0, ox, oy;  // o(px, py) = o0 + px ox + py oy
-  glm::vec3 u0, ux, uy;  // u(px, py) = u0 + px ux + py uy
-  // The point at ray parameter t of the ray through pixel coordinates (px, py).
-  glm::vec3 point(float px, float py, float t) const {
-    return o0 + px * ox + py * oy + t * (u0 + px * ux + py * uy);
-  }
-};
-
-RayMap make_ray_map(const Camera& cam) {
-  RayMap m;
-  auto point = [&](float px, float py, float depth) {
-    return cam.view_from_pixel_depth(glm::vec2(px, py), depth);
-  };
-  if (cam.is_perspective()) {
-    m.o0 = m.ox = m.oy = glm::vec3(0.0f);
-    m.u0 = point(0.0f, 0.0f, 1.0f);
-    m.ux = point(1.0f, 0.0f, 1.0f) - m.u0;
-    m.uy = point(0.0f, 1.0f, 1.0f) - m.u0;
-  } else {
-    m.o0 = point(0.0f, 0.0f, 0.0f);
-    m.ox = point(1.0f, 0.0f, 0.0f) - m.o0;
-    m.oy = point(0.0f, 1.0f, 0.0f) - m.o0;
-    m.u0 = glm::vec3(0.0f, 0.0f, -1.0f);
-    m.ux = m.uy = glm::vec3(0.0f);
-  }
-  return m;
-}
 
 // kLanes foreground pixels of a row evaluated together, one per vector lane: every lane
 // runs the same operations in the same order as a pixel alone (its sums in tap order), so
@@ -90,7 +58,7 @@ struct TapLanes {  // every tap of the lanes, [tap][lane]
 
 // What the taps read, shared by every pixel of a call.
 struct TapFrame {
-  RayMap rays;
+  PixelRays rays;
   const float* spiral_x;
   const float* spiral_y;
   int n_taps;
@@ -99,36 +67,21 @@ struct TapFrame {
   // front of the stored surface, 0 where the tap is unknown; one more unknown texel at
   // index width * height, for off-screen taps.
   const float* surface;
-  // With other views (else null): their verdicts, and per known texel (indexed as surface)
-  // the bins of [surface, surface + view_bins x bin_depth] behind it that they decide
-  // (bin_decided), filled on first use; per tap, where along an unknown tap's chord the
-  // views are asked, [0, 1).
+  // With other views (else null): their verdicts (asked where a tap is unknown), per texel
+  // (indexed as surface) the bins of [surface, surface + view_bins x bin_depth] behind it
+  // that they decide (bit i: bin i; decided_bins_behind_surfaces), and per tap where along
+  // an unknown tap's chord they are asked, [0, 1).
   const PointVerdicts* verdicts;
   const float* chord_offsets;
-  uint16_t* decided_bins;
+  const uint8_t* decided_bins;
   int view_bins;
   float bin_depth;  // ray parameter units (planar depth)
 };
 
-// A decided_bins entry: bit i (i < 8) = bin i is decided, bit 8 + i = bin i was asked.
-constexpr int kAskedShift = 8;
-
-// Whether the views decide the point at the centre of bin i behind a known texel's surface,
-// on the ray through the texel's centre. A chord through the neighbourhood is at most 2
-// radii long and |u| >= 1, so 2 radii of planar depth behind a tap's surface hold every
-// hidden part of its chords. Asked on first use: only bins some chord reaches ask the views
-// (on a plane, none). Threads asking the same bin compute the same verdict, so the result
-// does not depend on which stores it.
-bool bin_decided(const TapFrame& frame, int index, int i) {
-  std::atomic_ref<uint16_t> entry(frame.decided_bins[index]);
-  const unsigned stored = entry.load(std::memory_order_relaxed);
-  if (stored & (1u << (kAskedShift + i))) return (stored >> i) & 1u;
-  const float cx = float(index % frame.width) + 0.5f, cy = float(index / frame.width) + 0.5f;
-  const float t = frame.surface[index] + (float(i) + 0.5f) * frame.bin_depth;
-  const bool decided = frame.verdicts->decided(frame.rays.point(cx, cy, t));
-  entry.fetch_or(uint16_t((1u << (kAskedShift + i)) | (unsigned(decided) << i)), std::memory_order_relaxed);
-  return decided;
-}
+// Whether the views decide bin i behind a known texel's surface. A chord through the
+// neighbourhood is at most 2 radii long and |u| >= 1, so 2 radii of planar depth behind a
+// tap's surface hold every hidden part of its chords.
+inline bool bin_decided(const TapFrame& frame, int index, int i) { return (frame.decided_bins[index] >> i) & 1u; }
 
 // Pass 1 of sum_chords, every tap of every lane (no branch: 8 lanes per instruction): the
 // tap pixel, and the chord [s0, s1] of the hemisphere along the ray through its centre
@@ -137,7 +90,7 @@ bool bin_decided(const TapFrame& frame, int index, int i) {
 template <bool kPerspective>
 inline void hemisphere_chords(const TapFrame& frame, const PixelLanes& __restrict lane,
                               TapLanes& __restrict tap) {
-  const RayMap rays = frame.rays;
+  const PixelRays rays = frame.rays;
   for (int k = 0; k < frame.n_taps; ++k) {
     const float vx = frame.spiral_x[k], vy = frame.spiral_y[k];
 #pragma GCC unroll 1
@@ -370,7 +323,7 @@ struct PendingPixels {
 // projected radius, the spiral's rotation and, for perspective rays, f = o - p, c and n.f.
 void set_up_lanes(const PixelFrame& frame, const PendingPixels& pending, PixelLanes& lane) {
   const ConfidenceSettings& s = frame.settings;
-  const RayMap& rays = frame.taps.rays;
+  const PixelRays& rays = frame.taps.rays;
   alignas(32) float depth[kLanes], rotation_turns[kLanes], ppu_x[kLanes], ppu_y[kLanes];
   for (int j = 0; j < kLanes; ++j) {
     const int x = pending.x[j], y = pending.y[j];
@@ -488,13 +441,14 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
   std::unique_ptr<PointVerdicts> verdicts;
   if (!views.views.empty()) verdicts = std::make_unique<PointVerdicts>(camera, views.views, views.settings);
-  TapFrame taps{make_ray_map(camera), spiral.x.data(), spiral.y.data(), s.taps, size.width, size.height,
+  TapFrame taps{pixel_rays(camera), spiral.x.data(), spiral.y.data(), s.taps, size.width, size.height,
                 surface.data(), verdicts.get(), nullptr, nullptr, s.view_bins, 2.0f * s.radius_world / float(s.view_bins)};
-  std::vector<uint16_t> decided_bins;
+  cv::Mat decided_bins;  // contiguous: created whole
   std::vector<float> chord_offsets;
   if (verdicts) {
-    decided_bins.assign(size_t(size.width) * size_t(size.height), 0);
-    taps.decided_bins = decided_bins.data();
+    decided_bins = decided_bins_behind_surfaces({depth_view, mask, camera}, views.views, views.settings,
+                                                1.0f + s.depth_bias_relative, taps.bin_depth, s.view_bins, nthreads);
+    taps.decided_bins = decided_bins.ptr<uint8_t>();
     // The golden-ratio sequence: the taps of a pixel spread their points evenly over [0, 1).
     for (int k = 0; k < s.taps; ++k) chord_offsets.push_back(std::fmod(0.5f + 0.6180339887f * float(k), 1.0f));
     taps.chord_offsets = chord_offsets.data();

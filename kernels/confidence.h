@@ -56,11 +56,10 @@ struct ConfidenceSettings {
   uint32_t seed = 0;  // per-pixel rotation of the tap pattern
   // With views only: bins of planar depth behind each texel's surface, [1, 8], over 2
   // radii (the longest hidden part of a chord); the views are asked once per bin, at its
-  // centre, for each bin some chord reaches, and a tap's hidden part counts the decided
-  // bins it overlaps. 2 (bins of a radius): each ask projects a point into every view
-  // until one decides it (a scattered read of its depth), the cost of the view pass; 4
-  // bins separate the orbit's deciles a little more (mean error 0.032 instead of 0.048 at
-  // [0.8, 0.9)) for about 5% more of a frame's compute.
+  // centre, for every foreground texel in one pass in row order
+  // (decided_bins_behind_surfaces, kernels/multiview.h), and a tap's hidden part counts the
+  // decided bins it overlaps. 2 (bins of a radius); 4 bins separate the orbit's deciles a
+  // little more (mean error 0.032 instead of 0.048 at [0.8, 0.9)) for twice the asks.
   int view_bins = 2;
   // 2 (default) = computed on the half-resolution grid and upsampled depth- and
   // normal-aware (compute_terms, kernels/half_resolution.h): the confidence varies over the

@@ -742,8 +742,11 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
     images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
   }
   if (half.confidence) {
-    const std::vector<DepthView> observers = confidence_observers(h.depth_view, h.mask, h.camera, in, settings,
-                                                                  out.views, nthreads);
+    // The views at the grid's density: the confidence's scattered asks read a quarter of
+    // the memory for a fraction the grid's taps cannot resolve finer.
+    const std::vector<DepthView> observers = views_at_density(
+        confidence_observers(h.depth_view, h.mask, h.camera, in, settings, out.views, nthreads), h.camera.width_px,
+        nthreads);
     compute_confidence(h.depth_view, h.normal_view, h.mask, h.camera, *settings.confidence, grid.confidence,
                        half_roi, nthreads, {observers, multiview_settings(settings)});
     images.push_back({grid.confidence, out.confidence, cv::Scalar(1.0), cv::Scalar(1.0)});

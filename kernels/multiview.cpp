@@ -83,12 +83,11 @@ struct PixelRay {
   std::vector<uint8_t> active;  // 0: the view sees this pixel's own surface as free space
 };
 
-inline void pixel_ray(const Constants& k, const Camera& camera, int x, int y, PixelRay& ray) {
-  const glm::vec2 pixel(float(x) + 0.5f, float(y) + 0.5f);
+// rays: the frame's (pixel_rays of its camera).
+inline void pixel_ray(const Constants& k, const PixelRays& rays, int x, int y, PixelRay& ray) {
+  const float px = float(x) + 0.5f, py = float(y) + 0.5f;
   // The ray's points are affine in planar depth d: p(d) = a + d b (perspective: a = 0).
-  const glm::vec3 p1 = camera.view_from_pixel_depth(pixel, 1.0f);
-  const glm::vec3 b = camera.view_from_pixel_depth(pixel, 2.0f) - p1;
-  const glm::vec3 a = p1 - b;
+  const glm::vec3 a = rays.origin(px, py), b = rays.direction(px, py);
   for (size_t i = 0; i < k.views.size(); ++i) {
     const ViewGeometry& v = k.views[i];
     ray.in_view[i] = {v.clip_from_frame_view * glm::vec4(a, 1.0f), v.clip_from_frame_view * glm::vec4(b, 0.0f),
@@ -152,6 +151,7 @@ float own_back_depth(const MultiViewInputs& in, const MultiViewSettings& s, int 
 void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<ViewUse>& uses, int nthreads) {
   const int rows = in.depth_view.rows, nv = int(k.views.size());
   std::vector<int64_t> seen(size_t(rows) * size_t(nv), 0), contradicted(seen.size(), 0);
+  const PixelRays rays = pixel_rays(in.camera);
   parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& range) {
     PixelRay ray{std::vector<RayInView>(size_t(nv)), std::vector<uint8_t>(size_t(nv), 1)};
     for (int y = range.start; y < range.end; ++y) {
@@ -160,7 +160,7 @@ void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<Vi
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
       for (int x = 0; x < in.depth_view.cols; x += kMeasureStridePx) {
         if (!mask_row[x]) continue;
-        pixel_ray(k, in.camera, x, y, ray);
+        pixel_ray(k, rays, x, y, ray);
         for (int i = 0; i < nv; ++i) {
           const Verdict v = classify(k.views[size_t(i)], ray.in_view[size_t(i)], depth_row[x],
                                      k.s.depth_bias_relative, k.s.thickness_world);
@@ -191,6 +191,7 @@ void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<Vi
 void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& back, int nthreads) {
   const size_t nv = k.views.size();
   back.create(in.depth_view.size(), CV_32FC1);
+  const PixelRays rays = pixel_rays(in.camera);
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
     PixelRay ray{std::vector<RayInView>(nv), std::vector<uint8_t>(nv, 1)};
     for (int y = range.start; y < range.end; ++y) {
@@ -203,7 +204,7 @@ void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& ba
           continue;
         }
         const float front = depth_row[x];
-        pixel_ray(k, in.camera, x, y, ray);
+        pixel_ray(k, rays, x, y, ray);
         // A view that sees this pixel's own surface as free space disagrees with this frame
         // here (an object that moved): it has no say on this pixel's ray.
         for (size_t i = 0; i < nv; ++i)
@@ -250,6 +251,44 @@ std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<c
   return uses;
 }
 
+namespace {
+
+// One texel per factor x factor block of v: the block's nearest depth (NaN never wins).
+DepthView coarsened_view(const DepthView& v, int factor, int nthreads) {
+  DepthView coarse{v.camera, {}, v.name};
+  const cv::Size size((v.depth_view.cols + factor - 1) / factor, (v.depth_view.rows + factor - 1) / factor);
+  coarse.camera.width_px = size.width;
+  coarse.camera.height_px = size.height;
+  coarse.depth_view.create(size, CV_32FC1);
+  parallel_rows(cv::Range(0, size.height), nthreads, [&](const cv::Range& rows) {
+    for (int j = rows.start; j < rows.end; ++j) {
+      float* out = coarse.depth_view.ptr<float>(j);
+      std::fill(out, out + size.width, kInfinity);
+      for (int y = j * factor; y < std::min((j + 1) * factor, v.depth_view.rows); ++y) {
+        const float* row = v.depth_view.ptr<float>(y);
+        for (int i = 0; i < size.width; ++i) {
+          float nearest = out[i];
+          for (int x = i * factor; x < std::min((i + 1) * factor, v.depth_view.cols); ++x)
+            nearest = row[x] < nearest ? row[x] : nearest;
+          out[i] = nearest;
+        }
+      }
+    }
+  });
+  return coarse;
+}
+
+}  // namespace
+
+std::vector<DepthView> views_at_density(std::span<const DepthView> views, int grid_width_px, int nthreads) {
+  std::vector<DepthView> dense;
+  for (const DepthView& v : views) {
+    const int factor = int(std::lround(double(v.depth_view.cols) / double(std::max(1, grid_width_px))));
+    dense.push_back(factor >= 2 ? coarsened_view(v, factor, nthreads) : v);
+  }
+  return dense;
+}
+
 // ---- The guard band ----
 
 namespace {
@@ -291,6 +330,7 @@ void splat_view_into_band(const DepthView& v, const Camera& frame, const GuardBa
   const cv::Rect inside = band.inside();
   const float w = float(band.camera.width_px), h = float(band.camera.height_px);
   const int rows = (v.depth_view.rows + stride_px - 1) / stride_px;
+  const PixelRays rays = pixel_rays(v.camera);
   parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& range) {
     for (int j = range.start; j < range.end; ++j) {
       const int y = j * stride_px;
@@ -298,7 +338,7 @@ void splat_view_into_band(const DepthView& v, const Camera& frame, const GuardBa
       for (int x = 0; x < v.depth_view.cols; x += stride_px) {
         const float d = source_row[x];
         if (!(d > 0.0f && std::isfinite(d))) continue;
-        const glm::vec4 p(v.camera.view_from_pixel_depth({float(x) + 0.5f, float(y) + 0.5f}, d), 1.0f);
+        const glm::vec4 p(rays.point(float(x) + 0.5f, float(y) + 0.5f, d), 1.0f);
         const glm::vec4 clip = clip_from_view * p;
         if (!(clip.w > 0.0f)) continue;
         const float px = 0.5f * (clip.x / clip.w + 1.0f) * w, py = 0.5f * (1.0f - clip.y / clip.w) * h;
@@ -419,6 +459,50 @@ std::vector<ViewUse> measure_view_use(const MultiViewInputs& in, std::span<const
   }
   if (!views.empty()) measure_views(in, k, uses, nthreads);
   return uses;
+}
+
+namespace {
+
+// Whether some view sees the point at planar depth d on the ray as free space or has it
+// behind its surface within the thickness.
+bool decided_at(const Constants& k, const PixelRay& ray, float d) {
+  for (size_t i = 0; i < k.views.size(); ++i) {
+    const Verdict v = classify(k.views[i], ray.in_view[i], d, k.s.depth_bias_relative, k.s.thickness_world);
+    if (v == Verdict::free || v == Verdict::occupied) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+cv::Mat decided_bins_behind_surfaces(const MultiViewInputs& in, std::span<const DepthView> views,
+                                     const MultiViewSettings& s, float surface_scale, float bin_depth, int bins,
+                                     int nthreads) {
+  CV_Assert(validate(s).empty() && bins >= 1 && bins <= 8);
+  CV_Assert(in.depth_view.type() == CV_32FC1 && in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
+  Constants k{s, {}};
+  for (const DepthView& v : views) k.views.push_back(view_geometry(in.camera, v));
+  cv::Mat decided(in.depth_view.size(), CV_8UC1, cv::Scalar(0));
+  if (k.views.empty()) return decided;
+  const PixelRays rays = pixel_rays(in.camera);
+  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
+    PixelRay ray{std::vector<RayInView>(k.views.size()), {}};
+    for (int y = range.start; y < range.end; ++y) {
+      const float* depth_row = in.depth_view.ptr<float>(y);
+      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
+      uint8_t* out = decided.ptr<uint8_t>(y);
+      for (int x = 0; x < in.depth_view.cols; ++x) {
+        const float d = depth_row[x];
+        if (!mask_row[x] || !(d > 0.0f && std::isfinite(d))) continue;
+        pixel_ray(k, rays, x, y, ray);
+        unsigned bits = 0;
+        for (int i = 0; i < bins; ++i)
+          bits |= unsigned(decided_at(k, ray, d * surface_scale + (float(i) + 0.5f) * bin_depth)) << i;
+        out[x] = uint8_t(bits);
+      }
+    }
+  });
+  return decided;
 }
 
 struct PointVerdicts::Impl {

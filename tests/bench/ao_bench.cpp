@@ -18,6 +18,7 @@
 #include "kernels/denoise.h"
 #include "kernels/half_resolution.h"
 #include "kernels/positions.h"
+#include "tests/accuracy/shot_views.h"
 #include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
 #include "service/pipeline.h"
@@ -149,6 +150,16 @@ void BM_ShotViews(benchmark::State& state) {
   time_ao_medium_frame(state, g, int(state.range(2)), "truck shot, ");
 }
 
+// The same frame with the views `--views K` picks (by parallax among t-3K..t+3K:
+// service/view_selection.h): the cost a user of the default K pays.
+void BM_ShotChosenViews(benchmark::State& state) {
+  const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
+  const ssdo::GBuffer g = ssdo::shot::with_chosen_views(
+      ssdo::raycast::kTruckShotFrames / 2, int(state.range(1)), ssdo::raycast::kTruckShotFrames,
+      [&](int u) -> const ssdo::GBuffer& { return shot[size_t(u)]; }, [](int u) { return "f" + std::to_string(u); });
+  time_ao_medium_frame(state, g, int(state.range(2)), "truck shot, --views " + std::to_string(state.range(1)) + ", ");
+}
+
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
 // grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
 // every half-resolution term).
@@ -203,6 +214,7 @@ BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTi
 BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
+BENCHMARK(BM_ShotChosenViews)->ArgsProduct({{1920}, {2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();

@@ -129,6 +129,63 @@ TEST(MultiView, SameBytesForAnyThreadCount) {
   EXPECT_EQ(cv::norm(one, two, cv::NORM_INF), 0.0);
 }
 
+TEST(MultiView, ViewsAtTheGridsDensityKeepEachBlocksNearestDepth) {
+  DepthView view{camera_at(0.0f), cv::Mat(kHeight, kWidth, CV_32FC1, cv::Scalar(5.0f)), "view"};
+  view.depth_view.at<float>(10, 21) = 2.0f;  // block (10, 5) of 2x2
+  view.depth_view.at<float>(11, 20) = std::numeric_limits<float>::quiet_NaN();
+  view.depth_view.at<float>(0, 0) = kInf;     // background in block (0, 0): a nearer pixel wins
+  const std::vector<DepthView> coarse = views_at_density({&view, 1}, kWidth / 2);
+  ASSERT_EQ(coarse.size(), 1u);
+  EXPECT_EQ(coarse[0].camera.width_px, kWidth / 2);
+  EXPECT_EQ(coarse[0].camera.height_px, kHeight / 2);
+  EXPECT_EQ(coarse[0].depth_view.size(), cv::Size(kWidth / 2, kHeight / 2));
+  EXPECT_EQ(coarse[0].depth_view.at<float>(5, 10), 2.0f);
+  EXPECT_EQ(coarse[0].depth_view.at<float>(0, 0), 5.0f);
+  EXPECT_EQ(coarse[0].depth_view.at<float>(20, 30), 5.0f);
+  // The same pixel seen through both cameras: the texel's centre is the block's centre.
+  const glm::vec3 p = view.camera.view_from_pixel_depth({22.0f, 12.0f}, 4.0f);
+  EXPECT_NEAR(glm::length(coarse[0].camera.view_from_pixel_depth({11.0f, 6.0f}, 4.0f) - p), 0.0f, 1e-5f);
+  // A view no denser than the grid is shared, not copied.
+  const std::vector<DepthView> same = views_at_density({&view, 1}, kWidth);
+  EXPECT_EQ(same[0].depth_view.data, view.depth_view.data);
+}
+
+TEST(MultiView, DecidedBinsAreThePointVerdictsAtTheBinCentres) {
+  const raycast::Scene scene = posts_scene();
+  const GBuffer g = raycast::render_gbuffer(scene, camera_at(0.0f), 2);
+  const std::vector<DepthView> views{view_of(scene, camera_at(-0.5f), "left"), view_of(scene, camera_at(0.5f), "right")};
+  const MultiViewSettings s;
+  const float scale = 1.001f, bin_depth = 0.6f;
+  const int bins = 3;
+  const cv::Mat decided = decided_bins_behind_surfaces({g.depth_view, g.mask, g.camera}, views, s, scale, bin_depth, bins, 2);
+  ASSERT_EQ(decided.type(), CV_8UC1);
+  const PointVerdicts verdicts(g.camera, views, s);
+  int agree = 0, set = 0, compared = 0;
+  for (int y = 0; y < kHeight; y += 3)
+    for (int x = 0; x < kWidth; x += 3) {
+      if (!g.mask.at<uint8_t>(y, x)) {
+        EXPECT_EQ(decided.at<uint8_t>(y, x), 0);
+        continue;
+      }
+      for (int i = 0; i < bins; ++i) {
+        const float d = g.depth_view.at<float>(y, x) * scale + (float(i) + 0.5f) * bin_depth;
+        const bool expected = verdicts.decided(g.camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, d));
+        const bool got = (decided.at<uint8_t>(y, x) >> i) & 1;
+        agree += got == expected;
+        set += got;
+        ++compared;
+      }
+    }
+  // The same rule at the same points; the pass walks each texel's ray in affine steps, which
+  // rounds a few points across a view's pixel boundary.
+  EXPECT_GE(agree, compared - compared / 200);
+  EXPECT_GT(set, compared / 4);       // the views decide much behind the posts and the wall
+  EXPECT_LT(set, compared);           // and not everything: the wall's back is seen by none
+  EXPECT_EQ(cv::countNonZero(decided_bins_behind_surfaces({g.depth_view, g.mask, g.camera}, {}, s, scale,
+                                                          bin_depth, bins)),
+            0);
+}
+
 double gtao_error(const GBuffer& g, const cv::Mat& reference, const std::vector<DepthView>& views) {
   AoSettings s = ao_preset(AoMethod::gtao, Preset::high);
   cv::Mat positions;
