@@ -14,68 +14,52 @@
 // (n . n_q > 0 at the least; callers weigh the agreement).
 #pragma once
 
-#include <algorithm>
 #include <cmath>
 
 #include "core/camera.h"
 
 namespace ssdo {
 
-// Camera::view_from_pixel_depth at pixel centres, evaluated as the bilinear form it is: for
-// every camera whose clip.w does not depend on x and y (core/camera.h), the view-space point
-// at continuous pixel coordinates (u, v) and planar depth d is
-//   p = a0 + u a_u + v a_v + d (b0 + u b_u + v b_v),
-// so a pixel's point costs a few multiply-adds instead of a 2x2 solve. The coefficients are
-// taken from view_from_pixel_depth itself at the grid's corners and depths 1 and 2 (far
-// apart, so that the differences keep their precision).
+// The view-space points of a camera's pixel centres (core/camera.h, PixelRays: the point at
+// pixel coordinates (px, py) and planar depth d is o(px, py) + d u(px, py), both affine in
+// (px, py)), carried by a rigid transform when asked, and the distance of those points from a
+// plane as the same bilinear form: a few multiply-adds per pixel instead of a 2x2 solve.
 class PixelPoints {
  public:
-  explicit PixelPoints(const Camera& c) {
-    const float w = float(std::max(c.width_px, 2)), h = float(std::max(c.height_px, 2));
-    const glm::vec2 o(0.5f, 0.5f), u(w - 0.5f, 0.5f), v(0.5f, h - 0.5f);
-    auto ray = [&](glm::vec2 pixel, glm::vec3& a, glm::vec3& b) {
-      const glm::vec3 p1 = c.view_from_pixel_depth(pixel, 1.0f);
-      b = c.view_from_pixel_depth(pixel, 2.0f) - p1;
-      a = p1 - b;
-    };
-    glm::vec3 a_o, b_o, a_u, b_u, a_v, b_v;
-    ray(o, a_o, b_o), ray(u, a_u, b_u), ray(v, a_v, b_v);
-    a_du_ = (a_u - a_o) / (w - 1.0f), b_du_ = (b_u - b_o) / (w - 1.0f);
-    a_dv_ = (a_v - a_o) / (h - 1.0f), b_dv_ = (b_v - b_o) / (h - 1.0f);
-    a0_ = a_o - 0.5f * (a_du_ + a_dv_), b0_ = b_o - 0.5f * (b_du_ + b_dv_);
-  }
+  explicit PixelPoints(const Camera& c) : rays_(pixel_rays(c)) {}
+
   // The point at the centre of pixel (x, y) with planar depth depth_view.
   glm::vec3 at(int x, int y, float depth_view) const {
-    const float u = float(x) + 0.5f, v = float(y) + 0.5f;
-    return a0_ + u * a_du_ + v * a_dv_ + depth_view * (b0_ + u * b_du_ + v * b_dv_);
+    return rays_.point(float(x) + 0.5f, float(y) + 0.5f, depth_view);
   }
 
   // The same points carried by a rigid transform (into another camera's view space): the
-  // form of the transformed points, the translation in the constant term only.
+  // translation enters the constant term only.
   PixelPoints transformed(const glm::mat4& rigid) const {
     const glm::mat3 r(rigid);
     PixelPoints t = *this;
-    t.a0_ = glm::vec3(rigid * glm::vec4(a0_, 1.0f));
-    t.a_du_ = r * a_du_, t.a_dv_ = r * a_dv_, t.b0_ = r * b0_, t.b_du_ = r * b_du_, t.b_dv_ = r * b_dv_;
+    PixelRays& m = t.rays_;
+    m.o0 = glm::vec3(rigid * glm::vec4(rays_.o0, 1.0f));
+    m.ox = r * rays_.ox, m.oy = r * rays_.oy, m.u0 = r * rays_.u0, m.ux = r * rays_.ux, m.uy = r * rays_.uy;
     return t;
   }
 
-  // n . (at(x, y, d) - p) for a fixed plane (point p, normal n) as the same bilinear form
-  // in (x + 0.5, y + 0.5, d): six numbers per plane, then a few multiply-adds per pixel.
+  // n . (at(x, y, d) - p) for a fixed plane (point p, normal n), as a bilinear form in
+  // (x + 0.5, y + 0.5, d): six numbers per plane.
   struct PlaneDistance {
-    float c0, cu, cv, d0, du, dv;
+    float c0, cx, cy, d0, dx, dy;
     float signed_at(int x, int y, float depth_view) const {
-      const float u = float(x) + 0.5f, v = float(y) + 0.5f;
-      return c0 + u * cu + v * cv + depth_view * (d0 + u * du + v * dv);
+      const float px = float(x) + 0.5f, py = float(y) + 0.5f;
+      return c0 + px * cx + py * cy + depth_view * (d0 + px * dx + py * dy);
     }
   };
   PlaneDistance plane(const glm::vec3& p, const glm::vec3& n) const {
-    return {glm::dot(n, a0_ - p), glm::dot(n, a_du_), glm::dot(n, a_dv_),
-            glm::dot(n, b0_),     glm::dot(n, b_du_), glm::dot(n, b_dv_)};
+    return {glm::dot(n, rays_.o0 - p), glm::dot(n, rays_.ox), glm::dot(n, rays_.oy),
+            glm::dot(n, rays_.u0),     glm::dot(n, rays_.ux), glm::dot(n, rays_.uy)};
   }
 
  private:
-  glm::vec3 a0_, a_du_, a_dv_, b0_, b_du_, b_dv_;
+  PixelRays rays_;
 };
 
 class Reprojection {
