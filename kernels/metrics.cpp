@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "kernels/reprojection.h"
+
 namespace ssdo {
 
 namespace {
@@ -103,6 +105,39 @@ ErrorStats compare_images(const cv::Mat& estimate, const cv::Mat& reference, con
   ErrorAccumulator acc;
   acc.add(estimate, reference, mask);
   return acc.result();
+}
+
+void FlickerAccumulator::add(const FlickerFrame& a, const FlickerFrame& b) {
+  CV_Assert(a.estimate.type() == b.estimate.type() && a.reference.type() == a.estimate.type() &&
+            b.reference.type() == b.estimate.type() && a.estimate.depth() == CV_32F);
+  const Reprojection reprojection(a.camera, b.camera);
+  const int channels = a.estimate.channels();
+  for (int y = 0; y < a.depth_view.rows; ++y) {
+    const uint8_t* mask_row = a.mask.ptr<uint8_t>(y);
+    for (int x = 0; x < a.depth_view.cols; ++x) {
+      if (!mask_row[x]) continue;
+      const float depth_view = a.depth_view.ptr<float>(y)[x];
+      const float* n = a.normal_view.ptr<float>(y) + 3 * x;
+      const Reprojection::Carried p = reprojection.carry(x, y, depth_view, glm::vec3(n[0], n[1], n[2]));
+      if (!(p.pixel.x >= 0.0f && p.pixel.y >= 0.0f && p.pixel.x < float(b.depth_view.cols) &&
+            p.pixel.y < float(b.depth_view.rows)))
+        continue;
+      const int qx = int(p.pixel.x), qy = int(p.pixel.y);
+      if (!b.mask.ptr<uint8_t>(qy)[qx]) continue;
+      const float* nq = b.normal_view.ptr<float>(qy) + 3 * qx;
+      if (glm::dot(p.normal_view, glm::vec3(nq[0], nq[1], nq[2])) < settings_.normal_min_cos) continue;
+      const float e = reprojection.plane_distance(p, qx, qy, b.depth_view.ptr<float>(qy)[qx]);
+      if (!(e <= settings_.depth_tolerance_relative * depth_view)) continue;
+      const float reference_change = std::abs(channel_mean(b.reference.ptr<float>(qy) + channels * qx, channels) -
+                                              channel_mean(a.reference.ptr<float>(y) + channels * x, channels));
+      const float change = std::abs(channel_mean(b.estimate.ptr<float>(qy) + channels * qx, channels) -
+                                    channel_mean(a.estimate.ptr<float>(y) + channels * x, channels));
+      if (!(reference_change < settings_.reference_change_max) || !std::isfinite(change)) continue;
+      ++pixels_;
+      sum_change_ += change;
+      sum_reference_ += reference_change;
+    }
+  }
 }
 
 }  // namespace ssdo

@@ -8,6 +8,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "core/camera.h"
+
 namespace ssdo {
 
 struct ErrorStats {
@@ -56,6 +58,51 @@ class ConfidenceDeciles {
  private:
   std::array<int64_t, kBins> pixels_{};
   std::array<double, kBins> sum_abs_{};
+};
+
+// ---- Flicker: the reprojected frame-to-frame change of an estimate ----
+// A surface point seen in two frames of a shot whose true value barely changes between them
+// should get the same estimate in both. The flicker of an estimate over a pair of frames is
+// the mean |estimate_b(q) - estimate_a(p)| over the foreground pixels p of frame a whose
+// surface is the same at the nearest texel q of their projection into frame b (the plane
+// and normal tests of kernels/reprojection.h) and whose reference changes by less than
+// reference_change_max there (channel means, as compare_images). The reference's own
+// flicker (its Monte-Carlo noise) is the floor an estimate can reach.
+struct FlickerSettings {
+  // Tangent-plane tolerance relative to p's depth (kernels/reprojection.h), (0, 1]: the
+  // temporal filter's (kernels/temporal.h).
+  float depth_tolerance_relative = 0.01f;
+  // Least cosine between the two normals, [-1, 1]: 0.9 = 26 degrees.
+  float normal_min_cos = 0.9f;
+  // Pixels whose reference changes by this much or more are not counted (AO units).
+  float reference_change_max = 0.05f;
+};
+
+// One frame of the pair: estimate and reference CV_32FC1 or CV_32FC3 (the same type),
+// geometry in the kernels' conventions (core/gbuffer.h), all of the camera's size.
+struct FlickerFrame {
+  const cv::Mat& estimate;
+  const cv::Mat& reference;
+  const cv::Mat& depth_view;   // CV_32FC1 planar, +inf on background
+  const cv::Mat& normal_view;  // CV_32FC3 unit view-space normals
+  const cv::Mat& mask;         // CV_8UC1, 255 = foreground
+  const Camera& camera;
+};
+
+// Accumulates the flicker of several pairs of frames (pixel-weighted).
+class FlickerAccumulator {
+ public:
+  explicit FlickerAccumulator(const FlickerSettings& settings = {}) : settings_(settings) {}
+  // From the pixels of a into b (call again with b, a for both directions).
+  void add(const FlickerFrame& a, const FlickerFrame& b);
+  int64_t pixels() const { return pixels_; }
+  double mean_change() const { return pixels_ > 0 ? sum_change_ / double(pixels_) : 0.0; }       // of the estimate
+  double reference_change() const { return pixels_ > 0 ? sum_reference_ / double(pixels_) : 0.0; }  // its floor
+
+ private:
+  FlickerSettings settings_;
+  int64_t pixels_ = 0;
+  double sum_change_ = 0, sum_reference_ = 0;
 };
 
 }  // namespace ssdo

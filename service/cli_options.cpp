@@ -326,6 +326,7 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
   request.threads = a.threads;
   request.radius_given_world = a.radius_world;
   request.views_per_side = a.views;
+  request.temporal_per_side = a.temporal;
   if (!parse_terms(a.terms, request.terms, error)) {
     error = "--terms: " + error;
     return false;

@@ -119,6 +119,65 @@ bool read_external(const std::string& path, std::vector<ChartSeries>& series, st
   return true;
 }
 
+// A frame to measure: its G-buffer, reference and radius.
+struct Loaded {
+  std::string path;
+  GBuffer g;
+  cv::Mat reference;
+  float radius = 1;
+};
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// A preset with --temporal K (kernels/temporal.h) over the sequences among the frames, as a
+// batch computes them: every frame's raw terms once, then each frame finished over the raw
+// terms of the K frames each side. A frame's ms: its raw terms plus its finish (one run).
+// Writes a CSV row per frame and returns the row over all.
+Row bench_temporal(const std::vector<Loaded>& frames, const BenchArgs& args, const BenchConfig& config,
+                   std::ostream& csv) {
+  std::vector<std::string> paths;
+  for (const Loaded& f : frames) paths.push_back(f.path);
+  const auto lists = sequence_neighbours(paths, args.temporal);
+  FrameRequest request = args.request;
+  request.terms = {true, false, false};
+  request.ao = config.settings;
+  request.temporal_per_side = args.temporal;
+  std::vector<RawFrame> raws;
+  std::vector<double> ms;
+  for (const Loaded& f : frames) {
+    request.ao.radius_world = f.radius;
+    const auto t0 = std::chrono::steady_clock::now();
+    raws.push_back(compute_raw_frame(GBuffer(f.g), request));
+    ms.push_back(ms_since(t0));
+  }
+  Row all{"all", std::string(to_string(config.settings.method)), config.preset + "+t" + std::to_string(args.temporal),
+          "", taps_per_pixel(config.settings), 0, {}};
+  ErrorAccumulator overall;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    std::vector<RawFrame> parts;
+    for (const NeighbourFrame& n : lists[i])
+      parts.push_back(temporal_part(raws[size_t(std::find(paths.begin(), paths.end(), n.path) - paths.begin())]));
+    std::vector<const RawFrame*> neighbours;
+    for (const RawFrame& p : parts) neighbours.push_back(&p);
+    const auto t0 = std::chrono::steady_clock::now();
+    const ComputedFrame computed = finish_frame(RawFrame(raws[i]), neighbours, request);
+    Row r = all;
+    r.file = frames[i].path;
+    r.resolution = std::to_string(frames[i].g.width_px()) + "x" + std::to_string(frames[i].g.height_px());
+    r.ms = ms[i] + ms_since(t0);
+    r.error = compare_images(*computed.find("ao_denoised"), frames[i].reference, frames[i].g.mask);
+    write_csv_row(csv, r);
+    overall.add(*computed.find("ao_denoised"), frames[i].reference, frames[i].g.mask);
+    all.ms += r.ms / double(frames.size());
+    all.resolution = all.resolution.empty() || all.resolution == r.resolution ? r.resolution : "mixed";
+  }
+  all.error = overall.result();
+  write_csv_row(csv, all);
+  return all;
+}
+
 }  // namespace
 
 int run_bench(const BenchArgs& args) {
@@ -137,12 +196,6 @@ int run_bench(const BenchArgs& args) {
   }
 
   // Read every frame once.
-  struct Loaded {
-    std::string path;
-    GBuffer g;
-    cv::Mat reference;
-    float radius = 1;
-  };
   std::vector<Loaded> frames;
   int failed = 0;
   for (const std::string& file : args.files) {
@@ -223,6 +276,14 @@ int run_bench(const BenchArgs& args) {
     ChartSeries& s = by_method[series_name];
     s.name = series_name;
     s.points.push_back({row.ms, row.error.mae, config.preset == "sweep" ? std::to_string(row.samples) : config.preset});
+    if (args.temporal <= 0 || config.preset == "sweep") continue;
+    const Row t = bench_temporal(frames, args, config, csv);
+    std::printf("%-10s %-7s %7d %10.1f %8.4f %8.4f %8.4f\n", t.method.c_str(), t.preset.c_str(), t.samples, t.ms,
+                t.error.mae, t.error.rmse, t.error.p95);
+    const std::string temporal_name = row.method + " --temporal " + std::to_string(args.temporal) + " (presets)";
+    ChartSeries& ts = by_method[temporal_name];
+    ts.name = temporal_name;
+    ts.points.push_back({t.ms, t.error.mae, config.preset});
   }
 
   std::vector<ChartSeries> series;
@@ -270,6 +331,11 @@ Command register_bench(CLI::App& app) {
                   "tracer at several sample counts, plotted beside the methods")
       ->check(CLI::ExistingFile);
   cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores)")->check(CLI::Range(0, 1024));
+  cmd->add_option("--temporal", b.temporal,
+                  "Also each preset with --temporal K: the frames of a sequence among the files (names that differ "
+                  "in a frame number) filtered over K frames each side, their time including the raw terms (a row "
+                  "per preset 'PRESET+tK' and a curve on the chart)")
+      ->check(CLI::Range(0, 8));
   add_frame_options(*cmd, st->options, int(OptionSet::read));
   return {cmd, [st] {
             BenchArgs& bench = st->bench;

@@ -97,8 +97,8 @@ int run_eval(const EvalArgs& args) {
 
   // With --views, the files of one shot are each other's extra views, read once each as
   // `process` reads them.
-  const int views = args.request.views_per_side;
-  const auto neighbours = sequence_neighbours(args.files, kCandidateFramesPerView * views);
+  const auto neighbours = sequence_neighbours(
+      args.files, neighbour_places(args.request.views_per_side, args.request.temporal_per_side));
   SequenceContext sequence;
   for (size_t index = 0; index < args.files.size(); ++index) {
     const std::string& file = args.files[index];
@@ -125,7 +125,7 @@ int run_eval(const EvalArgs& args) {
     }
     // The radius as process computes it: the frame's AO distance (the AO reference's
     // radius) unless --radius is given.
-    FrameRequest request = args.request;
+    FrameRequest request = sequence_request;
     if (std::string error; !resolve_frame_radius(request, frame.info, error)) {
       std::cerr << "ssdo eval: " << error << "\n";
       ++failed;
@@ -133,7 +133,8 @@ int run_eval(const EvalArgs& args) {
     }
 
     const auto t0 = std::chrono::steady_clock::now();
-    const ComputedFrame computed = compute_frame(frame.gbuffer, request);
+    std::vector<std::string> notes;  // (eval prints no notes)
+    const ComputedFrame computed = sequence.compute(request, read, GBuffer(frame.gbuffer), notes);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     const std::string name = args.term + (args.raw ? "" : "_denoised");
     const cv::Mat* found = computed.find(name);

@@ -96,10 +96,10 @@ class FrameTurns {
 // The neighbours of each frame to compute (by path), from the whole frame list: a chunk's
 // frames see the frames just outside it.
 std::map<std::string, std::vector<NeighbourFrame>> neighbours_by_frame(const std::vector<std::string>& all,
-                                                                       int views_per_side) {
+                                                                       int places) {
   std::map<std::string, std::vector<NeighbourFrame>> by_frame;
-  if (views_per_side <= 0) return by_frame;
-  const auto lists = sequence_neighbours(all, kCandidateFramesPerView * views_per_side);
+  if (places <= 0) return by_frame;
+  const auto lists = sequence_neighbours(all, places);
   for (size_t i = 0; i < all.size(); ++i) by_frame[all[i]] = lists[i];
   return by_frame;
 }
@@ -153,8 +153,10 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: " << todo.size() << " frames, " << plan.workers << " worker processes x "
               << plan.threads_per_frame << " threads\n";
   const nlohmann::json options = to_json(args.options);
-  const int views_per_side = args.options.compute.views;
-  const auto neighbours = neighbours_by_frame(all, views_per_side);
+  // With views or temporal filtering, a frame's neighbours are read (and their raw terms
+  // computed) once per worker: each worker takes a contiguous slice of the frames, in order.
+  const int places = neighbour_places(args.options.compute.views, args.options.compute.temporal);
+  const auto neighbours = neighbours_by_frame(all, places);
   std::map<std::string, size_t> todo_index;
   for (size_t i = 0; i < todo.size(); ++i) todo_index.emplace(todo[i], i);
 
@@ -182,7 +184,7 @@ int run_process(const ProcessArgs& args) {
     threads.emplace_back([&, t]() {
       {
         WorkerProcess worker(limits);
-        FrameTurns turns(next, todo.size(), t, n_threads, views_per_side > 0);
+        FrameTurns turns(next, todo.size(), t, n_threads, places > 0);
         for (size_t i; !stop && (i = turns.take()) < todo.size();) {
           const WorkerJob job = job_for(todo, i, args, options, neighbours, todo_index, turns);
           progress.finished(job.input_path, job.output_path, worker.run(job));

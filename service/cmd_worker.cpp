@@ -226,6 +226,7 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   if (is_confined) files.open_neighbours(confine, request.neighbours, view_notes);
   FrameResult r;
   r.error = memory_estimate_refusal(request.input_path, args.max_pixels, args.memory_limit_mb);
+  sequence.use_settings(options_key);  // raw terms kept for temporal filtering are of these options
   if (r.error.empty()) r = process_frame(request, is_confined ? &confined : &sequence);
   r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
   for (std::string& note : r.info.notes) note = files.named(note);

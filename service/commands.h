@@ -128,6 +128,7 @@ struct BenchArgs {
   bool sweep = true;                 // also sweep sample counts at full resolution
   std::string external_csv;          // external reference costs: series,label,ms,mae
   FrameRequest request;              // read options, threads
+  int temporal = 0;                  // > 0: also each preset with --temporal K over the files' sequences
 };
 int run_bench(const BenchArgs& args);
 

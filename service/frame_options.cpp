@@ -87,6 +87,14 @@ std::vector<FrameOption> compute_options() {
                "within 3K, the ones whose camera moved enough to see something new; only their depth and camera "
                "are read, once each. 0 = every frame alone",
        .lo = 0, .hi = 8, .field = +[](A& a) -> int& { return a.compute.views; }},
+      {.name = "temporal", .kind = OptionKind::integer, .set = OptionSet::compute, .group = "Compute",
+       .help = "A frame of a sequence gets its denoised terms (ao_denoised, ssdo_*_denoised) from its raw terms "
+               "filtered over the raw terms of up to K frames on each side, past and future, each reprojected "
+               "through depth and both cameras; what another frame sees differently (a disocclusion, a moving "
+               "object, a cut) is left out, and there the frame keeps its own. Less flicker, and a low preset "
+               "approaches a high one; each frame's raw terms are computed once per batch. The raw terms stay "
+               "unfiltered. 0 = every frame alone (2 recommended)",
+       .lo = 0, .hi = 8, .field = +[](A& a) -> int& { return a.compute.temporal; }},
   };
 }
 

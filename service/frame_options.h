@@ -20,6 +20,12 @@ namespace ssdo {
 // (0 = every frame alone).
 inline constexpr int kDefaultViewsPerSide = 2;
 
+// --temporal when not given: 0, each frame's denoised terms from its own raw terms alone
+// (the output of a frame alone, bit for bit). kRecommendedTemporalPerSide: the K the
+// measurements recommend (docs/temporal.md; tests/accuracy/temporal_accuracy_test.cpp).
+inline constexpr int kDefaultTemporalPerSide = 0;
+inline constexpr int kRecommendedTemporalPerSide = 2;
+
 // Raw option values as typed; resolved into a request by resolve_* (cli_options.h).
 struct ReadOptionArgs {
   std::vector<std::string> maps;  // --map input=channel
@@ -49,6 +55,7 @@ struct ComputeOptionArgs {
   std::string quality;            // "" (method/preset as given) or "auto"
   float max_error = 0.05f;        // MAE against ray-traced AO, for --quality auto
   int views = kDefaultViewsPerSide;  // neighbouring frames per side as extra views
+  int temporal = kDefaultTemporalPerSide;  // neighbouring frames per side of the temporal filter
 };
 
 // Everything that decides one frame's output, as typed (strings and numbers).

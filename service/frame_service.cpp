@@ -272,9 +272,9 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     // The frames of its sequence already in the folder are its neighbours; the watch
     // folder's own rules: the input, its sidecar and the neighbours inside it (a symbolic
     // link pointing out of it is refused); the service's options are the administrator's.
-    const int views_per_side = options_.watch_options.value("views", kDefaultViewsPerSide);
-    r = run_with_retries(worker, {input, output, options_.watch_options,
-                                  folder_neighbours(input, kCandidateFramesPerView * views_per_side),
+    const int places = neighbour_places(options_.watch_options.value("views", kDefaultViewsPerSide),
+                                        options_.watch_options.value("temporal", kDefaultTemporalPerSide));
+    r = run_with_retries(worker, {input, output, options_.watch_options, folder_neighbours(input, places),
                                   {{options_.watch_dir}, {}, options_.out_dir}});
     const FileVersion after = version_of(input);
     if (after.exists && !(after == before)) {

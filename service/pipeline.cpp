@@ -134,22 +134,58 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
   return out;
 }
 
+// AO, SSDO direct and indirect: the terms that are denoised (and filtered over time first).
 struct DenoisedTerms {
   cv::Mat ao, direct, indirect;
 };
 
-// The denoised terms, in one pass over the frame: the blur's weights depend only on the
-// guides, so AO and the two SSDO terms share them (kernels/denoise.h).
-DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, TermOutputs& raw,
+// The raw terms the denoise reads, in the order of DenoisedTerms (those computed).
+std::vector<const cv::Mat*> raw_terms(const TermOutputs& raw, const TermsComputed& computed) {
+  std::vector<const cv::Mat*> terms;
+  if (computed.ao) terms.push_back(&raw.ao.ao);
+  if (computed.ssdo) terms.push_back(&raw.ssdo.direct), terms.push_back(&raw.ssdo.indirect);
+  return terms;
+}
+
+std::vector<cv::Mat*> term_slots(DenoisedTerms& d, const TermsComputed& computed) {
+  std::vector<cv::Mat*> slots;
+  if (computed.ao) slots.push_back(&d.ao);
+  if (computed.ssdo) slots.push_back(&d.direct), slots.push_back(&d.indirect);
+  return slots;
+}
+
+// The raw terms filtered over the neighbours' (kernels/temporal.h), into `filtered`; uses:
+// what each neighbour contributed. Without neighbours nothing is written.
+struct FrameAndRaw {
+  const GBuffer& g;
+  const TermOutputs& raw;
+};
+
+void filter_over_time(const FrameAndRaw& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request,
+                      const TermsComputed& computed, DenoisedTerms& filtered, std::vector<TemporalUse>& uses) {
+  if (neighbours.empty()) return;
+  const std::vector<const cv::Mat*> terms = raw_terms(f.raw, computed);
+  std::vector<std::vector<const cv::Mat*>> neighbour_terms;
+  std::vector<TemporalFrame> frames;
+  neighbour_terms.reserve(neighbours.size());
+  for (const RawFrame* n : neighbours) {
+    neighbour_terms.push_back(raw_terms(n->raw, computed));
+    frames.push_back({n->gbuffer.camera, n->gbuffer.depth_view, n->gbuffer.normal_view, n->gbuffer.mask,
+                      neighbour_terms.back()});
+  }
+  const GBuffer& g = f.g;
+  const std::vector<cv::Mat*> results = term_slots(filtered, computed);
+  uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, request.temporal, results, {},
+                         request.threads);
+}
+
+// The denoised terms of `sources` (raw_terms' order), in one pass over the frame: the blur's
+// weights depend only on the guides, so AO and the two SSDO terms share them
+// (kernels/denoise.h).
+DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const std::vector<const cv::Mat*>& sources,
                             const TermsComputed& computed) {
   DenoisedTerms d;
-  std::vector<const cv::Mat*> sources;
-  std::vector<cv::Mat*> results;
-  if (computed.ao) sources.push_back(&raw.ao.ao), results.push_back(&d.ao);
-  if (computed.ssdo) {
-    sources.push_back(&raw.ssdo.direct), results.push_back(&d.direct);
-    sources.push_back(&raw.ssdo.indirect), results.push_back(&d.indirect);
-  }
+  const std::vector<cv::Mat*> results = term_slots(d, computed);
   if (!sources.empty())
     denoise_bilateral(sources, g.depth_view, g.normal_view, g.mask, request.denoise, results, {}, request.threads);
   return d;
@@ -197,25 +233,71 @@ cv::Mat composite_frame(const GBuffer& g, const FrameRequest& request, const Ter
 
 }  // namespace
 
-ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
-  const TermsComputed computed = terms_computed(request);
-  TermOutputs raw = compute_raw_terms(g, request, computed);
+namespace {
+
+// The raw terms of g; then releases what no later step reads: its views and its positions
+// (the denoised terms and the composite reuse their memory: the worker's heap keeps freed
+// memory, and fresh pages cost a fault each).
+TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
+  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request));
   g.views.clear();
-  // No later step reads the positions: the denoised terms and the composite reuse their
-  // memory (the worker's heap keeps freed memory: fresh pages cost a fault each).
   g.position_view.release();
-  const DenoisedTerms denoised = denoise_terms(g, request, raw, computed);
+  return raw;
+}
+
+// finish_frame on the frame's own images (released as they are read no more).
+ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawFrame* const> neighbours,
+                              const FrameRequest& request) {
+  const TermsComputed computed = terms_computed(request);
+  ComputedFrame frame;
+  DenoisedTerms filtered;
+  filter_over_time({g, raw}, neighbours, request, computed, filtered, frame.temporal);
+  std::vector<const cv::Mat*> sources = raw_terms(raw, computed);
+  if (!neighbours.empty()) {
+    const std::vector<cv::Mat*> slots = term_slots(filtered, computed);
+    sources.assign(slots.begin(), slots.end());
+  }
+  const DenoisedTerms denoised = denoise_terms(g, request, sources, computed);
   // The guides of AO, SSDO, confidence and the denoise are read no more: their memory
   // goes to the composite.
   g.depth_view.release();
   g.normal_view.release();
   g.depth_back_view.release();
-  ComputedFrame frame;
   frame.views = std::move(raw.views);
   add_output_terms(request, computed, raw, denoised, frame);
   if (request.terms.composite)
     frame.terms.push_back({"composite", composite_frame(g, request, computed, denoised), SampleType::half, false});
   return frame;
+}
+
+}  // namespace
+
+RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
+  RawFrame f;
+  f.raw = raw_terms_releasing(g, request);
+  f.gbuffer = std::move(g);
+  return f;
+}
+
+ComputedFrame finish_frame(RawFrame&& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request) {
+  return finish_in_place(f.gbuffer, f.raw, neighbours, request);
+}
+
+ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
+  TermOutputs raw = raw_terms_releasing(g, request);
+  return finish_in_place(g, raw, {}, request);
+}
+
+RawFrame temporal_part(const RawFrame& f) {
+  RawFrame part;
+  part.gbuffer.camera = f.gbuffer.camera;
+  part.gbuffer.depth_view = f.gbuffer.depth_view;
+  part.gbuffer.normal_view = f.gbuffer.normal_view;
+  part.gbuffer.mask = f.gbuffer.mask;
+  part.raw.ao.ao = f.raw.ao.ao;
+  part.raw.ssdo.direct = f.raw.ssdo.direct;
+  part.raw.ssdo.indirect = f.raw.ssdo.indirect;
+  return part;
 }
 
 ReadOptions reads_for(const FrameRequest& request) {
@@ -312,6 +394,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     Camera camera = frame.gbuffer.camera;
     t0 = std::chrono::steady_clock::now();
     ComputedFrame computed = request.io_only ? io_only_frame(frame.gbuffer, request)
+                             : source        ? source->compute(request, read, std::move(frame.gbuffer), result.info.notes)
                                              : compute_frame(std::move(frame.gbuffer), request);
     result.times.compute_ms = ms_since(t0);
     note_view_uses(computed.views, result.info.notes);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -12,9 +13,11 @@
 #include "kernels/composite.h"
 #include "kernels/denoise.h"
 #include "kernels/environment.h"
+#include "kernels/half_resolution.h"
 #include "kernels/multiview.h"
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
+#include "kernels/temporal.h"
 #include "service/sequence.h"
 
 namespace ssdo {
@@ -70,6 +73,12 @@ struct FrameRequest {
   // context (service/sequence_context.h). 0 = the frame alone.
   int views_per_side = 0;
   std::vector<NeighbourFrame> neighbours;
+  // Temporal filtering (kernels/temporal.h): the denoised terms of the frame are the denoise
+  // of its raw terms filtered over the raw terms of the frames up to temporal_per_side
+  // places before and after it among `neighbours` (computed once per batch: the worker's
+  // sequence context). The raw terms are written unfiltered. 0 = the frame alone.
+  int temporal_per_side = 0;
+  TemporalSettings temporal;
 };
 
 // The AO distance a frame gets when neither --radius nor the frame gives one.
@@ -102,8 +111,28 @@ struct FrameResult {
 struct ComputedFrame {
   std::vector<OutputTerm> terms;
   std::vector<ViewUse> views;  // what each of the G-buffer's extra views contributed
+  std::vector<TemporalUse> temporal;  // what each temporal neighbour contributed (finish_frame)
   const cv::Mat* find(const std::string& name) const;
 };
+
+// A frame halfway through compute_frame: its raw terms (AO, SSDO, confidence) and the G-buffer
+// they were computed on (without its extra views and positions, which no later step reads).
+// What a neighbouring frame lends the temporal filter (temporal_part).
+struct RawFrame {
+  GBuffer gbuffer;
+  TermOutputs raw;
+};
+
+// compute_frame in two steps: the raw terms, then the rest (filtered over the raw terms of
+// `neighbours` when given, kernels/temporal.h; denoised; composited). compute_frame(g, r) is
+// finish_frame(compute_raw_frame(g, r), {}, r). finish_frame releases the frame's images as
+// compute_frame does.
+RawFrame compute_raw_frame(GBuffer&& gbuffer, const FrameRequest& request);
+ComputedFrame finish_frame(RawFrame&& frame, std::span<const RawFrame* const> neighbours, const FrameRequest& request);
+
+// What of a frame's raw frame the temporal filter reads when it is a neighbour: camera,
+// depth, normals, mask and the raw AO and SSDO light (image headers: no copy).
+RawFrame temporal_part(const RawFrame& frame);
 
 // Computes the selected terms for a frame already in memory (no I/O).
 ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request);
@@ -130,6 +159,15 @@ class FrameSource {
   virtual ~FrameSource() = default;
   // `read`: the request's read options narrowed to its terms (reads_for).
   virtual ReadResult read(const FrameRequest& request, const ReadOptions& read) = 0;
+  // The frame's terms from the G-buffer read() returned. With temporal filtering
+  // (FrameRequest::temporal_per_side > 0) a source that knows the frame's sequence filters
+  // over its neighbours' raw terms, each computed once (service/sequence_context.h), and
+  // adds a note for each neighbour it could not use; this one computes the frame alone.
+  virtual ComputedFrame compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
+                                std::vector<std::string>& notes) {
+    (void)read, (void)notes;
+    return compute_frame(std::move(frame), request);
+  }
 };
 
 // Reads, computes and writes one frame. Never throws: failures are in result.error.

@@ -7,6 +7,7 @@
 #include <map>
 
 #include "service/frame_list.h"
+#include "service/view_selection.h"
 
 namespace ssdo {
 
@@ -84,6 +85,63 @@ std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std:
     out.push_back({views[i], same ? int(other->number - place->number) : int(i + 1), false, {}, {}});
   }
   return out;
+}
+
+int view_candidate_places(int views_per_side) { return kCandidateFramesPerView * std::max(0, views_per_side); }
+
+int neighbour_places(int views_per_side, int temporal_per_side) {
+  return view_candidate_places(views_per_side) + std::max(0, temporal_per_side);
+}
+
+namespace {
+
+// The frame and its neighbours in place order (by frame offset; the frame's offset is 0).
+std::vector<const NeighbourFrame*> in_place_order(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours) {
+  std::vector<const NeighbourFrame*> order{&self};
+  for (const NeighbourFrame& n : neighbours) order.push_back(&n);
+  std::stable_sort(order.begin(), order.end(),
+                   [](const NeighbourFrame* a, const NeighbourFrame* b) { return a->frame_offset < b->frame_offset; });
+  return order;
+}
+
+// The entries of `order` within `places` of entry `at`, nearest first per side (the order
+// of sequence_neighbours), with offsets relative to it.
+std::vector<NeighbourFrame> around(const std::vector<const NeighbourFrame*>& order, long at, int places) {
+  std::vector<NeighbourFrame> out;
+  const long n = long(order.size());
+  for (long d = 1; d <= places; ++d)
+    for (const long j : {at - d, at + d})
+      if (j >= 0 && j < n) {
+        NeighbourFrame f = *order[size_t(j)];
+        f.frame_offset = order[size_t(j)]->frame_offset - order[size_t(at)]->frame_offset;
+        out.push_back(f);
+      }
+  return out;
+}
+
+long place_of(const std::vector<const NeighbourFrame*>& order, const NeighbourFrame& f) {
+  for (size_t i = 0; i < order.size(); ++i)
+    if (order[i]->frame_offset == f.frame_offset) return long(i);
+  return -1;
+}
+
+}  // namespace
+
+std::vector<NeighbourFrame> within_places(const std::vector<NeighbourFrame>& neighbours, int places) {
+  const NeighbourFrame self{};
+  const std::vector<const NeighbourFrame*> order = in_place_order(self, neighbours);
+  const long at = place_of(order, self);
+  std::vector<NeighbourFrame> out;
+  for (const NeighbourFrame& n : neighbours)
+    if (std::abs(place_of(order, n) - at) <= places) out.push_back(n);
+  return out;
+}
+
+std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours,
+                                                    const NeighbourFrame& of, int places) {
+  const std::vector<const NeighbourFrame*> order = in_place_order(self, neighbours);
+  const long at = place_of(order, of);
+  return at < 0 ? std::vector<NeighbourFrame>{} : around(order, at, places);
 }
 
 }  // namespace ssdo

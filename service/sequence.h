@@ -36,6 +36,25 @@ std::optional<SequencePlace> sequence_place(const std::string& path);
 // Frames that are not part of a sequence get none; window 0 gives none.
 std::vector<std::vector<NeighbourFrame>> sequence_neighbours(const std::vector<std::string>& frames, int window);
 
+// How many places on each side of a frame its neighbour list spans: the candidates of its
+// views (view_candidate_places) and, with temporal filtering, the temporal neighbours and
+// the candidates of their own views (a neighbour's raw terms are computed with its views).
+int neighbour_places(int views_per_side, int temporal_per_side);
+// The places on each side among which a frame's views are chosen (service/view_selection.h).
+int view_candidate_places(int views_per_side);
+
+// The entries of `neighbours` (one frame's list, as sequence_neighbours gives it) within
+// `places` places of the frame, in the list's order (nearest first per side).
+std::vector<NeighbourFrame> within_places(const std::vector<NeighbourFrame>& neighbours, int places);
+
+// The neighbour list neighbour `of` of a frame would get from sequence_neighbours with
+// `places`, derived from the frame's own list (`self`: the frame as a neighbour, its
+// frame_offset 0): the frames of the list and the frame itself within `places` places of
+// `of`, offsets relative to `of`, nearest first per side. Complete when the frame's list
+// spans `places` places beyond `of` on each side (neighbour_places).
+std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours,
+                                                    const NeighbourFrame& of, int places);
+
 // The frames of `path`'s sequence in its folder (frame files, service/frame_list.h) within
 // `window` places of it: the neighbours of a frame that arrives in a watched folder.
 std::vector<NeighbourFrame> folder_neighbours(const std::string& path, int window);

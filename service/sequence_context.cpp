@@ -55,10 +55,17 @@ float median_foreground_depth(const cv::Mat& depth_view, const cv::Mat& mask) {
 }
 
 ReadResult SequenceContext::read(const FrameRequest& request, const ReadOptions& read) {
-  if (request.views_per_side <= 0 || request.neighbours.empty()) {
+  if ((request.views_per_side <= 0 && request.temporal_per_side <= 0) || request.neighbours.empty()) {
     cache_.clear();
     return read_frame(request.input_path, read);
   }
+  ++reads_.frames;
+  ReadResult frame = read_in_window(request, read);
+  keep_window(request);
+  return frame;
+}
+
+ReadResult SequenceContext::read_in_window(const FrameRequest& request, const ReadOptions& read) {
   if (const std::string key = read_key(read); key != read_key_) {
     cache_.clear();
     read_key_ = key;
@@ -66,6 +73,12 @@ ReadResult SequenceContext::read(const FrameRequest& request, const ReadOptions&
   ReadResult frame;
   const std::string& name = request.input_name.empty() ? request.input_path : request.input_name;
   Entry& self = cache_[name];
+  if (self.raw_whole && self.raw_info) {
+    // Computed already as a temporal neighbour: compute() finishes it (its images are shared).
+    frame.gbuffer = self.raw_whole->gbuffer;
+    frame.info = *self.raw_info;
+    return frame;
+  }
   if (self.whole) {
     frame = std::move(*self.whole);
     self.whole.reset();
@@ -73,20 +86,102 @@ ReadResult SequenceContext::read(const FrameRequest& request, const ReadOptions&
     frame = read_frame(request.input_path, read);
     ++reads_.whole;
   }
-  ++reads_.frames;
   if (frame.ok()) {
     // The frame's depth image is shared, not copied: compute_frame releases only its own
     // reference.
     self.view = DepthView{frame.gbuffer.camera, frame.gbuffer.depth_view, file_name(name)};
     self.camera = frame.gbuffer.camera;
     self.camera_has_world = has_world(frame.info);
+    if (request.views_per_side <= 0) return frame;
     if (self.camera_has_world)
       attach_views(request, read, frame);
     else
       frame.info.notes.push_back("views: none (the frame's camera has no world transform to relate others to)");
   }
-  keep_window(request);
   return frame;
+}
+
+void SequenceContext::use_settings(const std::string& key) {
+  if (key == settings_key_) return;
+  settings_key_ = key;
+  for (auto& [name, e] : cache_) {
+    e.raw_whole.reset();
+    e.raw_info.reset();
+    e.raw_part.reset();
+    e.raw_error.clear();
+  }
+}
+
+ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
+                                       std::vector<std::string>& notes) {
+  if (request.temporal_per_side <= 0 || request.neighbours.empty()) return compute_frame(std::move(frame), request);
+  Entry& self = cache_[request.input_name.empty() ? request.input_path : request.input_name];
+  if (!self.camera_has_world) {
+    notes.push_back("temporal: none (the frame's camera has no world transform to relate others to)");
+    return compute_frame(std::move(frame), request);
+  }
+  RawFrame raw;
+  if (self.raw_whole) {
+    raw = std::move(*self.raw_whole);
+    self.raw_whole.reset();
+    self.raw_info.reset();
+  } else {
+    raw = compute_raw_frame(std::move(frame), request);
+    ++reads_.raw_terms;
+  }
+  self.raw_part = std::make_shared<const RawFrame>(temporal_part(raw));
+  std::vector<const RawFrame*> neighbours;
+  std::vector<std::string> names;
+  for (const NeighbourFrame& n : within_places(request.neighbours, request.temporal_per_side)) {
+    if (const RawFrame* r = neighbour_raw(request, read, n)) {
+      neighbours.push_back(r);
+      names.push_back(file_name(n.path));
+    } else {
+      notes.push_back(file_name(n.path) + ": not used for temporal filtering (" + cache_[n.path].raw_error + ")");
+    }
+  }
+  ComputedFrame out = finish_frame(std::move(raw), neighbours, request);
+  drop_raw_outside(request);
+  std::string used;
+  for (size_t i = 0; i < out.temporal.size(); ++i)
+    if (out.temporal[i].used) used += " " + names[i];
+  notes.push_back("temporal:" + (used.empty() ? std::string(" none") : used) + " (raw terms computed " +
+                  std::to_string(reads_.raw_terms) + " times for " + std::to_string(reads_.frames) + " frames)");
+  for (size_t i = 0; i < out.temporal.size(); ++i)
+    if (!out.temporal[i].used)
+      notes.push_back(names[i] + ": not used for temporal filtering (" +
+                      (out.temporal[i].overlap <= 0.0f ? std::string("it sees none of this frame's surfaces")
+                                                       : "another surface at " +
+                                                             std::to_string(int(100.0f * out.temporal[i].disagreement)) +
+                                                             "% of this frame's surfaces it sees: a cut?") +
+                      ")");
+  return out;
+}
+
+const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, const ReadOptions& read,
+                                               const NeighbourFrame& n) {
+  if (const Entry& e = cache_[n.path]; e.raw_part || !e.raw_error.empty()) return e.raw_part.get();
+  // The neighbour as its own job computes it: its own views among its own candidates.
+  FrameRequest r = request;
+  r.input_path = n.open_path.empty() ? n.path : n.open_path;
+  r.input_name = n.path;
+  r.output_path.clear();
+  const NeighbourFrame self{request.input_name.empty() ? request.input_path : request.input_name, 0, false,
+                            request.input_name.empty() ? std::string() : request.input_path, request.read.camera_json};
+  r.neighbours = neighbours_of_neighbour(self, request.neighbours, n, view_candidate_places(request.views_per_side));
+  ReadResult f = read_in_window(r, neighbour_read(n, read));
+  Entry& e = cache_[n.path];  // std::map: references stay valid
+  if (!f.ok()) e.raw_error = f.error;
+  else if (!has_world(f.info)) e.raw_error = "no camera with a world transform";
+  if (!e.raw_error.empty() || !resolve_frame_radius(r, f.info, e.raw_error)) return nullptr;
+  RawFrame raw = compute_raw_frame(std::move(f.gbuffer), r);
+  ++reads_.raw_terms;
+  e.raw_part = std::make_shared<const RawFrame>(temporal_part(raw));
+  if (n.computed_later) {
+    e.raw_whole = std::make_shared<RawFrame>(std::move(raw));
+    e.raw_info = std::move(f.info);
+  }
+  return e.raw_part.get();
 }
 
 SequenceContext::Entry& SequenceContext::candidate(const NeighbourFrame& n, const ReadOptions& read) {
@@ -122,7 +217,8 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
   std::vector<ViewCandidate> candidates;
   std::vector<const NeighbourFrame*> sources;
   FrameInfo& info = frame.info;
-  for (const NeighbourFrame& n : request.neighbours) {
+  const std::vector<NeighbourFrame> within = within_places(request.neighbours, view_candidate_places(request.views_per_side));
+  for (const NeighbourFrame& n : within) {
     Entry& e = candidate(n, read);
     if (!e.camera) {
       info.notes.push_back(file_name(n.path) + ": skipped as a view (" + e.error + ")");
@@ -153,6 +249,13 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
                        std::to_string(reads_.frames) + " frames: " + std::to_string(reads_.whole) + " whole, " +
                        std::to_string(reads_.depth_only) + " depth only; " + std::to_string(reads_.headers) +
                        " headers)");
+}
+
+void SequenceContext::drop_raw_outside(const FrameRequest& request) {
+  std::set<std::string> window{request.input_name.empty() ? request.input_path : request.input_name};
+  for (const NeighbourFrame& n : within_places(request.neighbours, request.temporal_per_side)) window.insert(n.path);
+  for (auto& [name, e] : cache_)
+    if (!window.count(name)) e.raw_part.reset();
 }
 
 void SequenceContext::keep_window(const FrameRequest& request) {

@@ -16,11 +16,22 @@
 // whole frames of the views ahead (at most K). A neighbour that cannot be used (unreadable,
 // no camera, another size, beyond a cut) is a note in the frame's info, never an error.
 // With views_per_side 0 the frame is read exactly as read_frame does, and nothing is kept.
+//
+// With temporal filtering (temporal_per_side K > 0), compute() finishes the frame over the raw
+// terms of the K frames on each side (kernels/temporal.h). Each neighbour's raw terms are
+// computed once per worker, as the neighbour's own job would compute them (its own views,
+// chosen among its own candidates: the frame's neighbour list spans them, neighbour_places),
+// and kept while the window needs them: whole for a frame this worker computes later (its
+// own turn then only finishes it), else only what the filter reads (temporal_part). A
+// neighbour outside the batch's frames (a farm chunk's edge) is computed and not written.
+// Memory: at most 2K + 1 frames of raw terms and guides, K of them whole.
 #pragma once
 
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "service/pipeline.h"
 
@@ -29,11 +40,19 @@ namespace ssdo {
 class SequenceContext : public FrameSource {
  public:
   ReadResult read(const FrameRequest& request, const ReadOptions& read) override;
+  ComputedFrame compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
+                        std::vector<std::string>& notes) override;
+
+  // Identifies the settings the raw terms of the next requests are computed with (e.g. their
+  // options as JSON): raw terms computed with other settings are dropped. Requests of one
+  // batch share one.
+  void use_settings(const std::string& key);
 
   // Files read since the worker started: frames read whole, views read depth-only, and
   // headers inspected for a candidate's camera.
   struct Reads {
     long whole = 0, depth_only = 0, headers = 0, frames = 0;
+    long raw_terms = 0;  // frames whose raw terms were computed (temporal filtering)
   };
   const Reads& reads() const { return reads_; }
 
@@ -44,14 +63,26 @@ class SequenceContext : public FrameSource {
     std::optional<Camera> camera;      // from its header
     bool camera_has_world = false;
     std::string error;                 // why it cannot be a view
+    // Temporal filtering: the raw frame whole (a frame this worker computes later) and what
+    // the filter reads of it; raw_error: why its raw terms could not be computed.
+    std::shared_ptr<RawFrame> raw_whole;
+    std::optional<FrameInfo> raw_info;  // raw_whole's frame as read
+    std::shared_ptr<const RawFrame> raw_part;
+    std::string raw_error;
   };
   Entry& candidate(const NeighbourFrame& n, const ReadOptions& read);
   bool load_view(const NeighbourFrame& n, const ReadOptions& read, Entry& e);
   void attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame);
+  ReadResult read_in_window(const FrameRequest& request, const ReadOptions& read);
+  const RawFrame* neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);
   void keep_window(const FrameRequest& request);
+  // Releases the raw terms of the frames beyond the request's temporal window (frames are
+  // computed in order: no later frame of the worker reads them).
+  void drop_raw_outside(const FrameRequest& request);
 
   std::map<std::string, Entry> cache_;
   std::string read_key_;  // the read options the whole frames were read with
+  std::string settings_key_;  // use_settings
   Reads reads_;
 };
 

@@ -1,0 +1,142 @@
+// Temporal filtering of a shot (--temporal K, kernels/temporal.h) through the real binary:
+// the denoised terms change and the raw ones do not; each frame's raw terms are computed
+// once per batch; a farm's chunks, which compute the frames just outside them without
+// writing them, write the same bytes as the whole shot in one batch; the watch mode, whose
+// frames find their neighbours in the folder, and a socket request naming its neighbours
+// write what the batch writes.
+#include <regex>
+
+#include <OpenImageIO/imageio.h>
+
+#include "service_harness.h"
+
+namespace ssdo::test {
+namespace {
+
+// The orbit frames 0..count-1 as DIR/shot.000N.exr + sidecars.
+void copy_temporal_shot(const fs::path& dir, int count) {
+  fs::create_directories(dir);
+  for (int i = 0; i < count; ++i) {
+    const fs::path from = shared_dir() / "gbuffers" / ("orbit_f" + std::to_string(i));
+    const std::string name = numbered("shot.000", i);
+    fs::copy_file(from.string() + ".camera.json", dir / (name + ".camera.json"));
+    fs::copy_file(from.string() + ".exr", dir / (name + ".exr"));
+  }
+}
+
+std::vector<float> channel_pixels(const fs::path& path, const std::string& name) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) return {};
+  const auto& names = in->spec().channelnames;
+  const int c = int(std::find(names.begin(), names.end(), name) - names.begin());
+  if (c == int(names.size())) return {};
+  std::vector<float> pixels(size_t(in->spec().width) * size_t(in->spec().height));
+  in->read_image(0, 0, c, c + 1, OIIO::TypeDesc::FLOAT, pixels.data());
+  return pixels;
+}
+
+const char* kTemporalShotArgs = " --terms ao --preset low --views 1 --temporal 1";
+
+TEST(Temporal, DenoisedTermsChangeRawTermsDoNotAndRawTermsAreComputedOnce) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_temporal_shot(dir.path / "in", 4);
+  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "alone" +
+                                   " --terms ao --preset low --views 1 --temporal 0 --jobs 1");
+  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + kTemporalShotArgs + " --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  for (int i = 0; i < 4; ++i) {
+    const std::string name = numbered("shot.000", i) + ".ssdo.exr";
+    EXPECT_EQ(channel_pixels(dir.path / "out" / name, "ao"), channel_pixels(dir.path / "alone" / name, "ao")) << name;
+    const std::vector<float> a = channel_pixels(dir.path / "out" / name, "ao_denoised");
+    const std::vector<float> b = channel_pixels(dir.path / "alone" / name, "ao_denoised");
+    ASSERT_EQ(a.size(), b.size());
+    size_t changed = 0;
+    for (size_t p = 0; p < a.size(); ++p) changed += a[p] != b[p];
+    EXPECT_GT(changed, a.size() / 4) << name;  // most of the foreground
+  }
+  // One worker, four frames, each frame's raw terms computed once.
+  EXPECT_NE(r.output.find("(raw terms computed 4 times for 4 frames)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("temporal: shot.0000.exr shot.0002.exr"), std::string::npos) << r.output;
+}
+
+TEST(Temporal, ChunksWriteTheBytesOfTheWholeShot) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_temporal_shot(dir.path / "in", 5);
+  const std::string pattern = "'" + dir / "in/shot.####.exr" + "' --frames 0-4";
+  const RunResult whole = run_ssdo("process " + pattern + " -o " + dir / "whole" + kTemporalShotArgs);
+  ASSERT_EQ(whole.exit_code, 0) << whole.output;
+  for (const char* chunk : {"1/2", "2/2"}) {
+    const RunResult r = run_ssdo("process " + pattern + " --chunk " + chunk + " -o " + dir / "chunks" + kTemporalShotArgs);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  size_t written = 0;
+  for (const auto& e : fs::directory_iterator(dir.path / "chunks")) {
+    ++written;
+    EXPECT_EQ(read_text(e.path()), read_text(dir.path / "whole" / e.path().filename())) << e.path();
+  }
+  EXPECT_EQ(written, 5u);  // the neighbours outside a chunk are computed, not written
+}
+
+TEST(Temporal, ANeighbourWithoutACameraIsSkippedWithANote) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_temporal_shot(dir.path / "in", 3);
+  fs::remove(dir.path / "in/shot.0001.camera.json");  // frame 1: only --fov, no world
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --terms ao --preset low --views 0 --temporal 1 --fov 40 --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("shot.0001.exr: not used for temporal filtering (no camera with a world transform)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("temporal: none (the frame's camera has no world transform"), std::string::npos)
+      << r.output;
+}
+
+// The watch mode with the shot already in the folder: each frame's temporal neighbours are
+// the folder's frames, computed for it, and every output is byte for byte the batch's.
+TEST(Temporal, TheWatchModeWritesTheBytesOfTheBatch) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  constexpr int kFrames = 3;
+  copy_temporal_shot(dir.path / "in", kFrames);
+  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + kTemporalShotArgs);
+  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+  const std::string socket = socket_path_for("temporal");
+  SsdoProcess service({"serve", "--watch", dir / "in", "-o", dir / "served", "--socket", socket, "--jobs", "1",
+                       "--frame-timeout", "60", "--terms", "ao", "--preset", "low", "--views", "1", "--temporal", "1"},
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  ASSERT_TRUE(wait_until(
+      [&] {
+        for (int i = 0; i < kFrames; ++i)
+          if (!path_exists(dir.path / "served" / (numbered("shot.000", i) + ".ssdo.exr"))) return false;
+        const json st = stats(socket);
+        return st.value("queue_depth", 1) == 0 && st.value("in_flight", 1) == 0;
+      },
+      60))
+      << service.log();
+  for (int i = 0; i < kFrames; ++i) {
+    const std::string name = numbered("shot.000", i) + ".ssdo.exr";
+    EXPECT_TRUE(read_text(dir.path / "served" / name) == read_text(dir.path / "batch" / name)) << name;
+  }
+  // A socket request with the option and its neighbours named writes the same bytes (and
+  // with --temporal 0, other ones).
+  Client c(socket);
+  auto request = [&](int temporal) {
+    const json r = c.request({{"op", "process"},
+                              {"input", dir / "in/shot.0001.exr"},
+                              {"options", {{"terms", "ao"}, {"preset", "low"}, {"views", 1}, {"temporal", temporal}}},
+                              {"views", {dir / "in/shot.0000.exr", dir / "in/shot.0002.exr"}}});
+    EXPECT_TRUE(r.value("ok", false)) << r.dump() << service.log();
+    return read_text(dir.path / "served/shot.0001.ssdo.exr");
+  };
+  const std::string expected = read_text(dir.path / "batch/shot.0001.ssdo.exr");
+  EXPECT_FALSE(request(0) == expected);
+  EXPECT_TRUE(request(1) == expected);
+}
+
+}  // namespace
+}  // namespace ssdo::test
