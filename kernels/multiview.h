@@ -55,7 +55,7 @@ struct MultiViewSettings {
   // Points sampled along [front, front + reach_world], [2, 64], then `refinements`
   // bisection steps, [0, 16], on the first change from occupied to free. 8 samples and 2
   // steps place the occluder's end within reach_world / 32 (a sixteenth of the radius): the
-  // synthetic shot's and the orbit's error with views are those of 12 and 4 within 1%, for
+  // synthetic shot's and the orbit's error with views are those of 12 and 4 within 2%, for
   // 40% fewer steps of the walk that costs a view pass its most.
   int samples = 8;
   int refinements = 2;

@@ -60,17 +60,6 @@ Reads last_reads(const std::string& log) {
   return r;
 }
 
-std::vector<float> channel(const std::string& path, const std::string& name) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) return {};
-  const auto& names = in->spec().channelnames;
-  const int c = int(std::find(names.begin(), names.end(), name) - names.begin());
-  if (c == int(names.size())) return {};
-  std::vector<float> pixels(size_t(in->spec().width) * size_t(in->spec().height));
-  in->read_image(0, 0, c, c + 1, OIIO::TypeDesc::FLOAT, pixels.data());
-  return pixels;
-}
-
 TEST(Sequence, EachFrameGetsViewsOnBothSidesAndEveryFileIsReadOnce) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
@@ -203,11 +192,11 @@ TEST(Sequence, SocketRequestViewsChangeTheFrameAndAreConfinedLikeItsInput) {
   const std::string input = dir / "in/orbit_f1.exr", output = dir / "out/orbit_f1.ssdo.exr";
   const json alone = c.request({{"op", "process"}, {"input", input}});
   ASSERT_TRUE(alone.value("ok", false)) << alone.dump() << service.log();
-  const std::vector<float> ao_alone = channel(output, "ao");
+  const std::vector<float> ao_alone = exr_channel_pixels(output, "ao");
   const json with = c.request(
       {{"op", "process"}, {"input", input}, {"views", {dir / "in/orbit_f0.exr", dir / "in/orbit_f2.exr"}}});
   ASSERT_TRUE(with.value("ok", false)) << with.dump() << service.log();
-  const std::vector<float> ao_with = channel(output, "ao");
+  const std::vector<float> ao_with = exr_channel_pixels(output, "ao");
   ASSERT_EQ(ao_alone.size(), ao_with.size());
   EXPECT_NE(ao_alone, ao_with);
   const json outside = c.request({{"op", "process"}, {"input", input}, {"views", {dir / "outside/orbit_f0.exr"}}});
@@ -278,10 +267,10 @@ TEST(SequenceWatch, FramesAlreadyInTheFolderAreViewsAsInProcess) {
   ASSERT_NO_FATAL_FAILURE(process_folder(dir, "alone", " --views 0"));
   for (int i = 0; i < kFrames; ++i) {
     const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
-    const std::vector<float> served = channel(dir / ("served/" + name), "ao");
+    const std::vector<float> served = exr_channel_pixels(dir / ("served/" + name), "ao");
     ASSERT_FALSE(served.empty()) << name;
     EXPECT_TRUE(read_text(dir.path / "served" / name) == read_text(dir.path / "batch" / name)) << name;
-    EXPECT_NE(served, channel(dir / ("alone/" + name), "ao")) << name;
+    EXPECT_NE(served, exr_channel_pixels(dir / ("alone/" + name), "ao")) << name;
   }
 }
 
@@ -325,9 +314,9 @@ TEST(SequenceWatch, AFrameComputedBeforeItsNeighboursArriveIsNotComputedAgain) {
   const RunResult alone =
       run_ssdo("process " + dir / "in/orbit_f0.exr" + " -o " + dir / "alone" + " --views 0" + process_compute());
   ASSERT_EQ(alone.exit_code, 0) << alone.output;
-  const std::vector<float> served = channel(first.string(), "ao");
+  const std::vector<float> served = exr_channel_pixels(first.string(), "ao");
   ASSERT_FALSE(served.empty());
-  EXPECT_EQ(served, channel(dir / "alone/orbit_f0.ssdo.exr", "ao"));
+  EXPECT_EQ(served, exr_channel_pixels(dir / "alone/orbit_f0.ssdo.exr", "ao"));
 }
 
 // A frame whose sidecar says its AO pass used ao_distance `distance`, as DIR/STEM.exr.
@@ -346,7 +335,7 @@ TEST(Radius, TheSidecarsAoDistanceIsTheDefaultAndTheFlagWins) {
   auto run = [&](const std::string& in, const std::string& out, const std::string& flags) {
     const RunResult r = run_ssdo("process " + dir / in + " -o " + dir / out + " --terms ao --preset low " + flags);
     EXPECT_EQ(r.exit_code, 0) << r.output;
-    return channel(dir / (out + "/f.ssdo.exr"), "ao");
+    return exr_channel_pixels(dir / (out + "/f.ssdo.exr"), "ao");
   };
   const std::vector<float> sidecar_two = run("two", "a", "");
   const std::vector<float> flag_two = run("one", "b", "--radius 2");
@@ -367,7 +356,7 @@ TEST(Radius, TheSidecarsAoDistanceIsTheDefaultAndTheFlagWins) {
   frame_with_ao_distance(dir.path / "in", "f", 2.0);
   ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "served/f.ssdo.exr"); }, 60)) << service.log();
   ASSERT_TRUE(service.wait_for_log("ok ", 10)) << service.log();
-  EXPECT_EQ(channel(dir / "served/f.ssdo.exr", "ao"), flag_two);
+  EXPECT_EQ(exr_channel_pixels(dir / "served/f.ssdo.exr", "ao"), flag_two);
 
   // eval reports the radius it used.
   const RunResult eval = run_ssdo("eval " + dir / "two/f.exr" + " --reference AO --preset low --json");

@@ -85,6 +85,18 @@ inline bool exr_has_channel(const std::string& path, const std::string& channel)
   return std::find(names.begin(), names.end(), channel) != names.end();
 }
 
+// One channel of an EXR as floats, row-major; empty when unreadable or absent.
+inline std::vector<float> exr_channel_pixels(const std::string& path, const std::string& channel) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return {};
+  const auto& names = in->spec().channelnames;
+  const int c = int(std::find(names.begin(), names.end(), channel) - names.begin());
+  if (c == int(names.size())) return {};
+  std::vector<float> pixels(size_t(in->spec().width) * size_t(in->spec().height));
+  in->read_image(0, 0, c, c + 1, OIIO::TypeDesc::FLOAT, pixels.data());
+  return pixels;
+}
+
 // Names in `dir` that look like temp files of a writer (".NAME.tmp-...").
 inline std::vector<std::string> temp_files(const fs::path& dir) {
   std::vector<std::string> found;
