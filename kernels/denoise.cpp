@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "kernels/integer_power.h"
 
 namespace ssdo {
 namespace {
@@ -77,8 +78,8 @@ struct DefaultLobe {
 };
 static_assert(DenoiseSettings{}.normal_power == float(DefaultLobe::kPower));
 
-// Any power in [0, 256]: integers by squaring from the most significant bit (the
-// association of ipow, so the same bits as ipow<P>), other powers by std::pow. 0 where
+// Any power in [0, 256]: integers by squaring from the most significant bit
+// (integer_power: the association of ipow, so the same bits as ipow<P>), other powers by std::pow. 0 where
 // c = 0: masked taps have normal 0, and c^0 = 1 would count them.
 struct PowerLobe {
   float power;
@@ -88,10 +89,7 @@ struct PowerLobe {
   Lanes operator()(Lanes c) const {
     Lanes r = broadcast(1.0f);
     if (integer) {
-      for (int bit = 8; bit >= 0; --bit) {  // ipower <= 256 = 2^8
-        r = r * r;
-        if ((ipower >> bit) & 1u) r = r * c;
-      }
+      r = integer_power(c, ipower, r);
     } else {
       for (int j = 0; j < kLanes; ++j) r[j] = std::pow(c[j], power);
     }

@@ -2,11 +2,11 @@
 
 #include <array>
 #include <atomic>
-#include <cassert>
 #include <cmath>
 #include <cstdint>
 
 #include "core/parallel.h"
+#include "kernels/integer_power.h"
 #include "kernels/reprojection.h"
 #include "kernels/settings_check.h"
 
@@ -25,20 +25,10 @@ struct Neighbour {
 };
 
 // max(0, c)^power for c in (0, 1]: integer powers (the default 16) by squaring, the rest
-// with std::pow (per tap, std::pow costs more than the rest of the weight together).
+// with std::pow.
 inline float normal_lobe(float c, float power) {
-  if (power == 16.0f) {  // the default: four squarings
-    const float c2 = c * c, c4 = c2 * c2, c8 = c4 * c4;
-    return c8 * c8;
-  }
   const unsigned n = unsigned(power);
-  if (float(n) != power) return std::pow(c, power);
-  float result = 1.0f;
-  for (unsigned bit = 1u << 8; bit != 0; bit >>= 1) {
-    result *= result;
-    if (n & bit) result *= c;
-  }
-  return result;
+  return float(n) == power ? integer_power(c, n, 1.0f) : std::pow(c, power);
 }
 
 inline glm::vec3 normal_at(const cv::Mat& normal_view, int x, int y) {
@@ -154,7 +144,7 @@ void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const Tempora
   use.used = seen > 0 && use.disagreement <= s.max_disagreement;
 }
 
-[[maybe_unused]] bool same_layout(const TemporalFrame& f, const TemporalFrame& u) {
+bool same_layout(const TemporalFrame& f, const TemporalFrame& u) {
   if (u.terms.size() != f.terms.size() || u.depth_view.size() != u.mask.size() ||
       u.normal_view.size() != u.depth_view.size())
     return false;
@@ -178,22 +168,21 @@ std::string validate(const TemporalSettings& s) {
 std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours,
                                          const TemporalSettings& settings, std::span<cv::Mat* const> dsts,
                                          cv::Rect roi, int nthreads) {
-  assert(validate(settings).empty());
-  assert(dsts.size() == frame.terms.size());
+  CV_Assert(validate(settings).empty());
+  CV_Assert(dsts.size() == frame.terms.size());
   int channels = 0;
   for (size_t i = 0; i < frame.terms.size(); ++i) {
     const cv::Mat& src = *frame.terms[i];
-    assert(src.depth() == CV_32F && src.size() == frame.depth_view.size());
-    assert(dsts[i]->data == nullptr || dsts[i]->data != src.data);
+    CV_Assert(src.depth() == CV_32F && src.size() == frame.depth_view.size());
+    CV_Assert(dsts[i]->data == nullptr || dsts[i]->data != src.data);
     dsts[i]->create(src.size(), src.type());
     channels += src.channels();
   }
-  assert(channels <= kMaxChannels);
-  (void)channels;
+  CV_Assert(channels <= kMaxChannels);
   std::vector<TemporalUse> uses(neighbours.size());
   std::vector<Neighbour> used;
   for (size_t i = 0; i < neighbours.size(); ++i) {
-    assert(same_layout(frame, neighbours[i]));
+    CV_Assert(same_layout(frame, neighbours[i]));
     const Neighbour n{&neighbours[i], Reprojection(frame.camera, neighbours[i].camera)};
     measure_neighbour(frame, n, settings, uses[i], nthreads);
     if (uses[i].used) used.push_back(n);
