@@ -12,6 +12,12 @@ namespace ssdo {
 
 namespace {
 
+// The frame's name in its sequence (FrameRequest::input_name, else its path): its key in the
+// cache and in the neighbour lists.
+const std::string& sequence_name(const FrameRequest& request) {
+  return request.input_name.empty() ? request.input_path : request.input_name;
+}
+
 // A camera from a bare --fov has no world: its "world" is its own view space.
 bool has_world(const FrameInfo& info) { return info.camera_source.rfind("--fov", 0) != 0; }
 
@@ -71,7 +77,7 @@ ReadResult SequenceContext::read_in_window(const FrameRequest& request, const Re
     read_key_ = key;
   }
   ReadResult frame;
-  const std::string& name = request.input_name.empty() ? request.input_path : request.input_name;
+  const std::string& name = sequence_name(request);
   Entry& self = cache_[name];
   if (self.raw_whole && self.raw_info) {
     // Computed already as a temporal neighbour: compute() finishes it (its images are shared).
@@ -115,7 +121,7 @@ void SequenceContext::use_settings(const std::string& key) {
 ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
                                        std::vector<std::string>& notes) {
   if (request.temporal_per_side <= 0 || request.neighbours.empty()) return compute_frame(std::move(frame), request);
-  Entry& self = cache_[request.input_name.empty() ? request.input_path : request.input_name];
+  Entry& self = cache_[sequence_name(request)];
   if (!self.camera_has_world) {
     notes.push_back("temporal: none (the frame's camera has no world transform to relate others to)");
     return compute_frame(std::move(frame), request);
@@ -166,7 +172,7 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
   r.input_path = n.open_path.empty() ? n.path : n.open_path;
   r.input_name = n.path;
   r.output_path.clear();
-  const NeighbourFrame self{request.input_name.empty() ? request.input_path : request.input_name, 0, false,
+  const NeighbourFrame self{sequence_name(request), 0, false,
                             request.input_name.empty() ? std::string() : request.input_path, request.read.camera_json};
   r.neighbours = neighbours_of_neighbour(self, request.neighbours, n, view_candidate_places(request.views_per_side));
   ReadResult f = read_in_window(r, neighbour_read(n, read));
@@ -252,14 +258,14 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
 }
 
 void SequenceContext::drop_raw_outside(const FrameRequest& request) {
-  std::set<std::string> window{request.input_name.empty() ? request.input_path : request.input_name};
+  std::set<std::string> window{sequence_name(request)};
   for (const NeighbourFrame& n : within_places(request.neighbours, request.temporal_per_side)) window.insert(n.path);
   for (auto& [name, e] : cache_)
     if (!window.count(name)) e.raw_part.reset();
 }
 
 void SequenceContext::keep_window(const FrameRequest& request) {
-  std::set<std::string> window{request.input_name.empty() ? request.input_path : request.input_name};
+  std::set<std::string> window{sequence_name(request)};
   for (const NeighbourFrame& n : request.neighbours) window.insert(n.path);
   for (auto it = cache_.begin(); it != cache_.end();) it = window.count(it->first) ? std::next(it) : cache_.erase(it);
 }
