@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 
+#include "formats/camera_io.h"
 #include "formats/output_writer.h"
 #include "service/frame_list.h"
 #include "service/frame_options.h"
@@ -36,6 +37,7 @@ struct FileVersion {
 
 // One string for a version, to remember it.
 std::string version_key(const FileVersion& v) {
+  if (!v.exists) return "none";
   return std::to_string(v.ino) + ":" + std::to_string(v.size) + ":" + std::to_string(v.mtime.tv_sec) + "." +
          std::to_string(v.mtime.tv_nsec) + ":" + std::to_string(v.ctime.tv_sec) + "." + std::to_string(v.ctime.tv_nsec);
 }
@@ -51,6 +53,13 @@ FileVersion version_of(const std::string& path) {
   v.mtime = st.st_mtim;
   v.ctime = st.st_ctim;
   return v;
+}
+
+// The version of a frame as its worker reads it: the file and its camera sidecar. Kept for
+// a failed frame, it tells a sidecar that arrived later from the one the failure saw
+// without comparing timestamps (files written within one clock tick share their mtime).
+std::string frame_version_key(const std::string& input) {
+  return version_key(version_of(input)) + "|" + version_key(version_of(sidecar_path_for(input)));
 }
 
 std::string utc_now() {
@@ -260,6 +269,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     return false;
   }
   const FileVersion before = version_of(input);
+  const std::string before_key = frame_version_key(input);
   WorkerResult r;
   if (std::string owner; !claim_output(output, input, owner)) {
     r.error = input + ": its output " + output + " is already written for " + owner;
@@ -293,7 +303,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
       failed_version_.erase(input);
     } else {
       given_up_.insert(input);
-      failed_version_[input] = version_key(before);
+      failed_version_[input] = before_key;
     }
   }
   std::error_code ec;
@@ -314,7 +324,7 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
   {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto failed = failed_version_.find(input);
-    if (failed != failed_version_.end() && failed->second != version_key(version_of(input))) return false;
+    if (failed != failed_version_.end() && failed->second != frame_version_key(input)) return false;
     if (given_up_.count(input)) return true;
   }
   std::ifstream in(error_path);

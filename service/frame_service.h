@@ -112,9 +112,10 @@ class FrameService {
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;
   std::set<std::string> given_up_;       // inputs whose transient failure this run gave up on
-  // The version (inode, size, times) of each input that failed in this run: a file that
-  // differs from it is a new version, even when its time equals its error file's (a copy
-  // finishing within the clock tick the error file was written in).
+  // The version (inode, size, times) of each input that failed in this run, and of its
+  // camera sidecar: a file or sidecar that differs from it is a new version, even when its
+  // time equals its error file's (a copy finishing within the clock tick the error file
+  // was written in).
   std::map<std::string, std::string> failed_version_;
   long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0, retried_ = 0;
   double done_ms_ = 0;

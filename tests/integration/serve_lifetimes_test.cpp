@@ -45,6 +45,9 @@ TEST(ServeLifetimes, SidecarArrivingAfterTheFrameRequeuesIt) {
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
   fs::copy_file(example_frame("cornell.exr"), in / "late.exr");
   ASSERT_TRUE(wait_until([&] { return path_exists(out / "late.error.json"); }, 30)) << service.log();
+  // The sidecar counts as new even when the clock does not say so: files written within
+  // one clock tick share a time, here made certain by dating the error file ahead.
+  fs::last_write_time(out / "late.error.json", fs::file_time_type::clock::now() + std::chrono::seconds(5));
   fs::copy_file(example_frame("cornell.camera.json"), in / "late.camera.json");
   ASSERT_TRUE(wait_until([&] { return path_exists(out / "late.ssdo.exr"); }, 30)) << service.log();
   EXPECT_TRUE(wait_until([&] { return !path_exists(out / "late.error.json"); }, 5));
