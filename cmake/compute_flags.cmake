@@ -10,33 +10,41 @@ add_library(ssdo_compute_flags INTERFACE)
 # taps) from vectorising. Results are unchanged: rounding is not touched.
 target_compile_options(ssdo_compute_flags INTERFACE -O3 -ffp-contract=off -fno-math-errno -fno-trapping-math)
 
-# Instruction set of the kernels (their loops are written to vectorise: 8 floats per AVX2
-# register instead of 4 with the x86-64 baseline's SSE2).
-#   auto (default)  x86-64-v3 (AVX2, FMA, BMI2) when the compiler accepts it and the build
-#                   machine runs it (the product is built where it runs), else the baseline
-#   none            the compiler's default (portable x86-64 binaries)
-#   <any other>     passed as -march=<value>, e.g. native or x86-64-v4
-# x86-64-v3 rather than native: the binaries also run on any AVX2 node of a farm, and the
-# kernels gain nothing measurable from AVX-512 (memory-bound taps, 8-wide rows).
-set(SSDO_ARCH "auto" CACHE STRING "Kernels' -march: auto, none or a -march value")
-if(SSDO_ARCH STREQUAL "auto")
-  include(CheckCXXSourceRuns)
-  set(CMAKE_REQUIRED_FLAGS "-march=x86-64-v3")
-  check_cxx_source_runs([=[
-    int main() {
-      __builtin_cpu_init();
-      return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
-             __builtin_cpu_supports("bmi2") ? 0 : 1;
-    }]=] SSDO_HOST_RUNS_X86_64_V3)
-  unset(CMAKE_REQUIRED_FLAGS)
-  if(SSDO_HOST_RUNS_X86_64_V3)
-    set(SSDO_ARCH_FLAG "-march=x86-64-v3")
-  endif()
-elseif(NOT SSDO_ARCH STREQUAL "none")
-  set(SSDO_ARCH_FLAG "-march=${SSDO_ARCH}")
+# Instruction sets of the kernels. One build runs on every machine of its architecture:
+# the kernels' hot loops are compiled once per instruction set (Google Highway's
+# foreach_target: the baseline, AVX2 and AVX-512 on x86-64; NEON on aarch64) and the
+# best one the CPU runs is chosen at run time (core/simd.h), so a binary built on a new
+# farm node also runs on an old one. The loops give the same bits on every target:
+# -ffp-contract=off above, and no instruction-specific math (the upsample's exp is its own,
+# kernels/half_resolution.cpp). Files without a hot loop (presets, the environment's
+# one-off tables, metrics) are compiled once, for the baseline.
+#   SSDO_SIMD_TARGETS  all (default): the dispatched set above; baseline: only the
+#                      baseline (the sanitizer build: a third of the kernels' compile
+#                      time, and its test run covers the fallback every CPU can take)
+#   SSDO_ARCH          none (default) or a -march value raising the baseline itself
+#                      (e.g. native: a binary for this machine only)
+find_package(hwy REQUIRED)
+set(SSDO_SIMD_TARGETS "all" CACHE STRING "Instruction sets the kernels are compiled for: all or baseline")
+set_property(CACHE SSDO_SIMD_TARGETS PROPERTY STRINGS all baseline)
+set(SSDO_ARCH "none" CACHE STRING "Baseline -march of the compute layers: none or a -march value")
+if(SSDO_ARCH STREQUAL "auto")  # the former default, still in older build folders' caches
+  set_property(CACHE SSDO_ARCH PROPERTY VALUE none)
 endif()
-if(SSDO_ARCH_FLAG)
+target_link_libraries(ssdo_compute_flags INTERFACE hwy::hwy)
+# Targets compiled besides the baseline: AVX2 (with FMA, F16C, BMI2) and AVX-512 on x86,
+# NEON on Arm. SSSE3/SSE4 and the newer AVX-512 and SVE variants would each add a
+# compilation of every dispatched file for little: the loops are memory-bound and
+# 8 lanes wide.
+target_compile_definitions(ssdo_compute_flags INTERFACE
+  "HWY_DISABLED_TARGETS=(HWY_SSSE3|HWY_SSE4|HWY_AVX3_DL|HWY_SVE|HWY_SVE2|HWY_SVE_256|HWY_SVE2_128)")
+if(SSDO_SIMD_TARGETS STREQUAL "baseline")
+  target_compile_definitions(ssdo_compute_flags INTERFACE HWY_COMPILE_ONLY_STATIC=1)
+elseif(NOT SSDO_SIMD_TARGETS STREQUAL "all")
+  message(FATAL_ERROR "SSDO_SIMD_TARGETS must be all or baseline, not '${SSDO_SIMD_TARGETS}'")
+endif()
+if(NOT SSDO_ARCH STREQUAL "none")
+  set(SSDO_ARCH_FLAG "-march=${SSDO_ARCH}")
   target_compile_options(ssdo_compute_flags INTERFACE ${SSDO_ARCH_FLAG})
 endif()
 set_property(GLOBAL PROPERTY SSDO_KERNEL_ARCH_FLAG "${SSDO_ARCH_FLAG}")
-message(STATUS "ssdo compute layers: SSDO_ARCH=${SSDO_ARCH} -> ${SSDO_ARCH_FLAG}")
+message(STATUS "ssdo compute layers: SIMD targets ${SSDO_SIMD_TARGETS}, SSDO_ARCH=${SSDO_ARCH}")

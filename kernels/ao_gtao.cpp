@@ -53,6 +53,11 @@
 // and their integral (height_field_horizons, height_field_integral) or the visibility mask
 // and its integral (visibility_mask, visibility_mask_integral), and the slice's bent normal
 // (slice_bent_normal); a row's sums become AO and bent normal in finish_row.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/ao_gtao.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -65,7 +70,8 @@
 #include "core/parallel.h"
 #include "core/uninitialized.h"
 
-namespace ssdo::detail {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::detail::HWY_NAMESPACE {
 namespace {
 
 constexpr int kSectors = 64;
@@ -868,4 +874,16 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
       kTileHeightPx);
 }
 
+}  // namespace ssdo::detail::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo::detail {
+
+HWY_EXPORT(ao_gtao);
+void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(ao_gtao)(in, s, out, roi, nthreads);
+}
+
 }  // namespace ssdo::detail
+#endif  // HWY_ONCE

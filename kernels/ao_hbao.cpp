@@ -27,6 +27,11 @@
 //
 // Bent normal: each half slice's cosine-weighted mean visible direction between its view
 // vector and its horizon (closed forms, as GTAO), weighted by |pn|, normalised.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/ao_hbao.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <array>
 #include <numbers>
 #include <vector>
@@ -36,7 +41,8 @@
 #include "kernels/noise.h"
 #include "core/parallel.h"
 
-namespace ssdo::detail {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::detail::HWY_NAMESPACE {
 namespace {
 
 // The settings turned into what the pixel loop reads, once per call.
@@ -216,4 +222,16 @@ void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   });
 }
 
+}  // namespace ssdo::detail::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo::detail {
+
+HWY_EXPORT(ao_hbao);
+void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(ao_hbao)(in, s, out, roi, nthreads);
+}
+
 }  // namespace ssdo::detail
+#endif  // HWY_ONCE

@@ -20,6 +20,11 @@
 // not of rays: it matches ray-traced AO where occluders are large (walls, corners) and
 // differs where they are small (a sphere above a floor shadows more rays than it fills
 // volume). No bent normal.
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/ao_hemisphere.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <array>
 #include <numbers>
 #include <vector>
@@ -29,7 +34,8 @@
 #include "kernels/noise.h"
 #include "core/parallel.h"
 
-namespace ssdo::detail {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::detail::HWY_NAMESPACE {
 namespace {
 
 constexpr float kTwoPi = 2.0f * std::numbers::pi_v<float>;
@@ -176,4 +182,16 @@ void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const
   });
 }
 
+}  // namespace ssdo::detail::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo::detail {
+
+HWY_EXPORT(ao_hemisphere);
+void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(ao_hemisphere)(in, s, out, roi, nthreads);
+}
+
 }  // namespace ssdo::detail
+#endif  // HWY_ONCE

@@ -1,5 +1,10 @@
 #include "kernels/composite.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/composite.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <cmath>
 #include <tuple>
 #include <vector>
@@ -7,7 +12,8 @@
 #include "core/enum_names.h"
 #include "core/parallel.h"
 
-namespace ssdo {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 
 namespace {
 
@@ -68,7 +74,7 @@ std::string validate(const CompositeInputs& in, const CompositeSettings& s) {
     return "ambient_radiance must be >= 0";
   bool seen[5] = {false, false, false, false, false};
   for (const WeightedTerm& t : s.terms) {
-    const std::string name(to_string(t.term));
+    const std::string name(ssdo::to_string(t.term));
     if (seen[int(t.term)]) return "term " + name + " selected twice";
     seen[int(t.term)] = true;
     if (!(t.weight >= 0.0f && t.weight <= 16.0f))
@@ -145,7 +151,7 @@ ForegroundSpan foreground_span_for(bool direct, bool indirect, bool lighting) {
 
 void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv::Mat& out, cv::Rect roi,
                        int nthreads) {
-  CV_Assert(validate(in, s).empty());
+  CV_Assert(ssdo::validate(in, s).empty());
   const cv::Size size = in.mask.size();
   if (out.size() != size || out.type() != CV_32FC3) out.create(size, CV_32FC3);
   // Per-term weights (0 = not selected), fixed order so the sum does not depend on the list order.
@@ -198,4 +204,28 @@ void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv
   });
 }
 
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+std::string_view to_string(CompositeTerm t) { return HWY_NAMESPACE::to_string(t); }
+
+std::string_view to_string(CompositeMode m) { return HWY_NAMESPACE::to_string(m); }
+
+std::optional<CompositeTerm> parse_composite_term(std::string_view s) { return HWY_NAMESPACE::parse_composite_term(s); }
+
+std::optional<CompositeMode> parse_composite_mode(std::string_view s) { return HWY_NAMESPACE::parse_composite_mode(s); }
+
+std::vector<WeightedTerm> composite_mode_terms(CompositeMode mode) { return HWY_NAMESPACE::composite_mode_terms(mode); }
+
+std::string validate(const CompositeInputs& in, const CompositeSettings& s) { return HWY_NAMESPACE::validate(in, s); }
+
+HWY_EXPORT(compute_composite);
+void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv::Mat& out, cv::Rect roi, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(compute_composite)(in, s, out, roi, nthreads);
+}
+
 }  // namespace ssdo
+#endif  // HWY_ONCE

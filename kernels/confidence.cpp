@@ -9,6 +9,11 @@
 // |u|, which weights each chord by its true length.
 #include "kernels/confidence.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/confidence.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include "kernels/settings_check.h"
 
 #include <algorithm>
@@ -21,7 +26,8 @@
 #include "core/parallel.h"
 #include "core/uninitialized.h"
 
-namespace ssdo {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 namespace {
 
 // Golden angle, radians: successive Vogel-spiral taps (Vogel 1979, "A better way to
@@ -427,7 +433,7 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
                         int nthreads, const ConfidenceViews& views) {
-  CV_Assert(validate(s).empty());
+  CV_Assert(ssdo::validate(s).empty());
   CV_Assert(depth_view.type() == CV_32FC1);
   const cv::Size size = depth_view.size();
   CV_Assert(normal_view.type() == CV_32FC3 && normal_view.size() == size);
@@ -458,4 +464,20 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                 [&](const cv::Range& rows) { confidence_rows(frame, rows, r, confidence); });
 }
 
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+bool runs_on_half_grid(const ConfidenceSettings& s) { return HWY_NAMESPACE::runs_on_half_grid(s); }
+
+std::string validate(const ConfidenceSettings& s) { return HWY_NAMESPACE::validate(s); }
+
+HWY_EXPORT(compute_confidence);
+void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask, const Camera& camera, const ConfidenceSettings& settings, cv::Mat& confidence, cv::Rect roi, int nthreads, const ConfidenceViews& views) {
+  HWY_DYNAMIC_DISPATCH(compute_confidence)(depth_view, normal_view, mask, camera, settings, confidence, roi, nthreads, views);
+}
+
 }  // namespace ssdo
+#endif  // HWY_ONCE

@@ -11,6 +11,11 @@
 // kLanes pixels at once.
 #include "kernels/denoise.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/denoise.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include "kernels/settings_check.h"
 
 #include <algorithm>
@@ -22,7 +27,15 @@
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
 
-namespace ssdo {
+// Lanes below are 8 floats whatever the target; on the baseline they are not one register
+// and GCC notes that functions passing them by value would have another ABI than with AVX:
+// they are all internal and inlined.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wpsabi"
+#endif
+
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 namespace {
 
 constexpr int kMaxRadiusPx = 32;
@@ -382,6 +395,47 @@ void prepare_dst(const cv::Mat& src, cv::Mat& dst) {
 
 }  // namespace
 
+// The filter of denoise_bilateral() (whose checks it assumes) for this instruction set.
+void denoise_channels(std::span<const cv::Mat* const> srcs, const cv::Mat& depth_view, const cv::Mat& normal_view,
+                      const cv::Mat& mask, const DenoiseSettings& settings, std::span<cv::Mat* const> dsts,
+                      cv::Rect roi, int nthreads) {
+  std::vector<Channel> channels;
+  for (size_t i = 0; i < srcs.size(); ++i) {
+    const cv::Mat& src = *srcs[i];
+    prepare_dst(src, *dsts[i]);
+    for (int c = 0; c < src.channels(); ++c) channels.push_back({srcs[i], dsts[i], c, src.channels()});
+  }
+  for (cv::Mat* dst : dsts)
+    for (const cv::Mat* src : srcs) CV_Assert(dst->data != src->data);
+  const cv::Rect r = resolve_roi(roi, depth_view.size());
+  if (r.empty()) return;
+  const FilterConstants k(depth_view, normal_view, mask, settings);
+  if (settings.normal_power == float(DefaultLobe::kPower))
+    filter_all(k, channels, r, nthreads, DefaultLobe{});
+  else
+    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power));
+}
+
+void box_blur_channels(const cv::Mat& src, cv::Mat& dst, cv::Rect roi, int nthreads) {
+  prepare_dst(src, dst);
+  const cv::Rect r = resolve_roi(roi, src.size());
+  if (r.empty()) return;
+  if (src.channels() == 1)
+    box4<1>(src, dst, r, nthreads);
+  else
+    box4<3>(src, dst, r, nthreads);
+}
+
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+HWY_EXPORT(denoise_channels);
+HWY_EXPORT(box_blur_channels);
+using HWY_NAMESPACE::kMaxRadiusPx;
+
 std::string validate(const DenoiseSettings& s) {
   if (s.radius_px < 0 || s.radius_px > kMaxRadiusPx) return detail::out_of_range("radius_px", s.radius_px, "[0, 32]");
   if (!(s.sigma_px > 0.0f) || !std::isfinite(s.sigma_px)) return detail::out_of_range("sigma_px", s.sigma_px, "(0, inf)");
@@ -406,35 +460,19 @@ void denoise_bilateral(std::span<const cv::Mat* const> srcs, const cv::Mat& dept
                        cv::Rect roi, int nthreads) {
   CV_Assert(validate(settings).empty());
   CV_Assert(srcs.size() == dsts.size() && !srcs.empty());
-  std::vector<Channel> channels;
   for (size_t i = 0; i < srcs.size(); ++i) {
     const cv::Mat& src = *srcs[i];
     CV_Assert(depth_view.type() == CV_32FC1 && depth_view.size() == src.size());
     CV_Assert(normal_view.type() == CV_32FC3 && normal_view.size() == src.size());
     CV_Assert(mask.type() == CV_8UC1 && mask.size() == src.size());
     for (size_t k = 0; k < i; ++k) CV_Assert(dsts[k] != dsts[i]);
-    prepare_dst(src, *dsts[i]);
-    for (int c = 0; c < src.channels(); ++c) channels.push_back({srcs[i], dsts[i], c, src.channels()});
   }
-  for (cv::Mat* dst : dsts)
-    for (const cv::Mat* src : srcs) CV_Assert(dst->data != src->data);
-  const cv::Rect r = resolve_roi(roi, depth_view.size());
-  if (r.empty()) return;
-  const FilterConstants k(depth_view, normal_view, mask, settings);
-  if (settings.normal_power == float(DefaultLobe::kPower))
-    filter_all(k, channels, r, nthreads, DefaultLobe{});
-  else
-    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power));
+  HWY_DYNAMIC_DISPATCH(denoise_channels)(srcs, depth_view, normal_view, mask, settings, dsts, roi, nthreads);
 }
 
 void box_blur_4x4(const cv::Mat& src, cv::Mat& dst, cv::Rect roi, int nthreads) {
-  prepare_dst(src, dst);
-  const cv::Rect r = resolve_roi(roi, src.size());
-  if (r.empty()) return;
-  if (src.channels() == 1)
-    box4<1>(src, dst, r, nthreads);
-  else
-    box4<3>(src, dst, r, nthreads);
+  HWY_DYNAMIC_DISPATCH(box_blur_channels)(src, dst, roi, nthreads);
 }
 
 }  // namespace ssdo
+#endif  // HWY_ONCE

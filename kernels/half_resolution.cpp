@@ -1,5 +1,10 @@
 #include "kernels/half_resolution.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/half_resolution.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -7,19 +12,12 @@
 #include <limits>
 #include <vector>
 
-#if defined(__AVX2__) && defined(__FMA__) && defined(SSDO_HAVE_LIBMVEC)
-#include <immintrin.h>
-#define SSDO_HALF_RESOLUTION_AVX2 1
-// glibc's vector math library (libmvec): expf in 8 AVX2 lanes, by its Vector Function ABI
-// name (what GCC calls for a vectorised expf).
-extern "C" __m256 _ZGVdN8v_expf(__m256 x);
-#endif
-
 #include "core/parallel.h"
 #include "kernels/normals.h"
 #include "kernels/positions.h"
 
-namespace ssdo {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 
 namespace {
 
@@ -34,17 +32,47 @@ constexpr float kMinUpsampleWeight = 1e-4f;
 
 constexpr int kMaxChannels = 4;
 
-#if SSDO_HALF_RESOLUTION_AVX2
-// exp(x) of the weights' depth term (x <= 0). With AVX2 the weights are computed 8 pixels
-// at a time with libmvec's expf, and the per-pixel code calls the same function (one lane
-// of it): a weight has the same bits whichever path computes it, so the output does not
-// depend on rois or thread counts. On [-104, 0] libmvec's expf differs from std::exp in
-// 4.4% of the floats, by at most 3 ulp (2^-21 relative): far below what a weight needs.
-inline __m256 depth_falloff_8(__m256 x) { return _ZGVdN8v_expf(x); }
-inline float depth_falloff(float x) { return _mm256_cvtss_f32(_ZGVdN8v_expf(_mm256_set1_ps(x))); }
-#else
-inline float depth_falloff(float x) { return std::exp(x); }
-#endif
+// exp(x) of the weights' depth term, x <= 0: Cephes' expf (Moshier 1984-2000, "cephes
+// math library", expf.c): n = floor(x log2(e) + 1/2), r = x - n ln 2 in two parts
+// (Cody & Waite), e^r by its degree-7 minimax polynomial on [-ln 2 / 2, ln 2 / 2], times
+// 2^n through the exponent bits; within 2 ulp of exp on the clamped range. The scalar
+// and the vector form do the same operations in the same order (no fused multiply-add),
+// so a weight has the same bits on every instruction set, whichever path computes it.
+// x is clamped to -87 (exp = 1.6e-38, still a normal float): a weight that small never
+// decides a blend (kMinUpsampleWeight).
+constexpr float kExpMinArgument = -87.0f;
+constexpr float kLog2e = 1.44269504088896341f;
+constexpr float kLn2High = 0.693359375f, kLn2Low = -2.12194440e-4f;
+constexpr float kExpPoly[6] = {1.9875691500e-4f, 1.3981999507e-3f, 8.3334519073e-3f,
+                               4.1665795894e-2f, 1.6666665459e-1f, 5.0000001201e-1f};
+
+inline float depth_falloff(float x) {
+  x = std::max(x, kExpMinArgument);
+  const float n = std::floor(x * kLog2e + 0.5f);
+  const float r = (x - n * kLn2High) - n * kLn2Low;
+  float p = kExpPoly[0];
+  for (int i = 1; i < 6; ++i) p = p * r + kExpPoly[i];
+  const float e = p * (r * r) + r + 1.0f;
+  return e * std::bit_cast<float>(uint32_t(int32_t(n) + 127) << 23);
+}
+
+namespace hn = hwy::HWY_NAMESPACE;
+using FloatLanes = hn::ScalableTag<float>;
+using Lanes = hn::Vec<FloatLanes>;
+
+// depth_falloff of every lane, by the same operations.
+inline Lanes depth_falloff_lanes(Lanes x) {
+  const FloatLanes d;
+  const hn::RebindToSigned<FloatLanes> di;
+  x = hn::Max(x, hn::Set(d, kExpMinArgument));
+  const Lanes n = hn::Floor(hn::Add(hn::Mul(x, hn::Set(d, kLog2e)), hn::Set(d, 0.5f)));
+  const Lanes r = hn::Sub(hn::Sub(x, hn::Mul(n, hn::Set(d, kLn2High))), hn::Mul(n, hn::Set(d, kLn2Low)));
+  Lanes p = hn::Set(d, kExpPoly[0]);
+  for (int i = 1; i < 6; ++i) p = hn::Add(hn::Mul(p, r), hn::Set(d, kExpPoly[i]));
+  const Lanes e = hn::Add(hn::Add(hn::Mul(p, hn::Mul(r, r)), r), hn::Set(d, 1.0f));
+  const auto bits = hn::ShiftLeft<23>(hn::Add(hn::ConvertTo(di, n), hn::Set(di, 127)));
+  return hn::Mul(e, hn::BitCast(d, bits));
+}
 
 void write_scalar(float* dst, const cv::Scalar& v, int channels) {
   for (int ch = 0; ch < channels; ++ch) dst[ch] = float(v[ch]);
@@ -231,52 +259,29 @@ void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const Upsa
 // (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
 constexpr int kRowsPerStrip = 16;
 
-#ifdef SSDO_HALF_RESOLUTION_AVX2
-// Eight pixels at a time (AVX2, FMA): the same operations as the per-pixel code in the
-// same order, lane by lane, so the same bits. Pixel x (odd) .. x + 7 read texel columns
-// m .. m + 4, m = (x - 1) / 2: pixels 2m + 1 and 2m + 2 both read texels m and m + 1, with
-// bilinear fractions 0.25 and 0.75 (exact in float for widths below 2^22).
+// Lanes of pixels at a time (Highway's full vector of floats: 8 with AVX2, 16 with
+// AVX-512, 4 with NEON): the same operations as the per-pixel code in the same order,
+// lane by lane, so the same bits. Pixel x (odd) + l, l = 0 .. N - 1, reads texel columns
+// m + l / 2 and m + l / 2 + 1, m = (x - 1) / 2, with the bilinear fraction 0.25 for even
+// l and 0.75 for odd l (exact in float for widths below 2^22).
 namespace lanes {
 
 constexpr int kMaxWidth = 1 << 22;
+// Floats past a TexelRows array's last texel, so that a full vector loads from any column.
+constexpr int kPadding = 64;
+static_assert(HWY_MAX_BYTES / sizeof(float) <= kPadding);
 
-// x, y, z of 8 interleaved 3-vectors (24 floats) and back.
-inline void deinterleave_3(const float* p, __m256& x, __m256& y, __m256& z) {
-  const __m256 a = _mm256_loadu_ps(p), b = _mm256_loadu_ps(p + 8), c = _mm256_loadu_ps(p + 16);
-  x = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a, b, 0b10010010), c, 0b00100100),
-                               _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
-  y = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a, b, 0b00100100), c, 0b01001001),
-                               _mm256_setr_epi32(1, 4, 7, 2, 5, 0, 3, 6));
-  z = _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a, b, 0b01001001), c, 0b10010010),
-                               _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
-}
-
-inline void interleave_3(__m256 x, __m256 y, __m256 z, float* p) {
-  x = _mm256_permutevar8x32_ps(x, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
-  y = _mm256_permutevar8x32_ps(y, _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2));
-  z = _mm256_permutevar8x32_ps(z, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
-  _mm256_storeu_ps(p, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b10010010), z, 0b00100100));
-  _mm256_storeu_ps(p + 8, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b00100100), z, 0b01001001));
-  _mm256_storeu_ps(p + 16, _mm256_blend_ps(_mm256_blend_ps(x, y, 0b01001001), z, 0b10010010));
-}
-
-// All-ones lanes where the 8 mask bytes are nonzero.
-inline __m256 foreground(const uint8_t* mask) {
-  const __m256i m = _mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(mask)));
-  return _mm256_castsi256_ps(_mm256_cmpgt_epi32(m, _mm256_setzero_si256()));
-}
-
-// Texel rows of the half grid laid out for 8 pixels at a time: per row, one array per
-// quantity (the depth, the normal's x, y, z and the mask as all-ones or zero
+// Texel rows of the half grid laid out for a vector of pixels at a time: per row, one
+// array per quantity (the depth, the normal's x, y, z and the mask as all-ones or zero
 // bits; then each image's channels), indexed by texel column + 1, the edge texels repeated
-// at 0 and hw + 1 (axis_footprint's clamp). The texels of pixels x .. x + 7 are then lanes
-// 0 .. 4 of each array from m + 1, and a strip fills each row it reads once.
+// at 0 and hw + 1 (axis_footprint's clamp). The texels of pixels x .. x + N - 1 are then
+// lanes 0 .. N / 2 of each array from m + 1, and a strip fills each row it reads once.
 class TexelRows {
  public:
   static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kMask = 4;
 
   TexelRows(const HalfGrid& h, std::span<const UpsampleImage> images)
-      : h_(h), images_(images), hw_(h.depth_view.cols), length_(hw_ + 2 + 8) {
+      : h_(h), images_(images), hw_(h.depth_view.cols), length_(hw_ + 2 + kPadding) {
     int arrays = kMask + 1;
     for (const UpsampleImage& im : images) {
       image_first_.push_back(arrays);
@@ -335,46 +340,42 @@ class TexelRows {
   int row_[2] = {-1, -1};
 };
 
-// The texels of pixels x .. x + 7 (x odd) from one array of TexelRows: column t[0] of each
-// pixel (kFirst) or t[1] (kSecond).
-inline __m256 texel_lanes(const float* array, int x, __m256i column) {
-  return _mm256_permutevar8x32_ps(_mm256_loadu_ps(array + (x - 1) / 2 + 1), column);
-}
+// Per lane l: which texel column of the loaded ones it reads (l / 2 for the first texel
+// of its footprint, l / 2 + 1 for the second) and its horizontal bilinear weights.
+using LaneIndices = decltype(hn::SetTableIndices(FloatLanes(), static_cast<const int32_t*>(nullptr)));
+struct LanePattern {
+  LaneIndices column[2];
+  Lanes wx[2];
 
-inline __m256i column_lanes(int k) {
-  return (k & 1) ? _mm256_setr_epi32(1, 1, 2, 2, 3, 3, 4, 4) : _mm256_setr_epi32(0, 0, 1, 1, 2, 2, 3, 3);
-}
-
-// texel_weights of the 8 pixels x .. x + 7 (x odd) of a row whose texel rows are r0, r1
-// (TexelRows) and vertical bilinear weights wy; 0 where `foreground` is not.
-inline void texel_weights_8(const float* r0, const float* r1, int length, const float wy[2], int x,
-                            const float* depth_row, const float* normal_row, __m256 foreground, __m256 w[4]) {
-  const __m256 zero = _mm256_setzero_ps(), sign = _mm256_set1_ps(-0.0f);
-  const __m256 d = _mm256_loadu_ps(depth_row + x);
-  __m256 nx, ny, nz;
-  deinterleave_3(normal_row + size_t(3) * size_t(x), nx, ny, nz);
-  const __m256 inv_tol = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_mul_ps(_mm256_set1_ps(kUpsampleDepthRelative), d));
-  const __m256 frac_x = _mm256_setr_ps(0.25f, 0.75f, 0.25f, 0.75f, 0.25f, 0.75f, 0.25f, 0.75f);
-  const __m256 wx[2] = {_mm256_sub_ps(_mm256_set1_ps(1.0f), frac_x), frac_x};
-  for (int k = 0; k < 4; ++k) {
-    const float* row = (k >> 1) ? r1 : r0;
-    const __m256i column = column_lanes(k);
-    const __m256 valid = _mm256_and_ps(foreground, texel_lanes(row + TexelRows::kMask * length, x, column));
-    const __m256 wb = _mm256_mul_ps(wx[k & 1], _mm256_set1_ps(wy[k >> 1]));
-    const __m256 texel_depth = texel_lanes(row + TexelRows::kDepth * length, x, column);
-    const __m256 dz = _mm256_mul_ps(_mm256_andnot_ps(sign, _mm256_sub_ps(texel_depth, d)), inv_tol);
-    // exp(-dz); 0 (exp = 1, the weight set to 0 below) where the weight is 0.
-    const __m256 e = depth_falloff_8(_mm256_and_ps(valid, _mm256_xor_ps(dz, sign)));
-    __m256 c = _mm256_add_ps(zero, _mm256_mul_ps(nx, texel_lanes(row + TexelRows::kNormalX * length, x, column)));
-    c = _mm256_add_ps(c, _mm256_mul_ps(ny, texel_lanes(row + TexelRows::kNormalY * length, x, column)));
-    c = _mm256_add_ps(c, _mm256_mul_ps(nz, texel_lanes(row + TexelRows::kNormalZ * length, x, column)));
-    c = _mm256_max_ps(c, zero);  // c > 0 ? c : 0, as std::max(0, c)
-    c = _mm256_mul_ps(c, c);
-    w[k] = _mm256_and_ps(valid, _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(wb, e), c), c));
+  LanePattern() {
+    const FloatLanes d;
+    const hn::RebindToSigned<FloatLanes> di;
+    const auto half_lane = hn::ShiftRight<1>(hn::Iota(di, 0));
+    column[0] = hn::IndicesFromVec(d, half_lane);
+    column[1] = hn::IndicesFromVec(d, hn::Add(half_lane, hn::Set(di, 1)));
+    const auto odd = hn::RebindMask(d, hn::Eq(hn::And(hn::Iota(di, 0), hn::Set(di, 1)), hn::Set(di, 1)));
+    const Lanes frac_x = hn::IfThenElse(odd, hn::Set(d, 0.75f), hn::Set(d, 0.25f));
+    wx[0] = hn::Sub(hn::Set(d, 1.0f), frac_x);
+    wx[1] = frac_x;
   }
+};
+
+// Lanes whose mask bytes (one per pixel) are nonzero.
+inline hn::Mask<FloatLanes> foreground(const uint8_t* mask) {
+  const FloatLanes d;
+  const hn::RebindToSigned<FloatLanes> di;
+  const hn::Rebind<uint8_t, FloatLanes> d8;
+  const auto m = hn::BitCast(di, hn::PromoteTo(hn::RebindToUnsigned<FloatLanes>(), hn::LoadU(d8, mask)));
+  return hn::RebindMask(d, hn::Gt(m, hn::Zero(di)));
 }
 
-// What the 8-pixel code of pixel row y reads: its two texel rows (from `texels`), their
+// The texels of pixels x .. x + N - 1 (x odd) from one array of TexelRows: column t[0] of
+// each pixel's footprint (k = 0) or t[1] (k = 1).
+inline Lanes texel_lanes(const float* array, int x, const LanePattern& p, int k) {
+  return hn::TableLookupLanes(hn::LoadU(FloatLanes(), array + (x - 1) / 2 + 1), p.column[k]);
+}
+
+// What the vector code of pixel row y reads: its two texel rows (from `texels`), their
 // vertical bilinear weights and the row's full-resolution guides.
 struct PixelRow {
   const float* r0;
@@ -394,30 +395,119 @@ struct PixelRow {
     texels.rows(fy.t[0], fy.t[1], r0, r1);
   }
 
-  // texel_weights_8 of pixels x .. x + 7, 0 where `fg` is not.
-  void weights(int x, __m256 fg, __m256 w[4]) const {
-    texel_weights_8(r0, r1, length, wy, x, depth, normal, fg, w);
+  // texel_weights of pixels x .. x + N - 1 (x odd), 0 where `fg` is not.
+  void weights(int x, const LanePattern& p, hn::Mask<FloatLanes> fg, Lanes w[4]) const {
+    const FloatLanes d;
+    const Lanes zero = hn::Zero(d);
+    const Lanes depth_px = hn::LoadU(d, depth + x);
+    Lanes nx, ny, nz;
+    hn::LoadInterleaved3(d, normal + size_t(3) * size_t(x), nx, ny, nz);
+    const Lanes inv_tol = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, kUpsampleDepthRelative), depth_px));
+    for (int k = 0; k < 4; ++k) {
+      const float* row = (k >> 1) ? r1 : r0;
+      const int c = k & 1;
+      const auto valid =
+          hn::And(fg, hn::MaskFromVec(texel_lanes(row + TexelRows::kMask * length, x, p, c)));
+      const Lanes wb = hn::Mul(p.wx[c], hn::Set(d, wy[k >> 1]));
+      const Lanes texel_depth = texel_lanes(row + TexelRows::kDepth * length, x, p, c);
+      const Lanes dz = hn::Mul(hn::Abs(hn::Sub(texel_depth, depth_px)), inv_tol);
+      // exp(-dz); exp(0) where the weight is 0 anyway (set below).
+      const Lanes e = depth_falloff_lanes(hn::IfThenElseZero(valid, hn::Neg(dz)));
+      Lanes cos = hn::Add(zero, hn::Mul(nx, texel_lanes(row + TexelRows::kNormalX * length, x, p, c)));
+      cos = hn::Add(cos, hn::Mul(ny, texel_lanes(row + TexelRows::kNormalY * length, x, p, c)));
+      cos = hn::Add(cos, hn::Mul(nz, texel_lanes(row + TexelRows::kNormalZ * length, x, p, c)));
+      cos = hn::Max(cos, zero);  // as std::max(0, c)
+      cos = hn::Mul(cos, cos);
+      w[k] = hn::IfThenElseZero(valid, hn::Mul(hn::Mul(hn::Mul(wb, e), cos), cos));
+    }
   }
 };
 
 }  // namespace lanes
-#endif
 
-// The pixels of row y in [x0, x1) that the 8-pixel code takes: from the first odd x, whole
-// groups of 8 (the others go pixel by pixel).
+// The pixels of row y in [x0, x1) that the vector code takes: from the first odd x, whole
+// vectors (the others go pixel by pixel).
 struct LaneSpan {
   int begin, end;
 };
 
 inline LaneSpan lane_span(int x0, int x1, int width) {
-#ifdef SSDO_HALF_RESOLUTION_AVX2
-  if (width < lanes::kMaxWidth) {
+  const int n = int(hn::Lanes(FloatLanes()));
+  if (n >= 2 && width < lanes::kMaxWidth) {  // a lane reads two texel columns
     const int begin = std::max(x0, 1) | 1;
-    if (begin + 8 <= x1) return {begin, begin + (x1 - begin) / 8 * 8};
+    if (begin + n <= x1) return {begin, begin + (x1 - begin) / n * n};
   }
-#endif
-  (void)x0, (void)width;
   return {x1, x1};
+}
+
+// The images' values of pixels x .. x + N - 1 of row y (x odd, the row's texels in `row`),
+// from weights w and their sum: the blend where a pixel is foreground, the background
+// elsewhere (pixels whose weights are too small are redone one by one after).
+void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p,
+                 std::span<const UpsampleImage> images, const Lanes w[4], Lanes wsum, hn::Mask<FloatLanes> fg,
+                 int x, int y) {
+  const FloatLanes d;
+  const size_t n = hn::Lanes(d);
+  const Lanes zero = hn::Zero(d);
+  hn::Mask<FloatLanes> used[4];  // texels of nonzero weight (blend skips the others)
+  for (int k = 0; k < 4; ++k) used[k] = hn::Ne(w[k], zero);
+  for (size_t i = 0; i < images.size(); ++i) {
+    const UpsampleImage& im = images[i];
+    const int cn = im.half.channels();
+    Lanes value[kMaxChannels];
+    for (int ch = 0; ch < cn; ++ch) {
+      const int a = (texels.image_first(i) + ch) * row.length;
+      Lanes acc = zero;
+      for (int k = 0; k < 4; ++k) {
+        const Lanes v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, p, k & 1);
+        acc = hn::IfThenElse(used[k], hn::Add(acc, hn::Mul(w[k], v)), acc);
+      }
+      value[ch] = hn::IfThenElse(fg, hn::Div(acc, wsum), hn::Set(d, float(im.background[ch])));
+    }
+    float* out = im.full.ptr<float>(y) + size_t(x) * size_t(cn);
+    if (cn == 1) {
+      hn::StoreU(value[0], d, out);
+    } else if (cn == 3) {
+      hn::StoreInterleaved3(value[0], value[1], value[2], d, out);
+    } else {
+      HWY_ALIGN float v[kMaxChannels][lanes::kPadding];
+      for (int ch = 0; ch < cn; ++ch) hn::Store(value[ch], d, v[ch]);
+      for (size_t l = 0; l < n; ++l)
+        for (int ch = 0; ch < cn; ++ch) out[l * size_t(cn) + size_t(ch)] = v[ch][l];
+    }
+  }
+}
+
+// Pixels [span.begin, span.end) of row y, a vector at a time.
+void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
+                    lanes::TexelRows& texels, const AxisFootprint& fy, const LaneSpan& span, int y) {
+  const FloatLanes d;
+  const size_t n = hn::Lanes(d);
+  const lanes::LanePattern p;
+  const lanes::PixelRow row(texels, full, y, fy);
+  for (int x = span.begin; x < span.end; x += int(n)) {
+    const auto fg = lanes::foreground(row.mask + x);
+    Lanes w[4];
+    row.weights(x, p, fg, w);
+    Lanes wsum = hn::Zero(d);
+    for (int k = 0; k < 4; ++k) wsum = hn::Add(wsum, w[k]);
+    blend_lanes(texels, row, p, images, w, wsum, fg, x, y);
+    // Foreground pixels whose weights are too small go pixel by pixel.
+    const auto low = hn::AndNot(hn::Gt(wsum, hn::Set(d, kMinUpsampleWeight)), fg);
+    if (hn::AllFalse(d, low)) continue;
+    HWY_ALIGN float wl[4][lanes::kPadding], low_lane[lanes::kPadding];
+    for (int k = 0; k < 4; ++k) hn::Store(w[k], d, wl[k]);
+    hn::Store(hn::VecFromMask(d, low), d, low_lane);
+    Footprint f;
+    f.y = fy;
+    for (size_t l = 0; l < n; ++l) {
+      if (std::bit_cast<uint32_t>(low_lane[l]) == 0) continue;
+      const int xl = x + int(l);
+      f.x = axis_footprint(xl, h.depth_view.cols);
+      const float wp[4] = {wl[0][l], wl[1][l], wl[2][l], wl[3][l]};
+      upsample_pixel(h, images, f, row.depth[xl], wp, xl, y);
+    }
+  }
 }
 
 }  // namespace
@@ -449,73 +539,45 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
   }
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-#ifdef SSDO_HALF_RESOLUTION_AVX2
     lanes::TexelRows texels(h, images);
-#endif
     for (int y = rows.start; y < rows.end; ++y) {
       const AxisFootprint fy = axis_footprint(y, hh);
       upsample_span(full, h, images, y, fy, r.x, span.begin);
-#ifdef SSDO_HALF_RESOLUTION_AVX2
-      if (span.begin < span.end) {
-        const lanes::PixelRow row(texels, full, y, fy);
-        const __m256 zero = _mm256_setzero_ps();
-        for (int x = span.begin; x < span.end; x += 8) {
-          const __m256 fg = lanes::foreground(row.mask + x);
-          __m256 w[4];
-          row.weights(x, fg, w);
-          __m256 wsum = zero;
-          for (int k = 0; k < 4; ++k) wsum = _mm256_add_ps(wsum, w[k]);
-          // Foreground pixels whose weights are too small go pixel by pixel (below).
-          const int low = _mm256_movemask_ps(
-              _mm256_andnot_ps(_mm256_cmp_ps(wsum, _mm256_set1_ps(kMinUpsampleWeight), _CMP_GT_OQ), fg));
-          __m256 used[4];  // texels of nonzero weight (blend skips the others)
-          for (int k = 0; k < 4; ++k) used[k] = _mm256_cmp_ps(w[k], zero, _CMP_NEQ_UQ);
-          for (size_t i = 0; i < images.size(); ++i) {
-            const UpsampleImage& im = images[i];
-            const int cn = im.half.channels();
-            __m256 value[kMaxChannels];
-            for (int ch = 0; ch < cn; ++ch) {
-              const int a = (texels.image_first(i) + ch) * row.length;
-              __m256 acc = zero;
-              for (int k = 0; k < 4; ++k) {
-                const __m256 v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, lanes::column_lanes(k));
-                acc = _mm256_blendv_ps(acc, _mm256_add_ps(acc, _mm256_mul_ps(w[k], v)), used[k]);
-              }
-              value[ch] = _mm256_blendv_ps(_mm256_set1_ps(float(im.background[ch])), _mm256_div_ps(acc, wsum), fg);
-            }
-            float* out = im.full.ptr<float>(y) + size_t(x) * size_t(cn);
-            if (cn == 1) {
-              _mm256_storeu_ps(out, value[0]);
-            } else if (cn == 3) {
-              lanes::interleave_3(value[0], value[1], value[2], out);
-            } else {
-              alignas(32) float v[kMaxChannels][8];
-              for (int ch = 0; ch < cn; ++ch) _mm256_store_ps(v[ch], value[ch]);
-              for (int l = 0; l < 8; ++l)
-                for (int ch = 0; ch < cn; ++ch) out[l * cn + ch] = v[ch][l];
-            }
-          }
-          if (low != 0) {
-            alignas(32) float wl[4][8];
-            for (int k = 0; k < 4; ++k) _mm256_store_ps(wl[k], w[k]);
-            Footprint f;
-            f.y = fy;
-            for (int l = 0; l < 8; ++l) {
-              if (!(low & (1 << l))) continue;
-              f.x = axis_footprint(x + l, h.depth_view.cols);
-              const float wp[4] = {wl[0][l], wl[1][l], wl[2][l], wl[3][l]};
-              upsample_pixel(h, images, f, row.depth[x + l], wp, x + l, y);
-            }
-          }
-        }
-      }
-#endif
+      if (span.begin < span.end) upsample_lanes(full, h, images, texels, fy, span, y);
       upsample_span(full, h, images, y, fy, span.end, r.x + r.width);
     }
   }, kRowsPerStrip);
 }
 
 float upsample_depth_falloff(float x) { return depth_falloff(x); }
+
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+HWY_EXPORT(build_half_grid);
+HWY_EXPORT(sample_at_texels);
+HWY_EXPORT(upsample_from_half_grid);
+
+void build_half_grid(const FullGrid& full, HalfGrid& h, int nthreads, bool with_positions) {
+  HWY_DYNAMIC_DISPATCH(build_half_grid)(full, h, nthreads, with_positions);
+}
+
+void sample_at_texels(const HalfGrid& h, const cv::Mat& full_image, cv::Mat& half_image, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(sample_at_texels)(h, full_image, half_image, nthreads);
+}
+
+void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
+                             const cv::Rect& r, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(upsample_from_half_grid)(full, h, images, r, nthreads);
+}
+
+// The weights' depth term is the same function on every target.
+float upsample_depth_falloff(float x) { return HWY_NAMESPACE::upsample_depth_falloff(x); }
+
+cv::Rect half_grid_roi(const cv::Rect& r, const cv::Size& size) { return HWY_NAMESPACE::half_grid_roi(r, size); }
 
 namespace {
 
@@ -842,3 +904,4 @@ void compute_confidence_at_resolution(const cv::Mat& depth_view, const cv::Mat& 
 }
 
 }  // namespace ssdo
+#endif  // HWY_ONCE

@@ -1,11 +1,17 @@
 #include "kernels/normals.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/normals.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <cmath>
 
 #include "core/parallel.h"
 #include "kernels/positions.h"
 
-namespace ssdo {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 
 namespace {
 
@@ -146,4 +152,16 @@ void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& ma
   });
 }
 
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+HWY_EXPORT(reconstruct_normals_from_depth);
+void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, cv::Mat& normal_view, cv::Rect roi, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(reconstruct_normals_from_depth)(depth_view, mask, camera, normal_view, roi, nthreads);
+}
+
 }  // namespace ssdo
+#endif  // HWY_ONCE

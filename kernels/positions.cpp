@@ -1,8 +1,14 @@
 #include "kernels/positions.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/positions.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include "core/parallel.h"
 
-namespace ssdo {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 
 cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& out, cv::Rect roi) {
   CV_Assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 &&
@@ -32,4 +38,18 @@ void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
   });
 }
 
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+HWY_EXPORT(view_positions_from_depth);
+void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, cv::Mat& position_view, cv::Rect roi, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(view_positions_from_depth)(depth_view, mask, camera, position_view, roi, nthreads);
+}
+
+cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& out, cv::Rect roi) { return HWY_NAMESPACE::prepare_view_vectors(depth_view, mask, out, roi); }
+
 }  // namespace ssdo
+#endif  // HWY_ONCE

@@ -1,5 +1,10 @@
 #include "kernels/ssdo.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/ssdo.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include "kernels/settings_check.h"
 
 #include <algorithm>
@@ -16,72 +21,11 @@
 #include "core/parallel.h"
 #include "core/uninitialized.h"
 
-namespace ssdo {
-
-namespace {
-
-constexpr std::pair<SsdoMethod, std::string_view> kSsdoMethodNames[] = {
-    {SsdoMethod::ssdo, "ssdo"}, {SsdoMethod::oracle, "oracle"}};
-
-}  // namespace
-
-std::string_view to_string(SsdoMethod m) { return enum_name<SsdoMethod>(kSsdoMethodNames, m); }
-std::optional<SsdoMethod> parse_ssdo_method(std::string_view s) {
-  return parse_enum<SsdoMethod>(kSsdoMethodNames, s);
-}
-
-SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
-  SsdoSettings s;
-  s.method = method;
-  const int level = int(preset);  // 0 low .. 3 ultra
-  // Measured against the oracle at high on the shared frames (tests/accuracy): the
-  // denoised bounce of medium is within 14-17% relative MAE (16 samples x 6 points on
-  // every pixel: 10-15%); low and medium run on the half-resolution grid (a quarter of
-  // the pixels).
-  constexpr int kSamples[] = {8, 16, 16, 32};
-  constexpr int kSampleSteps[] = {4, 6, 8, 8};
-  constexpr int kRefinements[] = {2, 3, 3, 4};
-  constexpr int kDivisor[] = {2, 2, 1, 1};
-  constexpr int kOracleGrid[] = {8, 12, 16, 32};
-  constexpr int kOracleSteps[] = {32, 48, 64, 128};
-  s.samples = kSamples[level];
-  s.sample_steps = kSampleSteps[level];
-  s.sample_refinements = kRefinements[level];
-  s.resolution_divisor = kDivisor[level];
-  s.oracle_grid = kOracleGrid[level];
-  s.oracle_steps = kOracleSteps[level];
-  return s;
-}
-
-bool runs_on_half_grid(const SsdoSettings& s) {
-  return s.resolution_divisor == 2 && s.method == SsdoMethod::ssdo;
-}
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 
 // validate()'s bound on sample_steps; the march's per-pixel arrays are sized by it.
 constexpr int kMaxSampleSteps = 64;
-
-std::string validate(const SsdoSettings& s) {
-  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
-  if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
-  if (s.sample_steps < 1 || s.sample_steps > kMaxSampleSteps)
-    return detail::out_of_range("sample_steps", s.sample_steps,
-                                ("[1, " + std::to_string(kMaxSampleSteps) + "]").c_str());
-  if (s.sample_refinements < 0 || s.sample_refinements > 16)
-    return detail::out_of_range("sample_refinements", s.sample_refinements, "[0, 16]");
-  if (!(s.thickness_world > 0.0f)) return detail::out_of_range("thickness_world", s.thickness_world, "(0, inf]");
-  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
-    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
-  if (!(s.indirect_strength >= 0.0f && s.indirect_strength <= 16.0f))
-    return detail::out_of_range("indirect_strength", s.indirect_strength, "[0, 16]");
-  if (!(s.sender_distance_min_world >= 0.0f) || !std::isfinite(s.sender_distance_min_world))
-    return detail::out_of_range("sender_distance_min_world", s.sender_distance_min_world, "[0, inf)");
-  if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
-    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
-  if (s.oracle_grid < 1 || s.oracle_grid > 256) return detail::out_of_range("oracle_grid", s.oracle_grid, "[1, 256]");
-  if (s.oracle_steps < 1 || s.oracle_steps > 4096) return detail::out_of_range("oracle_steps", s.oracle_steps, "[1, 4096]");
-  return {};
-}
-
 namespace {
 
 // Largest relative change of the surface depth that q's tangent plane may apply at a
@@ -928,19 +872,10 @@ void receiver_pass(const Constants& c, const cv::Mat& sender_direct, const Sende
 
 }  // namespace
 
-void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out, cv::Rect roi,
-                  int nthreads) {
+// compute_ssdo() for this instruction set; the inputs are checked.
+void compute_ssdo_checked(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out, cv::Rect roi,
+                          int nthreads) {
   const cv::Size size = in.depth_view.size();
-  CV_Assert(in.depth_view.type() == CV_32FC1);
-  CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == size);
-  CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
-  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
-  CV_Assert(!in.albedo || (in.albedo->type() == CV_32FC3 && in.albedo->size() == size));
-  CV_Assert(!in.lighting || (in.lighting->type() == CV_32FC3 && in.lighting->size() == size));
-  CV_Assert(!in.depth_back_view || in.depth_back_view->empty() ||
-            (in.depth_back_view->type() == CV_32FC1 && in.depth_back_view->size() == size));
-  CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
-  CV_Assert(validate(settings).empty());
   if (out.direct.size() != size || out.direct.type() != CV_32FC3) out.direct.create(size, CV_32FC3);
   if (out.indirect.size() != size || out.indirect.type() != CV_32FC3) out.indirect.create(size, CV_32FC3);
   // Constants from the settings once, then the passes (Ritschel et al. 2009, sec. 3): the
@@ -956,4 +891,92 @@ void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput
   receiver_pass(c, sender_direct, record, want_indirect, resolve_roi(roi, size), nthreads, out);
 }
 
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+HWY_EXPORT(compute_ssdo_checked);
+
+namespace {
+
+constexpr std::pair<SsdoMethod, std::string_view> kSsdoMethodNames[] = {
+    {SsdoMethod::ssdo, "ssdo"}, {SsdoMethod::oracle, "oracle"}};
+
+}  // namespace
+
+std::string_view to_string(SsdoMethod m) { return enum_name<SsdoMethod>(kSsdoMethodNames, m); }
+std::optional<SsdoMethod> parse_ssdo_method(std::string_view s) {
+  return parse_enum<SsdoMethod>(kSsdoMethodNames, s);
+}
+
+SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
+  SsdoSettings s;
+  s.method = method;
+  const int level = int(preset);  // 0 low .. 3 ultra
+  // Measured against the oracle at high on the shared frames (tests/accuracy): the
+  // denoised bounce of medium is within 14-17% relative MAE (16 samples x 6 points on
+  // every pixel: 10-15%); low and medium run on the half-resolution grid (a quarter of
+  // the pixels).
+  constexpr int kSamples[] = {8, 16, 16, 32};
+  constexpr int kSampleSteps[] = {4, 6, 8, 8};
+  constexpr int kRefinements[] = {2, 3, 3, 4};
+  constexpr int kDivisor[] = {2, 2, 1, 1};
+  constexpr int kOracleGrid[] = {8, 12, 16, 32};
+  constexpr int kOracleSteps[] = {32, 48, 64, 128};
+  s.samples = kSamples[level];
+  s.sample_steps = kSampleSteps[level];
+  s.sample_refinements = kRefinements[level];
+  s.resolution_divisor = kDivisor[level];
+  s.oracle_grid = kOracleGrid[level];
+  s.oracle_steps = kOracleSteps[level];
+  return s;
+}
+
+bool runs_on_half_grid(const SsdoSettings& s) {
+  return s.resolution_divisor == 2 && s.method == SsdoMethod::ssdo;
+}
+
+using HWY_NAMESPACE::kMaxSampleSteps;
+
+std::string validate(const SsdoSettings& s) {
+  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
+  if (s.samples < 1 || s.samples > 1024) return detail::out_of_range("samples", s.samples, "[1, 1024]");
+  if (s.sample_steps < 1 || s.sample_steps > kMaxSampleSteps)
+    return detail::out_of_range("sample_steps", s.sample_steps,
+                                ("[1, " + std::to_string(kMaxSampleSteps) + "]").c_str());
+  if (s.sample_refinements < 0 || s.sample_refinements > 16)
+    return detail::out_of_range("sample_refinements", s.sample_refinements, "[0, 16]");
+  if (!(s.thickness_world > 0.0f)) return detail::out_of_range("thickness_world", s.thickness_world, "(0, inf]");
+  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
+    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (!(s.indirect_strength >= 0.0f && s.indirect_strength <= 16.0f))
+    return detail::out_of_range("indirect_strength", s.indirect_strength, "[0, 16]");
+  if (!(s.sender_distance_min_world >= 0.0f) || !std::isfinite(s.sender_distance_min_world))
+    return detail::out_of_range("sender_distance_min_world", s.sender_distance_min_world, "[0, inf)");
+  if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
+    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
+  if (s.oracle_grid < 1 || s.oracle_grid > 256) return detail::out_of_range("oracle_grid", s.oracle_grid, "[1, 256]");
+  if (s.oracle_steps < 1 || s.oracle_steps > 4096) return detail::out_of_range("oracle_steps", s.oracle_steps, "[1, 4096]");
+  return {};
+}
+
+void compute_ssdo(const SsdoInputs& in, const SsdoSettings& settings, SsdoOutput& out, cv::Rect roi,
+                  int nthreads) {
+  const cv::Size size = in.depth_view.size();
+  CV_Assert(in.depth_view.type() == CV_32FC1);
+  CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == size);
+  CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == size);
+  CV_Assert(in.position_view.type() == CV_32FC3 && in.position_view.size() == size);
+  CV_Assert(!in.albedo || (in.albedo->type() == CV_32FC3 && in.albedo->size() == size));
+  CV_Assert(!in.lighting || (in.lighting->type() == CV_32FC3 && in.lighting->size() == size));
+  CV_Assert(!in.depth_back_view || in.depth_back_view->empty() ||
+            (in.depth_back_view->type() == CV_32FC1 && in.depth_back_view->size() == size));
+  CV_Assert(in.camera.width_px == size.width && in.camera.height_px == size.height);
+  CV_Assert(validate(settings).empty());
+  HWY_DYNAMIC_DISPATCH(compute_ssdo_checked)(in, settings, out, roi, nthreads);
+}
+
 }  // namespace ssdo
+#endif  // HWY_ONCE

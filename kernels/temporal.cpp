@@ -1,5 +1,10 @@
 #include "kernels/temporal.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/temporal.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -10,7 +15,8 @@
 #include "kernels/reprojection.h"
 #include "kernels/settings_check.h"
 
-namespace ssdo {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 namespace {
 
 // Every term's channels of one pixel, summed at once (AO + two RGB SSDO terms = 7).
@@ -168,7 +174,7 @@ std::string validate(const TemporalSettings& s) {
 std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours,
                                          const TemporalSettings& settings, std::span<cv::Mat* const> dsts,
                                          cv::Rect roi, int nthreads) {
-  CV_Assert(validate(settings).empty());
+  CV_Assert(ssdo::validate(settings).empty());
   CV_Assert(dsts.size() == frame.terms.size());
   int channels = 0;
   for (size_t i = 0; i < frame.terms.size(); ++i) {
@@ -194,4 +200,18 @@ std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<c
   return uses;
 }
 
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+
+std::string validate(const TemporalSettings& s) { return HWY_NAMESPACE::validate(s); }
+
+HWY_EXPORT(filter_temporal);
+std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours, const TemporalSettings& settings, std::span<cv::Mat* const> dsts, cv::Rect roi, int nthreads) {
+  return HWY_DYNAMIC_DISPATCH(filter_temporal)(frame, neighbours, settings, dsts, roi, nthreads);
+}
+
 }  // namespace ssdo
+#endif  // HWY_ONCE

@@ -2,6 +2,11 @@
 // Each subcommand registers its options (cmd_*.cpp); main parses and runs the one chosen.
 #include <CLI/CLI.hpp>
 
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "core/simd.h"
 #include "service/commands.h"
 #include "service/version.h"
 
@@ -12,7 +17,14 @@ int main(int argc, char** argv) {
       "passes, plus a camera) into screen-space ambient occlusion (hemisphere SSAO, HBAO, GTAO),\n"
       "screen-space directional occlusion and edge-aware denoised, composited images.",
       "ssdo"};
-  app.set_version_flag("--version", version_string());
+  // SSDO_SIMD=baseline: the kernels' fallback instead of the best instruction set this CPU
+  // runs (core/simd.h); workers inherit it.
+  if (std::string error; !apply_simd_choice(std::getenv("SSDO_SIMD"), error)) {
+    std::fprintf(stderr, "ssdo: %s\n", error.c_str());
+    return 2;
+  }
+  app.set_version_flag("--version", std::string(version_string()) + " (kernels: " + simd_target() +
+                                        "; compiled for " + simd_targets_compiled() + ")");
   app.require_subcommand(1);
   app.footer(
       "Examples:\n"
