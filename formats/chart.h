@@ -13,10 +13,19 @@ struct ChartPoint {
   std::string label;  // printed beside the point (empty = none)
 };
 
+// How a series' line is drawn: series of one colour (one method) differ by their line.
+enum class ChartLine {
+  solid,   // 3 px, filled points
+  dashed,  // 3 px, 10 px on and 6 off, filled points
+  thin,    // 1 px, hollow points
+};
+
 struct ChartSeries {
   std::string name;            // legend entry
   std::vector<ChartPoint> points;
   bool connect = true;         // draw a line through the points in x order
+  int colour = -1;             // index into the chart's 8-colour palette; -1: the series' position
+  ChartLine line = ChartLine::solid;
 };
 
 struct ChartOptions {

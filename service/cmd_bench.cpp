@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -62,6 +63,19 @@ std::vector<BenchConfig> bench_configs(const std::vector<AoMethod>& methods, boo
   return configs;
 }
 
+// The chart's colours (formats/chart.h palette): one per method, its presets, sample sweep
+// and temporal variant told apart by their line; the external series in the colours left.
+int chart_colour(AoMethod m) {
+  switch (m) {
+    case AoMethod::hemisphere: return 2;
+    case AoMethod::hbao: return 3;
+    case AoMethod::gtao: return 0;
+    case AoMethod::raymarch: return 5;
+  }
+  return 7;
+}
+constexpr int kExternalColours[] = {7, 1, 4, 6};
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   const size_t n = v.size();
@@ -112,7 +126,8 @@ bool read_external(const std::string& path, std::vector<ChartSeries>& series, st
     }
     if (!index.count(name)) {
       index[name] = series.size();
-      series.push_back({name + " (external)", {}, true});
+      const int colour = kExternalColours[series.size() % std::size(kExternalColours)];
+      series.push_back({name + " (external)", {}, true, colour, ChartLine::solid});
     }
     series[index[name]].points.push_back({ms_v, mae_v, label});
   }
@@ -272,17 +287,21 @@ int run_bench(const BenchArgs& args) {
                 row.samples, row.ms, row.error.mae, row.error.rmse, row.error.p95);
     std::fflush(stdout);
     // Presets and the sample sweep are separate curves of the method.
-    const std::string series_name = row.method + (config.preset == "sweep" ? " (samples)" : " (presets)");
+    const std::string series_name = row.method + (config.preset == "sweep" ? " samples" : " presets");
     ChartSeries& s = by_method[series_name];
     s.name = series_name;
+    s.colour = chart_colour(config.settings.method);
+    s.line = config.preset == "sweep" ? ChartLine::thin : ChartLine::solid;
     s.points.push_back({row.ms, row.error.mae, config.preset == "sweep" ? std::to_string(row.samples) : config.preset});
     if (args.temporal <= 0 || config.preset == "sweep") continue;
     const Row t = bench_temporal(frames, args, config, csv);
     std::printf("%-10s %-7s %7d %10.1f %8.4f %8.4f %8.4f\n", t.method.c_str(), t.preset.c_str(), t.samples, t.ms,
                 t.error.mae, t.error.rmse, t.error.p95);
-    const std::string temporal_name = row.method + " --temporal " + std::to_string(args.temporal) + " (presets)";
+    const std::string temporal_name = row.method + " presets, --temporal " + std::to_string(args.temporal);
     ChartSeries& ts = by_method[temporal_name];
     ts.name = temporal_name;
+    ts.colour = chart_colour(config.settings.method);
+    ts.line = ChartLine::dashed;
     ts.points.push_back({t.ms, t.error.mae, config.preset});
   }
 

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <optional>
@@ -63,7 +64,7 @@ std::optional<PlotArea> plot_area(const std::vector<ChartSeries>& series, const 
   a.lx1 = std::max(a.lx0 + 1, std::ceil(std::log10(x_max)));
   a.y_step = nice_step(std::max(y_max, 1e-6), 6);
   a.y_top = std::ceil(std::max(y_max, 1e-6) * 1.08 / a.y_step) * a.y_step;
-  const int right = 300, bottom = 90;  // margins: axis labels, legend
+  const int right = 360, bottom = 90;  // margins: axis labels, legend
   a.left = 110;
   a.top = 70;
   a.pw = o.width_px - a.left - right;
@@ -109,27 +110,53 @@ void draw_axes(Canvas& canvas, const PlotArea& a, const ChartOptions& o) {
   canvas.label(a.left + a.pw / 2, 35, o.title, 24, kAxis, OIIO::ImageBufAlgo::TextAlignX::Center);
 }
 
-// Series `i`: a line in x order, points as small squares with labels, a legend entry.
+const float* series_colour(const ChartSeries& s, size_t i) {
+  constexpr size_t n = sizeof kPalette / sizeof kPalette[0];
+  return kPalette[(s.colour >= 0 ? size_t(s.colour) : i) % n];
+}
+
+// A segment in the series' line style: 3 px wide across its main direction (solid,
+// dashed: 10 px on, 6 off) or 1 px (thin).
+void draw_segment(OIIO::ImageBuf& img, int x0, int y0, int x1, int y1, ChartLine line, const float* c) {
+  const bool steep = std::abs(y1 - y0) > std::abs(x1 - x0);
+  const int half_width = line == ChartLine::thin ? 0 : 1;
+  const double length = std::hypot(double(x1 - x0), double(y1 - y0));
+  const double on = line == ChartLine::dashed ? 10 : length, period = line == ChartLine::dashed ? 16 : length + 1;
+  for (double s0 = 0; s0 < length; s0 += period) {
+    const double s1 = std::min(length, s0 + on);
+    const auto at = [&](double s, int a, int b) { return int(std::lround(a + (b - a) * s / length)); };
+    const int ax = at(s0, x0, x1), ay = at(s0, y0, y1), bx = at(s1, x0, x1), by = at(s1, y0, y1);
+    for (int t = -half_width; t <= half_width; ++t)
+      OIIO::ImageBufAlgo::render_line(img, ax + (steep ? t : 0), ay + (steep ? 0 : t), bx + (steep ? t : 0),
+                                      by + (steep ? 0 : t), {c, 3});
+  }
+}
+
+// A point's marker: a 10 px square, hollow for thin lines.
+void draw_marker(OIIO::ImageBuf& img, int x, int y, ChartLine line, const float* c) {
+  OIIO::ImageBufAlgo::render_box(img, x - 5, y - 5, x + 5, y + 5, {c, 3}, line != ChartLine::thin);
+}
+
+// Series `i`: a line in x order, labelled points, a legend entry (a sample of its line).
 void draw_series(Canvas& canvas, const PlotArea& a, const ChartSeries& s, size_t i) {
   OIIO::ImageBuf& img = canvas.img;
-  const float* c = kPalette[i % (sizeof kPalette / sizeof kPalette[0])];
+  const float* c = series_colour(s, i);
   std::vector<ChartPoint> pts;
   for (const ChartPoint& p : s.points)
     if (plottable(p)) pts.push_back(p);
   std::sort(pts.begin(), pts.end(), [](const ChartPoint& p, const ChartPoint& q) { return p.x < q.x; });
   for (size_t k = 0; s.connect && k + 1 < pts.size(); ++k)
-    for (int t = -1; t <= 1; ++t)  // 3 px wide
-      OIIO::ImageBufAlgo::render_line(img, a.px(pts[k].x), a.py(pts[k].y) + t, a.px(pts[k + 1].x),
-                                      a.py(pts[k + 1].y) + t, {c, 3});
+    draw_segment(img, a.px(pts[k].x), a.py(pts[k].y), a.px(pts[k + 1].x), a.py(pts[k + 1].y), s.line, c);
   for (const ChartPoint& p : pts) {
-    OIIO::ImageBufAlgo::render_box(img, a.px(p.x) - 5, a.py(p.y) - 5, a.px(p.x) + 5, a.py(p.y) + 5,
-                                   {c, 3}, true);
-    if (!p.label.empty()) canvas.label(a.px(p.x) + 8, a.py(p.y) - 8, p.label, 14, kAxis);
+    draw_marker(img, a.px(p.x), a.py(p.y), s.line, c);
+    // Above the point; below for dashed lines, variants that often lie on their solid series.
+    const int label_dy = s.line == ChartLine::dashed ? 20 : -8;
+    if (!p.label.empty()) canvas.label(a.px(p.x) + 8, a.py(p.y) + label_dy, p.label, 14, kAxis);
   }
-  const int ly = a.top + 20 + int(i) * 30;
-  OIIO::ImageBufAlgo::render_box(img, a.left + a.pw + 25, ly - 12, a.left + a.pw + 45, ly + 4,
-                                 {c, 3}, true);
-  canvas.label(a.left + a.pw + 55, ly + 2, s.name, 18, kAxis);
+  const int ly = a.top + 20 + int(i) * 30, lx = a.left + a.pw + 20;
+  draw_segment(img, lx, ly - 4, lx + 36, ly - 4, s.line, c);
+  draw_marker(img, lx + 18, ly - 4, s.line, c);
+  canvas.label(lx + 46, ly + 2, s.name, 16, kAxis);
 }
 
 // Writes the image as PNG through a temp file renamed into place.

@@ -12,7 +12,7 @@
 
 namespace ssdo::oiio_module {
 
-inline constexpr int kVersion = 1;
+inline constexpr int kVersion = 2;
 
 struct Api {
   int version = kVersion;
