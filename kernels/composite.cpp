@@ -210,6 +210,7 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo {
 
+// Not per pixel: the baseline's code serves every CPU.
 std::string_view to_string(CompositeTerm t) { return HWY_NAMESPACE::to_string(t); }
 
 std::string_view to_string(CompositeMode m) { return HWY_NAMESPACE::to_string(m); }
@@ -223,7 +224,8 @@ std::vector<WeightedTerm> composite_mode_terms(CompositeMode mode) { return HWY_
 std::string validate(const CompositeInputs& in, const CompositeSettings& s) { return HWY_NAMESPACE::validate(in, s); }
 
 HWY_EXPORT(compute_composite);
-void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv::Mat& out, cv::Rect roi, int nthreads) {
+void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv::Mat& out, cv::Rect roi,
+                       int nthreads) {
   HWY_DYNAMIC_DISPATCH(compute_composite)(in, s, out, roi, nthreads);
 }
 

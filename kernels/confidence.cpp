@@ -470,13 +470,17 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo {
 
+// Not per pixel: the baseline's code serves every CPU.
 bool runs_on_half_grid(const ConfidenceSettings& s) { return HWY_NAMESPACE::runs_on_half_grid(s); }
 
 std::string validate(const ConfidenceSettings& s) { return HWY_NAMESPACE::validate(s); }
 
 HWY_EXPORT(compute_confidence);
-void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask, const Camera& camera, const ConfidenceSettings& settings, cv::Mat& confidence, cv::Rect roi, int nthreads, const ConfidenceViews& views) {
-  HWY_DYNAMIC_DISPATCH(compute_confidence)(depth_view, normal_view, mask, camera, settings, confidence, roi, nthreads, views);
+void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask,
+                        const Camera& camera, const ConfidenceSettings& settings, cv::Mat& confidence, cv::Rect roi,
+                        int nthreads, const ConfidenceViews& views) {
+  HWY_DYNAMIC_DISPATCH(compute_confidence)(depth_view, normal_view, mask, camera, settings, confidence, roi, nthreads,
+                                           views);
 }
 
 }  // namespace ssdo

@@ -159,7 +159,8 @@ HWY_AFTER_NAMESPACE();
 namespace ssdo {
 
 HWY_EXPORT(reconstruct_normals_from_depth);
-void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, cv::Mat& normal_view, cv::Rect roi, int nthreads) {
+void reconstruct_normals_from_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
+                                    cv::Mat& normal_view, cv::Rect roi, int nthreads) {
   HWY_DYNAMIC_DISPATCH(reconstruct_normals_from_depth)(depth_view, mask, camera, normal_view, roi, nthreads);
 }
 

@@ -45,11 +45,15 @@ HWY_AFTER_NAMESPACE();
 namespace ssdo {
 
 HWY_EXPORT(view_positions_from_depth);
-void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, cv::Mat& position_view, cv::Rect roi, int nthreads) {
+void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
+                               cv::Mat& position_view, cv::Rect roi, int nthreads) {
   HWY_DYNAMIC_DISPATCH(view_positions_from_depth)(depth_view, mask, camera, position_view, roi, nthreads);
 }
 
-cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& out, cv::Rect roi) { return HWY_NAMESPACE::prepare_view_vectors(depth_view, mask, out, roi); }
+// Not per pixel: the baseline's code serves every CPU.
+cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& out, cv::Rect roi) {
+  return HWY_NAMESPACE::prepare_view_vectors(depth_view, mask, out, roi);
+}
 
 }  // namespace ssdo
 #endif  // HWY_ONCE

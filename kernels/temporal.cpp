@@ -206,10 +206,13 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo {
 
+// Not per pixel: the baseline's code serves every CPU.
 std::string validate(const TemporalSettings& s) { return HWY_NAMESPACE::validate(s); }
 
 HWY_EXPORT(filter_temporal);
-std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours, const TemporalSettings& settings, std::span<cv::Mat* const> dsts, cv::Rect roi, int nthreads) {
+std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours,
+                                         const TemporalSettings& settings, std::span<cv::Mat* const> dsts, cv::Rect roi,
+                                         int nthreads) {
   return HWY_DYNAMIC_DISPATCH(filter_temporal)(frame, neighbours, settings, dsts, roi, nthreads);
 }
 
