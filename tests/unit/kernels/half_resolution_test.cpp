@@ -194,6 +194,23 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
   EXPECT_GT(underflowed, 100);
 }
 
+// The weights' depth term is exp within 2 ulp on [-87, 0] (its own polynomial, the same on
+// every instruction set), and exp(-87) below: small, positive and a normal float.
+TEST(HalfResolution, DepthFalloffIsExpWithinTwoUlp) {
+  int max_ulp = 0;
+  for (int i = 0; i <= 200000; ++i) {
+    const float x = -87.0f * float(i) / 200000.0f;
+    const float exact = float(std::exp(double(x)));
+    const float got = upsample_depth_falloff(x);
+    max_ulp = std::max(max_ulp, std::abs(int(std::bit_cast<uint32_t>(got)) - int(std::bit_cast<uint32_t>(exact))));
+  }
+  EXPECT_LE(max_ulp, 2);
+  EXPECT_EQ(upsample_depth_falloff(0.0f), 1.0f);
+  EXPECT_EQ(upsample_depth_falloff(-200.0f), upsample_depth_falloff(-87.0f));
+  EXPECT_GE(upsample_depth_falloff(-200.0f), std::numeric_limits<float>::min());
+  EXPECT_LT(upsample_depth_falloff(-200.0f), 1e-37f);
+}
+
 TEST(HalfResolution, SampleAtTexelsTakesEachTexelsSourcePixel) {
   const GBuffer g = frame();
   const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
