@@ -79,9 +79,7 @@ struct PixelRays {
   glm::vec3 u0, ux, uy;  // u(px, py) = u0 + px ux + py uy
   glm::vec3 origin(float px, float py) const { return o0 + px * ox + py * oy; }
   glm::vec3 direction(float px, float py) const { return u0 + px * ux + py * uy; }
-  glm::vec3 point(float px, float py, float depth) const {
-    return o0 + px * ox + py * oy + depth * (u0 + px * ux + py * uy);
-  }
+  glm::vec3 point(float px, float py, float depth) const { return origin(px, py) + depth * direction(px, py); }
 };
 
 PixelRays pixel_rays(const Camera& camera);

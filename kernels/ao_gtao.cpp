@@ -880,10 +880,7 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo::detail {
 
-HWY_EXPORT(ao_gtao);
-void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) {
-  HWY_DYNAMIC_DISPATCH(ao_gtao)(in, s, out, roi, nthreads);
-}
+SSDO_AO_METHOD_DISPATCH(ao_gtao)
 
 }  // namespace ssdo::detail
 #endif  // HWY_ONCE

@@ -228,10 +228,7 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo::detail {
 
-HWY_EXPORT(ao_hbao);
-void ao_hbao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) {
-  HWY_DYNAMIC_DISPATCH(ao_hbao)(in, s, out, roi, nthreads);
-}
+SSDO_AO_METHOD_DISPATCH(ao_hbao)
 
 }  // namespace ssdo::detail
 #endif  // HWY_ONCE

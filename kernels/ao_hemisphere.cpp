@@ -188,10 +188,7 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo::detail {
 
-HWY_EXPORT(ao_hemisphere);
-void ao_hemisphere(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) {
-  HWY_DYNAMIC_DISPATCH(ao_hemisphere)(in, s, out, roi, nthreads);
-}
+SSDO_AO_METHOD_DISPATCH(ao_hemisphere)
 
 }  // namespace ssdo::detail
 #endif  // HWY_ONCE

@@ -12,3 +12,12 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
 void ao_raymarch(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads);
 
 }  // namespace ssdo::detail
+
+// In a method's file, after its per-instruction-set code (`#if HWY_ONCE`, in ssdo::detail):
+// defines the core above as the call of that code for the best instruction set the CPU runs
+// (core/simd.h).
+#define SSDO_AO_METHOD_DISPATCH(name)                                                                     \
+  HWY_EXPORT(name);                                                                                       \
+  void name(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi, int nthreads) { \
+    HWY_DYNAMIC_DISPATCH(name)(in, s, out, roi, nthreads);                                                \
+  }

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "core/parallel.h"
@@ -480,10 +481,10 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
 
 // Pixels [span.begin, span.end) of row y, a vector at a time.
 void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
-                    lanes::TexelRows& texels, const AxisFootprint& fy, const LaneSpan& span, int y) {
+                    lanes::TexelRows& texels, const lanes::LanePattern& p, const AxisFootprint& fy,
+                    const LaneSpan& span, int y) {
   const FloatLanes d;
   const size_t n = hn::Lanes(d);
-  const lanes::LanePattern p;
   const lanes::PixelRow row(texels, full, y, fy);
   for (int x = span.begin; x < span.end; x += int(n)) {
     const auto fg = lanes::foreground(row.mask + x);
@@ -540,10 +541,12 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     lanes::TexelRows texels(h, images);
+    const std::optional<lanes::LanePattern> pattern =
+        span.begin < span.end ? std::optional<lanes::LanePattern>(std::in_place) : std::nullopt;
     for (int y = rows.start; y < rows.end; ++y) {
       const AxisFootprint fy = axis_footprint(y, hh);
       upsample_span(full, h, images, y, fy, r.x, span.begin);
-      if (span.begin < span.end) upsample_lanes(full, h, images, texels, fy, span, y);
+      if (pattern) upsample_lanes(full, h, images, texels, *pattern, fy, span, y);
       upsample_span(full, h, images, y, fy, span.end, r.x + r.width);
     }
   }, kRowsPerStrip);

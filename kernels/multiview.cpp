@@ -40,6 +40,9 @@ enum class Verdict : uint8_t {
   beyond,    // farther behind it than the thickness: no say
 };
 
+// A verdict that decides a point (the rule of PointVerdicts, multiview.h).
+inline bool decides(Verdict v) { return v == Verdict::free || v == Verdict::occupied; }
+
 // A point along one pixel's ray, as seen by one view: clip = clip0 + d clip1 and planar
 // depth depth0 + d depth1 at planar depth d in this frame.
 struct RayInView {
@@ -216,13 +219,13 @@ void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& ba
   });
 }
 
-// The views measure_views marked used, as seen from `frame`.
-Constants views_in_use(const Camera& frame, std::span<const DepthView> views, std::span<const ViewUse> uses,
-                       const MultiViewSettings& s) {
-  Constants used{s, {}};
+// The views (those measure_views marked used, when `uses` is given) as seen from `frame`.
+Constants views_from(const Camera& frame, std::span<const DepthView> views, const MultiViewSettings& s,
+                     std::span<const ViewUse> uses = {}) {
+  Constants k{s, {}};
   for (size_t i = 0; i < views.size(); ++i)
-    if (uses[i].used) used.views.push_back(view_geometry(frame, views[i]));
-  return used;
+    if (uses.empty() || uses[i].used) k.views.push_back(view_geometry(frame, views[i]));
+  return k;
 }
 
 }  // namespace
@@ -246,7 +249,7 @@ std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<c
                                           const MultiViewSettings& s, cv::Mat& depth_back_view, int nthreads) {
   const std::vector<ViewUse> uses = measure_view_use(in, views, s, nthreads);
   depth_back_view.release();
-  const Constants used = views_in_use(in.camera, views, uses, s);
+  const Constants used = views_from(in.camera, views, s, uses);
   if (!used.views.empty()) write_back_layer(in, used, depth_back_view, nthreads);
   return uses;
 }
@@ -409,7 +412,7 @@ void fill_band(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::s
   const cv::Rect inside = band.inside();
   band.mask = band.depth_view < kInfinity;
   band.mask(inside).setTo(0);
-  write_back_layer({band.depth_view, band.mask, band.camera}, views_in_use(in.camera, views, uses, s),
+  write_back_layer({band.depth_view, band.mask, band.camera}, views_from(in.camera, views, s, uses),
                    band.depth_back_view, nthreads);
   in.depth_view.copyTo(band.depth_view(inside));
   in.mask.copyTo(band.mask(inside));
@@ -466,10 +469,8 @@ namespace {
 // Whether some view sees the point at planar depth d on the ray as free space or has it
 // behind its surface within the thickness.
 bool decided_at(const Constants& k, const PixelRay& ray, float d) {
-  for (size_t i = 0; i < k.views.size(); ++i) {
-    const Verdict v = classify(k.views[i], ray.in_view[i], d, k.s.depth_bias_relative, k.s.thickness_world);
-    if (v == Verdict::free || v == Verdict::occupied) return true;
-  }
+  for (size_t i = 0; i < k.views.size(); ++i)
+    if (decides(classify(k.views[i], ray.in_view[i], d, k.s.depth_bias_relative, k.s.thickness_world))) return true;
   return false;
 }
 
@@ -480,8 +481,7 @@ cv::Mat decided_bins_behind_surfaces(const MultiViewInputs& in, std::span<const 
                                      int nthreads) {
   CV_Assert(validate(s).empty() && bins >= 1 && bins <= 8);
   CV_Assert(in.depth_view.type() == CV_32FC1 && in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
-  Constants k{s, {}};
-  for (const DepthView& v : views) k.views.push_back(view_geometry(in.camera, v));
+  const Constants k = views_from(in.camera, views, s);
   cv::Mat decided(in.depth_view.size(), CV_8UC1, cv::Scalar(0));
   if (k.views.empty()) return decided;
   const PixelRays rays = pixel_rays(in.camera);
@@ -512,9 +512,7 @@ struct PointVerdicts::Impl {
 PointVerdicts::PointVerdicts(const Camera& frame_camera, std::span<const DepthView> views,
                              const MultiViewSettings& s) {
   CV_Assert(validate(s).empty());
-  auto impl = std::make_unique<Impl>(Impl{{s, {}}});
-  for (const DepthView& v : views) impl->k.views.push_back(view_geometry(frame_camera, v));
-  impl_ = std::move(impl);
+  impl_ = std::make_unique<Impl>(Impl{views_from(frame_camera, views, s)});
 }
 
 PointVerdicts::~PointVerdicts() = default;
@@ -527,8 +525,7 @@ bool PointVerdicts::decided(const glm::vec3& point_view) const {
   for (const ViewGeometry& v : k.views) {
     // The point as a ray of zero direction, read at d = 0.
     const RayInView at_point{v.clip_from_frame_view * q, glm::vec4(0.0f), glm::dot(v.depth_from_frame_view, q), 0.0f};
-    const Verdict verdict = classify(v, at_point, 0.0f, k.s.depth_bias_relative, k.s.thickness_world);
-    if (verdict == Verdict::free || verdict == Verdict::occupied) return true;
+    if (decides(classify(v, at_point, 0.0f, k.s.depth_bias_relative, k.s.thickness_world))) return true;
   }
   return false;
 }

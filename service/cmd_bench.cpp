@@ -142,10 +142,6 @@ struct Loaded {
   float radius = 1;
 };
 
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
 // A preset with --temporal K (kernels/temporal.h) over the sequences among the frames, as a
 // batch computes them: every frame's raw terms once, then each frame finished over the raw
 // terms of the K frames each side. A frame's ms: its raw terms plus its finish (one run).
@@ -262,7 +258,7 @@ int run_bench(const BenchArgs& args) {
       for (int run = 0; run < args.runs; ++run) {
         const auto t0 = std::chrono::steady_clock::now();
         computed = compute_frame(f.g, request);
-        times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        times.push_back(ms_since(t0));
       }
       const cv::Mat& ao = *computed.find("ao_denoised");
       Row r = row;

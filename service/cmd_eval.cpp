@@ -135,7 +135,7 @@ int run_eval(const EvalArgs& args) {
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<std::string> notes;  // (eval prints no notes)
     const ComputedFrame computed = sequence.compute(request, read, GBuffer(frame.gbuffer), notes);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const double ms = ms_since(t0);
     const std::string name = args.term + (args.raw ? "" : "_denoised");
     const cv::Mat* found = computed.find(name);
     if (!found) {

@@ -13,13 +13,9 @@
 
 namespace ssdo {
 
-namespace {
-
 double ms_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
-
-}  // namespace
 
 bool parse_terms(const std::string& list, TermSelection& terms, std::string& error) {
   TermSelection t{false, false, false};
@@ -156,15 +152,11 @@ std::vector<cv::Mat*> term_slots(DenoisedTerms& d, const TermsComputed& computed
 
 // The raw terms filtered over the neighbours' (kernels/temporal.h), into `filtered`; uses:
 // what each neighbour contributed. Without neighbours nothing is written.
-struct FrameAndRaw {
-  const GBuffer& g;
-  const TermOutputs& raw;
-};
-
-void filter_over_time(const FrameAndRaw& f, std::span<const RawFrame* const> neighbours, const FrameRequest& request,
-                      const TermsComputed& computed, DenoisedTerms& filtered, std::vector<TemporalUse>& uses) {
+void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const RawFrame* const> neighbours,
+                      const FrameRequest& request, const TermsComputed& computed, DenoisedTerms& filtered,
+                      std::vector<TemporalUse>& uses) {
   if (neighbours.empty()) return;
-  const std::vector<const cv::Mat*> terms = raw_terms(f.raw, computed);
+  const std::vector<const cv::Mat*> terms = raw_terms(raw, computed);
   std::vector<std::vector<const cv::Mat*>> neighbour_terms;
   std::vector<TemporalFrame> frames;
   neighbour_terms.reserve(neighbours.size());
@@ -173,7 +165,6 @@ void filter_over_time(const FrameAndRaw& f, std::span<const RawFrame* const> nei
     frames.push_back({n->gbuffer.camera, n->gbuffer.depth_view, n->gbuffer.normal_view, n->gbuffer.mask,
                       neighbour_terms.back()});
   }
-  const GBuffer& g = f.g;
   const std::vector<cv::Mat*> results = term_slots(filtered, computed);
   uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, request.temporal, results, {},
                          request.threads);
@@ -251,7 +242,7 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
   const TermsComputed computed = terms_computed(request);
   ComputedFrame frame;
   DenoisedTerms filtered;
-  filter_over_time({g, raw}, neighbours, request, computed, filtered, frame.temporal);
+  filter_over_time(g, raw, neighbours, request, computed, filtered, frame.temporal);
   std::vector<const cv::Mat*> sources = raw_terms(raw, computed);
   if (!neighbours.empty()) {
     const std::vector<cv::Mat*> slots = term_slots(filtered, computed);

@@ -2,6 +2,7 @@
 // (formats). A request is a value; `process`, `eval` and `serve` all build one.
 #pragma once
 
+#include <chrono>
 #include <memory>
 #include <span>
 #include <string>
@@ -169,6 +170,9 @@ class FrameSource {
     return compute_frame(std::move(frame), request);
   }
 };
+
+// Milliseconds of the steady clock since t0: every stage's timing.
+double ms_since(std::chrono::steady_clock::time_point t0);
 
 // Reads, computes and writes one frame. Never throws: failures are in result.error.
 FrameResult process_frame(const FrameRequest& request, FrameSource* source = nullptr);
