@@ -6,6 +6,11 @@
 #                            instantiates are compiled once per batch instead of once per
 #                            file. For clean builds (scripts/test.sh turns it on): a batch
 #                            recompiles whole when one of its files changes.
+#   SSDO_UNITY_LIBRARIES     the same batches for ssdo_service and ssdo_formats (the
+#                            kernels compile each file once per instruction set, which a
+#                            batch cannot hold). scripts/test.sh turns it on for its first
+#                            build only: the sanitizer build compiles every file alone, so
+#                            a file that misses an include is still caught.
 #   SSDO_PRECOMPILE_HEADERS  ssdo_service (31 files, most of them including OpenCV core,
 #                            GLM, nlohmann-json and CLI11) parses those headers once.
 #                            Left out when a compiler launcher is set: ccache caches
@@ -14,7 +19,8 @@
 # own flags (the libraries'), and -O3 on test files costs a third more compile time for
 # assertions and fixtures that run once.
 option(SSDO_UNITY_TESTS "Compile each test program's sources in batches" OFF)
-set(SSDO_UNITY_BATCH 8 CACHE STRING "Source files per unity batch of a test program")
+option(SSDO_UNITY_LIBRARIES "Compile ssdo_service's and ssdo_formats' sources in batches" OFF)
+set(SSDO_UNITY_BATCH 8 CACHE STRING "Source files per unity batch")
 option(SSDO_PRECOMPILE_HEADERS "Precompiled third-party headers for ssdo_service" OFF)
 if(SSDO_PRECOMPILE_HEADERS AND CMAKE_CXX_COMPILER_LAUNCHER)
   message(STATUS "ssdo: precompiled headers off: the compiler launcher (${CMAKE_CXX_COMPILER_LAUNCHER}) cannot cache them")
@@ -36,6 +42,13 @@ endfunction()
 function(ssdo_test_build_flags target)
   target_compile_options(${target} PRIVATE -O1)
   if(SSDO_UNITY_TESTS)
+    set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${SSDO_UNITY_BATCH})
+  endif()
+endfunction()
+
+# ssdo_library_build_flags(TARGET): a library's batches (SSDO_UNITY_LIBRARIES above).
+function(ssdo_library_build_flags target)
+  if(SSDO_UNITY_LIBRARIES)
     set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${SSDO_UNITY_BATCH})
   endif()
 endfunction()

@@ -4,30 +4,29 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
-# Only what CTest runs (target ssdo_tests: no benchmarks), test programs in unity batches,
-# precompiled headers for the service library (cmake/build_speed.cmake).
-scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_PRECOMPILE_HEADERS=ON --target ssdo_tests
+# Only what CTest runs (target ssdo_tests: no benchmarks), test programs and the service and
+# formats libraries in unity batches, precompiled headers for the service library
+# (cmake/build_speed.cmake).
+scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPILE_HEADERS=ON --target ssdo_tests
 (cd "${BUILD_DIR:-build}" && ctest --output-on-failure -j "${JOBS:-$(nproc)}" "$@")
 
 # Second stage, on by default (CI runs it; SSDO_SANITIZE=0 leaves it out): the suite built
 # by clang with AddressSanitizer + UndefinedBehaviorSanitizer (CMakePresets.json "asan",
-# build-asan/: -O1 with line tables, no benchmarks, no accuracy suites), run with
-# `ctest --preset asan`, which also runs every fuzz target for SSDO_FUZZ_SECONDS (12 s) on
-# its corpus (label fuzz; they run only in this clang build). Not under sanitizers: the
-# Slurm cluster test (label slurm: it exercises the job scheduler, not our code) and the
-# whole-frame accuracy suites (label accuracy: minutes each under ASan, and the code paths
-# they run are the unit tests'), nor six kernel tests that measure estimators with large
-# sample counts (the test preset's name filter: Ssdo.AccuracyAgainstOracle...,
-# Ssdo.CornerDirect..., Ssdo.OpenPlane*, Ssdo.IndirectUnits..., AoRaymarch.CornerMatches...;
-# 3 minutes of the stage's tests under ASan, and the same kernel code runs in the other
-# kernel tests), nor the killed sequence batch (Sequence.KillNine...: minutes of the
-# raymarch oracle under ASan; the batch's kill and resume code runs in Batch.KillNine...).
-# docs/fuzzing.md.
+# build-asan/: -O1 with line tables, no benchmarks, no accuracy suites, every library file
+# compiled alone), run with `ctest --preset asan`, which also runs every fuzz target for
+# SSDO_FUZZ_SECONDS (12 s) on its corpus (label fuzz; they run only in this clang build).
+# Not under sanitizers: the Slurm cluster test (label slurm: it exercises the job scheduler,
+# not our code), the whole-frame accuracy suites (label accuracy: minutes each under ASan,
+# and the code paths they run are the unit tests'), and the test preset's name filter:
+# kernel tests that measure estimators or filters against brute-force references with large
+# sample counts (Ssdo.AccuracyAgainstOracle..., AoRaymarch.OpenPlaneIsExactlyOne,
+# Environment.FilteredMapMatchesTheBruteForce..., ...: the same kernel code runs in the
+# other kernel tests), the confidence's error table over the shared frames and the killed
+# sequence batch (minutes of the raymarch oracle under ASan; the batch's kill and resume
+# code runs in Batch.KillNine...). docs/fuzzing.md.
 # The sanitizer build compiles the kernels for the baseline instruction set only
 # (CMakePresets.json), so this stage also runs the suite on the fallback of CPUs without
-# AVX2. Measured from a clean clone on the 2-core machine on 2026-11-25, no compiler
-# cache (`CI=true .ci/run`): 23.9 min in all (the main build and its 377 tests, then the
-# sanitizer build and its 342 tests, 6.6 and 6.7 min of tests).
+# AVX2.
 if [ "${SSDO_SANITIZE:-1}" != 0 ]; then
   cmake --preset asan >/dev/null
   cmake --build build-asan -j "${JOBS:-$(nproc)}"

@@ -6,11 +6,11 @@
 # Installs Debian's slurmctld, slurmd, slurm-client and munge when missing (root only),
 # starts munged, slurmctld and slurmd with their own key, ports, state and logs in a temp
 # folder, and then:
-#   1. one `ssdo process` over 24 frames (the reference outputs and wall time),
-#   2. the 24 frames as a 4-task array job (sbatch --wait): every output written exactly
+#   1. one `ssdo process` over 12 frames (the reference outputs and wall time),
+#   2. the 12 frames as a 4-task array job (sbatch --wait): every output written exactly
 #      once, by the task whose chunk holds the frame, identical to the reference,
 #   3. the array again, task 3 cancelled (scancel) in the middle of its chunk, then
-#      requeued (scontrol requeue): all 24 outputs, identical to the reference, each
+#      requeued (scontrol requeue): all 12 outputs, identical to the reference, each
 #      written once, no temp files,
 #   4. a rerun of one finished task (sbatch --array=2): every frame skipped, exit 0.
 # Daemons and jobs are stopped on every exit path. Exit 77 (CTest's SKIP_RETURN_CODE)
@@ -210,6 +210,9 @@ AccountingStorageType=accounting_storage/none
 JobCompType=jobcomp/none
 MpiDefault=none
 SchedulerType=sched/backfill
+# Pending jobs (a requeued task, once its begin time has passed) are scheduled within a
+# second or two instead of at the next pass of the default 60 s and 30 s loops.
+SchedulerParameters=sched_interval=2,bf_interval=1
 SelectType=select/cons_tres
 SelectTypeParameters=CR_Core
 ReturnToService=2
@@ -233,11 +236,14 @@ done
 say "cluster up: node $node, $cpus CPUs, slurmctld port $ctld_port, in $T"
 
 # ---------------------------------------------------------------------------------------
-# Frames: 24 copies of the example frames (with their camera sidecars)
+# Frames: a shot of 12 copies of the example frames (with their camera sidecars)
 # ---------------------------------------------------------------------------------------
+# 12 frames in 4 tasks: 3 frames per task, so a task cancelled after its first output
+# still has frames left to compute when it is requeued.
+shot_frames=12
 frames="$T/frames"
 mkdir -p "$frames"
-for i in $(seq 1 24); do
+for i in $(seq 1 $shot_frames); do
   n=$(printf %04d "$i")
   name=cornell
   [ $((i % 2)) = 0 ] && name=greeble
@@ -246,7 +252,7 @@ for i in $(seq 1 24); do
 done
 pattern="$frames/shot.####.exr"
 # About 1.3 s per frame on one core: slow enough to cancel a task in the middle.
-options=(--frames 1-24 --method gtao --preset high)
+options=(--frames 1-$shot_frames --method gtao --preset high)
 chunks=4
 export SSDO="$ssdo"
 
@@ -256,12 +262,12 @@ seconds() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.1f", b - a }'; }
 # Frames (numbers) whose output line says ok in the given logs, one per line, sorted.
 ok_frames() { cat "$@" 2> /dev/null | sed -n 's/.*shot\.\([0-9]\{4\}\)\.ssdo\.exr: ok.*/\1/p' | sort; }
 
-# The chunk (1..N) of frame number f (1..24) by chunk_slice's rule: chunk c holds
+# The chunk (1..N) of frame number f (1..shot_frames) by chunk_slice's rule: chunk c holds
 # indices [floor((c-1) F / N), floor(c F / N)).
 chunk_of() {
   local i=$(($1 - 1)) c
   for c in $(seq 1 $chunks); do
-    [ $i -ge $((24 * (c - 1) / chunks)) ] && [ $i -lt $((24 * c / chunks)) ] && { echo $c; return; }
+    [ $i -ge $(($shot_frames * (c - 1) / chunks)) ] && [ $i -lt $(($shot_frames * c / chunks)) ] && { echo $c; return; }
   done
 }
 
@@ -269,7 +275,7 @@ chunk_of() {
 # byte-identical to the reference.
 check_outputs() {
   local dir=$1 what=$2 i n extra
-  for i in $(seq 1 24); do
+  for i in $(seq 1 $shot_frames); do
     n=$(printf %04d "$i")
     [ -f "$dir/shot.$n.ssdo.exr" ] || fail "$what: no output for frame $n"
     cmp -s "$dir/shot.$n.ssdo.exr" "$T/out-single/shot.$n.ssdo.exr" ||
@@ -295,20 +301,20 @@ job_span() {
 }
 
 # ---------------------------------------------------------------------------------------
-# 1. One ssdo process over the 24 frames: reference outputs and wall time
+# 1. One ssdo process over the shot: reference outputs and wall time
 # ---------------------------------------------------------------------------------------
-say "1. one ssdo process over 24 frames"
+say "1. one ssdo process over $shot_frames frames"
 t0=$(now)
 "$ssdo" process "$pattern" "${options[@]}" -o "$T/out-single" > "$T/log/single.log" 2>&1 ||
-  fail "ssdo process over the 24 frames failed: $(tail -5 "$T/log/single.log")"
+  fail "ssdo process over the $shot_frames frames failed: $(tail -5 "$T/log/single.log")"
 t_single=$(seconds "$t0" "$(now)")
-[ "$(ok_frames "$T/log/single.log" | wc -l)" = 24 ] || fail "the single process did not compute 24 frames"
+[ "$(ok_frames "$T/log/single.log" | wc -l)" = $shot_frames ] || fail "the single process did not compute $shot_frames frames"
 say "   $t_single s"
 
 # ---------------------------------------------------------------------------------------
 # 2. The array job: 4 tasks, 1 CPU each
 # ---------------------------------------------------------------------------------------
-say "2. array job of $chunks tasks over the 24 frames (sbatch --wait)"
+say "2. array job of $chunks tasks over the $shot_frames frames (sbatch --wait)"
 t0=$(now)
 job1=$(sbatch --wait --parsable --array=1-$chunks --cpus-per-task=1 --chdir="$T" \
   --output="$T/jobs/run1_%a.log" "$job_script" $chunks "$T/out-array" "$pattern" "${options[@]}")
@@ -324,20 +330,20 @@ done
 check_outputs "$T/out-array" "array job"
 # Exactly once, and by the task whose chunk holds the frame.
 [ "$(ok_frames "$T"/jobs/run1_*.log | uniq -d)" = "" ] || fail "a frame was computed twice: $(ok_frames "$T"/jobs/run1_*.log | uniq -d)"
-[ "$(ok_frames "$T"/jobs/run1_*.log | wc -l)" = 24 ] || fail "the array job did not compute each of the 24 frames once"
-for i in $(seq 1 24); do
+[ "$(ok_frames "$T"/jobs/run1_*.log | wc -l)" = $shot_frames ] || fail "the array job did not compute each of the $shot_frames frames once"
+for i in $(seq 1 $shot_frames); do
   n=$(printf %04d "$i")
   c=$(chunk_of "$i")
   ok_frames "$T/jobs/run1_$c.log" | grep -qx "$n" || fail "frame $n was not computed by task $c"
 done
-say "   24 outputs, each computed once by the task of its chunk, identical to the single process"
+say "   $shot_frames outputs, each computed once by the task of its chunk, identical to the single process"
 
 # ---------------------------------------------------------------------------------------
 # 3. Cancel task 3 in the middle of its chunk, requeue it
 # ---------------------------------------------------------------------------------------
 victim=3
-first=$((24 * (victim - 1) / chunks + 1))
-last=$((24 * victim / chunks))
+first=$(($shot_frames * (victim - 1) / chunks + 1))
+last=$(($shot_frames * victim / chunks))
 say "3. array job again; task $victim (frames $first-$last) cancelled mid-chunk, then requeued"
 out="$T/out-requeue"
 job2=$(sbatch --parsable --array=1-$chunks --cpus-per-task=1 --chdir="$T" \
@@ -362,7 +368,7 @@ done
 [ "$(task_field "${job2}_$victim" JobState)" = CANCELLED ] ||
   fail "task $victim is $(task_field "${job2}_$victim" JobState), not CANCELLED"
 missing=0
-for i in $(seq 1 24); do
+for i in $(seq 1 $shot_frames); do
   n=$(printf %04d "$i")
   if [ -f "$out/shot.$n.ssdo.exr" ]; then
     # Whatever is at an output's final path is complete (temp file + rename).
@@ -392,9 +398,9 @@ done
 check_outputs "$out" "after the requeue"
 ok2=$(ok_frames "$T"/jobs/run2_*.log)
 [ "$(uniq -d <<< "$ok2")" = "" ] || fail "frames computed twice across the cancel and the requeue: $(uniq -d <<< "$ok2" | tr '\n' ' ')"
-[ "$(wc -l <<< "$ok2")" = 24 ] || fail "the logs of job $job2 show $(wc -l <<< "$ok2") frames computed, not 24"
+[ "$(wc -l <<< "$ok2")" = $shot_frames ] || fail "the logs of job $job2 show $(wc -l <<< "$ok2") frames computed, not $shot_frames"
 skipped=$(grep -c 'skipped (output up to date' "$T/jobs/run2_$victim.log" || true)
-say "   requeued task: completed, skipped the $skipped frames done before the cancel; 24 outputs, each written once, no temp files"
+say "   requeued task: completed, skipped the $skipped frames done before the cancel; $shot_frames outputs, each written once, no temp files"
 
 # ---------------------------------------------------------------------------------------
 # 4. A finished task run twice: nothing recomputed, outputs untouched
@@ -405,14 +411,15 @@ job3=$(sbatch --wait --parsable --array=2 --cpus-per-task=1 --chdir="$T" \
   --output="$T/jobs/run3_%a.log" "$job_script" $chunks "$out" "$pattern" "${options[@]}")
 rc=$?
 [ $rc = 0 ] || fail "the rerun of task 2 exited $rc"
-[ "$(grep -c 'skipped (output up to date' "$T/jobs/run3_2.log")" = 6 ] || fail "the rerun of task 2 did not skip its 6 frames"
+[ "$(grep -c 'skipped (output up to date' "$T/jobs/run3_2.log")" = $((shot_frames / chunks)) ] ||
+  fail "the rerun of task 2 did not skip its $((shot_frames / chunks)) frames"
 [ -z "$(ok_frames "$T/jobs/run3_2.log")" ] || fail "the rerun of task 2 recomputed frames"
 [ "$(cd "$out" && stat -c '%n %Y.%y' shot.*.ssdo.exr | md5sum)" = "$before" ] || fail "the rerun changed outputs"
 check_outputs "$out" "after the rerun"
-say "   job ${job3%%;*}: 6 frames skipped, outputs untouched"
+say "   job ${job3%%;*}: $((shot_frames / chunks)) frames skipped, outputs untouched"
 
 echo
-echo "Wall time over 24 frames ($cpus CPUs, --method gtao --preset high; load average $(cut -d' ' -f1-3 /proc/loadavg)):"
+echo "Wall time over $shot_frames frames ($cpus CPUs, --method gtao --preset high; load average $(cut -d' ' -f1-3 /proc/loadavg)):"
 echo "  one ssdo process:                 $t_single s"
 echo "  array job, $chunks tasks x 1 CPU:     $span1 s from submission to the last task's end (slurmctld log)"
 echo "                                    $t_array s until sbatch --wait returned (it polls)"

@@ -2,7 +2,6 @@
 // OpenEXR conformance files and on every kind of bad input.
 #include "formats/gbuffer_reader.h"
 
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -231,37 +230,6 @@ TEST(SharedFrames, InspectReadsTheHeaderOnly) {
   EXPECT_EQ(r.info.uses[0].channels, "ViewLayer.Depth.Z");
   EXPECT_EQ(r.info.uses[1].channels, "ViewLayer.Normal.{X,Y,Z}");
   EXPECT_EQ(r.info.uses[1].space, "world");
-}
-
-TEST(SharedFrames, ReadTimeOfPerf1080) {
-  SSDO_SKIP_WITHOUT(gbuffer_dir() / "perf1080.exr");
-  const std::string path = (gbuffer_dir() / "perf1080.exr").string();
-  ReadOptions lean;  // depth + normals + albedo
-  lean.read_lighting = false;
-  lean.read_references = false;
-  lean.threads = 2;
-  ReadOptions all;
-  all.read_positions = true;
-  all.threads = 2;
-  for (ZipDecoder decoder : {ZipDecoder::libdeflate, ZipDecoder::openexr}) {
-    const bool openexr = decoder == ZipDecoder::openexr;
-    lean.zip_decoder = all.zip_decoder = decoder;
-    for (const auto& [name, options] : {std::pair{"depth+normals+albedo", lean}, std::pair{"all passes", all}}) {
-      double best_ms = 1e9;
-      for (int k = 0; k < 3; ++k) {
-        const auto t0 = std::chrono::steady_clock::now();
-        const ReadResult r = read_gbuffer(path, options);
-        const auto t1 = std::chrono::steady_clock::now();
-        ASSERT_TRUE(r.ok()) << r.error;
-        best_ms = std::min(best_ms, std::chrono::duration<double, std::milli>(t1 - t0).count());
-      }
-      RecordProperty(std::string("read_ms_") + (name[0] == 'd' ? "lean" : "all") +
-                         (openexr ? "_openexr" : ""),
-                     int(best_ms));
-      std::printf("perf1080.exr %s, %s ZIP decoder: %.1f ms (best of 3, 2 threads)\n", name,
-                  openexr ? "OpenEXR's" : "libdeflate", best_ms);
-    }
-  }
 }
 
 // ---------------------------------------------------------------------------------------
