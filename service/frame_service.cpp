@@ -55,13 +55,6 @@ FileVersion version_of(const std::string& path) {
   return v;
 }
 
-// The version of a frame as its worker reads it: the file and its camera sidecar. Kept for
-// a failed frame, it tells a sidecar that arrived later from the one the failure saw
-// without comparing timestamps (files written within one clock tick share their mtime).
-std::string frame_version_key(const std::string& input) {
-  return version_key(version_of(input)) + "|" + version_key(version_of(sidecar_path_for(input)));
-}
-
 std::string utc_now() {
   const std::time_t t = std::time(nullptr);
   std::tm tm{};
@@ -80,16 +73,22 @@ std::string timing(const WorkerResult& r) {
 
 }  // namespace
 
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry) {
-  const nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}, {"retry", retry}};
+std::string frame_version_key(const std::string& input) {
+  return version_key(version_of(input)) + "|" + version_key(version_of(sidecar_path_for(input)));
+}
+
+bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry,
+                      const std::string& version) {
+  nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}, {"retry", retry}};
+  if (!version.empty()) j["version"] = version;
   return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n").empty();
 }
 
 bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result) {
+                          const WorkerResult& result, const std::string& version) {
   std::error_code ec;
   fs::remove(output, ec);
-  return write_error_file(error_path, input, result.error, result.transient);
+  return write_error_file(error_path, input, result.error, result.transient, version);
 }
 
 FrameService::FrameService(FrameServiceOptions options) : options_(std::move(options)) {}
@@ -248,12 +247,13 @@ WorkerResult FrameService::run_with_retries(WorkerProcess& worker, const WorkerJ
 }
 
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
+  const std::string before_key = task.error_path.empty() ? std::string() : frame_version_key(task.input);
   const WorkerResult r = run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine});
   record(r);
   if (!task.error_path.empty()) {
     std::error_code ec;
     if (r.ok()) fs::remove(task.error_path, ec);
-    else record_frame_failure(task.output, task.error_path, task.input, r);
+    else record_frame_failure(task.output, task.error_path, task.input, r, before_key);
   }
   log(r.ok() ? "ok " + task.input + " -> " + task.output + " (" + timing(r) + ")"
              : "FAILED " + task.input + ": " + r.error);
@@ -298,20 +298,15 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   record(r);
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (r.ok()) {
-      given_up_.erase(input);
-      failed_version_.erase(input);
-    } else {
-      given_up_.insert(input);
-      failed_version_[input] = before_key;
-    }
+    if (r.ok()) given_up_.erase(input);
+    else given_up_.insert(input);
   }
   std::error_code ec;
   if (r.ok()) {
     fs::remove(error_path, ec);
     log("ok " + input + " -> " + output + " (" + timing(r) + ")");
   } else {
-    record_frame_failure(output, error_path, input, r);
+    record_frame_failure(output, error_path, input, r, before_key);
     log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
   }
   return false;
@@ -321,14 +316,14 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
                                       const std::string& error_path) {
   if (output_up_to_date_with_sidecar(input, output)) return true;
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    const auto failed = failed_version_.find(input);
-    if (failed != failed_version_.end() && failed->second != frame_version_key(input)) return false;
-    if (given_up_.count(input)) return true;
-  }
   std::ifstream in(error_path);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  // The frame or its sidecar is not the version that failed (whatever the timestamps say).
+  if (j.is_object() && j.contains("version") && j["version"] != frame_version_key(input)) return false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (given_up_.count(input)) return true;
+  }
   return !(j.is_object() && j.value("retry", false));
 }
 

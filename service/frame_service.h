@@ -112,25 +112,28 @@ class FrameService {
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;
   std::set<std::string> given_up_;       // inputs whose transient failure this run gave up on
-  // The version (inode, size, times) of each input that failed in this run, and of its
-  // camera sidecar: a file or sidecar that differs from it is a new version, even when its
-  // time equals its error file's (a copy finishing within the clock tick the error file
-  // was written in).
-  std::map<std::string, std::string> failed_version_;
   long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0, retried_ = 0;
   double done_ms_ = 0;
   Clock::time_point started_at_ = Clock::now();
   std::mutex log_mutex_;
 };
 
-// Writes NAME.error.json ({"input", "error", "time", "retry"}) through a temp file and
-// rename; "retry" is true for a transient failure (a restart tries the frame again).
+// Writes NAME.error.json ({"input", "error", "time", "retry", "version"}) through a temp file
+// and rename; "retry" is true for a transient failure (a restart tries the frame again);
+// "version" (left out when empty) is frame_version_key of the input the failure read.
 bool write_error_file(const std::string& path, const std::string& input, const std::string& error,
-                      bool retry = false);
+                      bool retry = false, const std::string& version = {});
+
+// The version of a frame as a worker reads it, the file's and its camera sidecar's (inode,
+// size, modification and change times; "none" for a missing file). Kept in a failed frame's
+// error file: an input or sidecar that differs from it is a new version, even when its time
+// equals the error file's (a copy finishing within the clock tick the error file was
+// written in), and across restarts of the service.
+std::string frame_version_key(const std::string& input);
 
 // Records a failed frame: removes its output (an older version's result, which would
-// otherwise sit beside the newer error) and writes its error file.
+// otherwise sit beside the newer error) and writes its error file with the input's version.
 bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result);
+                          const WorkerResult& result, const std::string& version);
 
 }  // namespace ssdo

@@ -54,6 +54,28 @@ TEST(ServeLifetimes, SidecarArrivingAfterTheFrameRequeuesIt) {
   EXPECT_TRUE(exr_has_channel((out / "late.ssdo.exr").string(), "ao"));
 }
 
+// The failed version is in the error file, so a restarted service tells a sidecar that
+// came while it was down from the one the failure saw, whatever the clock says.
+TEST(ServeLifetimes, SidecarArrivingWhileTheServiceIsDownRequeuesTheFrameWhateverTheClock) {
+  ScratchDir dir;
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  fs::create_directories(in);
+  fs::copy_file(example_frame("cornell.exr"), in / "late.exr");
+  {
+    const std::string socket = socket_path_for("downside");
+    SsdoProcess service(watch_args(in, out, socket), dir.path / "serve1.log");
+    ASSERT_TRUE(wait_until([&] { return path_exists(out / "late.error.json"); }, 30)) << service.log();
+  }
+  const json error = json::parse(read_text(out / "late.error.json"));
+  EXPECT_TRUE(error.contains("version")) << error.dump();
+  fs::copy_file(example_frame("cornell.camera.json"), in / "late.camera.json");
+  fs::last_write_time(out / "late.error.json", fs::file_time_type::clock::now() + std::chrono::seconds(5));
+  const std::string socket = socket_path_for("downside2");
+  SsdoProcess service(watch_args(in, out, socket), dir.path / "serve2.log");
+  ASSERT_TRUE(wait_until([&] { return path_exists(out / "late.ssdo.exr"); }, 30)) << service.log();
+  EXPECT_TRUE(wait_until([&] { return !path_exists(out / "late.error.json"); }, 5));
+}
+
 TEST(ServeLifetimes, ErrorFileOlderThanTheSidecarDoesNotHideTheFrameAfterARestart) {
   ScratchDir dir;
   const fs::path in = dir.path / "in", out = dir.path / "out";
