@@ -511,6 +511,26 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
   }
 }
 
+// The images' finish (UpsampleFinish) on pixels [x0, x1) of row y, after the row's
+// upsample.
+void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, int y, int x0, int x1) {
+  const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+  for (const UpsampleImage& im : images) {
+    if (im.finish == UpsampleFinish::clamp_unit_interval) {
+      float* row = im.full.ptr<float>(y);
+      for (int x = x0; x < x1; ++x) row[x] = std::clamp(row[x], 0.0f, 1.0f);
+    } else if (im.finish == UpsampleFinish::unit_vector) {
+      cv::Vec3f* row = im.full.ptr<cv::Vec3f>(y);
+      const cv::Vec3f* normal_row = full.normal_view.ptr<cv::Vec3f>(y);
+      for (int x = x0; x < x1; ++x) {
+        if (!mask_row[x]) continue;
+        const float len = float(cv::norm(row[x]));
+        row[x] = len > 1e-12f ? row[x] * (1.0f / len) : normal_row[x];
+      }
+    }
+  }
+}
+
 }  // namespace
 
 void sample_at_texels(const HalfGrid& h, const cv::Mat& full_image, cv::Mat& half_image, int nthreads) {
@@ -537,7 +557,11 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
     CV_Assert(im.half.depth() == CV_32F && im.half.size() == h.depth_view.size());
     CV_Assert(im.full.type() == im.half.type() && im.full.size() == full.depth_view.size());
     CV_Assert(im.half.channels() <= kMaxChannels);
+    CV_Assert(im.finish != UpsampleFinish::clamp_unit_interval || im.half.channels() == 1);
+    CV_Assert(im.finish != UpsampleFinish::unit_vector || im.half.channels() == 3);
   }
+  const bool finished = std::any_of(images.begin(), images.end(),
+                                    [](const UpsampleImage& im) { return im.finish != UpsampleFinish::none; });
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     lanes::TexelRows texels(h, images);
@@ -548,6 +572,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
       upsample_span(full, h, images, y, fy, r.x, span.begin);
       if (pattern) upsample_lanes(full, h, images, texels, *pattern, fy, span, y);
       upsample_span(full, h, images, y, fy, span.end, r.x + r.width);
+      if (finished) finish_row(full, images, y, r.x, r.x + r.width);
     }
   }, kRowsPerStrip);
 }
@@ -760,29 +785,11 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
   crop_from_band(extended.indirect, g, roi, out.indirect);
 }
 
-// A weighted mean of AO values stays in [0, 1] up to rounding; of unit bent normals it is
-// shorter than 1: renormalised (zero length: the pixel's normal).
-void finish_upsampled_ao(const TermInputs& in, AoOutput& out, const cv::Rect& r, int nthreads) {
-  const bool has_bent_normal = !out.bent_normal_view.empty();
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      float* ao_row = out.ao.ptr<float>(y);
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        ao_row[x] = std::clamp(ao_row[x], 0.0f, 1.0f);
-        if (!has_bent_normal || !mask_row[x]) continue;
-        cv::Vec3f& b = out.bent_normal_view.ptr<cv::Vec3f>(y)[x];
-        const float len = float(cv::norm(b));
-        b = len > 1e-12f ? b * (1.0f / len) : in.normal_view.ptr<cv::Vec3f>(y)[x];
-      }
-    }
-  });
-}
-
 // The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
 // it), each kernel on the texels the upsample of r reads, then one upsample of all their
 // images. Background and no foreground texel near: AO 1 (unoccluded), bent normal 0 (set
-// to the normal by finish_upsampled_ao), SSDO 0 (nothing known of the light), confidence 1.
+// to the normal by its unit_vector finish), SSDO 0 (nothing known of the light),
+// confidence 1. AO is clamped and the bent normals renormalised in the upsample's pass.
 void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
                           const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads) {
   HalfGrid h;
@@ -797,9 +804,10 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   std::vector<UpsampleImage> images;
   if (half.ao) {
     ao_on_grid(g, *settings.ao, half_roi, grid.ao, nthreads);
-    images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0)});
+    images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval});
     if (!grid.ao.bent_normal_view.empty())
-      images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0)});
+      images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0),
+                        UpsampleFinish::unit_vector});
   }
   if (half.ssdo) {
     ssdo_on_grid(g, in, *settings.ssdo, half_roi, grid.ssdo, nthreads);
@@ -816,8 +824,14 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
                        half_roi, nthreads, {observers, multiview_settings(settings)});
     images.push_back({grid.confidence, out.confidence, cv::Scalar(1.0), cv::Scalar(1.0)});
   }
+  // The full-resolution images are allocated only now, after the kernels have freed their
+  // scratch and the grid its inputs that the upsample does not read: the heap hands that
+  // memory to them, where fresh pages would cost a fault each on first touch.
+  g = GridInputs();
+  h.position_view.release();
+  h.source.release();
+  allocate_upsampled(settings, half, full.depth_view.size(), out);
   upsample_from_half_grid(full, h, images, r, nthreads);
-  if (half.ao) finish_upsampled_ao(in, out.ao, r, nthreads);
 }
 
 }  // namespace
@@ -868,9 +882,8 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == in.depth_view.size());
-  allocate_upsampled(settings, half, in.depth_view.size(), out);
   const cv::Rect r = resolve_roi(roi, in.depth_view.size());
-  if (r.empty()) return;
+  if (r.empty()) return allocate_upsampled(settings, half, in.depth_view.size(), out);
   const FullGrid full{in.depth_view, in.normal_view, position_view, in.mask, in.camera};
   compute_on_half_grid(full, in, settings, half, out, r, nthreads);
 }

@@ -72,14 +72,25 @@ float upsample_depth_falloff(float x);
 // The texels the upsample of the full-resolution roi reads.
 cv::Rect half_grid_roi(const cv::Rect& full_roi, const cv::Size& full_size);
 
+// What the upsample does to an image's upsampled values, row by row while they are in
+// cache (a separate pass would read and write the whole image again):
+// - none: the values as blended;
+// - clamp_unit_interval: each value clamped to [0, 1] (a weighted mean of values in [0, 1]
+//   is, up to rounding);
+// - unit_vector: 3 channels; each foreground pixel's vector divided by its length (a
+//   weighted mean of unit vectors is shorter), or, at zero length, the pixel's normal
+//   (FullGrid::normal_view); background pixels keep `background`.
+enum class UpsampleFinish { none, clamp_unit_interval, unit_vector };
+
 // One image to bring to full resolution: `half` (CV_32F, any channels, the half grid's
 // size) into `full` (same type, the full size, allocated by the caller). Background pixels
-// get `background`, pixels with no foreground texel near get `fallback`.
+// get `background`, pixels with no foreground texel near get `fallback`; then `finish`.
 struct UpsampleImage {
   const cv::Mat& half;
   cv::Mat& full;
   cv::Scalar background;
   cv::Scalar fallback;
+  UpsampleFinish finish = UpsampleFinish::none;
 };
 
 // Writes the pixels of `roi` of every image. The texel weights depend on the guides only:
@@ -141,8 +152,9 @@ struct TermOutputs {
 // once (with positions when AO or SSDO runs on it), each half-resolution kernel runs on
 // the texels of the roi (AO with the albedo at the texels for multi-bounce only; SSDO with
 // the lighting at the texels when given, else the albedo), and their outputs are upsampled
-// in one pass (background and fallback: AO 1, bent normal 0, SSDO 0, confidence 1); then
-// AO is clamped to [0, 1] and the bent normals renormalised. Outputs as each kernel's.
+// in one pass (background and fallback: AO 1, bent normal 0, SSDO 0, confidence 1), which
+// also clamps AO to [0, 1] and renormalises the bent normals (UpsampleFinish). Outputs as
+// each kernel's.
 void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi = {},
                    int nthreads = 0);
 

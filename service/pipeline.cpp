@@ -1,5 +1,6 @@
 #include "service/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <exception>
@@ -226,13 +227,24 @@ cv::Mat composite_frame(const GBuffer& g, const FrameRequest& request, const Ter
 
 namespace {
 
-// The raw terms of g; then releases what no later step reads: its views and its positions
-// (the denoised terms and the composite reuse their memory: the worker's heap keeps freed
-// memory, and fresh pages cost a fault each).
+// Whether the composite reads the frame's lighting (its lighting term).
+bool composite_reads_lighting(const FrameRequest& request, const TermsComputed& computed) {
+  if (!request.terms.composite) return false;
+  return std::any_of(computed.composite_terms.begin(), computed.composite_terms.end(),
+                     [](const WeightedTerm& w) { return w.term == CompositeTerm::lighting; });
+}
+
+// The raw terms of g; then releases what no later step reads: its views and its positions,
+// and the lighting and albedo unless the composite reads them (the denoised terms and the
+// composite reuse their memory: the worker's heap keeps freed memory, and fresh pages cost
+// a fault each).
 TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
-  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request));
+  const TermsComputed computed = terms_computed(request);
+  TermOutputs raw = compute_raw_terms(g, request, computed);
   g.views.clear();
   g.position_view.release();
+  if (!composite_reads_lighting(request, computed)) g.lighting.release();
+  if (!request.terms.composite) g.albedo.release();
   return raw;
 }
 

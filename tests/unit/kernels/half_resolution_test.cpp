@@ -120,6 +120,60 @@ TEST(HalfResolution, UpsampleOfSeveralImagesGivesTheBitsOfEachAlone) {
   EXPECT_EQ(cv::countNonZero(gray_together == -1), 161 * 91 - roi.area());
 }
 
+// The finishes: the clamp to [0, 1] of each value, and each foreground vector over its
+// length (the pixel's normal at zero length), on the upsampled values; background keeps
+// its value and pixels outside the roi are not written.
+TEST(HalfResolution, UpsampleFinishesClampAndRenormaliseTheBlendedValues) {
+  const GBuffer g = frame();
+  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  HalfGrid h;
+  build_half_grid(full, h, 2);
+  cv::Mat gray(h.depth_view.size(), CV_32FC1), vector(h.depth_view.size(), CV_32FC3);
+  cv::randu(gray, -0.5f, 1.5f);
+  cv::randu(vector, -1.0f, 1.0f);
+  vector(cv::Rect(10, 10, 6, 6)).setTo(cv::Scalar::all(0));  // zero length: the normal
+  const cv::Rect roi(3, 5, 150, 80);
+  cv::Mat gray_plain(g.depth_view.size(), CV_32FC1, cv::Scalar::all(-3)), gray_finished = gray_plain.clone();
+  cv::Mat vector_plain(g.depth_view.size(), CV_32FC3, cv::Scalar::all(-3)), vector_finished = vector_plain.clone();
+  const UpsampleImage plain[] = {{gray, gray_plain, cv::Scalar(7), cv::Scalar(9)},
+                                 {vector, vector_plain, cv::Scalar::all(0), cv::Scalar::all(0)}};
+  const UpsampleImage finished[] = {
+      {gray, gray_finished, cv::Scalar(7), cv::Scalar(9), UpsampleFinish::clamp_unit_interval},
+      {vector, vector_finished, cv::Scalar::all(0), cv::Scalar::all(0), UpsampleFinish::unit_vector}};
+  upsample_from_half_grid(full, h, plain, roi, 2);
+  upsample_from_half_grid(full, h, finished, roi, 2);
+  int clamped = 0, renormalised = 0, to_normal = 0;
+  for (int y = 0; y < g.depth_view.rows; ++y)
+    for (int x = 0; x < g.depth_view.cols; ++x) {
+      const float v = gray_plain.at<float>(y, x);
+      const cv::Vec3f b = vector_plain.at<cv::Vec3f>(y, x), f = vector_finished.at<cv::Vec3f>(y, x);
+      if (!roi.contains({x, y})) {
+        EXPECT_EQ(gray_finished.at<float>(y, x), -3.0f);
+        EXPECT_EQ(f, cv::Vec3f(-3, -3, -3));
+        continue;
+      }
+      if (!g.mask.at<uint8_t>(y, x)) {
+        EXPECT_EQ(gray_finished.at<float>(y, x), 1.0f) << "the background 7, clamped";
+        EXPECT_EQ(f, cv::Vec3f(0, 0, 0));
+        continue;
+      }
+      EXPECT_EQ(gray_finished.at<float>(y, x), std::clamp(v, 0.0f, 1.0f));
+      clamped += v < 0.0f || v > 1.0f;
+      const float len = float(cv::norm(b));
+      if (len > 1e-12f) {
+        EXPECT_EQ(f, b * (1.0f / len));
+        EXPECT_NEAR(cv::norm(f), 1.0, 1e-5);
+        ++renormalised;
+      } else {
+        EXPECT_EQ(f, g.normal_view.at<cv::Vec3f>(y, x));
+        ++to_normal;
+      }
+    }
+  EXPECT_GT(clamped, 100);
+  EXPECT_GT(renormalised, 5000);
+  EXPECT_GT(to_normal, 20);
+}
+
 // The header's formulas pixel by pixel, in the order the per-pixel code evaluates them
 // (the weights and upsample run 8 pixels at a time where they can; those lanes must give
 // these bits). The frame's depths span three decades so that exp's argument runs from 0

@@ -2,6 +2,8 @@
 // (io_only_frame) against compute_frame, and compute_frame consuming its G-buffer.
 #include "service/pipeline.h"
 
+#include <string>
+
 #include <gtest/gtest.h>
 
 namespace ssdo {
@@ -82,12 +84,18 @@ TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
 }
 
 // The consuming compute_frame returns the bits of the one that leaves the G-buffer alone,
-// and releases the images no later step reads (depth and normals) while keeping the ones
-// the composite reads.
+// and releases the images no later step reads (depth and normals; the albedo without a
+// composite, the lighting unless the composite adds it) while keeping the ones the
+// composite reads.
 TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
   const GBuffer g = small_frame();
-  for (const char* terms : {"ao", "ssdo", "ao,ssdo", "all"}) {
-    FrameRequest r = request_for(terms);
+  ASSERT_FALSE(g.albedo.empty());
+  ASSERT_FALSE(g.lighting.empty());
+  FrameRequest adds_lighting = request_for("all");
+  adds_lighting.composite_terms = {{CompositeTerm::ssdo_direct, 1.0f}, {CompositeTerm::lighting, 1.0f}};
+  for (const char* terms : {"ao", "ssdo", "ao,ssdo", "all", "all+lighting"}) {
+    const bool composite_adds_lighting = std::string(terms) == "all+lighting";
+    FrameRequest r = composite_adds_lighting ? adds_lighting : request_for(terms);
     r.threads = 2;
     const ComputedFrame kept = compute_frame(g, r);
     EXPECT_FALSE(g.depth_view.empty());
@@ -95,7 +103,8 @@ TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
     const ComputedFrame released = compute_frame(std::move(consumed), r);
     EXPECT_TRUE(consumed.depth_view.empty()) << terms;
     EXPECT_TRUE(consumed.normal_view.empty()) << terms;
-    EXPECT_FALSE(consumed.albedo.empty()) << terms;
+    EXPECT_EQ(consumed.albedo.empty(), !r.terms.composite) << terms;
+    EXPECT_EQ(consumed.lighting.empty(), !composite_adds_lighting) << terms;
     ASSERT_EQ(released.terms.size(), kept.terms.size()) << terms;
     for (size_t i = 0; i < kept.terms.size(); ++i) {
       EXPECT_EQ(released.terms[i].name, kept.terms[i].name);
