@@ -260,8 +260,8 @@ void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const Uninit
 }
 
 // The taps' coordinates in the slice frame, every lane alike (no branches: the loop
-// vectorises); nonzero when some lane is an occluder the ordered pass reads (on screen,
-// foreground, above the tangent plane, off the slice's centre).
+// vectorises). Returns bit s set when some lane of side s is an occluder the ordered pass
+// reads (on screen, foreground, above the tangent plane, off the slice's centre).
 [[gnu::always_inline]] inline int slice_coordinates(const Texel* texels, const TapChunk& taps,
                                                     const SliceFrame& f, TapGeometry& __restrict g) {
   // The frame's values as locals: selects between them then need no conditional loads,
@@ -292,24 +292,26 @@ void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const Uninit
     g.dist2[m] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
     g.tap_cos[m] = dv / std::sqrt(dist_slice2);
-    occluders |= (taps.index[m] >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) &
-                 (dist_slice2 > 0.0f);
+    occluders |= int((taps.index[m] >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f))
+                 << (m / kChunkSteps);
   }
   return occluders;
 }
 
-// The occluded interval [u0, u1] of each lane's occluder segment, in fractions of the slice
-// measure (the visibility mask's sectors), every lane alike (u0 > u1: no interval).
+// The occluded interval [u0, u1] of the occluder segment of each lane of one side (lanes
+// first_lane .. first_lane + kChunkSteps - 1), in fractions of the slice measure (the
+// visibility mask's sectors), every lane alike (u0 > u1: no interval).
 template <bool perspective, bool per_texel_thickness>
 [[gnu::always_inline]] inline void segment_intervals(const TapChunk& taps, const TapLanes& lanes,
-                                                     const SliceFrame& f, TapGeometry& __restrict g) {
+                                                     const SliceFrame& f, int first_lane,
+                                                     TapGeometry& __restrict g) {
   const float* texel_thickness = f.texel_thickness;
   const float thickness_world = f.thickness_world;
   const float origin_v = f.origin_v, origin_d = f.origin_d, origin_a = f.origin_a;
   const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
   const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
   const float weight_neg = f.weight_neg, inv_total = f.inv_total;
-  for (int m = 0; m < kChunkTaps; ++m) {
+  for (int m = first_lane; m < first_lane + kChunkSteps; ++m) {
     const float dv = g.dv[m], dd = g.dd[m], da = g.da[m], dist2 = g.dist2[m];
     // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
     // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too
@@ -371,9 +373,10 @@ template <bool perspective, bool per_texel_thickness>
 
 // The taps' arithmetic, every lane alike. Lanes whose tap is not used later (background,
 // below the tangent plane, zero distance) compute values nobody reads; with segments =
-// false (the height-field model) the occluder segments are skipped, and so they are when
-// no lane is an occluder (a chunk of taps all on or below the tangent plane, the common
-// case on open surfaces).
+// false (the height-field model) the occluder segments are skipped, and so they are on a
+// side without an occluder (its taps all on or below the tangent plane: the common case on
+// open surfaces and on the lower side of a slope; that side's u0 and u1 are then left
+// unwritten, and the ordered pass reads them only for occluders).
 // Not inlined: inlined into the pixel loop, its selects no longer become blends and the
 // loops stay scalar.
 template <bool perspective, bool segments>
@@ -381,9 +384,12 @@ template <bool perspective, bool segments>
 void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
                   const SliceFrame& f, TapGeometry& __restrict g) {
   const int occluders = slice_coordinates(texels, taps, f, g);
-  if (!segments || !occluders) return;
-  if (f.texel_thickness != nullptr) segment_intervals<perspective, true>(taps, lanes, f, g);
-  else segment_intervals<perspective, false>(taps, lanes, f, g);
+  if (!segments) return;
+  for (int side = 0; side < 2; ++side) {
+    if (!((occluders >> side) & 1)) continue;
+    if (f.texel_thickness != nullptr) segment_intervals<perspective, true>(taps, lanes, f, side * kChunkSteps, g);
+    else segment_intervals<perspective, false>(taps, lanes, f, side * kChunkSteps, g);
+  }
 }
 
 // The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
