@@ -79,6 +79,15 @@ struct ScreenToView {
   glm::vec3 operator()(float dx_px, float dy_px) const { return {dx_px * sx, dy_px * sy, 0.0f}; }
 };
 
+// acos with absolute error < 7e-5 rad on [-1, 1] (Abramowitz & Stegun 4.4.45, the
+// third-order polynomial in sqrt(1 - |x|)); the horizon loops call it once per tap.
+inline float fast_acos(float x) {
+  const float ax = std::min(std::abs(x), 1.0f);
+  float r = ((-0.0187293f * ax + 0.0742610f) * ax - 0.2121144f) * ax + 1.5707288f;
+  r *= std::sqrt(1.0f - ax);
+  return x >= 0.0f ? r : std::numbers::pi_v<float> - r;
+}
+
 // The plane through the eye that contains the screen line through the pixel in direction
 // (dx_px, dy_px): every tap on that screen line lies in it (Jimenez et al. 2016, Alg. 1
 // lines 8-15). direction: unit, orthogonal to view, pointing to the +screen side; axis:
@@ -104,7 +113,9 @@ inline Slice make_slice(const glm::vec3& screen_dir_view, const glm::vec3& view,
   const float inv = s.projected_normal_length > 1e-12f ? 1.0f / s.projected_normal_length : 0.0f;
   s.cos_n = std::clamp(glm::dot(pn, view) * inv, -1.0f, 1.0f);
   const float sign = glm::dot(pn, s.direction) < 0.0f ? -1.0f : 1.0f;
-  s.n = sign * std::acos(s.cos_n);
+  // fast_acos: its 7e-5 rad is far below the slices' sampling error, and every use of n
+  // (limits, measures, intervals) shares it, so an open surface still integrates to 1.
+  s.n = sign * fast_acos(s.cos_n);
   return s;
 }
 
@@ -129,14 +140,6 @@ inline float bent_b(float c, float s, float cos_n, float sin_n) {
   return (cos_n * s * s * s + sin_n * (c * c * c - 3.0f * c)) * (1.0f / 3.0f);
 }
 
-// acos with absolute error < 7e-5 rad on [-1, 1] (Abramowitz & Stegun 4.4.45, the
-// third-order polynomial in sqrt(1 - |x|)); the horizon loops call it once per tap.
-inline float fast_acos(float x) {
-  const float ax = std::min(std::abs(x), 1.0f);
-  float r = ((-0.0187293f * ax + 0.0742610f) * ax - 0.2121144f) * ax + 1.5707288f;
-  r *= std::sqrt(1.0f - ax);
-  return x >= 0.0f ? r : std::numbers::pi_v<float> - r;
-}
 
 // Nearest integer, halves away from zero (std::lround's rule), without the library call
 // std::lround is: truncation of v + 0.5 sign(v). Exact for |v| < 2^22 except within one
