@@ -148,20 +148,25 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
   }
   ComputedFrame out = finish_frame(std::move(raw), neighbours, request);
   drop_raw_outside(request);
+  add_temporal_notes(out, names, notes);
+  return out;
+}
+
+void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::vector<std::string>& names,
+                                         std::vector<std::string>& notes) const {
   std::string used;
   for (size_t i = 0; i < out.temporal.size(); ++i)
     if (out.temporal[i].used) used += " " + names[i];
   notes.push_back("temporal:" + (used.empty() ? std::string(" none") : used) + " (raw terms computed " +
                   std::to_string(reads_.raw_terms) + " times for " + std::to_string(reads_.frames) + " frames)");
-  for (size_t i = 0; i < out.temporal.size(); ++i)
-    if (!out.temporal[i].used)
-      notes.push_back(names[i] + ": not used for temporal filtering (" +
-                      (out.temporal[i].overlap <= 0.0f ? std::string("it sees none of this frame's surfaces")
-                                                       : "another surface at " +
-                                                             std::to_string(int(100.0f * out.temporal[i].disagreement)) +
-                                                             "% of this frame's surfaces it sees: a cut?") +
-                      ")");
-  return out;
+  for (size_t i = 0; i < out.temporal.size(); ++i) {
+    const TemporalUse& u = out.temporal[i];
+    if (u.used) continue;
+    const std::string why = u.overlap <= 0.0f ? std::string("it sees none of this frame's surfaces")
+                                              : "another surface at " + std::to_string(int(100.0f * u.disagreement)) +
+                                                    "% of this frame's surfaces it sees: a cut?";
+    notes.push_back(names[i] + ": not used for temporal filtering (" + why + ")");
+  }
 }
 
 const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, const ReadOptions& read,

@@ -76,6 +76,10 @@ class SequenceContext : public FrameSource {
   ReadResult read_in_window(const FrameRequest& request, const ReadOptions& read);
   const RawFrame* neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);
   void keep_window(const FrameRequest& request);
+  // The -v notes of a temporally filtered frame: the neighbours used, the raw-term count,
+  // and why each unused one was left out.
+  void add_temporal_notes(const ComputedFrame& out, const std::vector<std::string>& names,
+                          std::vector<std::string>& notes) const;
   // Releases the raw terms of the frames beyond the request's temporal window (frames are
   // computed in order: no later frame of the worker reads them).
   void drop_raw_outside(const FrameRequest& request);
