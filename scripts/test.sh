@@ -14,16 +14,18 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 # by clang with AddressSanitizer + UndefinedBehaviorSanitizer (CMakePresets.json "asan",
 # build-asan/: -O1 with line tables, no benchmarks, no accuracy suites, every library file
 # compiled alone), run with `ctest --preset asan`, which also runs every fuzz target for
-# SSDO_FUZZ_SECONDS (12 s) on its corpus (label fuzz; they run only in this clang build).
+# SSDO_FUZZ_SECONDS (8 s) on its corpus (label fuzz; they run only in this clang build).
 # Not under sanitizers: the Slurm cluster test (label slurm: it exercises the job scheduler,
 # not our code), the whole-frame accuracy suites (label accuracy: minutes each under ASan,
 # and the code paths they run are the unit tests'), and the test preset's name filter:
 # kernel tests that measure estimators or filters against brute-force references with large
 # sample counts (Ssdo.AccuracyAgainstOracle..., AoRaymarch.OpenPlaneIsExactlyOne,
 # Environment.FilteredMapMatchesTheBruteForce..., ...: the same kernel code runs in the
-# other kernel tests), the confidence's error table over the shared frames and the killed
+# other kernel tests), the confidence's error table over the shared frames, the killed
 # sequence batch (minutes of the raymarch oracle under ASan; the batch's kill and resume
-# code runs in Batch.KillNine...). docs/fuzzing.md.
+# code runs in Batch.KillNine...), and the tests that compute a whole shot twice to compare
+# the bytes of two ways (chunks or the watch folder against one batch: each way's code runs
+# in its own tests here). docs/fuzzing.md.
 # The sanitizer build compiles the kernels for the baseline instruction set only
 # (CMakePresets.json), so this stage also runs the suite on the fallback of CPUs without
 # AVX2.
