@@ -8,9 +8,11 @@
 #                            recompiles whole when one of its files changes.
 #   SSDO_UNITY_LIBRARIES     the same batches for ssdo_service and ssdo_formats (the
 #                            kernels compile each file once per instruction set, which a
-#                            batch cannot hold). scripts/test.sh turns it on for its first
-#                            build only: the sanitizer build compiles every file alone, so
-#                            a file that misses an include is still caught.
+#                            batch cannot hold). scripts/test.sh and the asan preset turn it
+#                            on; a build configured without it (scripts/build.sh's and the
+#                            demo's, from a fresh clone) compiles every file alone, which is
+#                            where a file that misses an include (hidden by an earlier file
+#                            of its batch) shows.
 #   SSDO_PRECOMPILE_HEADERS  ssdo_service (31 files, most of them including OpenCV core,
 #                            GLM, nlohmann-json and CLI11) parses those headers once.
 #                            Left out when a compiler launcher is set: ccache caches

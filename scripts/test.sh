@@ -12,8 +12,8 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 
 # Second stage, on by default (CI runs it; SSDO_SANITIZE=0 leaves it out): the suite built
 # by clang with AddressSanitizer + UndefinedBehaviorSanitizer (CMakePresets.json "asan",
-# build-asan/: -O1 with line tables, no benchmarks, no accuracy suites, every library file
-# compiled alone), run with `ctest --preset asan`, which also runs every fuzz target for
+# build-asan/: -O1 with line tables, no benchmarks, no accuracy suites, unity batches as
+# above), run with `ctest --preset asan`, which also runs every fuzz target for
 # SSDO_FUZZ_SECONDS (8 s) on its corpus (label fuzz; they run only in this clang build).
 # Not under sanitizers: the Slurm cluster test (label slurm: it exercises the job scheduler,
 # not our code), the whole-frame accuracy suites (label accuracy: minutes each under ASan,
