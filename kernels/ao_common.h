@@ -80,7 +80,7 @@ struct ScreenToView {
 };
 
 // acos with absolute error < 7e-5 rad on [-1, 1] (Abramowitz & Stegun 4.4.45, the
-// third-order polynomial in sqrt(1 - |x|)); the horizon loops call it once per tap.
+// third-order polynomial in sqrt(1 - |x|)); called once per tap and per slice.
 inline float fast_acos(float x) {
   const float ax = std::min(std::abs(x), 1.0f);
   float r = ((-0.0187293f * ax + 0.0742610f) * ax - 0.2121144f) * ax + 1.5707288f;
@@ -139,7 +139,6 @@ inline float bent_a(float c, float s, float cos_n, float sin_n) {
 inline float bent_b(float c, float s, float cos_n, float sin_n) {
   return (cos_n * s * s * s + sin_n * (c * c * c - 3.0f * c)) * (1.0f / 3.0f);
 }
-
 
 // Nearest integer, halves away from zero (std::lround's rule), without the library call
 // std::lround is: truncation of v + 0.5 sign(v). Exact for |v| < 2^22 except within one
