@@ -22,11 +22,18 @@ namespace {
 // stand for one pixel only).
 GBuffer frame() { return raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(161, 91), 0); }
 
-TEST(HalfResolution, GridTakesTheFirstForegroundPixelOfEachBlock) {
-  const GBuffer g = frame();
-  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+// The test frame, its full grid and its half grid (2 threads).
+struct FrameGrids {
+  GBuffer g = frame();
+  FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
   HalfGrid h;
-  build_half_grid(full, h, 2);
+  FrameGrids() { build_half_grid(full, h, 2); }
+};
+
+TEST(HalfResolution, GridTakesTheFirstForegroundPixelOfEachBlock) {
+  const FrameGrids grids;
+  const GBuffer& g = grids.g;
+  const HalfGrid& h = grids.h;
   ASSERT_EQ(h.depth_view.size(), cv::Size(81, 46));
   EXPECT_EQ(h.camera.width_px, 81);
   EXPECT_EQ(h.camera.height_px, 46);
@@ -54,10 +61,10 @@ TEST(HalfResolution, GridTakesTheFirstForegroundPixelOfEachBlock) {
 }
 
 TEST(HalfResolution, UpsampleKeepsConstantsAndEachPixelsOwnSurface) {
-  const GBuffer g = frame();
-  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
-  HalfGrid h;
-  build_half_grid(full, h, 2);
+  const FrameGrids grids;
+  const GBuffer& g = grids.g;
+  const FullGrid& full = grids.full;
+  const HalfGrid& h = grids.h;
   // A value that is the texel's depth: upsampled, a pixel gets a mean of depths of its own
   // surface (within a few percent of its own depth), never one across a silhouette.
   cv::Mat half_value = h.depth_view.clone();
@@ -99,10 +106,10 @@ TEST(HalfResolution, UpsampleKeepsConstantsAndEachPixelsOwnSurface) {
 // One upsample of several images gives each image the bits of its upsample alone (the
 // weights are shared, the blend is per image).
 TEST(HalfResolution, UpsampleOfSeveralImagesGivesTheBitsOfEachAlone) {
-  const GBuffer g = frame();
-  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
-  HalfGrid h;
-  build_half_grid(full, h, 2);
+  const FrameGrids grids;
+  const GBuffer& g = grids.g;
+  const FullGrid& full = grids.full;
+  const HalfGrid& h = grids.h;
   cv::Mat gray(h.depth_view.size(), CV_32FC1), color(h.depth_view.size(), CV_32FC3);
   cv::randu(gray, 0.0f, 1.0f);
   cv::randu(color, 0.0f, 1.0f);
@@ -124,10 +131,10 @@ TEST(HalfResolution, UpsampleOfSeveralImagesGivesTheBitsOfEachAlone) {
 // length (the pixel's normal at zero length), on the upsampled values; background keeps
 // its value and pixels outside the roi are not written.
 TEST(HalfResolution, UpsampleFinishesClampAndRenormaliseTheBlendedValues) {
-  const GBuffer g = frame();
-  const FullGrid full{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
-  HalfGrid h;
-  build_half_grid(full, h, 2);
+  const FrameGrids grids;
+  const GBuffer& g = grids.g;
+  const FullGrid& full = grids.full;
+  const HalfGrid& h = grids.h;
   cv::Mat gray(h.depth_view.size(), CV_32FC1), vector(h.depth_view.size(), CV_32FC3);
   cv::randu(gray, -0.5f, 1.5f);
   cv::randu(vector, -1.0f, 1.0f);
