@@ -186,7 +186,7 @@ std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
 // Resolves the request's options (cached per option set) and computes its frame, every
 // file opened confined by the worker (service/job_files.h).
 void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<std::string, FrameRequest>& resolved,
-                    SequenceContext& sequence, nlohmann::json& response) {
+                    SequenceContext& sequence, RawTermsStore& raw_store, nlohmann::json& response) {
   const Confinement confine = Confinement::from_json(j.value("confine", nlohmann::json::object()));
   JobFiles files;
   const nlohmann::json options_json = j.value("options", nlohmann::json::object());
@@ -219,15 +219,20 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
     return;
   }
   // A confined request's neighbours are opened like its input, and read through a context of
-  // its own: descriptor names are this request's only.
+  // its own: descriptor names are this request's only. The raw terms its temporal filter
+  // computes are kept across requests by the files' versions (RawTermsStore).
   std::vector<std::string> view_notes;
   SequenceContext confined;
   const bool is_confined = !confine.input_roots.empty();
   if (is_confined) files.open_neighbours(confine, request.neighbours, view_notes);
+  confined.share_raw_terms(&raw_store);
   FrameResult r;
   r.error = memory_estimate_refusal(request.input_path, args.max_pixels, args.memory_limit_mb);
-  sequence.use_settings(options_key);  // raw terms kept for temporal filtering are of these options
+  // Raw terms kept for temporal filtering are of these options.
+  sequence.use_settings(options_key);
+  confined.use_settings(options_key);
   if (r.error.empty()) r = process_frame(request, is_confined ? &confined : &sequence);
+  if (!r.ok()) raw_store.clear();  // a failure (out of memory?) frees what the next frame may need
   r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
   for (std::string& note : r.info.notes) note = files.named(note);
   response["ok"] = r.ok();
@@ -287,6 +292,7 @@ int run_worker(const WorkerArgs& args) {
 
   std::map<std::string, FrameRequest> resolved;  // options JSON -> request template
   SequenceContext sequence;  // the shot's frames read so far, for the extra views
+  RawTermsStore raw_store;   // raw terms of confined requests' frames, for the next requests
   for (bool first = true;; first = false) {
     // After a frame, a worker idle for kIdleTrimSeconds returns its free memory, then waits.
     if (!first && !request_within(args.request_fd, kIdleTrimSeconds)) ::malloc_trim(0);
@@ -299,7 +305,7 @@ int run_worker(const WorkerArgs& args) {
     if (j.is_discarded() || !j.is_object() || !j.contains("input") || !j["input"].is_string()) {
       response["error"] = "malformed worker request";
     } else {
-      handle_request(j, args, resolved, sequence, response);
+      handle_request(j, args, resolved, sequence, raw_store, response);
     }
     // Everything the worker spent on this request: the parent's wall time minus this is
     // the cost of isolation (pipes, scheduling).

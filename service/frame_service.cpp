@@ -11,6 +11,7 @@
 
 #include "formats/camera_io.h"
 #include "formats/output_writer.h"
+#include "service/file_version.h"
 #include "service/frame_list.h"
 #include "service/frame_options.h"
 #include "service/sequence.h"
@@ -21,39 +22,6 @@ namespace ssdo {
 namespace fs = std::filesystem;
 
 namespace {
-
-// What identifies one version of an input file.
-struct FileVersion {
-  bool exists = false;
-  dev_t dev = 0;
-  ino_t ino = 0;
-  off_t size = 0;
-  timespec mtime{}, ctime{};
-  bool operator==(const FileVersion& o) const {
-    return exists == o.exists && dev == o.dev && ino == o.ino && size == o.size && mtime.tv_sec == o.mtime.tv_sec &&
-           mtime.tv_nsec == o.mtime.tv_nsec && ctime.tv_sec == o.ctime.tv_sec && ctime.tv_nsec == o.ctime.tv_nsec;
-  }
-};
-
-// One string for a version, to remember it.
-std::string version_key(const FileVersion& v) {
-  if (!v.exists) return "none";
-  return std::to_string(v.ino) + ":" + std::to_string(v.size) + ":" + std::to_string(v.mtime.tv_sec) + "." +
-         std::to_string(v.mtime.tv_nsec) + ":" + std::to_string(v.ctime.tv_sec) + "." + std::to_string(v.ctime.tv_nsec);
-}
-
-FileVersion version_of(const std::string& path) {
-  FileVersion v;
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return v;
-  v.exists = true;
-  v.dev = st.st_dev;
-  v.ino = st.st_ino;
-  v.size = st.st_size;
-  v.mtime = st.st_mtim;
-  v.ctime = st.st_ctim;
-  return v;
-}
 
 std::string utc_now() {
   const std::time_t t = std::time(nullptr);
@@ -73,9 +41,6 @@ std::string timing(const WorkerResult& r) {
 
 }  // namespace
 
-std::string frame_version_key(const std::string& input) {
-  return version_key(version_of(input)) + "|" + version_key(version_of(sidecar_path_for(input)));
-}
 
 bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry,
                       const std::string& version) {

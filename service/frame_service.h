@@ -124,13 +124,6 @@ class FrameService {
 bool write_error_file(const std::string& path, const std::string& input, const std::string& error,
                       bool retry = false, const std::string& version = {});
 
-// The version of a frame as a worker reads it, the file's and its camera sidecar's (inode,
-// size, modification and change times; "none" for a missing file). Kept in a failed frame's
-// error file: an input or sidecar that differs from it is a new version, even when its time
-// equals the error file's (a copy finishing within the clock tick the error file was
-// written in), and across restarts of the service.
-std::string frame_version_key(const std::string& input);
-
 // Records a failed frame: removes its output (an older version's result, which would
 // otherwise sit beside the newer error) and writes its error file with the input's version.
 bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,

@@ -234,17 +234,21 @@ bool composite_reads_lighting(const FrameRequest& request, const TermsComputed& 
                      [](const WeightedTerm& w) { return w.term == CompositeTerm::lighting; });
 }
 
-// The raw terms of g; then releases what no later step reads: its views and its positions,
-// and the lighting and albedo unless the composite reads them (the denoised terms and the
-// composite reuse their memory: the worker's heap keeps freed memory, and fresh pages cost
-// a fault each).
-TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
-  const TermsComputed computed = terms_computed(request);
-  TermOutputs raw = compute_raw_terms(g, request, computed);
+// Releases what no step after the raw terms reads: g's views and its positions, and the
+// lighting and albedo unless the composite reads them (the denoised terms and the composite
+// reuse their memory: the worker's heap keeps freed memory, and fresh pages cost a fault
+// each).
+void release_after_raw_terms(GBuffer& g, const FrameRequest& request) {
   g.views.clear();
   g.position_view.release();
-  if (!composite_reads_lighting(request, computed)) g.lighting.release();
+  if (!composite_reads_lighting(request, terms_computed(request))) g.lighting.release();
   if (!request.terms.composite) g.albedo.release();
+}
+
+// The raw terms of g, then release_after_raw_terms.
+TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
+  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request));
+  release_after_raw_terms(g, request);
   return raw;
 }
 
@@ -278,6 +282,14 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
 RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
   RawFrame f;
   f.raw = raw_terms_releasing(g, request);
+  f.gbuffer = std::move(g);
+  return f;
+}
+
+RawFrame with_raw_terms(GBuffer&& g, TermOutputs raw, const FrameRequest& request) {
+  RawFrame f;
+  f.raw = std::move(raw);
+  release_after_raw_terms(g, request);
   f.gbuffer = std::move(g);
   return f;
 }

@@ -130,6 +130,9 @@ struct RawFrame {
 // compute_frame does.
 RawFrame compute_raw_frame(GBuffer&& gbuffer, const FrameRequest& request);
 ComputedFrame finish_frame(RawFrame&& frame, std::span<const RawFrame* const> neighbours, const FrameRequest& request);
+// The raw frame of a G-buffer whose raw terms `raw` were computed before, by
+// compute_raw_frame of the same frame and request: the G-buffer released as it releases it.
+RawFrame with_raw_terms(GBuffer&& gbuffer, TermOutputs raw, const FrameRequest& request);
 
 // What of a frame's raw frame the temporal filter reads when it is a neighbour: camera,
 // depth, normals, mask and the raw AO and SSDO light (image headers: no copy).

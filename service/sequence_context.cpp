@@ -5,6 +5,7 @@
 #include <set>
 #include <vector>
 
+#include "service/file_version.h"
 #include "service/frame_inputs.h"
 #include "service/view_selection.h"
 
@@ -127,15 +128,21 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
     return compute_frame(std::move(frame), request);
   }
   RawFrame raw;
+  const std::string key = store_ ? raw_terms_key(request, request.input_path, request.read.camera_json) : "";
+  std::optional<TermOutputs> kept = store_ ? store_->take_terms(key) : std::nullopt;
   if (self.raw_whole) {
     raw = std::move(*self.raw_whole);
     self.raw_whole.reset();
     self.raw_info.reset();
+  } else if (kept) {
+    raw = with_raw_terms(std::move(frame), std::move(*kept), request);
+    ++reads_.raw_kept;
   } else {
     raw = compute_raw_frame(std::move(frame), request);
     ++reads_.raw_terms;
   }
   self.raw_part = std::make_shared<const RawFrame>(temporal_part(raw));
+  if (store_) store_->put(key, self.raw_part);
   std::vector<const RawFrame*> neighbours;
   std::vector<std::string> names;
   for (const NeighbourFrame& n : within_places(request.neighbours, request.temporal_per_side)) {
@@ -148,6 +155,7 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
   }
   ComputedFrame out = finish_frame(std::move(raw), neighbours, request);
   drop_raw_outside(request);
+  if (store_) store_->keep(size_t(2 * request.temporal_per_side + 1));
   add_temporal_notes(out, names, notes);
   return out;
 }
@@ -157,8 +165,11 @@ void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::ve
   std::string used;
   for (size_t i = 0; i < out.temporal.size(); ++i)
     if (out.temporal[i].used) used += " " + names[i];
+  const std::string kept = reads_.raw_kept > 0 ? ", " + std::to_string(reads_.raw_kept) + " kept from earlier frames"
+                                                : std::string();
   notes.push_back("temporal:" + (used.empty() ? std::string(" none") : used) + " (raw terms computed " +
-                  std::to_string(reads_.raw_terms) + " times for " + std::to_string(reads_.frames) + " frames)");
+                  std::to_string(reads_.raw_terms) + " times for " + std::to_string(reads_.frames) + " frames" +
+                  kept + ")");
   for (size_t i = 0; i < out.temporal.size(); ++i) {
     const TemporalUse& u = out.temporal[i];
     if (u.used) continue;
@@ -180,6 +191,11 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
   const NeighbourFrame self{sequence_name(request), 0, false,
                             request.input_name.empty() ? std::string() : request.input_path, request.read.camera_json};
   r.neighbours = neighbours_of_neighbour(self, request.neighbours, n, view_candidate_places(request.views_per_side));
+  const std::string key = store_ ? raw_terms_key(r, r.input_path, n.camera_json) : "";
+  if (std::shared_ptr<const RawFrame> kept = store_ ? store_->part(key) : nullptr) {
+    ++reads_.raw_kept;
+    return (cache_[n.path].raw_part = std::move(kept)).get();
+  }
   ReadResult f = read_in_window(r, neighbour_read(n, read));
   Entry& e = cache_[n.path];  // std::map: references stay valid
   if (!f.ok()) e.raw_error = f.error;
@@ -188,6 +204,8 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
   RawFrame raw = compute_raw_frame(std::move(f.gbuffer), r);
   ++reads_.raw_terms;
   e.raw_part = std::make_shared<const RawFrame>(temporal_part(raw));
+  // A frame after this one may come as a request of its own: its raw terms are kept whole.
+  if (store_) store_->put(key, e.raw_part, n.frame_offset > 0 ? std::optional<TermOutputs>(raw.raw) : std::nullopt);
   if (n.computed_later) {
     e.raw_whole = std::make_shared<RawFrame>(std::move(raw));
     e.raw_info = std::move(f.info);
@@ -269,10 +287,50 @@ void SequenceContext::drop_raw_outside(const FrameRequest& request) {
     if (!window.count(name)) e.raw_part.reset();
 }
 
+std::string SequenceContext::raw_terms_key(const FrameRequest& frame, const std::string& path,
+                                           const std::string& camera_json) const {
+  std::vector<std::string> candidates;
+  if (frame.views_per_side > 0)
+    for (const NeighbourFrame& n : within_places(frame.neighbours, view_candidate_places(frame.views_per_side)))
+      candidates.push_back(n.path + "=" + frame_version_key(n.open_path.empty() ? n.path : n.open_path, n.camera_json));
+  std::sort(candidates.begin(), candidates.end());  // a set: each request lists them in its own order
+  std::string key = settings_key_ + "\n" + sequence_name(frame) + "=" + frame_version_key(path, camera_json);
+  for (const std::string& c : candidates) key += "\n" + c;
+  return key;
+}
+
 void SequenceContext::keep_window(const FrameRequest& request) {
   std::set<std::string> window{sequence_name(request)};
   for (const NeighbourFrame& n : request.neighbours) window.insert(n.path);
   for (auto it = cache_.begin(); it != cache_.end();) it = window.count(it->first) ? std::next(it) : cache_.erase(it);
+}
+
+std::list<RawTermsStore::Item>::iterator RawTermsStore::find(const std::string& key) {
+  const auto it = std::find_if(items_.begin(), items_.end(), [&](const Item& i) { return i.key == key; });
+  if (it != items_.end()) items_.splice(items_.begin(), items_, it);
+  return it;
+}
+
+std::shared_ptr<const RawFrame> RawTermsStore::part(const std::string& key) {
+  const auto it = find(key);
+  return it == items_.end() ? nullptr : it->part;
+}
+
+std::optional<TermOutputs> RawTermsStore::take_terms(const std::string& key) {
+  const auto it = find(key);
+  if (it == items_.end() || !it->terms) return std::nullopt;
+  std::optional<TermOutputs> terms = std::move(it->terms);
+  it->terms.reset();
+  return terms;
+}
+
+void RawTermsStore::put(const std::string& key, std::shared_ptr<const RawFrame> part, std::optional<TermOutputs> terms) {
+  if (const auto it = find(key); it != items_.end()) items_.erase(it);
+  items_.push_front({key, std::move(part), std::move(terms)});
+}
+
+void RawTermsStore::keep(size_t count) {
+  while (items_.size() > count) items_.pop_back();
 }
 
 }  // namespace ssdo

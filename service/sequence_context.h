@@ -27,6 +27,7 @@
 // Memory: at most 2K + 1 frames of raw terms and guides, K of them whole.
 #pragma once
 
+#include <list>
 #include <map>
 #include <memory>
 #include <optional>
@@ -37,8 +38,40 @@
 
 namespace ssdo {
 
+// Raw terms kept across a worker's requests, for the watch and socket modes, whose requests
+// each read through a context of their own (their files are opened per request,
+// service/job_files.h). An entry is keyed by the settings and by the versions of every file
+// its raw terms were computed from (the frame, its camera file, the frames it chose its views
+// among: raw_terms_key), so a frame rewritten between requests is computed again and never
+// lent stale. What is kept: what the temporal filter reads of the frame (temporal_part), and
+// for a frame after the one that computed it (which may still come as a request of its own)
+// its whole raw terms, so that its own turn reads its G-buffer again but does not compute them.
+class RawTermsStore {
+ public:
+  // The frame kept under `key` (temporal_part's images), or null.
+  std::shared_ptr<const RawFrame> part(const std::string& key);
+  // The whole raw terms kept under `key`, handed over (kept no more), or nullopt.
+  std::optional<TermOutputs> take_terms(const std::string& key);
+  void put(const std::string& key, std::shared_ptr<const RawFrame> part, std::optional<TermOutputs> terms = {});
+  // Keeps the `count` entries used last (a request's window: 2K + 1).
+  void keep(size_t count);
+  void clear() { items_.clear(); }
+
+ private:
+  struct Item {
+    std::string key;
+    std::shared_ptr<const RawFrame> part;
+    std::optional<TermOutputs> terms;
+  };
+  std::list<Item>::iterator find(const std::string& key);  // moved to the front when found
+  std::list<Item> items_;  // used last first
+};
+
 class SequenceContext : public FrameSource {
  public:
+  // Raw terms are also looked up in, and kept in, `store` (which outlives this context).
+  void share_raw_terms(RawTermsStore* store) { store_ = store; }
+
   ReadResult read(const FrameRequest& request, const ReadOptions& read) override;
   ComputedFrame compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
                         std::vector<std::string>& notes) override;
@@ -53,6 +86,7 @@ class SequenceContext : public FrameSource {
   struct Reads {
     long whole = 0, depth_only = 0, headers = 0, frames = 0;
     long raw_terms = 0;  // frames whose raw terms were computed (temporal filtering)
+    long raw_kept = 0;   // frames whose raw terms came from the store (share_raw_terms)
   };
   const Reads& reads() const { return reads_; }
 
@@ -83,11 +117,16 @@ class SequenceContext : public FrameSource {
   // Releases the raw terms of the frames beyond the request's temporal window (frames are
   // computed in order: no later frame of the worker reads them).
   void drop_raw_outside(const FrameRequest& request);
+  // The key of a frame's raw terms in the store (RawTermsStore): the settings, and the
+  // versions of the frame (opened as `path`, its camera file `camera_json`) and of the
+  // frames its views are chosen among.
+  std::string raw_terms_key(const FrameRequest& frame, const std::string& path, const std::string& camera_json) const;
 
   std::map<std::string, Entry> cache_;
   std::string read_key_;  // the read options the whole frames were read with
   std::string settings_key_;  // use_settings
   Reads reads_;
+  RawTermsStore* store_ = nullptr;
 };
 
 // The foreground's median planar depth (every 4th pixel of every 4th row): the scene depth

@@ -502,7 +502,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     if (!error_path.empty()) response["error_file"] = error_path;
     return reply(fd, response);
   }
-  json response{{"ok", true}, {"terms", r.terms}, {"width", r.width_px}, {"height", r.height_px}, {"times", times}};
+  json response{{"ok", true},          {"terms", r.terms}, {"width", r.width_px},
+                {"height", r.height_px}, {"times", times},   {"notes", r.notes}};
   if (!id.is_null()) response["id"] = id;
   if (request.reply_inline) return reply(fd, response, output);
   response["output"] = output;

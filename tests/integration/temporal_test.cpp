@@ -4,6 +4,7 @@
 // writing them, write the same bytes as the whole shot in one batch; the watch mode, whose
 // frames find their neighbours in the folder, and a socket request naming its neighbours
 // write what the batch writes.
+#include <fstream>
 #include <regex>
 
 #include <OpenImageIO/imageio.h>
@@ -127,6 +128,59 @@ TEST(Temporal, TheWatchModeWritesTheBytesOfTheBatch) {
   const std::string expected = read_text(dir.path / "batch/shot.0001.ssdo.exr");
   EXPECT_FALSE(request(0) == expected);
   EXPECT_TRUE(request(1) == expected);
+}
+
+// Requests for the frames of a shot, one after another, each naming its neighbours: each
+// frame's raw terms are computed once across the requests (the worker keeps them by the
+// files' versions), the outputs are the batch's, and a frame rewritten between requests is
+// computed again.
+TEST(Temporal, SocketRequestsOfAShotComputeEachFrameOnceUntilAFileChanges) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  constexpr int kFrames = 4;
+  copy_temporal_shot(dir.path / "in", kFrames);
+  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + kTemporalShotArgs);
+  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+  const std::string socket = socket_path_for("temporal_store");
+  SsdoProcess service({"serve", "-o", dir / "served", "--socket", socket, "--allow", dir / "in", "--jobs", "1",
+                       "--frame-timeout", "60"},
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  Client c(socket);
+  auto frame = [&](int i) { return dir / ("in/" + numbered("shot.000", i) + ".exr"); };
+  // The note of frame i's request ("temporal: ..." with its counts).
+  auto request = [&](int i) {
+    json views = json::array();
+    for (int k = 0; k < kFrames; ++k)
+      if (k != i) views.push_back(frame(k));
+    const json r = c.request({{"op", "process"},
+                              {"input", frame(i)},
+                              {"options", {{"terms", "ao"}, {"preset", "low"}, {"views", 1}, {"temporal", 1}}},
+                              {"views", views}});
+    EXPECT_TRUE(r.value("ok", false)) << r.dump() << service.log();
+    for (const auto& note : r.value("notes", json::array()))
+      if (note.get<std::string>().rfind("temporal:", 0) == 0) return note.get<std::string>();
+    return std::string("no temporal note in ") + r.dump();
+  };
+  // Frame 0 computes itself and frame 1; each later one only the frame after it (frame 3
+  // none); the frame before and its own raw terms are kept from the requests before.
+  const char* expected[kFrames] = {"(raw terms computed 2 times for 1 frames)",
+                                   "(raw terms computed 1 times for 1 frames, 2 kept from earlier frames)",
+                                   "(raw terms computed 1 times for 1 frames, 2 kept from earlier frames)",
+                                   "(raw terms computed 0 times for 1 frames, 2 kept from earlier frames)"};
+  for (int i = 0; i < kFrames; ++i) {
+    const std::string note = request(i);
+    EXPECT_NE(note.find(expected[i]), std::string::npos) << "frame " << i << ": " << note;
+    const std::string name = numbered("shot.000", i) + ".ssdo.exr";
+    EXPECT_TRUE(read_text(dir.path / "served" / name) == read_text(dir.path / "batch" / name)) << name;
+  }
+  // Frame 2 rewritten (the same bytes, a new file): frame 1 and its temporal neighbours 0
+  // and 2 are computed again, since frames 0 and 1 chose their views among it.
+  const std::string bytes = read_text(frame(2));
+  fs::remove(frame(2));
+  std::ofstream(frame(2), std::ios::binary) << bytes;
+  const std::string note = request(1);
+  EXPECT_NE(note.find("(raw terms computed 3 times for 1 frames)"), std::string::npos) << note;
 }
 
 }  // namespace

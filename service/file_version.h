@@ -1,0 +1,32 @@
+// One version of a file, as stat(2) describes it: what tells a rewritten or replaced input
+// from the one read before, whatever the clock says.
+#pragma once
+
+#include <sys/stat.h>
+
+#include <string>
+
+namespace ssdo {
+
+struct FileVersion {
+  bool exists = false;
+  dev_t dev = 0;
+  ino_t ino = 0;
+  off_t size = 0;
+  timespec mtime{}, ctime{};
+  bool operator==(const FileVersion& o) const;
+};
+
+// stat(2) of `path` (following links: a "/proc/self/fd/N" name gives the file the descriptor
+// holds, not a name that may have been swapped since).
+FileVersion version_of(const std::string& path);
+
+// One string for a version, to remember it: inode, size, modification and change times
+// ("none" for a missing file).
+std::string version_key(const FileVersion& v);
+
+// The version of a frame as a worker reads it: the file's and its camera file's
+// (`camera_json`, or the sidecar beside the frame when empty: formats/camera_io.h).
+std::string frame_version_key(const std::string& frame, const std::string& camera_json = {});
+
+}  // namespace ssdo
