@@ -93,7 +93,7 @@ std::vector<FrameOption> compute_options() {
                "through depth and both cameras; what another frame sees differently (a disocclusion, a moving "
                "object, a cut) is left out, and there the frame keeps its own. Less flicker, and a low preset "
                "approaches a high one; each frame's raw terms are computed once per batch. The raw terms stay "
-               "unfiltered. 0 = every frame alone (2 recommended)",
+               "unfiltered. 0 = every frame alone",
        .lo = 0, .hi = 8, .field = +[](A& a) -> int& { return a.compute.temporal; }},
   };
 }

@@ -20,11 +20,11 @@ namespace ssdo {
 // (0 = every frame alone).
 inline constexpr int kDefaultViewsPerSide = 2;
 
-// --temporal when not given: 0, each frame's denoised terms from its own raw terms alone
-// (the output of a frame alone, bit for bit). kRecommendedTemporalPerSide: the K the
-// measurements recommend (docs/temporal.md; tests/accuracy/temporal_accuracy_test.cpp).
-inline constexpr int kDefaultTemporalPerSide = 0;
-inline constexpr int kRecommendedTemporalPerSide = 2;
+// --temporal when not given: a frame of a sequence has its denoised terms filtered over 2
+// frames on each side, the K the measurements chose (docs/temporal.md;
+// tests/accuracy/temporal_accuracy_test.cpp): flicker divided by 3 to 4 for gtao medium and
+// by 2.4 to 3.5 for SSDO's terms, where K = 1 is just above 2x. 0 is a frame alone, bit for bit.
+inline constexpr int kDefaultTemporalPerSide = 2;
 
 // Raw option values as typed; resolved into a request by resolve_* (cli_options.h).
 struct ReadOptionArgs {

@@ -78,7 +78,7 @@ TEST(TemporalAccuracy, SyntheticPanFlickersLessAndIsNoWorse) {
                     term, m.flicker, m.reference_flicker, m.mae, ms_raw, ms_finish);
         const bool ao = std::string(term) == "ao_denoised";
         if (k == 0) (ao ? alone_ao : alone_direct) = m;
-        if (k != kRecommendedTemporalPerSide || preset != Preset::medium) continue;
+        if (k != kDefaultTemporalPerSide || preset != Preset::medium) continue;
         const shot::TemporalMeasured& alone = ao ? alone_ao : alone_direct;
         EXPECT_LE(m.flicker, 0.5 * alone.flicker) << term;
         if (ao) {
@@ -136,14 +136,14 @@ TEST(TemporalAccuracy, OrbitFlickersLessAndIsNoWorse) {
     double ms_raw = 0;
     const std::vector<RawFrame> raws = shot::raw_frames(frames, r, ms_raw);
     shot::TemporalMeasured alone;
-    for (const int k : {0, kRecommendedTemporalPerSide}) {  // docs/temporal.md has K = 1 and 3 too
+    for (const int k : {0, kDefaultTemporalPerSide}) {  // docs/temporal.md has K = 1 and 3 too
       double ms_finish = 0;
       const std::vector<ComputedFrame> out = shot::finished_frames(raws, k, r, ms_finish);
       const shot::TemporalMeasured m = shot::measure_shot(out, frames, o.references, "ao_denoised");
       std::printf("| %s | %d | %.4f | %.4f | %.4f | %.0f | %.0f |\n", std::string(to_string(preset)).c_str(), k,
                   m.flicker, m.reference_flicker, m.mae, ms_raw, ms_finish);
       if (k == 0) alone = m;
-      if (k != kRecommendedTemporalPerSide || preset != Preset::medium) continue;
+      if (k != kDefaultTemporalPerSide || preset != Preset::medium) continue;
       EXPECT_LE(m.flicker, 0.5 * alone.flicker);
       EXPECT_LE(m.mae, alone.mae);
     }

@@ -92,12 +92,14 @@ TEST(Sequence, ViewsZeroIsTheFrameAlone) {
   for (int i = 0; i < 3; ++i) {
     const std::string name = numbered("orbit_f", i);
     const RunResult alone = run_ssdo("process " + dir / ("in/" + name + ".exr") + " -o " + dir / "out0" +
-                                     " --views 0 --terms ao --preset low -v");
+                                     " --views 0 --temporal 0 --terms ao --preset low -v");
     ASSERT_EQ(alone.exit_code, 0) << alone.output;
     EXPECT_EQ(alone.output.find("views:"), std::string::npos) << alone.output;
   }
+  // The folder is a sequence: with no views and no temporal neighbours, each frame is the
+  // frame alone.
   const RunResult zero =
-      run_ssdo("process " + dir / "in" + " -o " + dir / "outz" + " --views 0 --terms ao --preset low");
+      run_ssdo("process " + dir / "in" + " -o " + dir / "outz" + " --views 0 --temporal 0 --terms ao --preset low");
   ASSERT_EQ(zero.exit_code, 0) << zero.output;
   for (int i = 0; i < 3; ++i) {
     const std::string name = numbered("orbit_f", i) + ".ssdo.exr";
@@ -111,7 +113,7 @@ TEST(Sequence, AChunkReadsTheFramesJustOutsideItAsViewsOnly) {
   copy_orbit(dir.path / "in", "shot.000", 7);  // shot.0000.exr .. shot.0006.exr
   // Chunk 2 of 3 of frames 0-6: frames 2 and 3.
   const RunResult r = run_ssdo("process '" + dir / "in/shot.####.exr" + "' --frames 0-6 --chunk 2/3 -o " +
-                               dir / "out" + " --views 1 --terms ao --preset low --jobs 1 -v");
+                               dir / "out" + " --views 1 --temporal 0 --terms ao --preset low --jobs 1 -v");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::vector<std::string> written;
   for (const auto& e : fs::directory_iterator(dir.path / "out")) written.push_back(e.path().filename().string());
