@@ -19,6 +19,8 @@
 #include "service/commands.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
+#include "service/sequence.h"
+#include "service/sequence_context.h"
 
 namespace ssdo {
 
@@ -142,45 +144,61 @@ struct Loaded {
   float radius = 1;
 };
 
-// A preset with --temporal K (kernels/temporal.h) over the sequences among the frames, as a
-// batch computes them: every frame's raw terms once, then each frame finished over the raw
-// terms of the K frames each side. A frame's ms: its raw terms plus its finish (one run).
+// The row name of a preset computed as a shot: "medium+v2+t2" for --views 2 --temporal 2.
+std::string sequence_variant(const std::string& preset, const BenchArgs& args) {
+  return preset + (args.views > 0 ? "+v" + std::to_string(args.views) : "") +
+         (args.temporal > 0 ? "+t" + std::to_string(args.temporal) : "");
+}
+
+// A preset over the sequences among the frames as a batch computes them (the sequence
+// context, as `ssdo eval` does): with --views K each frame uses up to K neighbours on each
+// side as extra views, with --temporal K its denoised terms are filtered over the raw terms
+// of K frames on each side, and each frame's raw terms are computed once. A frame's ms: its
+// compute (its raw terms, those of the neighbours it is the first to need, its finish; not
+// the reads), the median over `runs` runs of the whole sequence, each in a fresh context.
 // Writes a CSV row per frame and returns the row over all.
-Row bench_temporal(const std::vector<Loaded>& frames, const BenchArgs& args, const BenchConfig& config,
+Row bench_sequence(const std::vector<Loaded>& frames, const BenchArgs& args, const BenchConfig& config,
                    std::ostream& csv) {
   std::vector<std::string> paths;
   for (const Loaded& f : frames) paths.push_back(f.path);
-  const auto lists = sequence_neighbours(paths, args.temporal);
+  const auto lists = sequence_neighbours(paths, neighbour_places(args.views, args.temporal));
   FrameRequest request = args.request;
   request.terms = {true, false, false};
   request.ao = config.settings;
+  request.views_per_side = args.views;
   request.temporal_per_side = args.temporal;
-  std::vector<RawFrame> raws;
-  std::vector<double> ms;
-  for (const Loaded& f : frames) {
-    request.ao.radius_world = f.radius;
-    const auto t0 = std::chrono::steady_clock::now();
-    raws.push_back(compute_raw_frame(GBuffer(f.g), request));
-    ms.push_back(ms_since(t0));
+  const ReadOptions read = reads_for(request);
+  std::vector<std::vector<double>> times(frames.size());
+  std::vector<cv::Mat> estimates(frames.size());
+  for (int run = 0; run < args.runs; ++run) {
+    SequenceContext sequence;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      FrameRequest r = request;
+      r.input_path = paths[i];
+      r.neighbours = lists[i];
+      for (NeighbourFrame& n : r.neighbours) n.computed_later = n.frame_offset > 0;
+      ReadResult f = sequence.read(r, read);
+      std::string error;
+      if (!f.ok() || !resolve_frame_radius(r, f.info, error)) continue;  // read and resolved once before
+      std::vector<std::string> notes;
+      const auto t0 = std::chrono::steady_clock::now();
+      const ComputedFrame computed = sequence.compute(r, read, std::move(f.gbuffer), notes);
+      times[i].push_back(ms_since(t0));
+      estimates[i] = *computed.find("ao_denoised");
+    }
   }
-  Row all{"all", std::string(to_string(config.settings.method)), config.preset + "+t" + std::to_string(args.temporal),
-          "", taps_per_pixel(config.settings), 0, {}};
+  Row all{"all", std::string(to_string(config.settings.method)), sequence_variant(config.preset, args), "",
+          taps_per_pixel(config.settings), 0, {}};
   ErrorAccumulator overall;
   for (size_t i = 0; i < frames.size(); ++i) {
-    std::vector<RawFrame> parts;
-    for (const NeighbourFrame& n : lists[i])
-      parts.push_back(temporal_part(raws[size_t(std::find(paths.begin(), paths.end(), n.path) - paths.begin())]));
-    std::vector<const RawFrame*> neighbours;
-    for (const RawFrame& p : parts) neighbours.push_back(&p);
-    const auto t0 = std::chrono::steady_clock::now();
-    const ComputedFrame computed = finish_frame(RawFrame(raws[i]), neighbours, request);
+    if (estimates[i].empty()) continue;
     Row r = all;
     r.file = frames[i].path;
     r.resolution = std::to_string(frames[i].g.width_px()) + "x" + std::to_string(frames[i].g.height_px());
-    r.ms = ms[i] + ms_since(t0);
-    r.error = compare_images(*computed.find("ao_denoised"), frames[i].reference, frames[i].g.mask);
+    r.ms = median(times[i]);
+    r.error = compare_images(estimates[i], frames[i].reference, frames[i].g.mask);
     write_csv_row(csv, r);
-    overall.add(*computed.find("ao_denoised"), frames[i].reference, frames[i].g.mask);
+    overall.add(estimates[i], frames[i].reference, frames[i].g.mask);
     all.ms += r.ms / double(frames.size());
     all.resolution = all.resolution.empty() || all.resolution == r.resolution ? r.resolution : "mixed";
   }
@@ -289,13 +307,15 @@ int run_bench(const BenchArgs& args) {
     s.colour = chart_colour(config.settings.method);
     s.line = config.preset == "sweep" ? ChartLine::thin : ChartLine::solid;
     s.points.push_back({row.ms, row.error.mae, config.preset == "sweep" ? std::to_string(row.samples) : config.preset});
-    if (args.temporal <= 0 || config.preset == "sweep") continue;
-    const Row t = bench_temporal(frames, args, config, csv);
+    if ((args.temporal <= 0 && args.views <= 0) || config.preset == "sweep") continue;
+    const Row t = bench_sequence(frames, args, config, csv);
     std::printf("%-10s %-7s %7d %10.1f %8.4f %8.4f %8.4f\n", t.method.c_str(), t.preset.c_str(), t.samples, t.ms,
                 t.error.mae, t.error.rmse, t.error.p95);
-    const std::string temporal_name = row.method + " presets, --temporal " + std::to_string(args.temporal);
-    ChartSeries& ts = by_method[temporal_name];
-    ts.name = temporal_name;
+    const std::string sequence_name = row.method + " presets," +
+                                      (args.views > 0 ? " --views " + std::to_string(args.views) : "") +
+                                      (args.temporal > 0 ? " --temporal " + std::to_string(args.temporal) : "");
+    ChartSeries& ts = by_method[sequence_name];
+    ts.name = sequence_name;
     ts.colour = chart_colour(config.settings.method);
     ts.line = ChartLine::dashed;
     ts.points.push_back({t.ms, t.error.mae, config.preset});
@@ -347,9 +367,14 @@ Command register_bench(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores)")->check(CLI::Range(0, 1024));
   cmd->add_option("--temporal", b.temporal,
-                  "Also each preset with --temporal K: the frames of a sequence among the files (names that differ "
-                  "in a frame number) filtered over K frames each side, their time including the raw terms (a row "
-                  "per preset 'PRESET+tK' and a curve on the chart)")
+                  "Also each preset computed as a shot, with --temporal K: the frames of a sequence among the files "
+                  "(names that differ in a frame number) filtered over K frames each side, their time including the "
+                  "raw terms (a row per preset 'PRESET+tK' and a curve on the chart)")
+      ->check(CLI::Range(0, 8));
+  cmd->add_option("--views", b.views,
+                  "Also each preset computed as a shot, with --views K: each frame of a sequence among the files "
+                  "uses up to K neighbours on each side as extra views (with --temporal too: 'PRESET+vK+tK'). The "
+                  "rows of the presets alone are frames alone")
       ->check(CLI::Range(0, 8));
   add_frame_options(*cmd, st->options, int(OptionSet::read));
   return {cmd, [st] {

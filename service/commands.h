@@ -129,6 +129,7 @@ struct BenchArgs {
   std::string external_csv;          // external reference costs: series,label,ms,mae
   FrameRequest request;              // read options, threads
   int temporal = 0;                  // > 0: also each preset with --temporal K over the files' sequences
+  int views = 0;                     // > 0: also each preset with --views K over the files' sequences
 };
 int run_bench(const BenchArgs& args);
 
