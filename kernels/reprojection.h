@@ -53,6 +53,8 @@ class PixelPoints {
       return c0 + px * cx + py * cy + depth_view * (d0 + px * dx + py * dy);
     }
   };
+  const PixelRays& rays() const { return rays_; }
+
   PlaneDistance plane(const glm::vec3& p, const glm::vec3& n) const {
     return {glm::dot(n, rays_.o0 - p), glm::dot(n, rays_.ox), glm::dot(n, rays_.oy),
             glm::dot(n, rays_.u0),     glm::dot(n, rays_.ux), glm::dot(n, rays_.uy)};
@@ -94,6 +96,14 @@ class Reprojection {
   static float plane_distance(const Carried& p, int tx, int ty, float depth_view) {
     return std::abs(p.plane.signed_at(tx, ty, depth_view));
   }
+
+  // What carry() is made of, for code that carries several points at once (in vector
+  // lanes): from's pixel points in to's view space, the rotation that carries normals, and
+  // the target camera (its projection and its own pixel points, for the plane distance).
+  const PixelRays& from_rays_in_to() const { return from_points_in_to_.rays(); }
+  glm::mat3 rotation() const { return glm::mat3(to_view_from_view_); }
+  const Camera& to() const { return *to_; }
+  const PixelRays& to_rays() const { return to_points_.rays(); }
 
  private:
   const Camera* to_;

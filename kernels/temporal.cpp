@@ -59,59 +59,226 @@ inline float texel_weight(const Neighbour& n, const Reprojection::Carried& p, fl
   return w_plane * normal_lobe(c, s.normal_power);
 }
 
-// Adds w x the texel's channels (every term in order) to sum.
-void add_texel(const TemporalFrame& u, int tx, int ty, float w, Channels& sum) {
-  int k = 0;
-  for (const cv::Mat* term : u.terms) {
-    const float* v = term->ptr<float>(ty) + term->channels() * tx;
-    for (int c = 0; c < term->channels(); ++c) sum[size_t(k++)] += w * v[c];
-  }
+namespace hn = hwy::HWY_NAMESPACE;
+using DF = hn::ScalableTag<float>;
+using DI = hn::RebindToSigned<DF>;
+using VF = hn::Vec<DF>;
+using VI = hn::Vec<DI>;
+using MF = hn::Mask<DF>;
+
+// The most float lanes of any target: the size of per-lane scratch arrays.
+constexpr size_t kMaxLanes = HWY_MAX_BYTES / sizeof(float);
+
+// An image as the lanes gather it: channel c of texel (tx, ty) is data[ty * stride + tx *
+// channels + c].
+struct Plane {
+  const float* data;
+  int32_t stride, channels;
+};
+Plane plane_of(const cv::Mat& m) { return {m.ptr<float>(0), int32_t(m.step[0] / sizeof(float)), m.channels()}; }
+
+// Three lanes' worth of vectors: points, normals, rows of a matrix.
+struct Vec3L {
+  VF x, y, z;
+};
+Vec3L broadcast(const glm::vec3& v) {
+  const DF d;
+  return {hn::Set(d, v.x), hn::Set(d, v.y), hn::Set(d, v.z)};
+}
+VF dot(const Vec3L& a, const Vec3L& b) { return hn::Add(hn::Add(hn::Mul(a.x, b.x), hn::Mul(a.y, b.y)), hn::Mul(a.z, b.z)); }
+// a + s b, per component.
+Vec3L add_scaled(const Vec3L& a, VF s, const Vec3L& b) {
+  return {hn::Add(a.x, hn::Mul(s, b.x)), hn::Add(a.y, hn::Mul(s, b.y)), hn::Add(a.z, hn::Mul(s, b.z))};
+}
+Vec3L sub(const Vec3L& a, const Vec3L& b) { return {hn::Sub(a.x, b.x), hn::Sub(a.y, b.y), hn::Sub(a.z, b.z)}; }
+// The point at pixel coordinates (px, py) and planar depth d of pixel rays (core/camera.h).
+Vec3L ray_point(const PixelRays& r, VF px, VF py, VF d) {
+  const Vec3L origin = add_scaled(add_scaled(broadcast(r.o0), px, broadcast(r.ox)), py, broadcast(r.oy));
+  const Vec3L direction = add_scaled(add_scaled(broadcast(r.u0), px, broadcast(r.ux)), py, broadcast(r.uy));
+  return add_scaled(origin, d, direction);
 }
 
-// The neighbours' bilinear taps around each one's projection of pixel (x, y): their
-// weighted channels added to sum, and the total weight.
-float neighbour_taps(std::span<const Neighbour> neighbours, const TemporalFrame& f, int x, int y,
-                     const TemporalSettings& s, Channels& sum) {
-  const float depth_view = f.depth_view.ptr<float>(y)[x];
-  const float inverse_tolerance = 1.0f / (s.depth_tolerance_relative * depth_view);
-  const glm::vec3 normal = normal_at(f.normal_view, x, y);
-  float total = 0.0f;
-  for (const Neighbour& n : neighbours) {
-    const Reprojection::Carried p = n.reprojection.carry(x, y, depth_view, normal);
-    if (!(std::isfinite(p.pixel.x) && std::isfinite(p.pixel.y))) continue;
-    // Texel centres around the point: floor(pixel - 0.5) and the next one, in x and y.
-    const float gx = p.pixel.x - 0.5f, gy = p.pixel.y - 0.5f;
-    const float fx = std::floor(gx), fy = std::floor(gy);
-    if (!(fx >= -1.0f && fy >= -1.0f && fx < float(n.frame->depth_view.cols) && fy < float(n.frame->depth_view.rows)))
-      continue;
-    const float ax = gx - fx, ay = gy - fy;
-    const int x0 = int(fx), y0 = int(fy);
-    const float bilinear[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
-    for (int i = 0; i < 4; ++i) {
-      const int tx = x0 + (i & 1), ty = y0 + (i >> 1);
-      if (!(bilinear[i] > 0.0f)) continue;
-      const float w = bilinear[i] * texel_weight(n, p, inverse_tolerance, tx, ty, s);
-      if (!(w > 0.0f)) continue;
-      add_texel(*n.frame, tx, ty, w, sum);
-      total += w;
+// A neighbour's parts as the lanes read them.
+struct NeighbourPlanes {
+  Plane depth, normal;
+  std::vector<Plane> terms;  // the frame's terms' order
+  const uint8_t* mask;
+  size_t mask_stride;
+};
+NeighbourPlanes planes_of(const TemporalFrame& u) {
+  NeighbourPlanes p{plane_of(u.depth_view), plane_of(u.normal_view), {}, u.mask.ptr<uint8_t>(0), u.mask.step[0]};
+  for (const cv::Mat* term : u.terms) p.terms.push_back(plane_of(*term));
+  return p;
+}
+
+// Reprojection::carry of each lane's pixel, in lanes: the point's pixel coordinates in the
+// neighbour (valid: in front of its eye), its normal there and its tangent plane's distance
+// as a bilinear form in the neighbour's pixels (PixelPoints::PlaneDistance).
+struct CarriedLanes {
+  VF pixel_x, pixel_y;
+  MF valid;
+  Vec3L normal;
+  VF c0, cx, cy, d0, dx, dy;
+};
+CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Vec3L& normal) {
+  const DF d;
+  CarriedLanes c;
+  const Vec3L p = ray_point(r.from_rays_in_to(), px, py, depth);
+  const glm::mat3 rot = r.rotation();  // rot[column][row]
+  c.normal = {dot({hn::Set(d, rot[0][0]), hn::Set(d, rot[1][0]), hn::Set(d, rot[2][0])}, normal),
+              dot({hn::Set(d, rot[0][1]), hn::Set(d, rot[1][1]), hn::Set(d, rot[2][1])}, normal),
+              dot({hn::Set(d, rot[0][2]), hn::Set(d, rot[1][2]), hn::Set(d, rot[2][2])}, normal)};
+  // Camera::pixel_from_view: clip = view_to_clip (p, 1), NaN-free only for clip.w > 0.
+  const Camera& to = r.to();
+  const glm::mat4& m = to.view_to_clip;
+  auto clip_row = [&](int row) {
+    return hn::Add(dot({hn::Set(d, m[0][row]), hn::Set(d, m[1][row]), hn::Set(d, m[2][row])}, p), hn::Set(d, m[3][row]));
+  };
+  const VF clip_w = clip_row(3);
+  c.valid = hn::Gt(clip_w, hn::Zero(d));
+  const VF w = hn::IfThenElse(c.valid, clip_w, hn::Set(d, 1.0f));
+  const VF half = hn::Set(d, 0.5f), one = hn::Set(d, 1.0f);
+  c.pixel_x = hn::Mul(hn::Mul(half, hn::Add(hn::Div(clip_row(0), w), one)), hn::Set(d, float(to.width_px)));
+  c.pixel_y = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Div(clip_row(1), w))), hn::Set(d, float(to.height_px)));
+  const PixelRays& t = r.to_rays();
+  c.c0 = dot(c.normal, sub(broadcast(t.o0), p));
+  c.cx = dot(c.normal, broadcast(t.ox)), c.cy = dot(c.normal, broadcast(t.oy));
+  c.d0 = dot(c.normal, broadcast(t.u0)), c.dx = dot(c.normal, broadcast(t.ux)), c.dy = dot(c.normal, broadcast(t.uy));
+  return c;
+}
+
+// max(0, c)^power lane by lane for c > 0 (normal_lobe).
+VF normal_lobe_lanes(VF c, float power) {
+  const DF d;
+  const unsigned n = unsigned(power);
+  if (float(n) == power) return integer_power(c, n, hn::Set(d, 1.0f));
+  HWY_ALIGN float lanes[kMaxLanes];
+  hn::Store(c, d, lanes);
+  for (size_t i = 0; i < hn::Lanes(d); ++i) lanes[i] = std::pow(lanes[i], power);
+  return hn::Load(d, lanes);
+}
+
+// Per-lane sums of a group of pixels: their channels (every term in order) and the total weight.
+struct GroupSums {
+  HWY_ALIGN float channel[kMaxChannels][kMaxLanes];
+  VF total;
+};
+
+// Texel i (0..3: x0 + (i & 1), y0 + (i >> 1)) of the bilinear footprint of carried points
+// c in neighbour u: its weight (temporal.h) added with its channels where it agrees.
+void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside, VI x0, VI y0, VF bilinear,
+                     VF inverse_tolerance, float normal_power, int cols, int rows, GroupSums& sums) {
+  const DF d;
+  const DI di;
+  const VI tx = x0, ty = y0;
+  MF ok = hn::And(inside, hn::Gt(bilinear, hn::Zero(d)));
+  const VI minus_one = hn::Set(di, -1);
+  ok = hn::And(ok, hn::RebindMask(d, hn::And(hn::And(hn::Gt(tx, minus_one), hn::Gt(ty, minus_one)),
+                                             hn::And(hn::Lt(tx, hn::Set(di, cols)), hn::Lt(ty, hn::Set(di, rows))))));
+  const VI sx = hn::IfThenElseZero(hn::RebindMask(di, ok), tx), sy = hn::IfThenElseZero(hn::RebindMask(di, ok), ty);
+  // Background texels: the mask, a byte per texel, read lane by lane.
+  HWY_ALIGN int32_t xs[kMaxLanes], ys[kMaxLanes], foreground[kMaxLanes];
+  hn::Store(sx, di, xs);
+  hn::Store(sy, di, ys);
+  for (size_t i = 0; i < hn::Lanes(d); ++i) foreground[i] = u.mask[size_t(ys[i]) * u.mask_stride + size_t(xs[i])];
+  ok = hn::And(ok, hn::RebindMask(d, hn::Ne(hn::Load(di, foreground), hn::Zero(di))));
+  const VF depth_u = hn::GatherIndex(d, u.depth.data, hn::Add(hn::Mul(sy, hn::Set(di, u.depth.stride)), sx));
+  const VI normal_at = hn::Add(hn::Mul(sy, hn::Set(di, u.normal.stride)), hn::Mul(sx, hn::Set(di, 3)));
+  const Vec3L normal_u = {hn::GatherIndex(d, u.normal.data, normal_at),
+                          hn::GatherIndex(d, u.normal.data + 1, normal_at),
+                          hn::GatherIndex(d, u.normal.data + 2, normal_at)};
+  // PixelPoints::PlaneDistance::signed_at at the texel's centre.
+  const VF half = hn::Set(d, 0.5f);
+  const VF tpx = hn::Add(hn::ConvertTo(d, tx), half), tpy = hn::Add(hn::ConvertTo(d, ty), half);
+  const VF e = hn::Abs(hn::Add(hn::Add(hn::Add(c.c0, hn::Mul(tpx, c.cx)), hn::Mul(tpy, c.cy)),
+                               hn::Mul(depth_u, hn::Add(hn::Add(c.d0, hn::Mul(tpx, c.dx)), hn::Mul(tpy, c.dy)))));
+  const VF w_plane = hn::Sub(hn::Set(d, 1.0f), hn::Mul(e, inverse_tolerance));
+  const VF cosine = dot(c.normal, normal_u);
+  ok = hn::And(ok, hn::And(hn::Gt(w_plane, hn::Zero(d)), hn::Gt(cosine, hn::Zero(d))));
+  const VF w = hn::Mul(bilinear, hn::Mul(w_plane, normal_lobe_lanes(hn::IfThenElseZero(ok, cosine), normal_power)));
+  ok = hn::And(ok, hn::Gt(w, hn::Zero(d)));
+  sums.total = hn::IfThenElse(ok, hn::Add(sums.total, w), sums.total);
+  int k = 0;
+  for (const Plane& term : u.terms) {
+    const VI at = hn::Add(hn::Mul(sy, hn::Set(di, term.stride)), hn::Mul(sx, hn::Set(di, term.channels)));
+    for (int ch = 0; ch < term.channels; ++ch, ++k) {
+      const VF sum = hn::Load(d, sums.channel[k]);
+      const VF v = hn::GatherIndex(d, term.data + ch, at);
+      hn::Store(hn::IfThenElse(ok, hn::Add(sum, hn::Mul(w, v)), sum), d, sums.channel[k]);
     }
   }
-  return total;
 }
 
-// One row of the roi: each pixel's terms filtered (temporal.h), or copied where nothing agrees.
-void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours, const TemporalSettings& s,
-                std::span<cv::Mat* const> dsts, int y, int x_begin, int x_end) {
+// The neighbours' bilinear taps around each one's projection of the lanes' pixels (px, py:
+// pixel centres; foreground ones only), summed into sums.
+void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const NeighbourPlanes> planes, VF px,
+                          VF py, VF depth, const Vec3L& normal, MF foreground, const TemporalSettings& s,
+                          GroupSums& sums) {
+  const DF d;
+  const VF inverse_tolerance = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, s.depth_tolerance_relative), depth));
+  for (size_t i = 0; i < neighbours.size(); ++i) {
+    const Neighbour& n = neighbours[i];
+    const CarriedLanes c = carry_lanes(n.reprojection, px, py, depth, normal);
+    // Texel centres around the point: floor(pixel - 0.5) and the next one, in x and y.
+    const VF gx = hn::Sub(c.pixel_x, hn::Set(d, 0.5f)), gy = hn::Sub(c.pixel_y, hn::Set(d, 0.5f));
+    const VF fx = hn::Floor(gx), fy = hn::Floor(gy);
+    const int cols = n.frame->depth_view.cols, rows = n.frame->depth_view.rows;
+    MF inside = hn::And(foreground, c.valid);
+    inside = hn::And(inside, hn::And(hn::Ge(fx, hn::Set(d, -1.0f)), hn::Ge(fy, hn::Set(d, -1.0f))));
+    inside = hn::And(inside, hn::And(hn::Lt(fx, hn::Set(d, float(cols))), hn::Lt(fy, hn::Set(d, float(rows)))));
+    const VF ax = hn::IfThenElseZero(inside, hn::Sub(gx, fx)), ay = hn::IfThenElseZero(inside, hn::Sub(gy, fy));
+    const DI di;
+    const VI x0 = hn::ConvertTo(di, hn::IfThenElseZero(inside, fx)), y0 = hn::ConvertTo(di, hn::IfThenElseZero(inside, fy));
+    const VI one_i = hn::Set(di, 1);
+    const VF one = hn::Set(d, 1.0f);
+    const VF bx[2] = {hn::Sub(one, ax), ax}, by[2] = {hn::Sub(one, ay), ay};
+    for (int t = 0; t < 4; ++t)
+      add_texel_lanes(planes[i], c, inside, (t & 1) ? hn::Add(x0, one_i) : x0, (t >> 1) ? hn::Add(y0, one_i) : y0,
+                      hn::Mul(bx[t & 1], by[t >> 1]), inverse_tolerance, s.normal_power, cols, rows, sums);
+  }
+}
+
+// One row of the roi: each pixel's terms filtered (temporal.h), or copied where nothing
+// agrees; pixels a vector of lanes at a time (the last group's extra lanes are computed as
+// background and not written).
+void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours,
+                std::span<const NeighbourPlanes> planes, const TemporalSettings& s, std::span<cv::Mat* const> dsts,
+                int y, int x_begin, int x_end) {
+  const DF d;
+  const size_t lanes = hn::Lanes(d);
+  const float* depth_row = f.depth_view.ptr<float>(y);
+  const float* normal_row = f.normal_view.ptr<float>(y);
   const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
-  for (int x = x_begin; x < x_end; ++x) {
-    Channels sum{};
-    const float total = mask_row[x] ? neighbour_taps(neighbours, f, x, y, s, sum) : 0.0f;
+  HWY_ALIGN float depth[kMaxLanes], nx[kMaxLanes], ny[kMaxLanes], nz[kMaxLanes], fg[kMaxLanes];
+  for (int x0 = x_begin; x0 < x_end; x0 += int(lanes)) {
+    const int count = std::min(int(lanes), x_end - x0);
+    for (int i = 0; i < int(lanes); ++i) {
+      const bool in = i < count && mask_row[x0 + i];
+      depth[i] = in ? depth_row[x0 + i] : 1.0f;
+      nx[i] = in ? normal_row[3 * (x0 + i)] : 0.0f;
+      ny[i] = in ? normal_row[3 * (x0 + i) + 1] : 0.0f;
+      nz[i] = in ? normal_row[3 * (x0 + i) + 2] : 0.0f;
+      fg[i] = in ? 1.0f : 0.0f;
+    }
+    GroupSums sums;
+    sums.total = hn::Zero(d);
+    for (auto& channel : sums.channel) hn::Store(hn::Zero(d), d, channel);
+    const VF px = hn::Add(hn::ConvertTo(d, hn::Iota(DI(), x0)), hn::Set(d, 0.5f));
+    neighbour_taps_lanes(neighbours, planes, px, hn::Set(d, float(y) + 0.5f), hn::Load(d, depth),
+                         {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)}, hn::Gt(hn::Load(d, fg), hn::Zero(d)), s,
+                         sums);
+    HWY_ALIGN float total[kMaxLanes];
+    hn::Store(sums.total, d, total);
     int k = 0;
-    for (size_t i = 0; i < f.terms.size(); ++i) {
-      const int channels = f.terms[i]->channels();
-      const float* src = f.terms[i]->ptr<float>(y) + channels * x;
-      float* dst = dsts[i]->ptr<float>(y) + channels * x;
-      for (int c = 0; c < channels; ++c, ++k) dst[c] = total > 0.0f ? (src[c] + sum[size_t(k)]) / (1.0f + total) : src[c];
+    for (size_t t = 0; t < f.terms.size(); ++t) {
+      const int channels = f.terms[t]->channels();
+      const float* src = f.terms[t]->ptr<float>(y);
+      float* dst = dsts[t]->ptr<float>(y);
+      for (int c = 0; c < channels; ++c, ++k)
+        for (int i = 0; i < count; ++i) {
+          const int at = channels * (x0 + i) + c;
+          dst[at] = total[i] > 0.0f ? (src[at] + sums.channel[k][i]) / (1.0f + total[i]) : src[at];
+        }
     }
   }
 }
@@ -193,9 +360,11 @@ std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<c
     measure_neighbour(frame, n, settings, uses[i], nthreads);
     if (uses[i].used) used.push_back(n);
   }
+  std::vector<NeighbourPlanes> planes;
+  for (const Neighbour& n : used) planes.push_back(planes_of(*n.frame));
   const cv::Rect r = resolve_roi(roi, frame.depth_view.size());
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) filter_row(frame, used, settings, dsts, y, r.x, r.x + r.width);
+    for (int y = rows.start; y < rows.end; ++y) filter_row(frame, used, planes, settings, dsts, y, r.x, r.x + r.width);
   });
   return uses;
 }
