@@ -1,11 +1,12 @@
 // Timings of the screen-space AO methods per preset, of SSDO per preset, of the denoisers
-// (1 and 3 channels), of the confidence term and of the whole compute step of a frame
-// (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared
+// (1 and 3 channels), of the confidence term, of the temporal filter and of the whole
+// compute step of a frame (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes),
+// at 640x360 (the shared
 // cornell dump) and 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without
 // ../shared the Cornell-like scene of the reference ray caster is rendered at both sizes
 // instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
-// width, threads (denoisers, BM_Confidence).
+// width, threads (denoisers, BM_Confidence); width, K, threads (BM_Temporal).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -21,6 +22,7 @@
 #include "tests/accuracy/shot_views.h"
 #include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
+#include "kernels/temporal.h"
 #include "service/pipeline.h"
 
 namespace {
@@ -160,6 +162,32 @@ void BM_ShotChosenViews(benchmark::State& state) {
   time_ao_medium_frame(state, g, int(state.range(2)), "truck shot, --views " + std::to_string(state.range(1)) + ", ");
 }
 
+// The temporal filter (kernels/temporal.h) of the truck shot's middle frame over the K frames
+// on each side, one channel (AO; random raw values: the cost does not depend on them): what
+// --temporal K adds to a frame's finish.
+void BM_Temporal(benchmark::State& state) {
+  const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
+  const int k = int(state.range(1)), threads = int(state.range(2)), middle = ssdo::raycast::kTruckShotFrames / 2;
+  std::vector<cv::Mat> raw(shot.size());
+  std::vector<std::vector<const cv::Mat*>> terms(shot.size());
+  for (size_t t = 0; t < shot.size(); ++t) {
+    raw[t].create(shot[t].depth_view.size(), CV_32FC1);
+    cv::randu(raw[t], 0.0f, 1.0f);
+    terms[t] = {&raw[t]};
+  }
+  auto temporal_frame = [&](int t) {
+    const ssdo::GBuffer& g = shot[size_t(t)];
+    return ssdo::TemporalFrame{g.camera, g.depth_view, g.normal_view, g.mask, terms[size_t(t)]};
+  };
+  std::vector<ssdo::TemporalFrame> neighbours;
+  for (int t = middle - k; t <= middle + k; ++t)
+    if (t != middle) neighbours.push_back(temporal_frame(t));
+  cv::Mat filtered;
+  cv::Mat* dsts[] = {&filtered};
+  for (auto _ : state) ssdo::filter_temporal(temporal_frame(middle), neighbours, {}, dsts, {}, threads);
+  state.SetLabel("truck shot, --temporal " + std::to_string(k) + ", " + std::to_string(threads) + "t");
+}
+
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
 // grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
 // every half-resolution term).
@@ -215,6 +243,7 @@ BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealT
 BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_ShotChosenViews)->ArgsProduct({{1920}, {2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
+BENCHMARK(BM_Temporal)->ArgsProduct({{1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();
