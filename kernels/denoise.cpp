@@ -7,8 +7,8 @@
 // copied into planes over the tile and its halo, with the normal zeroed where the mask is
 // 0 or outside the image (the normal lobe then weighs those taps 0 and the terms they add
 // are exact zeros) and the source zeroed there (no masked value is read into a sum). Each
-// pass is, per tile row, a weight computation and an accumulation over the taps k for
-// kLanes pixels at once.
+// pass is, per tile row, a weight computation and an accumulation over the taps k for a
+// vector of pixels at once (Highway: the same source for every instruction set).
 #include "kernels/denoise.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -27,46 +27,29 @@
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
 
-// Lanes below are 8 floats whatever the target; on the baseline they are not one register
-// and GCC notes that functions passing them by value would have another ABI than with AVX:
-// they are all internal and inlined.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wpsabi"
-#endif
-
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
 namespace {
 
+namespace hn = hwy::HWY_NAMESPACE;
+
 constexpr int kMaxRadiusPx = 32;
 
-// Eight pixels of a row in one value (GCC/Clang vector extension: AVX registers where
-// the kernels are built for them, pairs of SSE registers or scalars elsewhere), so that a
-// pass keeps its per-channel sums in registers across the taps.
-constexpr int kLanes = 8;
-typedef float Lanes __attribute__((vector_size(kLanes * sizeof(float))));
-typedef int32_t LaneMask __attribute__((vector_size(kLanes * sizeof(int32_t))));
+// A row's pixels in one vector, as many as the target holds (8 on AVX2, 16 on AVX-512, 4
+// on NEON, 1 on the scalar baseline), so that a pass keeps its per-channel sums in
+// registers across the taps. Every operation below is lane by lane, so the width changes
+// the speed, not the bits.
+using FloatLanes = hn::ScalableTag<float>;
+using Lanes = hn::Vec<FloatLanes>;
+constexpr int kMaxLanes = int(hn::MaxLanes(FloatLanes()));
 
-inline Lanes load_lanes(const float* p) {
-  Lanes v;
-  std::memcpy(&v, p, sizeof(v));
-  return v;
-}
+inline int lane_count() { return int(hn::Lanes(FloatLanes())); }
 
-inline void store_lanes(float* p, Lanes v) { std::memcpy(p, &v, sizeof(v)); }
+inline Lanes broadcast(float x) { return hn::Set(FloatLanes(), x); }
 
-inline Lanes broadcast(float x) { return Lanes{} + x; }
-
-// std::max(0.0f, x) lane by lane: x where 0 < x, else 0 (NaN -> 0, as std::max).
-inline Lanes max0(Lanes x) { return x > 0.0f ? x : broadcast(0.0f); }
-
-inline Lanes abs_lanes(Lanes x) {
-  LaneMask bits;
-  std::memcpy(&bits, &x, sizeof(x));
-  bits &= 0x7fffffff;
-  std::memcpy(&x, &bits, sizeof(x));
-  return x;
-}
+// std::max(0.0f, x) lane by lane: x where 0 < x, else +0 (NaN -> 0, as std::max; hn::Max
+// leaves NaN and the sign of zero to the instruction set).
+inline Lanes max0(Lanes x) { return hn::IfThenElseZero(hn::Gt(x, hn::Zero(FloatLanes())), x); }
 
 // c^P by squaring, unrolled at compile time so that the tap loop stays branch-free.
 template <unsigned P>
@@ -77,8 +60,8 @@ inline Lanes ipow(Lanes c) {
     return c;
   } else {
     const Lanes h = ipow<P / 2>(c);
-    if constexpr (P % 2 == 0) return h * h;
-    else return h * h * c;
+    if constexpr (P % 2 == 0) return hn::Mul(h, h);
+    else return hn::Mul(hn::Mul(h, h), c);
   }
 }
 
@@ -92,21 +75,26 @@ struct DefaultLobe {
 static_assert(DenoiseSettings{}.normal_power == float(DefaultLobe::kPower));
 
 // Any power in [0, 256]: integers by squaring from the most significant bit
-// (integer_power: the association of ipow, so the same bits as ipow<P>), other powers by std::pow. 0 where
-// c = 0: masked taps have normal 0, and c^0 = 1 would count them.
+// (integer_power: the association of ipow, so the same bits as ipow<P>; Highway's vectors
+// have its *), other powers by std::pow. 0 where c = 0: masked taps have normal 0, and
+// c^0 = 1 would count them.
 struct PowerLobe {
   float power;
   bool integer;
   unsigned ipower;
   explicit PowerLobe(float p) : power(p), integer(p == std::floor(p)), ipower(integer ? unsigned(p) : 0u) {}
   Lanes operator()(Lanes c) const {
+    const FloatLanes d;
     Lanes r = broadcast(1.0f);
     if (integer) {
       r = integer_power(c, ipower, r);
     } else {
-      for (int j = 0; j < kLanes; ++j) r[j] = std::pow(c[j], power);
+      HWY_ALIGN float lanes[kMaxLanes];
+      hn::Store(c, d, lanes);
+      for (int j = 0; j < lane_count(); ++j) lanes[j] = std::pow(lanes[j], power);
+      r = hn::Load(d, lanes);
     }
-    return c > 0.0f ? r : broadcast(0.0f);
+    return hn::IfThenElseZero(hn::Gt(c, hn::Zero(d)), r);
   }
 };
 
@@ -117,7 +105,7 @@ struct PowerLobe {
 // re-reads 2R / kTileRows of the rows).
 constexpr int kTileRows = 32;
 constexpr int kTileCols = 256;
-static_assert(kTileCols % kLanes == 0, "a tile row is whole blocks of lanes");
+static_assert(kTileCols % kMaxLanes == 0, "a tile row is whole vectors");
 
 // The most channels one pass filters with the same weights (AO and both SSDO terms are 7);
 // more are filtered in several passes. The channels are independent, so how they are
@@ -160,9 +148,9 @@ struct FilterConstants {
 struct Tile {
   int ya, yb, xa, xb;
   int width() const { return xb - xa; }
-  // Columns each pass computes: whole blocks of lanes (the pixels past xb are computed and
-  // not written).
-  int lane_width() const { return (width() + kLanes - 1) / kLanes * kLanes; }
+  // Columns each pass computes: whole vectors (the pixels past xb are computed and not
+  // written; the planes' rows hold them).
+  int lane_width() const { return (width() + lane_count() - 1) / lane_count() * lane_count(); }
 };
 
 // The planes of a tile in the per-thread scratch.
@@ -230,13 +218,14 @@ void fill_planes(const FilterConstants& k, const Channel* ch, const Tile& t, con
   }
 }
 
-// The guides of kLanes pixels (or of their taps at one offset) in the planes.
+// The guides of a vector of pixels (or of their taps at one offset) in the planes.
 struct GuideLanes {
   Lanes depth, nx, ny, nz;
 };
 
 inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
-  return {load_lanes(p.depth + at), load_lanes(p.nx + at), load_lanes(p.ny + at), load_lanes(p.nz + at)};
+  const FloatLanes d;
+  return {hn::LoadU(d, p.depth + at), hn::LoadU(d, p.nx + at), hn::LoadU(d, p.ny + at), hn::LoadU(d, p.nz + at)};
 }
 
 // The weight of the taps at one offset: the spatial Gaussian g(k) times the range weight,
@@ -245,9 +234,10 @@ inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
 template <class Lobe>
 inline Lanes tap_weight(float g, const GuideLanes& centre, Lanes depth_scale, const GuideLanes& tap,
                         const Lobe& lobe) {
-  const Lanes wd = max0(1.0f - abs_lanes(tap.depth - centre.depth) * depth_scale);
-  const Lanes cn = max0(centre.nx * tap.nx + centre.ny * tap.ny + centre.nz * tap.nz);
-  return g * (wd * lobe(cn));
+  const Lanes wd = max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap.depth, centre.depth)), depth_scale)));
+  const Lanes cn =
+      max0(hn::Add(hn::Add(hn::Mul(centre.nx, tap.nx), hn::Mul(centre.ny, tap.ny)), hn::Mul(centre.nz, tap.nz)));
+  return hn::Mul(broadcast(g), hn::Mul(wd, lobe(cn)));
 }
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
@@ -257,23 +247,24 @@ inline Lanes tap_weight(float g, const GuideLanes& centre, Lanes depth_scale, co
 template <int C, class Lobe>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre,
                 ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe) {
-  const int R = k.radius, width = t.lane_width();
-  const float inv_tol = k.inv_tol;
+  const FloatLanes d;
+  const int R = k.radius, width = t.lane_width(), n = lane_count();
+  const Lanes inv_tol = broadcast(k.inv_tol);
   const size_t plane = k.plane;
-  for (int i = 0; i < width; i += kLanes) {
+  for (int i = 0; i < width; i += n) {
     const GuideLanes c0 = load_guides(p, centre + size_t(i));
-    const Lanes depth_scale = inv_tol / c0.depth;
-    Lanes sum[C], wsum = broadcast(0.0f);
-    for (int c = 0; c < C; ++c) sum[c] = broadcast(0.0f);
+    const Lanes depth_scale = hn::Div(inv_tol, c0.depth);
+    Lanes sum[C], wsum = hn::Zero(d);
+    for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
     for (int tap = -R; tap <= R; ++tap) {
       const ptrdiff_t off = tap * step + i;
       const GuideLanes taps = load_guides(p, size_t(ptrdiff_t(centre) + off));
       const Lanes w = tap_weight(k.g[tap + R], c0, depth_scale, taps, lobe);
-      for (int c = 0; c < C; ++c) sum[c] += w * load_lanes(values + c * plane + off);
-      wsum += w;
+      for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * plane + off)));
+      wsum = hn::Add(wsum, w);
     }
-    const Lanes inv = 1.0f / wsum;
-    for (int c = 0; c < C; ++c) store_lanes(out[c] + i, sum[c] * inv);
+    const Lanes inv = hn::Div(broadcast(1.0f), wsum);
+    for (int c = 0; c < C; ++c) hn::StoreU(hn::Mul(sum[c], inv), d, out[c] + i);
   }
 }
 

@@ -1,11 +1,23 @@
 // c^n for an integer n in [0, 256] by squaring from the most significant bit, for any type
-// with * (a float, or a vector of floats): one association, so a scalar and a vector lane
-// give the same bits. `one` is the type's 1. The normal lobes of the denoise and the
-// temporal filter (max(0, n . n_tap)^normal_power): a runtime std::pow per tap costs more
-// than the rest of their weights together.
-#pragma once
+// with * (a float, or a Highway vector of floats): one association, so a scalar and a
+// vector lane give the same bits. `one` is the type's 1. The normal lobes of the denoise and
+// the temporal filter (max(0, n . n_tap)^normal_power): a runtime std::pow per tap costs
+// more than the rest of their weights together.
+//
+// Included once per instruction set (by the kernels' foreach_target files, after
+// hwy/highway.h), into that target's namespace: a vector's * inlines only into code
+// compiled for the same target. Hence Highway's per-target guard instead of #pragma once.
+#if defined(SSDO_KERNELS_INTEGER_POWER_H_) == defined(HWY_TARGET_TOGGLE)
+#ifdef SSDO_KERNELS_INTEGER_POWER_H_
+#undef SSDO_KERNELS_INTEGER_POWER_H_
+#else
+#define SSDO_KERNELS_INTEGER_POWER_H_
+#endif
 
-namespace ssdo {
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 
 template <class T>
 inline T integer_power(T c, unsigned n, T one) {
@@ -17,4 +29,7 @@ inline T integer_power(T c, unsigned n, T one) {
   return r;
 }
 
-}  // namespace ssdo
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#endif  // SSDO_KERNELS_INTEGER_POWER_H_
