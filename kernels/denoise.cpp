@@ -183,38 +183,96 @@ struct TileScratch {
   }
 };
 
+// Lanes whose mask bytes (one per pixel) are nonzero.
+inline hn::Mask<FloatLanes> foreground(const uint8_t* mask) {
+  const FloatLanes d;
+  const hn::RebindToSigned<FloatLanes> di;
+  const hn::Rebind<uint8_t, FloatLanes> d8;
+  const auto m = hn::BitCast(di, hn::PromoteTo(hn::RebindToUnsigned<FloatLanes>(), hn::LoadU(d8, mask)));
+  return hn::RebindMask(d, hn::Gt(m, hn::Zero(di)));
+}
+
+// What fill_planes reads of one image row: the mask, the guides and the C channels'
+// values (channel c of pixel x at value[c][x * stride[c]]; stride 1 or 3).
+template <int C>
+struct SourceRow {
+  const uint8_t* mask;
+  const float* depth;
+  const float* normal;  // x, y, z of each pixel
+  const float* value[C];
+  int stride[C];
+
+  SourceRow(const FilterConstants& k, const Channel* ch, int y)
+      : mask(k.mask.ptr<uint8_t>(y)), depth(k.depth_view.ptr<float>(y)), normal(k.normal_view.ptr<float>(y)) {
+    for (int c = 0; c < C; ++c) {
+      value[c] = ch[c].src->ptr<float>(y) + ch[c].offset;
+      stride[c] = ch[c].stride;
+    }
+  }
+};
+
+// Plane columns [from, to) of plane row `at` (plane offset of column 0): 0 in every plane.
+template <int C>
+void zero_columns(const TilePlanes& p, size_t plane, size_t at, int from, int to) {
+  float* planes[4 + C] = {p.depth, p.nx, p.ny, p.nz};
+  for (int c = 0; c < C; ++c) planes[4 + c] = p.value + c * plane;
+  for (float* q : planes) std::fill(q + at + from, q + at + to, 0.0f);
+}
+
+// Pixel x of a source row into plane offset `at`; 0 where the mask is 0.
+template <int C>
+inline void fill_pixel(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
+  const bool on = s.mask[x] != 0;
+  p.depth[at] = on ? s.depth[x] : 0.0f;
+  p.nx[at] = on ? s.normal[3 * x] : 0.0f;
+  p.ny[at] = on ? s.normal[3 * x + 1] : 0.0f;
+  p.nz[at] = on ? s.normal[3 * x + 2] : 0.0f;
+  for (int c = 0; c < C; ++c) p.value[c * plane + at] = on ? s.value[c][x * s.stride[c]] : 0.0f;
+}
+
+// The vector of pixels from x, as fill_pixel.
+template <int C>
+inline void fill_vector(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
+  const FloatLanes d;
+  const hn::Mask<FloatLanes> on = foreground(s.mask + x);
+  hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.depth + x)), d, p.depth + at);
+  Lanes v[3];
+  hn::LoadInterleaved3(d, s.normal + 3 * size_t(x), v[0], v[1], v[2]);
+  hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.nx + at);
+  hn::StoreU(hn::IfThenElseZero(on, v[1]), d, p.ny + at);
+  hn::StoreU(hn::IfThenElseZero(on, v[2]), d, p.nz + at);
+  for (int c = 0; c < C; ++c) {
+    if (s.stride[c] == 1) {
+      v[0] = hn::LoadU(d, s.value[c] + x);
+    } else {  // value[c] points at the channel: the first of each three floats
+      hn::LoadInterleaved3(d, s.value[c] + 3 * size_t(x), v[0], v[1], v[2]);
+    }
+    hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.value + c * plane + at);
+  }
+}
+
 // Copies the guides and the source channels of the tile and its halo into the planes;
 // zeros outside the image and where the mask is 0.
 template <int C>
 void fill_planes(const FilterConstants& k, const Channel* ch, const Tile& t, const TilePlanes& p) {
-  const int R = k.radius, columns = t.lane_width() + 2 * R;
+  const int R = k.radius, columns = t.lane_width() + 2 * R, n = lane_count();
+  // Plane column i is image column x0 + i; [first, end) are inside the image.
+  const int x0 = t.xa - R, first = std::max(0, -x0), end = std::min(columns, k.width - x0);
   for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
     const int y = t.ya - R + j;
     const size_t row = size_t(j) * size_t(k.plane_stride);
-    float* d = p.depth + row;
-    float* nx = p.nx + row;
-    float* ny = p.ny + row;
-    float* nz = p.nz + row;
     if (y < 0 || y >= k.height) {
-      for (int i = 0; i < columns; ++i) d[i] = nx[i] = ny[i] = nz[i] = 0.0f;
-      for (int c = 0; c < C; ++c)
-        for (int i = 0; i < columns; ++i) p.value[c * k.plane + row + i] = 0.0f;
+      zero_columns<C>(p, k.plane, row, 0, columns);
       continue;
     }
-    const uint8_t* m = k.mask.ptr<uint8_t>(y);
-    const float* dep = k.depth_view.ptr<float>(y);
-    const cv::Vec3f* n = k.normal_view.ptr<cv::Vec3f>(y);
-    const float* v[C];
-    for (int c = 0; c < C; ++c) v[c] = ch[c].src->ptr<float>(y) + ch[c].offset;
-    for (int i = 0; i < columns; ++i) {
-      const int x = t.xa - R + i;
-      const bool on = x >= 0 && x < k.width && m[x] != 0;
-      d[i] = on ? dep[x] : 0.0f;
-      nx[i] = on ? n[x][0] : 0.0f;
-      ny[i] = on ? n[x][1] : 0.0f;
-      nz[i] = on ? n[x][2] : 0.0f;
-      for (int c = 0; c < C; ++c) p.value[c * k.plane + row + i] = on ? v[c][x * ch[c].stride] : 0.0f;
-    }
+    const SourceRow<C> s(k, ch, y);
+    zero_columns<C>(p, k.plane, row, 0, first);
+    // Vectors stop a pixel before the image's right edge: a 3-channel source's channel
+    // c > 0 is loaded as whole pixels from that channel on, c floats past the last pixel.
+    int i = first;
+    for (; i + n < end; i += n) fill_vector(s, x0 + i, p, k.plane, row + size_t(i));
+    for (; i < end; ++i) fill_pixel(s, x0 + i, p, k.plane, row + size_t(i));
+    zero_columns<C>(p, k.plane, row, end, columns);
   }
 }
 
