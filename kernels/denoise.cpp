@@ -348,6 +348,45 @@ void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& 
   }
 }
 
+// Columns [0, width) of one output row of a 3-channel image whose channels are result[0..2]:
+// the filtered value where the mask is set, the source where not; whole pixels a vector at a
+// time (three strided scalar stores per pixel took a third of the vertical pass).
+inline void write_pixels3(const uint8_t* m, const float* in, float* out, int width, const float* const* result) {
+  const FloatLanes d;
+  int i = 0;
+  for (; i + lane_count() <= width; i += lane_count()) {
+    const hn::Mask<FloatLanes> on = foreground(m + i);
+    Lanes v[3];
+    hn::LoadInterleaved3(d, in + 3 * size_t(i), v[0], v[1], v[2]);
+    for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(on, hn::LoadU(d, result[c] + i), v[c]);
+    hn::StoreInterleaved3(v[0], v[1], v[2], d, out + 3 * size_t(i));
+  }
+  for (; i < width; ++i)
+    for (int c = 0; c < 3; ++c) out[3 * i + c] = m[i] ? result[c][i] : in[3 * i + c];
+}
+
+// Output row y of the tile from the pass's results: the filtered value where the mask is
+// set, the source where not.
+template <int C>
+void write_row(const Channel* ch, const uint8_t* m, const Tile& t, int y, const float (*result)[kTileCols]) {
+  for (int c = 0; c < C;) {
+    const float* in = ch[c].src->ptr<float>(y) + ch[c].offset;
+    float* out = ch[c].dst->ptr<float>(y) + ch[c].offset;
+    const int stride = ch[c].stride;
+    if (stride == 3 && ch[c].offset == 0 && c + 2 < C && ch[c + 2].src == ch[c].src) {  // a whole image
+      const float* channels[3] = {result[c], result[c + 1], result[c + 2]};
+      write_pixels3(m + t.xa, in + 3 * t.xa, out + 3 * t.xa, t.width(), channels);
+      c += 3;
+      continue;
+    }
+    for (int i = 0; i < t.width(); ++i) {
+      const int x = t.xa + i;
+      out[x * stride] = m[x] ? result[c][i] : in[x * stride];
+    }
+    ++c;
+  }
+}
+
 // Pass 2 (vertical) over the horizontal results, on the tile's rows, into the outputs;
 // masked pixels copy the source.
 template <int C, class Lobe>
@@ -360,16 +399,7 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
     filter_row<C>(k, p, t, row + size_t(R), k.plane_stride, p.horizontal + row, to, lobe);
-    const uint8_t* m = k.mask.ptr<uint8_t>(y);
-    for (int c = 0; c < C; ++c) {
-      const float* in = ch[c].src->ptr<float>(y) + ch[c].offset;
-      float* out = ch[c].dst->ptr<float>(y) + ch[c].offset;
-      const int stride = ch[c].stride;
-      for (int i = 0; i < t.width(); ++i) {
-        const int x = t.xa + i;
-        out[x * stride] = m[x] ? result[c][i] : in[x * stride];
-      }
-    }
+    write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
 
