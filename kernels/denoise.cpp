@@ -7,8 +7,8 @@
 // copied into planes over the tile and its halo, with the normal zeroed where the mask is
 // 0 or outside the image (the normal lobe then weighs those taps 0 and the terms they add
 // are exact zeros) and the source zeroed there (no masked value is read into a sum). Each
-// pass is, per tile row, a weight computation and an accumulation over the taps k for
-// kLanes pixels at once.
+// pass is, per tile row, a weight computation and an accumulation over the taps k for a
+// vector of pixels at once (Highway: the same source for every instruction set).
 #include "kernels/denoise.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -21,52 +21,34 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
 #include <vector>
 
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
 
-// Lanes below are 8 floats whatever the target; on the baseline they are not one register
-// and GCC notes that functions passing them by value would have another ABI than with AVX:
-// they are all internal and inlined.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wpsabi"
-#endif
-
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
 namespace {
 
+namespace hn = hwy::HWY_NAMESPACE;
+
 constexpr int kMaxRadiusPx = 32;
 
-// Eight pixels of a row in one value (GCC/Clang vector extension: AVX registers where
-// the kernels are built for them, pairs of SSE registers or scalars elsewhere), so that a
-// pass keeps its per-channel sums in registers across the taps.
-constexpr int kLanes = 8;
-typedef float Lanes __attribute__((vector_size(kLanes * sizeof(float))));
-typedef int32_t LaneMask __attribute__((vector_size(kLanes * sizeof(int32_t))));
+// A row's pixels in one vector, as many as the target holds (8 on AVX2, 16 on AVX-512, 4
+// on NEON, 1 on the scalar baseline), so that a pass keeps its per-channel sums in
+// registers across the taps. Every operation below is lane by lane, so the width changes
+// the speed, not the bits.
+using FloatLanes = hn::ScalableTag<float>;
+using Lanes = hn::Vec<FloatLanes>;
+constexpr int kMaxLanes = int(hn::MaxLanes(FloatLanes()));
 
-inline Lanes load_lanes(const float* p) {
-  Lanes v;
-  std::memcpy(&v, p, sizeof(v));
-  return v;
-}
+inline int lane_count() { return int(hn::Lanes(FloatLanes())); }
 
-inline void store_lanes(float* p, Lanes v) { std::memcpy(p, &v, sizeof(v)); }
+inline Lanes broadcast(float x) { return hn::Set(FloatLanes(), x); }
 
-inline Lanes broadcast(float x) { return Lanes{} + x; }
-
-// std::max(0.0f, x) lane by lane: x where 0 < x, else 0 (NaN -> 0, as std::max).
-inline Lanes max0(Lanes x) { return x > 0.0f ? x : broadcast(0.0f); }
-
-inline Lanes abs_lanes(Lanes x) {
-  LaneMask bits;
-  std::memcpy(&bits, &x, sizeof(x));
-  bits &= 0x7fffffff;
-  std::memcpy(&x, &bits, sizeof(x));
-  return x;
-}
+// std::max(0.0f, x) lane by lane: x where 0 < x, else +0 (NaN -> 0, as std::max; hn::Max
+// leaves NaN and the sign of zero to the instruction set).
+inline Lanes max0(Lanes x) { return hn::IfThenElseZero(hn::Gt(x, hn::Zero(FloatLanes())), x); }
 
 // c^P by squaring, unrolled at compile time so that the tap loop stays branch-free.
 template <unsigned P>
@@ -77,8 +59,8 @@ inline Lanes ipow(Lanes c) {
     return c;
   } else {
     const Lanes h = ipow<P / 2>(c);
-    if constexpr (P % 2 == 0) return h * h;
-    else return h * h * c;
+    if constexpr (P % 2 == 0) return hn::Mul(h, h);
+    else return hn::Mul(hn::Mul(h, h), c);
   }
 }
 
@@ -92,21 +74,26 @@ struct DefaultLobe {
 static_assert(DenoiseSettings{}.normal_power == float(DefaultLobe::kPower));
 
 // Any power in [0, 256]: integers by squaring from the most significant bit
-// (integer_power: the association of ipow, so the same bits as ipow<P>), other powers by std::pow. 0 where
-// c = 0: masked taps have normal 0, and c^0 = 1 would count them.
+// (integer_power: the association of ipow, so the same bits as ipow<P>; Highway's vectors
+// have its *), other powers by std::pow. 0 where c = 0: masked taps have normal 0, and
+// c^0 = 1 would count them.
 struct PowerLobe {
   float power;
   bool integer;
   unsigned ipower;
   explicit PowerLobe(float p) : power(p), integer(p == std::floor(p)), ipower(integer ? unsigned(p) : 0u) {}
   Lanes operator()(Lanes c) const {
+    const FloatLanes d;
     Lanes r = broadcast(1.0f);
     if (integer) {
       r = integer_power(c, ipower, r);
     } else {
-      for (int j = 0; j < kLanes; ++j) r[j] = std::pow(c[j], power);
+      HWY_ALIGN float lanes[kMaxLanes];
+      hn::Store(c, d, lanes);
+      for (int j = 0; j < lane_count(); ++j) lanes[j] = std::pow(lanes[j], power);
+      r = hn::Load(d, lanes);
     }
-    return c > 0.0f ? r : broadcast(0.0f);
+    return hn::IfThenElseZero(hn::Gt(c, hn::Zero(d)), r);
   }
 };
 
@@ -117,7 +104,7 @@ struct PowerLobe {
 // re-reads 2R / kTileRows of the rows).
 constexpr int kTileRows = 32;
 constexpr int kTileCols = 256;
-static_assert(kTileCols % kLanes == 0, "a tile row is whole blocks of lanes");
+static_assert(kTileCols % kMaxLanes == 0, "a tile row is whole vectors");
 
 // The most channels one pass filters with the same weights (AO and both SSDO terms are 7);
 // more are filtered in several passes. The channels are independent, so how they are
@@ -160,9 +147,9 @@ struct FilterConstants {
 struct Tile {
   int ya, yb, xa, xb;
   int width() const { return xb - xa; }
-  // Columns each pass computes: whole blocks of lanes (the pixels past xb are computed and
-  // not written).
-  int lane_width() const { return (width() + kLanes - 1) / kLanes * kLanes; }
+  // Columns each pass computes: whole vectors (the pixels past xb are computed and not
+  // written; the planes' rows hold them).
+  int lane_width() const { return (width() + lane_count() - 1) / lane_count() * lane_count(); }
 };
 
 // The planes of a tile in the per-thread scratch.
@@ -195,48 +182,107 @@ struct TileScratch {
   }
 };
 
+// Lanes whose mask bytes (one per pixel) are nonzero.
+inline hn::Mask<FloatLanes> foreground(const uint8_t* mask) {
+  const FloatLanes d;
+  const hn::RebindToSigned<FloatLanes> di;
+  const hn::Rebind<uint8_t, FloatLanes> d8;
+  const auto m = hn::BitCast(di, hn::PromoteTo(hn::RebindToUnsigned<FloatLanes>(), hn::LoadU(d8, mask)));
+  return hn::RebindMask(d, hn::Gt(m, hn::Zero(di)));
+}
+
+// What fill_planes reads of one image row: the mask, the guides and the C channels'
+// values (channel c of pixel x at value[c][x * stride[c]]; stride 1 or 3).
+template <int C>
+struct SourceRow {
+  const uint8_t* mask;
+  const float* depth;
+  const float* normal;  // x, y, z of each pixel
+  const float* value[C];
+  int stride[C];
+
+  SourceRow(const FilterConstants& k, const Channel* ch, int y)
+      : mask(k.mask.ptr<uint8_t>(y)), depth(k.depth_view.ptr<float>(y)), normal(k.normal_view.ptr<float>(y)) {
+    for (int c = 0; c < C; ++c) {
+      value[c] = ch[c].src->ptr<float>(y) + ch[c].offset;
+      stride[c] = ch[c].stride;
+    }
+  }
+};
+
+// Plane columns [from, to) of plane row `at` (plane offset of column 0): 0 in every plane.
+template <int C>
+void zero_columns(const TilePlanes& p, size_t plane, size_t at, int from, int to) {
+  float* planes[4 + C] = {p.depth, p.nx, p.ny, p.nz};
+  for (int c = 0; c < C; ++c) planes[4 + c] = p.value + c * plane;
+  for (float* q : planes) std::fill(q + at + from, q + at + to, 0.0f);
+}
+
+// Pixel x of a source row into plane offset `at`; 0 where the mask is 0.
+template <int C>
+inline void fill_pixel(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
+  const bool on = s.mask[x] != 0;
+  p.depth[at] = on ? s.depth[x] : 0.0f;
+  p.nx[at] = on ? s.normal[3 * x] : 0.0f;
+  p.ny[at] = on ? s.normal[3 * x + 1] : 0.0f;
+  p.nz[at] = on ? s.normal[3 * x + 2] : 0.0f;
+  for (int c = 0; c < C; ++c) p.value[c * plane + at] = on ? s.value[c][x * s.stride[c]] : 0.0f;
+}
+
+// The vector of pixels from x, as fill_pixel.
+template <int C>
+inline void fill_vector(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
+  const FloatLanes d;
+  const hn::Mask<FloatLanes> on = foreground(s.mask + x);
+  hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.depth + x)), d, p.depth + at);
+  Lanes v[3];
+  hn::LoadInterleaved3(d, s.normal + 3 * size_t(x), v[0], v[1], v[2]);
+  hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.nx + at);
+  hn::StoreU(hn::IfThenElseZero(on, v[1]), d, p.ny + at);
+  hn::StoreU(hn::IfThenElseZero(on, v[2]), d, p.nz + at);
+  for (int c = 0; c < C; ++c) {
+    if (s.stride[c] == 1) {
+      v[0] = hn::LoadU(d, s.value[c] + x);
+    } else {  // value[c] points at the channel: the first of each three floats
+      hn::LoadInterleaved3(d, s.value[c] + 3 * size_t(x), v[0], v[1], v[2]);
+    }
+    hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.value + c * plane + at);
+  }
+}
+
 // Copies the guides and the source channels of the tile and its halo into the planes;
 // zeros outside the image and where the mask is 0.
 template <int C>
 void fill_planes(const FilterConstants& k, const Channel* ch, const Tile& t, const TilePlanes& p) {
-  const int R = k.radius, columns = t.lane_width() + 2 * R;
+  const int R = k.radius, columns = t.lane_width() + 2 * R, n = lane_count();
+  // Plane column i is image column x0 + i; [first, end) are inside the image.
+  const int x0 = t.xa - R, first = std::max(0, -x0), end = std::min(columns, k.width - x0);
   for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
     const int y = t.ya - R + j;
     const size_t row = size_t(j) * size_t(k.plane_stride);
-    float* d = p.depth + row;
-    float* nx = p.nx + row;
-    float* ny = p.ny + row;
-    float* nz = p.nz + row;
     if (y < 0 || y >= k.height) {
-      for (int i = 0; i < columns; ++i) d[i] = nx[i] = ny[i] = nz[i] = 0.0f;
-      for (int c = 0; c < C; ++c)
-        for (int i = 0; i < columns; ++i) p.value[c * k.plane + row + i] = 0.0f;
+      zero_columns<C>(p, k.plane, row, 0, columns);
       continue;
     }
-    const uint8_t* m = k.mask.ptr<uint8_t>(y);
-    const float* dep = k.depth_view.ptr<float>(y);
-    const cv::Vec3f* n = k.normal_view.ptr<cv::Vec3f>(y);
-    const float* v[C];
-    for (int c = 0; c < C; ++c) v[c] = ch[c].src->ptr<float>(y) + ch[c].offset;
-    for (int i = 0; i < columns; ++i) {
-      const int x = t.xa - R + i;
-      const bool on = x >= 0 && x < k.width && m[x] != 0;
-      d[i] = on ? dep[x] : 0.0f;
-      nx[i] = on ? n[x][0] : 0.0f;
-      ny[i] = on ? n[x][1] : 0.0f;
-      nz[i] = on ? n[x][2] : 0.0f;
-      for (int c = 0; c < C; ++c) p.value[c * k.plane + row + i] = on ? v[c][x * ch[c].stride] : 0.0f;
-    }
+    const SourceRow<C> s(k, ch, y);
+    zero_columns<C>(p, k.plane, row, 0, first);
+    // Vectors stop a pixel before the image's right edge: a 3-channel source's channel
+    // c > 0 is loaded as whole pixels from that channel on, c floats past the last pixel.
+    int i = first;
+    for (; i + n < end; i += n) fill_vector(s, x0 + i, p, k.plane, row + size_t(i));
+    for (; i < end; ++i) fill_pixel(s, x0 + i, p, k.plane, row + size_t(i));
+    zero_columns<C>(p, k.plane, row, end, columns);
   }
 }
 
-// The guides of kLanes pixels (or of their taps at one offset) in the planes.
+// The guides of a vector of pixels (or of their taps at one offset) in the planes.
 struct GuideLanes {
   Lanes depth, nx, ny, nz;
 };
 
 inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
-  return {load_lanes(p.depth + at), load_lanes(p.nx + at), load_lanes(p.ny + at), load_lanes(p.nz + at)};
+  const FloatLanes d;
+  return {hn::LoadU(d, p.depth + at), hn::LoadU(d, p.nx + at), hn::LoadU(d, p.ny + at), hn::LoadU(d, p.nz + at)};
 }
 
 // The weight of the taps at one offset: the spatial Gaussian g(k) times the range weight,
@@ -245,9 +291,10 @@ inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
 template <class Lobe>
 inline Lanes tap_weight(float g, const GuideLanes& centre, Lanes depth_scale, const GuideLanes& tap,
                         const Lobe& lobe) {
-  const Lanes wd = max0(1.0f - abs_lanes(tap.depth - centre.depth) * depth_scale);
-  const Lanes cn = max0(centre.nx * tap.nx + centre.ny * tap.ny + centre.nz * tap.nz);
-  return g * (wd * lobe(cn));
+  const Lanes wd = max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap.depth, centre.depth)), depth_scale)));
+  const Lanes cn =
+      max0(hn::Add(hn::Add(hn::Mul(centre.nx, tap.nx), hn::Mul(centre.ny, tap.ny)), hn::Mul(centre.nz, tap.nz)));
+  return hn::Mul(broadcast(g), hn::Mul(wd, lobe(cn)));
 }
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
@@ -257,23 +304,24 @@ inline Lanes tap_weight(float g, const GuideLanes& centre, Lanes depth_scale, co
 template <int C, class Lobe>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre,
                 ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe) {
-  const int R = k.radius, width = t.lane_width();
-  const float inv_tol = k.inv_tol;
+  const FloatLanes d;
+  const int R = k.radius, width = t.lane_width(), n = lane_count();
+  const Lanes inv_tol = broadcast(k.inv_tol);
   const size_t plane = k.plane;
-  for (int i = 0; i < width; i += kLanes) {
+  for (int i = 0; i < width; i += n) {
     const GuideLanes c0 = load_guides(p, centre + size_t(i));
-    const Lanes depth_scale = inv_tol / c0.depth;
-    Lanes sum[C], wsum = broadcast(0.0f);
-    for (int c = 0; c < C; ++c) sum[c] = broadcast(0.0f);
+    const Lanes depth_scale = hn::Div(inv_tol, c0.depth);
+    Lanes sum[C], wsum = hn::Zero(d);
+    for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
     for (int tap = -R; tap <= R; ++tap) {
       const ptrdiff_t off = tap * step + i;
       const GuideLanes taps = load_guides(p, size_t(ptrdiff_t(centre) + off));
       const Lanes w = tap_weight(k.g[tap + R], c0, depth_scale, taps, lobe);
-      for (int c = 0; c < C; ++c) sum[c] += w * load_lanes(values + c * plane + off);
-      wsum += w;
+      for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * plane + off)));
+      wsum = hn::Add(wsum, w);
     }
-    const Lanes inv = 1.0f / wsum;
-    for (int c = 0; c < C; ++c) store_lanes(out[c] + i, sum[c] * inv);
+    const Lanes inv = hn::Div(broadcast(1.0f), wsum);
+    for (int c = 0; c < C; ++c) hn::StoreU(hn::Mul(sum[c], inv), d, out[c] + i);
   }
 }
 
@@ -300,6 +348,45 @@ void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& 
   }
 }
 
+// Columns [0, width) of one output row of a 3-channel image whose channels are result[0..2]:
+// the filtered value where the mask is set, the source where not; whole pixels a vector at a
+// time (three strided scalar stores per pixel took a third of the vertical pass).
+inline void write_pixels3(const uint8_t* m, const float* in, float* out, int width, const float* const* result) {
+  const FloatLanes d;
+  int i = 0;
+  for (; i + lane_count() <= width; i += lane_count()) {
+    const hn::Mask<FloatLanes> on = foreground(m + i);
+    Lanes v[3];
+    hn::LoadInterleaved3(d, in + 3 * size_t(i), v[0], v[1], v[2]);
+    for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(on, hn::LoadU(d, result[c] + i), v[c]);
+    hn::StoreInterleaved3(v[0], v[1], v[2], d, out + 3 * size_t(i));
+  }
+  for (; i < width; ++i)
+    for (int c = 0; c < 3; ++c) out[3 * i + c] = m[i] ? result[c][i] : in[3 * i + c];
+}
+
+// Output row y of the tile from the pass's results: the filtered value where the mask is
+// set, the source where not.
+template <int C>
+void write_row(const Channel* ch, const uint8_t* m, const Tile& t, int y, const float (*result)[kTileCols]) {
+  for (int c = 0; c < C;) {
+    const float* in = ch[c].src->ptr<float>(y) + ch[c].offset;
+    float* out = ch[c].dst->ptr<float>(y) + ch[c].offset;
+    const int stride = ch[c].stride;
+    if (stride == 3 && ch[c].offset == 0 && c + 2 < C && ch[c + 2].src == ch[c].src) {  // a whole image
+      const float* channels[3] = {result[c], result[c + 1], result[c + 2]};
+      write_pixels3(m + t.xa, in + 3 * t.xa, out + 3 * t.xa, t.width(), channels);
+      c += 3;
+      continue;
+    }
+    for (int i = 0; i < t.width(); ++i) {
+      const int x = t.xa + i;
+      out[x * stride] = m[x] ? result[c][i] : in[x * stride];
+    }
+    ++c;
+  }
+}
+
 // Pass 2 (vertical) over the horizontal results, on the tile's rows, into the outputs;
 // masked pixels copy the source.
 template <int C, class Lobe>
@@ -312,16 +399,7 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
     filter_row<C>(k, p, t, row + size_t(R), k.plane_stride, p.horizontal + row, to, lobe);
-    const uint8_t* m = k.mask.ptr<uint8_t>(y);
-    for (int c = 0; c < C; ++c) {
-      const float* in = ch[c].src->ptr<float>(y) + ch[c].offset;
-      float* out = ch[c].dst->ptr<float>(y) + ch[c].offset;
-      const int stride = ch[c].stride;
-      for (int i = 0; i < t.width(); ++i) {
-        const int x = t.xa + i;
-        out[x * stride] = m[x] ? result[c][i] : in[x * stride];
-      }
-    }
+    write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
 
