@@ -79,21 +79,10 @@ static_assert(DenoiseSettings{}.normal_power == float(DefaultLobe::kPower));
 // c^0 = 1 would count them.
 struct PowerLobe {
   float power;
-  bool integer;
-  unsigned ipower;
-  explicit PowerLobe(float p) : power(p), integer(p == std::floor(p)), ipower(integer ? unsigned(p) : 0u) {}
+  explicit PowerLobe(float p) : power(p) {}
   Lanes operator()(Lanes c) const {
     const FloatLanes d;
-    Lanes r = broadcast(1.0f);
-    if (integer) {
-      r = integer_power(c, ipower, r);
-    } else {
-      HWY_ALIGN float lanes[kMaxLanes];
-      hn::Store(c, d, lanes);
-      for (int j = 0; j < lane_count(); ++j) lanes[j] = std::pow(lanes[j], power);
-      r = hn::Load(d, lanes);
-    }
-    return hn::IfThenElseZero(hn::Gt(c, hn::Zero(d)), r);
+    return hn::IfThenElseZero(hn::Gt(c, hn::Zero(d)), power_of(d, c, power));
   }
 };
 

@@ -30,13 +30,6 @@ struct Neighbour {
   Reprojection reprojection;
 };
 
-// max(0, c)^power for c in (0, 1]: integer powers (the default 16) by squaring, the rest
-// with std::pow.
-inline float normal_lobe(float c, float power) {
-  const unsigned n = unsigned(power);
-  return float(n) == power ? integer_power(c, n, 1.0f) : std::pow(c, power);
-}
-
 inline glm::vec3 normal_at(const cv::Mat& normal_view, int x, int y) {
   const float* n = normal_view.ptr<float>(y) + 3 * x;
   return {n[0], n[1], n[2]};
@@ -56,7 +49,7 @@ inline float texel_weight(const Neighbour& n, const Reprojection::Carried& p, fl
   if (!(w_plane > 0.0f)) return 0.0f;
   const float c = glm::dot(p.normal_view, normal_at(u.normal_view, tx, ty));
   if (!(c > 0.0f)) return 0.0f;
-  return w_plane * normal_lobe(c, s.normal_power);
+  return w_plane * power_of(c, s.normal_power);
 }
 
 namespace hn = hwy::HWY_NAMESPACE;
@@ -147,17 +140,6 @@ CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Ve
   return c;
 }
 
-// max(0, c)^power lane by lane for c > 0 (normal_lobe).
-VF normal_lobe_lanes(VF c, float power) {
-  const DF d;
-  const unsigned n = unsigned(power);
-  if (float(n) == power) return integer_power(c, n, hn::Set(d, 1.0f));
-  HWY_ALIGN float lanes[kMaxLanes];
-  hn::Store(c, d, lanes);
-  for (size_t i = 0; i < hn::Lanes(d); ++i) lanes[i] = std::pow(lanes[i], power);
-  return hn::Load(d, lanes);
-}
-
 // Per-lane sums of a group of pixels: their channels (every term in order) and the total weight.
 struct GroupSums {
   HWY_ALIGN float channel[kMaxChannels][kMaxLanes];
@@ -195,7 +177,7 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
   const VF w_plane = hn::Sub(hn::Set(d, 1.0f), hn::Mul(e, inverse_tolerance));
   const VF cosine = dot(c.normal, normal_u);
   ok = hn::And(ok, hn::And(hn::Gt(w_plane, hn::Zero(d)), hn::Gt(cosine, hn::Zero(d))));
-  const VF w = hn::Mul(bilinear, hn::Mul(w_plane, normal_lobe_lanes(hn::IfThenElseZero(ok, cosine), normal_power)));
+  const VF w = hn::Mul(bilinear, hn::Mul(w_plane, power_of(d, hn::IfThenElseZero(ok, cosine), normal_power)));
   ok = hn::And(ok, hn::Gt(w, hn::Zero(d)));
   sums.total = hn::IfThenElse(ok, hn::Add(sums.total, w), sums.total);
   int k = 0;
