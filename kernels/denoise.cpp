@@ -25,6 +25,7 @@
 
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
+#include "kernels/mask_lanes.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
@@ -171,14 +172,6 @@ struct TileScratch {
   }
 };
 
-// Lanes whose mask bytes (one per pixel) are nonzero.
-inline hn::Mask<FloatLanes> foreground(const uint8_t* mask) {
-  const FloatLanes d;
-  const hn::RebindToSigned<FloatLanes> di;
-  const hn::Rebind<uint8_t, FloatLanes> d8;
-  const auto m = hn::BitCast(di, hn::PromoteTo(hn::RebindToUnsigned<FloatLanes>(), hn::LoadU(d8, mask)));
-  return hn::RebindMask(d, hn::Gt(m, hn::Zero(di)));
-}
 
 // What fill_planes reads of one image row: the mask, the guides and the C channels'
 // values (channel c of pixel x at value[c][x * stride[c]]; stride 1 or 3).
@@ -222,7 +215,7 @@ inline void fill_pixel(const SourceRow<C>& s, int x, const TilePlanes& p, size_t
 template <int C>
 inline void fill_vector(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
   const FloatLanes d;
-  const hn::Mask<FloatLanes> on = foreground(s.mask + x);
+  const hn::Mask<FloatLanes> on = foreground_lanes(s.mask + x);
   hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.depth + x)), d, p.depth + at);
   Lanes v[3];
   hn::LoadInterleaved3(d, s.normal + 3 * size_t(x), v[0], v[1], v[2]);
@@ -344,7 +337,7 @@ inline void write_pixels3(const uint8_t* m, const float* in, float* out, int wid
   const FloatLanes d;
   int i = 0;
   for (; i + lane_count() <= width; i += lane_count()) {
-    const hn::Mask<FloatLanes> on = foreground(m + i);
+    const hn::Mask<FloatLanes> on = foreground_lanes(m + i);
     Lanes v[3];
     hn::LoadInterleaved3(d, in + 3 * size_t(i), v[0], v[1], v[2]);
     for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(on, hn::LoadU(d, result[c] + i), v[c]);

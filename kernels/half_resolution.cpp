@@ -16,6 +16,7 @@
 #include "core/parallel.h"
 #include "kernels/normals.h"
 #include "kernels/positions.h"
+#include "kernels/mask_lanes.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
@@ -361,14 +362,6 @@ struct LanePattern {
   }
 };
 
-// Lanes whose mask bytes (one per pixel) are nonzero.
-inline hn::Mask<FloatLanes> foreground(const uint8_t* mask) {
-  const FloatLanes d;
-  const hn::RebindToSigned<FloatLanes> di;
-  const hn::Rebind<uint8_t, FloatLanes> d8;
-  const auto m = hn::BitCast(di, hn::PromoteTo(hn::RebindToUnsigned<FloatLanes>(), hn::LoadU(d8, mask)));
-  return hn::RebindMask(d, hn::Gt(m, hn::Zero(di)));
-}
 
 // The texels of pixels x .. x + N - 1 (x odd) from one array of TexelRows: column t[0] of
 // each pixel's footprint (k = 0) or t[1] (k = 1).
@@ -487,7 +480,7 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
   const size_t n = hn::Lanes(d);
   const lanes::PixelRow row(texels, full, y, fy);
   for (int x = span.begin; x < span.end; x += int(n)) {
-    const auto fg = lanes::foreground(row.mask + x);
+    const auto fg = foreground_lanes(row.mask + x);
     Lanes w[4];
     row.weights(x, p, fg, w);
     Lanes wsum = hn::Zero(d);
