@@ -109,7 +109,9 @@ namespace ssdo::half_samples {
 HWY_EXPORT(to_half_lanes);
 HWY_EXPORT(to_float_lanes);
 
-void to_half(const float* in, int n, uint16_t* out) { HWY_DYNAMIC_DISPATCH(to_half_lanes)(in, n, out); }
+void to_half(const float* in, int n, uint16_t* out) {
+  HWY_DYNAMIC_DISPATCH(to_half_lanes)(in, n, out);
+}
 
 void to_float(const uint8_t* from, int64_t n, float* to, size_t pixel_floats) {
   HWY_DYNAMIC_DISPATCH(to_float_lanes)(from, n, to, pixel_floats);
