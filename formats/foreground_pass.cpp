@@ -196,7 +196,9 @@ RowCounts foreground_row_lanes(const ForegroundPass pass, const glm::vec3 ray_ro
                                const ForegroundRow row) {
   RowCounts counts;
   int x = 0;
-  if (row.normal) x = foreground_groups(pass, ray_row, row, counts);
+  // A one-lane target (the scalar baseline) goes pixel by pixel: a group of one would be
+  // the pixel's work and the test of the group besides.
+  if (row.normal && hn::Lanes(DF()) > 1) x = foreground_groups(pass, ray_row, row, counts);
   for (; x < pass.width; ++x) foreground_pixel(pass, ray_row, row, x, counts);
   return counts;
 }
