@@ -1,5 +1,7 @@
 #include "formats/half_samples.h"
 
+#include "formats/simd_targets.h"  // before Highway
+
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "formats/half_samples.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
