@@ -1,7 +1,6 @@
 // The pass after reading, a vector of pixels at a time, against itself one pixel at a time
-// (a one-pixel row runs no vector group): the same bits on the instruction set the
-// dispatcher chose (SSDO_SIMD=baseline runs the fallback), for every kind of pixel at every
-// lane position.
+// (a one-pixel row runs no vector group): the same bits on every instruction set this CPU
+// runs, for every kind of pixel at every lane position.
 #include "formats/foreground_pass.h"
 
 #include <cstring>
@@ -10,6 +9,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+
+#include "tests/support/each_simd_target.h"
 
 namespace ssdo::foreground {
 namespace {
@@ -101,7 +102,10 @@ TEST(ForegroundPass, VectorGroupsGiveEachPixelsBits) {
         pass.has_background = !radial, pass.background = 33.0f;
         SCOPED_TRACE(::testing::Message() << "perspective " << perspective << ", world "
                                           << world << ", radial " << radial);
-        expect_same_rows(pass, pass.width, unsigned(perspective * 4 + world * 2 + radial));
+        test::for_each_simd_target([&](const std::string& target) {
+          SCOPED_TRACE(target);
+          expect_same_rows(pass, pass.width, unsigned(perspective * 4 + world * 2 + radial));
+        });
       }
 }
 

@@ -1,6 +1,5 @@
-// Half-sample conversions against Imath on the instruction set the dispatcher chose
-// (SSDO_SIMD=baseline runs them on the fallback): every value class, at every position in
-// a vector of samples, and groups with and without NaNs.
+// Half-sample conversions against Imath on every instruction set this CPU runs: every value
+// class, at every position in a vector of samples, and groups with and without NaNs.
 #include "formats/half_samples.h"
 
 #include <cstring>
@@ -9,6 +8,8 @@
 
 #include <Imath/half.h>
 #include <gtest/gtest.h>
+
+#include "tests/support/each_simd_target.h"
 
 namespace ssdo {
 namespace {
@@ -37,14 +38,17 @@ TEST(HalfSamples, FloatsRoundToHalfAsImathDoes) {
   std::mt19937 rng(21);
   for (int i = 0; i < (1 << 18); ++i) in.push_back(from_bits(uint32_t(rng())));
   std::vector<uint16_t> out(in.size() + 64);
-  // Offsets 0..3 and an odd count: vectors start at every alignment and end in a tail.
-  for (size_t offset : {0u, 1u, 3u}) {
-    const int n = int(in.size() - offset - 1);
-    half_samples::to_half(in.data() + offset, n, out.data());
-    for (int i = 0; i < n; ++i)
-      ASSERT_EQ(out[size_t(i)], half(in[offset + size_t(i)]).bits())
-          << "float bits " << std::hex << float_bits(in[offset + size_t(i)]);
-  }
+  test::for_each_simd_target([&](const std::string& target) {
+    // Offsets 0, 1, 3 and an odd count: vectors start at several alignments and end in a
+    // tail.
+    for (size_t offset : {0u, 1u, 3u}) {
+      const int n = int(in.size() - offset - 1);
+      half_samples::to_half(in.data() + offset, n, out.data());
+      for (int i = 0; i < n; ++i)
+        ASSERT_EQ(out[size_t(i)], half(in[offset + size_t(i)]).bits())
+            << target << ", float bits " << std::hex << float_bits(in[offset + size_t(i)]);
+    }
+  });
 }
 
 TEST(HalfSamples, HalvesWidenAsImathsTableDoesAtEveryStride) {
@@ -54,17 +58,19 @@ TEST(HalfSamples, HalvesWidenAsImathsTableDoesAtEveryStride) {
     bytes[2 * h] = uint8_t(h & 0xff);
     bytes[2 * h + 1] = uint8_t(h >> 8);
   }
-  for (size_t pixel_floats : {1u, 3u}) {
-    for (int64_t offset : {0, 5}) {
-      const int64_t n = 65536 - offset;
-      std::vector<float> out(size_t(n) * pixel_floats, -1.0f);
-      half_samples::to_float(bytes.data() + 2 * offset, n, out.data(), pixel_floats);
-      for (int64_t i = 0; i < n; ++i)
-        ASSERT_EQ(float_bits(out[size_t(i) * pixel_floats]),
-                  float_bits(imath_half_to_float_table[size_t(i + offset)].f))
-            << "half bits " << (i + offset) << ", stride " << pixel_floats;
+  test::for_each_simd_target([&](const std::string& target) {
+    for (size_t pixel_floats : {1u, 3u}) {
+      for (int64_t offset : {0, 5}) {
+        const int64_t n = 65536 - offset;
+        std::vector<float> out(size_t(n) * pixel_floats, -1.0f);
+        half_samples::to_float(bytes.data() + 2 * offset, n, out.data(), pixel_floats);
+        for (int64_t i = 0; i < n; ++i)
+          ASSERT_EQ(float_bits(out[size_t(i) * pixel_floats]),
+                    float_bits(imath_half_to_float_table[size_t(i + offset)].f))
+              << target << ", half bits " << (i + offset) << ", stride " << pixel_floats;
+      }
     }
-  }
+  });
 }
 
 }  // namespace
