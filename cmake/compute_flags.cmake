@@ -1,5 +1,6 @@
-# Compile flags of the compute layers (core/, kernels/, the test ray caster): the interface
-# target ssdo_compute_flags. Included once by the top-level CMakeLists.txt.
+# Compile flags of the compute layers (core/, kernels/, the test ray caster) and of the formats
+# library's per-sample loops: the interface target ssdo_compute_flags. Included once by the
+# top-level CMakeLists.txt.
 add_library(ssdo_compute_flags INTERFACE)
 # -ffp-contract=off: no fused multiply-adds the source does not write, so 1 and N threads
 # and every build of the same source and flags are bit-identical (contraction would round

@@ -1,15 +1,119 @@
 #include "formats/exr_zip.h"
 
+#include "formats/simd_targets.h"  // before Highway
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "formats/exr_zip.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <algorithm>
 #include <array>
 #include <memory>
 
 #include <libdeflate.h>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
+// The byte transforms run over every byte of a frame (137 MB for a 1080p Cycles dump), as
+// often as the codec itself: plain byte loops cost as much as libdeflate's inflate, so
+// they take a vector of bytes at a time, on the best instruction set the CPU runs, with
+// the scalar loops as the reference and for the tails. Byte arithmetic wraps (mod 256) on
+// every target, so every target gives the same bytes.
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::exr_zip::HWY_NAMESPACE {
+namespace {
+
+namespace hn = hwy::HWY_NAMESPACE;
+
+// out[0..half) = the even-indexed bytes of in, out[half..n) = the odd-indexed ones.
+void split_even_odd(const uint8_t* in, size_t n, uint8_t* out) {
+  const hn::ScalableTag<uint8_t> d;
+  const size_t lanes = hn::Lanes(d);
+  const size_t half = (n + 1) / 2;
+  size_t i = 0;  // pairs done
+  for (; 2 * i + 2 * lanes <= n; i += lanes) {
+    hn::Vec<decltype(d)> even, odd;
+    hn::LoadInterleaved2(d, in + 2 * i, even, odd);
+    hn::StoreU(even, d, out + i);
+    hn::StoreU(odd, d, out + half + i);
+  }
+  for (size_t k = i; k < half; ++k) out[k] = in[2 * k];
+  for (size_t k = i; k < n / 2; ++k) out[half + k] = in[2 * k + 1];
+}
+
+// The inverse: out[2i] = in[i], out[2i + 1] = in[half + i].
+void join_even_odd(const uint8_t* in, size_t n, uint8_t* out) {
+  const hn::ScalableTag<uint8_t> d;
+  const size_t lanes = hn::Lanes(d);
+  const size_t half = (n + 1) / 2;
+  size_t i = 0;
+  for (; 2 * i + 2 * lanes <= n; i += lanes)
+    hn::StoreInterleaved2(hn::LoadU(d, in + i), hn::LoadU(d, in + half + i), d, out + 2 * i);
+  for (size_t k = i; k < half; ++k) out[2 * k] = in[k];
+  for (size_t k = i; k < n / 2; ++k) out[2 * k + 1] = in[half + k];
+}
+
+// out[0] = in[0]; out[i] = in[i] - in[i-1] + 128 (mod 256).
+void predict(const uint8_t* in, size_t n, uint8_t* out) {
+  const hn::ScalableTag<uint8_t> d;
+  const size_t lanes = hn::Lanes(d);
+  const auto bias = hn::Set(d, uint8_t{128});
+  out[0] = in[0];
+  size_t i = 1;
+  for (; i + lanes <= n; i += lanes)
+    hn::StoreU(hn::Add(hn::Sub(hn::LoadU(d, in + i), hn::LoadU(d, in + i - 1)), bias), d, out + i);
+  for (; i < n; ++i) out[i] = uint8_t(in[i] - in[i - 1] + 128);
+}
+
+// In place: t[i] = t[i-1] + t[i] - 128 (mod 256), i.e. a running sum of (t[i] - 128).
+// Per 16-byte block: its prefix sums in 4 shifted adds (Hillis-Steele; byte shifts stay
+// within 16-byte blocks on every target, hence the fixed block), plus the sum of every
+// byte before it (`carry`, all lanes). The block's own total does not depend on `carry`,
+// so the loop carries one add from block to block. The scalar baseline (one-lane vectors,
+// no byte shifts) runs the scalar loop alone.
+void unpredict(uint8_t* t, size_t n) {
+  size_t i = 1;
+#if HWY_TARGET != HWY_SCALAR
+  const hn::Full128<uint8_t> d;
+  const auto bias = hn::Set(d, uint8_t{128});
+  const auto last_byte = hn::Set(d, uint8_t{15});
+  auto carry = hn::Set(d, t[0]);
+  for (; i + 16 <= n; i += 16) {
+    auto x = hn::Sub(hn::LoadU(d, t + i), bias);
+    x = hn::Add(x, hn::ShiftLeftBytes<1>(d, x));
+    x = hn::Add(x, hn::ShiftLeftBytes<2>(d, x));
+    x = hn::Add(x, hn::ShiftLeftBytes<4>(d, x));
+    x = hn::Add(x, hn::ShiftLeftBytes<8>(d, x));
+    hn::StoreU(hn::Add(x, carry), d, t + i);
+    carry = hn::Add(carry, hn::TableLookupBytes(x, last_byte));
+  }
+#endif
+  for (; i < n; ++i) t[i] = uint8_t(t[i - 1] + t[i] - 128);
+}
+
+}  // namespace
+
+// EXR's ZIP transform of a chunk's packed bytes before deflate: the bytes split into even
+// and odd halves, then the delta predictor (`split` is scratch, `predicted` the result).
+void encode(const uint8_t* packed, size_t n, uint8_t* split, uint8_t* predicted) {
+  split_even_odd(packed, n, split);
+  predict(split, n, predicted);
+}
+
+// Its inverse after inflate, `predicted` overwritten in place.
+void decode(uint8_t* predicted, size_t n, uint8_t* packed) {
+  unpredict(predicted, n);
+  join_even_odd(predicted, n, packed);
+}
+
+}  // namespace ssdo::exr_zip::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
 namespace ssdo::exr_zip {
+
+HWY_EXPORT(encode);
+HWY_EXPORT(decode);
+
 namespace {
 
 struct CompressorDeleter {
@@ -38,77 +142,6 @@ std::vector<uint8_t>& scratch(int which) {
   return s[which];
 }
 
-// The byte transforms run over every byte of a frame (137 MB for a 1080p Cycles dump), as
-// often as the codec itself: plain byte loops cost as much as libdeflate's inflate, so
-// they use 16 bytes at a time (SSE2, the x86-64 baseline) with the scalar loops as the
-// reference and for the tails.
-
-// out[0..half) = the even-indexed bytes of in, out[half..n) = the odd-indexed ones.
-void split_even_odd(const uint8_t* in, size_t n, uint8_t* out) {
-  const size_t half = (n + 1) / 2;
-  size_t i = 0;  // pairs done
-#if defined(__SSE2__)
-  const __m128i low = _mm_set1_epi16(0x00ff);
-  for (; 2 * i + 32 <= n; i += 16) {
-    const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 2 * i));
-    const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 2 * i + 16));
-    const __m128i even = _mm_packus_epi16(_mm_and_si128(a, low), _mm_and_si128(b, low));
-    const __m128i odd = _mm_packus_epi16(_mm_srli_epi16(a, 8), _mm_srli_epi16(b, 8));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i), even);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + half + i), odd);
-  }
-#endif
-  for (size_t k = i; k < half; ++k) out[k] = in[2 * k];
-  for (size_t k = i; k < n / 2; ++k) out[half + k] = in[2 * k + 1];
-}
-
-// The inverse: out[2i] = in[i], out[2i + 1] = in[half + i].
-void join_even_odd(const uint8_t* in, size_t n, uint8_t* out) {
-  const size_t half = (n + 1) / 2;
-  size_t i = 0;
-#if defined(__SSE2__)
-  for (; 2 * i + 32 <= n; i += 16) {
-    const __m128i even = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + i));
-    const __m128i odd = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + half + i));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + 2 * i), _mm_unpacklo_epi8(even, odd));
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + 2 * i + 16), _mm_unpackhi_epi8(even, odd));
-  }
-#endif
-  for (size_t k = i; k < half; ++k) out[2 * k] = in[k];
-  for (size_t k = i; k < n / 2; ++k) out[2 * k + 1] = in[half + k];
-}
-
-// out[0] = in[0]; out[i] = in[i] - in[i-1] + 128 (mod 256). Vectorises as written.
-void predict(const uint8_t* in, size_t n, uint8_t* out) {
-  out[0] = in[0];
-  for (size_t i = 1; i < n; ++i) out[i] = uint8_t(in[i] - in[i - 1] + 128);
-}
-
-// In place: t[i] = t[i-1] + t[i] - 128 (mod 256), i.e. a running sum of (t[i] - 128).
-void unpredict(uint8_t* t, size_t n) {
-  size_t i = 1;
-#if defined(__SSE2__)
-  // Prefix sums of 16 bytes in 4 shifted adds (Hillis-Steele), plus the previous byte.
-  const __m128i bias = _mm_set1_epi8(char(-128));
-  __m128i carry = _mm_set1_epi8(char(t[0]));
-  for (; i + 16 <= n; i += 16) {
-    __m128i x = _mm_add_epi8(_mm_loadu_si128(reinterpret_cast<const __m128i*>(t + i)), bias);
-    x = _mm_add_epi8(x, _mm_slli_si128(x, 1));
-    x = _mm_add_epi8(x, _mm_slli_si128(x, 2));
-    x = _mm_add_epi8(x, _mm_slli_si128(x, 4));
-    x = _mm_add_epi8(x, _mm_slli_si128(x, 8));
-    x = _mm_add_epi8(x, carry);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(t + i), x);
-    // Broadcast the last byte: the next block's starting value.
-    __m128i last = _mm_unpackhi_epi8(x, x);              // bytes 8..15 doubled
-    last = _mm_unpackhi_epi16(last, last);               // bytes 12..15 as 4x
-    last = _mm_shuffle_epi32(last, _MM_SHUFFLE(3, 3, 3, 3));  // byte 15 everywhere
-    carry = last;
-  }
-#endif
-  for (; i < n; ++i) t[i] = uint8_t(t[i - 1] + t[i] - 128);
-}
-
 }  // namespace
 
 bool compress(std::span<const uint8_t> packed, int level, UninitializedVector<uint8_t>& compressed) {
@@ -119,8 +152,7 @@ bool compress(std::span<const uint8_t> packed, int level, UninitializedVector<ui
   std::vector<uint8_t>& predicted = scratch(1);
   split.resize(n);
   predicted.resize(n);
-  split_even_odd(packed.data(), n, split.data());
-  predict(split.data(), n, predicted.data());
+  HWY_DYNAMIC_DISPATCH(encode)(packed.data(), n, split.data(), predicted.data());
   libdeflate_compressor* c = compressor(level);
   if (!c) return false;
   // A stream only as large as the packed bytes is no gain: the format stores those.
@@ -143,9 +175,9 @@ bool decompress(std::span<const uint8_t> compressed, std::span<uint8_t> packed) 
           LIBDEFLATE_SUCCESS ||
       actual != n)
     return false;
-  unpredict(t.data(), n);
-  join_even_odd(t.data(), n, packed.data());
+  HWY_DYNAMIC_DISPATCH(decode)(t.data(), n, packed.data());
   return true;
 }
 
 }  // namespace ssdo::exr_zip
+#endif  // HWY_ONCE

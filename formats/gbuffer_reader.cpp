@@ -15,9 +15,6 @@
 #include <stdexcept>
 
 #include <Imath/half.h>
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfDeepFrameBuffer.h>
@@ -39,11 +36,19 @@
 #include "formats/exr_header_check.h"
 #include "formats/half_samples.h"
 #include "formats/exr_zip.h"
+#include "formats/foreground_pass.h"
 #include "core/parallel.h"
 
 namespace ssdo {
 
 namespace {
+
+using foreground::ForegroundPass;
+using foreground::RowCounts;
+using foreground::eye_ray;
+using foreground::foreground_row;
+using foreground::planar_depth;
+using foreground::row_ray;
 
 // A resource limit of ReadOptions refused the read (not a damaged file).
 struct LimitExceeded : std::runtime_error {
@@ -57,12 +62,6 @@ const char* read_failure(const std::exception& e) {
   return std::strstr(e.what(), "bad_alloc") ? "out of memory" : "damaged or truncated file";
 }
 
-// Depth at or beyond this is background: renderers write "no hit" as a huge finite value
-// (Cycles: 1e10, see ../shared/gbuffers/README.md) rather than +inf.
-constexpr float kBackgroundDepth = 1e9f;
-// A stored normal shorter than this is "no normal" (Cycles writes (0, 0, 0) where it has
-// none); unit normals in half precision are ~1 +- 1e-3.
-constexpr float kMinNormalLength = 1e-6f;
 // Non-standard header attributes carrying the clip distances next to worldToCamera /
 // worldToNDC (written by write_outputs; OpenEXR has no standard attribute for them).
 constexpr const char* kClipNearAttribute = "clipNear";
@@ -970,274 +969,6 @@ void set_nonfinite_to_zero(cv::Mat& m) {
   const size_t n = m.total() * m.channels();
   for (size_t i = 0; i < n; ++i)
     if (!std::isfinite(p[i])) p[i] = 0.0f;
-}
-
-// One row's share of what read_gbuffer reports.
-struct RowCounts {
-  int64_t foreground = 0, nonfinite = 0, repaired = 0;
-  float depth_min = std::numeric_limits<float>::infinity();
-  float depth_max = -std::numeric_limits<float>::infinity();
-};
-
-// What the pass after reading needs besides the row's pixels (see foreground_row).
-struct ForegroundPass {
-  int width = 0;
-  float far_view = 0.0f;
-  bool has_background = false;
-  float background = 0.0f;
-  bool radial = false, perspective = false, normals_world = false;
-  glm::mat3 normal_to_view{1.0f};
-  glm::vec3 ray_step_x{0.0f};
-  glm::vec3 ray_origin{0.0f}, ray_step_y{0.0f};  // the ray through pixel (0, 0), per row
-};
-
-// The eye ray through the first pixel centre of row y (see eye_ray).
-inline glm::vec3 row_ray(const ForegroundPass& pass, int y) {
-  return pass.ray_origin + float(y) * pass.ray_step_y;
-}
-
-// The eye ray through pixel x of the row whose first ray is `ray_row` (length arbitrary,
-// z = -1 in perspective).
-inline glm::vec3 eye_ray(const ForegroundPass& pass, const glm::vec3& ray_row, int x) {
-  return pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
-}
-
-// A stored depth sample as planar depth, or +inf when it is background: non-finite, <= 0,
-// >= kBackgroundDepth, beyond the far clip or the sidecar's background value. Radial
-// distance from the eye -> planar depth along -Z: d_planar = d cos(angle to the axis) =
-// d / |ray| for a ray with z = -1.
-inline float planar_depth(const ForegroundPass& pass, const glm::vec3& ray, float stored) {
-  const float inf = std::numeric_limits<float>::infinity();
-  if (!std::isfinite(stored)) return inf;
-  float d = stored;
-  if (pass.radial && pass.perspective) d /= glm::length(ray);
-  const bool foreground = d > 0.0f && d < kBackgroundDepth &&
-                          !(pass.far_view > 0.0f && d > pass.far_view) &&
-                          !(pass.has_background && stored == pass.background);
-  return foreground ? d : inf;
-}
-
-// The pointers of one row: `normal` and `repair` are null without normals.
-struct ForegroundRow {
-  float* depth;
-  uint8_t* mask;
-  cv::Vec3f* normal;
-  uint8_t* repair;
-};
-
-// One pixel of foreground_row, every case (the four-pixel path's fallback and the row's
-// tail: left to the compiler to inline or call).
-void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
-                      const ForegroundRow& row, int x, RowCounts& counts) {
-  float* depth = row.depth;
-  cv::Vec3f* normal = row.normal;
-  bool nonfinite = !std::isfinite(depth[x]);
-  glm::vec3 n(0.0f);
-  if (normal) {
-    n = glm::vec3(normal[x][0], normal[x][1], normal[x][2]);
-    if (!std::isfinite(n.x) || !std::isfinite(n.y) || !std::isfinite(n.z)) nonfinite = true;
-  }
-  const glm::vec3 ray = eye_ray(pass, ray_row, x);
-  const float d =
-      nonfinite ? std::numeric_limits<float>::infinity() : planar_depth(pass, ray, depth[x]);
-  if (d == std::numeric_limits<float>::infinity()) {
-    counts.nonfinite += nonfinite ? 1 : 0;
-    depth[x] = std::numeric_limits<float>::infinity();
-    row.mask[x] = 0;
-    if (normal) normal[x] = cv::Vec3f(0, 0, 0);
-    return;
-  }
-  depth[x] = d;
-  row.mask[x] = 255;
-  ++counts.foreground;
-  counts.depth_min = std::min(counts.depth_min, d);
-  counts.depth_max = std::max(counts.depth_max, d);
-  if (!normal) return;
-  if (pass.normals_world) n = pass.normal_to_view * n;
-  const float len = glm::length(n);
-  if (!(len > kMinNormalLength)) {
-    row.repair[x] = 1;
-    ++counts.repaired;
-    normal[x] = cv::Vec3f(0, 0, 0);
-    return;
-  }
-  n /= len;
-  // Face the camera: a normal pointing away from the eye (back face, or a renderer that
-  // does not flip shading normals) is turned around, since the kernels integrate over the
-  // visible side's hemisphere.
-  if (glm::dot(n, ray) > 0.0f) n = -n;
-  normal[x] = cv::Vec3f(n.x, n.y, n.z);
-}
-
-#if defined(__SSE2__)
-// Four pixels' (x, y, z) vectors, one component per register.
-struct Vec3x4 {
-  __m128 x, y, z;
-};
-
-// ForegroundPass and the row's first eye ray, broadcast to four lanes.
-struct ForegroundLanes {
-  __m128 zero, magnitude_bits, infinity, sign_bit, background_depth, far_view, background,
-      min_length;
-  __m128 m00, m10, m20, m01, m11, m21, m02, m12, m22;  // normal_to_view
-  __m128 ray_row_x, ray_row_y, ray_row_z, step_x, step_y, step_z, lanes;
-};
-
-[[gnu::always_inline]] inline ForegroundLanes broadcast(const ForegroundPass& pass,
-                                                        const glm::vec3& ray_row) {
-  const float inf = std::numeric_limits<float>::infinity();
-  ForegroundLanes c;
-  c.zero = _mm_setzero_ps();
-  c.magnitude_bits = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
-  c.infinity = _mm_set1_ps(inf);
-  c.sign_bit = _mm_set1_ps(-0.0f);
-  c.background_depth = _mm_set1_ps(kBackgroundDepth);
-  // No far clip: +inf, which no depth exceeds; no background value: NaN, which no depth
-  // equals.
-  c.far_view = _mm_set1_ps(pass.far_view > 0.0f ? pass.far_view : inf);
-  c.background = _mm_set1_ps(pass.has_background ? pass.background
-                                                 : std::numeric_limits<float>::quiet_NaN());
-  c.min_length = _mm_set1_ps(kMinNormalLength);
-  const glm::mat3& m = pass.normal_to_view;
-  c.m00 = _mm_set1_ps(m[0][0]), c.m10 = _mm_set1_ps(m[1][0]), c.m20 = _mm_set1_ps(m[2][0]);
-  c.m01 = _mm_set1_ps(m[0][1]), c.m11 = _mm_set1_ps(m[1][1]), c.m21 = _mm_set1_ps(m[2][1]);
-  c.m02 = _mm_set1_ps(m[0][2]), c.m12 = _mm_set1_ps(m[1][2]), c.m22 = _mm_set1_ps(m[2][2]);
-  c.ray_row_x = _mm_set1_ps(ray_row.x), c.ray_row_y = _mm_set1_ps(ray_row.y),
-  c.ray_row_z = _mm_set1_ps(ray_row.z);
-  c.step_x = _mm_set1_ps(pass.ray_step_x.x), c.step_y = _mm_set1_ps(pass.ray_step_x.y),
-  c.step_z = _mm_set1_ps(pass.ray_step_x.z);
-  c.lanes = _mm_setr_ps(0.0f, 1.0f, 2.0f, 3.0f);
-  return c;
-}
-
-// (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3) -> (x0 x1 x2 x3) (y0 ..) (z0 ..).
-[[gnu::always_inline]] inline Vec3x4 load_normals4(const float* n_at) {
-  const __m128 a = _mm_loadu_ps(n_at), b = _mm_loadu_ps(n_at + 4), c = _mm_loadu_ps(n_at + 8);
-  Vec3x4 n;
-  n.x = _mm_shuffle_ps(a, _mm_shuffle_ps(b, c, _MM_SHUFFLE(1, 1, 2, 2)), _MM_SHUFFLE(2, 0, 3, 0));
-  n.y = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(0, 0, 1, 1)),
-                       _mm_shuffle_ps(b, c, _MM_SHUFFLE(2, 2, 3, 3)), _MM_SHUFFLE(2, 0, 2, 0));
-  n.z = _mm_shuffle_ps(_mm_shuffle_ps(a, b, _MM_SHUFFLE(1, 1, 2, 2)), c, _MM_SHUFFLE(3, 0, 2, 0));
-  return n;
-}
-
-// And back: (x0 x1 x2 x3) (y0 ..) (z0 ..) -> (x0 y0 z0 x1) (y1 z1 x2 y2) (z2 x3 y3 z3).
-[[gnu::always_inline]] inline void store_normals4(float* n_at, const Vec3x4& n) {
-  const __m128 xy = _mm_shuffle_ps(n.x, n.y, _MM_SHUFFLE(0, 0, 0, 0));   // x0 x0 y0 y0
-  const __m128 zx = _mm_shuffle_ps(n.z, n.x, _MM_SHUFFLE(1, 1, 0, 0));   // z0 z0 x1 x1
-  const __m128 yz = _mm_shuffle_ps(n.y, n.z, _MM_SHUFFLE(1, 1, 1, 1));   // y1 y1 z1 z1
-  const __m128 xy2 = _mm_shuffle_ps(n.x, n.y, _MM_SHUFFLE(2, 2, 2, 2));  // x2 x2 y2 y2
-  const __m128 zx3 = _mm_shuffle_ps(n.z, n.x, _MM_SHUFFLE(3, 3, 2, 2));  // z2 z2 x3 x3
-  const __m128 yz3 = _mm_shuffle_ps(n.y, n.z, _MM_SHUFFLE(3, 3, 3, 3));  // y3 y3 z3 z3
-  _mm_storeu_ps(n_at, _mm_shuffle_ps(xy, zx, _MM_SHUFFLE(2, 0, 2, 0)));
-  _mm_storeu_ps(n_at + 4, _mm_shuffle_ps(yz, xy2, _MM_SHUFFLE(2, 0, 2, 0)));
-  _mm_storeu_ps(n_at + 8, _mm_shuffle_ps(zx3, yz3, _MM_SHUFFLE(2, 0, 2, 0)));
-}
-
-// Lanes whose depth and normal are finite: |v| < inf (false for NaN).
-[[gnu::always_inline]] inline __m128 finite4(const ForegroundLanes& c, __m128 depth,
-                                             const Vec3x4& n) {
-  auto finite = [&](__m128 v) { return _mm_cmplt_ps(_mm_and_ps(v, c.magnitude_bits), c.infinity); };
-  return _mm_and_ps(_mm_and_ps(finite(depth), finite(n.x)), _mm_and_ps(finite(n.y), finite(n.z)));
-}
-
-// The eye rays through the pixel centres x .. x + 3, as foreground_pixel steps them.
-[[gnu::always_inline]] inline Vec3x4 eye_rays4(const ForegroundLanes& c, bool perspective, int x) {
-  if (!perspective) return {c.zero, c.zero, _mm_set1_ps(-1.0f)};
-  // float(x) + lane is float(x + lane): integers this small are exact.
-  const __m128 at = _mm_add_ps(_mm_set1_ps(float(x)), c.lanes);
-  return {_mm_add_ps(c.ray_row_x, _mm_mul_ps(at, c.step_x)),
-          _mm_add_ps(c.ray_row_y, _mm_mul_ps(at, c.step_y)),
-          _mm_add_ps(c.ray_row_z, _mm_mul_ps(at, c.step_z))};
-}
-
-[[gnu::always_inline]] inline __m128 dot4(const Vec3x4& a, const Vec3x4& b) {
-  return _mm_add_ps(_mm_add_ps(_mm_mul_ps(a.x, b.x), _mm_mul_ps(a.y, b.y)), _mm_mul_ps(a.z, b.z));
-}
-
-// normal_to_view * v, as glm's mat3 * vec3 sums it.
-[[gnu::always_inline]] inline Vec3x4 to_view4(const ForegroundLanes& c, const Vec3x4& v) {
-  return {_mm_add_ps(_mm_add_ps(_mm_mul_ps(c.m00, v.x), _mm_mul_ps(c.m10, v.y)), _mm_mul_ps(c.m20, v.z)),
-          _mm_add_ps(_mm_add_ps(_mm_mul_ps(c.m01, v.x), _mm_mul_ps(c.m11, v.y)), _mm_mul_ps(c.m21, v.z)),
-          _mm_add_ps(_mm_add_ps(_mm_mul_ps(c.m02, v.x), _mm_mul_ps(c.m12, v.y)), _mm_mul_ps(c.m22, v.z))};
-}
-
-// foreground_pixel on the four pixels x .. x + 3 when all four are foreground with a usable
-// normal; false, with nothing written, otherwise. The operations are foreground_pixel's,
-// in its order and without contraction (SSE2 has no FMA), so the bits are its.
-[[gnu::always_inline]] inline bool foreground_group4(const ForegroundPass& pass,
-                                                     const ForegroundLanes& c,
-                                                     const ForegroundRow& row, int x,
-                                                     __m128& depth_min, __m128& depth_max) {
-  const __m128 stored = _mm_loadu_ps(row.depth + x);
-  float* n_at = &row.normal[x][0];
-  Vec3x4 n = load_normals4(n_at);
-  __m128 usable = finite4(c, stored, n);
-  const Vec3x4 ray = eye_rays4(c, pass.perspective, x);
-  __m128 d = stored;
-  if (pass.radial && pass.perspective) d = _mm_div_ps(d, _mm_sqrt_ps(dot4(ray, ray)));
-  usable = _mm_and_ps(usable, _mm_and_ps(_mm_cmpgt_ps(d, c.zero), _mm_cmplt_ps(d, c.background_depth)));
-  usable = _mm_andnot_ps(_mm_or_ps(_mm_cmpgt_ps(d, c.far_view), _mm_cmpeq_ps(stored, c.background)),
-                         usable);
-  if (pass.normals_world) n = to_view4(c, n);
-  const __m128 len = _mm_sqrt_ps(dot4(n, n));
-  usable = _mm_and_ps(usable, _mm_cmpgt_ps(len, c.min_length));
-  if (_mm_movemask_ps(usable) != 0xf) return false;
-  n = {_mm_div_ps(n.x, len), _mm_div_ps(n.y, len), _mm_div_ps(n.z, len)};
-  const __m128 flip = _mm_and_ps(_mm_cmpgt_ps(dot4(n, ray), c.zero), c.sign_bit);
-  n = {_mm_xor_ps(n.x, flip), _mm_xor_ps(n.y, flip), _mm_xor_ps(n.z, flip)};
-  _mm_storeu_ps(row.depth + x, d);
-  std::memset(row.mask + x, 255, 4);
-  store_normals4(n_at, n);
-  depth_min = _mm_min_ps(depth_min, d);
-  depth_max = _mm_max_ps(depth_max, d);
-  return true;
-}
-
-// foreground_row's pixels four at a time while all four are foreground with a usable
-// normal (nearly every group of a rendered frame); any other group goes pixel by pixel.
-// Returns the first pixel not done.
-[[gnu::always_inline]] inline int foreground_groups4(const ForegroundPass& pass,
-                                                     const glm::vec3& ray_row,
-                                                     const ForegroundRow& row,
-                                                     RowCounts& counts) {
-  const ForegroundLanes c = broadcast(pass, ray_row);
-  __m128 depth_min = c.infinity, depth_max = _mm_set1_ps(-std::numeric_limits<float>::infinity());
-  int x = 0;
-  for (; x + 4 <= pass.width; x += 4) {
-    if (foreground_group4(pass, c, row, x, depth_min, depth_max)) {
-      counts.foreground += 4;
-    } else {
-      for (int i = 0; i < 4; ++i) foreground_pixel(pass, ray_row, row, x + i, counts);
-    }
-  }
-  // Foreground depths are finite and positive: the extremes do not depend on the order.
-  alignas(16) float lo[4], hi[4];
-  _mm_store_ps(lo, depth_min);
-  _mm_store_ps(hi, depth_max);
-  for (int i = 0; i < 4; ++i) {
-    counts.depth_min = std::min(counts.depth_min, lo[i]);
-    counts.depth_max = std::max(counts.depth_max, hi[i]);
-  }
-  return x;
-}
-#endif
-
-// The pass after reading, one row: depth (radial -> planar) classified as foreground or
-// not, normals to view space, unit length and facing the camera. `ray_row` is the eye ray
-// through the row's first pixel centre. Background and unusable pixels get depth +inf,
-// mask 0 and normal (0, 0, 0); foreground pixels mask 255, and repair 1 where the normal
-// is (0, 0, 0). `pass` and `row` are taken by value: the mask's byte stores may alias
-// anything behind a reference, which would be reloaded per pixel.
-RowCounts foreground_row(const ForegroundPass pass, const glm::vec3 ray_row,
-                         const ForegroundRow row) {
-  RowCounts counts;
-  int x = 0;
-#if defined(__SSE2__)
-  if (row.normal) x = foreground_groups4(pass, ray_row, row, counts);
-#endif
-  for (; x < pass.width; ++x) foreground_pixel(pass, ray_row, row, x, counts);
-  return counts;
 }
 
 // The foreground pass's constants from the camera and the resolved inputs.

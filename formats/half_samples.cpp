@@ -1,19 +1,41 @@
 #include "formats/half_samples.h"
 
+#include "formats/simd_targets.h"  // before Highway
+
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "formats/half_samples.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <cstring>
 
 #include <Imath/half.h>
-#if defined(__x86_64__)
-#include <cpuid.h>
-#include <immintrin.h>
-#endif
 
-namespace ssdo::half_samples {
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::half_samples::HWY_NAMESPACE {
 namespace {
 
+namespace hn = hwy::HWY_NAMESPACE;
+
+// Targets whose float16 conversions are the hardware's: F16C on x86 (part of Highway's
+// AVX2 and AVX-512 targets) and AArch64's FCVT. Both round to nearest even as Imath does,
+// and converting from half is exact as Imath's table is, so every finite value and
+// infinity gets Imath's bits; a NaN may not (the hardware quiets a signalling NaN), so a
+// group holding one goes through Imath. Highway's software conversions on the other
+// targets truncate instead of rounding: there Imath converts every sample.
+// (A macro, set again for each target: the other targets' vector types do not compile the
+// loops.)
+#undef SSDO_HARDWARE_HALF
+#if (HWY_ARCH_X86 && HWY_TARGET <= HWY_AVX2 && !defined(HWY_DISABLE_F16C)) || \
+    (HWY_ARCH_ARM_A64 && HWY_TARGET == HWY_NEON)
+#define SSDO_HARDWARE_HALF 1
+#else
+#define SSDO_HARDWARE_HALF 0
+#endif
+
 // Imath's conversion (round to nearest even) of n consecutive floats into half bits.
-void to_half_imath(const float* in, int n, uint16_t* out) {
-  for (int x = 0; x < n; ++x) out[x] = half(in[x]).bits();
+void to_half_imath(const float* in, int64_t n, uint16_t* out) {
+  for (int64_t x = 0; x < n; ++x) out[x] = half(in[x]).bits();
 }
 
 // Imath's conversion of n half samples (little-endian bits) to floats `pixel_floats` floats
@@ -27,76 +49,75 @@ void to_float_imath(const uint8_t* from, int64_t n, float* to, size_t pixel_floa
   }
 }
 
-#if defined(__x86_64__)
-// F16C rounds to nearest even as Imath does, so every finite value and infinity converts
-// to the same bits; NaNs may not (F16C quiets a signalling NaN), so a group of 8 holding a
-// NaN is converted by Imath.
-__attribute__((target("avx2,f16c"))) void to_half_f16c(const float* in, int n, uint16_t* out) {
-  int x = 0;
-  for (; x + 8 <= n; x += 8) {
-    const __m256 v = _mm256_loadu_ps(in + x);
-    if (_mm256_movemask_ps(_mm256_cmp_ps(v, v, _CMP_UNORD_Q)) != 0) {
-      to_half_imath(in + x, 8, out + x);
+// to_half (half_samples.h) on this target.
+void to_half_lanes(const float* in, int n, uint16_t* out) {
+  int64_t x = 0;
+#if SSDO_HARDWARE_HALF
+  const hn::ScalableTag<float> df;
+  const hn::Rebind<hwy::float16_t, decltype(df)> dh;
+  const int64_t lanes = int64_t(hn::Lanes(df));
+  for (; x + lanes <= n; x += lanes) {
+    const auto v = hn::LoadU(df, in + x);
+    if (!hn::AllFalse(df, hn::IsNaN(v))) {
+      to_half_imath(in + x, lanes, out + x);
       continue;
     }
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + x), _mm256_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT));
+    hn::StoreU(hn::DemoteTo(dh, v), dh, reinterpret_cast<hwy::float16_t*>(out + x));
   }
+#endif
   to_half_imath(in + x, n - x, out + x);
 }
 
-// F16C's conversion from half is exact, as the table is, for every finite half and
-// infinity; a NaN may come out otherwise (a signalling NaN quieted), so a group of 8
-// holding a NaN (exponent all ones, mantissa not 0) goes through the table.
-__attribute__((target("avx2,f16c"))) void to_float_f16c(const uint8_t* from, int64_t n, float* to,
-                                                        size_t pixel_floats) {
-  const __m128i magnitude_bits = _mm_set1_epi16(0x7fff);
-  const __m128i infinity_bits = _mm_set1_epi16(0x7c00);
+// to_float (half_samples.h) on this target.
+void to_float_lanes(const uint8_t* from, int64_t n, float* to, size_t pixel_floats) {
   int64_t x = 0;
-  for (; x + 8 <= n; x += 8) {
-    const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(from + 2 * x));
+#if SSDO_HARDWARE_HALF
+  const hn::ScalableTag<float> df;
+  const hn::Rebind<hwy::float16_t, decltype(df)> dh;
+  const hn::Rebind<int16_t, decltype(df)> di;
+  const hn::Repartition<uint8_t, decltype(di)> du8;
+  const auto magnitude_bits = hn::Set(di, int16_t{0x7fff});
+  const auto infinity_bits = hn::Set(di, int16_t{0x7c00});
+  const int64_t lanes = int64_t(hn::Lanes(df));
+  for (; x + lanes <= n; x += lanes) {
+    const auto h = hn::BitCast(di, hn::LoadU(du8, from + 2 * x));
     float* out = to + size_t(x) * pixel_floats;
-    // Magnitudes are at most 0x7fff, so the signed comparison is the unsigned one.
-    const __m128i nan = _mm_cmpgt_epi16(_mm_and_si128(h, magnitude_bits), infinity_bits);
-    if (_mm_movemask_epi8(nan) != 0) {
-      to_float_imath(from + 2 * x, 8, out, pixel_floats);
+    // A NaN's exponent is all ones and its mantissa not 0: its magnitude is above
+    // infinity's. Magnitudes are at most 0x7fff, so the signed comparison is the unsigned one.
+    if (!hn::AllFalse(di, hn::Gt(hn::And(h, magnitude_bits), infinity_bits))) {
+      to_float_imath(from + 2 * x, lanes, out, pixel_floats);
       continue;
     }
-    const __m256 v = _mm256_cvtph_ps(h);
+    const auto v = hn::PromoteTo(df, hn::BitCast(dh, h));
     if (pixel_floats == 1) {
-      _mm256_storeu_ps(out, v);
+      hn::StoreU(v, df, out);
       continue;
     }
-    alignas(32) float lanes[8];
-    _mm256_store_ps(lanes, v);
-    for (int i = 0; i < 8; ++i) out[size_t(i) * pixel_floats] = lanes[i];
+    HWY_ALIGN float samples[HWY_MAX_BYTES / sizeof(float)];
+    hn::Store(v, df, samples);
+    for (int64_t i = 0; i < lanes; ++i) out[size_t(i) * pixel_floats] = samples[i];
   }
+#endif
   to_float_imath(from + 2 * x, n - x, to + size_t(x) * pixel_floats, pixel_floats);
 }
 
-// AVX2 and F16C, detected once (cpuid: clang's __builtin_cpu_supports does not know "f16c").
-bool has_f16c() {
-  static const bool f16c = [] {
-    unsigned a = 0, b = 0, c = 0, d = 0;
-    return __builtin_cpu_supports("avx2") && __get_cpuid(1, &a, &b, &c, &d) != 0 && (c & bit_F16C) != 0;
-  }();
-  return f16c;
-}
-#endif
-
 }  // namespace
+}  // namespace ssdo::half_samples::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo::half_samples {
+
+HWY_EXPORT(to_half_lanes);
+HWY_EXPORT(to_float_lanes);
 
 void to_half(const float* in, int n, uint16_t* out) {
-#if defined(__x86_64__)
-  if (has_f16c()) return to_half_f16c(in, n, out);
-#endif
-  to_half_imath(in, n, out);
+  HWY_DYNAMIC_DISPATCH(to_half_lanes)(in, n, out);
 }
 
 void to_float(const uint8_t* from, int64_t n, float* to, size_t pixel_floats) {
-#if defined(__x86_64__)
-  if (has_f16c()) return to_float_f16c(from, n, to, pixel_floats);
-#endif
-  to_float_imath(from, n, to, pixel_floats);
+  HWY_DYNAMIC_DISPATCH(to_float_lanes)(from, n, to, pixel_floats);
 }
 
 }  // namespace ssdo::half_samples
+#endif  // HWY_ONCE

@@ -1,8 +1,8 @@
 // Half-float samples as EXR files store them (IEEE binary16, little-endian) to and from
 // the kernels' floats, with exactly OpenEXR's bits: Imath's conversions (its table from
-// half, round to nearest even to half), through F16C eight samples at a time where the CPU
-// has it (the same bits; groups holding a NaN go through Imath, whose NaN bits F16C may
-// not keep).
+// half, round to nearest even to half), a vector of samples at a time through the CPU's
+// half conversions where it has them (F16C with AVX2/AVX-512, AArch64; the same bits:
+// groups holding a NaN go through Imath, whose NaN bits the hardware may not keep).
 #pragma once
 
 #include <cstddef>

@@ -964,7 +964,7 @@ TEST(ZipDecoders, HalfAndFloatChannelsAreBitIdenticalForEveryLayout) {
 TEST(ZipDecoders, EveryHalfValueConvertsAsImathDoes) {
   ScratchDir dir;
   // Reference A holds each of the 65536 half values once (NaNs with every payload among
-  // them): groups of 8 with and without a NaN, at every alignment the rows give.
+  // them): vector groups with and without a NaN, at every alignment the rows give.
   RawExr e = zip_test_frame(256, 256);
   for (uint32_t i = 0; i < 65536; ++i) e.channels[0].bits[i] = i;
   const fs::path path = dir / "every_half.exr";

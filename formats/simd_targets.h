@@ -1,0 +1,12 @@
+// The instruction sets of the formats library's per-sample loops (exr_zip, half_samples,
+// foreground_pass): the kernels' (cmake/compute_flags.cmake) and SSSE3 besides. These
+// loops replaced SSE2 code that every x86-64 CPU ran; on the kernels' set alone a CPU
+// without AVX2 (before 2013) would run them one sample at a time, 3-4x slower (zip's prefix
+// sum, the foreground pass). They are small, so the one more compilation costs seconds.
+// Included by each such file before Highway, with the file itself the only one in its
+// translation unit (formats/CMakeLists.txt keeps them out of unity batches).
+#pragma once
+
+#undef HWY_DISABLED_TARGETS
+#define HWY_DISABLED_TARGETS \
+  (HWY_SSE4 | HWY_AVX3_DL | HWY_SVE | HWY_SVE2 | HWY_SVE_256 | HWY_SVE2_128)
