@@ -311,7 +311,7 @@ int run_bench(const BenchArgs& args) {
     const Row t = bench_sequence(frames, args, config, csv);
     std::printf("%-10s %-7s %7d %10.1f %8.4f %8.4f %8.4f\n", t.method.c_str(), t.preset.c_str(), t.samples, t.ms,
                 t.error.mae, t.error.rmse, t.error.p95);
-    const std::string sequence_name = row.method + " presets," +
+    const std::string sequence_name = row.method + "," +
                                       (args.views > 0 ? " --views " + std::to_string(args.views) : "") +
                                       (args.temporal > 0 ? " --temporal " + std::to_string(args.temporal) : "");
     ChartSeries& ts = by_method[sequence_name];
