@@ -86,8 +86,10 @@ for c in "${configs[@]}"; do
     "$(stage write <"$work/$c.log" | median)" "$(calc "$(stat -c %s "$work/out-$c/$stem.ssdo.exr") / 1e6")"
 done
 
+# Named without frame numbers: eight independent frames, not a shot (a shot of eight equal
+# frames would add the views and the temporal filter, whose every texel agrees).
 mkdir -p "$work/eight"
-for i in 1 2 3 4 5 6 7 8; do
+for i in a b c d e f g h; do
   ln -f "$work/$stem.exr" "$work/eight/f$i.exr" 2>/dev/null || cp "$work/$stem.exr" "$work/eight/f$i.exr"
   [ -f "$work/$stem.camera.json" ] && cp "$work/$stem.camera.json" "$work/eight/f$i.camera.json"
 done
@@ -100,7 +102,7 @@ done
 t0=$(now); "$ssdo" process "$work/eight" -o "$work/out8-jobs" --force --jobs 2 --threads 1 "${ssdo_args[@]}" >/dev/null; t1=$(now)
 printf '8 frames, %-40s %.2f s, %.3f frames/s\n' "ssdo process --jobs 2 --threads 1:" "$(calc "$t1 - $t0")" "$(calc "8 / ($t1 - $t0)")"
 t0=$(now)
-for i in 1 2 3 4 5 6 7 8; do oiiotool "$work/eight/f$i.exr" --ch "$layer" -d half --compression zip -o "$work/copy$i.exr"; done
+for i in a b c d e f g h; do oiiotool "$work/eight/f$i.exr" --ch "$layer" -d half --compression zip -o "$work/copy$i.exr"; done
 t1=$(now)
 printf '8 frames, %-40s %.2f s, %.3f frames/s\n' "oiiotool channel copy:" "$(calc "$t1 - $t0")" "$(calc "8 / ($t1 - $t0)")"
 echo "load average at end: $(cut -d' ' -f1-3 /proc/loadavg)"
