@@ -17,74 +17,9 @@ namespace ssdo::HWY_NAMESPACE {
 
 namespace {
 
-constexpr std::pair<CompositeTerm, std::string_view> kTermNames[] = {
-    {CompositeTerm::ambient, "ambient"},         {CompositeTerm::ambient_ao, "ambient_ao"},
-    {CompositeTerm::ssdo_direct, "ssdo_direct"}, {CompositeTerm::ssdo_indirect, "ssdo_indirect"},
-    {CompositeTerm::lighting, "lighting"}};
-constexpr std::pair<CompositeMode, std::string_view> kModeNames[] = {
-    {CompositeMode::off, "off"}, {CompositeMode::ssao, "ssao"}, {CompositeMode::ssdo, "ssdo"},
-    {CompositeMode::ssao_ssdo, "ssao+ssdo"}};
-
 bool usable(const cv::Mat* m) { return m && !m->empty(); }
 
 }  // namespace
-
-std::string_view to_string(CompositeTerm t) { return enum_name<CompositeTerm>(kTermNames, t); }
-std::string_view to_string(CompositeMode m) { return enum_name<CompositeMode>(kModeNames, m); }
-std::optional<CompositeTerm> parse_composite_term(std::string_view s) {
-  return parse_enum<CompositeTerm>(kTermNames, s);
-}
-std::optional<CompositeMode> parse_composite_mode(std::string_view s) {
-  return parse_enum<CompositeMode>(kModeNames, s);
-}
-
-std::vector<WeightedTerm> composite_mode_terms(CompositeMode mode) {
-  switch (mode) {
-    case CompositeMode::off: return {{CompositeTerm::ambient, 1.0f}};
-    case CompositeMode::ssao: return {{CompositeTerm::ambient_ao, 1.0f}};
-    case CompositeMode::ssdo:
-      return {{CompositeTerm::ssdo_direct, 1.0f}, {CompositeTerm::ssdo_indirect, 1.0f}};
-    case CompositeMode::ssao_ssdo:
-      return {{CompositeTerm::ambient_ao, 1.0f},
-              {CompositeTerm::ssdo_direct, 1.0f},
-              {CompositeTerm::ssdo_indirect, 1.0f}};
-  }
-  return {};
-}
-
-std::string validate(const CompositeInputs& in, const CompositeSettings& s) {
-  if (in.mask.type() != CV_8UC1 || in.mask.empty()) return "mask must be a non-empty CV_8UC1 image";
-  const cv::Size size = in.mask.size();
-  auto check = [&](const cv::Mat* m, int type, const char* name) -> std::string {
-    if (!usable(m)) return {};
-    if (m->type() != type || m->size() != size)
-      return std::string(name) + " must be " + (type == CV_32FC1 ? "CV_32FC1" : "CV_32FC3") +
-             " of the mask's size";
-    return {};
-  };
-  for (const auto& [m, type, name] :
-       {std::tuple{in.albedo, CV_32FC3, "albedo"}, std::tuple{in.ao, CV_32FC1, "ao"},
-        std::tuple{in.direct, CV_32FC3, "direct"}, std::tuple{in.indirect, CV_32FC3, "indirect"},
-        std::tuple{in.lighting, CV_32FC3, "lighting"}, std::tuple{in.background, CV_32FC3, "background"}})
-    if (std::string e = check(m, type, name); !e.empty()) return e;
-  if (in.environment && !in.camera) return "environment given without camera";
-  if (in.camera && (in.camera->width_px != size.width || in.camera->height_px != size.height))
-    return "camera size differs from the mask's";
-  if (!(s.ambient_radiance.x >= 0.0f && s.ambient_radiance.y >= 0.0f && s.ambient_radiance.z >= 0.0f))
-    return "ambient_radiance must be >= 0";
-  bool seen[5] = {false, false, false, false, false};
-  for (const WeightedTerm& t : s.terms) {
-    const std::string name(ssdo::to_string(t.term));
-    if (seen[int(t.term)]) return "term " + name + " selected twice";
-    seen[int(t.term)] = true;
-    if (!(t.weight >= 0.0f && t.weight <= 16.0f))
-      return "weight of " + name + " = " + std::to_string(t.weight) + " is out of range [0, 16]";
-    if (t.term == CompositeTerm::ssdo_direct && !usable(in.direct)) return "term " + name + " needs direct";
-    if (t.term == CompositeTerm::ssdo_indirect && !usable(in.indirect)) return "term " + name + " needs indirect";
-    if (t.term == CompositeTerm::lighting && !usable(in.lighting)) return "term " + name + " needs lighting";
-  }
-  return {};
-}
 
 namespace {
 
@@ -210,18 +145,77 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo {
 
-// Not per pixel: the baseline's code serves every CPU.
-std::string_view to_string(CompositeTerm t) { return HWY_NAMESPACE::to_string(t); }
+// Names and settings, not pixels: compiled once, outside the per-target code.
+using HWY_NAMESPACE::usable;
 
-std::string_view to_string(CompositeMode m) { return HWY_NAMESPACE::to_string(m); }
+namespace {
 
-std::optional<CompositeTerm> parse_composite_term(std::string_view s) { return HWY_NAMESPACE::parse_composite_term(s); }
+constexpr std::pair<CompositeTerm, std::string_view> kTermNames[] = {
+    {CompositeTerm::ambient, "ambient"},         {CompositeTerm::ambient_ao, "ambient_ao"},
+    {CompositeTerm::ssdo_direct, "ssdo_direct"}, {CompositeTerm::ssdo_indirect, "ssdo_indirect"},
+    {CompositeTerm::lighting, "lighting"}};
+constexpr std::pair<CompositeMode, std::string_view> kModeNames[] = {
+    {CompositeMode::off, "off"}, {CompositeMode::ssao, "ssao"}, {CompositeMode::ssdo, "ssdo"},
+    {CompositeMode::ssao_ssdo, "ssao+ssdo"}};
 
-std::optional<CompositeMode> parse_composite_mode(std::string_view s) { return HWY_NAMESPACE::parse_composite_mode(s); }
+}  // namespace
 
-std::vector<WeightedTerm> composite_mode_terms(CompositeMode mode) { return HWY_NAMESPACE::composite_mode_terms(mode); }
+std::string_view to_string(CompositeTerm t) { return enum_name<CompositeTerm>(kTermNames, t); }
+std::string_view to_string(CompositeMode m) { return enum_name<CompositeMode>(kModeNames, m); }
+std::optional<CompositeTerm> parse_composite_term(std::string_view s) {
+  return parse_enum<CompositeTerm>(kTermNames, s);
+}
+std::optional<CompositeMode> parse_composite_mode(std::string_view s) {
+  return parse_enum<CompositeMode>(kModeNames, s);
+}
 
-std::string validate(const CompositeInputs& in, const CompositeSettings& s) { return HWY_NAMESPACE::validate(in, s); }
+std::vector<WeightedTerm> composite_mode_terms(CompositeMode mode) {
+  switch (mode) {
+    case CompositeMode::off: return {{CompositeTerm::ambient, 1.0f}};
+    case CompositeMode::ssao: return {{CompositeTerm::ambient_ao, 1.0f}};
+    case CompositeMode::ssdo:
+      return {{CompositeTerm::ssdo_direct, 1.0f}, {CompositeTerm::ssdo_indirect, 1.0f}};
+    case CompositeMode::ssao_ssdo:
+      return {{CompositeTerm::ambient_ao, 1.0f},
+              {CompositeTerm::ssdo_direct, 1.0f},
+              {CompositeTerm::ssdo_indirect, 1.0f}};
+  }
+  return {};
+}
+
+std::string validate(const CompositeInputs& in, const CompositeSettings& s) {
+  if (in.mask.type() != CV_8UC1 || in.mask.empty()) return "mask must be a non-empty CV_8UC1 image";
+  const cv::Size size = in.mask.size();
+  auto check = [&](const cv::Mat* m, int type, const char* name) -> std::string {
+    if (!usable(m)) return {};
+    if (m->type() != type || m->size() != size)
+      return std::string(name) + " must be " + (type == CV_32FC1 ? "CV_32FC1" : "CV_32FC3") +
+             " of the mask's size";
+    return {};
+  };
+  for (const auto& [m, type, name] :
+       {std::tuple{in.albedo, CV_32FC3, "albedo"}, std::tuple{in.ao, CV_32FC1, "ao"},
+        std::tuple{in.direct, CV_32FC3, "direct"}, std::tuple{in.indirect, CV_32FC3, "indirect"},
+        std::tuple{in.lighting, CV_32FC3, "lighting"}, std::tuple{in.background, CV_32FC3, "background"}})
+    if (std::string e = check(m, type, name); !e.empty()) return e;
+  if (in.environment && !in.camera) return "environment given without camera";
+  if (in.camera && (in.camera->width_px != size.width || in.camera->height_px != size.height))
+    return "camera size differs from the mask's";
+  if (!(s.ambient_radiance.x >= 0.0f && s.ambient_radiance.y >= 0.0f && s.ambient_radiance.z >= 0.0f))
+    return "ambient_radiance must be >= 0";
+  bool seen[5] = {false, false, false, false, false};
+  for (const WeightedTerm& t : s.terms) {
+    const std::string name(ssdo::to_string(t.term));
+    if (seen[int(t.term)]) return "term " + name + " selected twice";
+    seen[int(t.term)] = true;
+    if (!(t.weight >= 0.0f && t.weight <= 16.0f))
+      return "weight of " + name + " = " + std::to_string(t.weight) + " is out of range [0, 16]";
+    if (t.term == CompositeTerm::ssdo_direct && !usable(in.direct)) return "term " + name + " needs direct";
+    if (t.term == CompositeTerm::ssdo_indirect && !usable(in.indirect)) return "term " + name + " needs indirect";
+    if (t.term == CompositeTerm::lighting && !usable(in.lighting)) return "term " + name + " needs lighting";
+  }
+  return {};
+}
 
 HWY_EXPORT(compute_composite);
 void compute_composite(const CompositeInputs& in, const CompositeSettings& s, cv::Mat& out, cv::Rect roi,

@@ -416,19 +416,6 @@ void confidence_rows(const PixelFrame& frame, const cv::Range& rows, const cv::R
 
 }  // namespace
 
-std::string validate(const ConfidenceSettings& s) {
-  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
-  if (s.taps < 4 || s.taps > kMaxTaps) return detail::out_of_range("taps", s.taps, "[4, 256]");
-  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
-    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
-  if (s.view_bins < 1 || s.view_bins > 8) return detail::out_of_range("view_bins", s.view_bins, "[1, 8]");
-  if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
-    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
-  return {};
-}
-
-bool runs_on_half_grid(const ConfidenceSettings& s) { return s.resolution_divisor == 2; }
-
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
@@ -470,10 +457,19 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo {
 
-// Not per pixel: the baseline's code serves every CPU.
-bool runs_on_half_grid(const ConfidenceSettings& s) { return HWY_NAMESPACE::runs_on_half_grid(s); }
+// Settings, not pixels: compiled once, outside the per-target code.
+bool runs_on_half_grid(const ConfidenceSettings& s) { return s.resolution_divisor == 2; }
 
-std::string validate(const ConfidenceSettings& s) { return HWY_NAMESPACE::validate(s); }
+std::string validate(const ConfidenceSettings& s) {
+  if (std::string e = detail::check_radius(s.radius_world, s.max_radius_px); !e.empty()) return e;
+  if (s.taps < 4 || s.taps > HWY_NAMESPACE::kMaxTaps) return detail::out_of_range("taps", s.taps, "[4, 256]");
+  if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
+    return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (s.view_bins < 1 || s.view_bins > 8) return detail::out_of_range("view_bins", s.view_bins, "[1, 8]");
+  if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
+    return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
+  return {};
+}
 
 HWY_EXPORT(compute_confidence);
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask,

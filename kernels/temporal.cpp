@@ -310,16 +310,6 @@ bool same_layout(const TemporalFrame& f, const TemporalFrame& u) {
 
 }  // namespace
 
-std::string validate(const TemporalSettings& s) {
-  if (!(s.depth_tolerance_relative > 0.0f && s.depth_tolerance_relative <= 1.0f))
-    return detail::out_of_range("depth_tolerance_relative", s.depth_tolerance_relative, "(0, 1]");
-  if (!(s.normal_power >= 0.0f && s.normal_power <= 256.0f))
-    return detail::out_of_range("normal_power", s.normal_power, "[0, 256]");
-  if (!(s.max_disagreement >= 0.0f && s.max_disagreement <= 1.0f))
-    return detail::out_of_range("max_disagreement", s.max_disagreement, "[0, 1]");
-  return {};
-}
-
 std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours,
                                          const TemporalSettings& settings, std::span<cv::Mat* const> dsts,
                                          cv::Rect roi, int nthreads) {
@@ -357,8 +347,17 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace ssdo {
 
-// Not per pixel: the baseline's code serves every CPU.
-std::string validate(const TemporalSettings& s) { return HWY_NAMESPACE::validate(s); }
+// Settings, not pixels: compiled once, outside the per-target code.
+std::string validate(const TemporalSettings& s) {
+  if (!(s.depth_tolerance_relative > 0.0f && s.depth_tolerance_relative <= 1.0f))
+    return detail::out_of_range("depth_tolerance_relative", s.depth_tolerance_relative, "(0, 1]");
+  if (!(s.normal_power >= 0.0f && s.normal_power <= 256.0f))
+    return detail::out_of_range("normal_power", s.normal_power, "[0, 256]");
+  if (!(s.max_disagreement >= 0.0f && s.max_disagreement <= 1.0f))
+    return detail::out_of_range("max_disagreement", s.max_disagreement, "[0, 1]");
+  return {};
+}
+
 
 HWY_EXPORT(filter_temporal);
 std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<const TemporalFrame> neighbours,
