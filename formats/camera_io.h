@@ -53,6 +53,12 @@ std::string sidecar_path_for(const std::string& exr_path);
 glm::mat4 projection_for_data_window(const glm::mat4& view_to_clip_display,
                                      const PixelBox& display, const PixelBox& data);
 
+// Non-standard header attributes carrying the clip distances next to worldToCamera /
+// worldToNDC (OpenEXR has no standard attribute for them): written by write_outputs, read
+// by read_gbuffer.
+inline constexpr const char* kClipNearAttribute = "clipNear";
+inline constexpr const char* kClipFarAttribute = "clipFar";
+
 // Matrices as stored in the OpenEXR header (Imath M44f, row-vector convention p' = p M).
 // Imath stores x[row][col] row by row; glm stores m[col][row] column by column, so the
 // same 16 floats read as a glm matrix are exactly the column-vector form (p' = G p):

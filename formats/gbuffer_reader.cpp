@@ -62,11 +62,6 @@ const char* read_failure(const std::exception& e) {
   return std::strstr(e.what(), "bad_alloc") ? "out of memory" : "damaged or truncated file";
 }
 
-// Non-standard header attributes carrying the clip distances next to worldToCamera /
-// worldToNDC (written by write_outputs; OpenEXR has no standard attribute for them).
-constexpr const char* kClipNearAttribute = "clipNear";
-constexpr const char* kClipFarAttribute = "clipFar";
-
 std::string type_name(Imf::PixelType t) {
   switch (t) {
     case Imf::HALF: return "half";

@@ -119,11 +119,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Header attribute names of the clip distances (OpenEXR has no standard one); read back by
-// read_gbuffer.
-constexpr const char* kClipNearAttribute = "clipNear";
-constexpr const char* kClipFarAttribute = "clipFar";
-
 std::optional<Imf::Compression> parse_compression(const std::string& name) {
   if (name == "none") return Imf::NO_COMPRESSION;
   if (name == "zip") return Imf::ZIP_COMPRESSION;
