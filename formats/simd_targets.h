@@ -5,8 +5,14 @@
 // sum, the foreground pass). They are small, so the one more compilation costs seconds.
 // Included by each such file before Highway, with the file itself the only one in its
 // translation unit (formats/CMakeLists.txt keeps them out of unity batches).
+//
+// Whatever SSDO_SIMD_TARGETS says of the kernels (cmake/compute_flags.cmake): a build whose
+// kernels are compiled for the baseline only (the sanitizer build) still reads and writes
+// frames on the best instruction set, and its formats tests run every target
+// (tests/support/each_simd_target.h).
 #pragma once
 
+#undef HWY_COMPILE_ONLY_STATIC
 #undef HWY_DISABLED_TARGETS
 #define HWY_DISABLED_TARGETS \
   (HWY_SSE4 | HWY_AVX3_DL | HWY_SVE | HWY_SVE2 | HWY_SVE_256 | HWY_SVE2_128)

@@ -25,7 +25,9 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 # sequence batch (minutes of the raymarch oracle under ASan; the batch's kill and resume
 # code runs in Batch.KillNine...), and the tests that compute a whole shot twice to compare
 # the bytes of two ways (chunks or the watch folder against one batch: each way's code runs
-# in its own tests here). docs/fuzzing.md.
+# in its own tests here), and `ssdo bench` through the binary (every preset up to ultra, two
+# minutes under ASan; the sequence context it runs is the Temporal and Sequence tests').
+# docs/fuzzing.md.
 # The sanitizer build compiles the kernels for the baseline instruction set only
 # (CMakePresets.json), so this stage also runs the suite on the fallback of CPUs without
 # AVX2. Measured from a clean clone on the 2-core machine on 2026-11-25, no compiler
