@@ -1,7 +1,7 @@
 // The instruction sets of the formats library's per-sample loops (exr_zip, half_samples,
-// foreground_pass): the kernels' (cmake/compute_flags.cmake) and SSSE3 besides. These
-// loops replaced SSE2 code that every x86-64 CPU ran; on the kernels' set alone a CPU
-// without AVX2 (before 2013) would run them one sample at a time, 3-4x slower (zip's prefix
+// foreground_pass): the kernels' (cmake/compute_flags.cmake) and SSSE3 besides. Highway's
+// x86 baseline is scalar: on the kernels' set alone a CPU without AVX2 (before 2013) would
+// run these loops one sample at a time, 3-4x slower than with 128-bit vectors (zip's prefix
 // sum, the foreground pass). They are small, so the one more compilation costs seconds.
 // Included by each such file before Highway, with the file itself the only one in its
 // translation unit (formats/CMakeLists.txt keeps them out of unity batches).
