@@ -97,6 +97,8 @@ TEST(Batch, AKilledWorkerFailsItsFrameTheOthersGoOn) {
 }
 
 TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
+  // The frames alone in time (f0..f7 are a sequence): the temporal window's resume is the
+  // Temporal and Sequence tests'.
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
   constexpr int kFrames = 8;
@@ -109,7 +111,8 @@ TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
   };
   int finished_before = 0;
   {
-    SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao", "--preset", "low"},
+    SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao", "--preset", "low",
+                       "--temporal", "0"},
                       dir.path / "batch1.log");
     ASSERT_TRUE(wait_until([&] { return outputs() >= 2; }, 120)) << batch.log();
     ASSERT_EQ(batch.signal_and_wait(SIGKILL, 10), 128 + SIGKILL);
@@ -117,7 +120,8 @@ TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
     finished_before = outputs();
   }
   ASSERT_LT(finished_before, kFrames) << "the batch finished before it was killed";
-  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + out.string() + " --jobs 2 --terms ao --preset low");
+  const RunResult r =
+      run_ssdo("process " + dir / "in" + " -o " + out.string() + " --jobs 2 --terms ao --preset low --temporal 0");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   char summary[64];
   std::snprintf(summary, sizeof summary, "done %d, skipped %d, failed 0", kFrames - finished_before, finished_before);
@@ -126,7 +130,8 @@ TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
   for (int i = 0; i < kFrames; ++i) EXPECT_TRUE(exr_has_channel((out / (numbered("f", i) + ".ssdo.exr")).string(), "ao"));
   EXPECT_TRUE(temp_files(out).empty());
   // And once more: everything is skipped.
-  const RunResult again = run_ssdo("process " + dir / "in" + " -o " + out.string() + " --terms ao --preset low");
+  const RunResult again =
+      run_ssdo("process " + dir / "in" + " -o " + out.string() + " --terms ao --preset low --temporal 0");
   EXPECT_EQ(again.exit_code, 0);
   EXPECT_NE(again.output.find("done 0, skipped 8, failed 0"), std::string::npos) << again.output;
 }
@@ -154,7 +159,7 @@ TEST(Batch, ConfigFileGivesOptionsFlagsOverrideIt) {
 }
 
 TEST(Batch, FramesAndChunkSelectThenRerunSkipsAndPlainLinesPerFrame) {
-  ScratchDir dir;
+  ScratchDir dir;  // frames alone in time: --temporal 0
   for (int f = 1; f <= 10; ++f) {
     char stem[32];
     std::snprintf(stem, sizeof stem, "shot.%04d", f);
@@ -163,7 +168,7 @@ TEST(Batch, FramesAndChunkSelectThenRerunSkipsAndPlainLinesPerFrame) {
   const std::string pattern = dir / "shot.%04d.exr";
   // 1-10x3 = 1,4,7,10 plus 2 = 1,4,7,10,2; chunk 1/2 = the first 2 of 5 (floor(5/2)) = 1, 4.
   RunResult r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 --chunk 1/2 -o " + dir / "out" +
-                         " --terms ao --preset low");
+                         " --terms ao --preset low --temporal 0");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::vector<std::string> produced;
   for (const auto& e : fs::directory_iterator(dir.path / "out"))
@@ -172,10 +177,12 @@ TEST(Batch, FramesAndChunkSelectThenRerunSkipsAndPlainLinesPerFrame) {
   EXPECT_EQ(produced, (std::vector<std::string>{"shot.0001.ssdo.exr", "shot.0004.ssdo.exr"}));
   EXPECT_EQ(count_occurrences(r.output, ": ok ("), 2) << r.output;  // one plain line per frame
   EXPECT_NE(r.output.find("[2/2] "), std::string::npos) << r.output;
-  r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 --chunk 2/2 -o " + dir / "out" + " --terms ao --preset low");
+  r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 --chunk 2/2 -o " + dir / "out" +
+               " --terms ao --preset low --temporal 0");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("done 3, skipped 0, failed 0"), std::string::npos) << r.output;
-  r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 -o " + dir / "out" + " --terms ao --preset low");
+  r = run_ssdo("process '" + pattern + "' --frames 1-10x3,2 -o " + dir / "out" +
+               " --terms ao --preset low --temporal 0");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("done 0, skipped 5, failed 0"), std::string::npos) << r.output;
   // Usage errors: 2, before any work.

@@ -98,7 +98,7 @@ TEST(FarmFrames, ChunkTasksWriteEachOutputOnce) {
   ScratchDir dir;
   make_frames(dir.path, {1, 2, 3, 4, 5, 6, 7});
   const std::string common = "process '" + dir / "shot.####.exr" + "' --frames 1-7 -o " + dir / "out" +
-                             " --terms ao --preset low --chunk ";
+                             " --terms ao --preset low --temporal 0 --chunk ";  // frames alone in time
   std::map<int, int> total;
   for (int i = 1; i <= 3; ++i) {
     const RunResult r = run_ssdo(common + std::to_string(i) + "/3");
@@ -119,7 +119,8 @@ TEST(FarmFrames, ChunkTasksWriteEachOutputOnce) {
 TEST(FarmFrames, OvershootingLastTaskIsClippedToTheShot) {
   ScratchDir dir;
   make_frames(dir.path, {21, 22, 23, 24});
-  const std::string base = "process '" + dir / "shot.####.exr" + "' -o " + dir / "out" + " --terms ao --preset low ";
+  const std::string base =
+      "process '" + dir / "shot.####.exr" + "' -o " + dir / "out" + " --terms ao --preset low --temporal 0 ";
 
   // Without the shot's range, frame 25 is a missing frame of the request: a failure.
   RunResult r = run_ssdo(base + "--frames 21-25");
