@@ -129,12 +129,11 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
   }
   RawFrame raw;
   const std::string key = store_ ? raw_terms_key(request, request.input_path, request.read.camera_json) : "";
-  std::optional<TermOutputs> kept = store_ ? store_->take_terms(key) : std::nullopt;
   if (self.raw_whole) {
     raw = std::move(*self.raw_whole);
     self.raw_whole.reset();
     self.raw_info.reset();
-  } else if (kept) {
+  } else if (std::optional<TermOutputs> kept = store_ ? store_->take_terms(key) : std::nullopt) {
     raw = with_raw_terms(std::move(frame), std::move(*kept), request);
     ++reads_.raw_kept;
   } else {

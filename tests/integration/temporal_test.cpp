@@ -27,6 +27,14 @@ void copy_temporal_shot(const fs::path& dir, int count) {
 
 const char* kTemporalShotArgs = " --terms ao --preset low --views 1 --temporal 1";
 
+// The orbit frames 0..count-1 copied into DIR/in and computed by one batch into DIR/batch:
+// the bytes the service's outputs are compared with.
+void shot_and_its_batch(const ScratchDir& dir, int count) {
+  copy_temporal_shot(dir.path / "in", count);
+  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + kTemporalShotArgs);
+  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+}
+
 TEST(Temporal, DenoisedTermsChangeRawTermsDoNotAndRawTermsAreComputedOnce) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
@@ -93,9 +101,7 @@ TEST(Temporal, TheWatchModeWritesTheBytesOfTheBatch) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   constexpr int kFrames = 3;
-  copy_temporal_shot(dir.path / "in", kFrames);
-  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + kTemporalShotArgs);
-  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+  ASSERT_NO_FATAL_FAILURE(shot_and_its_batch(dir, kFrames));
   const std::string socket = socket_path_for("temporal");
   SsdoProcess service({"serve", "--watch", dir / "in", "-o", dir / "served", "--socket", socket, "--jobs", "1",
                        "--frame-timeout", "60", "--terms", "ao", "--preset", "low", "--views", "1", "--temporal", "1"},
@@ -138,9 +144,7 @@ TEST(Temporal, SocketRequestsOfAShotComputeEachFrameOnceUntilAFileChanges) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   constexpr int kFrames = 4;
-  copy_temporal_shot(dir.path / "in", kFrames);
-  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "batch" + kTemporalShotArgs);
-  ASSERT_EQ(batch.exit_code, 0) << batch.output;
+  ASSERT_NO_FATAL_FAILURE(shot_and_its_batch(dir, kFrames));
   const std::string socket = socket_path_for("temporal_store");
   SsdoProcess service({"serve", "-o", dir / "served", "--socket", socket, "--allow", dir / "in", "--jobs", "1",
                        "--frame-timeout", "60"},
