@@ -84,11 +84,6 @@ struct TapFrame {
   float bin_depth;  // ray parameter units (planar depth)
 };
 
-// Whether the views decide bin i behind a known texel's surface. A chord through the
-// neighbourhood is at most 2 radii long and |u| >= 1, so 2 radii of planar depth behind a
-// tap's surface hold every hidden part of its chords.
-inline bool bin_decided(const TapFrame& frame, int index, int i) { return (frame.decided_bins[index] >> i) & 1u; }
-
 // Pass 1 of sum_chords, every tap of every lane (no branch: 8 lanes per instruction): the
 // tap pixel, and the chord [s0, s1] of the hemisphere along the ray through its centre
 // (where its depth was sampled), in ray parameter units; len_scale converts them to
@@ -189,51 +184,96 @@ inline void add_chords(int n_taps, const TapLanes& __restrict tap, double (&obse
 // quarter of them costs a quarter.
 constexpr int kUnknownTapStride = 4;
 
-// Whether the views decide the hidden part [begin, s1] of a known tap (its surface
-// s_surface > 0): the overlap of the part with each decided bin of its texel.
-float decided_behind_surface(const TapFrame& frame, const TapLanes& tap, int k, int j) {
-  const float s0 = tap.s0[k][j], s1 = tap.s1[k][j], s_surface = tap.surface[k][j];
-  const float w = frame.bin_depth, bins = float(frame.view_bins);
-  const float begin = std::max(s0, s_surface);
-  // The bins [begin, s1] overlaps: from the one holding begin to the one holding s1.
-  const int first = int(std::min((begin - s_surface) / w, bins));
-  const int last = int(std::min((s1 - s_surface) / w, bins - 1.0f));
-  float decided = 0.0f;
-  for (int i = first; i <= last; ++i) {
-    const float lo = s_surface + float(i) * w;
-    const float overlap = std::min(lo + w, s1) - std::max(lo, begin);
-    if (overlap > 0.0f && bin_decided(frame, tap.index[k][j], i)) decided += overlap;
+// The part of the known taps' chords hidden behind their surfaces that the views decide,
+// times len_scale, summed per lane in tap order (no branch: 8 lanes per instruction). Tap k's
+// hidden part [begin, s1], begin = max(s0, s_surface), overlaps the bins of its texel from
+// the one holding begin to the one holding s1; each bin the views decide (its bit in
+// TapFrame::decided_bins) adds its overlap. A chord through the neighbourhood is at most 2
+// radii long and |u| >= 1, so the bins' 2 radii of planar depth behind a tap's surface hold
+// every hidden part of its chords. Taps that are unknown or hide nothing add +0.0, which leaves the sums as
+// skipping them would.
+void add_decided_behind_surfaces(const TapFrame& frame, const TapLanes& __restrict tap,
+                                 float (&behind_surface)[kLanes]) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;  // a pixel per lane, at most kLanes
+  const hn::RebindToSigned<decltype(d)> di;
+  const size_t n = hn::Lanes(d);
+  const auto zero = hn::Zero(d), w = hn::Set(d, frame.bin_depth);
+  const auto bins = hn::Set(d, float(frame.view_bins)), last_bin = hn::Set(d, float(frame.view_bins) - 1.0f);
+  alignas(32) int32_t bits[kLanes];
+  for (size_t j0 = 0; j0 < size_t(kLanes); j0 += n) {
+    auto sum = zero;
+    for (int k = 0; k < frame.n_taps; ++k) {
+      const auto s_surface = hn::Load(d, &tap.surface[k][j0]), s1_tap = hn::Load(d, &tap.s1[k][j0]);
+      const auto begin_tap = hn::Max(hn::Load(d, &tap.s0[k][j0]), s_surface);
+      const auto counted = hn::And(hn::Gt(s_surface, zero), hn::Gt(s1_tap, begin_tap));  // false on NaN
+      if (hn::AllFalse(d, counted)) continue;
+      // Uncounted lanes take an empty part at 0 (keeps the conversions below defined).
+      const auto surface = hn::IfThenElseZero(counted, s_surface);
+      const auto begin = hn::IfThenElseZero(counted, begin_tap), s1 = hn::IfThenElseZero(counted, s1_tap);
+      const auto first = hn::ConvertTo(di, hn::Min(hn::Div(hn::Sub(begin, surface), w), bins));
+      const auto last = hn::ConvertTo(di, hn::Min(hn::Div(hn::Sub(s1, surface), w), last_bin));
+      for (size_t j = 0; j < n; ++j) bits[j] = frame.decided_bins[tap.index[k][j0 + j]];
+      const auto tap_bits = hn::Load(di, bits);
+      auto decided = zero;
+      for (int i = 0; i < frame.view_bins; ++i) {
+        const auto lo = hn::Add(surface, hn::Set(d, float(i) * frame.bin_depth));
+        const auto overlap = hn::Sub(hn::Min(hn::Add(lo, w), s1), hn::Max(lo, begin));
+        const auto bin = hn::Set(di, i);
+        const auto outside_part = hn::RebindMask(d, hn::Or(hn::Gt(first, bin), hn::Gt(bin, last)));
+        const auto bit_set = hn::RebindMask(d, hn::Ne(hn::And(hn::ShiftRightSame(tap_bits, i), hn::Set(di, 1)), hn::Zero(di)));
+        const auto adds = hn::AndNot(outside_part, hn::And(hn::And(counted, hn::Gt(overlap, zero)), bit_set));
+        decided = hn::Add(decided, hn::IfThenElseZero(adds, overlap));
+      }
+      // len_scale may be NaN where nothing is counted.
+      sum = hn::Add(sum, hn::IfThenElseZero(counted, hn::Mul(decided, hn::Load(d, &tap.len_scale[k][j0]))));
+    }
+    hn::Store(sum, d, &behind_surface[j0]);
   }
-  return decided;
+}
+
+// Bit j set when lane j has an unknown tap (surface 0) with a chord: the lanes whose unknown
+// chords the views are asked about. Most pixels have none (taps leave the frame or hit the
+// background only near their edges).
+unsigned lanes_with_unknown_chords(const TapFrame& frame, const TapLanes& __restrict tap) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;
+  const size_t n = hn::Lanes(d);
+  unsigned lanes = 0;
+  for (size_t j0 = 0; j0 < size_t(kLanes); j0 += n) {
+    auto any = hn::Lt(hn::Zero(d), hn::Zero(d));  // all false
+    for (int k = 0; k < frame.n_taps; ++k) {
+      const auto unknown = hn::Le(hn::Load(d, &tap.surface[k][j0]), hn::Zero(d));
+      any = hn::Or(any, hn::And(unknown, hn::Gt(hn::Load(d, &tap.s1[k][j0]), hn::Load(d, &tap.s0[k][j0]))));
+    }
+    uint8_t bits[8] = {};
+    hn::StoreMaskBits(d, any, bits);
+    lanes |= unsigned(bits[0]) << j0;
+  }
+  return lanes;
 }
 
 // Pass 5 of sum_chords, with views only: the part of each tap's chord this frame does not
 // see, as far as the other views decide it, added to the observed sums. Behind a known
-// tap's surface, [max(s0, s_surface), s1] overlaps the bins of its texel (bin_decided):
-// each decided bin adds its overlap. An unknown tap's whole chord is asked at one point,
-// offset along it per tap by the golden-ratio sequence (the taps of a pixel spread their
-// points evenly over the chords); only every kUnknownTapStride-th unknown tap asks.
+// tap's surface: add_decided_behind_surfaces. An unknown tap's whole chord is asked at one
+// point, offset along it per tap by the golden-ratio sequence (the taps of a pixel spread
+// their points evenly over the chords); only every kUnknownTapStride-th unknown tap asks.
 void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&observed)[kLanes]) {
-  // The hidden taps first (no branch: 8 lanes per instruction), then only those are asked.
-  alignas(32) uint8_t hidden[kMaxTaps][kLanes];
-  for (int k = 0; k < frame.n_taps; ++k) {
-#pragma GCC unroll 1
-    for (int j = 0; j < kLanes; ++j) {
-      const float begin = std::max(tap.s0[k][j], tap.surface[k][j]);  // surface 0 where unknown
-      hidden[k][j] = tap.s1[k][j] > begin;                            // false on empty chords and NaN
-    }
-  }
+  alignas(32) float behind_surface[kLanes];
+  add_decided_behind_surfaces(frame, tap, behind_surface);
+  const unsigned asking_lanes = lanes_with_unknown_chords(frame, tap);
   for (int j = 0; j < kLanes; ++j) {
-    float behind_surface = 0.0f, unknown = 0.0f, unknown_asked = 0.0f, unknown_decided = 0.0f;
+    if (!((asking_lanes >> j) & 1u)) {  // the sums below would stay 0
+      observed[j] += double(behind_surface[j] + 0.0f);
+      continue;
+    }
+    float unknown = 0.0f, unknown_asked = 0.0f, unknown_decided = 0.0f;
     int n_unknown = 0;
     for (int k = 0; k < frame.n_taps; ++k) {
-      if (!hidden[k][j]) continue;
-      const float len_scale = tap.len_scale[k][j];
-      if (tap.surface[k][j] > 0.0f) {
-        behind_surface += decided_behind_surface(frame, tap, k, j) * len_scale;
-        continue;
-      }
       const float s0 = tap.s0[k][j], s1 = tap.s1[k][j];
+      // Unknown (surface 0) and with a chord (false on empty chords and NaN).
+      if (!(tap.surface[k][j] <= 0.0f && s1 > s0)) continue;
+      const float len_scale = tap.len_scale[k][j];
       unknown += (s1 - s0) * len_scale;
       if (n_unknown++ % kUnknownTapStride != 0) continue;
       unknown_asked += (s1 - s0) * len_scale;
@@ -242,7 +282,7 @@ void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&
         unknown_decided += (s1 - s0) * len_scale;
     }
     const float unknown_observed = unknown_asked > 0.0f ? unknown * (unknown_decided / unknown_asked) : 0.0f;
-    observed[j] += double(behind_surface + unknown_observed);
+    observed[j] += double(behind_surface[j] + unknown_observed);
   }
 }
 
