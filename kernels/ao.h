@@ -111,8 +111,8 @@ struct AoInputs {
   // resolution) take each tap's own thickness depth_back_view - depth_view instead of
   // thickness_world (+inf back = solid behind).
   const cv::Mat* depth_back_view = nullptr;
-  // Where the frame's pixel (0, 0) lies in these images: (0, 0), or the width of a guard
-  // band of off-screen texels around the frame (kernels/multiview.h, extend_with_views).
+  // Where the frame's pixel (0, 0) lies in these images: (0, 0), or the widths of the left and
+  // top sides of a guard band of off-screen texels (kernels/multiview.h, extend_with_views).
   // The per-pixel noise is a function of the frame's pixel, so a band changes only the
   // pixels whose taps reach it.
   cv::Point frame_origin_px{0, 0};

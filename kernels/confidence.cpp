@@ -262,26 +262,38 @@ void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&
   alignas(32) float behind_surface[kLanes];
   add_decided_behind_surfaces(frame, tap, behind_surface);
   const unsigned asking_lanes = lanes_with_unknown_chords(frame, tap);
+  // The asked points of every lane, in lane then tap order, asked at once, and their chords'
+  // lengths (each asked chord's length counts where it is decided).
+  glm::vec3 points[kLanes * (kMaxTaps / kUnknownTapStride)];
+  float asked_length[kLanes * (kMaxTaps / kUnknownTapStride)];
+  uint8_t decided[kLanes * (kMaxTaps / kUnknownTapStride)];
+  int first_ask[kLanes + 1];
+  float unknown[kLanes] = {}, unknown_asked[kLanes] = {};
+  int n_asks = 0;
   for (int j = 0; j < kLanes; ++j) {
-    if (!((asking_lanes >> j) & 1u)) {  // the sums below would stay 0
-      observed[j] += double(behind_surface[j] + 0.0f);
-      continue;
-    }
-    float unknown = 0.0f, unknown_asked = 0.0f, unknown_decided = 0.0f;
+    first_ask[j] = n_asks;
+    if (!((asking_lanes >> j) & 1u)) continue;  // no unknown chord
     int n_unknown = 0;
     for (int k = 0; k < frame.n_taps; ++k) {
       const float s0 = tap.s0[k][j], s1 = tap.s1[k][j];
       // Unknown (surface 0) and with a chord (false on empty chords and NaN).
       if (!(tap.surface[k][j] <= 0.0f && s1 > s0)) continue;
-      const float len_scale = tap.len_scale[k][j];
-      unknown += (s1 - s0) * len_scale;
+      const float length = (s1 - s0) * tap.len_scale[k][j];
+      unknown[j] += length;
       if (n_unknown++ % kUnknownTapStride != 0) continue;
-      unknown_asked += (s1 - s0) * len_scale;
+      unknown_asked[j] += length;
       const float t = s0 + frame.chord_offsets[k] * (s1 - s0);
-      if (frame.verdicts->decided(frame.rays.point(tap.x[k][j] + 0.5f, tap.y[k][j] + 0.5f, t)))
-        unknown_decided += (s1 - s0) * len_scale;
+      points[n_asks] = frame.rays.point(tap.x[k][j] + 0.5f, tap.y[k][j] + 0.5f, t);
+      asked_length[n_asks++] = length;
     }
-    const float unknown_observed = unknown_asked > 0.0f ? unknown * (unknown_decided / unknown_asked) : 0.0f;
+  }
+  first_ask[kLanes] = n_asks;
+  frame.verdicts->decided({points, size_t(n_asks)}, {decided, size_t(n_asks)});
+  for (int j = 0; j < kLanes; ++j) {
+    float unknown_decided = 0.0f;
+    for (int a = first_ask[j]; a < first_ask[j + 1]; ++a)
+      if (decided[a]) unknown_decided += asked_length[a];
+    const float unknown_observed = unknown_asked[j] > 0.0f ? unknown[j] * (unknown_decided / unknown_asked[j]) : 0.0f;
     observed[j] += double(behind_surface[j] + unknown_observed);
   }
 }

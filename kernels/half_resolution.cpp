@@ -670,12 +670,13 @@ cv::Mat half_grid_back_layer(const HalfGrid& h, const TermInputs& in, const Term
 
 // One grid's inputs to AO and SSDO: the half grid's texels or the full-resolution images,
 // extended by a guard band of off-screen texels when the views saw past the edges (the
-// frame's grid then starts at `origin` in these images).
+// frame's grid is then `inside` these images).
 struct GridInputs {
   cv::Mat depth_view, normal_view, position_view, mask;
   Camera camera;
   cv::Mat albedo, lighting, back;  // empty when the kernels do not read them
-  cv::Point origin{0, 0};
+  cv::Rect inside;  // the frame's grid in these images; empty: the images are the grid
+  cv::Point origin() const { return inside.tl(); }
 };
 
 // Whether AO's multi-bounce or SSDO's senders read the albedo, and SSDO the lighting.
@@ -689,7 +690,7 @@ bool reads_lighting(const TermInputs& in, const TermSettings& s) {
 
 GridInputs half_grid_inputs(const HalfGrid& h, const TermInputs& in, const TermSettings& s, const cv::Mat& back,
                             int nthreads) {
-  GridInputs g{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, {}, {}, back};
+  GridInputs g{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, {}, {}, back, {}};
   if (reads_albedo(in, s)) sample_at_texels(h, *in.albedo, g.albedo, nthreads);
   if (reads_lighting(in, s)) sample_at_texels(h, *in.lighting, g.lighting, nthreads);
   return g;
@@ -697,7 +698,7 @@ GridInputs half_grid_inputs(const HalfGrid& h, const TermInputs& in, const TermS
 
 GridInputs full_grid_inputs(const TermInputs& in, const TermSettings& s, const cv::Mat& position_view,
                             const cv::Mat& back) {
-  GridInputs g{in.depth_view, in.normal_view, position_view, in.mask, in.camera, {}, {}, back};
+  GridInputs g{in.depth_view, in.normal_view, position_view, in.mask, in.camera, {}, {}, back, {}};
   if (reads_albedo(in, s)) g.albedo = *in.albedo;
   if (reads_lighting(in, s)) g.lighting = *in.lighting;
   return g;
@@ -716,19 +717,20 @@ void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSetti
   GuardBand band;
   extend_with_views({g.depth_view, g.mask, g.camera}, g.back, in.views, uses, multiview_settings(s), reach_px, band,
                     nthreads);
-  const int margin = band.margin_px;
-  if (margin == 0) return;
+  const BandMargins m = band.margins;
+  if (!m.any()) return;
   const cv::Rect inside = band.inside();
-  const auto pad = [margin](cv::Mat& image) {
-    if (!image.empty()) cv::copyMakeBorder(image, image, margin, margin, margin, margin, cv::BORDER_CONSTANT, 0);
+  const auto pad = [&m](cv::Mat& image) {
+    if (!image.empty()) cv::copyMakeBorder(image, image, m.top, m.bottom, m.left, m.right, cv::BORDER_CONSTANT, 0);
   };
   pad(g.normal_view);
   pad(g.position_view);
   pad(g.albedo);
   pad(g.lighting);
   const int w = band.camera.width_px, h = band.camera.height_px;
-  for (const cv::Rect& side : {cv::Rect(0, 0, w, margin), cv::Rect(0, h - margin, w, margin),
-                               cv::Rect(0, margin, margin, inside.height), cv::Rect(w - margin, margin, margin, inside.height)}) {
+  for (const cv::Rect& side : {cv::Rect(0, 0, w, m.top), cv::Rect(0, h - m.bottom, w, m.bottom),
+                               cv::Rect(0, m.top, m.left, inside.height), cv::Rect(w - m.right, m.top, m.right, inside.height)}) {
+    if (side.empty()) continue;  // an empty roi would mean the whole image
     reconstruct_normals_from_depth(band.depth_view, band.mask, band.camera, g.normal_view, side, nthreads);
     if (!g.position_view.empty())
       view_positions_from_depth(band.depth_view, band.mask, band.camera, g.position_view, side, nthreads);
@@ -737,7 +739,7 @@ void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSetti
   g.mask = band.mask;
   g.back = band.depth_back_view;
   g.camera = band.camera;
-  g.origin = {margin, margin};
+  g.inside = inside;
 }
 
 // `roi` of the grid's own images from the extended images (only roi is written, as the
@@ -747,18 +749,18 @@ void crop_from_band(const cv::Mat& extended, const GridInputs& g, const cv::Rect
     out.release();
     return;
   }
-  const cv::Size size(g.camera.width_px - 2 * g.origin.x, g.camera.height_px - 2 * g.origin.y);
+  const cv::Size size = g.inside.size();
   if (out.size() != size || out.type() != extended.type()) out.create(size, extended.type());
-  extended(roi + g.origin).copyTo(out(roi));
+  extended(roi + g.origin()).copyTo(out(roi));
 }
 
 // AO on the grid's pixels of roi.
 void ao_on_grid(const GridInputs& g, const AoSettings& s, const cv::Rect& roi, AoOutput& out, int nthreads) {
   const AoInputs grid{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera,
-                      g.albedo.empty() ? nullptr : &g.albedo, g.back.empty() ? nullptr : &g.back, g.origin};
-  if (g.origin == cv::Point(0, 0)) return compute_ao(grid, s, out, roi, nthreads);
+                      g.albedo.empty() ? nullptr : &g.albedo, g.back.empty() ? nullptr : &g.back, g.origin()};
+  if (g.inside.empty()) return compute_ao(grid, s, out, roi, nthreads);
   AoOutput extended;
-  compute_ao(grid, s, extended, roi + g.origin, nthreads);
+  compute_ao(grid, s, extended, roi + g.origin(), nthreads);
   crop_from_band(extended.ao, g, roi, out.ao);
   crop_from_band(extended.bent_normal_view, g, roi, out.bent_normal_view);
 }
@@ -770,10 +772,10 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
   const bool lit = !g.lighting.empty();
   const SsdoInputs grid{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, *in.environment,
                         g.albedo.empty() || lit ? nullptr : &g.albedo, lit ? &g.lighting : nullptr,
-                        g.back.empty() ? nullptr : &g.back, g.origin};
-  if (g.origin == cv::Point(0, 0)) return compute_ssdo(grid, s, out, roi, nthreads);
+                        g.back.empty() ? nullptr : &g.back, g.origin()};
+  if (g.inside.empty()) return compute_ssdo(grid, s, out, roi, nthreads);
   SsdoOutput extended;
-  compute_ssdo(grid, s, extended, roi + g.origin, nthreads);
+  compute_ssdo(grid, s, extended, roi + g.origin(), nthreads);
   crop_from_band(extended.direct, g, roi, out.direct);
   crop_from_band(extended.indirect, g, roi, out.indirect);
 }

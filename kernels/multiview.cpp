@@ -1,4 +1,5 @@
 #include "kernels/multiview.h"
+#include "kernels/multiview_rays.h"
 
 #include <algorithm>
 #include <atomic>
@@ -11,142 +12,16 @@
 namespace ssdo {
 namespace {
 
-constexpr float kInfinity = std::numeric_limits<float>::infinity();
+using multiview_detail::Constants;
+using multiview_detail::kInfinity;
+using multiview_detail::RayInView;
+using multiview_detail::Verdict;
+using multiview_detail::ViewGeometry;
+using multiview_detail::view_geometry;
+using multiview_detail::views_from;
+
 // The views' overlap and contradiction are measured on every 4th pixel of every 4th row.
 constexpr int kMeasureStridePx = 4;
-
-// A view as seen from this frame: this frame's view space straight to the view's clip
-// space and planar depth (both affine, so along a pixel's ray they are linear in depth).
-struct ViewGeometry {
-  glm::mat4 clip_from_frame_view;  // view_to_clip_v * world_to_view_v * view_to_world
-  glm::vec4 depth_from_frame_view; // planar depth in the view: -(row z of the rigid part)
-  const cv::Mat* depth_view;
-  float width_px, height_px;
-};
-
-ViewGeometry view_geometry(const Camera& frame, const DepthView& v) {
-  const glm::mat4 rigid = v.camera.world_to_view * frame.view_to_world;
-  // glm is column-major: the z row is (m[0][2], m[1][2], m[2][2], m[3][2]).
-  const glm::vec4 depth_row(-rigid[0][2], -rigid[1][2], -rigid[2][2], -rigid[3][2]);
-  return {v.camera.view_to_clip * rigid, depth_row, &v.depth_view, float(v.camera.width_px),
-          float(v.camera.height_px)};
-}
-
-// What a view says about a point.
-enum class Verdict : uint8_t {
-  unknown,   // outside its image or behind its eye
-  free,      // in front of the surface it stores there
-  occupied,  // behind that surface, within the thickness
-  beyond,    // farther behind it than the thickness: no say
-};
-
-// A verdict that decides a point (the rule of PointVerdicts, multiview.h).
-inline bool decides(Verdict v) { return v == Verdict::free || v == Verdict::occupied; }
-
-// A point along one pixel's ray, as seen by one view: clip = clip0 + d clip1 and planar
-// depth depth0 + d depth1 at planar depth d in this frame.
-struct RayInView {
-  glm::vec4 clip0, clip1;
-  float depth0, depth1;
-};
-
-[[gnu::always_inline]] inline Verdict classify(const ViewGeometry& v, const RayInView& r, float d,
-                                                float bias_relative, float thickness) {
-  const glm::vec4 clip = r.clip0 + d * r.clip1;
-  if (!(clip.w > 0.0f)) return Verdict::unknown;
-  const float inv_w = 1.0f / clip.w;
-  const float px = 0.5f * (clip.x * inv_w + 1.0f) * v.width_px;
-  const float py = 0.5f * (1.0f - clip.y * inv_w) * v.height_px;
-  if (!(px >= 0.0f && px < v.width_px && py >= 0.0f && py < v.height_px)) return Verdict::unknown;
-  const cv::Mat& depth = *v.depth_view;
-  const int w = depth.cols, h = depth.rows;
-  // The 2x2 pixel centres around (px, py), clamped at the image's edges (px - 0.5 >= -0.5:
-  // truncation is the floor wherever the clamp does not apply).
-  const int x0 = std::min(int(px - 0.5f), w - 1), x1 = std::min(x0 + 1, w - 1);
-  const int y0 = std::min(int(py - 0.5f), h - 1), y1 = std::min(y0 + 1, h - 1);
-  const float* row0 = depth.ptr<float>(y0);
-  const float* row1 = depth.ptr<float>(y1);
-  const float nearest_surface = depth.ptr<float>(std::min(int(py), h - 1))[std::min(int(px), w - 1)];
-  const float min_surface = std::min(std::min(row0[x0], row0[x1]), std::min(row1[x0], row1[x1]));
-  const float depth_q = r.depth0 + d * r.depth1;
-  // +inf (background) at all four: the view sees through to the sky there.
-  if (depth_q < min_surface * (1.0f - bias_relative)) return Verdict::free;
-  if (depth_q > nearest_surface && depth_q - nearest_surface <= thickness) return Verdict::occupied;
-  return Verdict::beyond;
-}
-
-struct Constants {
-  MultiViewSettings s;
-  std::vector<ViewGeometry> views;
-};
-
-// One pixel's ray in every view, and which views may speak for it.
-struct PixelRay {
-  std::vector<RayInView> in_view;
-  std::vector<uint8_t> active;  // 0: the view sees this pixel's own surface as free space
-};
-
-// rays: the frame's (pixel_rays of its camera).
-inline void pixel_ray(const Constants& k, const PixelRays& rays, int x, int y, PixelRay& ray) {
-  const float px = float(x) + 0.5f, py = float(y) + 0.5f;
-  // The ray's points are affine in planar depth d: p(d) = a + d b (perspective: a = 0).
-  const glm::vec3 a = rays.origin(px, py), b = rays.direction(px, py);
-  for (size_t i = 0; i < k.views.size(); ++i) {
-    const ViewGeometry& v = k.views[i];
-    ray.in_view[i] = {v.clip_from_frame_view * glm::vec4(a, 1.0f), v.clip_from_frame_view * glm::vec4(b, 0.0f),
-                      glm::dot(v.depth_from_frame_view, glm::vec4(a, 1.0f)),
-                      glm::dot(v.depth_from_frame_view, glm::vec4(b, 0.0f))};
-  }
-}
-
-// Occupancy of the point at planar depth d on a pixel's ray (the rule in multiview.h);
-// `informed` is set when some view had a say.
-bool occupied_at(const Constants& k, const PixelRay& ray, float d, float own_back, bool& informed) {
-  bool voted = false;
-  for (size_t i = 0; i < k.views.size(); ++i) {
-    if (!ray.active[i]) continue;
-    const Verdict v = classify(k.views[i], ray.in_view[i], d, k.s.depth_bias_relative, k.s.thickness_world);
-    if (v == Verdict::free) {
-      informed = true;
-      return false;
-    }
-    voted |= v == Verdict::occupied;
-  }
-  if (d <= own_back) return true;
-  informed |= voted;
-  return voted;
-}
-
-// Walks the ray from the visible surface at `front` to front + reach_world: the depth of the
-// first change from occupied to free, refined by bisection; +inf when occupied throughout;
-// own_back when no view had a say.
-float back_depth(const Constants& k, const PixelRay& ray, float front, float own_back) {
-  const int n = k.s.samples;
-  bool informed = false;
-  float lo = front, hi = kInfinity;
-  for (int i = 1; i <= n; ++i) {
-    const float d = front + k.s.reach_world * float(i) / float(n);
-    if (!occupied_at(k, ray, d, own_back, informed)) {
-      hi = d;
-      break;
-    }
-    lo = d;
-  }
-  if (!informed) return own_back;
-  if (hi == kInfinity) return kInfinity;
-  for (int j = 0; j < k.s.refinements; ++j) {
-    const float mid = 0.5f * (lo + hi);
-    (occupied_at(k, ray, mid, own_back, informed) ? lo : hi) = mid;
-  }
-  return 0.5f * (lo + hi);
-}
-
-// This frame's own occluder interval ends at the file's back layer, or at the thickness.
-float own_back_depth(const MultiViewInputs& in, const MultiViewSettings& s, int x, int y, float front) {
-  if (in.depth_back_view == nullptr || in.depth_back_view->empty()) return front + s.thickness_world;
-  const float b = in.depth_back_view->ptr<float>(y)[x];
-  return b > front ? b : front;
-}
 
 // Per view, over this frame's foreground surface points (every kMeasureStridePx-th pixel of
 // every kMeasureStridePx-th row: a fraction needs no more): how many it can see, and how
@@ -156,17 +31,17 @@ void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<Vi
   std::vector<int64_t> seen(size_t(rows) * size_t(nv), 0), contradicted(seen.size(), 0);
   const PixelRays rays = pixel_rays(in.camera);
   parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& range) {
-    PixelRay ray{std::vector<RayInView>(size_t(nv)), std::vector<uint8_t>(size_t(nv), 1)};
+    std::vector<RayInView> ray(k.views.size());
     for (int y = range.start; y < range.end; ++y) {
       if (y % kMeasureStridePx != 0) continue;
       const float* depth_row = in.depth_view.ptr<float>(y);
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
       for (int x = 0; x < in.depth_view.cols; x += kMeasureStridePx) {
         if (!mask_row[x]) continue;
-        pixel_ray(k, rays, x, y, ray);
+        multiview_detail::pixel_ray(k, rays, x, y, ray);
         for (int i = 0; i < nv; ++i) {
-          const Verdict v = classify(k.views[size_t(i)], ray.in_view[size_t(i)], depth_row[x],
-                                     k.s.depth_bias_relative, k.s.thickness_world);
+          const Verdict v = multiview_detail::classify(k.views[size_t(i)], ray[size_t(i)], depth_row[x],
+                                                       k.s.depth_bias_relative, k.s.thickness_world);
           seen[size_t(y) * size_t(nv) + size_t(i)] += v != Verdict::unknown;
           contradicted[size_t(y) * size_t(nv) + size_t(i)] += v == Verdict::free;
         }
@@ -191,43 +66,6 @@ void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<Vi
   }
 }
 
-void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& back, int nthreads) {
-  const size_t nv = k.views.size();
-  back.create(in.depth_view.size(), CV_32FC1);
-  const PixelRays rays = pixel_rays(in.camera);
-  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
-    PixelRay ray{std::vector<RayInView>(nv), std::vector<uint8_t>(nv, 1)};
-    for (int y = range.start; y < range.end; ++y) {
-      const float* depth_row = in.depth_view.ptr<float>(y);
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      float* back_row = back.ptr<float>(y);
-      for (int x = 0; x < in.depth_view.cols; ++x) {
-        if (!mask_row[x]) {
-          back_row[x] = kInfinity;
-          continue;
-        }
-        const float front = depth_row[x];
-        pixel_ray(k, rays, x, y, ray);
-        // A view that sees this pixel's own surface as free space disagrees with this frame
-        // here (an object that moved): it has no say on this pixel's ray.
-        for (size_t i = 0; i < nv; ++i)
-          ray.active[i] = classify(k.views[i], ray.in_view[i], front, k.s.depth_bias_relative,
-                                   k.s.thickness_world) != Verdict::free;
-        back_row[x] = back_depth(k, ray, front, own_back_depth(in, k.s, x, y, front));
-      }
-    }
-  });
-}
-
-// The views (those measure_views marked used, when `uses` is given) as seen from `frame`.
-Constants views_from(const Camera& frame, std::span<const DepthView> views, const MultiViewSettings& s,
-                     std::span<const ViewUse> uses = {}) {
-  Constants k{s, {}};
-  for (size_t i = 0; i < views.size(); ++i)
-    if (uses.empty() || uses[i].used) k.views.push_back(view_geometry(frame, views[i]));
-  return k;
-}
-
 }  // namespace
 
 std::string validate(const MultiViewSettings& s) {
@@ -250,7 +88,7 @@ std::vector<ViewUse> occupancy_from_views(const MultiViewInputs& in, std::span<c
   const std::vector<ViewUse> uses = measure_view_use(in, views, s, nthreads);
   depth_back_view.release();
   const Constants used = views_from(in.camera, views, s, uses);
-  if (!used.views.empty()) write_back_layer(in, used, depth_back_view, nthreads);
+  if (!used.views.empty()) multiview_detail::write_back_layer(in, used, depth_back_view, nthreads);
   return uses;
 }
 
@@ -370,38 +208,44 @@ int guard_band_texels(const cv::Mat& depth_view, const cv::Mat& mask, const Came
   return std::min(largest, (int(std::ceil(reach)) + 3) / 4 * 4);
 }
 
-Camera widened_camera(const Camera& camera, int margin_px) {
+Camera widened_camera(const Camera& camera, const BandMargins& m) {
   Camera wide = camera;
-  wide.width_px = camera.width_px + 2 * margin_px;
-  wide.height_px = camera.height_px + 2 * margin_px;
+  wide.width_px = camera.width_px + m.left + m.right;
+  wide.height_px = camera.height_px + m.top + m.bottom;
   const float sx = float(camera.width_px) / float(wide.width_px), sy = float(camera.height_px) / float(wide.height_px);
-  for (int c = 0; c < 4; ++c) {  // rows 0 and 1 of the projection: NDC x and y
+  const float tx = float(m.left - m.right) / float(wide.width_px), ty = float(m.bottom - m.top) / float(wide.height_px);
+  for (int c = 0; c < 4; ++c) {  // rows 0 and 1 of the projection: NDC x and y (times clip w, row 3)
     wide.view_to_clip[c][0] *= sx;
     wide.view_to_clip[c][1] *= sy;
+    if (tx != 0.0f) wide.view_to_clip[c][0] += tx * camera.view_to_clip[c][3];
+    if (ty != 0.0f) wide.view_to_clip[c][1] += ty * camera.view_to_clip[c][3];
   }
   return wide;
 }
 
 cv::Rect GuardBand::inside() const {
-  return {margin_px, margin_px, camera.width_px - 2 * margin_px, camera.height_px - 2 * margin_px};
+  return {margins.left, margins.top, camera.width_px - margins.left - margins.right,
+          camera.height_px - margins.top - margins.bottom};
 }
 
 namespace {
 
-// How far past the frame's edges the band's farthest surface lies, texels, rounded up to a
-// multiple of 4 (as guard_band_texels); 0 when no view saw anything there.
-int band_extent(const cv::Mat& depth_view, const cv::Rect& inside) {
-  int extent = 0;
+// How far past each edge of the frame the band's farthest surface on that side lies,
+// texels, rounded up to a multiple of 4 (as guard_band_texels); 0 where no view saw anything.
+BandMargins band_extent(const cv::Mat& depth_view, const cv::Rect& inside) {
+  BandMargins extent;
   for (int y = 0; y < depth_view.rows; ++y) {
     const float* row = depth_view.ptr<float>(y);
-    const int dy = std::max({0, inside.y - y, y - (inside.br().y - 1)});
     for (int x = 0; x < depth_view.cols; ++x) {
       if (!(row[x] < kInfinity)) continue;
-      const int dx = std::max({0, inside.x - x, x - (inside.br().x - 1)});
-      extent = std::max({extent, dx, dy});
+      extent.left = std::max(extent.left, inside.x - x);
+      extent.right = std::max(extent.right, x - (inside.br().x - 1));
+      extent.top = std::max(extent.top, inside.y - y);
+      extent.bottom = std::max(extent.bottom, y - (inside.br().y - 1));
     }
   }
-  return (extent + 3) / 4 * 4;
+  for (int* side : {&extent.left, &extent.top, &extent.right, &extent.bottom}) *side = (*side + 3) / 4 * 4;
+  return extent;
 }
 
 // The band's mask (its surfaces) and back layer (the occupancy of the views behind them, as
@@ -412,8 +256,8 @@ void fill_band(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::s
   const cv::Rect inside = band.inside();
   band.mask = band.depth_view < kInfinity;
   band.mask(inside).setTo(0);
-  write_back_layer({band.depth_view, band.mask, band.camera}, views_from(in.camera, views, s, uses),
-                   band.depth_back_view, nthreads);
+  multiview_detail::write_back_layer({band.depth_view, band.mask, band.camera}, views_from(in.camera, views, s, uses),
+                                     band.depth_back_view, nthreads);
   in.depth_view.copyTo(band.depth_view(inside));
   in.mask.copyTo(band.mask(inside));
   depth_back_view.copyTo(band.depth_back_view(inside));
@@ -426,8 +270,8 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
                        int nthreads) {
   CV_Assert(validate(s).empty() && margin_px >= 0 && uses.size() == views.size());
   CV_Assert(depth_back_view.type() == CV_32FC1 && depth_back_view.size() == in.depth_view.size());
-  band.margin_px = margin_px;
-  band.camera = widened_camera(in.camera, margin_px);
+  band.margins = BandMargins{margin_px, margin_px, margin_px, margin_px};
+  band.camera = widened_camera(in.camera, band.margins);
   const cv::Size size(band.camera.width_px, band.camera.height_px);
   band.depth_view.create(size, CV_32FC1);
   band.depth_view.setTo(kInfinity);
@@ -438,12 +282,15 @@ void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view
   }
   // Only as wide as the views saw: a band of nothing costs the estimators its area for no
   // occluder (views of the same pose, or that turned away, see nothing past the edges).
-  const int extent_px = std::min(margin_px, band_extent(band.depth_view, band.inside()));
-  if (extent_px < margin_px) {
-    const int cut = margin_px - extent_px;
-    band.depth_view = band.depth_view(cv::Rect(cut, cut, size.width - 2 * cut, size.height - 2 * cut)).clone();
-    band.margin_px = extent_px;
-    band.camera = widened_camera(in.camera, extent_px);
+  // Each side on its own: a camera moving sideways sees past the left and right edges only.
+  BandMargins extent = band_extent(band.depth_view, band.inside());
+  for (int* side : {&extent.left, &extent.top, &extent.right, &extent.bottom}) *side = std::min(*side, margin_px);
+  if (!(extent == band.margins)) {
+    const cv::Rect kept(margin_px - extent.left, margin_px - extent.top, in.camera.width_px + extent.left + extent.right,
+                        in.camera.height_px + extent.top + extent.bottom);
+    band.depth_view = band.depth_view(kept).clone();
+    band.margins = extent;
+    band.camera = widened_camera(in.camera, extent);
   }
   fill_band(in, depth_back_view, views, uses, s, band, nthreads);
 }
@@ -464,18 +311,6 @@ std::vector<ViewUse> measure_view_use(const MultiViewInputs& in, std::span<const
   return uses;
 }
 
-namespace {
-
-// Whether some view sees the point at planar depth d on the ray as free space or has it
-// behind its surface within the thickness.
-bool decided_at(const Constants& k, const PixelRay& ray, float d) {
-  for (size_t i = 0; i < k.views.size(); ++i)
-    if (decides(classify(k.views[i], ray.in_view[i], d, k.s.depth_bias_relative, k.s.thickness_world))) return true;
-  return false;
-}
-
-}  // namespace
-
 cv::Mat decided_bins_behind_surfaces(const MultiViewInputs& in, std::span<const DepthView> views,
                                      const MultiViewSettings& s, float surface_scale, float bin_depth, int bins,
                                      int nthreads) {
@@ -484,24 +319,7 @@ cv::Mat decided_bins_behind_surfaces(const MultiViewInputs& in, std::span<const 
   const Constants k = views_from(in.camera, views, s);
   cv::Mat decided(in.depth_view.size(), CV_8UC1, cv::Scalar(0));
   if (k.views.empty()) return decided;
-  const PixelRays rays = pixel_rays(in.camera);
-  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
-    PixelRay ray{std::vector<RayInView>(k.views.size()), {}};
-    for (int y = range.start; y < range.end; ++y) {
-      const float* depth_row = in.depth_view.ptr<float>(y);
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      uint8_t* out = decided.ptr<uint8_t>(y);
-      for (int x = 0; x < in.depth_view.cols; ++x) {
-        const float d = depth_row[x];
-        if (!mask_row[x] || !(d > 0.0f && std::isfinite(d))) continue;
-        pixel_ray(k, rays, x, y, ray);
-        unsigned bits = 0;
-        for (int i = 0; i < bins; ++i)
-          bits |= unsigned(decided_at(k, ray, d * surface_scale + (float(i) + 0.5f) * bin_depth)) << i;
-        out[x] = uint8_t(bits);
-      }
-    }
-  });
+  multiview_detail::write_decided_bins(in, k, surface_scale, bin_depth, bins, decided, nthreads);
   return decided;
 }
 
@@ -520,14 +338,14 @@ PointVerdicts::~PointVerdicts() = default;
 bool PointVerdicts::empty() const { return impl_->k.views.empty(); }
 
 bool PointVerdicts::decided(const glm::vec3& point_view) const {
-  const Constants& k = impl_->k;
-  const glm::vec4 q(point_view, 1.0f);
-  for (const ViewGeometry& v : k.views) {
-    // The point as a ray of zero direction, read at d = 0.
-    const RayInView at_point{v.clip_from_frame_view * q, glm::vec4(0.0f), glm::dot(v.depth_from_frame_view, q), 0.0f};
-    if (decides(classify(v, at_point, 0.0f, k.s.depth_bias_relative, k.s.thickness_world))) return true;
-  }
-  return false;
+  uint8_t decided = 0;
+  multiview_detail::decide_points(impl_->k, {&point_view, 1}, {&decided, 1});
+  return decided != 0;
+}
+
+void PointVerdicts::decided(std::span<const glm::vec3> points_view, std::span<uint8_t> decided) const {
+  CV_Assert(decided.size() == points_view.size());
+  multiview_detail::decide_points(impl_->k, points_view, decided);
 }
 
 }  // namespace ssdo

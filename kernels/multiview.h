@@ -120,19 +120,30 @@ std::vector<DepthView> views_at_density(std::span<const DepthView> views, int gr
 int guard_band_texels(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera, float radius_world,
                       float max_radius_px, int nthreads = 0);
 
-// `camera` with margin_px more pixels on each side and the same ray through every pixel of
-// the original grid: pixel (x, y) of the original is (x + margin, y + margin) of this one.
-// Its projection is the original's with NDC x and y scaled by W / (W + 2 margin) and
-// H / (H + 2 margin).
-Camera widened_camera(const Camera& camera, int margin_px);
+// Texels added on each side of a grid.
+struct BandMargins {
+  int left = 0, top = 0, right = 0, bottom = 0;
+  bool any() const { return left > 0 || top > 0 || right > 0 || bottom > 0; }
+  bool operator==(const BandMargins&) const = default;
+};
+
+// `camera` with `m` more pixels on each side and the same ray through every pixel of the
+// original grid: pixel (x, y) of the original is (x + m.left, y + m.top) of this one. With
+// W' = W + left + right and H' = H + top + bottom, its projection is the original's with
+// NDC x scaled by W / W' and moved by (left - right) / W', NDC y scaled by H / H' and moved
+// by (bottom - top) / H' (no move with equal sides).
+Camera widened_camera(const Camera& camera, const BandMargins& m);
+inline Camera widened_camera(const Camera& camera, int margin_px) {
+  return widened_camera(camera, BandMargins{margin_px, margin_px, margin_px, margin_px});
+}
 
 // A grid extended by a guard band: `depth_view`, `mask` and `depth_back_view` at the widened
-// camera's size, the original grid inside (at (margin_px, margin_px)), and in the band the
-// nearest surface the views saw there (planar depth in this camera; +inf and mask 0 where no
-// view saw any), with the occupancy of the views behind it (the rule above; a band texel's
-// own interval is the assumed thickness).
+// camera's size, the original grid inside (at (margins.left, margins.top)), and in the band
+// the nearest surface the views saw there (planar depth in this camera; +inf and mask 0
+// where no view saw any), with the occupancy of the views behind it (the rule above; a band
+// texel's own interval is the assumed thickness).
 struct GuardBand {
-  int margin_px = 0;
+  BandMargins margins;
   Camera camera;
   cv::Mat depth_view, mask, depth_back_view;
   cv::Rect inside() const;  // the original grid in the extended images
@@ -143,9 +154,9 @@ struct GuardBand {
 // every view pixel of `stride_px` x `stride_px` (a view denser than the grid needs a
 // sample per texel, not per pixel) is lifted to the world and projected into the widened
 // camera; where it lands in the band, the nearest depth wins (a minimum: the same result
-// for any order and thread count); the band is then narrowed to the farthest surface it got
-// (band.margin_px <= margin_px; 0 when the views saw nothing past the edges: the frame as it
-// is). Deterministic.
+// for any order and thread count); each side of the band is then narrowed to the farthest
+// surface it got there (band.margins each <= margin_px; 0 on a side where the views saw
+// nothing past the edge, all 0: the frame as it is). Deterministic.
 void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view,
                        std::span<const DepthView> views, std::span<const ViewUse> uses,
                        const MultiViewSettings& s, int margin_px, GuardBand& band, int nthreads = 0);
@@ -185,6 +196,9 @@ class PointVerdicts {
   bool empty() const;  // no view: nothing is decided
   // point_view: a point of the frame's view space.
   bool decided(const glm::vec3& point_view) const;
+  // The same for many points at once (several per instruction): decided[i] is 1 when
+  // points_view[i] is decided, else 0. decided.size() == points_view.size().
+  void decided(std::span<const glm::vec3> points_view, std::span<uint8_t> decided) const;
 
  private:
   struct Impl;

@@ -212,16 +212,23 @@ TEST(MultiView, NeighbouringFramesLowerTheErrorOfThinPosts) {
 
 TEST(GuardBand, WidenedCameraKeepsEveryPixelsRay) {
   const Camera c = camera_at(0.3f);
-  const Camera wide = widened_camera(c, 12);
-  EXPECT_EQ(wide.width_px, kWidth + 24);
-  EXPECT_EQ(wide.height_px, kHeight + 24);
-  for (const glm::vec3 p_world : {glm::vec3(0.0f, 2.0f, 0.0f), glm::vec3(1.7f, 1.0f, -0.6f), glm::vec3(-3.0f, 3.0f, 1.2f)}) {
-    const glm::vec3 p_view = c.view_from_world_point(p_world);
-    const glm::vec2 expected = c.pixel_from_view(p_view) + glm::vec2(12.0f);
-    const glm::vec2 got = wide.pixel_from_view(p_view);
-    EXPECT_NEAR(got.x, expected.x, 1e-3f);
-    EXPECT_NEAR(got.y, expected.y, 1e-3f);
+  // Every side alike, and each side its own (left, top, right, bottom).
+  for (const BandMargins m : {BandMargins{12, 12, 12, 12}, BandMargins{12, 0, 4, 8}, BandMargins{0, 20, 0, 0}}) {
+    const Camera wide = widened_camera(c, m);
+    EXPECT_EQ(wide.width_px, kWidth + m.left + m.right);
+    EXPECT_EQ(wide.height_px, kHeight + m.top + m.bottom);
+    for (const glm::vec3 p_world : {glm::vec3(0.0f, 2.0f, 0.0f), glm::vec3(1.7f, 1.0f, -0.6f), glm::vec3(-3.0f, 3.0f, 1.2f)}) {
+      const glm::vec3 p_view = c.view_from_world_point(p_world);
+      const glm::vec2 expected = c.pixel_from_view(p_view) + glm::vec2(float(m.left), float(m.top));
+      const glm::vec2 got = wide.pixel_from_view(p_view);
+      EXPECT_NEAR(got.x, expected.x, 1e-3f) << m.left << " " << m.top << " " << m.right << " " << m.bottom;
+      EXPECT_NEAR(got.y, expected.y, 1e-3f) << m.left << " " << m.top << " " << m.right << " " << m.bottom;
+      // And back: the widened camera's ray through the moved pixel meets the point.
+      const glm::vec3 back = wide.view_from_pixel_depth(got, -p_view.z);
+      EXPECT_NEAR(glm::distance(back, p_view), 0.0f, 1e-3f);
+    }
   }
+  EXPECT_EQ(widened_camera(c, 12).view_to_clip, widened_camera(c, BandMargins{12, 12, 12, 12}).view_to_clip);
 }
 
 TEST(GuardBand, WidthIsTheFarthestReachPastAnEdge) {
@@ -259,7 +266,10 @@ TEST(GuardBand, ANeighbourFillsTheBandWithWhatItSaw) {
   const int margin = 24;
   GuardBand band;
   extend_with_views({g.depth_view, g.mask, g.camera}, back, views, uses, MultiViewSettings{}, margin, band, 2);
-  ASSERT_EQ(band.depth_view.size(), cv::Size(kWidth + 2 * margin, kHeight + 2 * margin));
+  // The view, a unit to the left, saw past the left edge as far as the band reaches.
+  const BandMargins& m = band.margins;
+  ASSERT_EQ(m.left, margin);
+  ASSERT_EQ(band.depth_view.size(), cv::Size(kWidth + m.left + m.right, kHeight + m.top + m.bottom));
   // Inside: the frame's own depth and back layer, bit for bit.
   EXPECT_EQ(cv::norm(band.depth_view(band.inside()), g.depth_view, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(band.depth_back_view(band.inside()), back, cv::NORM_INF), 0.0);
@@ -267,8 +277,8 @@ TEST(GuardBand, ANeighbourFillsTheBandWithWhatItSaw) {
   // the depth the wider frame sees.
   const GBuffer exact = raycast::render_gbuffer(scene, band.camera, 2);
   int texels = 0, covered = 0, right = 0;
-  for (int y = margin; y < margin + kHeight; ++y)
-    for (int x = 0; x < margin; ++x) {
+  for (int y = m.top; y < m.top + kHeight; ++y)
+    for (int x = 0; x < m.left; ++x) {
       ++texels;
       const float d = band.depth_view.at<float>(y, x), e = exact.depth_view.at<float>(y, x);
       if (!std::isfinite(d)) continue;
@@ -292,15 +302,19 @@ TEST(GuardBand, IsNoWiderThanWhatTheViewsSaw) {
   ASSERT_TRUE(uses[0].used);
   GuardBand band;
   extend_with_views({g.depth_view, g.mask, g.camera}, back, same, uses, MultiViewSettings{}, 24, band, 2);
-  EXPECT_EQ(band.margin_px, 0);
+  EXPECT_FALSE(band.margins.any());
   EXPECT_EQ(band.camera.width_px, kWidth);
   // A view 0.05 to the left sees a few pixels past the left edge only.
   const std::vector<DepthView> near{view_of(scene, camera_at(-0.05f), "near")};
   const cv::Mat near_back = back_layer(g, near, &uses);
   extend_with_views({g.depth_view, g.mask, g.camera}, near_back, near, uses, MultiViewSettings{}, 24, band, 2);
-  EXPECT_GT(band.margin_px, 0);
-  EXPECT_LT(band.margin_px, 24);
-  EXPECT_EQ(band.margin_px % 4, 0);
+  EXPECT_GT(band.margins.left, 0);
+  EXPECT_LT(band.margins.left, 24);
+  EXPECT_EQ(band.margins.left % 4, 0);
+  // Nothing past the right edge, and little or nothing above and below.
+  EXPECT_EQ(band.margins.right, 0);
+  EXPECT_LE(band.margins.top + band.margins.bottom, band.margins.left);
+  EXPECT_EQ(band.camera.width_px, kWidth + band.margins.left);
 }
 
 double left_strip_error(const cv::Mat& ao, const cv::Mat& reference, const cv::Mat& mask, int width_px) {

@@ -1,0 +1,109 @@
+// What the multi-view passes share (kernels/multiview.cpp, and its per-pixel passes in
+// kernels/multiview_lanes.cpp): each view as seen from this frame, a pixel's ray in it, and
+// the verdict of a view on a point of that ray (the rule and the free-space test in
+// kernels/multiview.h). Internal to the kernels.
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "core/camera.h"
+#include "core/gbuffer.h"
+#include "kernels/multiview.h"
+
+namespace ssdo::multiview_detail {
+
+inline constexpr float kInfinity = std::numeric_limits<float>::infinity();
+
+// A view as seen from this frame: this frame's view space straight to the view's clip
+// space and planar depth (both affine, so along a pixel's ray they are linear in depth).
+struct ViewGeometry {
+  glm::mat4 clip_from_frame_view;  // view_to_clip_v * world_to_view_v * view_to_world
+  glm::vec4 depth_from_frame_view; // planar depth in the view: -(row z of the rigid part)
+  const cv::Mat* depth_view;
+  float width_px, height_px;
+};
+
+inline ViewGeometry view_geometry(const Camera& frame, const DepthView& v) {
+  const glm::mat4 rigid = v.camera.world_to_view * frame.view_to_world;
+  // glm is column-major: the z row is (m[0][2], m[1][2], m[2][2], m[3][2]).
+  const glm::vec4 depth_row(-rigid[0][2], -rigid[1][2], -rigid[2][2], -rigid[3][2]);
+  return {v.camera.view_to_clip * rigid, depth_row, &v.depth_view, float(v.camera.width_px),
+          float(v.camera.height_px)};
+}
+
+// What a view says about a point.
+enum class Verdict : uint8_t {
+  unknown,   // outside its image or behind its eye
+  free,      // in front of the surface it stores there
+  occupied,  // behind that surface, within the thickness
+  beyond,    // farther behind it than the thickness: no say
+};
+
+// A verdict that decides a point (the rule of PointVerdicts, multiview.h).
+inline bool decides(Verdict v) { return v == Verdict::free || v == Verdict::occupied; }
+
+// A point along one pixel's ray, as seen by one view: clip = clip0 + d clip1 and planar
+// depth depth0 + d depth1 at planar depth d in this frame.
+struct RayInView {
+  glm::vec4 clip0, clip1;
+  float depth0, depth1;
+};
+
+struct Constants {
+  MultiViewSettings s;
+  std::vector<ViewGeometry> views;
+};
+
+// The views (those marked used, when `uses` is given) as seen from `frame`.
+inline Constants views_from(const Camera& frame, std::span<const DepthView> views, const MultiViewSettings& s,
+                            std::span<const ViewUse> uses = {}) {
+  Constants k{s, {}};
+  for (size_t i = 0; i < views.size(); ++i)
+    if (uses.empty() || uses[i].used) k.views.push_back(view_geometry(frame, views[i]));
+  return k;
+}
+
+// Pixel (x, y)'s ray in every view (rays: the frame's, pixel_rays of its camera).
+inline void pixel_ray(const Constants& k, const PixelRays& rays, int x, int y, std::span<RayInView> in_view) {
+  const float px = float(x) + 0.5f, py = float(y) + 0.5f;
+  // The ray's points are affine in planar depth d: p(d) = a + d b (perspective: a = 0).
+  const glm::vec3 a = rays.origin(px, py), b = rays.direction(px, py);
+  for (size_t i = 0; i < k.views.size(); ++i) {
+    const ViewGeometry& v = k.views[i];
+    in_view[i] = {v.clip_from_frame_view * glm::vec4(a, 1.0f), v.clip_from_frame_view * glm::vec4(b, 0.0f),
+                  glm::dot(v.depth_from_frame_view, glm::vec4(a, 1.0f)),
+                  glm::dot(v.depth_from_frame_view, glm::vec4(b, 0.0f))};
+  }
+}
+
+// This frame's own occluder interval ends at the file's back layer, or at the thickness.
+inline float own_back_depth(const MultiViewInputs& in, const MultiViewSettings& s, int x, int y, float front) {
+  if (in.depth_back_view == nullptr || in.depth_back_view->empty()) return front + s.thickness_world;
+  const float b = in.depth_back_view->ptr<float>(y)[x];
+  return b > front ? b : front;
+}
+
+// ---- The per-pixel passes (multiview_lanes.cpp: several pixels per instruction) ----
+
+// What view v says about the point at planar depth d on a ray (the free-space test of
+// multiview.h).
+Verdict classify(const ViewGeometry& v, const RayInView& r, float d, float bias_relative, float thickness);
+
+// The back layer of every foreground pixel of `in` (multiview.h, occupancy_from_views), by
+// the views of k; +inf on background. `back` CV_32FC1 at the frame's size.
+void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& back, int nthreads);
+
+// PointVerdicts::decided (multiview.h) of each point by the views of k: 1 when decided.
+void decide_points(const Constants& k, std::span<const glm::vec3> points_view, std::span<uint8_t> decided);
+
+// decided_bins_behind_surfaces (multiview.h) by the views of k, into `decided` (CV_8UC1 at
+// the frame's size, zeroed by the caller).
+void write_decided_bins(const MultiViewInputs& in, const Constants& k, float surface_scale, float bin_depth, int bins,
+                        cv::Mat& decided, int nthreads);
+
+}  // namespace ssdo::multiview_detail
