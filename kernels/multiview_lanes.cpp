@@ -107,30 +107,51 @@ HWY_INLINE hn::Mask<D> classify_lanes(D d, const ViewGeometry& v, const RayVecto
 
 // The pixels of a group: their columns in one row, and their rays in every view.
 struct Group {
-  int y = 0, n = 0;                        // n <= kGroup pixels; the other lanes repeat the last
+  int y = 0, n = 0;  // n <= kGroup pixels; the other lanes repeat the last
   alignas(32) int x[kGroup];
   alignas(32) float front[kGroup], own_back[kGroup];
-  std::vector<RayLanes> rays;              // per view
-  std::vector<RayInView> scratch;          // one pixel's rays, per view
+  std::vector<RayLanes> rays;  // per view
   // Per view, 1 in the lanes whose surface it does not see as free space (its verdicts count
   // there), else 0.
   std::vector<float> active;
 };
 
-// Fills the rays of the group's pixels (lanes past n repeat the last pixel).
+// A matrix row times (v0, v1, v2, v3) in the order glm's mat4 x vec4 and dot() add:
+// (r0 v0 + r1 v1) + (r2 v2 + r3 v3).
+template <class D>
+HWY_INLINE hn::Vec<D> dot4(D d, const float (&row)[4], hn::Vec<D> v0, hn::Vec<D> v1, hn::Vec<D> v2, hn::Vec<D> v3) {
+  return hn::Add(hn::Add(hn::Mul(hn::Set(d, row[0]), v0), hn::Mul(hn::Set(d, row[1]), v1)),
+                 hn::Add(hn::Mul(hn::Set(d, row[2]), v2), hn::Mul(hn::Set(d, row[3]), v3)));
+}
+
+// Fills the rays of the group's pixels in every view (lanes past n repeat the last pixel):
+// multiview_detail::pixel_ray in lanes, its glm arithmetic in the same order.
 void set_up_rays(const Constants& k, const PixelRays& rays, Group& g) {
-  for (int j = 0; j < kGroup; ++j) {
-    const int x = g.x[std::min(j, g.n - 1)];
-    multiview_detail::pixel_ray(k, rays, x, g.y, g.scratch);
+  const GroupTag d;
+  const hn::RebindToSigned<GroupTag> di;
+  for (int j = g.n; j < kGroup; ++j) g.x[j] = g.x[g.n - 1];
+  const auto half = hn::Set(d, 0.5f), one = hn::Set(d, 1.0f), zero = hn::Zero(d);
+  const auto py = hn::Add(hn::Set(d, float(g.y)), half);
+  for (size_t j0 = 0; j0 < size_t(kGroup); j0 += hn::Lanes(d)) {
+    const auto px = hn::Add(hn::ConvertTo(d, hn::Load(di, g.x + j0)), half);
+    // The ray's points are affine in planar depth: p(d) = a + d b (PixelRays).
+    hn::Vec<GroupTag> a[3], b[3];
+    for (int c = 0; c < 3; ++c) {
+      a[c] = hn::Add(hn::Add(hn::Set(d, rays.o0[c]), hn::Mul(px, hn::Set(d, rays.ox[c]))), hn::Mul(py, hn::Set(d, rays.oy[c])));
+      b[c] = hn::Add(hn::Add(hn::Set(d, rays.u0[c]), hn::Mul(px, hn::Set(d, rays.ux[c]))), hn::Mul(py, hn::Set(d, rays.uy[c])));
+    }
     for (size_t v = 0; v < k.views.size(); ++v) {
-      const RayInView& r = g.scratch[v];
+      const glm::mat4& m = k.views[v].clip_from_frame_view;
       RayLanes& lanes = g.rays[v];
       for (int c = 0; c < 4; ++c) {
-        lanes.clip0[c][j] = r.clip0[c];
-        lanes.clip1[c][j] = r.clip1[c];
+        const float row[4] = {m[0][c], m[1][c], m[2][c], m[3][c]};
+        hn::Store(dot4(d, row, a[0], a[1], a[2], one), d, lanes.clip0[c] + j0);
+        hn::Store(dot4(d, row, b[0], b[1], b[2], zero), d, lanes.clip1[c] + j0);
       }
-      lanes.depth0[j] = r.depth0;
-      lanes.depth1[j] = r.depth1;
+      const glm::vec4& r = k.views[v].depth_from_frame_view;
+      const float row[4] = {r.x, r.y, r.z, r.w};
+      hn::Store(dot4(d, row, a[0], a[1], a[2], one), d, lanes.depth0 + j0);
+      hn::Store(dot4(d, row, b[0], b[1], b[2], zero), d, lanes.depth1 + j0);
     }
   }
 }
@@ -233,7 +254,6 @@ void for_each_group(const MultiViewInputs& in, const Constants& k, const PixelRa
 Group make_group(const Constants& k) {
   Group g;
   g.rays.resize(k.views.size());
-  g.scratch.resize(k.views.size());
   g.active.resize(k.views.size() * kGroup);
   return g;
 }
