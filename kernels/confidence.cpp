@@ -232,68 +232,72 @@ void add_decided_behind_surfaces(const TapFrame& frame, const TapLanes& __restri
   }
 }
 
-// Bit j set when lane j has an unknown tap (surface 0) with a chord: the lanes whose unknown
-// chords the views are asked about. Most pixels have none (taps leave the frame or hit the
-// background only near their edges).
-unsigned lanes_with_unknown_chords(const TapFrame& frame, const TapLanes& __restrict tap) {
+// The unknown chords of the lanes (taps off-screen or on masked texels: surface 0) and the
+// views' verdicts on them: every kUnknownTapStride-th unknown tap of a lane asks the views
+// at one point of its chord, offset along it per tap by the golden-ratio sequence (the taps
+// of a pixel spread their points evenly over the chords), and the decided fraction of the
+// asked chords stands for all the lane's unknown chords. Per lane, in tap order: the
+// unknown chords' length, the asked chords' length, and the decided ones'.
+void add_unknown_chords_decided(const TapFrame& frame, const TapLanes& __restrict tap, float (&unknown)[kLanes],
+                                float (&unknown_asked)[kLanes], float (&unknown_decided)[kLanes]) {
   namespace hn = hwy::HWY_NAMESPACE;
-  const hn::CappedTag<float, kLanes> d;
+  const hn::CappedTag<float, kLanes> d;  // a pixel per lane, at most kLanes
+  const hn::RebindToSigned<decltype(d)> di;
   const size_t n = hn::Lanes(d);
-  unsigned lanes = 0;
+  // The asks of every lane in tap order (so each lane's in its own order), asked at once.
+  constexpr int kMaxAsks = kLanes * (kMaxTaps / kUnknownTapStride);
+  glm::vec3 points[kMaxAsks];
+  float asked_length[kMaxAsks];
+  uint8_t asked_lane[kMaxAsks], decided[kMaxAsks];
+  int n_asks = 0;
+  alignas(32) float length_of[kLanes];
   for (size_t j0 = 0; j0 < size_t(kLanes); j0 += n) {
-    auto any = hn::Lt(hn::Zero(d), hn::Zero(d));  // all false
+    auto unknown_sum = hn::Zero(d), asked_sum = hn::Zero(d);
+    auto n_unknown = hn::Zero(di);
     for (int k = 0; k < frame.n_taps; ++k) {
-      const auto unknown = hn::Le(hn::Load(d, &tap.surface[k][j0]), hn::Zero(d));
-      any = hn::Or(any, hn::And(unknown, hn::Gt(hn::Load(d, &tap.s1[k][j0]), hn::Load(d, &tap.s0[k][j0]))));
+      const auto s0 = hn::Load(d, &tap.s0[k][j0]), s1 = hn::Load(d, &tap.s1[k][j0]);
+      // Unknown (surface 0) and with a chord (false on empty chords and NaN).
+      const auto is_unknown = hn::And(hn::Le(hn::Load(d, &tap.surface[k][j0]), hn::Zero(d)), hn::Gt(s1, s0));
+      if (hn::AllFalse(d, is_unknown)) continue;
+      const auto length = hn::IfThenElseZero(is_unknown, hn::Mul(hn::Sub(s1, s0), hn::Load(d, &tap.len_scale[k][j0])));
+      unknown_sum = hn::Add(unknown_sum, length);
+      const auto is_unknown_i = hn::RebindMask(di, is_unknown);
+      const auto asks = hn::RebindMask(d, hn::And(is_unknown_i, hn::Eq(hn::And(n_unknown, hn::Set(di, kUnknownTapStride - 1)), hn::Zero(di))));
+      n_unknown = hn::Add(n_unknown, hn::IfThenElseZero(is_unknown_i, hn::Set(di, 1)));
+      asked_sum = hn::Add(asked_sum, hn::IfThenElseZero(asks, length));
+      if (hn::AllFalse(d, asks)) continue;
+      hn::Store(length, d, length_of);
+      uint8_t ask_bits[8] = {};
+      hn::StoreMaskBits(d, asks, ask_bits);
+      for (size_t j = 0; j < n; ++j) {
+        if (!((ask_bits[0] >> j) & 1u)) continue;
+        const size_t lane = j0 + j;
+        const float a = tap.s0[k][lane], b = tap.s1[k][lane];
+        const float t = a + frame.chord_offsets[k] * (b - a);
+        points[n_asks] = frame.rays.point(tap.x[k][lane] + 0.5f, tap.y[k][lane] + 0.5f, t);
+        asked_length[n_asks] = length_of[j];
+        asked_lane[n_asks++] = uint8_t(lane);
+      }
     }
-    uint8_t bits[8] = {};
-    hn::StoreMaskBits(d, any, bits);
-    lanes |= unsigned(bits[0]) << j0;
+    hn::Store(unknown_sum, d, unknown + j0);
+    hn::Store(asked_sum, d, unknown_asked + j0);
   }
-  return lanes;
+  frame.verdicts->decided({points, size_t(n_asks)}, {decided, size_t(n_asks)});
+  for (int j = 0; j < kLanes; ++j) unknown_decided[j] = 0.0f;
+  for (int a = 0; a < n_asks; ++a)
+    if (decided[a]) unknown_decided[asked_lane[a]] += asked_length[a];
 }
 
 // Pass 5 of sum_chords, with views only: the part of each tap's chord this frame does not
-// see, as far as the other views decide it, added to the observed sums. Behind a known
-// tap's surface: add_decided_behind_surfaces. An unknown tap's whole chord is asked at one
-// point, offset along it per tap by the golden-ratio sequence (the taps of a pixel spread
-// their points evenly over the chords); only every kUnknownTapStride-th unknown tap asks.
+// see, as far as the other views decide it, added to the observed sums: behind the known
+// taps' surfaces (add_decided_behind_surfaces) and along the unknown taps' chords
+// (add_unknown_chords_decided).
 void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&observed)[kLanes]) {
-  alignas(32) float behind_surface[kLanes];
+  alignas(32) float behind_surface[kLanes], unknown[kLanes], unknown_asked[kLanes], unknown_decided[kLanes];
   add_decided_behind_surfaces(frame, tap, behind_surface);
-  const unsigned asking_lanes = lanes_with_unknown_chords(frame, tap);
-  // The asked points of every lane, in lane then tap order, asked at once, and their chords'
-  // lengths (each asked chord's length counts where it is decided).
-  glm::vec3 points[kLanes * (kMaxTaps / kUnknownTapStride)];
-  float asked_length[kLanes * (kMaxTaps / kUnknownTapStride)];
-  uint8_t decided[kLanes * (kMaxTaps / kUnknownTapStride)];
-  int first_ask[kLanes + 1];
-  float unknown[kLanes] = {}, unknown_asked[kLanes] = {};
-  int n_asks = 0;
+  add_unknown_chords_decided(frame, tap, unknown, unknown_asked, unknown_decided);
   for (int j = 0; j < kLanes; ++j) {
-    first_ask[j] = n_asks;
-    if (!((asking_lanes >> j) & 1u)) continue;  // no unknown chord
-    int n_unknown = 0;
-    for (int k = 0; k < frame.n_taps; ++k) {
-      const float s0 = tap.s0[k][j], s1 = tap.s1[k][j];
-      // Unknown (surface 0) and with a chord (false on empty chords and NaN).
-      if (!(tap.surface[k][j] <= 0.0f && s1 > s0)) continue;
-      const float length = (s1 - s0) * tap.len_scale[k][j];
-      unknown[j] += length;
-      if (n_unknown++ % kUnknownTapStride != 0) continue;
-      unknown_asked[j] += length;
-      const float t = s0 + frame.chord_offsets[k] * (s1 - s0);
-      points[n_asks] = frame.rays.point(tap.x[k][j] + 0.5f, tap.y[k][j] + 0.5f, t);
-      asked_length[n_asks++] = length;
-    }
-  }
-  first_ask[kLanes] = n_asks;
-  frame.verdicts->decided({points, size_t(n_asks)}, {decided, size_t(n_asks)});
-  for (int j = 0; j < kLanes; ++j) {
-    float unknown_decided = 0.0f;
-    for (int a = first_ask[j]; a < first_ask[j + 1]; ++a)
-      if (decided[a]) unknown_decided += asked_length[a];
-    const float unknown_observed = unknown_asked[j] > 0.0f ? unknown[j] * (unknown_decided / unknown_asked[j]) : 0.0f;
+    const float unknown_observed = unknown_asked[j] > 0.0f ? unknown[j] * (unknown_decided[j] / unknown_asked[j]) : 0.0f;
     observed[j] += double(behind_surface[j] + unknown_observed);
   }
 }
