@@ -24,6 +24,10 @@ struct DepthView {
   Camera camera;       // its own projection, grid and world_to_view (the same world as the frame's)
   cv::Mat depth_view;  // CV_32FC1 planar depth in its camera, +infinity on background
   std::string name;    // where it came from (a file), for notes
+  // CV_32FC3 at depth_view's size, or empty: the view's albedo and diffuse lighting (as
+  // GBuffer::albedo and GBuffer::lighting), the light of the senders it shows past this
+  // frame's edges (kernels/multiview.h, the guard band). Empty: depth only.
+  cv::Mat albedo = {}, lighting = {};
 };
 
 struct GBuffer {

@@ -706,7 +706,8 @@ GridInputs full_grid_inputs(const TermInputs& in, const TermSettings& s, const c
 
 // The grid extended by the guard band (kernels/multiview.h) when some view is used and taps
 // leave the picture. Band texels get positions and normals reconstructed from the views'
-// depth, and no albedo or lighting (0: a sender the frame has no light for stays dark).
+// depth, and the albedo and lighting of the view pixel they show where the views have them
+// (else 0: a sender no view has light for stays dark).
 void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSettings& s,
                             std::span<const ViewUse> uses, int nthreads) {
   if (g.back.empty() || std::none_of(uses.begin(), uses.end(), [](const ViewUse& u) { return u.used; })) return;
@@ -734,6 +735,8 @@ void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSetti
     reconstruct_normals_from_depth(band.depth_view, band.mask, band.camera, g.normal_view, side, nthreads);
     if (!g.position_view.empty())
       view_positions_from_depth(band.depth_view, band.mask, band.camera, g.position_view, side, nthreads);
+    if (!g.albedo.empty() && !band.albedo.empty()) band.albedo(side).copyTo(g.albedo(side));
+    if (!g.lighting.empty() && !band.lighting.empty()) band.lighting(side).copyTo(g.lighting(side));
   }
   g.depth_view = band.depth_view;
   g.mask = band.mask;

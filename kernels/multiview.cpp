@@ -3,7 +3,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "core/parallel.h"
@@ -155,17 +157,48 @@ void band_reach_of_rows(const cv::Mat& depth_view, const cv::Mat& mask, const Ca
 }
 
 // Keeps the smaller of `slot` and `value`, whatever other threads write to it.
-inline void atomic_min(float& slot, float value) {
-  std::atomic_ref<float> a(slot);
-  float current = a.load(std::memory_order_relaxed);
+inline void atomic_min(uint64_t& slot, uint64_t value) {
+  std::atomic_ref<uint64_t> a(slot);
+  uint64_t current = a.load(std::memory_order_relaxed);
   while (value < current && !a.compare_exchange_weak(current, value, std::memory_order_relaxed)) {
   }
 }
 
-// Forward-projects view v's surfaces (one pixel of each stride x stride block) into the
-// widened camera; the nearest depth of those landing in the band is kept.
-void splat_view_into_band(const DepthView& v, const Camera& frame, const GuardBand& band, int stride_px,
-                          cv::Mat& depth_view, int nthreads) {
+// A surface splatted into the band: its planar depth in this frame in the high half (a
+// positive float's bits order as the float), the view pixel it came from in the low half
+// (BandSources), so that the minimum is the nearest surface, ties going to the first view
+// and pixel.
+constexpr uint64_t kNoSurface = ~uint64_t(0);
+inline uint64_t band_key(float depth_view, uint32_t source) {
+  return (uint64_t(std::bit_cast<uint32_t>(depth_view)) << 32) | source;
+}
+inline float key_depth(uint64_t key) { return std::bit_cast<float>(uint32_t(key >> 32)); }
+
+// The view pixels numbered across the views: view i's pixel (x, y) is offset[i] + y w_i + x.
+struct BandSources {
+  std::vector<uint32_t> offset;  // per view, then the total
+  explicit BandSources(std::span<const DepthView> views) {
+    uint64_t total = 0;
+    for (const DepthView& v : views) {
+      offset.push_back(uint32_t(total));
+      total += uint64_t(v.depth_view.total());
+    }
+    CV_Assert(total < kNoSurface >> 32);  // 4 G pixels in all
+    offset.push_back(uint32_t(total));
+  }
+  // The view and pixel index of a source.
+  std::pair<size_t, size_t> find(uint32_t source) const {
+    const size_t i = size_t(std::upper_bound(offset.begin(), offset.end(), source) - offset.begin()) - 1;
+    return {i, size_t(source - offset[i])};
+  }
+};
+
+// Forward-projects view i's surfaces (one pixel of each stride x stride block) into the
+// widened camera; the nearest of those landing in the band (`keys`, the band's texels in
+// row order) is kept.
+void splat_view_into_band(std::span<const DepthView> views, size_t i, const BandSources& sources, const Camera& frame,
+                          const GuardBand& band, int stride_px, std::vector<uint64_t>& keys, int nthreads) {
+  const DepthView& v = views[i];
   const glm::mat4 frame_from_view = frame.world_to_view * v.camera.view_to_world;
   const glm::mat4 clip_from_view = band.camera.view_to_clip * frame_from_view;
   const cv::Rect inside = band.inside();
@@ -187,7 +220,10 @@ void splat_view_into_band(const DepthView& v, const Camera& frame, const GuardBa
         const cv::Point texel{int(px), int(py)};
         if (inside.contains(texel)) continue;
         const float depth_in_frame = -(frame_from_view * p).z;
-        if (depth_in_frame > 0.0f) atomic_min(depth_view.ptr<float>(texel.y)[texel.x], depth_in_frame);
+        const uint32_t source = sources.offset[i] + uint32_t(y) * uint32_t(v.depth_view.cols) + uint32_t(x);
+        if (depth_in_frame > 0.0f)
+          atomic_min(keys[size_t(texel.y) * size_t(band.camera.width_px) + size_t(texel.x)],
+                     band_key(depth_in_frame, source));
       }
     }
   });
@@ -265,34 +301,81 @@ void fill_band(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::s
 
 }  // namespace
 
+namespace {
+
+// The depth of the band's texels: their nearest surface's, +inf where none.
+cv::Mat band_depth(const std::vector<uint64_t>& keys, const cv::Size& size) {
+  cv::Mat depth(size, CV_32FC1);
+  for (int y = 0; y < size.height; ++y) {
+    float* row = depth.ptr<float>(y);
+    const uint64_t* key = keys.data() + size_t(y) * size_t(size.width);
+    for (int x = 0; x < size.width; ++x) row[x] = key[x] == kNoSurface ? kInfinity : key_depth(key[x]);
+  }
+  return depth;
+}
+
+// The band's albedo and lighting (GuardBand): each band texel's from the view pixel of its
+// surface, `kept` the band's texels in `keys` (a grid keys_width wide).
+void band_light(std::span<const DepthView> views, std::span<const ViewUse> uses, const BandSources& sources,
+                const std::vector<uint64_t>& keys, int keys_width, const cv::Rect& kept, GuardBand& band) {
+  bool any_albedo = false, any_lighting = false;
+  for (size_t i = 0; i < views.size(); ++i) {
+    any_albedo |= uses[i].used && !views[i].albedo.empty();
+    any_lighting |= uses[i].used && !views[i].lighting.empty();
+  }
+  band.albedo.release();
+  band.lighting.release();
+  if (any_albedo) band.albedo = cv::Mat::zeros(kept.size(), CV_32FC3);
+  if (any_lighting) band.lighting = cv::Mat::zeros(kept.size(), CV_32FC3);
+  if (!any_albedo && !any_lighting) return;
+  const cv::Rect inside = band.inside();
+  for (int y = 0; y < kept.height; ++y)
+    for (int x = 0; x < kept.width; ++x) {
+      const uint64_t key = keys[size_t(y + kept.y) * size_t(keys_width) + size_t(x + kept.x)];
+      if (key == kNoSurface || inside.contains({x, y})) continue;
+      const auto [i, pixel] = sources.find(uint32_t(key));
+      const DepthView& v = views[i];
+      const int vy = int(pixel / size_t(v.depth_view.cols)), vx = int(pixel % size_t(v.depth_view.cols));
+      if (!v.albedo.empty()) band.albedo.at<cv::Vec3f>(y, x) = v.albedo.at<cv::Vec3f>(vy, vx);
+      if (!v.lighting.empty()) band.lighting.at<cv::Vec3f>(y, x) = v.lighting.at<cv::Vec3f>(vy, vx);
+    }
+}
+
+}  // namespace
+
 void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view, std::span<const DepthView> views,
                        std::span<const ViewUse> uses, const MultiViewSettings& s, int margin_px, GuardBand& band,
                        int nthreads) {
   CV_Assert(validate(s).empty() && margin_px >= 0 && uses.size() == views.size());
   CV_Assert(depth_back_view.type() == CV_32FC1 && depth_back_view.size() == in.depth_view.size());
+  for (const DepthView& v : views)
+    CV_Assert((v.albedo.empty() || (v.albedo.type() == CV_32FC3 && v.albedo.size() == v.depth_view.size())) &&
+              (v.lighting.empty() || (v.lighting.type() == CV_32FC3 && v.lighting.size() == v.depth_view.size())));
   band.margins = BandMargins{margin_px, margin_px, margin_px, margin_px};
   band.camera = widened_camera(in.camera, band.margins);
   const cv::Size size(band.camera.width_px, band.camera.height_px);
-  band.depth_view.create(size, CV_32FC1);
-  band.depth_view.setTo(kInfinity);
+  std::vector<uint64_t> keys(size_t(size.area()), kNoSurface);
+  const BandSources sources(views);
   for (size_t i = 0; i < views.size(); ++i) {
     if (!uses[i].used) continue;
     const int stride_px = std::max(1, views[i].camera.width_px / std::max(1, in.camera.width_px));
-    splat_view_into_band(views[i], in.camera, band, stride_px, band.depth_view, nthreads);
+    splat_view_into_band(views, i, sources, in.camera, band, stride_px, keys, nthreads);
   }
+  band.depth_view = band_depth(keys, size);
   // Only as wide as the views saw: a band of nothing costs the estimators its area for no
-  // occluder (views of the same pose, or that turned away, see nothing past the edges).
-  // Each side on its own: a camera moving sideways sees past the left and right edges only.
+  // occluder (views of the same pose, or that turned away, see nothing past the edges). Each
+  // side on its own: a camera moving sideways sees past the left and right edges only.
   BandMargins extent = band_extent(band.depth_view, band.inside());
   for (int* side : {&extent.left, &extent.top, &extent.right, &extent.bottom}) *side = std::min(*side, margin_px);
+  const cv::Rect kept(margin_px - extent.left, margin_px - extent.top, in.camera.width_px + extent.left + extent.right,
+                      in.camera.height_px + extent.top + extent.bottom);
   if (!(extent == band.margins)) {
-    const cv::Rect kept(margin_px - extent.left, margin_px - extent.top, in.camera.width_px + extent.left + extent.right,
-                        in.camera.height_px + extent.top + extent.bottom);
     band.depth_view = band.depth_view(kept).clone();
     band.margins = extent;
     band.camera = widened_camera(in.camera, extent);
   }
   fill_band(in, depth_back_view, views, uses, s, band, nthreads);
+  band_light(views, uses, sources, keys, size.width, kept, band);
 }
 
 std::vector<ViewUse> measure_view_use(const MultiViewInputs& in, std::span<const DepthView> views,

@@ -141,11 +141,14 @@ inline Camera widened_camera(const Camera& camera, int margin_px) {
 // camera's size, the original grid inside (at (margins.left, margins.top)), and in the band
 // the nearest surface the views saw there (planar depth in this camera; +inf and mask 0
 // where no view saw any), with the occupancy of the views behind it (the rule above; a band
-// texel's own interval is the assumed thickness).
+// texel's own interval is the assumed thickness). `albedo` and `lighting` (CV_32FC3 at the
+// same size, or empty when no used view has them): in the band, those of the view pixel
+// whose surface the texel holds (0 where it holds none or its view has none); 0 inside.
 struct GuardBand {
   BandMargins margins;
   Camera camera;
   cv::Mat depth_view, mask, depth_back_view;
+  cv::Mat albedo, lighting;
   cv::Rect inside() const;  // the original grid in the extended images
 };
 
@@ -153,8 +156,9 @@ struct GuardBand {
 // empty for front + thickness) and the views marked used in `uses` (occupancy_from_views):
 // every view pixel of `stride_px` x `stride_px` (a view denser than the grid needs a
 // sample per texel, not per pixel) is lifted to the world and projected into the widened
-// camera; where it lands in the band, the nearest depth wins (a minimum: the same result
-// for any order and thread count); each side of the band is then narrowed to the farthest
+// camera; where it lands in the band, the nearest depth wins (a minimum over depth, then
+// over the views' order and the pixel's: the same result for any thread count), with its
+// albedo and lighting when its view has them; each side of the band is then narrowed to the farthest
 // surface it got there (band.margins each <= margin_px; 0 on a side where the views saw
 // nothing past the edge, all 0: the frame as it is). Deterministic.
 void extend_with_views(const MultiViewInputs& in, const cv::Mat& depth_back_view,

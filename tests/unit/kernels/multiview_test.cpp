@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include "kernels/environment.h"
 #include "kernels/half_resolution.h"
 #include "kernels/metrics.h"
 #include "kernels/multiview.h"
@@ -342,6 +343,51 @@ TEST(GuardBand, AnOccluderJustOffScreenDarkensTheEdge) {
                 std::string(to_string(method)).c_str(), std::string(to_string(preset)).c_str(), strip, e0, e1);
     EXPECT_LT(e1, 0.7 * e0);
   }
+}
+
+// SSDO's senders in the band reflect the light of the view that saw them. A white wall
+// lit by a uniform sky, and a red box just past the left edge, 0.3 in front of it: by the
+// edge the wall gets the box's red bounce. With the view's depth only, the band's box
+// occludes but sends nothing; with its albedo and lighting it sends what the frame would
+// have seen.
+TEST(GuardBand, SendersInTheBandReflectTheLightOfTheViewThatSawThem) {
+  raycast::Scene scene;
+  scene.planes.push_back({{0.0f, 3.0f, 0.0f}, {0.0f, -1.0f, 0.0f}, glm::vec3(0.8f)});
+  scene.boxes.push_back({{-3.9f, 2.4f, 0.0f}, {0.3f, 0.3f, 0.8f}, glm::mat3(1.0f), glm::vec3(0.9f, 0.1f, 0.1f)});
+  const raycast::EnvironmentRadiance sky = raycast::uniform_environment();
+  const Environment environment = Environment::constant(glm::vec3(1.0f));
+  GBuffer g = raycast::render_gbuffer(scene, camera_at(0.0f), 2);
+  g.lighting = raycast::reference_light(scene, g, sky, kInf, 64, 3, 2).direct;
+  const SsdoSettings s = ssdo_preset(SsdoMethod::ssdo, Preset::high);
+  const cv::Mat reference = raycast::reference_light(scene, g, sky, s.radius_world, 512, 5, 2).indirect;
+  const GBuffer seen = raycast::render_gbuffer(scene, camera_at(-0.5f), 2);
+  DepthView lit{seen.camera, seen.depth_view, "f-1"};
+  lit.albedo = seen.albedo;
+  lit.lighting = raycast::reference_light(scene, seen, sky, kInf, 64, 3, 2).direct;
+  const DepthView depth_only{seen.camera, seen.depth_view, "f-1"};
+  const cv::Rect edge(0, 0, int(g.camera.pixels_per_unit(5.4f).x), g.depth_view.rows);  // a radius at the box
+  const auto red = [&](const cv::Mat& rgb) {
+    cv::Mat r;
+    cv::extractChannel(rgb(edge), r, 0);
+    return r;
+  };
+  // The red indirect light by the edge with one view: its mean, and its MAE against the exact.
+  const auto red_by_the_edge = [&](const DepthView& view, double& error) {
+    const std::vector<DepthView> views{view};
+    const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &environment,
+                        &g.albedo,    &g.lighting,   nullptr,         views};
+    TermOutputs out;
+    compute_terms(in, {nullptr, &s, nullptr}, out, {}, 2);
+    error = compare_images(red(out.ssdo.indirect), red(reference), g.mask(edge)).mae;
+    return cv::mean(red(out.ssdo.indirect), g.mask(edge))[0];
+  };
+  double error_depth_only = 0, error_lit = 0;
+  const double red_depth_only = red_by_the_edge(depth_only, error_depth_only);
+  const double red_lit = red_by_the_edge(lit, error_lit);
+  std::printf("red bounce by the left edge: exact %.4f; depth-only view %.4f (MAE %.4f), lit view %.4f (MAE %.4f)\n",
+              cv::mean(red(reference), g.mask(edge))[0], red_depth_only, error_depth_only, red_lit, error_lit);
+  EXPECT_GT(red_lit, red_depth_only + 0.01);
+  EXPECT_LT(error_lit, error_depth_only);
 }
 
 // Kernel inputs of a grid padded by an empty band (no view saw anything past the edges).
