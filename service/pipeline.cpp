@@ -327,6 +327,14 @@ ReadOptions reads_for(const FrameRequest& request) {
   return read;
 }
 
+ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read) {
+  ReadOptions view = depth_only(read);
+  const bool ssdo = terms_computed(request).ssdo;
+  view.read_albedo = read.read_albedo && ssdo;
+  view.read_lighting = read.read_lighting && ssdo;
+  return view;
+}
+
 ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const TermSelection& terms = request.terms;

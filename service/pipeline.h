@@ -156,6 +156,11 @@ ComputedFrame io_only_frame(const GBuffer& gbuffer, const FrameRequest& request)
 // (OpenEXR still inflates whole chunks: every channel of a ZIP block is in one stream).
 ReadOptions reads_for(const FrameRequest& request);
 
+// What the request's neighbouring frames are read for as views: their depth, and where the
+// request computes SSDO, their albedo and lighting as far as `read` reads them (the light
+// of the senders they show past this frame's edges: kernels/multiview.h, the guard band).
+ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read);
+
 // Where process_frame gets its frame: read and completed (service/frame_inputs.h), with
 // its extra views attached (GBuffer::views). Without one: read_frame, no views.
 class FrameSource {

@@ -96,7 +96,11 @@ ReadResult SequenceContext::read_in_window(const FrameRequest& request, const Re
   if (frame.ok()) {
     // The frame's depth image is shared, not copied: compute_frame releases only its own
     // reference.
+    const ReadOptions as_view = view_reads_for(request, read);
     self.view = DepthView{frame.gbuffer.camera, frame.gbuffer.depth_view, file_name(name)};
+    if (as_view.read_albedo) self.view->albedo = frame.gbuffer.albedo;
+    if (as_view.read_lighting) self.view->lighting = frame.gbuffer.lighting;
+    self.view_read = read_key(as_view);
     self.camera = frame.gbuffer.camera;
     self.camera_has_world = has_world(frame.info);
     if (request.views_per_side <= 0) return frame;
@@ -226,17 +230,22 @@ SequenceContext::Entry& SequenceContext::candidate(const NeighbourFrame& n, cons
   return e;
 }
 
-bool SequenceContext::load_view(const NeighbourFrame& n, const ReadOptions& read, Entry& e) {
-  if (e.view) return true;
+bool SequenceContext::load_view(const NeighbourFrame& n, const ReadOptions& read, const ReadOptions& view_read,
+                                Entry& e) {
+  // A view read for its depth only is read again for a request that also needs its light.
+  const ReadOptions as_view = neighbour_read(n, view_read);
+  if (e.view && e.view_read == read_key(as_view)) return true;
   const std::string& path = n.open_path.empty() ? n.path : n.open_path;
-  ReadResult r = n.computed_later ? read_frame(path, neighbour_read(n, read))
-                                  : read_gbuffer(path, depth_only(neighbour_read(n, read)));
+  ReadResult r = n.computed_later ? read_frame(path, neighbour_read(n, read)) : read_gbuffer(path, as_view);
   ++(n.computed_later ? reads_.whole : reads_.depth_only);
   if (!r.ok()) {
     e.error = r.error;
     return false;
   }
   e.view = DepthView{r.gbuffer.camera, r.gbuffer.depth_view, file_name(n.path)};
+  if (as_view.read_albedo) e.view->albedo = r.gbuffer.albedo;
+  if (as_view.read_lighting) e.view->lighting = r.gbuffer.lighting;
+  e.view_read = read_key(as_view);
   if (n.computed_later) e.whole = std::move(r);
   return true;
 }
@@ -263,9 +272,10 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
                                          median_foreground_depth(g.depth_view, g.mask), candidates, settings);
   info.notes.insert(info.notes.end(), choice.notes.begin(), choice.notes.end());
   std::string names;
+  const ReadOptions view_read = view_reads_for(request, read);
   for (size_t i : choice.chosen) {
     Entry& e = cache_[sources[i]->path];
-    if (!load_view(*sources[i], read, e)) {
+    if (!load_view(*sources[i], read, view_read, e)) {
       info.notes.push_back(candidates[i].name + ": skipped as a view (" + e.error + ")");
       continue;
     }
@@ -275,7 +285,7 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
   info.notes.push_back("views:" + (names.empty() ? std::string(" none") : names) + " (read " +
                        std::to_string(reads_.whole + reads_.depth_only) + " files for " +
                        std::to_string(reads_.frames) + " frames: " + std::to_string(reads_.whole) + " whole, " +
-                       std::to_string(reads_.depth_only) + " depth only; " + std::to_string(reads_.headers) +
+                       std::to_string(reads_.depth_only) + " as views only; " + std::to_string(reads_.headers) +
                        " headers)");
 }
 

@@ -9,7 +9,8 @@
 //    depth (service/view_selection.h);
 // 3. reads each chosen view not in the cache: whole when the same worker computes it
 //    later (NeighbourFrame::computed_later: it is then read once for both uses), else its
-//    depth only (ReadOptions depth_only);
+//    depth only, with its albedo and lighting when the frame computes SSDO
+//    (view_reads_for, service/pipeline.h);
 // 4. drops what no frame of the current window needs (a sliding window: frames are
 //    computed in order within a worker).
 // Memory: at most one depth map and camera per frame of the window (2 x 3K + 1) and the
@@ -93,7 +94,8 @@ class SequenceContext : public FrameSource {
  private:
   struct Entry {
     std::optional<ReadResult> whole;   // read whole for a frame computed later
-    std::optional<DepthView> view;     // its depth and camera
+    std::optional<DepthView> view;     // its depth and camera (and light: view_read)
+    std::string view_read;             // read_key of the read that gave `view`
     std::optional<Camera> camera;      // from its header
     bool camera_has_world = false;
     std::string error;                 // why it cannot be a view
@@ -105,7 +107,7 @@ class SequenceContext : public FrameSource {
     std::string raw_error;
   };
   Entry& candidate(const NeighbourFrame& n, const ReadOptions& read);
-  bool load_view(const NeighbourFrame& n, const ReadOptions& read, Entry& e);
+  bool load_view(const NeighbourFrame& n, const ReadOptions& read, const ReadOptions& view_read, Entry& e);
   void attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame);
   ReadResult read_in_window(const FrameRequest& request, const ReadOptions& read);
   const RawFrame* neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);
