@@ -1,4 +1,4 @@
-// The pipeline's read narrowing (reads_for), the I/O floor's stand-in terms
+// The pipeline's read narrowing (reads_for, view_reads_for), the I/O floor's stand-in terms
 // (io_only_frame) against compute_frame, and compute_frame consuming its G-buffer.
 #include "service/pipeline.h"
 
@@ -41,6 +41,28 @@ TEST(ReadsFor, OnlyTheInputsTheTermsUse) {
   off.read.read_lighting = false;
   EXPECT_FALSE(reads_for(off).read_lighting);
   EXPECT_FALSE(reads_for(request_for("ssdo")).read_references);
+}
+
+// Neighbours read as views: depth, plus albedo and lighting only for SSDO's senders.
+TEST(ReadsFor, ViewsBringTheirLightOnlyToSsdo) {
+  for (const std::string terms : {"ao", "ao,composite"}) {
+    const FrameRequest r = request_for(terms);
+    const ReadOptions view = view_reads_for(r, reads_for(r));
+    EXPECT_FALSE(view.read_albedo) << terms;
+    EXPECT_FALSE(view.read_lighting) << terms;
+    EXPECT_FALSE(view.read_normals) << terms;
+  }
+  const FrameRequest ssdo = request_for("ao,ssdo");
+  const ReadOptions view = view_reads_for(ssdo, reads_for(ssdo));
+  EXPECT_TRUE(view.read_albedo);
+  EXPECT_TRUE(view.read_lighting);
+  EXPECT_FALSE(view.read_normals);
+  EXPECT_FALSE(view.read_positions);
+  EXPECT_FALSE(view.read_references);
+  // What the frame does not read, its views do not either.
+  FrameRequest unlit = request_for("ssdo");
+  unlit.read.read_lighting = false;
+  EXPECT_FALSE(view_reads_for(unlit, reads_for(unlit)).read_lighting);
 }
 
 // A small synthetic frame: a tilted plane with a box on it.
