@@ -1,6 +1,7 @@
 // The kernels give the same bits on every instruction set they are compiled for
 // (core/simd.h): the best one this CPU runs against the baseline fallback, on a frame
-// whose odd width sends pixels down both the vector and the per-pixel paths.
+// whose odd width sends pixels down both the vector and the per-pixel paths, alone and with
+// two other views of the scene.
 #include "core/simd.h"
 
 #include <gtest/gtest.h>
@@ -20,13 +21,14 @@ struct Terms {
   cv::Mat normals, denoised, blurred;
 };
 
-Terms all_terms(const GBuffer& g, const Environment& sky) {
+Terms all_terms(const GBuffer& g, const Environment& sky, std::span<const DepthView> views = {}) {
   AoSettings ao = ao_preset(AoMethod::gtao, Preset::medium);
   ao.multibounce = true;
   const SsdoSettings light = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
   const ConfidenceSettings confidence;
   Terms t;
-  const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo};
+  const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo,
+                      &g.lighting,  nullptr,       views};
   compute_terms(in, {&ao, &light, &confidence}, t.terms, {}, 2);
   reconstruct_normals_from_depth(g.depth_view, g.mask, g.camera, t.normals, {}, 2);
   denoise_bilateral(t.terms.ao.ao, g.depth_view, g.normal_view, g.mask, DenoiseSettings{}, t.denoised, {}, 2);
@@ -39,26 +41,55 @@ double differing(const cv::Mat& a, const cv::Mat& b) {
   return cv::norm(a, b, cv::NORM_INF);
 }
 
+// Frame t of the ray caster's trucking shot, with its light (any light: the bits are
+// compared, not the values).
+GBuffer shot_frame(const raycast::Scene& scene, int t) {
+  GBuffer g = raycast::render_gbuffer(scene, raycast::truck_shot_camera(t, 203, 97), 0);
+  g.lighting = g.albedo;
+  return g;
+}
+
 TEST(Simd, EveryInstructionSetGivesTheSameBits) {
   const GBuffer g = raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(203, 97), 0);
   const Environment sky = Environment::sky(SkyGradient{});
+  // A frame of a shot with the frames on either side as views (the multi-view passes:
+  // occupancy walk, decided bins, point verdicts, the guard band and its senders' light).
+  const raycast::Scene shot = raycast::truck_shot_scene();
+  const GBuffer middle = shot_frame(shot, 3), before = shot_frame(shot, 1), after = shot_frame(shot, 5);
+  std::vector<DepthView> views{{before.camera, before.depth_view, "f1"}, {after.camera, after.depth_view, "f5"}};
+  for (auto [view, frame] : {std::pair{&views[0], &before}, std::pair{&views[1], &after}}) {
+    view->albedo = frame->albedo;
+    view->lighting = frame->lighting;
+  }
   const bool was_baseline = simd_target() == simd_baseline_target();
   use_best_simd();
   const std::string best = simd_target();
-  const Terms on_best = all_terms(g, sky);
+  const Terms on_best[] = {all_terms(g, sky), all_terms(middle, sky, views)};
   use_baseline_simd();
   EXPECT_EQ(simd_target(), simd_baseline_target());
-  const Terms on_baseline = all_terms(g, sky);
+  const Terms on_baseline[] = {all_terms(g, sky), all_terms(middle, sky, views)};
   if (!was_baseline) use_best_simd();
-  EXPECT_LT(cv::mean(on_best.terms.ao.ao)[0], 0.99);  // something is occluded
-  EXPECT_EQ(differing(on_best.terms.ao.ao, on_baseline.terms.ao.ao), 0.0) << best;
-  EXPECT_EQ(differing(on_best.terms.ao.bent_normal_view, on_baseline.terms.ao.bent_normal_view), 0.0) << best;
-  EXPECT_EQ(differing(on_best.terms.ssdo.direct, on_baseline.terms.ssdo.direct), 0.0) << best;
-  EXPECT_EQ(differing(on_best.terms.ssdo.indirect, on_baseline.terms.ssdo.indirect), 0.0) << best;
-  EXPECT_EQ(differing(on_best.terms.confidence, on_baseline.terms.confidence), 0.0) << best;
-  EXPECT_EQ(differing(on_best.normals, on_baseline.normals), 0.0) << best;
-  EXPECT_EQ(differing(on_best.denoised, on_baseline.denoised), 0.0) << best;
-  EXPECT_EQ(differing(on_best.blurred, on_baseline.blurred), 0.0) << best;
+  ASSERT_EQ(on_best[1].terms.views.size(), 2u);
+  EXPECT_TRUE(on_best[1].terms.views[0].used && on_best[1].terms.views[1].used);
+  for (int with_views : {0, 1}) {
+    const Terms& a = on_best[with_views];
+    const Terms& b = on_baseline[with_views];
+    const std::string what = best + (with_views ? " with views" : "");
+    EXPECT_LT(cv::mean(a.terms.ao.ao)[0], 0.99);  // something is occluded
+    EXPECT_EQ(differing(a.terms.ao.ao, b.terms.ao.ao), 0.0) << what;
+    EXPECT_EQ(differing(a.terms.ao.bent_normal_view, b.terms.ao.bent_normal_view), 0.0) << what;
+    EXPECT_EQ(differing(a.terms.ssdo.direct, b.terms.ssdo.direct), 0.0) << what;
+    EXPECT_EQ(differing(a.terms.ssdo.indirect, b.terms.ssdo.indirect), 0.0) << what;
+    EXPECT_EQ(differing(a.terms.confidence, b.terms.confidence), 0.0) << what;
+    EXPECT_EQ(differing(a.normals, b.normals), 0.0) << what;
+    EXPECT_EQ(differing(a.denoised, b.denoised), 0.0) << what;
+    EXPECT_EQ(differing(a.blurred, b.blurred), 0.0) << what;
+  }
+  // The views change the terms (else the comparison above would not reach their passes).
+  const Terms alone = all_terms(middle, sky);
+  EXPECT_GT(differing(alone.terms.ao.ao, on_best[1].terms.ao.ao), 0.0);
+  EXPECT_GT(differing(alone.terms.ssdo.indirect, on_best[1].terms.ssdo.indirect), 0.0);
+  EXPECT_GT(differing(alone.terms.confidence, on_best[1].terms.confidence), 0.0);
 }
 
 }  // namespace
