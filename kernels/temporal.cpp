@@ -30,28 +30,6 @@ struct Neighbour {
   Reprojection reprojection;
 };
 
-inline glm::vec3 normal_at(const cv::Mat& normal_view, int x, int y) {
-  const float* n = normal_view.ptr<float>(y) + 3 * x;
-  return {n[0], n[1], n[2]};
-}
-
-// The weight of texel (tx, ty) of a neighbour for the carried point p of a pixel at planar
-// depth depth_view (temporal.h), without the bilinear factor; 0 outside the image, on
-// background or on another surface. inverse_tolerance = 1 / (depth_tolerance_relative x
-// depth_view), the pixel's.
-inline float texel_weight(const Neighbour& n, const Reprojection::Carried& p, float inverse_tolerance, int tx, int ty,
-                          const TemporalSettings& s) {
-  const TemporalFrame& u = *n.frame;
-  if (tx < 0 || ty < 0 || tx >= u.depth_view.cols || ty >= u.depth_view.rows || !u.mask.ptr<uint8_t>(ty)[tx])
-    return 0.0f;
-  const float e = Reprojection::plane_distance(p, tx, ty, u.depth_view.ptr<float>(ty)[tx]);
-  const float w_plane = 1.0f - e * inverse_tolerance;
-  if (!(w_plane > 0.0f)) return 0.0f;
-  const float c = glm::dot(p.normal_view, normal_at(u.normal_view, tx, ty));
-  if (!(c > 0.0f)) return 0.0f;
-  return w_plane * power_of(c, s.normal_power);
-}
-
 namespace hn = hwy::HWY_NAMESPACE;
 using DF = hn::ScalableTag<float>;
 using DI = hn::RebindToSigned<DF>;
@@ -146,18 +124,18 @@ struct GroupSums {
   VF total;
 };
 
-// Texel i (0..3: x0 + (i & 1), y0 + (i >> 1)) of the bilinear footprint of carried points
-// c in neighbour u: its weight (temporal.h) added with its channels where it agrees.
-void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside, VI x0, VI y0, VF bilinear,
-                     VF inverse_tolerance, float normal_power, int cols, int rows, GroupSums& sums) {
+// The weight (temporal.h) of texels (tx, ty) of neighbour u for carried points c, times
+// `bilinear`: positive where `ok` (inside, in the image, on the neighbour's foreground, on the
+// same surface, facing alike), 0 elsewhere; sx, sy: the texels, (0, 0) where not in the image.
+VF texel_weight_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside, VI tx, VI ty, VF bilinear,
+                      VF inverse_tolerance, float normal_power, int cols, int rows, MF& ok, VI& sx, VI& sy) {
   const DF d;
   const DI di;
-  const VI tx = x0, ty = y0;
-  MF ok = hn::And(inside, hn::Gt(bilinear, hn::Zero(d)));
+  ok = hn::And(inside, hn::Gt(bilinear, hn::Zero(d)));
   const VI minus_one = hn::Set(di, -1);
   ok = hn::And(ok, hn::RebindMask(d, hn::And(hn::And(hn::Gt(tx, minus_one), hn::Gt(ty, minus_one)),
                                              hn::And(hn::Lt(tx, hn::Set(di, cols)), hn::Lt(ty, hn::Set(di, rows))))));
-  const VI sx = hn::IfThenElseZero(hn::RebindMask(di, ok), tx), sy = hn::IfThenElseZero(hn::RebindMask(di, ok), ty);
+  sx = hn::IfThenElseZero(hn::RebindMask(di, ok), tx), sy = hn::IfThenElseZero(hn::RebindMask(di, ok), ty);
   // Background texels: the mask, a byte per texel, read lane by lane.
   HWY_ALIGN int32_t xs[kMaxLanes], ys[kMaxLanes], foreground[kMaxLanes];
   hn::Store(sx, di, xs);
@@ -179,6 +157,18 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
   ok = hn::And(ok, hn::And(hn::Gt(w_plane, hn::Zero(d)), hn::Gt(cosine, hn::Zero(d))));
   const VF w = hn::Mul(bilinear, hn::Mul(w_plane, power_of(d, hn::IfThenElseZero(ok, cosine), normal_power)));
   ok = hn::And(ok, hn::Gt(w, hn::Zero(d)));
+  return hn::IfThenElseZero(ok, w);
+}
+
+// Texel i (0..3: x0 + (i & 1), y0 + (i >> 1)) of the bilinear footprint of carried points
+// c in neighbour u: its weight (temporal.h) added with its channels where it agrees.
+void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside, VI x0, VI y0, VF bilinear,
+                     VF inverse_tolerance, float normal_power, int cols, int rows, GroupSums& sums) {
+  const DF d;
+  const DI di;
+  MF ok;
+  VI sx, sy;
+  const VF w = texel_weight_lanes(u, c, inside, x0, y0, bilinear, inverse_tolerance, normal_power, cols, rows, ok, sx, sy);
   sums.total = hn::IfThenElse(ok, hn::Add(sums.total, w), sums.total);
   int k = 0;
   for (const Plane& term : u.terms) {
@@ -265,6 +255,52 @@ void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours,
   }
 }
 
+// Counts of measure_neighbour over pixels x = x0 + kMeasureStridePx i (i: the lanes) of row
+// y: the frame's foreground pixels, those that project into the neighbour, and those whose
+// nearest texel there has no weight (background, or the plane or normal test fails).
+struct MeasureCounts {
+  int64_t foreground = 0, seen = 0, disagree = 0;
+};
+void measure_lanes(const TemporalFrame& f, const Neighbour& n, const NeighbourPlanes& u, const TemporalSettings& s,
+                   int y, int x0, MeasureCounts& counts) {
+  const DF d;
+  const DI di;
+  const size_t lanes = hn::Lanes(d);
+  const float* depth_row = f.depth_view.ptr<float>(y);
+  const float* normal_row = f.normal_view.ptr<float>(y);
+  const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
+  HWY_ALIGN float depth[kMaxLanes], nx[kMaxLanes], ny[kMaxLanes], nz[kMaxLanes], fg[kMaxLanes];
+  for (size_t i = 0; i < lanes; ++i) {
+    const int x = x0 + kMeasureStridePx * int(i);
+    const bool in = x < f.depth_view.cols && mask_row[x];
+    depth[i] = in ? depth_row[x] : 1.0f;
+    nx[i] = in ? normal_row[3 * x] : 0.0f;
+    ny[i] = in ? normal_row[3 * x + 1] : 0.0f;
+    nz[i] = in ? normal_row[3 * x + 2] : 0.0f;
+    fg[i] = in ? 1.0f : 0.0f;
+  }
+  const VF px = hn::Add(hn::ConvertTo(d, hn::Add(hn::Mul(hn::Iota(di, 0), hn::Set(di, kMeasureStridePx)), hn::Set(di, x0))),
+                        hn::Set(d, 0.5f));
+  const VF depth_v = hn::Load(d, depth);
+  const MF foreground = hn::Gt(hn::Load(d, fg), hn::Zero(d));
+  const CarriedLanes c = carry_lanes(n.reprojection, px, hn::Set(d, float(y) + 0.5f), depth_v,
+                                     {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)});
+  const int cols = n.frame->depth_view.cols, rows = n.frame->depth_view.rows;
+  MF seen = hn::And(foreground, c.valid);
+  seen = hn::And(seen, hn::And(hn::Ge(c.pixel_x, hn::Zero(d)), hn::Ge(c.pixel_y, hn::Zero(d))));
+  seen = hn::And(seen, hn::And(hn::Lt(c.pixel_x, hn::Set(d, float(cols))), hn::Lt(c.pixel_y, hn::Set(d, float(rows)))));
+  // The texel holding the point (truncation is the floor: the coordinates are >= 0).
+  const VI tx = hn::ConvertTo(di, hn::IfThenElseZero(seen, c.pixel_x));
+  const VI ty = hn::ConvertTo(di, hn::IfThenElseZero(seen, c.pixel_y));
+  const VF inverse_tolerance = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, s.depth_tolerance_relative), depth_v));
+  MF ok;
+  VI sx, sy;
+  texel_weight_lanes(u, c, seen, tx, ty, hn::Set(d, 1.0f), inverse_tolerance, s.normal_power, cols, rows, ok, sx, sy);
+  counts.foreground += int64_t(hn::CountTrue(d, foreground));
+  counts.seen += int64_t(hn::CountTrue(d, seen));
+  counts.disagree += int64_t(hn::CountTrue(d, hn::AndNot(ok, seen)));
+}
+
 // Per neighbour, over every kMeasureStridePx-th pixel of every kMeasureStridePx-th row of
 // the frame's foreground: the points that project into it and those whose nearest texel
 // holds another surface (background, or the plane or normal test fails). Integer counts:
@@ -272,27 +308,15 @@ void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours,
 void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const TemporalSettings& s, TemporalUse& use,
                        int nthreads) {
   std::atomic<int64_t> foreground{0}, seen{0}, disagree{0};
-  const cv::Mat& depth_u = n.frame->depth_view;
+  const NeighbourPlanes planes = planes_of(*n.frame);
   const int measured_rows = (f.depth_view.rows + kMeasureStridePx - 1) / kMeasureStridePx;
+  const int group_px = kMeasureStridePx * int(hn::Lanes(DF()));
   parallel_rows(cv::Range(0, measured_rows), nthreads, [&](const cv::Range& rows) {
-    int64_t strip_foreground = 0, strip_seen = 0, strip_disagree = 0;
+    MeasureCounts strip;
     for (int y = rows.start * kMeasureStridePx; y < rows.end * kMeasureStridePx && y < f.depth_view.rows;
-         y += kMeasureStridePx) {
-      const float* depth_row = f.depth_view.ptr<float>(y);
-      const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
-      for (int x = 0; x < f.depth_view.cols; x += kMeasureStridePx) {
-        if (!mask_row[x]) continue;
-        ++strip_foreground;
-        const Reprojection::Carried p = n.reprojection.carry(x, y, depth_row[x], normal_at(f.normal_view, x, y));
-        if (!(p.pixel.x >= 0.0f && p.pixel.y >= 0.0f && p.pixel.x < float(depth_u.cols) &&
-              p.pixel.y < float(depth_u.rows)))
-          continue;
-        ++strip_seen;
-        const float inverse_tolerance = 1.0f / (s.depth_tolerance_relative * depth_row[x]);
-        strip_disagree += texel_weight(n, p, inverse_tolerance, int(p.pixel.x), int(p.pixel.y), s) <= 0.0f;
-      }
-    }
-    foreground += strip_foreground, seen += strip_seen, disagree += strip_disagree;
+         y += kMeasureStridePx)
+      for (int x0 = 0; x0 < f.depth_view.cols; x0 += group_px) measure_lanes(f, n, planes, s, y, x0, strip);
+    foreground += strip.foreground, seen += strip.seen, disagree += strip.disagree;
   });
   use.overlap = foreground > 0 ? float(double(seen) / double(foreground)) : 0.0f;
   use.disagreement = seen > 0 ? float(double(disagree) / double(seen)) : 0.0f;
