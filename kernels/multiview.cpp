@@ -16,8 +16,6 @@ namespace {
 
 using multiview_detail::Constants;
 using multiview_detail::kInfinity;
-using multiview_detail::RayInView;
-using multiview_detail::Verdict;
 using multiview_detail::ViewGeometry;
 using multiview_detail::view_geometry;
 using multiview_detail::views_from;
@@ -31,25 +29,7 @@ constexpr int kMeasureStridePx = 4;
 void measure_views(const MultiViewInputs& in, const Constants& k, std::vector<ViewUse>& uses, int nthreads) {
   const int rows = in.depth_view.rows, nv = int(k.views.size());
   std::vector<int64_t> seen(size_t(rows) * size_t(nv), 0), contradicted(seen.size(), 0);
-  const PixelRays rays = pixel_rays(in.camera);
-  parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& range) {
-    std::vector<RayInView> ray(k.views.size());
-    for (int y = range.start; y < range.end; ++y) {
-      if (y % kMeasureStridePx != 0) continue;
-      const float* depth_row = in.depth_view.ptr<float>(y);
-      const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      for (int x = 0; x < in.depth_view.cols; x += kMeasureStridePx) {
-        if (!mask_row[x]) continue;
-        multiview_detail::pixel_ray(k, rays, x, y, ray);
-        for (int i = 0; i < nv; ++i) {
-          const Verdict v = multiview_detail::classify(k.views[size_t(i)], ray[size_t(i)], depth_row[x],
-                                                       k.s.depth_bias_relative, k.s.thickness_world);
-          seen[size_t(y) * size_t(nv) + size_t(i)] += v != Verdict::unknown;
-          contradicted[size_t(y) * size_t(nv) + size_t(i)] += v == Verdict::free;
-        }
-      }
-    }
-  });
+  multiview_detail::count_view_verdicts(in, k, kMeasureStridePx, seen, contradicted, nthreads);
   int64_t foreground = 0;
   for (int y = 0; y < rows; y += kMeasureStridePx) {
     const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);

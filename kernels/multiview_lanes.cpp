@@ -22,8 +22,6 @@ namespace {
 namespace hn = hwy::HWY_NAMESPACE;
 using multiview_detail::Constants;
 using multiview_detail::kInfinity;
-using multiview_detail::RayInView;
-using multiview_detail::Verdict;
 using multiview_detail::ViewGeometry;
 
 // Pixels walked together: the foreground pixels of a row, kGroup at a time, in as many
@@ -31,7 +29,9 @@ using multiview_detail::ViewGeometry;
 constexpr int kGroup = 8;
 using GroupTag = hn::CappedTag<float, kGroup>;
 
-// The rays of a group of pixels in one view, [component][pixel] (RayInView in lanes).
+// The rays of a group of pixels in one view, [component][pixel]: clip = clip0 + d clip1 and
+// planar depth depth0 + d depth1 at planar depth d in this frame (the ray's points are affine
+// in d, and so are their clip coordinates and depth in the view).
 struct RayLanes {
   alignas(32) float clip0[4][kGroup], clip1[4][kGroup];
   alignas(32) float depth0[kGroup], depth1[kGroup];
@@ -125,7 +125,8 @@ HWY_INLINE hn::Vec<D> dot4(D d, const float (&row)[4], hn::Vec<D> v0, hn::Vec<D>
 }
 
 // Fills the rays of the group's pixels in every view (lanes past n repeat the last pixel):
-// multiview_detail::pixel_ray in lanes, its glm arithmetic in the same order.
+// pixel (x, y)'s ray through its centre, p(d) = a + d b (PixelRays), taken into each view as
+// clip_from_frame_view (a, 1) and (b, 0), in the order glm's mat4 x vec4 and dot() add.
 void set_up_rays(const Constants& k, const PixelRays& rays, Group& g) {
   const GroupTag d;
   const hn::RebindToSigned<GroupTag> di;
@@ -228,15 +229,16 @@ void set_up_active_views(const Constants& k, Group& g) {
   }
 }
 
-// The foreground pixels of row y, kGroup at a time: `visit` gets each group with its rays.
+// The foreground pixels of every stride_px-th column of row y, kGroup at a time: `visit` gets
+// each group with its rays.
 template <class Visit>
-void for_each_group(const MultiViewInputs& in, const Constants& k, const PixelRays& rays, int y, Group& g,
-                    const Visit& visit) {
+void for_each_group(const MultiViewInputs& in, const Constants& k, const PixelRays& rays, int y, int stride_px,
+                    Group& g, const Visit& visit) {
   const float* depth_row = in.depth_view.ptr<float>(y);
   const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
   g.y = y;
   g.n = 0;
-  for (int x = 0; x < in.depth_view.cols; ++x) {
+  for (int x = 0; x < in.depth_view.cols; x += stride_px) {
     if (!mask_row[x] || !(depth_row[x] > 0.0f && std::isfinite(depth_row[x]))) continue;
     g.x[g.n++] = x;
     if (g.n == kGroup) {
@@ -269,7 +271,7 @@ void write_back_layer(const MultiViewInputs& in, const Constants& k, cv::Mat& ba
     for (int y = range.start; y < range.end; ++y) {
       float* back_row = back.ptr<float>(y);
       std::fill(back_row, back_row + back.cols, kInfinity);  // background; foreground below
-      for_each_group(in, k, rays, y, g, [&](Group& group) {
+      for_each_group(in, k, rays, y, 1, g, [&](Group& group) {
         for (int j = 0; j < kGroup; ++j) {
           const int x = group.x[std::min(j, group.n - 1)];
           group.front[j] = in.depth_view.ptr<float>(y)[x];
@@ -294,7 +296,7 @@ void write_decided_bins(const MultiViewInputs& in, const Constants& k, float sur
     const hn::RebindToSigned<GroupTag> di;
     for (int y = range.start; y < range.end; ++y) {
       uint8_t* out = decided.ptr<uint8_t>(y);
-      for_each_group(in, k, rays, y, g, [&](Group& group) {
+      for_each_group(in, k, rays, y, 1, g, [&](Group& group) {
         alignas(32) int32_t bits[kGroup];
         for (int j = 0; j < kGroup; ++j) group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
         for (size_t j0 = 0; j0 < size_t(kGroup); j0 += hn::Lanes(d)) {
@@ -322,53 +324,64 @@ void write_decided_bins(const MultiViewInputs& in, const Constants& k, float sur
 
 void decide_points(const Constants& k, std::span<const glm::vec3> points_view, std::span<uint8_t> decided) {
   const GroupTag d;
-  std::vector<RayLanes> rays(k.views.size());
+  RayLanes ray;  // one view's at a time
   alignas(32) float decided_lanes[kGroup];
   for (size_t p0 = 0; p0 < points_view.size(); p0 += kGroup) {
     const size_t n = std::min(points_view.size() - p0, size_t(kGroup));
-    // Each point as a ray of zero direction, read at d = 0 (lanes past n repeat the last).
-    for (int j = 0; j < kGroup; ++j) {
-      const glm::vec4 q(points_view[p0 + std::min(size_t(j), n - 1)], 1.0f);
-      for (size_t v = 0; v < k.views.size(); ++v) {
+    std::fill(decided_lanes, decided_lanes + kGroup, 0.0f);
+    for (size_t v = 0; v < k.views.size(); ++v) {
+      // Each point as a ray of zero direction, read at d = 0 (lanes past n repeat the last).
+      for (int j = 0; j < kGroup; ++j) {
+        const glm::vec4 q(points_view[p0 + std::min(size_t(j), n - 1)], 1.0f);
         const glm::vec4 clip = k.views[v].clip_from_frame_view * q;
         for (int c = 0; c < 4; ++c) {
-          rays[v].clip0[c][j] = clip[c];
-          rays[v].clip1[c][j] = 0.0f;
+          ray.clip0[c][j] = clip[c];
+          ray.clip1[c][j] = 0.0f;
         }
-        rays[v].depth0[j] = glm::dot(k.views[v].depth_from_frame_view, q);
-        rays[v].depth1[j] = 0.0f;
+        ray.depth0[j] = glm::dot(k.views[v].depth_from_frame_view, q);
+        ray.depth1[j] = 0.0f;
       }
-    }
-    for (size_t j0 = 0; j0 < size_t(kGroup); j0 += hn::Lanes(d)) {
-      auto decides = hn::Lt(hn::Zero(d), hn::Zero(d));  // all false
-      for (size_t v = 0; v < k.views.size() && !hn::AllTrue(d, decides); ++v) {
+      bool all_decided = true;
+      for (size_t j0 = 0; j0 < size_t(kGroup); j0 += hn::Lanes(d)) {
+        const auto before = hn::Ne(hn::Load(d, decided_lanes + j0), hn::Zero(d));
+        if (hn::AllTrue(d, before)) continue;
         hn::Mask<GroupTag> free, occupied;
-        classify_lanes(d, k.views[v], ray_vectors(d, rays[v], j0), hn::Zero(d), k.s.depth_bias_relative,
+        classify_lanes(d, k.views[v], ray_vectors(d, ray, j0), hn::Zero(d), k.s.depth_bias_relative,
                        k.s.thickness_world, free, occupied);
-        decides = hn::Or(decides, hn::Or(free, occupied));
+        const auto now = hn::Or(before, hn::Or(free, occupied));
+        hn::Store(hn::IfThenElseZero(now, hn::Set(d, 1.0f)), d, decided_lanes + j0);
+        all_decided = all_decided && hn::AllTrue(d, now);
       }
-      hn::Store(hn::IfThenElseZero(decides, hn::Set(d, 1.0f)), d, decided_lanes + j0);
+      if (all_decided) break;  // no later view changes a decided point
     }
     for (size_t j = 0; j < n; ++j) decided[p0 + j] = decided_lanes[j] != 0.0f;
   }
 }
 
-// One point, as the lanes do it.
-Verdict classify(const ViewGeometry& v, const RayInView& r, float depth, float bias_relative, float thickness) {
-  using OneLane = hn::CappedTag<float, 1>;
-  const OneLane d;
-  RayVectors<OneLane> ray;
-  for (int c = 0; c < 4; ++c) {
-    ray.clip0[c] = hn::Set(d, r.clip0[c]);
-    ray.clip1[c] = hn::Set(d, r.clip1[c]);
-  }
-  ray.depth0 = hn::Set(d, r.depth0);
-  ray.depth1 = hn::Set(d, r.depth1);
-  hn::Mask<OneLane> free, occupied;
-  const auto known = classify_lanes(d, v, ray, hn::Set(d, depth), bias_relative, thickness, free, occupied);
-  if (hn::AllTrue(d, free)) return Verdict::free;
-  if (hn::AllTrue(d, occupied)) return Verdict::occupied;
-  return hn::AllTrue(d, known) ? Verdict::beyond : Verdict::unknown;
+void count_view_verdicts(const MultiViewInputs& in, const Constants& k, int stride_px, std::span<int64_t> seen,
+                         std::span<int64_t> contradicted, int nthreads) {
+  const PixelRays rays = pixel_rays(in.camera);
+  const size_t nv = k.views.size();
+  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
+    Group g = make_group(k);
+    const GroupTag d;
+    for (int y = range.start; y < range.end; ++y) {
+      if (y % stride_px != 0) continue;
+      for_each_group(in, k, rays, y, stride_px, g, [&](Group& group) {
+        for (int j = 0; j < kGroup; ++j) group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
+        for (size_t j0 = 0; j0 < size_t(group.n); j0 += hn::Lanes(d)) {
+          const auto pixels = hn::FirstN(d, size_t(group.n) - j0);  // not the repeated lanes
+          for (size_t v = 0; v < nv; ++v) {
+            hn::Mask<GroupTag> free, occupied;
+            const auto known = classify_lanes(d, k.views[v], ray_vectors(d, group.rays[v], j0), hn::Load(d, group.front + j0),
+                                              k.s.depth_bias_relative, k.s.thickness_world, free, occupied);
+            seen[size_t(y) * nv + v] += int64_t(hn::CountTrue(d, hn::And(pixels, known)));
+            contradicted[size_t(y) * nv + v] += int64_t(hn::CountTrue(d, hn::And(pixels, free)));
+          }
+        }
+      });
+    }
+  });
 }
 
 }  // namespace ssdo::HWY_NAMESPACE
@@ -379,7 +392,7 @@ namespace ssdo::multiview_detail {
 
 HWY_EXPORT(write_back_layer);
 HWY_EXPORT(write_decided_bins);
-HWY_EXPORT(classify);
+HWY_EXPORT(count_view_verdicts);
 HWY_EXPORT(decide_points);
 
 void decide_points(const Constants& k, std::span<const glm::vec3> points_view, std::span<uint8_t> decided) {
@@ -395,8 +408,9 @@ void write_decided_bins(const MultiViewInputs& in, const Constants& k, float sur
   HWY_DYNAMIC_DISPATCH(write_decided_bins)(in, k, surface_scale, bin_depth, bins, decided, nthreads);
 }
 
-Verdict classify(const ViewGeometry& v, const RayInView& r, float d, float bias_relative, float thickness) {
-  return HWY_DYNAMIC_DISPATCH(classify)(v, r, d, bias_relative, thickness);
+void count_view_verdicts(const MultiViewInputs& in, const Constants& k, int stride_px, std::span<int64_t> seen,
+                         std::span<int64_t> contradicted, int nthreads) {
+  HWY_DYNAMIC_DISPATCH(count_view_verdicts)(in, k, stride_px, seen, contradicted, nthreads);
 }
 
 }  // namespace ssdo::multiview_detail

@@ -1,7 +1,6 @@
 // What the multi-view passes share (kernels/multiview.cpp, and its per-pixel passes in
-// kernels/multiview_lanes.cpp): each view as seen from this frame, a pixel's ray in it, and
-// the verdict of a view on a point of that ray (the rule and the free-space test in
-// kernels/multiview.h). Internal to the kernels.
+// kernels/multiview_lanes.cpp): each view as seen from this frame, and the per-pixel passes
+// (the rule and the free-space test in kernels/multiview.h). Internal to the kernels.
 #pragma once
 
 #include <cstdint>
@@ -36,24 +35,6 @@ inline ViewGeometry view_geometry(const Camera& frame, const DepthView& v) {
           float(v.camera.height_px)};
 }
 
-// What a view says about a point.
-enum class Verdict : uint8_t {
-  unknown,   // outside its image or behind its eye
-  free,      // in front of the surface it stores there
-  occupied,  // behind that surface, within the thickness
-  beyond,    // farther behind it than the thickness: no say
-};
-
-// A verdict that decides a point (the rule of PointVerdicts, multiview.h).
-inline bool decides(Verdict v) { return v == Verdict::free || v == Verdict::occupied; }
-
-// A point along one pixel's ray, as seen by one view: clip = clip0 + d clip1 and planar
-// depth depth0 + d depth1 at planar depth d in this frame.
-struct RayInView {
-  glm::vec4 clip0, clip1;
-  float depth0, depth1;
-};
-
 struct Constants {
   MultiViewSettings s;
   std::vector<ViewGeometry> views;
@@ -68,19 +49,6 @@ inline Constants views_from(const Camera& frame, std::span<const DepthView> view
   return k;
 }
 
-// Pixel (x, y)'s ray in every view (rays: the frame's, pixel_rays of its camera).
-inline void pixel_ray(const Constants& k, const PixelRays& rays, int x, int y, std::span<RayInView> in_view) {
-  const float px = float(x) + 0.5f, py = float(y) + 0.5f;
-  // The ray's points are affine in planar depth d: p(d) = a + d b (perspective: a = 0).
-  const glm::vec3 a = rays.origin(px, py), b = rays.direction(px, py);
-  for (size_t i = 0; i < k.views.size(); ++i) {
-    const ViewGeometry& v = k.views[i];
-    in_view[i] = {v.clip_from_frame_view * glm::vec4(a, 1.0f), v.clip_from_frame_view * glm::vec4(b, 0.0f),
-                  glm::dot(v.depth_from_frame_view, glm::vec4(a, 1.0f)),
-                  glm::dot(v.depth_from_frame_view, glm::vec4(b, 0.0f))};
-  }
-}
-
 // This frame's own occluder interval ends at the file's back layer, or at the thickness.
 inline float own_back_depth(const MultiViewInputs& in, const MultiViewSettings& s, int x, int y, float front) {
   if (in.depth_back_view == nullptr || in.depth_back_view->empty()) return front + s.thickness_world;
@@ -90,9 +58,12 @@ inline float own_back_depth(const MultiViewInputs& in, const MultiViewSettings& 
 
 // ---- The per-pixel passes (multiview_lanes.cpp: several pixels per instruction) ----
 
-// What view v says about the point at planar depth d on a ray (the free-space test of
-// multiview.h).
-Verdict classify(const ViewGeometry& v, const RayInView& r, float d, float bias_relative, float thickness);
+// Per view v, over the foreground pixels of every stride_px-th column of every stride_px-th
+// row y: how many it can see (inside its image, in front of its eye), in seen[y nv + v], and
+// how many of those it sees free space in front of (the free-space test of multiview.h), in
+// contradicted[y nv + v]; nv = k.views.size(), both spans rows x nv, zeroed by the caller.
+void count_view_verdicts(const MultiViewInputs& in, const Constants& k, int stride_px, std::span<int64_t> seen,
+                         std::span<int64_t> contradicted, int nthreads);
 
 // The back layer of every foreground pixel of `in` (multiview.h, occupancy_from_views), by
 // the views of k; +inf on background. `back` CV_32FC1 at the frame's size.
