@@ -210,6 +210,31 @@ void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const
   }
 }
 
+// The frame's pixels x = x0 + step_px i of row y, one per lane: depth, normal, and whether
+// each is foreground (pixels at or past x_end and background ones: depth 1, normal 0).
+struct FrameLanes {
+  VF depth;
+  Vec3L normal;
+  MF foreground;
+};
+FrameLanes frame_lanes(const TemporalFrame& f, int y, int x0, int step_px, int x_end) {
+  const DF d;
+  const float* depth_row = f.depth_view.ptr<float>(y);
+  const float* normal_row = f.normal_view.ptr<float>(y);
+  const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
+  HWY_ALIGN float depth[kMaxLanes], nx[kMaxLanes], ny[kMaxLanes], nz[kMaxLanes], fg[kMaxLanes];
+  for (size_t i = 0; i < hn::Lanes(d); ++i) {
+    const int x = x0 + step_px * int(i);
+    const bool in = x < x_end && mask_row[x];
+    depth[i] = in ? depth_row[x] : 1.0f;
+    nx[i] = in ? normal_row[3 * x] : 0.0f;
+    ny[i] = in ? normal_row[3 * x + 1] : 0.0f;
+    nz[i] = in ? normal_row[3 * x + 2] : 0.0f;
+    fg[i] = in ? 1.0f : 0.0f;
+  }
+  return {hn::Load(d, depth), {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)}, hn::Gt(hn::Load(d, fg), hn::Zero(d))};
+}
+
 // One row of the roi: each pixel's terms filtered (temporal.h), or copied where nothing
 // agrees; pixels a vector of lanes at a time (the last group's extra lanes are computed as
 // background and not written).
@@ -218,27 +243,15 @@ void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours,
                 int y, int x_begin, int x_end) {
   const DF d;
   const size_t lanes = hn::Lanes(d);
-  const float* depth_row = f.depth_view.ptr<float>(y);
-  const float* normal_row = f.normal_view.ptr<float>(y);
-  const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
-  HWY_ALIGN float depth[kMaxLanes], nx[kMaxLanes], ny[kMaxLanes], nz[kMaxLanes], fg[kMaxLanes];
   for (int x0 = x_begin; x0 < x_end; x0 += int(lanes)) {
     const int count = std::min(int(lanes), x_end - x0);
-    for (int i = 0; i < int(lanes); ++i) {
-      const bool in = i < count && mask_row[x0 + i];
-      depth[i] = in ? depth_row[x0 + i] : 1.0f;
-      nx[i] = in ? normal_row[3 * (x0 + i)] : 0.0f;
-      ny[i] = in ? normal_row[3 * (x0 + i) + 1] : 0.0f;
-      nz[i] = in ? normal_row[3 * (x0 + i) + 2] : 0.0f;
-      fg[i] = in ? 1.0f : 0.0f;
-    }
+    const FrameLanes pixels = frame_lanes(f, y, x0, 1, x_end);
     GroupSums sums;
     sums.total = hn::Zero(d);
     for (auto& channel : sums.channel) hn::Store(hn::Zero(d), d, channel);
     const VF px = hn::Add(hn::ConvertTo(d, hn::Iota(DI(), x0)), hn::Set(d, 0.5f));
-    neighbour_taps_lanes(neighbours, planes, px, hn::Set(d, float(y) + 0.5f), hn::Load(d, depth),
-                         {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)}, hn::Gt(hn::Load(d, fg), hn::Zero(d)), s,
-                         sums);
+    neighbour_taps_lanes(neighbours, planes, px, hn::Set(d, float(y) + 0.5f), pixels.depth, pixels.normal,
+                         pixels.foreground, s, sums);
     HWY_ALIGN float total[kMaxLanes];
     hn::Store(sums.total, d, total);
     int k = 0;
@@ -265,26 +278,12 @@ void measure_lanes(const TemporalFrame& f, const Neighbour& n, const NeighbourPl
                    int y, int x0, MeasureCounts& counts) {
   const DF d;
   const DI di;
-  const size_t lanes = hn::Lanes(d);
-  const float* depth_row = f.depth_view.ptr<float>(y);
-  const float* normal_row = f.normal_view.ptr<float>(y);
-  const uint8_t* mask_row = f.mask.ptr<uint8_t>(y);
-  HWY_ALIGN float depth[kMaxLanes], nx[kMaxLanes], ny[kMaxLanes], nz[kMaxLanes], fg[kMaxLanes];
-  for (size_t i = 0; i < lanes; ++i) {
-    const int x = x0 + kMeasureStridePx * int(i);
-    const bool in = x < f.depth_view.cols && mask_row[x];
-    depth[i] = in ? depth_row[x] : 1.0f;
-    nx[i] = in ? normal_row[3 * x] : 0.0f;
-    ny[i] = in ? normal_row[3 * x + 1] : 0.0f;
-    nz[i] = in ? normal_row[3 * x + 2] : 0.0f;
-    fg[i] = in ? 1.0f : 0.0f;
-  }
+  const FrameLanes pixels = frame_lanes(f, y, x0, kMeasureStridePx, f.depth_view.cols);
   const VF px = hn::Add(hn::ConvertTo(d, hn::Add(hn::Mul(hn::Iota(di, 0), hn::Set(di, kMeasureStridePx)), hn::Set(di, x0))),
                         hn::Set(d, 0.5f));
-  const VF depth_v = hn::Load(d, depth);
-  const MF foreground = hn::Gt(hn::Load(d, fg), hn::Zero(d));
-  const CarriedLanes c = carry_lanes(n.reprojection, px, hn::Set(d, float(y) + 0.5f), depth_v,
-                                     {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)});
+  const VF depth_v = pixels.depth;
+  const MF foreground = pixels.foreground;
+  const CarriedLanes c = carry_lanes(n.reprojection, px, hn::Set(d, float(y) + 0.5f), depth_v, pixels.normal);
   const int cols = n.frame->depth_view.cols, rows = n.frame->depth_view.rows;
   MF seen = hn::And(foreground, c.valid);
   seen = hn::And(seen, hn::And(hn::Ge(c.pixel_x, hn::Zero(d)), hn::Ge(c.pixel_y, hn::Zero(d))));
