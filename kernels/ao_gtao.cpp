@@ -48,7 +48,8 @@
 //
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
 // becomes packed texels (build_texels); tiles of pixels are scheduled with the next row's
-// taps prefetched (shade_tile, plan_pixel); per pixel (shade_pixel) and slice
+// taps planned and each pixel's taps prefetched (shade_tile, plan_pixel, prefetch_pixel);
+// per pixel (shade_pixel) and slice
 // (integrate_slice): the slice basis (slice_basis), then either the height-field horizons
 // and their integral (height_field_horizons, height_field_integral) or the visibility mask
 // and its integral (visibility_mask, visibility_mask_integral), and the slice's bent normal
@@ -77,10 +78,16 @@ namespace {
 constexpr int kSectors = 64;
 
 // Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: a row of a tile is
-// prefetched while the row above is shaded, and 64 px of shading hide the wait better than
+// planned while the row above is shaded, and 64 px of shading hide the wait better than
 // 32; 32 tall: the strips of the parallel loop, whose count balances the threads.
 constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
+
+// When a pixel's tap indices are kept (kKeptChunks), its taps' texels are asked for this
+// many pixels before it is shaded, not a whole row before: a row's taps (64 px x 32 taps x
+// 64 B at medium) overflow the 32 KiB first-level cache before they are read, four pixels'
+// (8 KiB) do not, and four pixels of shading still cover the wait for the next cache level.
+constexpr int kPrefetchAheadPx = 4;
 
 // Steps whose taps are read together, before their arithmetic (see chunk_indices).
 constexpr int kChunkSteps = 8;
@@ -814,10 +821,10 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
   }
 }
 
-// Pixel (x, y)'s tap pattern, at xi in the next tile row, and a prefetch of its taps'
-// texels; its tap indices are kept in the row when they fit (kKeptChunks). Always inlined:
-// the prefetches have to be issued from the tile loop itself, between the shading of the
-// row above's pixels.
+// Pixel (x, y)'s tap pattern, at xi in the next tile row; its tap indices are kept in the
+// row when they fit (kKeptChunks), else its taps' texels are asked for now, a row ahead.
+// Always inlined: the prefetches have to be issued from the tile loop itself, between the
+// shading of the row above's pixels.
 [[gnu::always_inline]] inline void plan_pixel(const Constants& k, const Frame& f, int x, int y, TileRow& row,
                                               size_t xi) {
   PixelTaps& p = row.pixel[xi];
@@ -830,24 +837,40 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
       int32_t* index = k.keep_indices ? row.index[xi][c] : scratch_index;
       int32_t* skip = k.keep_indices ? row.skip[xi][c] : scratch_skip;
       tap_indices(k.grid, p.step_noise, p.radius_px, x, y, i, d, j0, index, skip);
-      for (int m = 0; m < kChunkTaps; ++m)
-        if (index[m] >= 0) __builtin_prefetch(f.texels.data() + index[m]);
+      if (!k.keep_indices)
+        for (int m = 0; m < kChunkTaps; ++m)
+          if (index[m] >= 0) __builtin_prefetch(f.texels.data() + index[m]);
     }
   }
 }
 
-// The tile [x0, x1) x [y0, y1). Each row's tap patterns are computed, and their texels
-// asked for, while the row above is shaded: a tap's texel is anywhere within the radius,
-// mostly not in the nearest cache, and a row's worth of shading hides the wait.
+// The texels of the taps of pixel xi of a planned row (its kept tap indices), asked for a
+// few pixels before it is shaded.
+[[gnu::always_inline]] inline void prefetch_pixel(const Constants& k, const Frame& f, const TileRow& row, size_t xi) {
+  if (!row.pixel[xi].has_taps) return;
+  const int chunks = k.slices * k.chunks_per_slice;
+  for (int c = 0; c < chunks; ++c)
+    for (int m = 0; m < kChunkTaps; ++m) __builtin_prefetch(f.texels.data() + std::max(row.index[xi][c][m], 0));
+}
+
+// The tile [x0, x1) x [y0, y1). Each row's tap patterns are computed while the row above
+// is shaded, and their texels asked for kPrefetchAheadPx pixels before their shading (a row
+// ahead when the indices are not kept): a tap's texel is anywhere within the radius, mostly
+// not in the nearest cache.
 inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
   TileRow rows[2];
   TileRow* shaded_row = &rows[0];
   TileRow* next_row = &rows[1];
   for (int y = y0; y <= y1; ++y) {
+    if (y > y0 && k.keep_indices)
+      for (int x = x0; x < std::min(x0 + kPrefetchAheadPx, x1); ++x) prefetch_pixel(k, f, *shaded_row, size_t(x - x0));
     for (int x = x0; x < x1; ++x) {
       const size_t xi = size_t(x - x0);
       if (y < y1) plan_pixel(k, f, x, y, *next_row, xi);
-      if (y > y0) shade_pixel(k, f, x, y - 1, *shaded_row, xi);
+      if (y > y0) {
+        if (k.keep_indices && x + kPrefetchAheadPx < x1) prefetch_pixel(k, f, *shaded_row, xi + kPrefetchAheadPx);
+        shade_pixel(k, f, x, y - 1, *shaded_row, xi);
+      }
     }
     if (y > y0) finish_row(k, f.in, out, x0, x1, y - 1, *shaded_row);
     std::swap(shaded_row, next_row);
