@@ -164,11 +164,11 @@ struct SideState {
 // runs in full vector registers without a remainder.
 constexpr int kChunkTaps = 2 * kChunkSteps;
 
-// Chunks per pixel (slices x chunks per slice) whose tap indices, computed for the
-// prefetch, are kept for the shading: 2 covers the low (1 x 6 steps) and medium (2 x 8)
-// presets; more would grow the kept rows out of the nearest cache, and those pixels
-// compute their indices again.
-constexpr int kKeptChunks = 2;
+// Chunks per pixel (slices x chunks per slice) whose tap indices, computed when the row is
+// planned, are kept for the prefetch and the shading: 6 covers the low (1 x 6 steps),
+// medium (2 x 8) and high (3 x 16) presets (two rows of 37 KiB); ultra's pixels (6 x 16)
+// compute their indices again and are prefetched a row ahead.
+constexpr int kKeptChunks = 6;
 
 // The side constants per lane.
 struct TapLanes {
