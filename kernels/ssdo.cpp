@@ -358,6 +358,7 @@ struct SampleBatch {
   int texel_at[kPoints];
   int on_screen_at[kPoints];
   TapTexel texels[kPoints];
+  float thickness[kPoints];  // the occluder thickness behind each point's texel (tap_thickness)
 
   glm::vec3 w(int s) const { return {wx[s], wy[s], wz[s]}; }
   glm::vec4 clip_w_dir(int s) const { return {cwx[s], cwy[s], cwz[s], cww[s]}; }
@@ -429,9 +430,13 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
     b.on_screen_at[k] = int(q.on_screen);
   }
   for (int k = 0; k < points; ++k) b.texels[k] = c.pyramid[b.texel_at[k]];
+  if (c.pyramid_thickness)
+    for (int k = 0; k < points; ++k) b.thickness[k] = c.pyramid_thickness[b.texel_at[k]];
+  else
+    std::fill_n(b.thickness, points, c.s.thickness_world);
   for (int k = 0; k < points; ++k)
     b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, b.texels[k],
-                              tap_thickness(c, b.texel_at[k]));
+                              b.thickness[k]);
 }
 
 // Bisection between lambda lo (in front of the depth buffer) and hi (behind it), on
