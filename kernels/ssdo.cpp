@@ -357,7 +357,9 @@ struct SampleBatch {
   float px_at[kPoints], py_at[kPoints];
   int texel_at[kPoints];
   int on_screen_at[kPoints];
-  TapTexel texels[kPoints];
+  // Each point's texel, field by field: the copies are read by a loop over the points.
+  float texel_depth[kPoints], texel_inv_depth_dx[kPoints], texel_inv_depth_dy[kPoints];
+  uint32_t texel_source[kPoints];
   float thickness[kPoints];  // the occluder thickness behind each point's texel (tap_thickness)
 
   glm::vec3 w(int s) const { return {wx[s], wy[s], wz[s]}; }
@@ -408,9 +410,10 @@ inline void sample_directions(const Constants& c, const Receiver& rcv, const Ray
 }
 
 // The occlusion test (paper sec. 3.1: a point is occluded when it lies behind the depth
-// buffer) of every point of every direction of the batch, in four loops without branches:
-// the points, where they project (vectorises), their texels copied together (one 16-byte
-// read each), the tests (vectorises, reading the copies).
+// buffer) of every point of every direction of the batch, in loops without branches: the
+// points, where they project (vectorises), their texels copied together (one 16-byte read
+// each, stored field by field) with their occluder thickness, the tests (vectorises,
+// reading the copies' fields as arrays).
 inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame& f, SampleBatch& b) {
   const int steps = c.s.sample_steps;
   for (int j = 0; j < steps; ++j)
@@ -429,13 +432,20 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
     b.texel_at[k] = q.texel;
     b.on_screen_at[k] = int(q.on_screen);
   }
-  for (int k = 0; k < points; ++k) b.texels[k] = c.pyramid[b.texel_at[k]];
+  for (int k = 0; k < points; ++k) {
+    const TapTexel& t = c.pyramid[b.texel_at[k]];
+    b.texel_depth[k] = t.depth_view;
+    b.texel_inv_depth_dx[k] = t.inv_depth_dx;
+    b.texel_inv_depth_dy[k] = t.inv_depth_dy;
+    b.texel_source[k] = t.source;
+  }
   if (c.pyramid_thickness)
     for (int k = 0; k < points; ++k) b.thickness[k] = c.pyramid_thickness[b.texel_at[k]];
   else
     std::fill_n(b.thickness, points, c.s.thickness_world);
   for (int k = 0; k < points; ++k)
-    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, b.texels[k],
+    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0,
+                              TapTexel{b.texel_depth[k], b.texel_inv_depth_dx[k], b.texel_inv_depth_dy[k], b.texel_source[k]},
                               b.thickness[k]);
 }
 
