@@ -383,20 +383,22 @@ template <bool perspective, bool per_texel_thickness>
 // false (the height-field model) the occluder segments are skipped, and so they are on a
 // side without an occluder (its taps all on or below the tangent plane: the common case on
 // open surfaces and on the lower side of a slope; that side's u0 and u1 are then left
-// unwritten, and the ordered pass reads them only for occluders).
+// unwritten, and the ordered pass reads them only for occluders). Returns bit s set when
+// side s has an occluder (see slice_coordinates).
 // Not inlined: inlined into the pixel loop, its selects no longer become blends and the
 // loops stay scalar.
 template <bool perspective, bool segments>
 [[gnu::noinline]]
-void tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
-                  const SliceFrame& f, TapGeometry& __restrict g) {
+int tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
+                 const SliceFrame& f, TapGeometry& __restrict g) {
   const int occluders = slice_coordinates(texels, taps, f, g);
-  if (!segments) return;
+  if (!segments) return occluders;
   for (int side = 0; side < 2; ++side) {
     if (!((occluders >> side) & 1)) continue;
     if (f.texel_thickness != nullptr) segment_intervals<perspective, true>(taps, lanes, f, side * kChunkSteps, g);
     else segment_intervals<perspective, false>(taps, lanes, f, side * kChunkSteps, g);
   }
+  return occluders;
 }
 
 // The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
@@ -602,9 +604,10 @@ struct Horizons {
     TapChunk taps;
     chunk_indices(k, px, i, d, j0, taps);
     TapGeometry geo;
-    k.perspective ? tap_geometry<true, false>(f.texels.data(), taps, b.lanes, b.frame, geo)
-                  : tap_geometry<false, false>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    const int occluders = k.perspective ? tap_geometry<true, false>(f.texels.data(), taps, b.lanes, b.frame, geo)
+                                        : tap_geometry<false, false>(f.texels.data(), taps, b.lanes, b.frame, geo);
     for (int side = 0; side < 2; ++side) {
+      if (!((occluders >> side) & 1)) continue;  // only occluders raise the horizon
       float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
       const float low_cos = side == 0 ? b.low_cos_pos : b.low_cos_neg;
       for (int jj = 0; jj < chunk; ++jj) {
@@ -701,9 +704,13 @@ inline float height_field_integral(const Horizons& h, float cos_n, float sin_n) 
     TapChunk taps;
     chunk_indices(k, px, i, d, j0, taps);
     TapGeometry geo;
-    k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, b.lanes, b.frame, geo)
-                  : tap_geometry<false, true>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    const int occluders = k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, b.lanes, b.frame, geo)
+                                        : tap_geometry<false, true>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    const bool last_chunk = j0 + kChunkSteps >= k.steps;
     for (int side = 0; side < 2; ++side) {
+      // A side without an occluder sets no sector and raises no horizon; its taps only
+      // update the side's last tap, which nothing reads after the slice's last chunk.
+      if (last_chunk && !((occluders >> side) & 1)) continue;
       SideState& st = state[side];
       float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
       for (int jj = 0; jj < chunk; ++jj)
