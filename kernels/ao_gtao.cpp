@@ -49,8 +49,8 @@
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
 // becomes packed texels (build_texels); tiles of pixels are scheduled with the next row's
 // taps planned and each pixel's taps prefetched (shade_tile, plan_pixel, prefetch_pixel);
-// per pixel (shade_pixel) and slice
-// (integrate_slice): the slice basis (slice_basis), then either the height-field horizons
+// a row's points and slice bases are computed across its pixels (plan_bases, slice_basis);
+// per pixel (shade_pixel) and slice (integrate_slice): either the height-field horizons
 // and their integral (height_field_horizons, height_field_integral) or the visibility mask
 // and its integral (visibility_mask, visibility_mask_integral), and the slice's bent normal
 // (slice_bent_normal); a row's sums become AO and bent normal in finish_row.
@@ -169,6 +169,11 @@ constexpr int kChunkTaps = 2 * kChunkSteps;
 // medium (2 x 8) and high (3 x 16) presets (two rows of 37 KiB); ultra's pixels (6 x 16)
 // compute their indices again and are prefetched a row ahead.
 constexpr int kKeptChunks = 6;
+
+// Slices per pixel whose bases are computed for a whole tile row before it is shaded, in
+// loops over the row's pixels that vectorise (plan_bases): 3 covers the low, medium and
+// high presets (a row's bases: 15 KiB); with more, each basis is computed at its slice.
+constexpr int kKeptSlices = 3;
 
 // The side constants per lane.
 struct TapLanes {
@@ -419,6 +424,7 @@ struct Constants {
   TapGrid grid;
   int chunks_per_slice;
   bool keep_indices;  // a pixel's tap indices fit in its tile row (kKeptChunks)
+  bool keep_bases;    // a pixel's slice bases fit in its row's (kKeptSlices)
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
   // slice in the pixel loop.
   std::vector<std::array<float, 2>> slice_rot;
@@ -440,6 +446,7 @@ struct Constants {
         grid{in.depth_view.cols, in.depth_view.rows, s.directions, s.steps},
         chunks_per_slice((s.steps + kChunkSteps - 1) / kChunkSteps),
         keep_indices(slices * chunks_per_slice <= kKeptChunks),
+        keep_bases(slices <= kKeptSlices),
         slice_rot(size_t(s.directions)) {
     for (int i = 0; i < slices; ++i) {
       // The float pi widened to double (the slice angles' bits depend on it).
@@ -514,33 +521,54 @@ struct TileRow {
 }
 
 // Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
-[[gnu::always_inline]] inline glm::vec2 slice_direction(const Constants& k, const PixelTaps& p, int i) {
+[[gnu::always_inline]] inline glm::vec2 slice_direction(const Constants& k, float rot_c, float rot_s, int i) {
   const std::array<float, 2>& r = k.slice_rot[size_t(i)];
-  const float cos_phi = p.rot_c * r[0] - p.rot_s * r[1];
-  const float sin_phi = p.rot_s * r[0] + p.rot_c * r[1];
+  const float cos_phi = rot_c * r[0] - rot_s * r[1];
+  const float sin_phi = rot_s * r[0] + rot_c * r[1];
   return glm::vec2(cos_phi, -sin_phi);
 }
+[[gnu::always_inline]] inline glm::vec2 slice_direction(const Constants& k, const PixelTaps& p, int i) {
+  return slice_direction(k, p.rot_c, p.rot_s, i);
+}
 
-// The pixel being shaded (GTAO Alg. 1 lines 1-4): where it is, its tile row (which holds
-// its tap pattern), and its biased origin, normal and view vector.
+// A pixel's point (GTAO Alg. 1 lines 1-4): its biased origin, normal and view vector.
+struct PixelPoint {
+  glm::vec3 origin, normal, view;
+};
+
+[[gnu::always_inline]] inline PixelPoint pixel_point(const Constants& k, const Frame& f, int x, int y) {
+  const AoInputs& in = f.in;
+  const float depth = in.depth_view.ptr<float>(y)[x];
+  const cv::Vec3f& n_px = in.normal_view.ptr<cv::Vec3f>(y)[x];
+  const Texel& centre = f.texels[size_t(y) * size_t(k.grid.width) + size_t(x)];
+  const glm::vec3 p(centre.x, centre.y, centre.z);
+  const glm::vec3 normal(n_px[0], n_px[1], n_px[2]);
+  const glm::vec3 view = view_vector(in.camera, p);
+  return {biased_origin(p, normal, depth, k.depth_bias_relative), normal, view};
+}
+
+struct RowBases;
+
+// The pixel being shaded: where it is, its tile row (which holds its tap pattern), and its
+// row's points and slice bases.
 struct ShadedPixel {
   int x, y;
   const TileRow& row;
   size_t xi;
-  glm::vec3 origin, normal, view;
+  const RowBases& bases;
 };
 
 // A slice's basis as the taps' arithmetic needs it (GTAO Alg. 1 lines 8-16), and its
 // measure.
 struct SliceBasis {
   SliceFrame frame;
-  TapLanes lanes;
   float pn_len;                    // |projected normal|: the slice's weight
   float weight_total;              // the slice measure between the tangent limits
   float low_cos_pos, low_cos_neg;  // the tangent limits' cosines: the lowest horizons
+  float lim_pos, lim_neg;          // the hemisphere's limit angles per side
 };
 
-[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const Frame& f, const ShadedPixel& px,
+[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const Frame& f, const PixelPoint& px,
                                                      glm::vec2 d) {
   const Slice sl = make_slice(k.screen_to_view(d.x, d.y), px.view, px.normal);
   // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
@@ -560,16 +588,77 @@ struct SliceBasis {
                           glm::dot(origin, axis), -view.z, -dir.z, -axis.z, k.r2, cos_n, sin_n,
                           std::abs(cos_n), weight_neg, inv_total,
                           f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
-               {}, sl.projected_normal_length, weight_total, low_cos_pos, low_cos_neg};
-  // Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the side's
-  // sign of the angle, its hemisphere limit and the limit's cosine.
+               sl.projected_normal_length, weight_total, low_cos_pos, low_cos_neg, lim_pos, lim_neg};
+  return b;
+}
+
+// Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the side's sign
+// of the angle, its hemisphere limit and the limit's cosine.
+inline void fill_tap_lanes(const SliceBasis& b, TapLanes& lanes) {
   for (int m = 0; m < kChunkTaps; ++m) {
     const bool pos = m < kChunkSteps;
-    b.lanes.sign[m] = pos ? 1.0f : -1.0f;
-    b.lanes.lim[m] = pos ? lim_pos : lim_neg;
-    b.lanes.cos_lim[m] = pos ? low_cos_pos : low_cos_neg;
+    lanes.sign[m] = pos ? 1.0f : -1.0f;
+    lanes.lim[m] = pos ? b.lim_pos : b.lim_neg;
+    lanes.cos_lim[m] = pos ? b.low_cos_pos : b.low_cos_neg;
   }
-  return b;
+}
+
+// The points and slice bases of a tile row's pixels, field by field (slice i of pixel xi at
+// [i][xi]), so that the loops computing them run over the pixels in vector lanes: a basis
+// is a chain of divisions and square roots per pixel and slice, which one pixel at a time
+// would run in scalar registers.
+struct RowBases {
+  alignas(64) float origin[3][kTileWidthPx], normal[3][kTileWidthPx], view[3][kTileWidthPx];
+  alignas(64) float rot_c[kTileWidthPx], rot_s[kTileWidthPx];  // the pixels' slice rotation
+  alignas(64) float dir[kKeptSlices][3][kTileWidthPx], axis[kKeptSlices][3][kTileWidthPx];
+  alignas(64) float origin_v[kKeptSlices][kTileWidthPx], origin_d[kKeptSlices][kTileWidthPx],
+      origin_a[kKeptSlices][kTileWidthPx];
+  alignas(64) float cos_n[kKeptSlices][kTileWidthPx], sin_n[kKeptSlices][kTileWidthPx];
+  alignas(64) float weight_neg[kKeptSlices][kTileWidthPx], inv_total[kKeptSlices][kTileWidthPx];
+  alignas(64) float pn_len[kKeptSlices][kTileWidthPx], weight_total[kKeptSlices][kTileWidthPx];
+  alignas(64) float lim_pos[kKeptSlices][kTileWidthPx], lim_neg[kKeptSlices][kTileWidthPx];
+
+  void set_point(size_t xi, const PixelPoint& p) {
+    for (int c = 0; c < 3; ++c) origin[c][xi] = p.origin[c], normal[c][xi] = p.normal[c], view[c][xi] = p.view[c];
+  }
+  PixelPoint point(size_t xi) const {
+    return {{origin[0][xi], origin[1][xi], origin[2][xi]},
+            {normal[0][xi], normal[1][xi], normal[2][xi]},
+            {view[0][xi], view[1][xi], view[2][xi]}};
+  }
+  void set_basis(int i, size_t xi, const SliceBasis& b) {
+    for (int c = 0; c < 3; ++c) dir[i][c][xi] = b.frame.dir[c], axis[i][c][xi] = b.frame.axis[c];
+    origin_v[i][xi] = b.frame.origin_v, origin_d[i][xi] = b.frame.origin_d, origin_a[i][xi] = b.frame.origin_a;
+    cos_n[i][xi] = b.frame.cos_n, sin_n[i][xi] = b.frame.sin_n;
+    weight_neg[i][xi] = b.frame.weight_neg, inv_total[i][xi] = b.frame.inv_total;
+    pn_len[i][xi] = b.pn_len, weight_total[i][xi] = b.weight_total;
+    lim_pos[i][xi] = b.lim_pos, lim_neg[i][xi] = b.lim_neg;
+  }
+  // The basis slice_basis gave, from its fields.
+  SliceBasis basis(const Constants& k, const Frame& f, int i, size_t xi) const {
+    const PixelPoint p = point(xi);
+    const glm::vec3 d(dir[i][0][xi], dir[i][1][xi], dir[i][2][xi]);
+    const glm::vec3 a(axis[i][0][xi], axis[i][1][xi], axis[i][2][xi]);
+    const float c = cos_n[i][xi], sn = sin_n[i][xi];
+    return {SliceFrame{p.origin, p.normal, p.view, d, a, origin_v[i][xi], origin_d[i][xi], origin_a[i][xi], -p.view.z,
+                       -d.z, -a.z, k.r2, c, sn, std::abs(c), weight_neg[i][xi], inv_total[i][xi],
+                       f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
+            pn_len[i][xi], weight_total[i][xi], -sn, sn, lim_pos[i][xi], lim_neg[i][xi]};
+  }
+};
+
+// The points of row y's pixels x0 .. x1 - 1 and, when kept, their slice bases, before the
+// row is shaded (pixels without taps compute values nobody reads: no branch in the loops).
+inline void plan_bases(const Constants& k, const Frame& f, int x0, int x1, int y, const TileRow& row, RowBases& rb) {
+  const int n = x1 - x0;
+  for (int xi = 0; xi < n; ++xi) rb.set_point(size_t(xi), pixel_point(k, f, x0 + xi, y));
+  if (!k.keep_bases) return;
+  for (int xi = 0; xi < n; ++xi) rb.rot_c[xi] = row.pixel[size_t(xi)].rot_c, rb.rot_s[xi] = row.pixel[size_t(xi)].rot_s;
+  for (int i = 0; i < k.slices; ++i)
+    for (int xi = 0; xi < n; ++xi) {
+      const size_t x = size_t(xi);
+      rb.set_basis(i, x, slice_basis(k, f, rb.point(x), slice_direction(k, rb.rot_c[x], rb.rot_s[x], i)));
+    }
 }
 
 // The tap indices of steps j0 .. j0 + kChunkSteps - 1 of slice i: kept by the prefetch when
@@ -599,13 +688,15 @@ struct Horizons {
 // distance falloff (GTAO sec. 4.3, "Bounding the sampling area"; XeGTAO).
 [[gnu::always_inline]] inline void height_field_horizons(const Constants& k, const Frame& f, const ShadedPixel& px,
                                                          int i, glm::vec2 d, const SliceBasis& b, Horizons& h) {
+  TapLanes lanes;
+  fill_tap_lanes(b, lanes);
   for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
     const int chunk = std::min(kChunkSteps, k.steps - j0);
     TapChunk taps;
     chunk_indices(k, px, i, d, j0, taps);
     TapGeometry geo;
-    const int occluders = k.perspective ? tap_geometry<true, false>(f.texels.data(), taps, b.lanes, b.frame, geo)
-                                        : tap_geometry<false, false>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    const int occluders = k.perspective ? tap_geometry<true, false>(f.texels.data(), taps, lanes, b.frame, geo)
+                                        : tap_geometry<false, false>(f.texels.data(), taps, lanes, b.frame, geo);
     for (int side = 0; side < 2; ++side) {
       if (!((occluders >> side) & 1)) continue;  // only occluders raise the horizon
       float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
@@ -699,13 +790,15 @@ inline float height_field_integral(const Horizons& h, float cos_n, float sin_n) 
                                                        int i, glm::vec2 d, const SliceBasis& b, Horizons& h) {
   uint64_t occupied = 0;
   SideState state[2];
+  TapLanes lanes;
+  fill_tap_lanes(b, lanes);
   for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
     const int chunk = std::min(kChunkSteps, k.steps - j0);
     TapChunk taps;
     chunk_indices(k, px, i, d, j0, taps);
     TapGeometry geo;
-    const int occluders = k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, b.lanes, b.frame, geo)
-                                        : tap_geometry<false, true>(f.texels.data(), taps, b.lanes, b.frame, geo);
+    const int occluders = k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, lanes, b.frame, geo)
+                                        : tap_geometry<false, true>(f.texels.data(), taps, lanes, b.frame, geo);
     const bool last_chunk = j0 + kChunkSteps >= k.steps;
     for (int side = 0; side < 2; ++side) {
       // A side without an occluder sets no sector and raises no horizon; its taps only
@@ -752,7 +845,7 @@ struct PixelSums {
 [[gnu::always_inline]] inline void integrate_slice(const Constants& k, const Frame& f, const ShadedPixel& px, int i,
                                                    PixelSums& sums) {
   const glm::vec2 d = slice_direction(k, px.row.pixel[px.xi], i);
-  const SliceBasis b = slice_basis(k, f, px, d);
+  const SliceBasis b = k.keep_bases ? px.bases.basis(k, f, i, px.xi) : slice_basis(k, f, px.bases.point(px.xi), d);
   Horizons h{b.low_cos_pos, b.low_cos_neg};
   float visible;
   if (k.height_field) {
@@ -768,7 +861,7 @@ struct PixelSums {
 
 // One pixel (x, y), at xi in its tile row: the sums of its AO and bent normal.
 [[gnu::always_inline]] inline void shade_pixel(const Constants& k, const Frame& f, int x, int y, TileRow& row,
-                                               size_t xi) {
+                                               const RowBases& bases, size_t xi) {
   const AoInputs& in = f.in;
   const bool background = !in.mask.ptr<uint8_t>(y)[x];
   if (background || !row.pixel[xi].has_taps) {
@@ -777,13 +870,7 @@ struct PixelSums {
     row.bent_x[xi] = row.bent_y[xi] = row.bent_z[xi] = 0.0f;
     return;
   }
-  const float depth = in.depth_view.ptr<float>(y)[x];
-  const cv::Vec3f& n_px = in.normal_view.ptr<cv::Vec3f>(y)[x];
-  const Texel& centre = f.texels[size_t(y) * size_t(k.grid.width) + size_t(x)];
-  const glm::vec3 p(centre.x, centre.y, centre.z);
-  const glm::vec3 normal(n_px[0], n_px[1], n_px[2]);
-  const glm::vec3 view = view_vector(in.camera, p);
-  const ShadedPixel px{x, y, row, xi, biased_origin(p, normal, depth, k.depth_bias_relative), normal, view};
+  const ShadedPixel px{x, y, row, xi, bases};
   PixelSums sums;
   for (int i = 0; i < k.slices; ++i) integrate_slice(k, f, px, i, sums);
   row.state[xi] = kShaded;
@@ -868,7 +955,9 @@ inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0
   TileRow rows[2];
   TileRow* shaded_row = &rows[0];
   TileRow* next_row = &rows[1];
+  RowBases bases;
   for (int y = y0; y <= y1; ++y) {
+    if (y > y0) plan_bases(k, f, x0, x1, y - 1, *shaded_row, bases);
     if (y > y0 && k.keep_indices)
       for (int x = x0; x < std::min(x0 + kPrefetchAheadPx, x1); ++x) prefetch_pixel(k, f, *shaded_row, size_t(x - x0));
     for (int x = x0; x < x1; ++x) {
@@ -876,7 +965,7 @@ inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0
       if (y < y1) plan_pixel(k, f, x, y, *next_row, xi);
       if (y > y0) {
         if (k.keep_indices && x + kPrefetchAheadPx < x1) prefetch_pixel(k, f, *shaded_row, xi + kPrefetchAheadPx);
-        shade_pixel(k, f, x, y - 1, *shaded_row, xi);
+        shade_pixel(k, f, x, y - 1, *shaded_row, bases, xi);
       }
     }
     if (y > y0) finish_row(k, f.in, out, x0, x1, y - 1, *shaded_row);
