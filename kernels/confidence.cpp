@@ -41,25 +41,25 @@ constexpr int kMaxTaps = 256;
 // kLanes foreground pixels of a row evaluated together, one per vector lane: every lane
 // runs the same operations in the same order as a pixel alone (its sums in tap order), so
 // the lanes change the speed, not the bits.
-constexpr int kLanes = 8;  // one AVX2 register of floats
+constexpr int kLanes = 16;  // one AVX-512 register of floats, two AVX2 ones
 
 struct PixelLanes {  // the per-pixel constants, one entry per lane
-  alignas(32) float pxc[kLanes], pyc[kLanes];            // pixel centre
-  alignas(32) float px[kLanes], py[kLanes], pz[kLanes];  // view-space point p
-  alignas(32) float nx[kLanes], ny[kLanes], nz[kLanes];  // view-space normal n
-  alignas(32) float rx_px[kLanes], ry_px[kLanes];        // projected radius, pixels
-  alignas(32) float r2[kLanes];                          // radius^2, scene units^2
-  alignas(32) float cos_r[kLanes], sin_r[kLanes];        // the pixel's spiral rotation
+  alignas(64) float pxc[kLanes], pyc[kLanes];            // pixel centre
+  alignas(64) float px[kLanes], py[kLanes], pz[kLanes];  // view-space point p
+  alignas(64) float nx[kLanes], ny[kLanes], nz[kLanes];  // view-space normal n
+  alignas(64) float rx_px[kLanes], ry_px[kLanes];        // projected radius, pixels
+  alignas(64) float r2[kLanes];                          // radius^2, scene units^2
+  alignas(64) float cos_r[kLanes], sin_r[kLanes];        // the pixel's spiral rotation
   // Perspective only, where every ray starts at o = 0: f = o - p, c = f.f - R^2 and n.f
   // are the pixel's, whatever the tap.
-  alignas(32) float fx[kLanes], fy[kLanes], fz[kLanes], c[kLanes], nf[kLanes];
+  alignas(64) float fx[kLanes], fy[kLanes], fz[kLanes], c[kLanes], nf[kLanes];
 };
 
 struct TapLanes {  // every tap of the lanes, [tap][lane]
-  alignas(32) float x[kMaxTaps][kLanes], y[kMaxTaps][kLanes];  // tap pixel
-  alignas(32) int index[kMaxTaps][kLanes];                      // into TapFrame::surface
-  alignas(32) float s0[kMaxTaps][kLanes], s1[kMaxTaps][kLanes], len_scale[kMaxTaps][kLanes];
-  alignas(32) float surface[kMaxTaps][kLanes];
+  alignas(64) float x[kMaxTaps][kLanes], y[kMaxTaps][kLanes];  // tap pixel
+  alignas(64) int index[kMaxTaps][kLanes];                      // into TapFrame::surface
+  alignas(64) float s0[kMaxTaps][kLanes], s1[kMaxTaps][kLanes], len_scale[kMaxTaps][kLanes];
+  alignas(64) float surface[kMaxTaps][kLanes];
 };
 
 // What the taps read, shared by every pixel of a call.
@@ -185,7 +185,7 @@ inline void add_chords(int n_taps, const TapLanes& __restrict tap, double (&obse
 constexpr int kUnknownTapStride = 4;
 
 // The part of the known taps' chords hidden behind their surfaces that the views decide,
-// times len_scale, summed per lane in tap order (no branch: 8 lanes per instruction). Tap k's
+// times len_scale, summed per lane in tap order (no branch: a vector of lanes per instruction). Tap k's
 // hidden part [begin, s1], begin = max(s0, s_surface), overlaps the bins of its texel from
 // the one holding begin to the one holding s1; each bin the views decide (its bit in
 // TapFrame::decided_bins) adds its overlap. A chord through the neighbourhood is at most 2
@@ -200,7 +200,7 @@ void add_decided_behind_surfaces(const TapFrame& frame, const TapLanes& __restri
   const size_t n = hn::Lanes(d);
   const auto zero = hn::Zero(d), w = hn::Set(d, frame.bin_depth);
   const auto bins = hn::Set(d, float(frame.view_bins)), last_bin = hn::Set(d, float(frame.view_bins) - 1.0f);
-  alignas(32) int32_t bits[kLanes];
+  alignas(64) int32_t bits[kLanes];
   for (size_t j0 = 0; j0 < size_t(kLanes); j0 += n) {
     auto sum = zero;
     for (int k = 0; k < frame.n_taps; ++k) {
@@ -250,7 +250,7 @@ void add_unknown_chords_decided(const TapFrame& frame, const TapLanes& __restric
   float asked_length[kMaxAsks];
   uint8_t asked_lane[kMaxAsks], decided[kMaxAsks];
   int n_asks = 0;
-  alignas(32) float length_of[kLanes];
+  alignas(64) float length_of[kLanes];
   for (size_t j0 = 0; j0 < size_t(kLanes); j0 += n) {
     auto unknown_sum = hn::Zero(d), asked_sum = hn::Zero(d);
     auto n_unknown = hn::Zero(di);
@@ -270,7 +270,7 @@ void add_unknown_chords_decided(const TapFrame& frame, const TapLanes& __restric
       uint8_t ask_bits[8] = {};
       hn::StoreMaskBits(d, asks, ask_bits);
       for (size_t j = 0; j < n; ++j) {
-        if (!((ask_bits[0] >> j) & 1u)) continue;
+        if (!((ask_bits[j / 8] >> (j % 8)) & 1u)) continue;
         const size_t lane = j0 + j;
         const float a = tap.s0[k][lane], b = tap.s1[k][lane];
         const float t = a + frame.chord_offsets[k] * (b - a);
@@ -293,7 +293,7 @@ void add_unknown_chords_decided(const TapFrame& frame, const TapLanes& __restric
 // taps' surfaces (add_decided_behind_surfaces) and along the unknown taps' chords
 // (add_unknown_chords_decided).
 void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&observed)[kLanes]) {
-  alignas(32) float behind_surface[kLanes], unknown[kLanes], unknown_asked[kLanes], unknown_decided[kLanes];
+  alignas(64) float behind_surface[kLanes], unknown[kLanes], unknown_asked[kLanes], unknown_decided[kLanes];
   add_decided_behind_surfaces(frame, tap, behind_surface);
   add_unknown_chords_decided(frame, tap, unknown, unknown_asked, unknown_decided);
   for (int j = 0; j < kLanes; ++j) {
@@ -386,7 +386,7 @@ struct PendingPixels {
 void set_up_lanes(const PixelFrame& frame, const PendingPixels& pending, PixelLanes& lane) {
   const ConfidenceSettings& s = frame.settings;
   const PixelRays& rays = frame.taps.rays;
-  alignas(32) float depth[kLanes], rotation_turns[kLanes], ppu_x[kLanes], ppu_y[kLanes];
+  alignas(64) float depth[kLanes], rotation_turns[kLanes], ppu_x[kLanes], ppu_y[kLanes];
   for (int j = 0; j < kLanes; ++j) {
     const int x = pending.x[j], y = pending.y[j];
     depth[j] = frame.depth_view.ptr<float>(y)[x];
