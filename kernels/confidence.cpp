@@ -185,13 +185,13 @@ inline void add_chords(int n_taps, const TapLanes& __restrict tap, double (&obse
 constexpr int kUnknownTapStride = 4;
 
 // The part of the known taps' chords hidden behind their surfaces that the views decide,
-// times len_scale, summed per lane in tap order (no branch: a vector of lanes per instruction). Tap k's
-// hidden part [begin, s1], begin = max(s0, s_surface), overlaps the bins of its texel from
-// the one holding begin to the one holding s1; each bin the views decide (its bit in
-// TapFrame::decided_bins) adds its overlap. A chord through the neighbourhood is at most 2
-// radii long and |u| >= 1, so the bins' 2 radii of planar depth behind a tap's surface hold
-// every hidden part of its chords. Taps that are unknown or hide nothing add +0.0, which leaves the sums as
-// skipping them would.
+// times len_scale, summed per lane in tap order (no branch: a vector of lanes per
+// instruction). Tap k's hidden part [begin, s1], begin = max(s0, s_surface), overlaps the
+// bins of its texel from the one holding begin to the one holding s1; each bin the views
+// decide (its bit in TapFrame::decided_bins) adds its overlap. A chord through the
+// neighbourhood is at most 2 radii long and |u| >= 1, so the bins' 2 radii of planar depth
+// behind a tap's surface hold every hidden part of its chords. Taps that are unknown or
+// hide nothing add +0.0, which leaves the sums as skipping them would.
 void add_decided_behind_surfaces(const TapFrame& frame, const TapLanes& __restrict tap,
                                  float (&behind_surface)[kLanes]) {
   namespace hn = hwy::HWY_NAMESPACE;

@@ -443,10 +443,10 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
     for (int k = 0; k < points; ++k) b.thickness[k] = c.pyramid_thickness[b.texel_at[k]];
   else
     std::fill_n(b.thickness, points, c.s.thickness_world);
-  for (int k = 0; k < points; ++k)
-    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0,
-                              TapTexel{b.texel_depth[k], b.texel_inv_depth_dx[k], b.texel_inv_depth_dy[k], b.texel_source[k]},
-                              b.thickness[k]);
+  for (int k = 0; k < points; ++k) {
+    const TapTexel t{b.texel_depth[k], b.texel_inv_depth_dx[k], b.texel_inv_depth_dy[k], b.texel_source[k]};
+    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, t, b.thickness[k]);
+  }
 }
 
 // Bisection between lambda lo (in front of the depth buffer) and hi (behind it), on
