@@ -568,28 +568,50 @@ struct SliceBasis {
   float lim_pos, lim_neg;          // the hemisphere's limit angles per side
 };
 
-[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const Frame& f, const PixelPoint& px,
-                                                     glm::vec2 d) {
+// What a slice adds to its pixel's point and the frame's constants: its direction and axis,
+// the origin in its frame, its angle n and measures. The rest of its basis follows from
+// these (slice_basis_from).
+struct SliceFields {
+  glm::vec3 dir, axis;
+  float origin_v, origin_d, origin_a;
+  float cos_n, sin_n;
+  float weight_neg, inv_total;
+  float pn_len, weight_total;
+  float lim_pos, lim_neg;
+};
+
+[[gnu::always_inline]] inline SliceFields slice_fields(const Constants& k, const PixelPoint& px, glm::vec2 d) {
   const Slice sl = make_slice(k.screen_to_view(d.x, d.y), px.view, px.normal);
   // n = sign acos(cos_n), so sin n = sign sqrt(1 - cos_n^2) and the tangent limits
   // n +- pi/2 have cos = -+sin n: no trig per slice.
   const float cos_n = sl.cos_n;
   const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
-  const float low_cos_pos = -sin_n, low_cos_neg = sin_n;
   // Slice measure of the negative side and in total (inner integral at n +- pi/2).
   const float weight_neg = inner_integral(sl.n - kHalfPi, sin_n, -cos_n, cos_n, sin_n);
   const float weight_total = cos_n + sl.n * sin_n;
   const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
   const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
-  // The slice's orthonormal frame and the origin and the orthographic view ray in it (per
-  // slice, so that each tap needs three dot products).
-  const glm::vec3 &origin = px.origin, &view = px.view, &dir = sl.direction, &axis = sl.axis;
-  SliceBasis b{SliceFrame{origin, px.normal, view, dir, axis, glm::dot(origin, view), glm::dot(origin, dir),
-                          glm::dot(origin, axis), -view.z, -dir.z, -axis.z, k.r2, cos_n, sin_n,
-                          std::abs(cos_n), weight_neg, inv_total,
-                          f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
-               sl.projected_normal_length, weight_total, low_cos_pos, low_cos_neg, lim_pos, lim_neg};
-  return b;
+  // The origin in the slice's orthonormal frame (per slice, so that each tap needs three dot
+  // products).
+  const glm::vec3 &origin = px.origin, &dir = sl.direction, &axis = sl.axis;
+  return {dir,    axis,      glm::dot(origin, px.view), glm::dot(origin, dir), glm::dot(origin, axis),
+          cos_n,  sin_n,     weight_neg, inv_total, sl.projected_normal_length, weight_total,
+          lim_pos, lim_neg};
+}
+
+// The basis of a slice of the pixel at px: its fields, with the orthographic view ray in the
+// slice's frame, the tangent limits' cosines (-+sin n) and the frame's constants.
+[[gnu::always_inline]] inline SliceBasis slice_basis_from(const Constants& k, const Frame& f, const PixelPoint& px,
+                                                          const SliceFields& s) {
+  return {SliceFrame{px.origin, px.normal, px.view, s.dir, s.axis, s.origin_v, s.origin_d, s.origin_a, -px.view.z,
+                     -s.dir.z, -s.axis.z, k.r2, s.cos_n, s.sin_n, std::abs(s.cos_n), s.weight_neg, s.inv_total,
+                     f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
+          s.pn_len, s.weight_total, -s.sin_n, s.sin_n, s.lim_pos, s.lim_neg};
+}
+
+[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const Frame& f, const PixelPoint& px,
+                                                     glm::vec2 d) {
+  return slice_basis_from(k, f, px, slice_fields(k, px, d));
 }
 
 // Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the side's sign
@@ -626,24 +648,21 @@ struct RowBases {
             {normal[0][xi], normal[1][xi], normal[2][xi]},
             {view[0][xi], view[1][xi], view[2][xi]}};
   }
-  void set_basis(int i, size_t xi, const SliceBasis& b) {
-    for (int c = 0; c < 3; ++c) dir[i][c][xi] = b.frame.dir[c], axis[i][c][xi] = b.frame.axis[c];
-    origin_v[i][xi] = b.frame.origin_v, origin_d[i][xi] = b.frame.origin_d, origin_a[i][xi] = b.frame.origin_a;
-    cos_n[i][xi] = b.frame.cos_n, sin_n[i][xi] = b.frame.sin_n;
-    weight_neg[i][xi] = b.frame.weight_neg, inv_total[i][xi] = b.frame.inv_total;
-    pn_len[i][xi] = b.pn_len, weight_total[i][xi] = b.weight_total;
-    lim_pos[i][xi] = b.lim_pos, lim_neg[i][xi] = b.lim_neg;
+  void set_fields(int i, size_t xi, const SliceFields& s) {
+    for (int c = 0; c < 3; ++c) dir[i][c][xi] = s.dir[c], axis[i][c][xi] = s.axis[c];
+    origin_v[i][xi] = s.origin_v, origin_d[i][xi] = s.origin_d, origin_a[i][xi] = s.origin_a;
+    cos_n[i][xi] = s.cos_n, sin_n[i][xi] = s.sin_n;
+    weight_neg[i][xi] = s.weight_neg, inv_total[i][xi] = s.inv_total;
+    pn_len[i][xi] = s.pn_len, weight_total[i][xi] = s.weight_total;
+    lim_pos[i][xi] = s.lim_pos, lim_neg[i][xi] = s.lim_neg;
   }
-  // The basis slice_basis gave, from its fields.
   SliceBasis basis(const Constants& k, const Frame& f, int i, size_t xi) const {
-    const PixelPoint p = point(xi);
-    const glm::vec3 d(dir[i][0][xi], dir[i][1][xi], dir[i][2][xi]);
-    const glm::vec3 a(axis[i][0][xi], axis[i][1][xi], axis[i][2][xi]);
-    const float c = cos_n[i][xi], sn = sin_n[i][xi];
-    return {SliceFrame{p.origin, p.normal, p.view, d, a, origin_v[i][xi], origin_d[i][xi], origin_a[i][xi], -p.view.z,
-                       -d.z, -a.z, k.r2, c, sn, std::abs(c), weight_neg[i][xi], inv_total[i][xi],
-                       f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
-            pn_len[i][xi], weight_total[i][xi], -sn, sn, lim_pos[i][xi], lim_neg[i][xi]};
+    const SliceFields s{{dir[i][0][xi], dir[i][1][xi], dir[i][2][xi]},
+                        {axis[i][0][xi], axis[i][1][xi], axis[i][2][xi]},
+                        origin_v[i][xi], origin_d[i][xi], origin_a[i][xi], cos_n[i][xi], sin_n[i][xi],
+                        weight_neg[i][xi], inv_total[i][xi], pn_len[i][xi], weight_total[i][xi],
+                        lim_pos[i][xi], lim_neg[i][xi]};
+    return slice_basis_from(k, f, point(xi), s);
   }
 };
 
@@ -657,7 +676,7 @@ inline void plan_bases(const Constants& k, const Frame& f, int x0, int x1, int y
   for (int i = 0; i < k.slices; ++i)
     for (int xi = 0; xi < n; ++xi) {
       const size_t x = size_t(xi);
-      rb.set_basis(i, x, slice_basis(k, f, rb.point(x), slice_direction(k, rb.rot_c[x], rb.rot_s[x], i)));
+      rb.set_fields(i, x, slice_fields(k, rb.point(x), slice_direction(k, rb.rot_c[x], rb.rot_s[x], i)));
     }
 }
 
