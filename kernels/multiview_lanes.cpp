@@ -362,11 +362,11 @@ void count_view_verdicts(const MultiViewInputs& in, const Constants& k, int stri
                          std::span<int64_t> contradicted, int nthreads) {
   const PixelRays rays = pixel_rays(in.camera);
   const size_t nv = k.views.size();
-  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& range) {
+  const int measured_rows = (in.depth_view.rows + stride_px - 1) / stride_px;
+  parallel_rows(cv::Range(0, measured_rows), nthreads, [&](const cv::Range& range) {
     Group g = make_group(k);
     const GroupTag d;
-    for (int y = range.start; y < range.end; ++y) {
-      if (y % stride_px != 0) continue;
+    for (int y = range.start * stride_px; y < range.end * stride_px && y < in.depth_view.rows; y += stride_px) {
       for_each_group(in, k, rays, y, stride_px, g, [&](Group& group) {
         for (int j = 0; j < kGroup; ++j) group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
         for (size_t j0 = 0; j0 < size_t(group.n); j0 += hn::Lanes(d)) {
