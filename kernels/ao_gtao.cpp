@@ -47,13 +47,15 @@
 // summed over slices and normalised.
 //
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
-// becomes packed texels (build_texels); tiles of pixels are scheduled with the next row's
-// taps planned and each pixel's taps prefetched (shade_tile, plan_pixel, prefetch_pixel);
-// a row's points and slice bases are computed across its pixels (plan_bases, slice_basis);
-// per pixel (shade_pixel) and slice (integrate_slice): either the height-field horizons
-// and their integral (height_field_horizons, height_field_integral) or the visibility mask
-// and its integral (visibility_mask, visibility_mask_integral), and the slice's bent normal
-// (slice_bent_normal); a row's sums become AO and bent normal in finish_row.
+// becomes packed texels (build_texels); tiles of pixels are shaded row by row, each row
+// planned first across its pixels (plan_row: tap patterns, tap indices, points and slice
+// bases); then groups of kLanes pixels, one per vector lane (shade_group), slice by slice
+// (shade_slice), each slice's taps a step at a time for every lane (step_taps,
+// gather_texels, step_coordinates), with either the height-field horizons
+// (height_field_step) and their integral (height_field_integral), or the occluder segments
+// (step_intervals), the visibility mask's ordered pass (visibility_mask_step) and its
+// integral (visibility_mask_integral); the slice's bent normal (add_slice_bent_normal); a
+// row's sums become AO and bent normal in finish_row.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/ao_gtao.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
@@ -77,29 +79,38 @@ namespace {
 
 constexpr int kSectors = 64;
 
-// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: a row of a tile is
-// planned while the row above is shaded, and 64 px of shading hide the wait better than
-// 32; 32 tall: the strips of the parallel loop, whose count balances the threads.
+// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: four groups of lanes
+// per row, whose taps stay in cache across the tile's rows; 32 tall: the strips of the
+// parallel loop, whose count balances the threads.
 constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
 
-// When a pixel's tap indices are kept (kKeptChunks), its taps' texels are asked for this
-// many pixels before it is shaded, not a whole row before: a row's taps (64 px x 32 taps x
-// 64 B at medium) overflow the 32 KiB first-level cache before they are read, four pixels'
-// (8 KiB) do not, and four pixels of shading still cover the wait for the next cache level.
-constexpr int kPrefetchAheadPx = 4;
 
-// Steps whose taps are read together, before their arithmetic (see chunk_indices).
-constexpr int kChunkSteps = 8;
+// The sectors whose centres lie in [u0, u1] (fractions of the slice measure): the first,
+// k0, and how many (0 when none), in two steps without branches (float to int, then the
+// 64-bit run), so that the ordered pass runs each in vector lanes.
+inline void sector_range(float u0, float u1, int32_t& k0, int32_t& count) {
+  const int first = std::max(0, int(std::ceil(u0 * kSectors - 0.5f)));
+  const int last = std::min(kSectors - 1, int(std::floor(u1 * kSectors - 0.5f)));
+  count = std::max(last - first + 1, 0);
+  k0 = std::min(first, kSectors - 1);  // only an empty range starts past the last sector
+}
 
-// Sets the sectors whose centres lie in [u0, u1] (fractions of the slice measure).
-inline uint64_t sector_bits(float u0, float u1) {
-  const int k0 = std::max(0, int(std::ceil(u0 * kSectors - 0.5f)));
-  const int k1 = std::min(kSectors - 1, int(std::floor(u1 * kSectors - 0.5f)));
-  if (k1 < k0) return 0;
-  const int count = k1 - k0 + 1;
-  const uint64_t run = count >= 64 ? ~uint64_t(0) : ((uint64_t(1) << count) - 1);
-  return run << k0;
+// occupied[l] |= the run of count[l] sectors from k0[l], for kLanes lanes (64-bit lanes
+// with per-lane shifts: GCC does not vectorise a constant shifted by a vector).
+inline void add_sector_runs(const int32_t* k0, const int32_t* count, uint64_t* occupied, size_t lanes) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::ScalableTag<uint64_t> du;
+  const hn::RebindToSigned<decltype(du)> di;
+  const hn::Rebind<int32_t, decltype(di)> d32;
+  const auto one = hn::Set(du, 1), all = hn::Set(du, ~uint64_t(0));
+  for (size_t l = 0; l < lanes; l += hn::Lanes(du)) {
+    const auto n = hn::PromoteTo(di, hn::LoadU(d32, count + l));
+    const auto whole = hn::RebindMask(du, hn::Gt(n, hn::Set(di, kSectors - 1)));
+    const auto run = hn::IfThenElse(whole, all, hn::Sub(hn::Shl(one, hn::BitCast(du, n)), one));
+    const auto shift = hn::BitCast(du, hn::PromoteTo(di, hn::LoadU(d32, k0 + l)));
+    hn::StoreU(hn::Or(hn::LoadU(du, occupied + l), hn::Shl(run, shift)), du, occupied + l);
+  }
 }
 
 // What a tap reads from the pixel it lands in, in two planes: the view-space position and
@@ -150,104 +161,36 @@ inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_po
          std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol;
 }
 
-// A side's last tap, for the connection rule (top of this file): its depth and its
-// occluded interval in fractions of the slice measure (u0 > u1: no interval).
-struct SideState {
-  float depth_view = -1.0f;  // < 0: no previous tap to connect to
-  float u0 = 1.0f, u1 = 0.0f;
-  size_t texel = 0;  // its index in the texel planes
-  bool below = false;  // the tap was on or below the tangent plane (interval at the limit)
-};
+// Pixels shaded together, one per vector lane (16 floats: one AVX-512 register, two AVX2
+// ones, four NEON ones). Every loop over the lanes runs each pixel's operations in the
+// same order as for the pixel alone, so the lanes change the speed, not the bits; the
+// taps of a slice side then run in order of distance across the pixels, and the ordered
+// pass of the visibility mask is a select per lane instead of a branch per tap. Lanes
+// without taps (background, sub-pixel radius, past the tile's edge) compute for nobody.
+constexpr int kLanes = 16;
+static_assert(kTileWidthPx % kLanes == 0);
 
-// Lanes of a chunk of taps: step j0 + jj of side s (0: +direction, 1: -direction) is lane
-// s * kChunkSteps + jj. Every lane is computed (unused ones for nobody), so the arithmetic
-// runs in full vector registers without a remainder.
-constexpr int kChunkTaps = 2 * kChunkSteps;
+// Slice-steps per pixel (slices x steps) whose tap indices are computed for a whole tile
+// row before it is shaded and kept (plan_row): 48 covers the low (1 x 6), medium (2 x 8)
+// and high (3 x 16) presets (a row's: 24 KiB); ultra's (6 x 16) are computed at their step.
+constexpr int kKeptSteps = 48;
 
-// Chunks per pixel (slices x chunks per slice) whose tap indices, computed when the row is
-// planned, are kept for the prefetch and the shading: 6 covers the low (1 x 6 steps),
-// medium (2 x 8) and high (3 x 16) presets (two rows of 37 KiB); ultra's pixels (6 x 16)
-// compute their indices again and are prefetched a row ahead.
-constexpr int kKeptChunks = 6;
-
-// Slices per pixel whose bases are computed for a whole tile row before it is shaded, in
-// loops over the row's pixels that vectorise (plan_bases): 3 covers the low, medium and
-// high presets (a row's bases: 15 KiB); with more, each basis is computed at its slice.
+// Slices per pixel whose bases are computed for a whole tile row before it is shaded
+// (plan_row): 3 covers the low, medium and high presets (a row's bases: 13 KiB); with more,
+// each slice's are computed for the group's lanes at the slice.
 constexpr int kKeptSlices = 3;
 
-// The side constants per lane.
-struct TapLanes {
-  alignas(32) float sign[kChunkTaps];     // +1 on the positive side, -1 on the negative
-  alignas(32) float lim[kChunkTaps];      // the hemisphere's limit angle on the lane's side
-  alignas(32) float cos_lim[kChunkTaps];  // its cosine
-};
-
-// The taps of a chunk: texel index (-1: off screen or past the last step).
-struct TapChunk {
-  alignas(32) int32_t index[kChunkTaps];
-  alignas(32) int32_t skip[kChunkSteps];  // the step has no tap: its offset rounds to (0, 0)
-};
-
-// The pixel's point and the slice's frame, as the taps' arithmetic needs them.
-struct SliceFrame {
-  glm::vec3 origin, normal, view, dir, axis;
-  float origin_v, origin_d, origin_a;           // the origin in the slice frame
-  float ray_ortho_v, ray_ortho_d, ray_ortho_a;  // the orthographic view ray in it
-  float r2;                                     // radius_world^2
-  float cos_n, sin_n, abs_cos_n;                // the projected normal's angle n
-  float weight_neg, inv_total;                  // slice measure of the negative side, 1 / total
-  // The occluder segments' lengths: per texel (build_texel_thickness) or, when null, one.
-  const float* texel_thickness;
-  float thickness_world;
-};
-
-// Per lane: the tap's coordinates in the slice frame, its height above the tangent plane
-// (only its sign is used), its squared distance in the slice plane and in 3D, the cosine of
-// its angle in the slice, and the occluded interval [u0, u1] of its segment (u0 > u1: none).
-struct TapGeometry {
-  alignas(32) float dv[kChunkTaps], dd[kChunkTaps], da[kChunkTaps];  // in the slice frame
-  alignas(32) float height[kChunkTaps];
-  alignas(32) float dist_slice2[kChunkTaps];
-  alignas(32) float dist2[kChunkTaps];
-  alignas(32) float tap_cos[kChunkTaps];
-  alignas(32) float u0[kChunkTaps];
-  alignas(32) float u1[kChunkTaps];
-};
+// A tap's texel index; below 0 there is no texel: off screen (nothing known there: the
+// side's last tap ends), or no tap at all (the pixel has no taps, or the step's offset
+// rounds to (0, 0): the side's last tap stays).
+constexpr int32_t kOffScreen = -1;
+constexpr int32_t kNoTap = -2;
 
 // The grid the taps land on and the pattern's counts.
 struct TapGrid {
   int width, height;
   int slices, steps;
 };
-
-// Texel indices of the taps of steps j0 .. j0 + kChunkSteps - 1 of slice i of pixel (x, y)
-// in the lanes of TapChunk (-1: off screen or past the last step), and per step whether
-// it has no tap. d: the slice's screen direction; every lane alike, so the loop vectorises.
-inline void tap_indices(const TapGrid& g, float step_noise, float radius_px, int x, int y, int i,
-                        glm::vec2 d, int j0, int32_t* __restrict index, int32_t* __restrict skip) {
-  for (int jj = 0; jj < kChunkSteps; ++jj) {
-    const int j = j0 + jj;
-    // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
-    float t = step_noise + float(i + j * g.slices) * 0.618033988749895f;
-    t -= std::floor(t);
-    t = (float(j) + t) / float(g.steps);
-    // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps near
-    // the centre; against the ray-marched reference on the shared frames (cornell,
-    // greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057 -> 0.040 on
-    // cornell): far taps carry walls seen at grazing angles, whose occlusion the dense
-    // near taps never see.
-    const float dist_px = kMinTapDistancePx + t * (radius_px - kMinTapDistancePx);
-    // The positive side's offset; the negative side's is its negation.
-    const int ox = round_to_int(d.x * dist_px), oy = round_to_int(d.y * dist_px);
-    const bool used = j < g.steps;
-    skip[jj] = (ox == 0) & (oy == 0);
-    const int px = x + ox, py = y + oy, nx = x - ox, ny = y - oy;
-    const bool pos_on = used & (px >= 0) & (py >= 0) & (px < g.width) & (py < g.height);
-    const bool neg_on = used & (nx >= 0) & (ny >= 0) & (nx < g.width) & (ny < g.height);
-    index[jj] = pos_on ? py * g.width + px : -1;
-    index[kChunkSteps + jj] = neg_on ? ny * g.width + nx : -1;
-  }
-}
 
 // Each texel's occluder segment length from the second depth layer (AoInputs::
 // depth_back_view), once per texel rather than per tap: back - front in planar depth, as a
@@ -271,141 +214,6 @@ void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const Uninit
   });
 }
 
-// The taps' coordinates in the slice frame, every lane alike (no branches: the loop
-// vectorises). Returns bit s set when some lane of side s is an occluder the ordered pass
-// reads (on screen, foreground, above the tangent plane, off the slice's centre).
-[[gnu::always_inline]] inline int slice_coordinates(const Texel* texels, const TapChunk& taps,
-                                                    const SliceFrame& f, TapGeometry& __restrict g) {
-  // The frame's values as locals: selects between them then need no conditional loads,
-  // which would keep the loop from vectorising.
-  const float ox = f.origin.x, oy = f.origin.y, oz = f.origin.z;
-  const float nx = f.normal.x, ny = f.normal.y, nz = f.normal.z;
-  const float vx = f.view.x, vy = f.view.y, vz = f.view.z;
-  const float dx = f.dir.x, dy = f.dir.y, dz = f.dir.z;
-  const float ax = f.axis.x, ay = f.axis.y, az = f.axis.z;
-  int occluders = 0;
-  for (int m = 0; m < kChunkTaps; ++m) {
-    // Lanes without a texel compute on texel 0, for nobody.
-    const Texel& tx = texels[taps.index[m] >= 0 ? taps.index[m] : 0];
-    const float ex = tx.x - ox, ey = tx.y - oy, ez = tx.z - oz;
-    const float height = ex * nx + ey * ny + ez * nz;
-    // The tap in the slice's orthonormal frame (view, direction, axis): the slice plane
-    // holds the first two coordinates, so the projection onto the plane is dropping the
-    // third (no 3D projection per tap).
-    const float dv = ex * vx + ey * vy + ez * vz;
-    const float dd = ex * dx + ey * dy + ez * dz;
-    const float da = ex * ax + ey * ay + ez * az;
-    const float dist_slice2 = dv * dv + dd * dd;
-    g.dv[m] = dv;
-    g.dd[m] = dd;
-    g.da[m] = da;
-    g.height[m] = height;
-    g.dist_slice2[m] = dist_slice2;
-    g.dist2[m] = dist_slice2 + da * da;
-    // The tap's angle in the slice: of its projection onto the slice plane.
-    g.tap_cos[m] = dv / std::sqrt(dist_slice2);
-    occluders |= int((taps.index[m] >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f))
-                 << (m / kChunkSteps);
-  }
-  return occluders;
-}
-
-// The occluded interval [u0, u1] of the occluder segment of each lane of one side (lanes
-// first_lane .. first_lane + kChunkSteps - 1), in fractions of the slice measure (the
-// visibility mask's sectors), every lane alike (u0 > u1: no interval).
-template <bool perspective, bool per_texel_thickness>
-[[gnu::always_inline]] inline void segment_intervals(const TapChunk& taps, const TapLanes& lanes,
-                                                     const SliceFrame& f, int first_lane,
-                                                     TapGeometry& __restrict g) {
-  const float* texel_thickness = f.texel_thickness;
-  const float thickness_world = f.thickness_world;
-  const float origin_v = f.origin_v, origin_d = f.origin_d, origin_a = f.origin_a;
-  const float ray_ortho_v = f.ray_ortho_v, ray_ortho_d = f.ray_ortho_d, ray_ortho_a = f.ray_ortho_a;
-  const float r2 = f.r2, cos_n = f.cos_n, sin_n = f.sin_n, abs_cos_n = f.abs_cos_n;
-  const float weight_neg = f.weight_neg, inv_total = f.inv_total;
-  for (int m = first_lane; m < first_lane + kChunkSteps; ++m) {
-    const float dv = g.dv[m], dd = g.dd[m], da = g.da[m], dist2 = g.dist2[m];
-    // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
-    // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too
-    // (the tap's frame coordinates are the origin's plus delta's).
-    const float pv = origin_v + dv, pd = origin_d + dd, pa = origin_a + da;
-    const float inv_len = 1.0f / std::sqrt(pv * pv + pd * pd + pa * pa);
-    float rv = ray_ortho_v, rd = ray_ortho_d, ra = ray_ortho_a;
-    if constexpr (perspective) {
-      rv = pv * inv_len;
-      rd = pd * inv_len;
-      ra = pa * inv_len;
-    }
-    const float b = dv * rv + dd * rd + da * ra;
-    const float c = dist2 - r2;
-    const float disc = b * b - c;
-    // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
-    const float root = std::sqrt(disc);
-    // Lanes without a texel read texel 0's, for nobody (no conditional load: the loop
-    // stays vectorised, the read a gather next to the texel's).
-    float thickness = thickness_world;
-    if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(taps.index[m], 0)];
-    const float t0 = std::max(0.0f, -b - root);
-    const float t1 = std::min(thickness, -b + root);
-    // Cosines and sines (unsigned angles from the view vector) of the segment's two ends
-    // in the slice plane: sin = |direction coordinate| / length.
-    const float e0v = dv + t0 * rv, e0d = dd + t0 * rd;
-    const float e1v = dv + t1 * rv, e1d = dd + t1 * rd;
-    const float inv0 = 1.0f / std::sqrt(e0v * e0v + e0d * e0d);
-    const float inv1 = 1.0f / std::sqrt(e1v * e1v + e1d * e1d);
-    const float c0 = std::clamp(e0v * inv0, -1.0f, 1.0f);
-    const float c1 = std::clamp(e1v * inv1, -1.0f, 1.0f);
-    const float s0 = std::min(std::abs(e0d) * inv0, 1.0f);
-    const float s1 = std::min(std::abs(e1d) * inv1, 1.0f);
-    // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the hemisphere's
-    // limit on this side (n + pi/2 on +, pi/2 - n on -), whose sine is cos n.
-    const bool first_higher = c0 >= c1;  // a(ca) <= a(cb)
-    const float ca = first_higher ? c0 : c1, sa = first_higher ? s0 : s1;
-    const float cos_lim = lanes.cos_lim[m], lim = lanes.lim[m];
-    const float c_far = first_higher ? c1 : c0, s_far = first_higher ? s1 : s0;
-    const bool clip = c_far < cos_lim;
-    const float cb = clip ? cos_lim : c_far, sb = clip ? abs_cos_n : s_far;
-    const float aa = std::min(fast_acos(ca), lim), ab = std::min(fast_acos(cb), lim);
-    // Positive side: u = measure of the negative side + of [0, a]. Negative side (signed
-    // angle -a): the weight of [-a, 0] comes off the negative side's, and the end nearer
-    // the view vector is the higher u.
-    const float sign = lanes.sign[m];
-    const bool pos = sign > 0.0f;
-    const float h_lo = pos ? aa : ab, c_lo = pos ? ca : cb, s_lo = pos ? sa : sb;
-    const float h_hi = pos ? ab : aa, c_hi = pos ? cb : ca, s_hi = pos ? sb : sa;
-    const float i_lo = sign * inner_integral(sign * h_lo, c_lo, sign * s_lo, cos_n, sin_n);
-    const float i_hi = sign * inner_integral(sign * h_hi, c_hi, sign * s_hi, cos_n, sin_n);
-    const float u0 = (weight_neg + i_lo) * inv_total;
-    const float u1 = (weight_neg + i_hi) * inv_total;
-    const bool hit = (disc >= 0.0f) & (t1 >= t0) & (ca > cos_lim);
-    g.u0[m] = hit ? u0 : 1.0f;  // empty: u0 > u1
-    g.u1[m] = hit ? u1 : 0.0f;
-  }
-}
-
-// The taps' arithmetic, every lane alike. Lanes whose tap is not used later (background,
-// below the tangent plane, zero distance) compute values nobody reads; with segments =
-// false (the height-field model) the occluder segments are skipped, and so they are on a
-// side without an occluder (its taps all on or below the tangent plane: the common case on
-// open surfaces and on the lower side of a slope; that side's u0 and u1 are then left
-// unwritten, and the ordered pass reads them only for occluders). Returns bit s set when
-// side s has an occluder (see slice_coordinates).
-// Not inlined: inlined into the pixel loop, its selects no longer become blends and the
-// loops stay scalar.
-template <bool perspective, bool segments>
-[[gnu::noinline]]
-int tap_geometry(const Texel* texels, const TapChunk& taps, const TapLanes& lanes,
-                 const SliceFrame& f, TapGeometry& __restrict g) {
-  const int occluders = slice_coordinates(texels, taps, f, g);
-  if (!segments) return occluders;
-  for (int side = 0; side < 2; ++side) {
-    if (!((occluders >> side) & 1)) continue;
-    if (f.texel_thickness != nullptr) segment_intervals<perspective, true>(taps, lanes, f, side * kChunkSteps, g);
-    else segment_intervals<perspective, false>(taps, lanes, f, side * kChunkSteps, g);
-  }
-  return occluders;
-}
-
 // The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
 struct Constants {
   int slices;
@@ -422,8 +230,7 @@ struct Constants {
   Falloff falloff;
   ScreenToView screen_to_view;
   TapGrid grid;
-  int chunks_per_slice;
-  bool keep_indices;  // a pixel's tap indices fit in its tile row (kKeptChunks)
+  bool keep_indices;  // a pixel's tap indices fit in its tile row (kKeptSteps)
   bool keep_bases;    // a pixel's slice bases fit in its row's (kKeptSlices)
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
   // slice in the pixel loop.
@@ -444,8 +251,7 @@ struct Constants {
         falloff(s.radius_world, s.falloff_fraction),
         screen_to_view(in.camera),
         grid{in.depth_view.cols, in.depth_view.rows, s.directions, s.steps},
-        chunks_per_slice((s.steps + kChunkSteps - 1) / kChunkSteps),
-        keep_indices(slices * chunks_per_slice <= kKeptChunks),
+        keep_indices(s.directions * s.steps <= kKeptSteps),
         keep_bases(slices <= kKeptSlices),
         slice_rot(size_t(s.directions)) {
     for (int i = 0; i < slices; ++i) {
@@ -474,50 +280,46 @@ const cv::Mat* back_layer(const AoInputs& in, const Constants& k) {
              : nullptr;
 }
 
-// A pixel's tap pattern (GTAO Alg. 1 lines 5-6 and the steps' jitter): whether it has
-// taps, its projected radius, its step noise and the rotation of its slices.
-struct PixelTaps {
-  bool has_taps = false;
-  float radius_px = 0.0f;
-  float step_noise = 0.0f;
-  float rot_c = 1.0f, rot_s = 0.0f;
-};
-
-// A row of a tile: the pixels' tap patterns and kept tap indices (filled a row ahead, see
-// shade_tile), and the shading's per-pixel sums, turned into the outputs for the whole row
-// at once (the divisions and square roots of the normalisation then run in vector lanes
-// instead of ending each pixel's dependency chain).
+// A row of a tile, field by field so that loops over its pixels vectorise: the pixels' tap
+// patterns (GTAO Alg. 1 lines 5-6 and the steps' jitter) and kept tap indices, and the
+// shading's per-pixel sums, turned into the outputs for the whole row at once.
 enum : uint8_t { kBackground, kNoTaps, kShaded };
 struct TileRow {
-  std::array<PixelTaps, kTileWidthPx> pixel;
-  alignas(32) int32_t index[kTileWidthPx][kKeptChunks][kChunkTaps];
-  alignas(32) int32_t skip[kTileWidthPx][kKeptChunks][kChunkSteps];
-  alignas(32) float visible_sum[kTileWidthPx];
-  alignas(32) float open_sum[kTileWidthPx];
-  alignas(32) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
-  alignas(32) uint8_t state[kTileWidthPx];
+  alignas(64) int32_t has_taps[kTileWidthPx];
+  alignas(64) float radius_px[kTileWidthPx];  // the projected radius
+  alignas(64) float step_noise[kTileWidthPx];
+  alignas(64) float rot_c[kTileWidthPx], rot_s[kTileWidthPx];  // the rotation of the slices
+  alignas(64) uint8_t state[kTileWidthPx];
+  // Texel index of the tap of step j of slice i on side s (0: +direction, 1: -direction) of
+  // pixel xi: index[i * steps + j][s][xi], when kept (kKeptSteps).
+  alignas(64) int32_t index[kKeptSteps][2][kTileWidthPx];
+  alignas(64) float visible_sum[kTileWidthPx];
+  alignas(64) float open_sum[kTileWidthPx];
+  alignas(64) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
 };
 
-// Written field by field into its place in the row (a whole struct built on the stack and
-// copied is read back before its parts' stores retire: a store-forwarding stall).
-[[gnu::always_inline]] inline void pixel_taps(const Constants& k, const AoInputs& in, int x, int y,
-                                              PixelTaps& p) {
-  p.has_taps = false;
-  p.radius_px = 0.0f;
-  p.step_noise = 0.0f;
-  p.rot_c = 1.0f;
-  p.rot_s = 0.0f;
+// Pixel (x, y)'s tap pattern, at xi in its row.
+inline void pixel_taps(const Constants& k, const AoInputs& in, int x, int y, TileRow& row, int xi) {
+  row.has_taps[xi] = 0;
+  row.radius_px[xi] = 0.0f;
+  row.step_noise[xi] = 0.0f;
+  row.rot_c[xi] = 1.0f;
+  row.rot_s[xi] = 0.0f;
+  row.state[xi] = kBackground;
   if (!in.mask.ptr<uint8_t>(y)[x]) return;
+  row.state[xi] = kNoTaps;
   const float depth = in.depth_view.ptr<float>(y)[x];
-  p.radius_px = projected_radius_px(in.camera, depth, k.radius_world, k.max_radius_px);
+  const float radius_px = projected_radius_px(in.camera, depth, k.radius_world, k.max_radius_px);
+  row.radius_px[xi] = radius_px;
   // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
-  if (p.radius_px < 2.0f * kMinTapDistancePx) return;
-  p.has_taps = true;
+  if (radius_px < 2.0f * kMinTapDistancePx) return;
+  row.has_taps[xi] = 1;
+  row.state[xi] = kShaded;
   const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
   const float slice_noise = noise01(nx, ny, 0, k.seed);
-  p.step_noise = noise01(nx, ny, 1, k.seed);
+  row.step_noise[xi] = noise01(nx, ny, 1, k.seed);
   // The rotation slice_noise pi / slices, in turns.
-  sincos_turns(slice_noise / float(2 * k.slices), p.rot_c, p.rot_s);
+  sincos_turns(slice_noise / float(2 * k.slices), row.rot_c[xi], row.rot_s[xi]);
 }
 
 // Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
@@ -527,8 +329,36 @@ struct TileRow {
   const float sin_phi = rot_s * r[0] + rot_c * r[1];
   return glm::vec2(cos_phi, -sin_phi);
 }
-[[gnu::always_inline]] inline glm::vec2 slice_direction(const Constants& k, const PixelTaps& p, int i) {
-  return slice_direction(k, p.rot_c, p.rot_s, i);
+
+// Texel indices of the taps of step j of slice i, both sides, of the row's pixels xi0 ..
+// xi0 + kLanes - 1 (x = x0 + xi), in lanes: pos[l] and neg[l] for pixel xi0 + l. dir_x,
+// dir_y: the pixels' screen directions of the slice, by lane.
+inline void step_indices(const Constants& k, const TileRow& row, const float* dir_x, const float* dir_y, int x0,
+                         int y, int xi0, int i, int j, int32_t* __restrict pos, int32_t* __restrict neg) {
+  const TapGrid& g = k.grid;
+  // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
+  const float step_shift = float(i + j * g.slices) * 0.618033988749895f;
+  for (int l = 0; l < kLanes; ++l) {
+    const int xi = xi0 + l;
+    float t = row.step_noise[xi] + step_shift;
+    t -= std::floor(t);
+    t = (float(j) + t) / float(g.steps);
+    // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps near
+    // the centre; against the ray-marched reference on the shared frames (cornell,
+    // greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057 -> 0.040 on
+    // cornell): far taps carry walls seen at grazing angles, whose occlusion the dense
+    // near taps never see.
+    const float dist_px = kMinTapDistancePx + t * (row.radius_px[xi] - kMinTapDistancePx);
+    // The positive side's offset; the negative side's is its negation.
+    const int ox = round_to_int(dir_x[l] * dist_px), oy = round_to_int(dir_y[l] * dist_px);
+    const bool tap = (row.has_taps[xi] != 0) & !((ox == 0) & (oy == 0));
+    const int x = x0 + xi;
+    const int px = x + ox, py = y + oy, nx = x - ox, ny = y - oy;
+    const bool pos_on = (px >= 0) & (py >= 0) & (px < g.width) & (py < g.height);
+    const bool neg_on = (nx >= 0) & (ny >= 0) & (nx < g.width) & (ny < g.height);
+    pos[l] = !tap ? kNoTap : pos_on ? py * g.width + px : kOffScreen;
+    neg[l] = !tap ? kNoTap : neg_on ? ny * g.width + nx : kOffScreen;
+  }
 }
 
 // A pixel's point (GTAO Alg. 1 lines 1-4): its biased origin, normal and view vector.
@@ -547,30 +377,8 @@ struct PixelPoint {
   return {biased_origin(p, normal, depth, k.depth_bias_relative), normal, view};
 }
 
-struct RowBases;
-
-// The pixel being shaded: where it is, its tile row (which holds its tap pattern), and its
-// row's points and slice bases.
-struct ShadedPixel {
-  int x, y;
-  const TileRow& row;
-  size_t xi;
-  const RowBases& bases;
-};
-
-// A slice's basis as the taps' arithmetic needs it (GTAO Alg. 1 lines 8-16), and its
-// measure.
-struct SliceBasis {
-  SliceFrame frame;
-  float pn_len;                    // |projected normal|: the slice's weight
-  float weight_total;              // the slice measure between the tangent limits
-  float low_cos_pos, low_cos_neg;  // the tangent limits' cosines: the lowest horizons
-  float lim_pos, lim_neg;          // the hemisphere's limit angles per side
-};
-
-// What a slice adds to its pixel's point and the frame's constants: its direction and axis,
-// the origin in its frame, its angle n and measures. The rest of its basis follows from
-// these (slice_basis_from).
+// What a slice adds to its pixel's point (GTAO Alg. 1 lines 8-16): its direction and axis,
+// the origin in its frame, its angle n and measures.
 struct SliceFields {
   glm::vec3 dir, axis;
   float origin_v, origin_d, origin_a;
@@ -599,39 +407,11 @@ struct SliceFields {
           lim_pos, lim_neg};
 }
 
-// The basis of a slice of the pixel at px: its fields, with the orthographic view ray in the
-// slice's frame, the tangent limits' cosines (-+sin n) and the frame's constants.
-[[gnu::always_inline]] inline SliceBasis slice_basis_from(const Constants& k, const Frame& f, const PixelPoint& px,
-                                                          const SliceFields& s) {
-  return {SliceFrame{px.origin, px.normal, px.view, s.dir, s.axis, s.origin_v, s.origin_d, s.origin_a, -px.view.z,
-                     -s.dir.z, -s.axis.z, k.r2, s.cos_n, s.sin_n, std::abs(s.cos_n), s.weight_neg, s.inv_total,
-                     f.thickness.empty() ? nullptr : f.thickness.data(), k.thickness_world},
-          s.pn_len, s.weight_total, -s.sin_n, s.sin_n, s.lim_pos, s.lim_neg};
-}
-
-[[gnu::always_inline]] inline SliceBasis slice_basis(const Constants& k, const Frame& f, const PixelPoint& px,
-                                                     glm::vec2 d) {
-  return slice_basis_from(k, f, px, slice_fields(k, px, d));
-}
-
-// Per lane of a chunk (side s, step j0 + jj at lane s * kChunkSteps + jj): the side's sign
-// of the angle, its hemisphere limit and the limit's cosine.
-inline void fill_tap_lanes(const SliceBasis& b, TapLanes& lanes) {
-  for (int m = 0; m < kChunkTaps; ++m) {
-    const bool pos = m < kChunkSteps;
-    lanes.sign[m] = pos ? 1.0f : -1.0f;
-    lanes.lim[m] = pos ? b.lim_pos : b.lim_neg;
-    lanes.cos_lim[m] = pos ? b.low_cos_pos : b.low_cos_neg;
-  }
-}
-
-// The points and slice bases of a tile row's pixels, field by field (slice i of pixel xi at
-// [i][xi]), so that the loops computing them run over the pixels in vector lanes: a basis
-// is a chain of divisions and square roots per pixel and slice, which one pixel at a time
-// would run in scalar registers.
+// The points and slice bases of a tile row's pixels, field by field (slice slot s of pixel
+// xi at [s][xi]), so that the loops computing them run over the pixels in vector lanes: a
+// basis is a chain of divisions and square roots per pixel and slice.
 struct RowBases {
   alignas(64) float origin[3][kTileWidthPx], normal[3][kTileWidthPx], view[3][kTileWidthPx];
-  alignas(64) float rot_c[kTileWidthPx], rot_s[kTileWidthPx];  // the pixels' slice rotation
   alignas(64) float dir[kKeptSlices][3][kTileWidthPx], axis[kKeptSlices][3][kTileWidthPx];
   alignas(64) float origin_v[kKeptSlices][kTileWidthPx], origin_d[kKeptSlices][kTileWidthPx],
       origin_a[kKeptSlices][kTileWidthPx];
@@ -648,191 +428,307 @@ struct RowBases {
             {normal[0][xi], normal[1][xi], normal[2][xi]},
             {view[0][xi], view[1][xi], view[2][xi]}};
   }
-  void set_fields(int i, size_t xi, const SliceFields& s) {
-    for (int c = 0; c < 3; ++c) dir[i][c][xi] = s.dir[c], axis[i][c][xi] = s.axis[c];
-    origin_v[i][xi] = s.origin_v, origin_d[i][xi] = s.origin_d, origin_a[i][xi] = s.origin_a;
-    cos_n[i][xi] = s.cos_n, sin_n[i][xi] = s.sin_n;
-    weight_neg[i][xi] = s.weight_neg, inv_total[i][xi] = s.inv_total;
-    pn_len[i][xi] = s.pn_len, weight_total[i][xi] = s.weight_total;
-    lim_pos[i][xi] = s.lim_pos, lim_neg[i][xi] = s.lim_neg;
+  void set_fields(int s, size_t xi, const SliceFields& f) {
+    for (int c = 0; c < 3; ++c) dir[s][c][xi] = f.dir[c], axis[s][c][xi] = f.axis[c];
+    origin_v[s][xi] = f.origin_v, origin_d[s][xi] = f.origin_d, origin_a[s][xi] = f.origin_a;
+    cos_n[s][xi] = f.cos_n, sin_n[s][xi] = f.sin_n;
+    weight_neg[s][xi] = f.weight_neg, inv_total[s][xi] = f.inv_total;
+    pn_len[s][xi] = f.pn_len, weight_total[s][xi] = f.weight_total;
+    lim_pos[s][xi] = f.lim_pos, lim_neg[s][xi] = f.lim_neg;
   }
-  SliceBasis basis(const Constants& k, const Frame& f, int i, size_t xi) const {
-    const SliceFields s{{dir[i][0][xi], dir[i][1][xi], dir[i][2][xi]},
-                        {axis[i][0][xi], axis[i][1][xi], axis[i][2][xi]},
-                        origin_v[i][xi], origin_d[i][xi], origin_a[i][xi], cos_n[i][xi], sin_n[i][xi],
-                        weight_neg[i][xi], inv_total[i][xi], pn_len[i][xi], weight_total[i][xi],
-                        lim_pos[i][xi], lim_neg[i][xi]};
-    return slice_basis_from(k, f, point(xi), s);
-  }
-};
-
-// The points of row y's pixels x0 .. x1 - 1 and, when kept, their slice bases, before the
-// row is shaded (pixels without taps compute values nobody reads: no branch in the loops).
-inline void plan_bases(const Constants& k, const Frame& f, int x0, int x1, int y, const TileRow& row, RowBases& rb) {
-  const int n = x1 - x0;
-  for (int xi = 0; xi < n; ++xi) rb.set_point(size_t(xi), pixel_point(k, f, x0 + xi, y));
-  if (!k.keep_bases) return;
-  for (int xi = 0; xi < n; ++xi) rb.rot_c[xi] = row.pixel[size_t(xi)].rot_c, rb.rot_s[xi] = row.pixel[size_t(xi)].rot_s;
-  for (int i = 0; i < k.slices; ++i)
-    for (int xi = 0; xi < n; ++xi) {
+  // Slice i's fields of pixels xi0 .. xi1 - 1 into slot s (no branch: the loop vectorises).
+  void compute_slice(const Constants& k, const TileRow& row, int s, int i, int xi0, int xi1) {
+    for (int xi = xi0; xi < xi1; ++xi) {
       const size_t x = size_t(xi);
-      rb.set_fields(i, x, slice_fields(k, rb.point(x), slice_direction(k, rb.rot_c[x], rb.rot_s[x], i)));
+      set_fields(s, x, slice_fields(k, point(x), slice_direction(k, row.rot_c[x], row.rot_s[x], i)));
     }
+  }
+};
+
+// Slice i of the pixels of a group (lanes), as the taps' arithmetic reads it: the pixel's
+// point, the slice's frame and measures, its screen direction.
+struct SliceLanes {
+  alignas(64) float ox[kLanes], oy[kLanes], oz[kLanes];  // biased origin
+  alignas(64) float nx[kLanes], ny[kLanes], nz[kLanes];  // normal
+  alignas(64) float vx[kLanes], vy[kLanes], vz[kLanes];  // view vector
+  alignas(64) float dx[kLanes], dy[kLanes], dz[kLanes];  // slice direction
+  alignas(64) float ax[kLanes], ay[kLanes], az[kLanes];  // slice axis
+  alignas(64) float origin_v[kLanes], origin_d[kLanes], origin_a[kLanes];  // the origin in the slice frame
+  alignas(64) float cos_n[kLanes], sin_n[kLanes];  // the projected normal's angle n
+  alignas(64) float weight_neg[kLanes], inv_total[kLanes];  // slice measure of the negative side, 1 / total
+  alignas(64) float pn_len[kLanes], weight_total[kLanes];   // |projected normal|, the slice measure
+  alignas(64) float lim_pos[kLanes], lim_neg[kLanes];       // the hemisphere's limit angles per side
+  alignas(64) float screen_x[kLanes], screen_y[kLanes];     // slice_direction
+
+  // From slot s of the row's bases, pixels xi0 .. xi0 + kLanes - 1.
+  void load(const Constants& k, const TileRow& row, const RowBases& b, int s, int i, int xi0) {
+    for (int l = 0; l < kLanes; ++l) {
+      const int x = xi0 + l;
+      ox[l] = b.origin[0][x], oy[l] = b.origin[1][x], oz[l] = b.origin[2][x];
+      nx[l] = b.normal[0][x], ny[l] = b.normal[1][x], nz[l] = b.normal[2][x];
+      vx[l] = b.view[0][x], vy[l] = b.view[1][x], vz[l] = b.view[2][x];
+      dx[l] = b.dir[s][0][x], dy[l] = b.dir[s][1][x], dz[l] = b.dir[s][2][x];
+      ax[l] = b.axis[s][0][x], ay[l] = b.axis[s][1][x], az[l] = b.axis[s][2][x];
+      origin_v[l] = b.origin_v[s][x], origin_d[l] = b.origin_d[s][x], origin_a[l] = b.origin_a[s][x];
+      cos_n[l] = b.cos_n[s][x], sin_n[l] = b.sin_n[s][x];
+      weight_neg[l] = b.weight_neg[s][x], inv_total[l] = b.inv_total[s][x];
+      pn_len[l] = b.pn_len[s][x], weight_total[l] = b.weight_total[s][x];
+      lim_pos[l] = b.lim_pos[s][x], lim_neg[l] = b.lim_neg[s][x];
+      const glm::vec2 d = slice_direction(k, row.rot_c[x], row.rot_s[x], i);
+      screen_x[l] = d.x, screen_y[l] = d.y;
+    }
+  }
+};
+
+// The taps of one step of one side of a slice, across the group's pixels (lanes): texel
+// index, the texel, its coordinates in the slice frame, its height above the tangent plane
+// (only its sign is used), its squared distance in the slice plane and in 3D, the cosine of
+// its angle in the slice, and the occluded interval [u0, u1] of its segment (u0 > u1: none).
+struct StepLanes {
+  alignas(64) int32_t index[kLanes];
+  alignas(64) float x[kLanes], y[kLanes], z[kLanes], depth_view[kLanes];
+  alignas(64) float dv[kLanes], dd[kLanes], da[kLanes];
+  alignas(64) float height[kLanes], dist_slice2[kLanes], dist2[kLanes], tap_cos[kLanes];
+  alignas(64) float u0[kLanes], u1[kLanes];
+};
+
+// An occluder the ordered pass reads: on screen, foreground, above the tangent plane, off
+// the slice's centre.
+[[gnu::always_inline]] inline bool occluder(const StepLanes& t, int l) {
+  return (t.index[l] >= 0) & (t.depth_view[l] >= 0.0f) & (t.height[l] > 0.0f) & (t.dist_slice2[l] > 0.0f);
 }
 
-// The tap indices of steps j0 .. j0 + kChunkSteps - 1 of slice i: kept by the prefetch when
-// they fit, computed again otherwise. The chunk's tap pixels come first, then their texels,
-// then the taps' arithmetic in lanes, then the taps in order: the texel loads do not wait
-// on each other's arithmetic, so their cache misses overlap (a tap's texel is anywhere
-// within the radius), and the arithmetic has no branches.
-[[gnu::always_inline]] inline void chunk_indices(const Constants& k, const ShadedPixel& px, int i, glm::vec2 d,
-                                                 int j0, TapChunk& taps) {
-  if (k.keep_indices) {
-    const int c = i * k.chunks_per_slice + j0 / kChunkSteps;
-    std::copy_n(px.row.index[px.xi][c], kChunkTaps, taps.index);
-    std::copy_n(px.row.skip[px.xi][c], kChunkSteps, taps.skip);
-  } else {
-    const PixelTaps& pt = px.row.pixel[px.xi];
-    tap_indices(k.grid, pt.step_noise, pt.radius_px, px.x, px.y, i, d, j0, taps.index, taps.skip);
+// The taps' texels, gathered field by field (a vector of lanes per field: the loads of a
+// texel are one gather instruction's elements instead of a load and an insert each).
+// Lanes without a texel read texel 0's, for nobody.
+inline void gather_texels(const Texel* texels, StepLanes& t) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  static_assert(sizeof(Texel) == 4 * sizeof(float));
+  const float* base = &texels[0].x;
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
+    // Float offsets of the texels: 4 per texel (ao_gtao bounds the grid to fit int32).
+    const auto at = hn::ShiftLeft<2>(hn::Max(hn::Load(di, t.index + l), hn::Zero(di)));
+    hn::Store(hn::GatherIndex(d, base, at), d, t.x + l);
+    hn::Store(hn::GatherIndex(d, base + 1, at), d, t.y + l);
+    hn::Store(hn::GatherIndex(d, base + 2, at), d, t.z + l);
+    hn::Store(hn::GatherIndex(d, base + 3, at), d, t.depth_view + l);
   }
 }
 
-// A slice's horizons, per side, as cosines from the view vector.
-struct Horizons {
-  float cos_pos, cos_neg;
-};
+// The taps' texels and coordinates in the slice frame (no branches: the loop vectorises).
+// Returns whether some lane is an occluder.
+[[gnu::noinline]] bool step_coordinates(const Texel* texels, const SliceLanes& s, StepLanes& __restrict t) {
+  gather_texels(texels, t);
+  int occluders = 0;
+  for (int l = 0; l < kLanes; ++l) {
+    const int32_t index = t.index[l];
+    const Texel tx{t.x[l], t.y[l], t.z[l], t.depth_view[l]};
+    const float ex = tx.x - s.ox[l], ey = tx.y - s.oy[l], ez = tx.z - s.oz[l];
+    const float height = ex * s.nx[l] + ey * s.ny[l] + ez * s.nz[l];
+    // The tap in the slice's orthonormal frame (view, direction, axis): the slice plane
+    // holds the first two coordinates, so the projection onto the plane is dropping the
+    // third (no 3D projection per tap).
+    const float dv = ex * s.vx[l] + ey * s.vy[l] + ez * s.vz[l];
+    const float dd = ex * s.dx[l] + ey * s.dy[l] + ez * s.dz[l];
+    const float da = ex * s.ax[l] + ey * s.ay[l] + ez * s.az[l];
+    const float dist_slice2 = dv * dv + dd * dd;
+    t.dv[l] = dv;
+    t.dd[l] = dd;
+    t.da[l] = da;
+    t.height[l] = height;
+    t.dist_slice2[l] = dist_slice2;
+    t.dist2[l] = dist_slice2 + da * da;
+    // The tap's angle in the slice: of its projection onto the slice plane.
+    t.tap_cos[l] = dv / std::sqrt(dist_slice2);
+    occluders |= int((index >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f));
+  }
+  return occluders != 0;
+}
+
+// The occluded interval [u0, u1] of each lane's occluder segment on side `side` (0: +, 1:
+// -), in fractions of the slice measure (the visibility mask's sectors), every lane alike.
+template <bool perspective, bool per_texel_thickness>
+[[gnu::noinline]] void step_intervals(const Constants& k, const Frame& f, const SliceLanes& s, int side,
+                                      StepLanes& __restrict t) {
+  const float* texel_thickness = per_texel_thickness ? f.thickness.data() : nullptr;
+  const float thickness_world = k.thickness_world, r2 = k.r2;
+  // The side's sign of the angle.
+  const float sign = side == 0 ? 1.0f : -1.0f;
+  const bool pos = side == 0;
+  for (int l = 0; l < kLanes; ++l) {
+    const float dv = t.dv[l], dd = t.dd[l], da = t.da[l], dist2 = t.dist2[l];
+    const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
+    // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
+    // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too
+    // (the tap's frame coordinates are the origin's plus delta's).
+    const float pv = s.origin_v[l] + dv, pd = s.origin_d[l] + dd, pa = s.origin_a[l] + da;
+    const float inv_len = 1.0f / std::sqrt(pv * pv + pd * pd + pa * pa);
+    // The orthographic view ray in the slice frame.
+    float rv = -s.vz[l], rd = -s.dz[l], ra = -s.az[l];
+    if constexpr (perspective) {
+      rv = pv * inv_len;
+      rd = pd * inv_len;
+      ra = pa * inv_len;
+    }
+    const float b = dv * rv + dd * rd + da * ra;
+    const float c = dist2 - r2;
+    const float disc = b * b - c;
+    // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
+    const float root = std::sqrt(disc);
+    // Lanes without a texel read texel 0's, for nobody (no conditional load: the loop
+    // stays vectorised).
+    float thickness = thickness_world;
+    if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(t.index[l], 0)];
+    const float t0 = std::max(0.0f, -b - root);
+    const float t1 = std::min(thickness, -b + root);
+    // Cosines and sines (unsigned angles from the view vector) of the segment's two ends
+    // in the slice plane: sin = |direction coordinate| / length.
+    const float e0v = dv + t0 * rv, e0d = dd + t0 * rd;
+    const float e1v = dv + t1 * rv, e1d = dd + t1 * rd;
+    const float inv0 = 1.0f / std::sqrt(e0v * e0v + e0d * e0d);
+    const float inv1 = 1.0f / std::sqrt(e1v * e1v + e1d * e1d);
+    const float c0 = std::clamp(e0v * inv0, -1.0f, 1.0f);
+    const float c1 = std::clamp(e1v * inv1, -1.0f, 1.0f);
+    const float s0 = std::min(std::abs(e0d) * inv0, 1.0f);
+    const float s1 = std::min(std::abs(e1d) * inv1, 1.0f);
+    // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the hemisphere's
+    // limit on this side (n + pi/2 on +, pi/2 - n on -), whose cosine is -+sin n and sine
+    // |cos n|.
+    const bool first_higher = c0 >= c1;  // a(ca) <= a(cb)
+    const float ca = first_higher ? c0 : c1, sa = first_higher ? s0 : s1;
+    const float cos_lim = pos ? -sin_n : sin_n, lim = pos ? s.lim_pos[l] : s.lim_neg[l];
+    const float c_far = first_higher ? c1 : c0, s_far = first_higher ? s1 : s0;
+    const bool clip = c_far < cos_lim;
+    const float cb = clip ? cos_lim : c_far, sb = clip ? std::abs(cos_n) : s_far;
+    const float aa = std::min(fast_acos(ca), lim), ab = std::min(fast_acos(cb), lim);
+    // Positive side: u = measure of the negative side + of [0, a]. Negative side (signed
+    // angle -a): the weight of [-a, 0] comes off the negative side's, and the end nearer
+    // the view vector is the higher u.
+    const float h_lo = pos ? aa : ab, c_lo = pos ? ca : cb, s_lo = pos ? sa : sb;
+    const float h_hi = pos ? ab : aa, c_hi = pos ? cb : ca, s_hi = pos ? sb : sa;
+    const float i_lo = sign * inner_integral(sign * h_lo, c_lo, sign * s_lo, cos_n, sin_n);
+    const float i_hi = sign * inner_integral(sign * h_hi, c_hi, sign * s_hi, cos_n, sin_n);
+    const float u0 = (s.weight_neg[l] + i_lo) * s.inv_total[l];
+    const float u1 = (s.weight_neg[l] + i_hi) * s.inv_total[l];
+    const bool hit = (disc >= 0.0f) & (t1 >= t0) & (ca > cos_lim);
+    t.u0[l] = hit ? u0 : 1.0f;  // empty: u0 > u1
+    t.u1[l] = hit ? u1 : 0.0f;
+  }
+}
 
 // Height-field horizons (GTAO Alg. 1 lines 17-26, the paper's occluder model): per side,
-// the tap direction closest to the view vector, lerped towards the lowest horizon by the
-// distance falloff (GTAO sec. 4.3, "Bounding the sampling area"; XeGTAO).
-[[gnu::always_inline]] inline void height_field_horizons(const Constants& k, const Frame& f, const ShadedPixel& px,
-                                                         int i, glm::vec2 d, const SliceBasis& b, Horizons& h) {
-  TapLanes lanes;
-  fill_tap_lanes(b, lanes);
-  for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
-    const int chunk = std::min(kChunkSteps, k.steps - j0);
-    TapChunk taps;
-    chunk_indices(k, px, i, d, j0, taps);
-    TapGeometry geo;
-    const int occluders = k.perspective ? tap_geometry<true, false>(f.texels.data(), taps, lanes, b.frame, geo)
-                                        : tap_geometry<false, false>(f.texels.data(), taps, lanes, b.frame, geo);
-    for (int side = 0; side < 2; ++side) {
-      if (!((occluders >> side) & 1)) continue;  // only occluders raise the horizon
-      float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
-      const float low_cos = side == 0 ? b.low_cos_pos : b.low_cos_neg;
-      for (int jj = 0; jj < chunk; ++jj) {
-        const int m = side * kChunkSteps + jj;
-        // No tap, off screen, background (no occluder), on or below the tangent plane (see
-        // visibility_mask_tap) or on the view ray through the origin: no horizon.
-        if (taps.skip[jj] || taps.index[m] < 0 || f.texels[size_t(taps.index[m])].depth_view < 0.0f ||
-            !(geo.height[m] > 0.0f) || !(geo.dist_slice2[m] > 0.0f))
-          continue;
-        const float w = k.falloff(std::sqrt(geo.dist2[m]));
-        horizon_cos = std::max(horizon_cos, low_cos + (geo.tap_cos[m] - low_cos) * w);
-      }
-    }
+// the tap direction closest to the view vector, lerped towards the lowest horizon (the
+// tangent limit, -+sin n) by the distance falloff (GTAO sec. 4.3, "Bounding the sampling
+// area"; XeGTAO). Only occluders raise the horizon.
+inline void height_field_step(const Constants& k, const SliceLanes& s, const StepLanes& t, int side,
+                              float* __restrict horizon_cos) {
+  for (int l = 0; l < kLanes; ++l) {
+    const float low_cos = side == 0 ? -s.sin_n[l] : s.sin_n[l];
+    const float w = k.falloff(std::sqrt(t.dist2[l]));
+    const float raised = std::max(horizon_cos[l], low_cos + (t.tap_cos[l] - low_cos) * w);
+    horizon_cos[l] = occluder(t, l) ? raised : horizon_cos[l];
   }
+}
+
+// A side's last tap per lane, for the connection rule (top of this file): its depth (< 0:
+// none to connect to), its occluded interval in fractions of the slice measure, its texel,
+// whether it was on or below the tangent plane (its interval is then the tangent limit);
+// and the side's horizon, as a cosine from the view vector.
+struct SideLanes {
+  alignas(64) float depth_view[kLanes], u0[kLanes], u1[kLanes];
+  alignas(64) int32_t texel[kLanes];
+  alignas(64) int32_t below[kLanes];
+  alignas(64) float horizon_cos[kLanes];
+};
+
+// Which lanes' taps continue their side's last tap (the connection rule): the depths
+// within the thickness; from the tangent plane, the two points within the thickness in 3D
+// (a wall standing on the floor, never the gap under a floating object); or the two taps on
+// one plane. Each of the last two tests runs only when some lane needs it.
+inline void connections(const Constants& k, const Frame& f, const StepLanes& t, const SideLanes& st,
+                        int32_t* __restrict interval, int32_t* __restrict connect) {
+  const float thickness = k.thickness_world;
+  alignas(64) int32_t near[kLanes], plane[kLanes];
+  int any_near = 0, any_plane = 0;
+  for (int l = 0; l < kLanes; ++l) {
+    const bool has = occluder(t, l) & !(t.u0[l] > t.u1[l]);
+    const bool last = st.depth_view[l] >= 0.0f;
+    const bool below = st.below[l] != 0;
+    const bool by_depth = std::abs(t.depth_view[l] - st.depth_view[l]) <= thickness;
+    interval[l] = has;
+    connect[l] = has & last & !below & by_depth;
+    near[l] = has & last & below;
+    plane[l] = has & last & !below & !by_depth;
+    any_near |= near[l];
+    any_plane |= plane[l];
+  }
+  if (any_near)
+    for (int l = 0; l < kLanes; ++l) {
+      const Texel& p = f.texels[size_t(st.texel[l])];
+      const float ddx = t.x[l] - p.x, ddy = t.y[l] - p.y, ddz = t.z[l] - p.z;
+      connect[l] |= near[l] & (ddx * ddx + ddy * ddy + ddz * ddz <= thickness * thickness);
+    }
+  if (any_plane)
+    for (int l = 0; l < kLanes; ++l) {
+      const Texel tx{t.x[l], t.y[l], t.z[l], t.depth_view[l]};
+      connect[l] |= plane[l] & coplanar(f.planes[size_t(st.texel[l])], f.planes[size_t(std::max(t.index[l], 0))],
+                                        tx, thickness);
+    }
+}
+
+// One step of side `side` of the visibility mask (Therrien et al. 2023; finite
+// thickness_world) of each lane: the sectors the tap's segment occludes, with the side's
+// last tap's when they connect, into `occupied`; the side's last tap and its horizon (the
+// taps within the radius) updated.
+[[gnu::noinline]] void visibility_mask_step(const Constants& k, const Frame& f, const StepLanes& t, int side,
+                                            SideLanes& __restrict st, uint64_t* __restrict occupied) {
+  alignas(64) int32_t interval[kLanes], connect[kLanes];
+  connections(k, f, t, st, interval, connect);
+  alignas(64) float h0[kLanes], h1[kLanes];
+  // A tap on or below the tangent plane connects at the tangent limit: u = 1 on the
+  // positive side, 0 on the other.
+  const float u_lim = side == 0 ? 1.0f : 0.0f;
+  for (int l = 0; l < kLanes; ++l) {
+    const int32_t index = t.index[l];
+    const bool foreground = (index >= 0) & (t.depth_view[l] >= 0.0f);
+    // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
+    // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
+    // first matters: rounding taps to pixel centres moves them off the slice, and their
+    // slice angle alone would put tilted planes above their own tangent line.
+    const bool above = foreground & (t.height[l] > 0.0f);
+    const bool below = foreground & !(t.height[l] > 0.0f);
+    const bool centre = above & !(t.dist_slice2[l] > 0.0f);  // on the slice's centre line
+    const bool in_radius = above & !centre & (t.dist2[l] <= k.r2);
+    st.horizon_cos[l] = in_radius ? std::max(st.horizon_cos[l], t.tap_cos[l]) : st.horizon_cos[l];
+    const bool has = interval[l] != 0, joined = connect[l] != 0;
+    // The occluded range, as an empty one (1, 0) without an interval.
+    h0[l] = !has ? 1.0f : joined ? std::min(t.u0[l], st.u0[l]) : t.u0[l];
+    h1[l] = !has ? 0.0f : joined ? std::max(t.u1[l], st.u1[l]) : t.u1[l];
+    // The side's last tap: unchanged without a tap or on the centre line; else this one,
+    // with nothing to connect to off screen, on background and beyond the radius.
+    const bool keep = (index == kNoTap) | centre;
+    st.depth_view[l] = keep ? st.depth_view[l] : has | below ? t.depth_view[l] : -1.0f;
+    st.u0[l] = keep ? st.u0[l] : has ? t.u0[l] : u_lim;
+    st.u1[l] = keep ? st.u1[l] : has ? t.u1[l] : u_lim;
+    st.texel[l] = keep ? st.texel[l] : std::max(index, 0);
+    st.below[l] = keep ? st.below[l] : int32_t(below);
+  }
+  alignas(64) int32_t k0[kLanes], count[kLanes];
+  for (int l = 0; l < kLanes; ++l) sector_range(h0[l], h1[l], k0[l], count[l]);
+  add_sector_runs(k0, count, occupied, kLanes);
 }
 
 // The height-field slice integral: the visible measure between the two horizons (GTAO
 // eq. 10's inner integral per side, Alg. 1 lines 27-29); positive side +acos, negative -acos.
-inline float height_field_integral(const Horizons& h, float cos_n, float sin_n) {
-  const float h_pos = fast_acos(h.cos_pos);
-  const float h_neg = -fast_acos(h.cos_neg);
-  const float sp = std::sqrt(std::max(0.0f, 1.0f - h.cos_pos * h.cos_pos));
-  const float sm = -std::sqrt(std::max(0.0f, 1.0f - h.cos_neg * h.cos_neg));
-  return inner_integral(h_pos, h.cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, h.cos_neg, sm, cos_n, sin_n);
+inline float height_field_integral(float cos_pos, float cos_neg, float cos_n, float sin_n) {
+  const float h_pos = fast_acos(cos_pos);
+  const float h_neg = -fast_acos(cos_neg);
+  const float sp = std::sqrt(std::max(0.0f, 1.0f - cos_pos * cos_pos));
+  const float sm = -std::sqrt(std::max(0.0f, 1.0f - cos_neg * cos_neg));
+  return inner_integral(h_pos, cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, cos_neg, sm, cos_n, sin_n);
 }
-
-// The connection rule (top of this file): tap tx, at index, continues its side's last tap.
-[[gnu::always_inline]] inline bool connects(const Constants& k, const Frame& f, const SideState& st,
-                                            const Texel& tx, size_t index) {
-  if (!(st.depth_view >= 0.0f)) return false;
-  if (st.below) {
-    // From the tangent plane: only when the two points are within the thickness of each
-    // other in 3D (a wall standing on the floor), never across the gap under a floating
-    // object.
-    const Texel& pv = f.texels[st.texel];
-    const float ddx = tx.x - pv.x, ddy = tx.y - pv.y, ddz = tx.z - pv.z;
-    return ddx * ddx + ddy * ddy + ddz * ddz <= k.thickness_world * k.thickness_world;
-  }
-  return std::abs(tx.depth_view - st.depth_view) <= k.thickness_world ||
-         coplanar(f.planes[st.texel], f.planes[index], tx, k.thickness_world);
-}
-
-// One tap of the visibility mask at lane m: the sectors its segment occludes (with the
-// previous tap's when they connect); updates the side's last tap and the bent normal's
-// horizon (the taps within the radius).
-[[gnu::always_inline]] inline uint64_t visibility_mask_tap(const Constants& k, const Frame& f, const TapChunk& taps,
-                                                           const TapGeometry& geo, int m, int side, SideState& st,
-                                                           float& horizon_cos) {
-  if (taps.index[m] < 0) {  // off screen: nothing known, nothing connects
-    st.depth_view = -1.0f;
-    return 0;
-  }
-  const size_t index = size_t(taps.index[m]);
-  const Texel& tx = f.texels[index];
-  const float depth_view = tx.depth_view;
-  if (depth_view < 0.0f) {  // background: no occluder, nothing connects
-    st.depth_view = -1.0f;
-    return 0;
-  }
-  // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest of
-  // its segment, which runs away from the eye, i.e. further down). Testing in 3D first
-  // matters: rounding taps to pixel centres moves them off the slice, and their slice
-  // angle alone would put tilted planes above their own tangent line.
-  if (!(geo.height[m] > 0.0f)) {
-    // Connects at the tangent limit: u = 1 on the positive side, 0 on the other.
-    const float u_lim = side == 0 ? 1.0f : 0.0f;
-    st = SideState{depth_view, u_lim, u_lim, index, true};
-    return 0;
-  }
-  if (!(geo.dist_slice2[m] > 0.0f)) return 0;
-  if (geo.dist2[m] <= k.r2) horizon_cos = std::max(horizon_cos, geo.tap_cos[m]);
-  const float u0 = geo.u0[m], u1 = geo.u1[m];
-  if (u0 > u1) {  // beyond the radius: nothing to occlude, nothing to connect
-    st.depth_view = -1.0f;
-    return 0;
-  }
-  float h0 = u0, h1 = u1;
-  if (connects(k, f, st, tx, index)) {
-    h0 = std::min(h0, st.u0);
-    h1 = std::max(h1, st.u1);
-  }
-  st = SideState{depth_view, u0, u1, index, false};
-  return sector_bits(h0, h1);
-}
-
-// The visibility mask of a slice (Therrien et al. 2023; finite thickness_world): the
-// sectors occluded by the taps' segments, side by side in order of distance.
-[[gnu::always_inline]] inline uint64_t visibility_mask(const Constants& k, const Frame& f, const ShadedPixel& px,
-                                                       int i, glm::vec2 d, const SliceBasis& b, Horizons& h) {
-  uint64_t occupied = 0;
-  SideState state[2];
-  TapLanes lanes;
-  fill_tap_lanes(b, lanes);
-  for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
-    const int chunk = std::min(kChunkSteps, k.steps - j0);
-    TapChunk taps;
-    chunk_indices(k, px, i, d, j0, taps);
-    TapGeometry geo;
-    const int occluders = k.perspective ? tap_geometry<true, true>(f.texels.data(), taps, lanes, b.frame, geo)
-                                        : tap_geometry<false, true>(f.texels.data(), taps, lanes, b.frame, geo);
-    const bool last_chunk = j0 + kChunkSteps >= k.steps;
-    for (int side = 0; side < 2; ++side) {
-      // A side without an occluder sets no sector and raises no horizon; its taps only
-      // update the side's last tap, which nothing reads after the slice's last chunk.
-      if (last_chunk && !((occluders >> side) & 1)) continue;
-      SideState& st = state[side];
-      float& horizon_cos = side == 0 ? h.cos_pos : h.cos_neg;
-      for (int jj = 0; jj < chunk; ++jj)
-        if (!taps.skip[jj])
-          occupied |= visibility_mask_tap(k, f, taps, geo, side * kChunkSteps + jj, side, st, horizon_cos);
-    }
-  }
-  return occupied;
-}
-
 // The visibility-mask slice integral: the free sectors' share of the slice measure (the
 // sectors are equally spaced in it).
 inline float visibility_mask_integral(uint64_t occupied, float weight_total) {
@@ -840,66 +736,118 @@ inline float visibility_mask_integral(uint64_t occupied, float weight_total) {
   return weight_total * float(free_sectors) * (1.0f / kSectors);
 }
 
-// The slice's bent normal, weighted by |pn|: its cosine-weighted mean visible direction
-// between the horizons (closed forms, see bent_a and bent_b). h_pos = acos(cp) in [0, pi]
-// has sin >= 0, h_neg = -acos(cm) has sin <= 0.
-inline glm::vec3 slice_bent_normal(const Horizons& h, const SliceBasis& b) {
-  const float cos_n = b.frame.cos_n, sin_n = b.frame.sin_n;
-  const float cp = h.cos_pos, sp = std::sqrt(std::max(0.0f, 1.0f - cp * cp));
-  const float cm = h.cos_neg, sm = -std::sqrt(std::max(0.0f, 1.0f - cm * cm));
+// The slice's bent normal, weighted by |pn|, added to (x, y, z): its cosine-weighted mean
+// visible direction between the horizons (closed forms, see bent_a and bent_b). h_pos =
+// acos(cp) in [0, pi] has sin >= 0, h_neg = -acos(cm) has sin <= 0.
+[[gnu::always_inline]] inline void add_slice_bent_normal(float cp, float cm, const SliceLanes& s, int l, float& x,
+                                                         float& y, float& z) {
+  const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
+  const float sp = std::sqrt(std::max(0.0f, 1.0f - cp * cp));
+  const float sm = -std::sqrt(std::max(0.0f, 1.0f - cm * cm));
   const float a0 = bent_a(1.0f, 0.0f, cos_n, sin_n), b0 = bent_b(1.0f, 0.0f, cos_n, sin_n);
   const float along_view = bent_a(cp, sp, cos_n, sin_n) + bent_a(cm, sm, cos_n, sin_n) - 2.0f * a0;
   const float along_dir = bent_b(cp, sp, cos_n, sin_n) + bent_b(cm, sm, cos_n, sin_n) - 2.0f * b0;
-  return b.pn_len * (along_view * b.frame.view + along_dir * b.frame.dir);
+  const float pn_len = s.pn_len[l];
+  x += pn_len * (along_view * s.vx[l] + along_dir * s.dx[l]);
+  y += pn_len * (along_view * s.vy[l] + along_dir * s.dy[l]);
+  z += pn_len * (along_view * s.vz[l] + along_dir * s.dz[l]);
 }
 
-// A pixel's sums over its slices: the visible and the unoccluded measure, the bent normal.
-struct PixelSums {
-  float visible = 0.0f, open = 0.0f;
-  glm::vec3 bent{0.0f};
+// A group's sums over its slices, per lane: the visible and the unoccluded measure, the
+// bent normal.
+struct GroupSums {
+  alignas(64) float visible[kLanes] = {}, open[kLanes] = {};
+  alignas(64) float bent_x[kLanes] = {}, bent_y[kLanes] = {}, bent_z[kLanes] = {};
 };
 
-// Slice i of the pixel (GTAO Alg. 1 lines 5-30): its basis, its visible measure under the
-// occluder model, its bent normal.
-[[gnu::always_inline]] inline void integrate_slice(const Constants& k, const Frame& f, const ShadedPixel& px, int i,
-                                                   PixelSums& sums) {
-  const glm::vec2 d = slice_direction(k, px.row.pixel[px.xi], i);
-  const SliceBasis b = k.keep_bases ? px.bases.basis(k, f, i, px.xi) : slice_basis(k, f, px.bases.point(px.xi), d);
-  Horizons h{b.low_cos_pos, b.low_cos_neg};
-  float visible;
-  if (k.height_field) {
-    height_field_horizons(k, f, px, i, d, b, h);
-    visible = height_field_integral(h, b.frame.cos_n, b.frame.sin_n);
-  } else {
-    visible = visibility_mask_integral(visibility_mask(k, f, px, i, d, b, h), b.weight_total);
-  }
-  sums.visible += b.pn_len * visible;
-  sums.open += b.pn_len * b.weight_total;
-  sums.bent += slice_bent_normal(h, b);
-}
-
-// One pixel (x, y), at xi in its tile row: the sums of its AO and bent normal.
-[[gnu::always_inline]] inline void shade_pixel(const Constants& k, const Frame& f, int x, int y, TileRow& row,
-                                               const RowBases& bases, size_t xi) {
-  const AoInputs& in = f.in;
-  const bool background = !in.mask.ptr<uint8_t>(y)[x];
-  if (background || !row.pixel[xi].has_taps) {
-    row.state[xi] = background ? kBackground : kNoTaps;
-    row.visible_sum[xi] = row.open_sum[xi] = 0.0f;
-    row.bent_x[xi] = row.bent_y[xi] = row.bent_z[xi] = 0.0f;
+// The taps of step j of slice i, both sides, of the group at xi0: kept by the row's plan
+// when they fit, computed now otherwise; with kept indices, the next group's texels of the
+// same step are asked for (a group's taps are shaded by then).
+[[gnu::always_inline]] inline void step_taps(const Constants& k, const Frame& f, const TileRow& row,
+                                             const SliceLanes& s, int x0, int y, int xi0, int row_lanes, int i,
+                                             int j, StepLanes t[2]) {
+  if (!k.keep_indices) {
+    step_indices(k, row, s.screen_x, s.screen_y, x0, y, xi0, i, j, t[0].index, t[1].index);
     return;
   }
-  const ShadedPixel px{x, y, row, xi, bases};
-  PixelSums sums;
-  for (int i = 0; i < k.slices; ++i) integrate_slice(k, f, px, i, sums);
-  row.state[xi] = kShaded;
-  row.visible_sum[xi] = sums.visible;
-  row.open_sum[xi] = sums.open;
-  row.bent_x[xi] = sums.bent.x;
-  row.bent_y[xi] = sums.bent.y;
-  row.bent_z[xi] = sums.bent.z;
+  const int ij = i * k.steps + j;
+  for (int side = 0; side < 2; ++side) std::copy_n(row.index[ij][side] + xi0, kLanes, t[side].index);
+  if (xi0 + kLanes < row_lanes)
+    for (int side = 0; side < 2; ++side)
+      for (int l = 0; l < kLanes; ++l)
+        __builtin_prefetch(f.texels.data() + std::max(row.index[ij][side][xi0 + kLanes + l], 0));
 }
 
+// Slice i of the group of pixels xi0 .. xi0 + kLanes - 1 of row y (GTAO Alg. 1 lines 5-30):
+// its taps step by step in order of distance, both sides, under the occluder model; its
+// visible measure and bent normal added to the sums.
+void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const SliceLanes& s, int x0, int y,
+                 int xi0, int row_lanes, int i, GroupSums& sums) {
+  SideLanes side[2];
+  for (int l = 0; l < kLanes; ++l)
+    for (int sd = 0; sd < 2; ++sd) {
+      side[sd].depth_view[l] = -1.0f;
+      side[sd].u0[l] = 1.0f, side[sd].u1[l] = 0.0f;
+      side[sd].texel[l] = 0, side[sd].below[l] = 0;
+      side[sd].horizon_cos[l] = sd == 0 ? -s.sin_n[l] : s.sin_n[l];  // the tangent limits: the lowest horizons
+    }
+  alignas(64) uint64_t occupied[kLanes] = {};
+  const bool per_texel_thickness = !f.thickness.empty();
+  for (int j = 0; j < k.steps; ++j) {
+    StepLanes t[2];
+    step_taps(k, f, row, s, x0, y, xi0, row_lanes, i, j, t);
+    for (int sd = 0; sd < 2; ++sd) {
+      const bool occluders = step_coordinates(f.texels.data(), s, t[sd]);
+      if (k.height_field) {
+        if (occluders) height_field_step(k, s, t[sd], sd, side[sd].horizon_cos);
+        continue;
+      }
+      if (occluders) {
+        if (k.perspective)
+          per_texel_thickness ? step_intervals<true, true>(k, f, s, sd, t[sd]) : step_intervals<true, false>(k, f, s, sd, t[sd]);
+        else
+          per_texel_thickness ? step_intervals<false, true>(k, f, s, sd, t[sd]) : step_intervals<false, false>(k, f, s, sd, t[sd]);
+      } else {
+        std::fill_n(t[sd].u0, kLanes, 1.0f);  // no occluder: no interval
+        std::fill_n(t[sd].u1, kLanes, 0.0f);
+      }
+      visibility_mask_step(k, f, t[sd], sd, side[sd], occupied);
+    }
+  }
+  for (int l = 0; l < kLanes; ++l) {
+    const float cp = side[0].horizon_cos[l], cm = side[1].horizon_cos[l];
+    const float visible = k.height_field ? height_field_integral(cp, cm, s.cos_n[l], s.sin_n[l])
+                                         : visibility_mask_integral(occupied[l], s.weight_total[l]);
+    sums.visible[l] += s.pn_len[l] * visible;
+    sums.open[l] += s.pn_len[l] * s.weight_total[l];
+    add_slice_bent_normal(cp, cm, s, l, sums.bent_x[l], sums.bent_y[l], sums.bent_z[l]);
+  }
+}
+
+// The group of pixels xi0 .. xi0 + kLanes - 1 of row y: its slices, then its sums into the
+// row (0 where a pixel is not shaded).
+void shade_group(const Constants& k, const Frame& f, TileRow& row, RowBases& bases, int x0, int y, int xi0,
+                 int row_lanes) {
+  int any_taps = 0;
+  for (int l = 0; l < kLanes; ++l) any_taps |= row.has_taps[xi0 + l];
+  GroupSums sums;
+  for (int i = 0; i < k.slices && any_taps; ++i) {
+    const int slot = k.keep_bases ? i : 0;
+    if (!k.keep_bases) bases.compute_slice(k, row, slot, i, xi0, xi0 + kLanes);
+    SliceLanes s;
+    s.load(k, row, bases, slot, i, xi0);
+    shade_slice(k, f, row, s, x0, y, xi0, row_lanes, i, sums);
+  }
+  for (int l = 0; l < kLanes; ++l) {
+    const int xi = xi0 + l;
+    const bool shaded = row.state[xi] == kShaded;
+    row.visible_sum[xi] = shaded ? sums.visible[l] : 0.0f;
+    row.open_sum[xi] = shaded ? sums.open[l] : 0.0f;
+    row.bent_x[xi] = shaded ? sums.bent_x[l] : 0.0f;
+    row.bent_y[xi] = shaded ? sums.bent_y[l] : 0.0f;
+    row.bent_z[xi] = shaded ? sums.bent_z[l] : 0.0f;
+  }
+}
 // The outputs of pixels x0 .. x1 - 1 of row y from their sums (no branches: the loop
 // vectorises). Background: AO 1 and no bent normal; no taps: AO 1 and the normal.
 inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, int x0, int x1, int y,
@@ -934,61 +882,51 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
   }
 }
 
-// Pixel (x, y)'s tap pattern, at xi in the next tile row; its tap indices are kept in the
-// row when they fit (kKeptChunks), else its taps' texels are asked for now, a row ahead.
-// Always inlined: the prefetches have to be issued from the tile loop itself, between the
-// shading of the row above's pixels.
-[[gnu::always_inline]] inline void plan_pixel(const Constants& k, const Frame& f, int x, int y, TileRow& row,
-                                              size_t xi) {
-  PixelTaps& p = row.pixel[xi];
-  pixel_taps(k, f.in, x, y, p);
-  for (int i = 0; i < k.slices && p.has_taps; ++i) {
-    const glm::vec2 d = slice_direction(k, p, i);
-    for (int j0 = 0; j0 < k.steps; j0 += kChunkSteps) {
-      int32_t scratch_index[kChunkTaps], scratch_skip[kChunkSteps];
-      const int c = i * k.chunks_per_slice + j0 / kChunkSteps;
-      int32_t* index = k.keep_indices ? row.index[xi][c] : scratch_index;
-      int32_t* skip = k.keep_indices ? row.skip[xi][c] : scratch_skip;
-      tap_indices(k.grid, p.step_noise, p.radius_px, x, y, i, d, j0, index, skip);
-      if (!k.keep_indices)
-        for (int m = 0; m < kChunkTaps; ++m)
-          if (index[m] >= 0) __builtin_prefetch(f.texels.data() + index[m]);
-    }
+// Row y's pixels x0 .. x1 - 1, and the lanes after them up to a whole group (no taps):
+// their tap patterns, points, kept slice bases and kept tap indices, before the row is
+// shaded; the first group's texels are asked for before the bases are computed.
+void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow& row, RowBases& bases) {
+  const int n = x1 - x0, row_lanes = (n + kLanes - 1) / kLanes * kLanes;
+  for (int xi = 0; xi < n; ++xi) pixel_taps(k, f.in, x0 + xi, y, row, xi);
+  for (int xi = n; xi < row_lanes; ++xi) {
+    row.has_taps[xi] = 0;
+    row.radius_px[xi] = row.step_noise[xi] = row.rot_s[xi] = 0.0f;
+    row.rot_c[xi] = 1.0f;
+    row.state[xi] = kBackground;
   }
-}
-
-// The texels of the taps of pixel xi of a planned row (its kept tap indices), asked for a
-// few pixels before it is shaded.
-[[gnu::always_inline]] inline void prefetch_pixel(const Constants& k, const Frame& f, const TileRow& row, size_t xi) {
-  if (!row.pixel[xi].has_taps) return;
-  const int chunks = k.slices * k.chunks_per_slice;
-  for (int c = 0; c < chunks; ++c)
-    for (int m = 0; m < kChunkTaps; ++m) __builtin_prefetch(f.texels.data() + std::max(row.index[xi][c][m], 0));
-}
-
-// The tile [x0, x1) x [y0, y1). Each row's tap patterns are computed while the row above
-// is shaded, and their texels asked for kPrefetchAheadPx pixels before their shading (a row
-// ahead when the indices are not kept): a tap's texel is anywhere within the radius, mostly
-// not in the nearest cache.
-inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
-  TileRow rows[2];
-  TileRow* shaded_row = &rows[0];
-  TileRow* next_row = &rows[1];
-  RowBases bases;
-  for (int y = y0; y <= y1; ++y) {
-    if (y > y0) plan_bases(k, f, x0, x1, y - 1, *shaded_row, bases);
-    if (y > y0 && k.keep_indices)
-      for (int x = x0; x < std::min(x0 + kPrefetchAheadPx, x1); ++x) prefetch_pixel(k, f, *shaded_row, size_t(x - x0));
-    for (int x = x0; x < x1; ++x) {
-      const size_t xi = size_t(x - x0);
-      if (y < y1) plan_pixel(k, f, x, y, *next_row, xi);
-      if (y > y0) {
-        if (k.keep_indices && x + kPrefetchAheadPx < x1) prefetch_pixel(k, f, *shaded_row, xi + kPrefetchAheadPx);
-        shade_pixel(k, f, x, y - 1, *shaded_row, bases, xi);
+  if (k.keep_indices) {
+    for (int i = 0; i < k.slices; ++i) {
+      alignas(64) float screen_x[kTileWidthPx], screen_y[kTileWidthPx];
+      for (int xi = 0; xi < row_lanes; ++xi) {
+        const glm::vec2 d = slice_direction(k, row.rot_c[xi], row.rot_s[xi], i);
+        screen_x[xi] = d.x, screen_y[xi] = d.y;
       }
+      for (int j = 0; j < k.steps; ++j)
+        for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes)
+          step_indices(k, row, screen_x + xi0, screen_y + xi0, x0, y, xi0, i, j, row.index[i * k.steps + j][0] + xi0,
+                       row.index[i * k.steps + j][1] + xi0);
     }
-    if (y > y0) finish_row(k, f.in, out, x0, x1, y - 1, *shaded_row);
-    std::swap(shaded_row, next_row);
+    for (int ij = 0; ij < k.slices * k.steps; ++ij)
+      for (int side = 0; side < 2; ++side)
+        for (int l = 0; l < kLanes; ++l) __builtin_prefetch(f.texels.data() + std::max(row.index[ij][side][l], 0));
+  }
+  for (int xi = 0; xi < n; ++xi) bases.set_point(size_t(xi), pixel_point(k, f, x0 + xi, y));
+  for (int xi = n; xi < row_lanes; ++xi) bases.set_point(size_t(xi), PixelPoint{});
+  if (k.keep_bases)
+    for (int i = 0; i < k.slices; ++i) bases.compute_slice(k, row, i, i, 0, row_lanes);
+}
+
+// The tile [x0, x1) x [y0, y1), row by row: a row is planned (plan_row), then shaded a
+// group of kLanes pixels at a time, each group's taps step by step, while the next group's
+// texels are asked for.
+inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
+  TileRow row;
+  RowBases bases;
+  const int row_lanes = (x1 - x0 + kLanes - 1) / kLanes * kLanes;
+  for (int y = y0; y < y1; ++y) {
+    plan_row(k, f, x0, x1, y, row, bases);
+    for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes) shade_group(k, f, row, bases, x0, y, xi0, row_lanes);
+    finish_row(k, f.in, out, x0, x1, y, row);
   }
 }
 
@@ -997,8 +935,8 @@ inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0
 void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::Rect& roi,
              int nthreads) {
   const Constants k(in, s);
-  // Texel indices are 32-bit.
-  CV_Assert(int64_t(k.grid.width) * int64_t(k.grid.height) <= int64_t(INT32_MAX));
+  // Texel indices are 32-bit, and so are the texels' float offsets (gather_texels).
+  CV_Assert(int64_t(k.grid.width) * int64_t(k.grid.height) <= int64_t(INT32_MAX / 4));
   Frame f{in, {}, {}, {}};
   build_texels(in, f.texels, f.planes, nthreads);
   if (const cv::Mat* back = back_layer(in, k)) build_texel_thickness(in, *back, f.texels, k.perspective, f.thickness, nthreads);
