@@ -63,13 +63,6 @@ glm::vec3 Camera::view_ray_direction(glm::vec2 pixel) const {
   return glm::normalize(view_from_pixel_depth(pixel, 1.0f));
 }
 
-glm::vec2 Camera::pixels_per_unit(float depth_view) const {
-  // clip.w at planar depth d for a point on the axis: w = m[2][3] * (-d) + m[3][3].
-  const float w = view_to_clip[2][3] * (-depth_view) + view_to_clip[3][3];
-  return {0.5f * float(width_px) * std::abs(view_to_clip[0][0]) / w,
-          0.5f * float(height_px) * std::abs(view_to_clip[1][1]) / w};
-}
-
 PixelRays pixel_rays(const Camera& camera) {
   PixelRays m;
   auto point = [&](float px, float py, float depth) { return camera.view_from_pixel_depth({px, py}, depth); };

@@ -11,6 +11,8 @@
 //   (lens shift, non-square pixels and orthographic cameras are all expressible).
 #pragma once
 
+#include <cmath>
+
 #include <glm/glm.hpp>
 
 namespace ssdo {
@@ -53,8 +55,14 @@ struct Camera {
   glm::vec3 view_ray_direction(glm::vec2 pixel) const;
 
   // Pixels per scene unit, along x and y, for a length parallel to the image plane at
-  // planar depth depth_view. Used to project a world-space radius to the screen.
-  glm::vec2 pixels_per_unit(float depth_view) const;
+  // planar depth depth_view. Used to project a world-space radius to the screen. Inline:
+  // the kernels call it per pixel in loops over vector lanes.
+  glm::vec2 pixels_per_unit(float depth_view) const {
+    // clip.w at planar depth d for a point on the axis: w = m[2][3] * (-d) + m[3][3].
+    const float w = view_to_clip[2][3] * (-depth_view) + view_to_clip[3][3];
+    return {0.5f * float(width_px) * std::abs(view_to_clip[0][0]) / w,
+            0.5f * float(height_px) * std::abs(view_to_clip[1][1]) / w};
+  }
 
   glm::vec3 view_from_world_point(const glm::vec3& p_world) const {
     return glm::vec3(world_to_view * glm::vec4(p_world, 1.0f));

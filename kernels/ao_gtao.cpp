@@ -298,28 +298,28 @@ struct TileRow {
   alignas(64) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
 };
 
-// Pixel (x, y)'s tap pattern, at xi in its row.
-inline void pixel_taps(const Constants& k, const AoInputs& in, int x, int y, TileRow& row, int xi) {
-  row.has_taps[xi] = 0;
-  row.radius_px[xi] = 0.0f;
-  row.step_noise[xi] = 0.0f;
-  row.rot_c[xi] = 1.0f;
-  row.rot_s[xi] = 0.0f;
-  row.state[xi] = kBackground;
-  if (!in.mask.ptr<uint8_t>(y)[x]) return;
-  row.state[xi] = kNoTaps;
-  const float depth = in.depth_view.ptr<float>(y)[x];
-  const float radius_px = projected_radius_px(in.camera, depth, k.radius_world, k.max_radius_px);
-  row.radius_px[xi] = radius_px;
-  // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
-  if (radius_px < 2.0f * kMinTapDistancePx) return;
-  row.has_taps[xi] = 1;
-  row.state[xi] = kShaded;
-  const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
-  const float slice_noise = noise01(nx, ny, 0, k.seed);
-  row.step_noise[xi] = noise01(nx, ny, 1, k.seed);
-  // The rotation slice_noise pi / slices, in turns.
-  sincos_turns(slice_noise / float(2 * k.slices), row.rot_c[xi], row.rot_s[xi]);
+// The tap patterns of row y's pixels x0 .. x0 + n - 1 (at 0 .. n - 1 in the row), computed
+// for every pixel and kept where it has taps (no branch: the loop vectorises).
+inline void pixel_taps(const Constants& k, const AoInputs& in, int x0, int n, int y, TileRow& row) {
+  const uint8_t* mask = in.mask.ptr<uint8_t>(y) + x0;
+  const float* depth = in.depth_view.ptr<float>(y) + x0;
+  for (int xi = 0; xi < n; ++xi) {
+    const bool foreground = mask[xi] != 0;
+    const float radius_px = projected_radius_px(in.camera, depth[xi], k.radius_world, k.max_radius_px);
+    // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
+    const bool has_taps = foreground & !(radius_px < 2.0f * kMinTapDistancePx);
+    const int nx = x0 + xi - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
+    const float slice_noise = noise01(nx, ny, 0, k.seed);
+    float rot_c, rot_s;
+    // The rotation slice_noise pi / slices, in turns.
+    sincos_turns(slice_noise / float(2 * k.slices), rot_c, rot_s);
+    row.has_taps[xi] = has_taps;
+    row.radius_px[xi] = foreground ? radius_px : 0.0f;
+    row.step_noise[xi] = has_taps ? noise01(nx, ny, 1, k.seed) : 0.0f;
+    row.rot_c[xi] = has_taps ? rot_c : 1.0f;
+    row.rot_s[xi] = has_taps ? rot_s : 0.0f;
+    row.state[xi] = !foreground ? kBackground : has_taps ? kShaded : kNoTaps;
+  }
 }
 
 // Screen direction of slice i (px, y down): slice angle phi in [0, pi), rotated per pixel.
@@ -731,8 +731,7 @@ inline float height_field_integral(float cos_pos, float cos_neg, float cos_n, fl
 }
 // The visibility-mask slice integral: the free sectors' share of the slice measure (the
 // sectors are equally spaced in it).
-inline float visibility_mask_integral(uint64_t occupied, float weight_total) {
-  const int free_sectors = kSectors - std::popcount(occupied);
+inline float visibility_mask_integral(int free_sectors, float weight_total) {
   return weight_total * float(free_sectors) * (1.0f / kSectors);
 }
 
@@ -814,11 +813,19 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
       visibility_mask_step(k, f, t[sd], sd, side[sd], occupied);
     }
   }
+  // Free sectors first (a 64-bit popcount has no vector instruction before AVX-512's
+  // VPOPCNTDQ), so that the loop after runs in float lanes.
+  alignas(64) int32_t free_sectors[kLanes];
+  for (int l = 0; l < kLanes; ++l) free_sectors[l] = kSectors - std::popcount(occupied[l]);
+  alignas(64) float visible[kLanes];
+  if (k.height_field)
+    for (int l = 0; l < kLanes; ++l)
+      visible[l] = height_field_integral(side[0].horizon_cos[l], side[1].horizon_cos[l], s.cos_n[l], s.sin_n[l]);
+  else
+    for (int l = 0; l < kLanes; ++l) visible[l] = visibility_mask_integral(free_sectors[l], s.weight_total[l]);
   for (int l = 0; l < kLanes; ++l) {
     const float cp = side[0].horizon_cos[l], cm = side[1].horizon_cos[l];
-    const float visible = k.height_field ? height_field_integral(cp, cm, s.cos_n[l], s.sin_n[l])
-                                         : visibility_mask_integral(occupied[l], s.weight_total[l]);
-    sums.visible[l] += s.pn_len[l] * visible;
+    sums.visible[l] += s.pn_len[l] * visible[l];
     sums.open[l] += s.pn_len[l] * s.weight_total[l];
     add_slice_bent_normal(cp, cm, s, l, sums.bent_x[l], sums.bent_y[l], sums.bent_z[l]);
   }
@@ -887,7 +894,7 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
 // shaded; the first group's texels are asked for before the bases are computed.
 void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow& row, RowBases& bases) {
   const int n = x1 - x0, row_lanes = (n + kLanes - 1) / kLanes * kLanes;
-  for (int xi = 0; xi < n; ++xi) pixel_taps(k, f.in, x0 + xi, y, row, xi);
+  pixel_taps(k, f.in, x0, n, y, row);
   for (int xi = n; xi < row_lanes; ++xi) {
     row.has_taps[xi] = 0;
     row.radius_px[xi] = row.step_noise[xi] = row.rot_s[xi] = 0.0f;

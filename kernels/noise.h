@@ -48,13 +48,11 @@ inline void sincos_turns(float t, float& cos_out, float& sin_out) {
   const float s = x * (1.0f + x2 * (-1.0f / 6.0f + x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
   const float c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24.0f + x2 * (-1.0f / 720.0f +
                                                                  x2 * (1.0f / 40320.0f + x2 * (-1.0f / 3628800.0f)))));
-  // Rotated by the quarter turns taken out.
-  switch (int(quarter) & 3) {
-    case 0: cos_out = c, sin_out = s; break;
-    case 1: cos_out = -s, sin_out = c; break;
-    case 2: cos_out = -c, sin_out = -s; break;
-    default: cos_out = s, sin_out = -c; break;
-  }
+  // Rotated by the quarter turns taken out (selects, not a switch: callers run it in
+  // vector lanes).
+  const int q = int(quarter) & 3;
+  cos_out = q == 0 ? c : q == 1 ? -s : q == 2 ? -c : s;
+  sin_out = q == 0 ? s : q == 1 ? c : q == 2 ? -s : -c;
 }
 
 }  // namespace ssdo
