@@ -504,6 +504,46 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
   }
 }
 
+// Pixels [x0, x1) of a row of 3-vectors v, normalised where the mask is set: v / |v|, or
+// the normal n where |v| <= 1e-12. |v| as cv::norm computes it (the squares summed in
+// double, in x, y, z order), a vector of pixels at a time.
+void unit_vectors(float* v, const float* n, const uint8_t* mask, int x0, int x1) {
+  int x = x0;
+#if HWY_TARGET != HWY_SCALAR  // a vector holds two halves
+  const FloatLanes d;
+  const hn::Half<FloatLanes> dh;
+  const hn::Rebind<double, decltype(dh)> dd;
+  const size_t lanes = hn::Lanes(d);
+  const auto tiny = hn::Set(d, 1e-12f), one = hn::Set(d, 1.0f);
+  auto length = [&](Lanes vx, Lanes vy, Lanes vz, bool upper) {
+    const auto half = [&](Lanes a) { return hn::PromoteTo(dd, upper ? hn::UpperHalf(dh, a) : hn::LowerHalf(dh, a)); };
+    const auto sx = half(vx);
+    const auto sy = half(vy);
+    const auto sz = half(vz);
+    return hn::DemoteTo(dh, hn::Sqrt(hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz))));
+  };
+  for (; x + int(lanes) <= x1; x += int(lanes)) {
+    Lanes vx, vy, vz, nx, ny, nz;
+    hn::LoadInterleaved3(d, v + size_t(3) * size_t(x), vx, vy, vz);
+    hn::LoadInterleaved3(d, n + size_t(3) * size_t(x), nx, ny, nz);
+    const Lanes len = hn::Combine(d, length(vx, vy, vz, true), length(vx, vy, vz, false));
+    const auto fg = foreground_lanes(mask + x);
+    const auto unit = hn::And(fg, hn::Gt(len, tiny)), normal = hn::AndNot(hn::Gt(len, tiny), fg);
+    const Lanes inv = hn::Div(one, len);
+    hn::StoreInterleaved3(hn::IfThenElse(unit, hn::Mul(vx, inv), hn::IfThenElse(normal, nx, vx)),
+                          hn::IfThenElse(unit, hn::Mul(vy, inv), hn::IfThenElse(normal, ny, vy)),
+                          hn::IfThenElse(unit, hn::Mul(vz, inv), hn::IfThenElse(normal, nz, vz)), d,
+                          v + size_t(3) * size_t(x));
+  }
+#endif
+  for (; x < x1; ++x) {
+    if (!mask[x]) continue;
+    float* p = v + size_t(3) * size_t(x);
+    const float len = float(std::sqrt(double(p[0]) * p[0] + double(p[1]) * p[1] + double(p[2]) * p[2]));
+    for (int c = 0; c < 3; ++c) p[c] = len > 1e-12f ? p[c] * (1.0f / len) : n[size_t(3) * size_t(x) + size_t(c)];
+  }
+}
+
 // The images' finish (UpsampleFinish) on pixels [x0, x1) of row y, after the row's
 // upsample.
 void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, int y, int x0, int x1) {
@@ -515,11 +555,7 @@ void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, int
     } else if (im.finish == UpsampleFinish::unit_vector) {
       cv::Vec3f* row = im.full.ptr<cv::Vec3f>(y);
       const cv::Vec3f* normal_row = full.normal_view.ptr<cv::Vec3f>(y);
-      for (int x = x0; x < x1; ++x) {
-        if (!mask_row[x]) continue;
-        const float len = float(cv::norm(row[x]));
-        row[x] = len > 1e-12f ? row[x] * (1.0f / len) : normal_row[x];
-      }
+      unit_vectors(reinterpret_cast<float*>(row), reinterpret_cast<const float*>(normal_row), mask_row, x0, x1);
     }
   }
 }
