@@ -80,29 +80,28 @@ struct ForegroundLanes {
   VF ray_row_x, ray_row_y, ray_row_z, step_x, step_y, step_z, lanes;
 };
 
+// Built whole at its return, never default-constructed: GCC defines a struct's implicit
+// constructor outside the target's attributes (on Arm, NEON's "+crypto"), where the
+// vectors' constructors cannot be inlined.
 HWY_INLINE ForegroundLanes broadcast(const ForegroundPass& pass, const glm::vec3& ray_row) {
   const DF df;
   const float inf = std::numeric_limits<float>::infinity();
-  ForegroundLanes c;
-  c.zero = hn::Zero(df);
-  c.infinity = hn::Set(df, inf);
-  c.background_depth = hn::Set(df, kBackgroundDepth);
-  // No far clip: +inf, which no depth exceeds; no background value: NaN, which no depth
-  // equals.
-  c.far_view = hn::Set(df, pass.far_view > 0.0f ? pass.far_view : inf);
-  c.background = hn::Set(df, pass.has_background ? pass.background
-                                                 : std::numeric_limits<float>::quiet_NaN());
-  c.min_length = hn::Set(df, kMinNormalLength);
   const glm::mat3& m = pass.normal_to_view;
-  c.m00 = hn::Set(df, m[0][0]), c.m10 = hn::Set(df, m[1][0]), c.m20 = hn::Set(df, m[2][0]);
-  c.m01 = hn::Set(df, m[0][1]), c.m11 = hn::Set(df, m[1][1]), c.m21 = hn::Set(df, m[2][1]);
-  c.m02 = hn::Set(df, m[0][2]), c.m12 = hn::Set(df, m[1][2]), c.m22 = hn::Set(df, m[2][2]);
-  c.ray_row_x = hn::Set(df, ray_row.x), c.ray_row_y = hn::Set(df, ray_row.y),
-  c.ray_row_z = hn::Set(df, ray_row.z);
-  c.step_x = hn::Set(df, pass.ray_step_x.x), c.step_y = hn::Set(df, pass.ray_step_x.y),
-  c.step_z = hn::Set(df, pass.ray_step_x.z);
-  c.lanes = hn::Iota(df, 0.0f);
-  return c;
+  const auto set = [&](float v) { return hn::Set(df, v); };
+  return {hn::Zero(df),
+          set(inf),
+          set(kBackgroundDepth),
+          // No far clip: +inf, which no depth exceeds; no background value: NaN, which no
+          // depth equals.
+          set(pass.far_view > 0.0f ? pass.far_view : inf),
+          set(pass.has_background ? pass.background : std::numeric_limits<float>::quiet_NaN()),
+          set(kMinNormalLength),
+          set(m[0][0]), set(m[1][0]), set(m[2][0]),
+          set(m[0][1]), set(m[1][1]), set(m[2][1]),
+          set(m[0][2]), set(m[1][2]), set(m[2][2]),
+          set(ray_row.x), set(ray_row.y), set(ray_row.z),
+          set(pass.ray_step_x.x), set(pass.ray_step_x.y), set(pass.ray_step_x.z),
+          hn::Iota(df, 0.0f)};
 }
 
 // Lanes whose depth and normal are finite: |v| < inf (false for NaN).
@@ -143,8 +142,9 @@ HWY_INLINE bool foreground_group(const ForegroundPass& pass, const ForegroundLan
   const DF df;
   const VF stored = hn::LoadU(df, row.depth + x);
   float* n_at = &row.normal[x][0];
-  Vec3s n;
-  hn::LoadInterleaved3(df, n_at, n.x, n.y, n.z);
+  VF nx, ny, nz;  // not into a Vec3s: see broadcast
+  hn::LoadInterleaved3(df, n_at, nx, ny, nz);
+  Vec3s n{nx, ny, nz};
   auto usable = finite(c, stored, n);
   const Vec3s ray = eye_rays(c, pass.perspective, x);
   VF d = stored;

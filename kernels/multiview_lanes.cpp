@@ -43,16 +43,16 @@ struct RayVectors {
   hn::Vec<D> clip0[4], clip1[4], depth0, depth1;
 };
 
+// Built whole, never default-constructed: GCC defines a struct's implicit constructor
+// outside the target's attributes (on Arm, NEON's "+crypto"), where the vectors'
+// constructors cannot be inlined.
 template <class D>
 HWY_INLINE RayVectors<D> ray_vectors(D d, const RayLanes& r, size_t j0) {
-  RayVectors<D> v;
-  for (int c = 0; c < 4; ++c) {
-    v.clip0[c] = hn::Load(d, r.clip0[c] + j0);
-    v.clip1[c] = hn::Load(d, r.clip1[c] + j0);
-  }
-  v.depth0 = hn::Load(d, r.depth0 + j0);
-  v.depth1 = hn::Load(d, r.depth1 + j0);
-  return v;
+  const auto load = [&](const float* p) { return hn::Load(d, p + j0); };
+  return {{load(r.clip0[0]), load(r.clip0[1]), load(r.clip0[2]), load(r.clip0[3])},
+          {load(r.clip1[0]), load(r.clip1[1]), load(r.clip1[2]), load(r.clip1[3])},
+          load(r.depth0),
+          load(r.depth1)};
 }
 
 // A view's verdict on the points at planar depth `depth` of the rays (multiview.h): `free`

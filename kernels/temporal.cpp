@@ -91,14 +91,16 @@ struct CarriedLanes {
   Vec3L normal;
   VF c0, cx, cy, d0, dx, dy;
 };
+// Built whole at its return, never default-constructed: GCC defines a struct's implicit
+// constructor outside the target's attributes (on Arm, NEON's "+crypto"), where the
+// vectors' constructors cannot be inlined.
 CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Vec3L& normal) {
   const DF d;
-  CarriedLanes c;
   const Vec3L p = ray_point(r.from_rays_in_to(), px, py, depth);
   const glm::mat3 rot = r.rotation();  // rot[column][row]
-  c.normal = {dot({hn::Set(d, rot[0][0]), hn::Set(d, rot[1][0]), hn::Set(d, rot[2][0])}, normal),
-              dot({hn::Set(d, rot[0][1]), hn::Set(d, rot[1][1]), hn::Set(d, rot[2][1])}, normal),
-              dot({hn::Set(d, rot[0][2]), hn::Set(d, rot[1][2]), hn::Set(d, rot[2][2])}, normal)};
+  const Vec3L n{dot({hn::Set(d, rot[0][0]), hn::Set(d, rot[1][0]), hn::Set(d, rot[2][0])}, normal),
+                dot({hn::Set(d, rot[0][1]), hn::Set(d, rot[1][1]), hn::Set(d, rot[2][1])}, normal),
+                dot({hn::Set(d, rot[0][2]), hn::Set(d, rot[1][2]), hn::Set(d, rot[2][2])}, normal)};
   // Camera::pixel_from_view: clip = view_to_clip (p, 1), NaN-free only for clip.w > 0.
   const Camera& to = r.to();
   const glm::mat4& m = to.view_to_clip;
@@ -106,20 +108,29 @@ CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Ve
     return hn::Add(dot({hn::Set(d, m[0][row]), hn::Set(d, m[1][row]), hn::Set(d, m[2][row])}, p), hn::Set(d, m[3][row]));
   };
   const VF clip_w = clip_row(3);
-  c.valid = hn::Gt(clip_w, hn::Zero(d));
-  const VF w = hn::IfThenElse(c.valid, clip_w, hn::Set(d, 1.0f));
+  const MF valid = hn::Gt(clip_w, hn::Zero(d));
+  const VF w = hn::IfThenElse(valid, clip_w, hn::Set(d, 1.0f));
   const VF half = hn::Set(d, 0.5f), one = hn::Set(d, 1.0f);
-  c.pixel_x = hn::Mul(hn::Mul(half, hn::Add(hn::Div(clip_row(0), w), one)), hn::Set(d, float(to.width_px)));
-  c.pixel_y = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Div(clip_row(1), w))), hn::Set(d, float(to.height_px)));
+  const VF pixel_x = hn::Mul(hn::Mul(half, hn::Add(hn::Div(clip_row(0), w), one)), hn::Set(d, float(to.width_px)));
+  const VF pixel_y = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Div(clip_row(1), w))), hn::Set(d, float(to.height_px)));
   const PixelRays& t = r.to_rays();
-  c.c0 = dot(c.normal, sub(broadcast(t.o0), p));
-  c.cx = dot(c.normal, broadcast(t.ox)), c.cy = dot(c.normal, broadcast(t.oy));
-  c.d0 = dot(c.normal, broadcast(t.u0)), c.dx = dot(c.normal, broadcast(t.ux)), c.dy = dot(c.normal, broadcast(t.uy));
-  return c;
+  return {pixel_x,
+          pixel_y,
+          valid,
+          n,
+          dot(n, sub(broadcast(t.o0), p)),
+          dot(n, broadcast(t.ox)),
+          dot(n, broadcast(t.oy)),
+          dot(n, broadcast(t.u0)),
+          dot(n, broadcast(t.ux)),
+          dot(n, broadcast(t.uy))};
 }
 
 // Per-lane sums of a group of pixels: their channels (every term in order) and the total weight.
 struct GroupSums {
+  // A constructor of its own, defined here: GCC defines an implicit one outside the
+  // target's attributes (on Arm, NEON's "+crypto"), where the vector's cannot be inlined.
+  explicit GroupSums(VF initial_total) : total(initial_total) {}
   HWY_ALIGN float channel[kMaxChannels][kMaxLanes];
   VF total;
 };
@@ -246,8 +257,7 @@ void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours,
   for (int x0 = x_begin; x0 < x_end; x0 += int(lanes)) {
     const int count = std::min(int(lanes), x_end - x0);
     const FrameLanes pixels = frame_lanes(f, y, x0, 1, x_end);
-    GroupSums sums;
-    sums.total = hn::Zero(d);
+    GroupSums sums(hn::Zero(d));
     for (auto& channel : sums.channel) hn::Store(hn::Zero(d), d, channel);
     const VF px = hn::Add(hn::ConvertTo(d, hn::Iota(DI(), x0)), hn::Set(d, 0.5f));
     neighbour_taps_lanes(neighbours, planes, px, hn::Set(d, float(y) + 0.5f), pixels.depth, pixels.normal,
