@@ -105,8 +105,11 @@ inline void add_sector_runs(const int32_t* k0, const int32_t* count, uint64_t* o
   const hn::Rebind<int32_t, decltype(di)> d32;
   const auto one = hn::Set(du, 1), all = hn::Set(du, ~uint64_t(0));
   for (size_t l = 0; l < lanes; l += hn::Lanes(du)) {
-    const auto n = hn::PromoteTo(di, hn::LoadU(d32, count + l));
-    const auto whole = hn::RebindMask(du, hn::Gt(n, hn::Set(di, kSectors - 1)));
+    const auto n32 = hn::LoadU(d32, count + l);
+    const auto whole = hn::RebindMask(du, hn::Gt(hn::PromoteTo(di, n32), hn::Set(di, kSectors - 1)));
+    // A shift by 64 is undefined (and 0 or 1 depending on the instruction set): whole runs
+    // take the select, their shift is clamped.
+    const auto n = hn::PromoteTo(di, hn::Min(n32, hn::Set(d32, kSectors - 1)));
     const auto run = hn::IfThenElse(whole, all, hn::Sub(hn::Shl(one, hn::BitCast(du, n)), one));
     const auto shift = hn::BitCast(du, hn::PromoteTo(di, hn::LoadU(d32, k0 + l)));
     hn::StoreU(hn::Or(hn::LoadU(du, occupied + l), hn::Shl(run, shift)), du, occupied + l);
