@@ -493,13 +493,12 @@ struct StepLanes {
   alignas(64) float dv[kLanes], dd[kLanes], da[kLanes];
   alignas(64) float height[kLanes], dist_slice2[kLanes], dist2[kLanes], tap_cos[kLanes];
   alignas(64) float u0[kLanes], u1[kLanes];
+  // An occluder the ordered pass reads: on screen, foreground, above the tangent plane,
+  // off the slice's centre (set by step_coordinates).
+  alignas(64) int32_t occluder[kLanes];
 };
 
-// An occluder the ordered pass reads: on screen, foreground, above the tangent plane, off
-// the slice's centre.
-[[gnu::always_inline]] inline bool occluder(const StepLanes& t, int l) {
-  return (t.index[l] >= 0) & (t.depth_view[l] >= 0.0f) & (t.height[l] > 0.0f) & (t.dist_slice2[l] > 0.0f);
-}
+[[gnu::always_inline]] inline bool occluder(const StepLanes& t, int l) { return t.occluder[l] != 0; }
 
 // The taps' texels, gathered field by field (a vector of lanes per field: the loads of a
 // texel are one gather instruction's elements instead of a load and an insert each).
@@ -545,7 +544,8 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
     t.dist2[l] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
     t.tap_cos[l] = dv / std::sqrt(dist_slice2);
-    occluders |= int((index >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f));
+    t.occluder[l] = (index >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f);
+    occluders |= t.occluder[l];
   }
   return occluders != 0;
 }
@@ -703,7 +703,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& t, 
     const bool above = foreground & (t.height[l] > 0.0f);
     const bool below = foreground & !(t.height[l] > 0.0f);
     const bool centre = above & !(t.dist_slice2[l] > 0.0f);  // on the slice's centre line
-    const bool in_radius = above & !centre & (t.dist2[l] <= k.r2);
+    const bool in_radius = occluder(t, l) & (t.dist2[l] <= k.r2);
     st.horizon_cos[l] = in_radius ? std::max(st.horizon_cos[l], t.tap_cos[l]) : st.horizon_cos[l];
     const bool has = interval[l] != 0, joined = connect[l] != 0;
     // The occluded range, as an empty one (1, 0) without an interval.
