@@ -159,9 +159,11 @@ uint8_t vector8(float v) {
 
 std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   const int w = t.image.cols, h = t.image.rows, nc = t.image.channels();
+  cv::Mat samples = t.image;
+  if (samples.depth() == CV_16F) t.image.convertTo(samples, CV_32F);  // exact: every half is a float
   cv::Mat pixels(h, w, CV_8UC(nc));
   for (int y = 0; y < h; ++y) {
-    const float* row = t.image.ptr<float>(y);
+    const float* row = samples.ptr<float>(y);
     uint8_t* out = pixels.ptr<uint8_t>(y);
     for (int i = 0; i < w * nc; ++i) out[i] = t.vector ? vector8(row[i]) : srgb8(row[i]);
   }
@@ -201,6 +203,14 @@ void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const
   for (const auto& t : terms) {
     const auto channels = channel_names(t);
     const int n = t.image.channels();
+    if (t.image.depth() == CV_16F) {  // stored as given
+      for (int c = 0; c < n; ++c)
+        fb.insert(channels[c], Imf::Slice(Imf::HALF,
+                                          const_cast<char*>(reinterpret_cast<const char*>(
+                                              t.image.ptr<uint16_t>() + c)),
+                                          sizeof(half) * n, t.image.step[0]));
+      continue;
+    }
     if (t.type == SampleType::half) {
       std::vector<half>& buffer = half_buffers.emplace_back(size_t(size.area()) * n);
       parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
@@ -241,11 +251,13 @@ void check_core(exr_result_t result, const char* action) {
 }
 
 // Where one EXR channel's samples come from: component `component` of the pixels of a
-// CV_32FC<components> image.
+// CV_32FC<components> image (converted when the channel is half), or of a CV_16FC<components>
+// image (copied).
 struct ChannelSource {
   const cv::Mat* image = nullptr;
   int component = 0, components = 1;
   bool is_half = false;
+  bool given_half = false;  // the image holds the half samples
 };
 
 // Packs scanlines [y0, y1) as a chunk stores them before compression (OpenEXR "Technical
@@ -265,23 +277,30 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
   int row_y = -1;
   for (int y = y0; y < y1; ++y)
     for (const ChannelSource& c : channels) {
-      const float* in = c.image->ptr<float>(y) + c.component;
       const size_t step = size_t(c.components);
       if (c.is_half) {
-        if (row_image != c.image || row_y != y) {
-          row_half.resize(size_t(width) * step);
-          half_samples::to_half(c.image->ptr<float>(y), int(size_t(width) * step), row_half.data());
-          row_image = c.image;
-          row_y = y;
+        const uint16_t* from = nullptr;
+        if (c.given_half) {
+          from = c.image->ptr<uint16_t>(y) + c.component;
+        } else {
+          if (row_image != c.image || row_y != y) {
+            row_half.resize(size_t(width) * step);
+            half_samples::to_half(c.image->ptr<float>(y), int(size_t(width) * step), row_half.data());
+            row_image = c.image;
+            row_y = y;
+          }
+          from = row_half.data() + c.component;
         }
-        const uint16_t* from = row_half.data() + c.component;
         if (step == 1) {
           std::memcpy(out, from, size_t(width) * 2);
         } else {
           for (int x = 0; x < width; ++x) std::memcpy(out + 2 * size_t(x), &from[size_t(x) * step], 2);
         }
         out += size_t(width) * 2;
-      } else if (step == 1) {
+        continue;
+      }
+      const float* in = c.image->ptr<float>(y) + c.component;
+      if (step == 1) {
         std::memcpy(out, in, size_t(width) * 4);
         out += size_t(width) * 4;
       } else {
@@ -296,7 +315,9 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
 // Chunks compressed at a time: at most kBatchPackedBytes of packed data and kBatchChunks
 // chunks, but at least 4 per thread so that the strips balance. A batch's compressed
 // chunks take at most its packed size (a chunk that does not compress is stored packed).
-constexpr size_t kBatchPackedBytes = size_t(32) << 20;
+// Two batches are held (one written while the next is encoded): 8 MiB keeps them small
+// beside a frame's terms, and larger batches wrote no faster (1080p, 21 channels).
+constexpr size_t kBatchPackedBytes = size_t(8) << 20;
 constexpr int kBatchChunks = 256;
 
 // The header of write_own_exr's file, written: the part, its channels and the camera
@@ -325,7 +346,7 @@ std::map<std::string, ChannelSource> write_own_header(exr_context_t context, int
     const auto names = channel_names(t);
     for (int c = 0; c < int(names.size()); ++c) {
       const bool is_half = t.type == SampleType::half;
-      sources[names[size_t(c)]] = {&t.image, c, t.image.channels(), is_half};
+      sources[names[size_t(c)]] = {&t.image, c, t.image.channels(), is_half, t.image.depth() == CV_16F};
       // pLinear 0 and sampling 1 x 1: Imf::Channel's defaults, as write_exr adds them.
       check_core(exr_add_channel(context, part, names[size_t(c)].c_str(),
                                  is_half ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT,
@@ -500,8 +521,10 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
     if (t.name.empty()) return path + ": an output term has no name";
     if (!names.insert(t.name).second) return path + ": output term \"" + t.name + "\" given twice";
     if (t.image.empty()) return path + ": output term \"" + t.name + "\" has no image";
-    if (t.image.type() != CV_32FC1 && t.image.type() != CV_32FC3)
-      return path + ": output term \"" + t.name + "\" must be CV_32FC1 or CV_32FC3";
+    const bool given_half = t.image.type() == CV_16FC1 || t.image.type() == CV_16FC3;
+    if (t.image.type() != CV_32FC1 && t.image.type() != CV_32FC3 && !(given_half && t.type == SampleType::half))
+      return path + ": output term \"" + t.name + "\" must be CV_32FC1 or CV_32FC3" +
+             (given_half ? " (CV_16F only for half terms)" : "");
     if (t.image.size() != size)
       return path + ": output term \"" + t.name + "\" is " + std::to_string(t.image.cols) + "x" +
              std::to_string(t.image.rows) + ", the others " + std::to_string(size.width) + "x" +

@@ -16,7 +16,10 @@ namespace ssdo {
 enum class SampleType { half, float32 };
 
 // One output term: CV_32FC1 (channel "<name>") or CV_32FC3 (channels "<name>.R/G/B", or
-// "<name>.X/Y/Z" when `vector` is set, e.g. a bent normal).
+// "<name>.X/Y/Z" when `vector` is set, e.g. a bent normal). A term of type half may also be
+// given as CV_16FC1 / CV_16FC3 samples already rounded (half_samples::to_half, the bits the
+// writer would store): a finished term kept in half takes half the memory until it is
+// written.
 struct OutputTerm {
   std::string name;     // "ao", "bent_normal", "ssdo_direct", "composite", ...
   cv::Mat image;

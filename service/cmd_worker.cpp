@@ -260,9 +260,13 @@ int run_worker(const WorkerArgs& args) {
   ::signal(SIGPIPE, SIG_IGN);
   const rlimit no_core{0, 0};
   ::setrlimit(RLIMIT_CORE, &no_core);
-  // Each malloc arena reserves 64 MiB of address space; one per thread would eat the
-  // RLIMIT_AS budget without using memory. Before any pool thread allocates.
-  ::mallopt(M_ARENA_MAX, 2);
+  // One malloc arena for every thread, before any pool thread allocates: each arena
+  // reserves 64 MiB of address space (one per thread would eat the RLIMIT_AS budget), and
+  // memory freed in one arena serves no allocation of another, so a second arena raises
+  // the peak (a 1080p frame's output buffers found no room in the memory the terms' pool
+  // threads had freed). Parallel loops allocate per strip at most, so the shared lock
+  // costs no measurable time.
+  ::mallopt(M_ARENA_MAX, 1);
   // A frame's images (tens of MB each) come from the heap, not from mmap, and freed memory
   // stays in it: the next frame reuses the same pages instead of faulting fresh zeroed
   // ones in (a 1080p frame touches ~400 MB; on a VM each fresh MB costs ~0.5 ms of kernel

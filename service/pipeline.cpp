@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <sstream>
 
+#include "core/parallel.h"
+#include "formats/half_samples.h"
 #include "kernels/confidence.h"
 #include "kernels/half_resolution.h"
 #include "service/frame_inputs.h"
@@ -234,11 +236,25 @@ bool composite_reads_lighting(const FrameRequest& request, const TermsComputed& 
                      [](const WeightedTerm& w) { return w.term == CompositeTerm::lighting; });
 }
 
+// A finished term that the output stores in half, rounded now to the bits the writer would
+// store (half_samples::to_half): half the memory while the later terms are computed.
+void keep_in_half(cv::Mat& term, int threads) {
+  if (term.empty() || term.depth() == CV_16F) return;
+  cv::Mat stored(term.size(), CV_16FC(term.channels()));
+  const int samples_per_row = term.cols * term.channels();
+  parallel_rows(cv::Range(0, term.rows), threads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      half_samples::to_half(term.ptr<float>(y), samples_per_row, stored.ptr<uint16_t>(y));
+  }, 32);
+  term = stored;
+}
+
 // Releases what no step after the raw terms reads: g's views and its positions, and the
 // lighting and albedo unless the composite reads them (the denoised terms and the composite
 // reuse their memory: the worker's heap keeps freed memory, and fresh pages cost a fault
-// each).
-void release_after_raw_terms(GBuffer& g, const FrameRequest& request) {
+// each). The bent normal, read by nothing but the output, is kept in half from here.
+void release_after_raw_terms(GBuffer& g, TermOutputs& raw, const FrameRequest& request) {
+  keep_in_half(raw.ao.bent_normal_view, request.threads);
   g.views.clear();
   g.position_view.release();
   if (!composite_reads_lighting(request, terms_computed(request))) g.lighting.release();
@@ -248,7 +264,7 @@ void release_after_raw_terms(GBuffer& g, const FrameRequest& request) {
 // The raw terms of g, then release_after_raw_terms.
 TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
   TermOutputs raw = compute_raw_terms(g, request, terms_computed(request));
-  release_after_raw_terms(g, request);
+  release_after_raw_terms(g, raw, request);
   return raw;
 }
 
@@ -289,7 +305,7 @@ RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
 RawFrame with_raw_terms(GBuffer&& g, TermOutputs raw, const FrameRequest& request) {
   RawFrame f;
   f.raw = std::move(raw);
-  release_after_raw_terms(g, request);
+  release_after_raw_terms(g, f.raw, request);
   f.gbuffer = std::move(g);
   return f;
 }
@@ -348,7 +364,11 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   if (c.ao && terms.ao) {
     scalar("ao");
     scalar("ao_denoised");
-    if (has_bent_normal(request.ao)) colour("bent_normal", true);
+    if (has_bent_normal(request.ao)) {  // kept in half, as compute_frame keeps it
+      cv::Mat bent_normal = g.normal_view;
+      keep_in_half(bent_normal, request.threads);
+      frame.terms.push_back({"bent_normal", bent_normal, SampleType::half, true});
+    }
   }
   if (c.ssdo && terms.ssdo)
     for (const char* name : {"ssdo_direct", "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"})

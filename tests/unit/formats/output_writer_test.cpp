@@ -5,6 +5,8 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 
@@ -17,6 +19,7 @@
 #include <OpenEXR/openexr.h>
 
 #include "formats/gbuffer_reader.h"
+#include "formats/half_samples.h"
 #include "formats_test_util.h"
 
 namespace ssdo::test {
@@ -314,6 +317,54 @@ TEST(WriteOutputs, LosslessCompressionsStoreTheSameBits) {
   EXPECT_EQ(s[(size_t(40) * w + 41) * n + 1], float(half(colour.at<cv::Vec3f>(40, 41)[0])));
   EXPECT_TRUE(std::isnan(s[(size_t(5) * w + 6) * n + 2]));
   EXPECT_EQ(s[(size_t(7) * w + 8) * n + 3], std::numeric_limits<float>::infinity());
+}
+
+// A half term may come already rounded (CV_16F, half_samples::to_half): every writer stores
+// exactly the samples it would have stored from the floats, in the same bytes.
+TEST(WriteOutputs, HalfTermsGivenInHalfStoreTheBitsOfTheirFloats) {
+  ScratchDir dir;
+  const int w = 53, h = 37;  // a partial last zip block
+  const Camera cam = Camera::from_fov_x(w, h, 60.0f);
+  cv::Mat ao(h, w, CV_32FC1), colour(h, w, CV_32FC3);
+  cv::RNG rng(11);
+  rng.fill(ao, cv::RNG::UNIFORM, 0.0f, 1.0f);
+  rng.fill(colour, cv::RNG::NORMAL, 0.3f, 1.5f);
+  colour.at<cv::Vec3f>(3, 4)[0] = 1e6f;     // beyond half: +inf
+  colour.at<cv::Vec3f>(9, 10)[2] = 1e-6f;   // a subnormal half
+  cv::Mat colour_half(h, w, CV_16FC3);
+  for (int y = 0; y < h; ++y)
+    half_samples::to_half(colour.ptr<float>(y), w * 3, colour_half.ptr<uint16_t>(y));
+  const std::vector<std::string> names = {"ao", "bent_normal.X", "bent_normal.Y", "bent_normal.Z"};
+  const auto read_file = [](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  for (const char* compression : {"zip", "zips", "none", "piz"}) {
+    WriteOptions o;
+    o.compression = compression;
+    o.threads = 2;
+    std::vector<float> stored[2];
+    std::string bytes[2];
+    for (int given_half = 0; given_half < 2; ++given_half) {
+      const cv::Mat& normal = given_half ? colour_half : colour;
+      const fs::path path = dir / (std::string(compression) + std::to_string(given_half) + ".exr");
+      ASSERT_EQ(write_outputs(path.string(), {{"ao", ao, SampleType::float32}, {"bent_normal", normal, SampleType::half, true}},
+                              cam, o),
+                "")
+          << compression;
+      stored[given_half] = read_channels_oiio(path, names);
+      bytes[given_half] = read_file(path);
+    }
+    ASSERT_EQ(stored[0].size(), size_t(w) * h * names.size()) << compression;
+    EXPECT_EQ(stored[1], stored[0]) << compression;
+    EXPECT_EQ(bytes[1], bytes[0]) << compression;
+    EXPECT_EQ(stored[1][(size_t(3) * w + 4) * 4 + 1], std::numeric_limits<float>::infinity()) << compression;
+    EXPECT_EQ(stored[1][(size_t(20) * w + 21) * 4 + 3], float(half(colour.at<cv::Vec3f>(20, 21)[2]))) << compression;
+  }
+  // Half samples are only taken for half terms: a float term cannot be stored from them.
+  const std::string e = write_outputs((dir / "float.exr").string(),
+                                      {{"bent_normal", colour_half, SampleType::float32, true}}, cam);
+  EXPECT_NE(e.find("CV_16F only for half terms"), std::string::npos) << e;
 }
 
 // The libdeflate encoder writes the header and chunks itself: files must carry the same
