@@ -11,6 +11,7 @@
 #include <array>
 #include <memory>
 
+#include <isa-l/igzip_lib.h>
 #include <libdeflate.h>
 
 // The byte transforms run over every byte of a frame (137 MB for a 1080p Cycles dump), as
@@ -137,6 +138,27 @@ libdeflate_decompressor* decompressor() {
   return d.get();
 }
 
+// Deflates `in` at ISA-L's level 1 into `out` (a zlib stream) unless it needs more than
+// out.size() bytes. The level's hash table lives in a per-thread buffer.
+bool igzip_level1(std::span<const uint8_t> in, std::span<uint8_t> out, size_t& written) {
+  thread_local std::vector<uint8_t> level_buffer(ISAL_DEF_LVL1_DEFAULT);
+  isal_zstream stream;
+  isal_deflate_stateless_init(&stream);
+  stream.level = 1;
+  stream.level_buf = level_buffer.data();
+  stream.level_buf_size = uint32_t(level_buffer.size());
+  stream.gzip_flag = IGZIP_ZLIB;
+  stream.end_of_stream = 1;
+  stream.flush = NO_FLUSH;
+  stream.next_in = const_cast<uint8_t*>(in.data());
+  stream.avail_in = uint32_t(in.size());
+  stream.next_out = out.data();
+  stream.avail_out = uint32_t(out.size());
+  if (isal_deflate_stateless(&stream) != COMP_OK) return false;  // STATELESS_OVERFLOW: no gain
+  written = stream.total_out;
+  return true;
+}
+
 std::vector<uint8_t>& scratch(int which) {
   thread_local std::vector<uint8_t> s[2];
   return s[which];
@@ -153,12 +175,17 @@ bool compress(std::span<const uint8_t> packed, int level, UninitializedVector<ui
   split.resize(n);
   predicted.resize(n);
   HWY_DYNAMIC_DISPATCH(encode)(packed.data(), n, split.data(), predicted.data());
-  libdeflate_compressor* c = compressor(level);
-  if (!c) return false;
   // A stream only as large as the packed bytes is no gain: the format stores those.
   compressed.resize(n);
-  const size_t size = libdeflate_zlib_compress(c, predicted.data(), n, compressed.data(), n - 1);
-  if (size == 0) return false;
+  size_t size = 0;
+  if (level == kFastestLevel && n <= UINT32_MAX) {  // ISA-L counts bytes in 32 bits
+    if (!igzip_level1(predicted, std::span(compressed.data(), n - 1), size)) return false;
+  } else {
+    libdeflate_compressor* c = compressor(level);
+    if (!c) return false;
+    size = libdeflate_zlib_compress(c, predicted.data(), n, compressed.data(), n - 1);
+    if (size == 0) return false;
+  }
   compressed.resize(size);
   return true;
 }
