@@ -252,13 +252,14 @@ void keep_in_half(cv::Mat& term, int threads) {
 // Releases what no step after the raw terms reads: g's views and its positions, and the
 // lighting and albedo unless the composite reads them (the denoised terms and the composite
 // reuse their memory: the worker's heap keeps freed memory, and fresh pages cost a fault
-// each). The bent normal, read by nothing but the output, is kept in half from here.
+// each). The bent normal, read by nothing but the output, is kept in half from here (in
+// memory the released images leave).
 void release_after_raw_terms(GBuffer& g, TermOutputs& raw, const FrameRequest& request) {
-  keep_in_half(raw.ao.bent_normal_view, request.threads);
   g.views.clear();
   g.position_view.release();
   if (!composite_reads_lighting(request, terms_computed(request))) g.lighting.release();
   if (!request.terms.composite) g.albedo.release();
+  keep_in_half(raw.ao.bent_normal_view, request.threads);
 }
 
 // The raw terms of g, then release_after_raw_terms.
