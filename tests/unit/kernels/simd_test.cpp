@@ -4,6 +4,12 @@
 // two other views of the scene.
 #include "core/simd.h"
 
+#include <cstdint>
+#include <cstdio>
+#include <string>
+#include <utility>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "kernels/confidence.h"
@@ -21,7 +27,7 @@ struct Terms {
   cv::Mat normals, denoised, blurred;
 };
 
-Terms all_terms(const GBuffer& g, const Environment& sky, std::span<const DepthView> views = {}) {
+Terms all_terms(const GBuffer& g, const Environment& sky, std::span<const DepthView> views = {}, int threads = 2) {
   AoSettings ao = ao_preset(AoMethod::gtao, Preset::medium);
   ao.multibounce = true;
   const SsdoSettings light = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
@@ -29,10 +35,10 @@ Terms all_terms(const GBuffer& g, const Environment& sky, std::span<const DepthV
   Terms t;
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo,
                       &g.lighting,  nullptr,       views};
-  compute_terms(in, {&ao, &light, &confidence}, t.terms, {}, 2);
-  reconstruct_normals_from_depth(g.depth_view, g.mask, g.camera, t.normals, {}, 2);
-  denoise_bilateral(t.terms.ao.ao, g.depth_view, g.normal_view, g.mask, DenoiseSettings{}, t.denoised, {}, 2);
-  box_blur_4x4(t.terms.ssdo.indirect, t.blurred, {}, 2);
+  compute_terms(in, {&ao, &light, &confidence}, t.terms, {}, threads);
+  reconstruct_normals_from_depth(g.depth_view, g.mask, g.camera, t.normals, {}, threads);
+  denoise_bilateral(t.terms.ao.ao, g.depth_view, g.normal_view, g.mask, DenoiseSettings{}, t.denoised, {}, threads);
+  box_blur_4x4(t.terms.ssdo.indirect, t.blurred, {}, threads);
   return t;
 }
 
@@ -90,6 +96,41 @@ TEST(Simd, EveryInstructionSetGivesTheSameBits) {
   EXPECT_GT(differing(alone.terms.ao.ao, on_best[1].terms.ao.ao), 0.0);
   EXPECT_GT(differing(alone.terms.ssdo.indirect, on_best[1].terms.ssdo.indirect), 0.0);
   EXPECT_GT(differing(alone.terms.confidence, on_best[1].terms.confidence), 0.0);
+}
+
+// 64-bit FNV-1a of an image's samples, row by row (the bytes of its pixels only).
+uint64_t digest(const cv::Mat& m) {
+  uint64_t h = 14695981039346656037ull;
+  const size_t row_bytes = size_t(m.cols) * m.elemSize();
+  for (int y = 0; y < m.rows; ++y)
+    for (size_t i = 0; i < row_bytes; ++i) h = (h ^ m.ptr<uint8_t>(y)[i]) * 1099511628211ull;
+  return h;
+}
+
+// The terms are the same bits on one thread as on several (the rows' split never changes a
+// value). The digests are printed ("digest <term> <hex>") so that another machine's run, e.g.
+// the Arm build's (scripts/test-aarch64.sh), can be compared with this one's.
+TEST(Simd, SameBitsOnAnyThreadCount) {
+  const GBuffer g = raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(203, 97), 0);
+  const Environment sky = Environment::sky(SkyGradient{});
+  const Terms one = all_terms(g, sky, {}, 1), two = all_terms(g, sky, {}, 2), three = all_terms(g, sky, {}, 3);
+  auto term_images = [](const Terms& t) {
+    return std::vector<std::pair<std::string, cv::Mat>>{{"ao", t.terms.ao.ao},
+                                                        {"bent_normal", t.terms.ao.bent_normal_view},
+                                                        {"ssdo_direct", t.terms.ssdo.direct},
+                                                        {"ssdo_indirect", t.terms.ssdo.indirect},
+                                                        {"confidence", t.terms.confidence},
+                                                        {"normals", t.normals},
+                                                        {"ao_denoised", t.denoised},
+                                                        {"indirect_blurred", t.blurred}};
+  };
+  const auto a = term_images(one), b = term_images(two), c = term_images(three);
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_FALSE(a[i].second.empty()) << a[i].first;
+    EXPECT_EQ(differing(a[i].second, b[i].second), 0.0) << a[i].first << ": 1 against 2 threads";
+    EXPECT_EQ(differing(a[i].second, c[i].second), 0.0) << a[i].first << ": 1 against 3 threads";
+    std::printf("digest %s %016llx\n", a[i].first.c_str(), static_cast<unsigned long long>(digest(a[i].second)));
+  }
 }
 
 }  // namespace
