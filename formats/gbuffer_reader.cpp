@@ -55,11 +55,14 @@ struct LimitExceeded : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// What a failed OpenEXR read is called: OpenEXR passes an allocation that failed (e.g.
-// under the worker's --memory-limit) on as an exception whose text is std::bad_alloc's.
+// What a failed read is called: an allocation that failed (e.g. under the worker's
+// --memory-limit) is std::bad_alloc, OpenEXR's exception with its text, or OpenCV's
+// "Insufficient memory" error.
 const char* read_failure(const std::exception& e) {
   if (dynamic_cast<const LimitExceeded*>(&e)) return "over the resource limits";
-  return std::strstr(e.what(), "bad_alloc") ? "out of memory" : "damaged or truncated file";
+  const bool no_memory = dynamic_cast<const std::bad_alloc*>(&e) != nullptr || std::strstr(e.what(), "bad_alloc") ||
+                         std::strstr(e.what(), "Insufficient memory");
+  return no_memory ? "out of memory" : "damaged or truncated file";
 }
 
 std::string type_name(Imf::PixelType t) {

@@ -77,13 +77,19 @@ void BatchProgress::finished(const std::string& input, const std::string& output
                   r.times.read_ms, r.times.compute_ms, r.times.write_ms, r.handled_ms,
                   std::max(0.0, r.wall_ms - r.handled_ms), r.peak_rss_mib);
     line += stages;
-    for (const std::string& note : r.notes) line += "\n  note: " + note;
+  }
+  // Notes are -v's; one that changes the frame's terms is shown always.
+  bool changed_terms = false;
+  for (const std::string& note : r.notes) {
+    const bool alone = note.starts_with(kComputedAloneNote);
+    changed_terms = changed_terms || alone;
+    if (verbose_ || alone) line += "\n  note: " + note;
   }
   if (!bar_) {
     std::cout << line << "\n" << std::flush;
     return;
   }
-  if (!r.ok() || verbose_) std::cerr << "\r\033[K" << line << "\n";
+  if (!r.ok() || verbose_ || changed_terms) std::cerr << "\r\033[K" << line << "\n";
   draw_bar();
 }
 

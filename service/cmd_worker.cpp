@@ -171,10 +171,22 @@ std::string memory_estimate_refusal(const std::string& path, int64_t max_pixels,
   return {};
 }
 
+// Whether a frame's error is an allocation that failed (std::bad_alloc, OpenCV's
+// OutOfMemoryError, or a reader's "out of memory").
+bool is_out_of_memory(const std::string& error) {
+  return error.find("bad_alloc") != std::string::npos || error.find("Insufficient memory") != std::string::npos ||
+         error.find("out of memory") != std::string::npos;
+}
+
+// The pixels of a frame's first part from its headers; 0 when they cannot be read (the
+// reader then says why).
+int64_t frame_pixels(const std::string& path) {
+  const ExrHeaderCheck check = check_exr_headers(path, ExrLimits{});
+  return check.ok() && !check.parts.empty() ? check.parts.front().pixels() : 0;
+}
+
 std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
-  const bool no_memory = error.find("bad_alloc") != std::string::npos ||
-                         error.find("Insufficient memory") != std::string::npos ||
-                         error.find("out of memory") != std::string::npos;
+  const bool no_memory = is_out_of_memory(error);
   // Threads (OpenEXR's and OpenCV's pools) cannot get their stacks under RLIMIT_AS.
   const bool no_thread = error.find("Resource temporarily unavailable") != std::string::npos;
   if (!no_memory && !no_thread) return error;
@@ -183,10 +195,50 @@ std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
          std::to_string(limit_mb) + " MiB, see --memory-limit)";
 }
 
+// A shot's frames keep their neighbours in memory (service/sequence_context.h: views and
+// raw terms of a window of frames), several times one frame's memory. Under --memory-limit
+// that window may not fit where the frame alone does. The worker then computes the frame
+// alone (no views, no temporal filter), with a note, and so every later frame of a shot at
+// least as large: frames of `alone_from_pixels` pixels or more.
+struct ShotMemory {
+  int64_t alone_from_pixels = std::numeric_limits<int64_t>::max();
+};
+
+// A frame computed alone instead of with its shot's neighbours says so, and why.
+std::string alone_note(int64_t limit_mb) {
+  return std::string(kComputedAloneNote) +
+         " (no views, no temporal filtering): with its shot's neighbours the frame needs more memory than the "
+         "worker's limit of " + std::to_string(limit_mb) + " MiB (raise --memory-limit, or lower --views and --temporal)";
+}
+
+// process_frame with the request's shot context when it fits the worker's memory, else the
+// frame alone (ShotMemory). The context is emptied before the frame is computed alone: its
+// frames are what filled the memory.
+FrameResult process_frame_within_memory(const FrameRequest& request, SequenceContext& context,
+                                        const WorkerArgs& args, ShotMemory& shot_memory) {
+  const bool shot = request.views_per_side > 0 || request.temporal_per_side > 0;
+  FrameRequest alone = request;
+  alone.views_per_side = alone.temporal_per_side = 0;
+  const int64_t pixels = shot ? frame_pixels(request.input_path) : 0;
+  if (shot && pixels >= shot_memory.alone_from_pixels) {
+    FrameResult r = process_frame(alone, &context);
+    r.info.notes.push_back(alone_note(args.memory_limit_mb));
+    return r;
+  }
+  FrameResult r = process_frame(request, &context);
+  if (r.ok() || !shot || !is_out_of_memory(r.error)) return r;
+  context.clear();
+  shot_memory.alone_from_pixels = std::min(shot_memory.alone_from_pixels, pixels);
+  r = process_frame(alone, &context);
+  r.info.notes.push_back(alone_note(args.memory_limit_mb));
+  return r;
+}
+
 // Resolves the request's options (cached per option set) and computes its frame, every
 // file opened confined by the worker (service/job_files.h).
 void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<std::string, FrameRequest>& resolved,
-                    SequenceContext& sequence, RawTermsStore& raw_store, nlohmann::json& response) {
+                    SequenceContext& sequence, RawTermsStore& raw_store, ShotMemory& shot_memory,
+                    nlohmann::json& response) {
   const Confinement confine = Confinement::from_json(j.value("confine", nlohmann::json::object()));
   JobFiles files;
   const nlohmann::json options_json = j.value("options", nlohmann::json::object());
@@ -231,7 +283,7 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   // Raw terms kept for temporal filtering are of these options.
   sequence.use_settings(options_key);
   confined.use_settings(options_key);
-  if (r.error.empty()) r = process_frame(request, is_confined ? &confined : &sequence);
+  if (r.error.empty()) r = process_frame_within_memory(request, is_confined ? confined : sequence, args, shot_memory);
   if (!r.ok()) raw_store.clear();  // a failure (out of memory?) frees what the next frame may need
   r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
   for (std::string& note : r.info.notes) note = files.named(note);
@@ -297,6 +349,7 @@ int run_worker(const WorkerArgs& args) {
   std::map<std::string, FrameRequest> resolved;  // options JSON -> request template
   SequenceContext sequence;  // the shot's frames read so far, for the extra views
   RawTermsStore raw_store;   // raw terms of confined requests' frames, for the next requests
+  ShotMemory shot_memory;    // from which size on a shot's frames are computed alone
   for (bool first = true;; first = false) {
     // After a frame, a worker idle for kIdleTrimSeconds returns its free memory, then waits.
     if (!first && !request_within(args.request_fd, kIdleTrimSeconds)) ::malloc_trim(0);
@@ -309,7 +362,7 @@ int run_worker(const WorkerArgs& args) {
     if (j.is_discarded() || !j.is_object() || !j.contains("input") || !j["input"].is_string()) {
       response["error"] = "malformed worker request";
     } else {
-      handle_request(j, args, resolved, sequence, raw_store, response);
+      handle_request(j, args, resolved, sequence, raw_store, shot_memory, response);
     }
     // Everything the worker spent on this request: the parent's wall time minus this is
     // the cost of isolation (pipes, scheduling).

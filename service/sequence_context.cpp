@@ -112,6 +112,11 @@ ReadResult SequenceContext::read_in_window(const FrameRequest& request, const Re
   return frame;
 }
 
+void SequenceContext::clear() {
+  cache_.clear();
+  if (store_) store_->clear();
+}
+
 void SequenceContext::use_settings(const std::string& key) {
   if (key == settings_key_) return;
   settings_key_ = key;

@@ -77,6 +77,10 @@ class SequenceContext : public FrameSource {
   ComputedFrame compute(const FrameRequest& request, const ReadOptions& read, GBuffer&& frame,
                         std::vector<std::string>& notes) override;
 
+  // Forgets every frame kept (views, whole frames, raw terms, also in the shared store): the
+  // memory they hold goes back to the worker's heap.
+  void clear();
+
   // Identifies the settings the raw terms of the next requests are computed with (e.g. their
   // options as JSON): raw terms computed with other settings are dropped. Requests of one
   // batch share one.

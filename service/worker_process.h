@@ -15,6 +15,7 @@
 
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -53,6 +54,11 @@ struct WorkerJob {
   // Where the worker may open the job's files (the input, its camera, the neighbours).
   Confinement confine;
 };
+
+// How the note starts that a worker adds to a frame of a shot it computed alone, without
+// its neighbours (they did not fit under --memory-limit): shown without -v too, as it
+// changes the frame's terms.
+inline constexpr std::string_view kComputedAloneNote = "computed alone";
 
 struct WorkerResult {
   std::string error;                  // empty on success; else the reason (signal, timeout, memory, ...)

@@ -6,9 +6,12 @@
 // write what the batch writes.
 #include <fstream>
 #include <regex>
+#include <set>
+#include <sstream>
 
 #include <OpenImageIO/imageio.h>
 
+#include "service/build_features.h"
 #include "service_harness.h"
 
 namespace ssdo::test {
@@ -59,6 +62,47 @@ TEST(Temporal, DenoisedTermsChangeRawTermsDoNotAndRawTermsAreComputedOnce) {
   // One worker, four frames, each frame's raw terms computed once.
   EXPECT_NE(r.output.find("(raw terms computed 4 times for 4 frames)"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("temporal: shot.0000.exr shot.0002.exr"), std::string::npos) << r.output;
+}
+
+// A shot whose window of neighbours does not fit under --memory-limit where its frames alone
+// do: every frame is written, those that did not fit are computed alone (exactly the terms
+// of --views 0 --temporal 0) and say so without -v.
+TEST(Temporal, FramesOfAShotOverTheMemoryLimitAreComputedAlone) {
+  SSDO_REQUIRE_SHARED();
+  if (!kMemoryLimitEnforced) GTEST_SKIP() << "sanitizer build: workers run without --memory-limit (service/build_features.h)";
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const int count = 5;
+  for (int i = 0; i < count; ++i) {
+    const std::string name = numbered("shot.000", i);
+    fs::copy_file(shared_dir() / "gbuffers" / "perf1080.exr", dir.path / "in" / (name + ".exr"));
+    fs::copy_file(shared_dir() / "gbuffers" / "perf1080.camera.json", dir.path / "in" / (name + ".camera.json"));
+  }
+  // perf1080 (1080p) alone fits in 300 MiB of address space; with its neighbours (views and
+  // temporal filter, 2 each side) it needs over 450.
+  const RunResult shot = run_ssdo("process " + dir / "in" + " -o " + dir / "shot" +
+                                  " --terms ao --preset low --memory-limit 350 --jobs 1");
+  ASSERT_EQ(shot.exit_code, 0) << shot.output;
+  const RunResult alone = run_ssdo("process " + dir / "in" + " -o " + dir / "alone" +
+                                   " --terms ao --preset low --views 0 --temporal 0 --jobs 1");
+  ASSERT_EQ(alone.exit_code, 0) << alone.output;
+  // The frames noted as computed alone: a frame's line, then its notes.
+  std::set<std::string> noted;
+  std::string frame;
+  std::istringstream lines(shot.output);
+  const std::regex frame_line(R"((shot\.000\d)\.exr -> )");
+  for (std::string line; std::getline(lines, line);) {
+    std::smatch m;
+    if (std::regex_search(line, m, frame_line)) frame = m[1];
+    if (line.find("note: computed alone") != std::string::npos && !frame.empty()) noted.insert(frame);
+  }
+  ASSERT_FALSE(noted.empty()) << shot.output;
+  EXPECT_NE(shot.output.find("--memory-limit"), std::string::npos) << shot.output;
+  for (const std::string& name : noted)
+    for (const char* channel : {"ao", "ao_denoised", "confidence"})
+      EXPECT_EQ(exr_channel_pixels((dir.path / "shot" / (name + ".ssdo.exr")).string(), channel),
+                exr_channel_pixels((dir.path / "alone" / (name + ".ssdo.exr")).string(), channel))
+          << name << " " << channel;
 }
 
 TEST(Temporal, ChunksWriteTheBytesOfTheWholeShot) {
