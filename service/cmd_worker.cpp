@@ -206,9 +206,11 @@ struct ShotMemory {
 
 // A frame computed alone instead of with its shot's neighbours says so, and why.
 std::string alone_note(int64_t limit_mb) {
+  const std::string limit = limit_mb > 0 ? "the worker's limit of " + std::to_string(limit_mb) +
+                                               " MiB (raise --memory-limit, or lower --views and --temporal)"
+                                         : "the worker could allocate (lower --views and --temporal)";
   return std::string(kComputedAloneNote) +
-         " (no views, no temporal filtering): with its shot's neighbours the frame needs more memory than the "
-         "worker's limit of " + std::to_string(limit_mb) + " MiB (raise --memory-limit, or lower --views and --temporal)";
+         " (no views, no temporal filtering): with its shot's neighbours the frame needs more memory than " + limit;
 }
 
 // process_frame with the request's shot context when it fits the worker's memory, else the
