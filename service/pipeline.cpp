@@ -344,11 +344,14 @@ ReadOptions reads_for(const FrameRequest& request) {
   return read;
 }
 
-ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read) {
+ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read, bool frame_has_lighting) {
   ReadOptions view = depth_only(read);
-  const bool ssdo = terms_computed(request).ssdo;
-  view.read_albedo = read.read_albedo && ssdo;
-  view.read_lighting = read.read_lighting && ssdo;
+  const TermsComputed computed = terms_computed(request);
+  const bool ssdo = computed.ssdo, multibounce = computed.ao && request.ao.multibounce;
+  // reads_albedo and reads_lighting of kernels/half_resolution.cpp, with a lit frame.
+  const bool lit = read.read_lighting && frame_has_lighting;
+  view.read_albedo = read.read_albedo && ssdo && (!lit || multibounce);
+  view.read_lighting = ssdo && lit;
   return view;
 }
 

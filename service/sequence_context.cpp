@@ -96,7 +96,7 @@ ReadResult SequenceContext::read_in_window(const FrameRequest& request, const Re
   if (frame.ok()) {
     // The frame's depth image is shared, not copied: compute_frame releases only its own
     // reference.
-    const ReadOptions as_view = view_reads_for(request, read);
+    const ReadOptions as_view = view_reads_for(request, read, !frame.gbuffer.lighting.empty());
     self.view = DepthView{frame.gbuffer.camera, frame.gbuffer.depth_view, file_name(name)};
     if (as_view.read_albedo) self.view->albedo = frame.gbuffer.albedo;
     if (as_view.read_lighting) self.view->lighting = frame.gbuffer.lighting;
@@ -277,7 +277,7 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
                                          median_foreground_depth(g.depth_view, g.mask), candidates, settings);
   info.notes.insert(info.notes.end(), choice.notes.begin(), choice.notes.end());
   std::string names;
-  const ReadOptions view_read = view_reads_for(request, read);
+  const ReadOptions view_read = view_reads_for(request, read, !g.lighting.empty());
   for (size_t i : choice.chosen) {
     Entry& e = cache_[sources[i]->path];
     if (!load_view(*sources[i], read, view_read, e)) {

@@ -43,26 +43,37 @@ TEST(ReadsFor, OnlyTheInputsTheTermsUse) {
   EXPECT_FALSE(reads_for(request_for("ssdo")).read_references);
 }
 
-// Neighbours read as views: depth, plus albedo and lighting only for SSDO's senders.
+// Neighbours read as views: depth, plus the light of SSDO's senders as the kernels read it
+// on the frame: the lighting when the frame has its own, else the albedo (and the albedo for
+// multi-bounce AO).
 TEST(ReadsFor, ViewsBringTheirLightOnlyToSsdo) {
-  for (const std::string terms : {"ao", "ao,composite"}) {
-    const FrameRequest r = request_for(terms);
-    const ReadOptions view = view_reads_for(r, reads_for(r));
-    EXPECT_FALSE(view.read_albedo) << terms;
-    EXPECT_FALSE(view.read_lighting) << terms;
-    EXPECT_FALSE(view.read_normals) << terms;
-  }
+  for (const std::string terms : {"ao", "ao,composite"})
+    for (const bool lit : {false, true}) {
+      const FrameRequest r = request_for(terms);
+      const ReadOptions view = view_reads_for(r, reads_for(r), lit);
+      EXPECT_FALSE(view.read_albedo) << terms;
+      EXPECT_FALSE(view.read_lighting) << terms;
+      EXPECT_FALSE(view.read_normals) << terms;
+    }
   const FrameRequest ssdo = request_for("ao,ssdo");
-  const ReadOptions view = view_reads_for(ssdo, reads_for(ssdo));
-  EXPECT_TRUE(view.read_albedo);
-  EXPECT_TRUE(view.read_lighting);
-  EXPECT_FALSE(view.read_normals);
-  EXPECT_FALSE(view.read_positions);
-  EXPECT_FALSE(view.read_references);
+  const ReadOptions lit = view_reads_for(ssdo, reads_for(ssdo), true);
+  EXPECT_FALSE(lit.read_albedo);  // the senders' light is the lighting
+  EXPECT_TRUE(lit.read_lighting);
+  EXPECT_FALSE(lit.read_normals);
+  EXPECT_FALSE(lit.read_positions);
+  EXPECT_FALSE(lit.read_references);
+  const ReadOptions unlit = view_reads_for(ssdo, reads_for(ssdo), false);
+  EXPECT_TRUE(unlit.read_albedo);  // the senders' light is their direct light times the albedo
+  EXPECT_FALSE(unlit.read_lighting);
+  FrameRequest multibounce = ssdo;
+  multibounce.ao.multibounce = true;
+  EXPECT_TRUE(view_reads_for(multibounce, reads_for(multibounce), true).read_albedo);
+  EXPECT_TRUE(view_reads_for(multibounce, reads_for(multibounce), true).read_lighting);
   // What the frame does not read, its views do not either.
-  FrameRequest unlit = request_for("ssdo");
-  unlit.read.read_lighting = false;
-  EXPECT_FALSE(view_reads_for(unlit, reads_for(unlit)).read_lighting);
+  FrameRequest no_lighting = request_for("ssdo");
+  no_lighting.read.read_lighting = false;
+  EXPECT_FALSE(view_reads_for(no_lighting, reads_for(no_lighting), true).read_lighting);
+  EXPECT_TRUE(view_reads_for(no_lighting, reads_for(no_lighting), true).read_albedo);
 }
 
 // A small synthetic frame: a tilted plane with a box on it.
