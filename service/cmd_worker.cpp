@@ -317,9 +317,9 @@ int run_worker(const WorkerArgs& args) {
   // One malloc arena for every thread, before any pool thread allocates: each arena
   // reserves 64 MiB of address space (one per thread would eat the RLIMIT_AS budget), and
   // memory freed in one arena serves no allocation of another, so a second arena raises
-  // the peak (a 1080p frame's output buffers found no room in the memory the terms' pool
-  // threads had freed). Parallel loops allocate per strip at most, so the shared lock
-  // costs no measurable time.
+  // the peak: what is allocated after the terms (the denoised terms, the writer's chunks)
+  // could not reuse what the pool threads freed. Parallel loops allocate per strip at
+  // most, so the shared lock costs no measurable time.
   ::mallopt(M_ARENA_MAX, 1);
   // A frame's images (tens of MB each) come from the heap, not from mmap, and freed memory
   // stays in it: the next frame reuses the same pages instead of faulting fresh zeroed
