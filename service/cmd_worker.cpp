@@ -222,18 +222,17 @@ FrameResult process_frame_within_memory(const FrameRequest& request, SequenceCon
   FrameRequest alone = request;
   alone.views_per_side = alone.temporal_per_side = 0;
   const int64_t pixels = shot ? frame_pixels(request.input_path) : 0;
-  if (shot && pixels >= shot_memory.alone_from_pixels) {
+  const auto computed_alone = [&] {
     FrameResult r = process_frame(alone, &context);
-    r.info.notes.push_back(alone_note(args.memory_limit_mb));
+    if (r.ok()) r.info.notes.push_back(alone_note(args.memory_limit_mb));
     return r;
-  }
+  };
+  if (shot && pixels >= shot_memory.alone_from_pixels) return computed_alone();
   FrameResult r = process_frame(request, &context);
   if (r.ok() || !shot || !is_out_of_memory(r.error)) return r;
   context.clear();
   shot_memory.alone_from_pixels = std::min(shot_memory.alone_from_pixels, pixels);
-  r = process_frame(alone, &context);
-  r.info.notes.push_back(alone_note(args.memory_limit_mb));
-  return r;
+  return computed_alone();
 }
 
 // Resolves the request's options (cached per option set) and computes its frame, every
