@@ -148,16 +148,12 @@ std::vector<NeighbourFrame> neighbours_of(const nlohmann::json& j) {
 // with every term peaks at about 250 bytes per pixel, worker_process.h.)
 constexpr int64_t kWorkingBytesPerPixel = 64;
 
-// The refusal of an EXR whose decode alone, estimated from its headers, needs more than the
-// worker's memory limit (a highly compressed file declaring a large data window would
-// otherwise fail in the middle of decoding with a misleading message); empty when it may
-// fit, or when the headers are unsound (the reader then says why).
-std::string memory_estimate_refusal(const std::string& path, int64_t max_pixels, int64_t limit_mb) {
-  if (limit_mb <= 0) return {};
-  ExrLimits limits;
-  limits.max_pixels = max_pixels;
-  const ExrHeaderCheck check = check_exr_headers(path, limits);
-  if (!check.ok()) return {};
+// The refusal of an EXR whose decode alone, estimated from its headers (`check`), needs more
+// than the worker's memory limit (a highly compressed file declaring a large data window
+// would otherwise fail in the middle of decoding with a misleading message); empty when it
+// may fit, or when the headers are unsound (the reader then says why).
+std::string memory_estimate_refusal(const std::string& path, const ExrHeaderCheck& check, int64_t limit_mb) {
+  if (limit_mb <= 0 || !check.ok()) return {};
   for (const ExrPartLayout& part : check.parts) {
     const int64_t bytes = part.decoded_bytes() + part.pixels() * kWorkingBytesPerPixel;
     if (bytes <= (limit_mb << 20)) continue;
@@ -178,10 +174,9 @@ bool is_out_of_memory(const std::string& error) {
          error.find("out of memory") != std::string::npos;
 }
 
-// The pixels of a frame's first part from its headers; 0 when they cannot be read (the
-// reader then says why).
-int64_t frame_pixels(const std::string& path) {
-  const ExrHeaderCheck check = check_exr_headers(path, ExrLimits{});
+// The pixels of a frame's first part from its headers; 0 when they are unsound (the reader
+// then says why).
+int64_t frame_pixels(const ExrHeaderCheck& check) {
   return check.ok() && !check.parts.empty() ? check.parts.front().pixels() : 0;
 }
 
@@ -213,15 +208,17 @@ std::string alone_note(int64_t limit_mb) {
          " (no views, no temporal filtering): with its shot's neighbours the frame needs more memory than " + limit;
 }
 
+// Whether the request's frame is computed with its shot's neighbours (views or temporal).
+bool in_shot(const FrameRequest& request) { return request.views_per_side > 0 || request.temporal_per_side > 0; }
+
 // process_frame with the request's shot context when it fits the worker's memory, else the
-// frame alone (ShotMemory). The context is emptied before the frame is computed alone: its
-// frames are what filled the memory.
-FrameResult process_frame_within_memory(const FrameRequest& request, SequenceContext& context,
+// frame alone (ShotMemory); `pixels`: the frame's (frame_pixels). The context is emptied
+// before the frame is computed alone: its frames are what filled the memory.
+FrameResult process_frame_within_memory(const FrameRequest& request, int64_t pixels, SequenceContext& context,
                                         const WorkerArgs& args, ShotMemory& shot_memory) {
-  const bool shot = request.views_per_side > 0 || request.temporal_per_side > 0;
+  const bool shot = in_shot(request);
   FrameRequest alone = request;
   alone.views_per_side = alone.temporal_per_side = 0;
-  const int64_t pixels = shot ? frame_pixels(request.input_path) : 0;
   const auto computed_alone = [&] {
     FrameResult r = process_frame(alone, &context);
     if (r.ok()) r.info.notes.push_back(alone_note(args.memory_limit_mb));
@@ -279,12 +276,20 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   const bool is_confined = !confine.input_roots.empty();
   if (is_confined) files.open_neighbours(confine, request.neighbours, view_notes);
   confined.share_raw_terms(&raw_store);
+  // The headers, read once before decoding, for the memory estimate and a shot's fallback.
+  ExrHeaderCheck headers;
+  if (args.memory_limit_mb > 0 || in_shot(request)) {
+    ExrLimits limits;
+    limits.max_pixels = args.max_pixels;
+    headers = check_exr_headers(request.input_path, limits);
+  }
   FrameResult r;
-  r.error = memory_estimate_refusal(request.input_path, args.max_pixels, args.memory_limit_mb);
+  r.error = memory_estimate_refusal(request.input_path, headers, args.memory_limit_mb);
   // Raw terms kept for temporal filtering are of these options.
   sequence.use_settings(options_key);
   confined.use_settings(options_key);
-  if (r.error.empty()) r = process_frame_within_memory(request, is_confined ? confined : sequence, args, shot_memory);
+  if (r.error.empty()) r = process_frame_within_memory(request, frame_pixels(headers), is_confined ? confined : sequence, args,
+                                                        shot_memory);
   if (!r.ok()) raw_store.clear();  // a failure (out of memory?) frees what the next frame may need
   r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
   for (std::string& note : r.info.notes) note = files.named(note);
