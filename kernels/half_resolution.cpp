@@ -636,6 +636,10 @@ float upsample_depth_falloff(float x) { return HWY_NAMESPACE::upsample_depth_fal
 
 cv::Rect half_grid_roi(const cv::Rect& r, const cv::Size& size) { return HWY_NAMESPACE::half_grid_roi(r, size); }
 
+LightReads light_reads(bool ao_multibounce, bool ssdo, bool frame_has_lighting) {
+  return {ao_multibounce || (ssdo && !frame_has_lighting), ssdo && frame_has_lighting};
+}
+
 namespace {
 
 // Which of the selected terms run on the half grid.
@@ -715,14 +719,15 @@ struct GridInputs {
   cv::Point origin() const { return inside.tl(); }
 };
 
-// Whether AO's multi-bounce or SSDO's senders read the albedo, and SSDO the lighting.
-bool reads_albedo(const TermInputs& in, const TermSettings& s) {
+// light_reads of the inputs and settings (the albedo only where the frame has one).
+LightReads light_reads(const TermInputs& in, const TermSettings& s) {
   const bool lit = in.lighting != nullptr && !in.lighting->empty();
-  return in.albedo != nullptr && !in.albedo->empty() && ((s.ao && s.ao->multibounce) || (s.ssdo && !lit));
+  LightReads r = ssdo::light_reads(s.ao && s.ao->multibounce, s.ssdo != nullptr, lit);
+  r.albedo = r.albedo && in.albedo != nullptr && !in.albedo->empty();
+  return r;
 }
-bool reads_lighting(const TermInputs& in, const TermSettings& s) {
-  return s.ssdo && in.lighting != nullptr && !in.lighting->empty();
-}
+bool reads_albedo(const TermInputs& in, const TermSettings& s) { return light_reads(in, s).albedo; }
+bool reads_lighting(const TermInputs& in, const TermSettings& s) { return light_reads(in, s).lighting; }
 
 GridInputs half_grid_inputs(const HalfGrid& h, const TermInputs& in, const TermSettings& s, const cv::Mat& back,
                             int nthreads) {

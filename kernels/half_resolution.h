@@ -147,6 +147,14 @@ struct TermOutputs {
   std::vector<ViewUse> views;  // what each of TermInputs::views contributed
 };
 
+// What the terms read of a frame's light (and of its views' guard band): the albedo for
+// AO's multi-bounce, and for SSDO's senders when the frame has no lighting of its own; the
+// lighting for SSDO's senders when it has.
+struct LightReads {
+  bool albedo = false, lighting = false;
+};
+LightReads light_reads(bool ao_multibounce, bool ssdo, bool frame_has_lighting);
+
 // Computes the selected terms for the pixels of roi (empty = all), each on the full grid or
 // on the frame's one half grid (runs_on_half_grid of its settings): the half grid is built
 // once (with positions when AO or SSDO runs on it), each half-resolution kernel runs on

@@ -347,11 +347,11 @@ ReadOptions reads_for(const FrameRequest& request) {
 ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read, bool frame_has_lighting) {
   ReadOptions view = depth_only(read);
   const TermsComputed computed = terms_computed(request);
-  const bool ssdo = computed.ssdo, multibounce = computed.ao && request.ao.multibounce;
-  // reads_albedo and reads_lighting of kernels/half_resolution.cpp, with a lit frame.
-  const bool lit = read.read_lighting && frame_has_lighting;
-  view.read_albedo = read.read_albedo && ssdo && (!lit || multibounce);
-  view.read_lighting = ssdo && lit;
+  const LightReads light =
+      light_reads(computed.ao && request.ao.multibounce, computed.ssdo, read.read_lighting && frame_has_lighting);
+  // The guard band's light is SSDO's senders'.
+  view.read_albedo = read.read_albedo && computed.ssdo && light.albedo;
+  view.read_lighting = computed.ssdo && light.lighting;
   return view;
 }
 

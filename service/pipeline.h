@@ -159,9 +159,9 @@ ReadOptions reads_for(const FrameRequest& request);
 // What the request's neighbouring frames are read for as views: their depth, and where the
 // request computes SSDO, as far as `read` reads them, the light of the senders they show
 // past this frame's edges (kernels/multiview.h, the guard band) as the kernels read it on
-// the frame (kernels/half_resolution.h): the lighting when the frame has its own, else the
-// albedo; the albedo also for multi-bounce AO. What the kernels would not read is neither
-// read nor kept (at 1080p, 24 MiB per view and channel).
+// the frame (light_reads, kernels/half_resolution.h): the lighting when the frame has its
+// own, else the albedo; the albedo also for multi-bounce AO. What the kernels would not
+// read is neither read nor kept (at 1080p, 24 MiB per view and channel).
 ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read, bool frame_has_lighting);
 
 // Where process_frame gets its frame: read and completed (service/frame_inputs.h), with
