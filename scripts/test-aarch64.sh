@@ -24,27 +24,9 @@ done
 
 out="$(mktemp -d)"
 trap 'rm -rf "$out"' EXIT
-python3 - "$build_dir/compile_commands.json" "$out" <<'PY'
-import json, os, shlex, subprocess, sys
-from concurrent.futures import ThreadPoolExecutor
-layers = ("/core/", "/kernels/", "/tests/support/", "/tests/unit/kernels/", "/tests/unit/core/")
-entries = [e for e in json.load(open(sys.argv[1])) if any(l in e["file"] for l in layers)]
-def compile_one(e):
-    args = shlex.split(e["command"])
-    args = ["aarch64-linux-gnu-g++"] + [a for a in args[1:] if a != "-Wa,-mbranches-within-32B-boundaries"]
-    name = e["file"].replace("/", "_")
-    args[args.index("-o") + 1] = os.path.join(sys.argv[2], name + ".o")
-    r = subprocess.run(args, cwd=e["directory"], capture_output=True, text=True)
-    return e["file"], r.returncode, r.stderr
-failed = 0
-with ThreadPoolExecutor(os.cpu_count() or 2) as pool:
-    for path, rc, err in pool.map(compile_one, entries):
-        if rc != 0:
-            print(f"{path}:\n{err}", file=sys.stderr)
-            failed += 1
-print(f"test-aarch64: compiled {len(entries) - failed} of {len(entries)} sources")
-sys.exit(1 if failed else 0)
-PY
+echo -n "test-aarch64: "
+python3 scripts/aarch64_compile.py "$build_dir/compile_commands.json" "$out" \
+  core kernels tests/support tests/unit/kernels tests/unit/core
 
 common=$(ls "$out"/*.o | grep -E '_core_|_kernels_|_tests_support_' | grep -v '_tests_unit_')
 link() {  # link NAME TEST_OBJECTS...
