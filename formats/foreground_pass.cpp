@@ -80,9 +80,8 @@ struct ForegroundLanes {
   VF ray_row_x, ray_row_y, ray_row_z, step_x, step_y, step_z, lanes;
 };
 
-// Built whole at its return, never default-constructed: GCC defines a struct's implicit
-// constructor outside the target's attributes (on Arm, NEON's "+crypto"), where the
-// vectors' constructors cannot be inlined.
+// Built whole at its return, never default-constructed (structs of Highway vectors on Arm:
+// docs/architecture.md).
 HWY_INLINE ForegroundLanes broadcast(const ForegroundPass& pass, const glm::vec3& ray_row) {
   const DF df;
   const float inf = std::numeric_limits<float>::infinity();

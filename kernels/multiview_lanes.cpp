@@ -43,9 +43,8 @@ struct RayVectors {
   hn::Vec<D> clip0[4], clip1[4], depth0, depth1;
 };
 
-// Built whole, never default-constructed: GCC defines a struct's implicit constructor
-// outside the target's attributes (on Arm, NEON's "+crypto"), where the vectors'
-// constructors cannot be inlined.
+// Built whole, never default-constructed (structs of Highway vectors on Arm:
+// docs/architecture.md).
 template <class D>
 HWY_INLINE RayVectors<D> ray_vectors(D d, const RayLanes& r, size_t j0) {
   const auto load = [&](const float* p) { return hn::Load(d, p + j0); };

@@ -91,9 +91,8 @@ struct CarriedLanes {
   Vec3L normal;
   VF c0, cx, cy, d0, dx, dy;
 };
-// Built whole at its return, never default-constructed: GCC defines a struct's implicit
-// constructor outside the target's attributes (on Arm, NEON's "+crypto"), where the
-// vectors' constructors cannot be inlined.
+// Built whole at its return, never default-constructed (structs of Highway vectors on Arm:
+// docs/architecture.md).
 CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Vec3L& normal) {
   const DF d;
   const Vec3L p = ray_point(r.from_rays_in_to(), px, py, depth);
@@ -128,8 +127,7 @@ CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Ve
 
 // Per-lane sums of a group of pixels: their channels (every term in order) and the total weight.
 struct GroupSums {
-  // A constructor of its own, defined here: GCC defines an implicit one outside the
-  // target's attributes (on Arm, NEON's "+crypto"), where the vector's cannot be inlined.
+  // A constructor of its own (structs of Highway vectors on Arm: docs/architecture.md).
   explicit GroupSums(VF initial_total) : total(initial_total) {}
   HWY_ALIGN float channel[kMaxChannels][kMaxLanes];
   VF total;
