@@ -346,7 +346,9 @@ inline SampleShift sample_shift(const Constants& c, int x, int y) {
 struct SampleBatch {
   static constexpr int kPoints = kSampleBatch * kMaxSampleSteps;
   int first, count;
-  float u_at[kSampleBatch], wx[kSampleBatch], wy[kSampleBatch], wz[kSampleBatch];
+  float u_at[kSampleBatch];
+  // Zero past `count` (the environment's lanes read every direction of the batch).
+  float wx[kSampleBatch] = {}, wy[kSampleBatch] = {}, wz[kSampleBatch] = {};
   float cwx[kSampleBatch], cwy[kSampleBatch], cwz[kSampleBatch], cww[kSampleBatch];
   float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
   float lambda[kPoints], depth_s[kPoints];
@@ -518,20 +520,117 @@ struct SampleSums {
   int visible = 0;
 };
 
-// One sample's share: direct light from the environment through a visible w_i (paper
-// eq. 1), or through the occluded w_i for the control variate; indirect light from the
-// sender of an occluded w_i (eq. 2).
+namespace hn = hwy::HWY_NAMESPACE;
+
+// Environment::radiance_filtered_env of the batch's kSampleBatch directions w (view space)
+// at once, one per lane, into (red, green, blue): env_from_view * w in glm's order, then
+// equirect_from_direction_fast (fast_atan2 twice) and the bilinear lookup with its wrap in
+// azimuth and clamp in elevation, the same operations in the same order as the scalar code
+// of kernels/environment.cpp, so the same bits. A filtered map or a sky (not a constant).
+// Lanes of visible samples are computed too (for nobody when the estimator reads only the
+// occluded ones): a vector of lanes costs about what one scalar lookup does.
+void filtered_radiance_lanes(const Constants& c, const SampleBatch& b, float* red, float* green, float* blue) {
+  const hn::CappedTag<float, kSampleBatch> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  using V = hn::Vec<decltype(d)>;
+  const cv::Mat& map = c.env->filtered_map();
+  const int width = map.cols, height = map.rows;
+  const int32_t row_floats = int32_t(map.step1());
+  const float* texels = map.ptr<float>(0);
+  const glm::mat3& m = c.env_from_view;
+  constexpr float pi = std::numbers::pi_v<float>;
+  const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
+  // fast_atan2 (kernels/environment.cpp) in lanes.
+  auto atan2_lanes = [&](V y, V x) {
+    const V ax = hn::Abs(x), ay = hn::Abs(y);
+    const V hi = hn::Max(ax, ay), lo = hn::Min(ax, ay);
+    const V t = hn::IfThenElse(hn::Gt(hi, zero), hn::Div(lo, hi), zero);
+    const V t2 = hn::Mul(t, t);
+    V poly = hn::Set(d, -0.013480470f);
+    poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, 0.057477314f));
+    poly = hn::Sub(hn::Mul(poly, t2), hn::Set(d, 0.121239071f));
+    poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, 0.195635925f));
+    poly = hn::Sub(hn::Mul(poly, t2), hn::Set(d, 0.332994597f));
+    poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, 0.999995630f));
+    V a = hn::Mul(poly, t);
+    a = hn::IfThenElse(hn::Gt(ay, ax), hn::Sub(hn::Set(d, float(0.5 * std::numbers::pi)), a), a);
+    a = hn::IfThenElse(hn::Lt(x, zero), hn::Sub(hn::Set(d, pi), a), a);
+    return hn::IfThenElse(hn::Lt(y, zero), hn::Neg(a), a);
+  };
+  for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
+    const V wx = hn::LoadU(d, b.wx + s0), wy = hn::LoadU(d, b.wy + s0), wz = hn::LoadU(d, b.wz + s0);
+    auto row = [&](int r) {  // glm's mat3 * vec3: m[0][r] x + m[1][r] y + m[2][r] z
+      return hn::Add(hn::Add(hn::Mul(hn::Set(d, m[0][r]), wx), hn::Mul(hn::Set(d, m[1][r]), wy)),
+                     hn::Mul(hn::Set(d, m[2][r]), wz));
+    };
+    const V dx = row(0), dy = row(1), dz = row(2);
+    const V theta = atan2_lanes(dz, hn::Sqrt(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy))));
+    const V phi = atan2_lanes(hn::Neg(dx), dy);
+    const V px = hn::Mul(hn::Set(d, 0.5f * float(width)), hn::Sub(one, hn::Div(phi, hn::Set(d, pi))));
+    const V py = hn::Mul(hn::Set(d, float(height)), hn::Sub(half, hn::Div(theta, hn::Set(d, pi))));
+    // bilinear_at: texel centres at + 0.5.
+    const V x = hn::Sub(px, half), y = hn::Sub(py, half);
+    const V x0f = hn::Floor(x), y0f = hn::Floor(y);
+    const V fx = hn::Sub(x, x0f), fy = hn::Sub(y, y0f);
+    // A direction gives x in [-0.5, W - 0.5] (atan2 is bounded), so one add or subtract
+    // wraps x0 and x0 + 1; the clamp only keeps a NaN direction's texels in the map.
+    const auto width_v = hn::Set(di, width);
+    auto wrap = [&](hn::Vec<decltype(di)> xi) {
+      xi = hn::Min(hn::Max(xi, hn::Neg(width_v)), hn::Set(di, 2 * width - 1));
+      xi = hn::IfThenElse(hn::Lt(xi, hn::Zero(di)), hn::Add(xi, width_v), xi);
+      return hn::IfThenElse(hn::Gt(xi, hn::Set(di, width - 1)), hn::Sub(xi, width_v), xi);
+    };
+    auto clamp_row = [&](hn::Vec<decltype(di)> yi) {
+      return hn::Min(hn::Max(yi, hn::Zero(di)), hn::Set(di, height - 1));
+    };
+    const auto x0 = hn::ConvertTo(di, x0f), y0 = hn::ConvertTo(di, y0f);
+    const auto one_i = hn::Set(di, 1);
+    const auto three = hn::Set(di, 3), row_step = hn::Set(di, row_floats);
+    const auto xa = hn::Mul(wrap(x0), three), xb = hn::Mul(wrap(hn::Add(x0, one_i)), three);
+    const auto ya = hn::Mul(clamp_row(y0), row_step), yb = hn::Mul(clamp_row(hn::Add(y0, one_i)), row_step);
+    const V wx0 = hn::Sub(one, fx), wy0 = hn::Sub(one, fy);
+    float* out[3] = {red, green, blue};
+    for (int ch = 0; ch < 3; ++ch) {
+      const auto c_i = hn::Set(di, ch);
+      auto texel = [&](hn::Vec<decltype(di)> yo, hn::Vec<decltype(di)> xo) {
+        return hn::GatherIndex(d, texels, hn::Add(hn::Add(yo, xo), c_i));
+      };
+      const V top = hn::Add(hn::Mul(texel(ya, xa), wx0), hn::Mul(texel(ya, xb), fx));
+      const V bottom = hn::Add(hn::Mul(texel(yb, xa), wx0), hn::Mul(texel(yb, xb), fx));
+      hn::StoreU(hn::Add(hn::Mul(top, wy0), hn::Mul(bottom, fy)), d, out[ch] + s0);
+    }
+  }
+}
+
+// The environment's share of the batch's samples (paper eq. 1): the filtered radiance
+// through each visible w_i (per_sample), or through each occluded w_i (the control
+// variate), added in the samples' order; nothing for bent_normal.
+inline void add_environment(const Constants& c, const SampleBatch& b, const bool* occluded, SampleSums& sums) {
+  if (c.bent_normal) return;
+  glm::vec3* sum = c.control_variate ? &sums.occluded : &sums.direct;
+  bool any = false;
+  for (int s = 0; s < b.count; ++s) any |= occluded[s] == c.control_variate;
+  if (!any) return;
+  if (c.env->kind() == EnvironmentKind::constant) {
+    for (int s = 0; s < b.count; ++s)
+      if (occluded[s] == c.control_variate) *sum += c.env->radiance_filtered_env(c.env_from_view * b.w(s));
+    return;
+  }
+  alignas(64) float red[kSampleBatch], green[kSampleBatch], blue[kSampleBatch];
+  filtered_radiance_lanes(c, b, red, green, blue);
+  for (int s = 0; s < b.count; ++s)
+    if (occluded[s] == c.control_variate) *sum += glm::vec3(red[s], green[s], blue[s]);
+}
+
+// One sample's share besides the environment's (add_environment): the visible w_i for the
+// bent normal and the count; indirect light from the sender of an occluded w_i (eq. 2).
 inline void add_sample(const Constants& c, const Receiver& rcv, const cv::Mat& sender_direct, bool want_direct,
                        bool want_indirect, const glm::vec3& w, bool occluded, int qx, int qy, SampleSums& sums) {
   if (!occluded) {
-    if (want_direct) {
-      if (c.bent_normal) sums.bent += w;
-      else if (!c.control_variate) sums.direct += c.env->radiance_filtered_env(c.env_from_view * w);
-    }
+    if (want_direct && c.bent_normal) sums.bent += w;
     ++sums.visible;
     return;
   }
-  if (want_direct && c.control_variate) sums.occluded += c.env->radiance_filtered_env(c.env_from_view * w);
   if (want_indirect) add_sender(c, rcv, sender_direct, qx, qy, sums.indirect);
 }
 
@@ -577,12 +676,14 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       b.count = std::min(kSampleBatch, n_samples - i0);
       sample_directions(c, rcv, f, shift, x, y, b);
       test_points(c, rcv, f, b);
+      bool occluded[kSampleBatch];
       for (int s = 0; s < b.count; ++s) {
         int qx = 0, qy = 0;
-        const bool occluded = march_direction(c, rcv, f, b, s, locate_sender, qx, qy) == Tap::occluded;
-        if (record) record[i0 + s] = occluded ? qy * width + qx : -1;
-        add_sample(c, rcv, sender_direct, want_direct, want_indirect, b.w(s), occluded, qx, qy, sums);
+        occluded[s] = march_direction(c, rcv, f, b, s, locate_sender, qx, qy) == Tap::occluded;
+        if (record) record[i0 + s] = occluded[s] ? qy * width + qx : -1;
+        add_sample(c, rcv, sender_direct, want_direct, want_indirect, b.w(s), occluded[s], qx, qy, sums);
       }
+      if (want_direct) add_environment(c, b, occluded, sums);
     }
   }
   const float inv_n = 1.0f / float(n_samples);
