@@ -9,6 +9,12 @@
 // are exact zeros) and the source zeroed there (no masked value is read into a sum). Each
 // pass is, per tile row, a weight computation and an accumulation over the taps k for a
 // vector of pixels at once (Highway: the same source for every instruction set).
+//
+// The normal lobe of a pair of pixels is symmetric: n_a . n_b and n_b . n_a are the same
+// products summed in the same order, so the same bits. Each pass computes the lobe of
+// every pair at offset k = 1 .. R once (pair_lobes), and tap -k of a pixel reads the lobe
+// that tap +k of the pixel k before it computed: half the lobes, the larger part of a
+// tap's weight.
 #include "kernels/denoise.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -89,9 +95,10 @@ struct PowerLobe {
 
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
 // columns either side, every plane of a tile (depth, normal x/y/z, C values, C horizontal
-// results) is (32 + 2R) x (256 + 2R) floats, 42 KB at the default R = 4: the passes run on
-// cached planes, and the frame's guides and source are read from memory once (the halo
-// re-reads 2R / kTileRows of the rows).
+// results, R lobes) is (32 + 2R) x (256 + 2R + kMaxLanes) floats, 45 KB at the default
+// R = 4: the passes run on cached planes, and the frame's guides and source are read from
+// memory once (the halo re-reads 2R / kTileRows of the rows). The kMaxLanes columns past
+// the halo let pair_lobes run whole vectors past it (for nobody).
 constexpr int kTileRows = 32;
 constexpr int kTileCols = 256;
 static_assert(kTileCols % kMaxLanes == 0, "a tile row is whole vectors");
@@ -119,13 +126,13 @@ struct FilterConstants {
   int radius;                  // R: taps k in [-R, R] per pass
   float g[2 * kMaxRadiusPx + 1];  // the spatial Gaussian g(k), at k + R
   float inv_tol;               // 1 / depth_tolerance_relative
-  int plane_stride;            // floats per plane row: kTileCols + 2R
+  int plane_stride;            // floats per plane row: kTileCols + 2R + kMaxLanes
   size_t plane;                // floats per plane: plane_stride x (kTileRows + 2R)
 
   FilterConstants(const cv::Mat& depth, const cv::Mat& normal, const cv::Mat& m, const DenoiseSettings& s)
       : depth_view(depth), normal_view(normal), mask(m), width(depth.cols), height(depth.rows),
         radius(s.radius_px), g{}, inv_tol(1.0f / s.depth_tolerance_relative),
-        plane_stride(kTileCols + 2 * s.radius_px),
+        plane_stride(kTileCols + 2 * s.radius_px + kMaxLanes),
         plane(size_t(plane_stride) * size_t(kTileRows + 2 * s.radius_px)) {
     for (int k = -radius; k <= radius; ++k)
       g[k + radius] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
@@ -150,7 +157,11 @@ struct TilePlanes {
   float* nz;
   float* value;       // C planes: the source channels
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
+  float* lobe;        // R planes: the pass's pair lobes at offsets 1 .. R (pair_lobes)
 };
+
+// Floats of a tile's planes of C channels: 4 guides, C values, C horizontal results, R lobes.
+size_t tile_floats(size_t plane, int channels, int radius) { return plane * size_t(4 + 2 * channels + radius); }
 
 TilePlanes tile_planes(float* scratch, size_t plane, int channels) {
   TilePlanes p;
@@ -160,6 +171,7 @@ TilePlanes tile_planes(float* scratch, size_t plane, int channels) {
   p.nz = p.ny + plane;
   p.value = p.nz + plane;
   p.horizontal = p.value + size_t(channels) * plane;
+  p.lobe = p.horizontal + size_t(channels) * plane;
   return p;
 }
 
@@ -222,13 +234,20 @@ inline void fill_vector(const SourceRow<C>& s, int x, const TilePlanes& p, size_
   hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.nx + at);
   hn::StoreU(hn::IfThenElseZero(on, v[1]), d, p.ny + at);
   hn::StoreU(hn::IfThenElseZero(on, v[2]), d, p.nz + at);
-  for (int c = 0; c < C; ++c) {
+  for (int c = 0; c < C;) {
     if (s.stride[c] == 1) {
-      v[0] = hn::LoadU(d, s.value[c] + x);
-    } else {  // value[c] points at the channel: the first of each three floats
-      hn::LoadInterleaved3(d, s.value[c] + 3 * size_t(x), v[0], v[1], v[2]);
+      hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.value[c] + x)), d, p.value + c * plane + at);
+      ++c;
+      continue;
     }
-    hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.value + c * plane + at);
+    // value[c] points at the channel: the first of each three floats. Channels c, c + 1,
+    // c + 2 of one image (AO's and the SSDO terms' layout) come from one de-interleave.
+    hn::LoadInterleaved3(d, s.value[c] + 3 * size_t(x), v[0], v[1], v[2]);
+    const bool whole = c + 2 < C && s.stride[c + 1] == 3 && s.stride[c + 2] == 3 && s.value[c + 1] == s.value[c] + 1 &&
+                       s.value[c + 2] == s.value[c] + 2;
+    for (int j = 0; j < (whole ? 3 : 1); ++j)
+      hn::StoreU(hn::IfThenElseZero(on, v[j]), d, p.value + (c + j) * plane + at);
+    c += whole ? 3 : 1;
   }
 }
 
@@ -267,25 +286,55 @@ inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
   return {hn::LoadU(d, p.depth + at), hn::LoadU(d, p.nx + at), hn::LoadU(d, p.ny + at), hn::LoadU(d, p.nz + at)};
 }
 
+// The normal lobe of the range weight: lobe(max(0, n . n_tap)).
+template <class Lobe>
+inline Lanes normal_lobe(Lanes nx, Lanes ny, Lanes nz, Lanes tap_nx, Lanes tap_ny, Lanes tap_nz, const Lobe& lobe) {
+  return lobe(max0(hn::Add(hn::Add(hn::Mul(nx, tap_nx), hn::Mul(ny, tap_ny)), hn::Mul(nz, tap_nz))));
+}
+
 // The weight of the taps at one offset: the spatial Gaussian g(k) times the range weight,
 // the hard-cut linear depth weight max(0, 1 - |d_tap - d| / (tol d)) (depth_scale =
 // 1 / (tol d)) times the normal lobe.
+inline Lanes tap_weight(float g, Lanes depth, Lanes depth_scale, Lanes tap_depth, Lanes lobe) {
+  const Lanes wd = max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap_depth, depth)), depth_scale)));
+  return hn::Mul(broadcast(g), hn::Mul(wd, lobe));
+}
+
+// Where a pass finds the pair lobes: the lobe of guide offsets (pos, pos + k step) at
+// data[(k - 1) plane + pos - origin], k = 1 .. R.
+struct PairLobes {
+  float* data;
+  size_t plane;
+  size_t origin;
+  float* at(int k, size_t pos) const { return data + size_t(k - 1) * plane + (pos - origin); }
+};
+
+// The pair lobes at offsets k = 1 .. R (step apart) of guide offsets [from, to) (extended to
+// whole vectors), into lobes.data.
 template <class Lobe>
-inline Lanes tap_weight(float g, const GuideLanes& centre, Lanes depth_scale, const GuideLanes& tap,
-                        const Lobe& lobe) {
-  const Lanes wd = max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap.depth, centre.depth)), depth_scale)));
-  const Lanes cn =
-      max0(hn::Add(hn::Add(hn::Mul(centre.nx, tap.nx), hn::Mul(centre.ny, tap.ny)), hn::Mul(centre.nz, tap.nz)));
-  return hn::Mul(broadcast(g), hn::Mul(wd, lobe(cn)));
+void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, int R, const PairLobes& lobes,
+                const Lobe& lobe) {
+  const FloatLanes d;
+  const size_t n = size_t(lane_count());
+  for (size_t pos = from; pos < to; pos += n) {
+    const Lanes nx = hn::LoadU(d, p.nx + pos), ny = hn::LoadU(d, p.ny + pos), nz = hn::LoadU(d, p.nz + pos);
+    for (int k = 1; k <= R; ++k) {
+      const size_t tap = size_t(ptrdiff_t(pos) + k * step);
+      const Lanes l = normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
+                                  hn::LoadU(d, p.nz + tap), lobe);
+      hn::StoreU(l, d, lobes.at(k, pos));
+    }
+  }
 }
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
 // pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
-// k * step from it; tap k of channel c at values + c * plane + k * step + i. The centre
-// tap weighs g(0) > 0 (its depth and normal match), so the weight sum is never 0.
+// k * step from it; tap k of channel c at values + c * plane + k * step + i; the lobes of
+// taps k != 0 in `lobes` (pair_lobes). The centre tap weighs g(0) > 0 (its depth and
+// normal match), so the weight sum is never 0.
 template <int C, class Lobe>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre,
-                ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe) {
+                ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe, const PairLobes& lobes) {
   const FloatLanes d;
   const int R = k.radius, width = t.lane_width(), n = lane_count();
   const Lanes inv_tol = broadcast(k.inv_tol);
@@ -297,8 +346,12 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
     for (int tap = -R; tap <= R; ++tap) {
       const ptrdiff_t off = tap * step + i;
-      const GuideLanes taps = load_guides(p, size_t(ptrdiff_t(centre) + off));
-      const Lanes w = tap_weight(k.g[tap + R], c0, depth_scale, taps, lobe);
+      const size_t at = size_t(ptrdiff_t(centre) + off);
+      // Tap -k pairs with the pixel k before: the lobe of (at, at + k step).
+      const Lanes tap_lobe = tap == 0 ? normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe)
+                             : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
+                                       : hn::LoadU(d, lobes.at(-tap, at));
+      const Lanes w = tap_weight(k.g[tap + R], c0.depth, depth_scale, hn::LoadU(d, p.depth + at), tap_lobe);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * plane + off)));
       wsum = hn::Add(wsum, w);
     }
@@ -323,7 +376,10 @@ void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& 
         for (int i = 0; i < t.lane_width(); ++i) out[c][i] = 0.0f;
       continue;
     }
-    filter_row<C>(k, p, t, row + size_t(R), 1, p.value + row + R, out, lobe);
+    // Pairs (x, x + j) of the row: centres from column R, taps -j from column R - j.
+    const PairLobes lobes{p.lobe, size_t(k.plane_stride), row};
+    pair_lobes(p, row, row + size_t(t.lane_width() + R), 1, R, lobes, lobe);
+    filter_row<C>(k, p, t, row + size_t(R), 1, p.value + row + R, out, lobe, lobes);
     const uint8_t* m = k.mask.ptr<uint8_t>(y);
     for (int c = 0; c < C; ++c)
       for (int i = 0; i < t.width(); ++i) out[c][i] = m[t.xa + i] ? out[c][i] : 0.0f;
@@ -375,12 +431,18 @@ template <int C, class Lobe>
 void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
                    const Lobe& lobe) {
   const int R = k.radius;
+  const size_t stride = size_t(k.plane_stride);
+  // Pairs (y, y + j) of the tile's columns: centres from plane row R, taps -j from row R - j.
+  const PairLobes lobes{p.lobe, k.plane, 0};
+  for (int j = 0; j < (t.yb - t.ya) + R; ++j)
+    pair_lobes(p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()),
+               k.plane_stride, R, lobes, lobe);
   for (int y = t.ya; y < t.yb; ++y) {
-    const size_t row = size_t(y - t.ya + R) * size_t(k.plane_stride);
+    const size_t row = size_t(y - t.ya + R) * stride;
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
-    filter_row<C>(k, p, t, row + size_t(R), k.plane_stride, p.horizontal + row, to, lobe);
+    filter_row<C>(k, p, t, row + size_t(R), k.plane_stride, p.horizontal + row, to, lobe, lobes);
     write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
@@ -390,7 +452,7 @@ template <int C, class Lobe>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
                      const Lobe& lobe) {
   // The guide and value planes, and the horizontal results.
-  const size_t scratch_floats = k.plane * size_t(4 + 2 * C);
+  const size_t scratch_floats = tile_floats(k.plane, C, k.radius);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     thread_local TileScratch scratch;
     const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k.plane, C);
