@@ -78,13 +78,11 @@ void BatchProgress::finished(const std::string& input, const std::string& output
                   std::max(0.0, r.wall_ms - r.handled_ms), r.peak_rss_mib);
     line += stages;
   }
-  // Notes are -v's; one that changes the frame's terms is shown always.
-  bool changed_terms = false;
-  for (const std::string& note : r.notes) {
-    const bool alone = note.starts_with(kComputedAloneNote);
-    changed_terms = changed_terms || alone;
-    if (verbose_ || alone) line += "\n  note: " + note;
-  }
+  // Notes are -v's; the one of a smaller window, which changes the frame's terms, is shown always.
+  if (verbose_)
+    for (const std::string& note : r.notes) line += "\n  note: " + note;
+  const bool changed_terms = r.ok() && r.window_reduced;
+  if (changed_terms) line += "\n  note: " + r.window_note;
   if (!bar_) {
     std::cout << line << "\n" << std::flush;
     return;

@@ -258,9 +258,19 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   if (j.contains("notes") && j["notes"].is_array())
     for (const auto& t : j["notes"])
       if (t.is_string()) result.notes.push_back(t.get<std::string>());
-  for (std::string& note : result.notes)
+  if (j.contains("window") && j["window"].is_object()) {
+    const nlohmann::json& w = j["window"];
+    result.views_per_side = w.value("views", 0);
+    result.temporal_per_side = w.value("temporal", 0);
+    result.window_reduced = w.value("reduced", false);
+    result.window_note = w.value("note", std::string());
+  }
+  const auto printable_note = [](std::string& note) {
     for (char& c : note)
       if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  };
+  for (std::string& note : result.notes) printable_note(note);
+  printable_note(result.window_note);
   if (j.value("exiting", false)) {  // the worker's last words (an uncaught exception)
     reap_reason();
     result.worker_replaced = result.transient = true;

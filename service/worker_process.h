@@ -55,11 +55,6 @@ struct WorkerJob {
   Confinement confine;
 };
 
-// How the note starts that a worker adds to a frame of a shot it computed alone, without
-// its neighbours (they did not fit under --memory-limit): shown without -v too, as it
-// changes the frame's terms.
-inline constexpr std::string_view kComputedAloneNote = "computed alone";
-
 struct WorkerResult {
   std::string error;                  // empty on success; else the reason (signal, timeout, memory, ...)
   StageTimes times;                   // as measured inside the worker
@@ -69,6 +64,12 @@ struct WorkerResult {
   std::vector<std::string> terms;     // terms written
   int width_px = 0, height_px = 0;
   std::vector<std::string> notes;     // the reader's and the sequence context's notes
+  // The shot's window the frame was computed with: views and temporal neighbours per side.
+  // Smaller than asked (window_reduced) when the asked one did not fit under --memory-limit;
+  // window_note then says so and why (shown without -v too: it changes the frame's terms).
+  int views_per_side = 0, temporal_per_side = 0;
+  bool window_reduced = false;
+  std::string window_note;
   bool worker_replaced = false;       // the worker died or was killed during this frame
   bool worker_started = false;        // a worker was started for this frame (wall_ms includes it)
   // The worker was killed (a signal, the frame timeout) or ran out of memory: the same
