@@ -62,12 +62,9 @@ inline float fast_atan2(float y, float x) {
   const float hi = std::max(ax, ay), lo = std::min(ax, ay);
   const float t = hi > 0.0f ? lo / hi : 0.0f;
   const float t2 = t * t;
-  float poly = -0.013480470f;
-  poly = poly * t2 + 0.057477314f;
-  poly = poly * t2 - 0.121239071f;
-  poly = poly * t2 + 0.195635925f;
-  poly = poly * t2 - 0.332994597f;
-  poly = poly * t2 + 0.999995630f;
+  const float* c = Environment::kAtanPolynomial;
+  float poly = c[0];
+  for (int i = 1; i < 6; ++i) poly = poly * t2 + c[i];
   float a = poly * t;
   a = ay > ax ? float(0.5 * std::numbers::pi) - a : a;
   a = x < 0.0f ? std::numbers::pi_v<float> - a : a;

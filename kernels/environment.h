@@ -119,8 +119,16 @@ class Environment {
   // L(d) Y_lm(d) over the sphere, index k = l (l + 1) + m (0..8), real SH basis.
   const std::array<glm::vec3, 9>& sh_radiance() const { return sh_; }
 
-  // The pre-blurred lat-long (CV_32FC3, same layout as the equirect input).
+  // The pre-blurred lat-long (CV_32FC3, same layout as the equirect input): what
+  // radiance_filtered_env reads (for a sky too; a constant has none).
   const cv::Mat& filtered_map() const { return filtered_; }
+
+  // The odd polynomial of radiance_filtered_env's arctangent, a(t) = t (c0 + t^2 (c1 + ...)),
+  // highest power first (the Cg reference atan2's coefficients, within 4e-6 rad on
+  // [0, 1]): one table for the scalar lookup and the SSDO kernel's lanes, which must give
+  // the same bits.
+  static constexpr float kAtanPolynomial[6] = {-0.013480470f, 0.057477314f, -0.121239071f,
+                                               0.195635925f,  -0.332994597f, 0.999995630f};
 
   // Real SH basis functions Y_lm(d), d unit, index k = l (l + 1) + m.
   static std::array<float, 9> sh_basis(const glm::vec3& d);

@@ -546,12 +546,9 @@ void filtered_radiance_lanes(const Constants& c, const SampleBatch& b, float* re
     const V hi = hn::Max(ax, ay), lo = hn::Min(ax, ay);
     const V t = hn::IfThenElse(hn::Gt(hi, zero), hn::Div(lo, hi), zero);
     const V t2 = hn::Mul(t, t);
-    V poly = hn::Set(d, -0.013480470f);
-    poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, 0.057477314f));
-    poly = hn::Sub(hn::Mul(poly, t2), hn::Set(d, 0.121239071f));
-    poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, 0.195635925f));
-    poly = hn::Sub(hn::Mul(poly, t2), hn::Set(d, 0.332994597f));
-    poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, 0.999995630f));
+    const float* coefficient = Environment::kAtanPolynomial;
+    V poly = hn::Set(d, coefficient[0]);
+    for (int i = 1; i < 6; ++i) poly = hn::Add(hn::Mul(poly, t2), hn::Set(d, coefficient[i]));
     V a = hn::Mul(poly, t);
     a = hn::IfThenElse(hn::Gt(ay, ax), hn::Sub(hn::Set(d, float(0.5 * std::numbers::pi)), a), a);
     a = hn::IfThenElse(hn::Lt(x, zero), hn::Sub(hn::Set(d, pi), a), a);
