@@ -608,9 +608,10 @@ inline void add_environment(const Constants& c, const SampleBatch& b, const bool
   bool any = false;
   for (int s = 0; s < b.count; ++s) any |= occluded[s] == c.control_variate;
   if (!any) return;
-  if (c.env->kind() == EnvironmentKind::constant) {
+  if (c.env->kind() == EnvironmentKind::constant) {  // the same radiance every way
+    const glm::vec3 radiance = c.env->radiance_filtered_env(glm::vec3(0.0f, 0.0f, 1.0f));
     for (int s = 0; s < b.count; ++s)
-      if (occluded[s] == c.control_variate) *sum += c.env->radiance_filtered_env(c.env_from_view * b.w(s));
+      if (occluded[s] == c.control_variate) *sum += radiance;
     return;
   }
   alignas(64) float red[kSampleBatch], green[kSampleBatch], blue[kSampleBatch];

@@ -81,7 +81,7 @@ void BatchProgress::finished(const std::string& input, const std::string& output
   // Notes are -v's; the one of a smaller window, which changes the frame's terms, is shown always.
   if (verbose_)
     for (const std::string& note : r.notes) line += "\n  note: " + note;
-  const bool changed_terms = r.ok() && r.window_reduced;
+  const bool changed_terms = r.ok() && r.window_reduced();
   if (changed_terms) line += "\n  note: " + r.window_note;
   if (!bar_) {
     std::cout << line << "\n" << std::flush;

@@ -332,10 +332,10 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   response["width"] = r.info.width_px;
   response["height"] = r.info.height_px;
   response["notes"] = r.info.notes;
-  // The shot's window the frame was computed with (service/worker_process.h, WorkerResult).
+  // The shot's window the frame was computed with; a note when it is smaller than asked
+  // (service/worker_process.h, WorkerResult).
   response["window"] = {{"views", fitted.views_per_side},
                         {"temporal", fitted.temporal_per_side},
-                        {"reduced", !fitted.window_note.empty()},
                         {"note", files.named(fitted.window_note)}};
 }
 

@@ -507,8 +507,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   // The shot's window the frame was computed with; "note" says why when it is smaller than asked.
   response["window"] = {{"views", r.views_per_side},
                         {"temporal", r.temporal_per_side},
-                        {"reduced", r.window_reduced}};
-  if (r.window_reduced) response["window"]["note"] = r.window_note;
+                        {"reduced", r.window_reduced()}};
+  if (r.window_reduced()) response["window"]["note"] = r.window_note;
   if (!id.is_null()) response["id"] = id;
   if (request.reply_inline) return reply(fd, response, output);
   response["output"] = output;

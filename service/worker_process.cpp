@@ -262,7 +262,6 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     const nlohmann::json& w = j["window"];
     result.views_per_side = w.value("views", 0);
     result.temporal_per_side = w.value("temporal", 0);
-    result.window_reduced = w.value("reduced", false);
     result.window_note = w.value("note", std::string());
   }
   const auto printable_note = [](std::string& note) {

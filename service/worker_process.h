@@ -15,7 +15,6 @@
 
 #include <cstdint>
 #include <string>
-#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -65,11 +64,11 @@ struct WorkerResult {
   int width_px = 0, height_px = 0;
   std::vector<std::string> notes;     // the reader's and the sequence context's notes
   // The shot's window the frame was computed with: views and temporal neighbours per side.
-  // Smaller than asked (window_reduced) when the asked one did not fit under --memory-limit;
-  // window_note then says so and why (shown without -v too: it changes the frame's terms).
+  // Smaller than asked when the asked one did not fit under --memory-limit; window_note then
+  // says so and why (shown without -v too: it changes the frame's terms), else it is empty.
   int views_per_side = 0, temporal_per_side = 0;
-  bool window_reduced = false;
   std::string window_note;
+  bool window_reduced() const { return !window_note.empty(); }
   bool worker_replaced = false;       // the worker died or was killed during this frame
   bool worker_started = false;        // a worker was started for this frame (wall_ms includes it)
   // The worker was killed (a signal, the frame timeout) or ran out of memory: the same
