@@ -55,14 +55,20 @@ struct LimitExceeded : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// What a failed read is called: an allocation that failed (e.g. under the worker's
-// --memory-limit) is std::bad_alloc, OpenEXR's exception with its text, or OpenCV's
-// "Insufficient memory" error.
-const char* read_failure(const std::exception& e) {
+// What a failed read is called, and whether it ran out of a resource (the reader's chunk
+// decoder rethrows an allocation failure as std::bad_alloc).
+const char* read_failure(const std::exception& e, ResourceFailure& exhausted) {
+  exhausted = resource_failure(e);
   if (dynamic_cast<const LimitExceeded*>(&e)) return "over the resource limits";
-  const bool no_memory = dynamic_cast<const std::bad_alloc*>(&e) != nullptr || std::strstr(e.what(), "bad_alloc") ||
-                         std::strstr(e.what(), "Insufficient memory");
-  return no_memory ? "out of memory" : "damaged or truncated file";
+  if (exhausted == ResourceFailure::memory) return "out of memory";
+  if (exhausted == ResourceFailure::thread) return "no thread could start";
+  return "damaged or truncated file";
+}
+
+// An exception outside the decoding: its text, and whether it ran out of a resource.
+void fail_with(ReadResult& result, const std::string& path, const std::exception& e) {
+  result.error = path + ": " + e.what();
+  result.exhausted = resource_failure(e);
 }
 
 std::string type_name(Imf::PixelType t) {
@@ -162,7 +168,8 @@ bool open_file(const std::string& path, const ReadOptions& options, ReadResult& 
   try {
     prep.file = std::make_unique<Imf::MultiPartInputFile>(path.c_str(), threads);
   } catch (const std::exception& e) {
-    return fail(result, path + ": cannot read the EXR header (" + read_failure(e) + "): " + e.what());
+    const char* what = read_failure(e, result.exhausted);
+    return fail(result, path + ": cannot read the EXR header (" + what + "): " + e.what());
   }
   for (int i = 0; i < prep.file->parts(); ++i) {
     const Imf::Header& h = prep.file->header(i);
@@ -1137,7 +1144,7 @@ ReadResult inspect_gbuffer(const std::string& path, const ReadOptions& options) 
     Prepared prep;
     if (prepare(path, options, result, prep)) result.gbuffer.camera = prep.camera;
   } catch (const std::exception& e) {
-    result.error = path + ": " + e.what();
+    fail_with(result, path, e);
   } catch (...) {
     result.error = path + ": unknown error while reading the header";
   }
@@ -1174,7 +1181,8 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     try {
       read_pixels(prep, options, img);
     } catch (const std::exception& e) {
-      result.error = path + ": cannot read pixels (" + read_failure(e) + "): " + e.what();
+      const char* what = read_failure(e, result.exhausted);
+      result.error = path + ": cannot read pixels (" + what + "): " + e.what();
       return result;
     }
     classify_foreground(prep, options, img, result);
@@ -1183,7 +1191,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     shading_inputs(options, img, result.gbuffer);
     return result;
   } catch (const std::exception& e) {
-    result.error = path + ": " + e.what();
+    fail_with(result, path, e);
   } catch (...) {
     result.error = path + ": unknown error while reading";
   }

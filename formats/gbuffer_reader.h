@@ -55,6 +55,7 @@
 #include <vector>
 
 #include "core/gbuffer.h"
+#include "core/resource_failure.h"
 #include "formats/exr_header_check.h"
 
 namespace ssdo {
@@ -163,6 +164,8 @@ struct ReadResult {
   GBuffer gbuffer;
   FrameInfo info;
   std::string error;  // empty on success; else a message naming file, part, channel or field
+  // A failure that was memory or a thread running out, not the file (core/resource_failure.h).
+  ResourceFailure exhausted = ResourceFailure::none;
   bool ok() const { return error.empty(); }
 };
 

@@ -506,7 +506,8 @@ void write_own_exr(const fs::path& temp, const std::vector<OutputTerm>& terms,
 }
 
 std::string write_outputs_unguarded(const std::string& path, const std::vector<OutputTerm>& terms,
-                                    const Camera& camera, const WriteOptions& options) {
+                                    const Camera& camera, const WriteOptions& options,
+                                    ResourceFailure& exhausted) {
   const fs::path final_path(path);
   if (terms.empty()) return path + ": no output terms to write";
   const auto compression = parse_compression(options.compression);
@@ -554,6 +555,7 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
     else
       write_exr(temp.write_name(), terms, camera, options, *compression, size);
   } catch (const std::exception& e) {
+    exhausted = resource_failure(e);
     return path + ": cannot write EXR: " + e.what();
   }
   if (std::string error = temp.commit(final_path); !error.empty()) return error;
@@ -571,16 +573,24 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
 }  // namespace
 
 std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
-                          const Camera& camera, const WriteOptions& options) {
+                          const Camera& camera, const WriteOptions& options, ResourceFailure& exhausted) {
   // Nothing throws across the API: file-system, OpenCV or allocation failures outside the
   // EXR writing itself end up here as messages too.
+  exhausted = ResourceFailure::none;
   try {
-    return write_outputs_unguarded(path, terms, camera, options);
+    return write_outputs_unguarded(path, terms, camera, options, exhausted);
   } catch (const std::exception& e) {
+    exhausted = resource_failure(e);
     return path + ": cannot write outputs: " + e.what();
   } catch (...) {
     return path + ": cannot write outputs: unknown error";
   }
+}
+
+std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
+                          const Camera& camera, const WriteOptions& options) {
+  ResourceFailure exhausted;
+  return write_outputs(path, terms, camera, options, exhausted);
 }
 
 }  // namespace ssdo

@@ -10,6 +10,7 @@
 #include <opencv2/core.hpp>
 
 #include "core/camera.h"
+#include "core/resource_failure.h"
 
 namespace ssdo {
 
@@ -114,5 +115,9 @@ std::string write_file_atomically(const std::filesystem::path& path, const std::
 // Returns an empty string on success, else the error (naming the file).
 std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
                           const Camera& camera, const WriteOptions& options = {});
+// The same, and whether its failure was memory or a thread running out (`exhausted`; none on
+// success and for any other failure).
+std::string write_outputs(const std::string& path, const std::vector<OutputTerm>& terms,
+                          const Camera& camera, const WriteOptions& options, ResourceFailure& exhausted);
 
 }  // namespace ssdo

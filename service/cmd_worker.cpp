@@ -54,7 +54,7 @@ void* g_last_words_reserve = nullptr;
 constexpr size_t kLastWordsReserveBytes = size_t(1) << 20;
 std::atomic_flag g_terminating = ATOMIC_FLAG_INIT;
 
-std::string describe_memory_error(const std::string& error, int64_t limit_mb);
+std::string describe_memory_error(const std::string& error, ResourceFailure exhausted, int64_t limit_mb);
 
 // Writes a framed message (service/protocol.h) with no allocation.
 void write_static_message(int fd, const char* text) {
@@ -81,7 +81,7 @@ bool request_within(int fd, double seconds) {
   }
   ::free(g_last_words_reserve);
   g_last_words_reserve = nullptr;
-  bool no_memory = false;
+  ResourceFailure exhausted = ResourceFailure::none;
   try {
     std::string what = "an unknown exception";
     if (const std::exception_ptr e = std::current_exception()) {
@@ -89,25 +89,26 @@ bool request_within(int fd, double seconds) {
         std::rethrow_exception(e);
       } catch (const std::bad_alloc&) {
         what = "out of memory (std::bad_alloc)";
-        no_memory = true;
+        exhausted = ResourceFailure::memory;
       } catch (const std::exception& ex) {
         what = ex.what();
+        exhausted = resource_failure(ex);
       } catch (...) {
       }
     }
     const std::string message = to_wire(nlohmann::json{
         {"ok", false},
         {"exiting", true},
-        {"error", describe_memory_error("worker aborted: uncaught exception: " + what, g_memory_limit_mb)}});
+        {"error", describe_memory_error("worker aborted: uncaught exception: " + what, exhausted, g_memory_limit_mb)}});
     if (g_response_fd >= 0) write_message(g_response_fd, message, deadline_in(1.0));
   } catch (...) {
     // Not even the reserve was enough: a message that needs no memory.
     if (g_response_fd >= 0)
-      write_static_message(g_response_fd,
-                           no_memory ? "{\"ok\":false,\"exiting\":true,\"error\":\"worker aborted: out of memory "
-                                       "(std::bad_alloc) under the worker's --memory-limit\"}"
-                                     : "{\"ok\":false,\"exiting\":true,\"error\":\"worker aborted: uncaught "
-                                       "exception (and out of memory for its message)\"}");
+      write_static_message(g_response_fd, exhausted == ResourceFailure::memory
+                                              ? "{\"ok\":false,\"exiting\":true,\"error\":\"worker aborted: out of "
+                                                "memory (std::bad_alloc) under the worker's --memory-limit\"}"
+                                              : "{\"ok\":false,\"exiting\":true,\"error\":\"worker aborted: "
+                                                "uncaught exception (and out of memory for its message)\"}");
   }
   ::_exit(134);
 }
@@ -167,23 +168,17 @@ std::string memory_estimate_refusal(const std::string& path, const ExrHeaderChec
   return {};
 }
 
-// Whether a frame's error is an allocation that failed (std::bad_alloc, OpenCV's
-// OutOfMemoryError, or a reader's "out of memory").
-bool is_out_of_memory(const std::string& error) {
-  return error.find("bad_alloc") != std::string::npos || error.find("Insufficient memory") != std::string::npos ||
-         error.find("out of memory") != std::string::npos;
-}
-
 // The pixels of a frame's first part from its headers; 0 when they are unsound (the reader
 // then says why).
 int64_t frame_pixels(const ExrHeaderCheck& check) {
   return check.ok() && !check.parts.empty() ? check.parts.front().pixels() : 0;
 }
 
-std::string describe_memory_error(const std::string& error, int64_t limit_mb) {
-  const bool no_memory = is_out_of_memory(error);
+// The error of a frame that ran out of memory or threads, with the worker's limit to raise.
+std::string describe_memory_error(const std::string& error, ResourceFailure exhausted, int64_t limit_mb) {
+  const bool no_memory = exhausted == ResourceFailure::memory;
   // Threads (OpenEXR's and OpenCV's pools) cannot get their stacks under RLIMIT_AS.
-  const bool no_thread = error.find("Resource temporarily unavailable") != std::string::npos;
+  const bool no_thread = exhausted == ResourceFailure::thread;
   if (!no_memory && !no_thread) return error;
   return error + (no_memory ? " (out of memory: the frame needs more than the worker's limit of "
                             : " (no memory for a thread under the worker's limit of ") +
@@ -240,7 +235,7 @@ FittedFrame process_frame_within_memory(const FrameRequest& request, int64_t pix
   }
   FittedFrame f;
   f.result = process_frame(used, &context);
-  while (!f.result.ok() && in_shot(used) && is_out_of_memory(f.result.error)) {
+  while (!f.result.ok() && in_shot(used) && f.result.exhausted == ResourceFailure::memory) {
     context.clear();
     used.views_per_side /= 2;
     used.temporal_per_side /= 2;
@@ -324,7 +319,9 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   r.info.notes.insert(r.info.notes.begin(), view_notes.begin(), view_notes.end());
   for (std::string& note : r.info.notes) note = files.named(note);
   response["ok"] = r.ok();
-  if (!r.ok()) response["error"] = files.named(describe_memory_error(r.error, args.memory_limit_mb));
+  if (!r.ok()) response["error"] = files.named(describe_memory_error(r.error, r.exhausted, args.memory_limit_mb));
+  // The same frame may succeed in a new worker (service/worker_process.h, transient).
+  if (r.exhausted == ResourceFailure::memory) response["out_of_memory"] = true;
   response["read_ms"] = r.times.read_ms;
   response["compute_ms"] = r.times.compute_ms;
   response["write_ms"] = r.times.write_ms;

@@ -41,6 +41,7 @@ void complete_gbuffer(ReadResult& frame, int threads) {
     return;
   } catch (const std::exception& e) {
     frame.error = frame.info.path + ": " + e.what();
+    frame.exhausted = resource_failure(e);
   } catch (...) {
     frame.error = frame.info.path + ": unknown error while reading";
   }

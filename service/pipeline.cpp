@@ -431,6 +431,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     result.info = frame.info;
     if (!frame.ok()) {
       result.error = frame.error;
+      result.exhausted = frame.exhausted;
       return result;
     }
     if (!resolve_frame_radius(request, frame.info, result.error)) return result;
@@ -455,7 +456,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
       t0 = std::chrono::steady_clock::now();
       WriteOptions write = request.write;
       if (write.threads == 0) write.threads = request.threads;  // the frame's thread budget
-      const std::string err = write_outputs(request.output_path, computed.terms, camera, write);
+      const std::string err = write_outputs(request.output_path, computed.terms, camera, write, result.exhausted);
       result.times.write_ms = ms_since(t0);
       if (!err.empty()) {
         result.error = err;
@@ -465,6 +466,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     }
   } catch (const std::exception& e) {
     result.error = request.input_path + ": " + e.what();
+    result.exhausted = resource_failure(e);
   }
   return result;
 }

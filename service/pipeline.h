@@ -102,6 +102,9 @@ struct StageTimes {
 struct FrameResult {
   std::string input_path, output_path;
   std::string error;          // empty on success
+  // A failure that was memory or a thread running out (core/resource_failure.h): reading,
+  // computing or writing the frame again with less, or in a new process, may succeed.
+  ResourceFailure exhausted = ResourceFailure::none;
   StageTimes times;
   FrameInfo info;
   std::vector<std::string> terms_written;

@@ -179,6 +179,51 @@ void WorkerProcess::stop(bool kill_now) {
   pid_ = -1;
 }
 
+void read_worker_response(const nlohmann::json& j, WorkerResult& result) {
+  // A field of the expected type, else the fallback.
+  const auto number = [&](const char* key, double fallback) {
+    const auto it = j.find(key);
+    return it != j.end() && it->is_number() ? it->get<double>() : fallback;
+  };
+  const auto text = [](const nlohmann::json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_string() ? it->get<std::string>() : std::string();
+  };
+  const auto flag = [&](const char* key) {
+    const auto it = j.find(key);
+    return it != j.end() && it->is_boolean() && it->get<bool>();
+  };
+  // Messages and notes may quote names read from a damaged file: no control characters
+  // in logs.
+  result.error = printable(text(j, "error"));
+  if (!flag("ok") && result.error.empty()) result.error = "the worker reported a failure";
+  result.transient = flag("out_of_memory");
+  result.times.read_ms = number("read_ms", 0.0);
+  result.times.compute_ms = number("compute_ms", 0.0);
+  result.times.write_ms = number("write_ms", 0.0);
+  result.handled_ms = number("handled_ms", 0.0);
+  result.peak_rss_mib = number("peak_rss_mib", 0.0);
+  result.width_px = int(number("width", 0.0));
+  result.height_px = int(number("height", 0.0));
+  const auto strings = [&](const char* key, std::vector<std::string>& out) {
+    const auto list = j.find(key);
+    if (list == j.end() || !list->is_array()) return;
+    for (const auto& t : *list)
+      if (t.is_string()) out.push_back(printable(t.get<std::string>()));
+  };
+  strings("terms", result.terms);
+  strings("notes", result.notes);
+  if (const auto w = j.find("window"); w != j.end() && w->is_object()) {
+    const auto count = [&](const char* key) {
+      const auto it = w->find(key);
+      return it != w->end() && it->is_number_integer() ? it->get<int>() : 0;
+    };
+    result.views_per_side = count("views");
+    result.temporal_per_side = count("temporal");
+    result.window_note = printable(text(*w, "note"));
+  }
+}
+
 WorkerResult WorkerProcess::run(const WorkerJob& job) {
   WorkerResult result;
   const auto t0 = Clock::now();
@@ -240,37 +285,9 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     result.error = "the worker sent a malformed response (worker replaced)";
     return result;
   }
-  // Messages may quote names read from a damaged file: no control characters in logs.
-  result.error = printable(j.value("error", std::string()));
-  if (!j.value("ok", false) && result.error.empty()) result.error = "the worker reported a failure";
-  // cmd_worker.cpp's describe_memory_error marks every allocation failure this way.
-  result.transient = result.error.find("out of memory") != std::string::npos;
-  result.times.read_ms = j.value("read_ms", 0.0);
-  result.times.compute_ms = j.value("compute_ms", 0.0);
-  result.times.write_ms = j.value("write_ms", 0.0);
-  result.handled_ms = j.value("handled_ms", 0.0);
-  result.peak_rss_mib = j.value("peak_rss_mib", 0.0);
-  result.width_px = j.value("width", 0);
-  result.height_px = j.value("height", 0);
-  if (j.contains("terms") && j["terms"].is_array())
-    for (const auto& t : j["terms"])
-      if (t.is_string()) result.terms.push_back(t.get<std::string>());
-  if (j.contains("notes") && j["notes"].is_array())
-    for (const auto& t : j["notes"])
-      if (t.is_string()) result.notes.push_back(t.get<std::string>());
-  if (j.contains("window") && j["window"].is_object()) {
-    const nlohmann::json& w = j["window"];
-    result.views_per_side = w.value("views", 0);
-    result.temporal_per_side = w.value("temporal", 0);
-    result.window_note = w.value("note", std::string());
-  }
-  const auto printable_note = [](std::string& note) {
-    for (char& c : note)
-      if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
-  };
-  for (std::string& note : result.notes) printable_note(note);
-  printable_note(result.window_note);
-  if (j.value("exiting", false)) {  // the worker's last words (an uncaught exception)
+  read_worker_response(j, result);
+  if (const auto exiting = j.find("exiting"); exiting != j.end() && exiting->is_boolean() && exiting->get<bool>()) {
+    // The worker's last words (an uncaught exception).
     reap_reason();
     result.worker_replaced = result.transient = true;
   }

@@ -71,11 +71,18 @@ struct WorkerResult {
   bool window_reduced() const { return !window_note.empty(); }
   bool worker_replaced = false;       // the worker died or was killed during this frame
   bool worker_started = false;        // a worker was started for this frame (wall_ms includes it)
-  // The worker was killed (a signal, the frame timeout) or ran out of memory: the same
-  // frame may succeed on a new worker, so the service tries it again (--retries).
+  // The worker was killed (a signal, the frame timeout) or the frame ran out of memory
+  // (the worker's "out_of_memory", decided from the exception, never from the message):
+  // the same frame may succeed on a new worker, so the service tries it again (--retries).
   bool transient = false;
   bool ok() const { return error.empty(); }
 };
+
+// The fields of a worker's response (cmd_worker.cpp) into `result`: the error, stage times,
+// terms, notes and window, with control characters escaped (printable); transient when
+// the worker says the frame ran out of memory ("out_of_memory": true). Fields of another
+// type than expected count as absent.
+void read_worker_response(const nlohmann::json& j, WorkerResult& result);
 
 // One worker process, started on first use and restarted after it dies. Not thread-safe:
 // one owner thread (the batch and the service run one thread per worker).

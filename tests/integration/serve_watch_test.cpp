@@ -177,6 +177,31 @@ TEST(ServeWatch, FailedFramesCorruptMissingChannelsEmptyDeletedReplaced) {
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
+// Whether a failed frame is tried again is decided from the failure, never from its
+// message: a damaged frame whose name says "out of memory" fails once, for good.
+TEST(ServeWatch, DamagedFrameNamedOutOfMemoryIsNotRetried) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  const std::string socket = socket_path_for("oom-name");
+  SsdoProcess service(serve_args(dir, socket, {"--retries", "2"}), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  fs::copy_file(example_frame("cornell.camera.json"), in / "out of memory.camera.json");
+  {
+    // Headers whole, pixels cut short.
+    const std::string frame = read_text(example_frame("cornell.exr"));
+    std::ofstream(in / "out of memory.partial", std::ios::binary) << frame.substr(0, 30000);
+  }
+  fs::rename(in / "out of memory.partial", in / "out of memory.exr");
+  ASSERT_TRUE(wait_until([&] { return path_exists(out / "out of memory.error.json"); }, 60)) << service.log();
+  const json error = json::parse(read_text(out / "out of memory.error.json"), nullptr, false);
+  EXPECT_NE(error.value("error", "").find("damaged or truncated file"), std::string::npos) << error.dump();
+  EXPECT_FALSE(error.value("retry", true)) << error.dump();
+  EXPECT_EQ(stats(socket).value("frames_retried", -1), 0) << service.log();
+  EXPECT_EQ(service.log().find("retrying"), std::string::npos) << service.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
 TEST(ServeWatch, PollFindsFramesWithoutEvents) {
   // --poll: frames that inotify does not report (as on network file systems) are found
   // by rescanning.
