@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cerrno>
 #include <cctype>
@@ -12,6 +13,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <optional>
 #include <random>
@@ -150,6 +152,35 @@ uint8_t srgb8(float v) {
   return uint8_t(std::lround(e * 255.0f));
 }
 
+// srgb8 by the linear values where its byte steps up: step[k] is the smallest float with
+// srgb8 >= k (bisection over the bit patterns of [0, 1], ordered as the floats are), so
+// the eight comparisons of encode() give srgb8's byte for every float (it is monotonic),
+// without a power per sample.
+class SrgbSteps {
+ public:
+  SrgbSteps() {
+    const uint32_t one = std::bit_cast<uint32_t>(1.0f);
+    step_[0] = -std::numeric_limits<float>::infinity();
+    for (int k = 1; k < 256; ++k) {
+      uint32_t lo = 0, hi = one;  // srgb8(0) = 0 < k <= srgb8(1) = 255
+      while (hi - lo > 1) {
+        const uint32_t mid = lo + (hi - lo) / 2;
+        (srgb8(std::bit_cast<float>(mid)) >= k ? hi : lo) = mid;
+      }
+      step_[size_t(k)] = std::bit_cast<float>(hi);
+    }
+  }
+  uint8_t encode(float v) const {
+    if (!std::isfinite(v)) return 0;
+    int k = 0;
+    for (int half = 128; half >= 1; half /= 2) k += v >= step_[size_t(k + half)] ? half : 0;
+    return uint8_t(k);
+  }
+
+ private:
+  std::array<float, 256> step_;
+};
+
 // Vector terms (unit directions) are shown as 0.5 v + 0.5, linear, the usual normal-map
 // colouring: sRGB encoding would bend the mapping of directions to colours.
 uint8_t vector8(float v) {
@@ -162,10 +193,11 @@ std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   cv::Mat samples = t.image;
   if (samples.depth() == CV_16F) t.image.convertTo(samples, CV_32F);  // exact: every half is a float
   cv::Mat pixels(h, w, CV_8UC(nc));
+  static const SrgbSteps srgb;
   for (int y = 0; y < h; ++y) {
     const float* row = samples.ptr<float>(y);
     uint8_t* out = pixels.ptr<uint8_t>(y);
-    for (int i = 0; i < w * nc; ++i) out[i] = t.vector ? vector8(row[i]) : srgb8(row[i]);
+    for (int i = 0; i < w * nc; ++i) out[i] = t.vector ? vector8(row[i]) : srgb.encode(row[i]);
   }
   TempFile temp;
   std::string error;
@@ -561,11 +593,18 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   if (std::string error = temp.commit(final_path); !error.empty()) return error;
 
   if (options.png_previews) {
+    // One preview per term, written side by side on the write's threads; the first
+    // term's error in the terms' order is the one reported.
     const fs::path stem = final_path.parent_path() / final_path.stem();
-    for (const auto& t : terms) {
-      const fs::path png = fs::path(stem.string() + "." + t.name + ".png");
-      if (std::string error = write_png(png, t); !error.empty()) return error;
-    }
+    std::vector<std::string> errors(terms.size());
+    parallel_rows(cv::Range(0, int(terms.size())), options.threads, [&](const cv::Range& r) {
+      for (int i = r.start; i < r.end; ++i) {
+        const OutputTerm& t = terms[size_t(i)];
+        errors[size_t(i)] = write_png(fs::path(stem.string() + "." + t.name + ".png"), t);
+      }
+    }, 1);
+    for (const std::string& error : errors)
+      if (!error.empty()) return error;
   }
   return {};
 }

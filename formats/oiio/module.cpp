@@ -36,6 +36,8 @@ std::string read_image(const std::string& path, int max_channels, long long max_
   return {};
 }
 
+constexpr int kPngCompressionLevel = 1;
+
 std::string write_png(const std::string& path, const cv::Mat& pixels_u8,
                       const std::string& colour_space) {
   if (pixels_u8.depth() != CV_8U || !pixels_u8.isContinuous())
@@ -44,6 +46,9 @@ std::string write_png(const std::string& path, const cv::Mat& pixels_u8,
   if (!out) return path + ": no PNG writer: " + OIIO::geterror();
   OIIO::ImageSpec spec(pixels_u8.cols, pixels_u8.rows, pixels_u8.channels(), OIIO::TypeDesc::UINT8);
   spec.attribute("oiio:ColorSpace", colour_space);
+  // zlib level 1 (OpenImageIO's default is 6): a preview is looked at, not archived; level 1
+  // deflates a 640x360 term ~4x faster for files ~1.3x larger.
+  spec.attribute("png:compressionLevel", kPngCompressionLevel);
   bool ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, pixels_u8.data);
   ok = out->close() && ok;
   std::string error;

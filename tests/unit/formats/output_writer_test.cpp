@@ -543,5 +543,48 @@ TEST(WriteOutputs, PngPreviewsAreSrgbClampedEightBit) {
   EXPECT_EQ(npx[2], 255);  // 0.5 * 1 + 0.5
 }
 
+// The sRGB encoding of previews equals the transfer function rounded to 8 bits (in float,
+// as IEC 61966-2-1 writes it) on both sides of every step between two bytes, and maps what
+// is not a number to 0.
+TEST(WriteOutputs, PngPreviewBytesAreTheRoundedTransferFunctionAtEveryStep) {
+  const auto encode = [](float v) {
+    if (!std::isfinite(v)) v = 0.0f;
+    v = std::clamp(v, 0.0f, 1.0f);
+    const float e = v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
+    return int(std::lround(e * 255.0f));
+  };
+  std::vector<float> values = {std::nanf(""), std::numeric_limits<float>::infinity(),
+                               -std::numeric_limits<float>::infinity(), -0.0f, 0.0f, 1.0f, 1.5f};
+  for (int k = 1; k < 256; ++k) {
+    const double e = (k - 0.5) / 255.0;  // the encoded value where the byte steps to k
+    const double linear = e <= 0.04045 ? e / 12.92 : std::pow((e + 0.055) / 1.055, 2.4);
+    const float at = float(linear);
+    for (const float v : {std::nextafter(std::nextafter(at, 0.0f), 0.0f), std::nextafter(at, 0.0f), at,
+                          std::nextafter(at, 2.0f), std::nextafter(std::nextafter(at, 2.0f), 2.0f)})
+      values.push_back(v);
+  }
+  const cv::Mat ao(1, int(values.size()), CV_32FC1, values.data());
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(ao.cols, 1, 60.0f);
+  WriteOptions o;
+  o.png_previews = true;
+  o.threads = 2;
+  // Three terms, so that previews are written side by side.
+  ASSERT_EQ(write_outputs((dir / "steps.exr").string(), {{"a", ao}, {"b", ao.clone()}, {"c", ao.clone()}}, cam, o),
+            "");
+  for (const char* term : {"a", "b", "c"}) {
+    auto in = OIIO::ImageInput::open((dir / (std::string("steps.") + term + ".png")).string());
+    ASSERT_TRUE(in) << term;
+    std::vector<uint8_t> px(values.size());
+    ASSERT_TRUE(in->read_image(0, 0, 0, 1, OIIO::TypeDesc::UINT8, px.data()));
+    int steps_seen = 0;
+    for (size_t i = 0; i < values.size(); ++i) {
+      ASSERT_EQ(int(px[i]), encode(values[i])) << term << " at " << values[i];
+      steps_seen += i > 7 && px[i] != px[i - 1];
+    }
+    EXPECT_GE(steps_seen, 250) << term;  // the values straddle (almost) every step
+  }
+}
+
 }  // namespace
 }  // namespace ssdo::test
