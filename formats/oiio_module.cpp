@@ -104,13 +104,6 @@ std::string read_image(const std::string& path, int max_channels, long long max_
   return a ? a->read_image(path, max_channels, max_pixels, pixels) : path + ": " + error;
 }
 
-std::string write_png(const std::string& path, const cv::Mat& pixels_u8,
-                      const std::string& colour_space) {
-  std::string error;
-  const Api* a = api(&error);
-  return a ? a->write_png(path, pixels_u8, colour_space) : path + ": " + error;
-}
-
 }  // namespace oiio_module
 
 std::string write_chart_png(const std::string& path, const std::vector<ChartSeries>& series,

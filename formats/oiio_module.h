@@ -3,7 +3,7 @@
 // a 1080p frame takes. The hot path (EXR frames in, EXR terms out) uses OpenEXR
 // alone, so OpenImageIO lives in a module (libssdo_oiio.so, beside the ssdo binary) that
 // the functions below load the first time they need it: environment maps in formats other
-// than EXR, PNG previews and charts.
+// than EXR, and charts (PNG previews are written by libpng, formats/png_file.h).
 #pragma once
 
 #include <string>
@@ -25,10 +25,5 @@ std::string load();
 // "" on success, else the error (naming the file).
 std::string read_image(const std::string& path, int max_channels, long long max_pixels,
                        cv::Mat& pixels);
-
-// An 8-bit image (CV_8UC1/3/4, continuous) written as PNG at `path`; colour_space is
-// recorded in the file ("sRGB" or "Linear"). "" or the error.
-std::string write_png(const std::string& path, const cv::Mat& pixels_u8,
-                      const std::string& colour_space);
 
 }  // namespace ssdo::oiio_module

@@ -367,7 +367,7 @@ int run_worker(const WorkerArgs& args) {
   // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
   // conversions) and OpenEXR's (decoding and compression; one thread = in the calling
   // thread, no pool). Their threads are started before the address-space limit: their
-  // stacks are not a frame's. OpenImageIO (PNG previews, environment maps other than EXR)
+  // stacks are not a frame's. OpenImageIO (environment maps other than EXR)
   // is loaded only if a request needs it (formats/oiio_module.h), possibly under the limit,
   // so it gets no pool: its work here is small, and a pool thread that cannot allocate as
   // it starts would end the worker.

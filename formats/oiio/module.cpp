@@ -1,5 +1,5 @@
 // The OpenImageIO module: every use of OpenImageIO in the product (images in formats other
-// than EXR, PNG previews, charts). Loaded by formats/oiio_module.cpp on first use, so that
+// than EXR, charts). Loaded by formats/oiio_module.cpp on first use, so that
 // processes which never need it (the workers on EXR frames) do not pay for loading it and
 // the ~250 shared libraries it depends on at every process start.
 #include <OpenImageIO/imageio.h>
@@ -36,27 +36,7 @@ std::string read_image(const std::string& path, int max_channels, long long max_
   return {};
 }
 
-constexpr int kPngCompressionLevel = 1;
-
-std::string write_png(const std::string& path, const cv::Mat& pixels_u8,
-                      const std::string& colour_space) {
-  if (pixels_u8.depth() != CV_8U || !pixels_u8.isContinuous())
-    return path + ": PNG pixels must be continuous 8-bit";
-  auto out = OIIO::ImageOutput::create("png");
-  if (!out) return path + ": no PNG writer: " + OIIO::geterror();
-  OIIO::ImageSpec spec(pixels_u8.cols, pixels_u8.rows, pixels_u8.channels(), OIIO::TypeDesc::UINT8);
-  spec.attribute("oiio:ColorSpace", colour_space);
-  // zlib level 1 (OpenImageIO's default is 6): a preview is looked at, not archived; level 1
-  // deflates a 640x360 term ~4x faster for files ~1.3x larger.
-  spec.attribute("png:compressionLevel", kPngCompressionLevel);
-  bool ok = out->open(path, spec) && out->write_image(OIIO::TypeDesc::UINT8, pixels_u8.data);
-  ok = out->close() && ok;
-  std::string error;
-  if (!ok) error = path + ": " + out->geterror();
-  return error;
-}
-
-constexpr Api kApi{kVersion, set_threads, read_image, write_png, render_chart_png};
+constexpr Api kApi{kVersion, set_threads, read_image, render_chart_png};
 
 }  // namespace
 }  // namespace ssdo::oiio_module

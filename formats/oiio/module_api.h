@@ -12,7 +12,7 @@
 
 namespace ssdo::oiio_module {
 
-inline constexpr int kVersion = 2;
+inline constexpr int kVersion = 3;
 
 struct Api {
   int version = kVersion;
@@ -22,9 +22,6 @@ struct Api {
   // Sizes over max_pixels are refused before allocating.
   std::string (*read_image)(const std::string& path, int max_channels, long long max_pixels,
                             cv::Mat& pixels) = nullptr;
-  // An 8-bit image (CV_8UC1/3/4) as PNG at exactly `path`; colour_space is recorded.
-  std::string (*write_png)(const std::string& path, const cv::Mat& pixels_u8,
-                           const std::string& colour_space) = nullptr;
   std::string (*write_chart_png)(const std::string& path, const std::vector<ChartSeries>& series,
                                  const ChartOptions& options) = nullptr;
 };
