@@ -153,9 +153,11 @@ uint8_t srgb8(float v) {
 }
 
 // srgb8 by the linear values where its byte steps up: step[k] is the smallest float with
-// srgb8 >= k (bisection over the bit patterns of [0, 1], ordered as the floats are), so
-// the eight comparisons of encode() give srgb8's byte for every float (it is monotonic),
-// without a power per sample.
+// srgb8 >= k (bisection over the bit patterns of [0, 1], ordered as the floats are). The
+// floats of [step[1], 1) fall in buckets of 2^-10 relative width (their top 10 mantissa
+// bits), each holding at most one step (the narrowest step is 0.1 of its value, at the
+// toe; checked when the table is made): the byte at a bucket's start, plus one past its
+// step. srgb8's byte for every float (it is monotonic), without a power per sample.
 class SrgbSteps {
  public:
   SrgbSteps() {
@@ -169,16 +171,31 @@ class SrgbSteps {
       }
       step_[size_t(k)] = std::bit_cast<float>(hi);
     }
+    step_[256] = std::numeric_limits<float>::infinity();
+    first_bucket_ = std::bit_cast<uint32_t>(step_[1]) >> kBucketShift;
+    const uint32_t buckets = (one >> kBucketShift) - first_bucket_;
+    bucket_byte_.resize(buckets);
+    int k = 1;
+    for (uint32_t b = 0; b < buckets; ++b) {
+      const float start = std::bit_cast<float>((first_bucket_ + b) << kBucketShift);
+      const float end = std::bit_cast<float>((first_bucket_ + b + 1) << kBucketShift);
+      while (step_[size_t(k + 1)] <= start) ++k;
+      bucket_byte_[b] = uint8_t(k);
+      if (k < 255 && !(step_[size_t(k + 2)] >= end)) throw std::logic_error("sRGB table: two steps in one bucket");
+    }
   }
   uint8_t encode(float v) const {
-    if (!std::isfinite(v)) return 0;
-    int k = 0;
-    for (int half = 128; half >= 1; half /= 2) k += v >= step_[size_t(k + half)] ? half : 0;
-    return uint8_t(k);
+    if (!(v >= step_[1])) return 0;                     // NaN, negatives, the toe's zeros
+    if (!(v < 1.0f)) return std::isfinite(v) ? 255 : 0;  // clamped; +inf is not a number here
+    const int k = bucket_byte_[(std::bit_cast<uint32_t>(v) >> kBucketShift) - first_bucket_];
+    return uint8_t(k + (v >= step_[size_t(k + 1)] ? 1 : 0));
   }
 
  private:
-  std::array<float, 256> step_;
+  static constexpr int kBucketShift = 13;  // 23 - 10 mantissa bits
+  std::array<float, 257> step_;
+  uint32_t first_bucket_ = 0;
+  std::vector<uint8_t> bucket_byte_;
 };
 
 // zlib level 1 (libpng's default is 6): a preview is looked at, not archived; level 1

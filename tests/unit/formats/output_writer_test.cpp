@@ -544,8 +544,8 @@ TEST(WriteOutputs, PngPreviewsAreSrgbClampedEightBit) {
 }
 
 // The sRGB encoding of previews equals the transfer function rounded to 8 bits (in float,
-// as IEC 61966-2-1 writes it) on both sides of every step between two bytes, and maps what
-// is not a number to 0.
+// as IEC 61966-2-1 writes it) on both sides of every step between two bytes and across
+// [0, 1], and maps what is not a number to 0.
 TEST(WriteOutputs, PngPreviewBytesAreTheRoundedTransferFunctionAtEveryStep) {
   const auto encode = [](float v) {
     if (!std::isfinite(v)) v = 0.0f;
@@ -563,6 +563,8 @@ TEST(WriteOutputs, PngPreviewBytesAreTheRoundedTransferFunctionAtEveryStep) {
                           std::nextafter(at, 2.0f), std::nextafter(std::nextafter(at, 2.0f), 2.0f)})
       values.push_back(v);
   }
+  // And floats spread over [0, 1] by their bit patterns (every ulp scale from 1e-38 up).
+  for (uint32_t bits = 0; bits <= std::bit_cast<uint32_t>(1.0f); bits += 9973) values.push_back(std::bit_cast<float>(bits));
   const cv::Mat ao(1, int(values.size()), CV_32FC1, values.data());
   ScratchDir dir;
   const Camera cam = Camera::from_fov_x(ao.cols, 1, 60.0f);
@@ -580,7 +582,7 @@ TEST(WriteOutputs, PngPreviewBytesAreTheRoundedTransferFunctionAtEveryStep) {
     int steps_seen = 0;
     for (size_t i = 0; i < values.size(); ++i) {
       ASSERT_EQ(int(px[i]), encode(values[i])) << term << " at " << values[i];
-      steps_seen += i > 7 && px[i] != px[i - 1];
+      steps_seen += i > 7 && i < 7 + 5 * 255 && px[i] != px[i - 1];
     }
     EXPECT_GE(steps_seen, 250) << term;  // the values straddle (almost) every step
   }
