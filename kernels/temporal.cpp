@@ -9,6 +9,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
@@ -69,15 +70,27 @@ Vec3L ray_point(const PixelRays& r, VF px, VF py, VF d) {
   return add_scaled(origin, d, direction);
 }
 
-// A neighbour's parts as the lanes read them.
+// A neighbour's parts as the lanes read them. Its depth is NaN on background texels (the
+// mask folded in), so that the texel's one depth gather also rejects them: every test of a
+// NaN depth fails (texel_weight_lanes), as the mask's did, without a byte read per lane.
 struct NeighbourPlanes {
+  cv::Mat foreground_depth;
   Plane depth, normal;
   std::vector<Plane> terms;  // the frame's terms' order
-  const uint8_t* mask;
-  size_t mask_stride;
 };
-NeighbourPlanes planes_of(const TemporalFrame& u) {
-  NeighbourPlanes p{plane_of(u.depth_view), plane_of(u.normal_view), {}, u.mask.ptr<uint8_t>(0), u.mask.step[0]};
+NeighbourPlanes planes_of(const TemporalFrame& u, int nthreads) {
+  NeighbourPlanes p;
+  p.foreground_depth.create(u.depth_view.size(), CV_32FC1);
+  parallel_rows(cv::Range(0, u.depth_view.rows), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* depth = u.depth_view.ptr<float>(y);
+      const uint8_t* mask = u.mask.ptr<uint8_t>(y);
+      float* out = p.foreground_depth.ptr<float>(y);
+      for (int x = 0; x < u.depth_view.cols; ++x) out[x] = mask[x] ? depth[x] : std::numeric_limits<float>::quiet_NaN();
+    }
+  }, 16);
+  p.depth = plane_of(p.foreground_depth);
+  p.normal = plane_of(u.normal_view);
   for (const cv::Mat* term : u.terms) p.terms.push_back(plane_of(*term));
   return p;
 }
@@ -134,8 +147,9 @@ struct GroupSums {
 };
 
 // The weight (temporal.h) of texels (tx, ty) of neighbour u for carried points c, times
-// `bilinear`: positive where `ok` (inside, in the image, on the neighbour's foreground, on the
-// same surface, facing alike), 0 elsewhere; sx, sy: the texels, (0, 0) where not in the image.
+// `bilinear`: positive where `ok` (inside, in the image, on the neighbour's foreground: a
+// depth that is a number, on the same surface, facing alike), 0 elsewhere; sx, sy: the
+// texels, (0, 0) where not in the image.
 VF texel_weight_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside, VI tx, VI ty, VF bilinear,
                       VF inverse_tolerance, float normal_power, int cols, int rows, MF& ok, VI& sx, VI& sy) {
   const DF d;
@@ -145,12 +159,6 @@ VF texel_weight_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside
   ok = hn::And(ok, hn::RebindMask(d, hn::And(hn::And(hn::Gt(tx, minus_one), hn::Gt(ty, minus_one)),
                                              hn::And(hn::Lt(tx, hn::Set(di, cols)), hn::Lt(ty, hn::Set(di, rows))))));
   sx = hn::IfThenElseZero(hn::RebindMask(di, ok), tx), sy = hn::IfThenElseZero(hn::RebindMask(di, ok), ty);
-  // Background texels: the mask, a byte per texel, read lane by lane.
-  HWY_ALIGN int32_t xs[kMaxLanes], ys[kMaxLanes], foreground[kMaxLanes];
-  hn::Store(sx, di, xs);
-  hn::Store(sy, di, ys);
-  for (size_t i = 0; i < hn::Lanes(d); ++i) foreground[i] = u.mask[size_t(ys[i]) * u.mask_stride + size_t(xs[i])];
-  ok = hn::And(ok, hn::RebindMask(d, hn::Ne(hn::Load(di, foreground), hn::Zero(di))));
   const VF depth_u = hn::GatherIndex(d, u.depth.data, hn::Add(hn::Mul(sy, hn::Set(di, u.depth.stride)), sx));
   const VI normal_at = hn::Add(hn::Mul(sy, hn::Set(di, u.normal.stride)), hn::Mul(sx, hn::Set(di, 3)));
   const Vec3L normal_u = {hn::GatherIndex(d, u.normal.data, normal_at),
@@ -161,6 +169,7 @@ VF texel_weight_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside
   const VF tpx = hn::Add(hn::ConvertTo(d, tx), half), tpy = hn::Add(hn::ConvertTo(d, ty), half);
   const VF e = hn::Abs(hn::Add(hn::Add(hn::Add(c.c0, hn::Mul(tpx, c.cx)), hn::Mul(tpy, c.cy)),
                                hn::Mul(depth_u, hn::Add(hn::Add(c.d0, hn::Mul(tpx, c.dx)), hn::Mul(tpy, c.dy)))));
+  // NaN on background texels: the test below fails there.
   const VF w_plane = hn::Sub(hn::Set(d, 1.0f), hn::Mul(e, inverse_tolerance));
   const VF cosine = dot(c.normal, normal_u);
   ok = hn::And(ok, hn::And(hn::Gt(w_plane, hn::Zero(d)), hn::Gt(cosine, hn::Zero(d))));
@@ -312,10 +321,9 @@ void measure_lanes(const TemporalFrame& f, const Neighbour& n, const NeighbourPl
 // the frame's foreground: the points that project into it and those whose nearest texel
 // holds another surface (background, or the plane or normal test fails). Integer counts:
 // the same for any split of the rows.
-void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const TemporalSettings& s, TemporalUse& use,
-                       int nthreads) {
+void measure_neighbour(const TemporalFrame& f, const Neighbour& n, const NeighbourPlanes& planes,
+                       const TemporalSettings& s, TemporalUse& use, int nthreads) {
   std::atomic<int64_t> foreground{0}, seen{0}, disagree{0};
-  const NeighbourPlanes planes = planes_of(*n.frame);
   const int measured_rows = (f.depth_view.rows + kMeasureStridePx - 1) / kMeasureStridePx;
   const int group_px = kMeasureStridePx * int(hn::Lanes(DF()));
   parallel_rows(cv::Range(0, measured_rows), nthreads, [&](const cv::Range& rows) {
@@ -357,14 +365,16 @@ std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<c
   CV_Assert(channels <= kMaxChannels);
   std::vector<TemporalUse> uses(neighbours.size());
   std::vector<Neighbour> used;
+  std::vector<NeighbourPlanes> planes;
   for (size_t i = 0; i < neighbours.size(); ++i) {
     CV_Assert(same_layout(frame, neighbours[i]));
     const Neighbour n{&neighbours[i], Reprojection(frame.camera, neighbours[i].camera)};
-    measure_neighbour(frame, n, settings, uses[i], nthreads);
-    if (uses[i].used) used.push_back(n);
+    NeighbourPlanes p = planes_of(neighbours[i], nthreads);
+    measure_neighbour(frame, n, p, settings, uses[i], nthreads);
+    if (!uses[i].used) continue;
+    used.push_back(n);
+    planes.push_back(std::move(p));
   }
-  std::vector<NeighbourPlanes> planes;
-  for (const Neighbour& n : used) planes.push_back(planes_of(*n.frame));
   const cv::Rect r = resolve_roi(roi, frame.depth_view.size());
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) filter_row(frame, used, planes, settings, dsts, y, r.x, r.x + r.width);
