@@ -154,10 +154,10 @@ uint8_t srgb8(float v) {
 
 // srgb8 by the linear values where its byte steps up: step[k] is the smallest float with
 // srgb8 >= k (bisection over the bit patterns of [0, 1], ordered as the floats are). The
-// floats of [step[1], 1) fall in buckets of 2^-10 relative width (their top 10 mantissa
-// bits), each holding at most one step (the narrowest step is 0.1 of its value, at the
-// toe; checked when the table is made): the byte at a bucket's start, plus one past its
-// step. srgb8's byte for every float (it is monotonic), without a power per sample.
+// floats of [step[1], 1) fall in buckets of at most 2^-10 relative width (their top 10
+// mantissa bits), each holding at most one step (the narrowest step, near 1, is 0.9% of
+// its value; checked when the table is made): the byte at a bucket's start, plus one past
+// its step. srgb8's byte for every float (it is monotonic), without a power per sample.
 class SrgbSteps {
  public:
   SrgbSteps() {

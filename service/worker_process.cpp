@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <thread>
@@ -193,6 +194,10 @@ void read_worker_response(const nlohmann::json& j, WorkerResult& result) {
     const auto it = j.find(key);
     return it != j.end() && it->is_boolean() && it->get<bool>();
   };
+  const auto count = [](const nlohmann::json& o, const char* key) {
+    const auto it = o.find(key);
+    return it != o.end() && it->is_number_integer() ? int(std::clamp<int64_t>(it->get<int64_t>(), 0, 1 << 30)) : 0;
+  };
   // Messages and notes may quote names read from a damaged file: no control characters
   // in logs.
   result.error = printable(text(j, "error"));
@@ -203,8 +208,8 @@ void read_worker_response(const nlohmann::json& j, WorkerResult& result) {
   result.times.write_ms = number("write_ms", 0.0);
   result.handled_ms = number("handled_ms", 0.0);
   result.peak_rss_mib = number("peak_rss_mib", 0.0);
-  result.width_px = int(number("width", 0.0));
-  result.height_px = int(number("height", 0.0));
+  result.width_px = count(j, "width");
+  result.height_px = count(j, "height");
   const auto strings = [&](const char* key, std::vector<std::string>& out) {
     const auto list = j.find(key);
     if (list == j.end() || !list->is_array()) return;
@@ -214,12 +219,8 @@ void read_worker_response(const nlohmann::json& j, WorkerResult& result) {
   strings("terms", result.terms);
   strings("notes", result.notes);
   if (const auto w = j.find("window"); w != j.end() && w->is_object()) {
-    const auto count = [&](const char* key) {
-      const auto it = w->find(key);
-      return it != w->end() && it->is_number_integer() ? it->get<int>() : 0;
-    };
-    result.views_per_side = count("views");
-    result.temporal_per_side = count("temporal");
+    result.views_per_side = count(*w, "views");
+    result.temporal_per_side = count(*w, "temporal");
     result.window_note = printable(text(*w, "note"));
   }
 }

@@ -59,6 +59,11 @@ TEST(WorkerResponse, FieldsAreReadAndControlCharactersEscaped) {
   EXPECT_EQ(r.temporal_per_side, 1);
   EXPECT_EQ(r.window_note, "computed with\\rfewer");
   EXPECT_TRUE(r.window_reduced());
+  // Sizes and counts are integers in range, else absent.
+  const WorkerResult odd = read({{"ok", true}, {"width", 1e300}, {"height", -5}, {"window", {{"views", 2.5}}}});
+  EXPECT_EQ(odd.width_px, 0);
+  EXPECT_EQ(odd.height_px, 0);
+  EXPECT_EQ(odd.views_per_side, 0);
 }
 
 }  // namespace
