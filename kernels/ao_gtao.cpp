@@ -70,6 +70,7 @@
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
 #include "kernels/noise.h"
+#include "kernels/record_lanes.h"
 #include "core/parallel.h"
 #include "core/uninitialized.h"
 
@@ -501,53 +502,21 @@ struct StepLanes {
 [[gnu::always_inline]] inline bool occluder(const StepLanes& t, int l) { return t.occluder[l] != 0; }
 
 // The taps' texels, one 16-byte load each, transposed to fields in lanes (a vector of
-// lanes per field). A vector's 128-bit blocks are filled from four taps' texels each:
-// block b of A_i holds the texel of lane 4 b + i, so that the transpose within blocks
-// (two rounds of interleaves) leaves lane 4 b + i of every field in its place. Loads and
-// shuffles beat a gather instruction per field (four per vector) here. Lanes without a
-// texel read texel 0's, for nobody.
+// lanes per field, load_records4). Lanes without a texel read texel 0's, for nobody.
 inline void gather_texels(const Texel* texels, StepLanes& t) {
   namespace hn = hwy::HWY_NAMESPACE;
   static_assert(sizeof(Texel) == 4 * sizeof(float));
-#if HWY_TARGET == HWY_SCALAR
-  for (int l = 0; l < kLanes; ++l) {
-    const Texel& tx = texels[std::max(t.index[l], 0)];
-    t.x[l] = tx.x, t.y[l] = tx.y, t.z[l] = tx.z, t.depth_view[l] = tx.depth_view;
-  }
-#else
-  const float* base = &texels[0].x;
   const hn::CappedTag<float, kLanes> d;
-  const hn::RebindToSigned<decltype(d)> di;
-  const hn::Repartition<uint64_t, decltype(d)> d64;
-  constexpr size_t kBlockLanes = 16 / sizeof(float);
-  const size_t lanes = hn::Lanes(d), blocks = lanes / kBlockLanes;
-  using V = hn::Vec<decltype(d)>;
-  using M = hn::Mask<decltype(d)>;
-  // Lanes of block b (b >= 1).
-  M block[kLanes / kBlockLanes];
-  const auto lane = hn::Iota(di, 0);
-  for (size_t b = 1; b < blocks; ++b)
-    block[b] = hn::RebindMask(d, hn::And(hn::Gt(lane, hn::Set(di, int32_t(b * kBlockLanes) - 1)),
-                                         hn::Lt(lane, hn::Set(di, int32_t((b + 1) * kBlockLanes)))));
-  for (size_t l0 = 0; l0 < size_t(kLanes); l0 += lanes) {
-    const int32_t* index = t.index + l0;
-    auto texel = [&](size_t l) { return hn::LoadDup128(d, base + 4 * size_t(std::max(index[l], 0))); };
-    V a[4];
-    for (size_t i = 0; i < 4; ++i) {
-      a[i] = texel(i);
-      for (size_t b = 1; b < blocks; ++b) a[i] = hn::IfThenElse(block[b], texel(b * kBlockLanes + i), a[i]);
-    }
-    // Per block: t0 = (x0 x1 y0 y1), t1 = (x2 x3 y2 y3), t2 = (z0 z1 w0 w1), t3 = (z2 z3 w2 w3).
-    const auto t0 = hn::BitCast(d64, hn::InterleaveLower(d, a[0], a[1]));
-    const auto t1 = hn::BitCast(d64, hn::InterleaveLower(d, a[2], a[3]));
-    const auto t2 = hn::BitCast(d64, hn::InterleaveUpper(d, a[0], a[1]));
-    const auto t3 = hn::BitCast(d64, hn::InterleaveUpper(d, a[2], a[3]));
-    hn::Store(hn::BitCast(d, hn::InterleaveLower(d64, t0, t1)), d, t.x + l0);
-    hn::Store(hn::BitCast(d, hn::InterleaveUpper(d64, t0, t1)), d, t.y + l0);
-    hn::Store(hn::BitCast(d, hn::InterleaveLower(d64, t2, t3)), d, t.z + l0);
-    hn::Store(hn::BitCast(d, hn::InterleaveUpper(d64, t2, t3)), d, t.depth_view + l0);
+  alignas(64) int32_t offset[kLanes];
+  for (int l = 0; l < kLanes; ++l) offset[l] = 4 * std::max(t.index[l], 0);
+  for (size_t l0 = 0; l0 < size_t(kLanes); l0 += hn::Lanes(d)) {
+    hn::Vec<decltype(d)> field[4];
+    ssdo::HWY_NAMESPACE::load_records4(d, &texels[0].x, offset + l0, field);
+    hn::Store(field[0], d, t.x + l0);
+    hn::Store(field[1], d, t.y + l0);
+    hn::Store(field[2], d, t.z + l0);
+    hn::Store(field[3], d, t.depth_view + l0);
   }
-#endif
 }
 
 // The taps' texels and coordinates in the slice frame (no branches: the loop vectorises).

@@ -13,6 +13,7 @@
 
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
+#include "kernels/record_lanes.h"
 #include "kernels/reprojection.h"
 #include "kernels/settings_check.h"
 
@@ -76,6 +77,9 @@ Vec3L ray_point(const PixelRays& r, VF px, VF py, VF d) {
 struct NeighbourPlanes {
   cv::Mat foreground_depth;
   Plane depth, normal;
+  // Offsets below this read their normal's record of 4 floats inside the image (only the
+  // last pixel's would not: its x, y, z are the image's last floats).
+  int32_t normal_records_below;
   std::vector<Plane> terms;  // the frame's terms' order
 };
 NeighbourPlanes planes_of(const TemporalFrame& u, int nthreads) {
@@ -91,6 +95,7 @@ NeighbourPlanes planes_of(const TemporalFrame& u, int nthreads) {
   }, 16);
   p.depth = plane_of(p.foreground_depth);
   p.normal = plane_of(u.normal_view);
+  p.normal_records_below = (u.normal_view.rows - 1) * p.normal.stride + 3 * (u.normal_view.cols - 1);
   for (const cv::Mat* term : u.terms) p.terms.push_back(plane_of(*term));
   return p;
 }
@@ -146,6 +151,22 @@ struct GroupSums {
   VF total;
 };
 
+// The normals of neighbour u at float offsets normal_at: one 16-byte load per lane (x, y, z
+// and the next pixel's x, load_records4) instead of three gathers, unless a lane reads the
+// image's last pixel.
+Vec3L normals_at(const NeighbourPlanes& u, VI normal_at) {
+  const DF d;
+  const DI di;
+  if (!hn::AllTrue(di, hn::Lt(normal_at, hn::Set(di, u.normal_records_below))))
+    return {hn::GatherIndex(d, u.normal.data, normal_at), hn::GatherIndex(d, u.normal.data + 1, normal_at),
+            hn::GatherIndex(d, u.normal.data + 2, normal_at)};
+  HWY_ALIGN int32_t offsets[kMaxLanes];
+  hn::Store(normal_at, di, offsets);
+  VF field[4];
+  load_records4(d, u.normal.data, offsets, field);
+  return {field[0], field[1], field[2]};
+}
+
 // The weight (temporal.h) of texels (tx, ty) of neighbour u for carried points c, times
 // `bilinear`: positive where `ok` (inside, in the image, on the neighbour's foreground: a
 // depth that is a number, on the same surface, facing alike), 0 elsewhere; sx, sy: the
@@ -161,9 +182,7 @@ VF texel_weight_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside
   sx = hn::IfThenElseZero(hn::RebindMask(di, ok), tx), sy = hn::IfThenElseZero(hn::RebindMask(di, ok), ty);
   const VF depth_u = hn::GatherIndex(d, u.depth.data, hn::Add(hn::Mul(sy, hn::Set(di, u.depth.stride)), sx));
   const VI normal_at = hn::Add(hn::Mul(sy, hn::Set(di, u.normal.stride)), hn::Mul(sx, hn::Set(di, 3)));
-  const Vec3L normal_u = {hn::GatherIndex(d, u.normal.data, normal_at),
-                          hn::GatherIndex(d, u.normal.data + 1, normal_at),
-                          hn::GatherIndex(d, u.normal.data + 2, normal_at)};
+  const Vec3L normal_u = normals_at(u, normal_at);
   // PixelPoints::PlaneDistance::signed_at at the texel's centre.
   const VF half = hn::Set(d, 0.5f);
   const VF tpx = hn::Add(hn::ConvertTo(d, tx), half), tpy = hn::Add(hn::ConvertTo(d, ty), half);

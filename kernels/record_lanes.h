@@ -1,0 +1,65 @@
+// Records of four consecutive floats (a texel's fields) read into lanes, one 16-byte load
+// per lane instead of a gather instruction per field, for the kernels' lane loops
+// (Highway).
+//
+// Included once per instruction set (by the kernels' foreach_target files, after
+// hwy/highway.h), into that target's namespace, as kernels/integer_power.h.
+#if defined(SSDO_KERNELS_RECORD_LANES_H_) == defined(HWY_TARGET_TOGGLE)
+#ifdef SSDO_KERNELS_RECORD_LANES_H_
+#undef SSDO_KERNELS_RECORD_LANES_H_
+#else
+#define SSDO_KERNELS_RECORD_LANES_H_
+#endif
+
+#include <cstddef>
+#include <cstdint>
+
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
+
+// field[f] lane l = base[offset[l] + f], f = 0..3, for the lanes of one vector of d; every
+// base[offset[l] .. offset[l] + 3] is read. A vector's 128-bit blocks are filled from four
+// lanes' records each: block b of A_i holds the record of lane 4 b + i, so that the
+// transpose within blocks (two rounds of interleaves) leaves lane 4 b + i of every field in
+// its place. Loads and shuffles beat a gather instruction per field (four per vector).
+template <class D>
+HWY_INLINE void load_records4(D d, const float* base, const int32_t* offset, hwy::HWY_NAMESPACE::Vec<D>* field) {
+  namespace hn = hwy::HWY_NAMESPACE;
+#if HWY_TARGET == HWY_SCALAR
+  for (size_t f = 0; f < 4; ++f) field[f] = hn::Set(d, base[offset[0] + ptrdiff_t(f)]);
+#else
+  const hn::RebindToSigned<D> di;
+  const hn::Repartition<uint64_t, D> d64;
+  constexpr size_t kBlockLanes = 16 / sizeof(float);
+  constexpr size_t kMaxBlocks = HWY_MAX_BYTES / 16;
+  const size_t blocks = hn::Lanes(d) / kBlockLanes;
+  // Lanes of block b (b >= 1).
+  hn::Mask<D> block[kMaxBlocks];
+  const auto lane = hn::Iota(di, 0);
+  for (size_t b = 1; b < blocks; ++b)
+    block[b] = hn::RebindMask(d, hn::And(hn::Gt(lane, hn::Set(di, int32_t(b * kBlockLanes) - 1)),
+                                         hn::Lt(lane, hn::Set(di, int32_t((b + 1) * kBlockLanes)))));
+  auto record = [&](size_t l) { return hn::LoadDup128(d, base + offset[l]); };
+  hn::Vec<D> a[4];
+  for (size_t i = 0; i < 4; ++i) {
+    a[i] = record(i);
+    for (size_t b = 1; b < blocks; ++b) a[i] = hn::IfThenElse(block[b], record(b * kBlockLanes + i), a[i]);
+  }
+  // Per block: t0 = (x0 x1 y0 y1), t1 = (x2 x3 y2 y3), t2 = (z0 z1 w0 w1), t3 = (z2 z3 w2 w3).
+  const auto t0 = hn::BitCast(d64, hn::InterleaveLower(d, a[0], a[1]));
+  const auto t1 = hn::BitCast(d64, hn::InterleaveLower(d, a[2], a[3]));
+  const auto t2 = hn::BitCast(d64, hn::InterleaveUpper(d, a[0], a[1]));
+  const auto t3 = hn::BitCast(d64, hn::InterleaveUpper(d, a[2], a[3]));
+  field[0] = hn::BitCast(d, hn::InterleaveLower(d64, t0, t1));
+  field[1] = hn::BitCast(d, hn::InterleaveUpper(d64, t0, t1));
+  field[2] = hn::BitCast(d, hn::InterleaveLower(d64, t2, t3));
+  field[3] = hn::BitCast(d, hn::InterleaveUpper(d64, t2, t3));
+#endif
+}
+
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#endif  // SSDO_KERNELS_RECORD_LANES_H_
