@@ -6,7 +6,7 @@
 // ../shared the Cornell-like scene of the reference ray caster is rendered at both sizes
 // instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
-// width, threads (denoisers, BM_Confidence); width, K, threads (BM_Temporal).
+// width, threads (denoisers, BM_Confidence); width, K, threads (BM_Temporal, BM_TemporalSsdo).
 #include <benchmark/benchmark.h>
 
 #include <filesystem>
@@ -163,17 +163,19 @@ void BM_ShotChosenViews(benchmark::State& state) {
 }
 
 // The temporal filter (kernels/temporal.h) of the truck shot's middle frame over the K frames
-// on each side, one channel (AO; random raw values: the cost does not depend on them): what
-// --temporal K adds to a frame's finish.
-void BM_Temporal(benchmark::State& state) {
+// on each side, of raw terms of the given channel counts (random values: the cost does not
+// depend on them): what --temporal K adds to a frame's finish.
+void time_temporal(benchmark::State& state, std::initializer_list<int> term_channels, const std::string& terms_label) {
   const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
   const int k = int(state.range(1)), threads = int(state.range(2)), middle = ssdo::raycast::kTruckShotFrames / 2;
-  std::vector<cv::Mat> raw(shot.size());
+  std::vector<std::vector<cv::Mat>> raw(shot.size());
   std::vector<std::vector<const cv::Mat*>> terms(shot.size());
   for (size_t t = 0; t < shot.size(); ++t) {
-    raw[t].create(shot[t].depth_view.size(), CV_32FC1);
-    cv::randu(raw[t], 0.0f, 1.0f);
-    terms[t] = {&raw[t]};
+    for (const int channels : term_channels) {
+      raw[t].emplace_back(shot[t].depth_view.size(), CV_32FC(channels));
+      cv::randu(raw[t].back(), 0.0f, 1.0f);
+    }
+    for (const cv::Mat& m : raw[t]) terms[t].push_back(&m);
   }
   auto temporal_frame = [&](int t) {
     const ssdo::GBuffer& g = shot[size_t(t)];
@@ -182,11 +184,18 @@ void BM_Temporal(benchmark::State& state) {
   std::vector<ssdo::TemporalFrame> neighbours;
   for (int t = middle - k; t <= middle + k; ++t)
     if (t != middle) neighbours.push_back(temporal_frame(t));
-  cv::Mat filtered;
-  cv::Mat* dsts[] = {&filtered};
+  std::vector<cv::Mat> filtered(term_channels.size());
+  std::vector<cv::Mat*> dsts;
+  for (cv::Mat& m : filtered) dsts.push_back(&m);
   for (auto _ : state) ssdo::filter_temporal(temporal_frame(middle), neighbours, {}, dsts, {}, threads);
-  state.SetLabel("truck shot, --temporal " + std::to_string(k) + ", " + std::to_string(threads) + "t");
+  state.SetLabel("truck shot, --temporal " + std::to_string(k) + ", " + terms_label + ", " + std::to_string(threads) +
+                 "t");
 }
+
+// AO alone (--terms ao).
+void BM_Temporal(benchmark::State& state) { time_temporal(state, {1}, "ao"); }
+// AO and the two SSDO terms (--terms ao,ssdo): 7 channels.
+void BM_TemporalSsdo(benchmark::State& state) { time_temporal(state, {1, 3, 3}, "ao,ssdo"); }
 
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
 // grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
@@ -244,6 +253,7 @@ BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(be
 BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_ShotChosenViews)->ArgsProduct({{1920}, {2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_Temporal)->ArgsProduct({{1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK_MAIN();
