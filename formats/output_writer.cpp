@@ -211,12 +211,16 @@ uint8_t vector8(float v) {
 
 std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   const int w = t.image.cols, h = t.image.rows, nc = t.image.channels();
-  cv::Mat samples = t.image;
-  if (samples.depth() == CV_16F) t.image.convertTo(samples, CV_32F);  // exact: every half is a float
   cv::Mat pixels(h, w, CV_8UC(nc));
   static const SrgbSteps srgb;
+  // Half terms a row at a time into floats (exact: every half is a float), not a float copy
+  // of the whole term.
+  const bool half = t.image.depth() == CV_16F;
+  cv::Mat row_floats;
+  if (half) row_floats.create(1, w, CV_32FC(nc));  // convertTo writes into it, row after row
   for (int y = 0; y < h; ++y) {
-    const float* row = samples.ptr<float>(y);
+    if (half) t.image.row(y).convertTo(row_floats, CV_32F);
+    const float* row = half ? row_floats.ptr<float>(0) : t.image.ptr<float>(y);
     uint8_t* out = pixels.ptr<uint8_t>(y);
     for (int i = 0; i < w * nc; ++i) out[i] = t.vector ? vector8(row[i]) : srgb.encode(row[i]);
   }
