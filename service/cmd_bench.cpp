@@ -13,6 +13,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/heap_policy.h"
 #include "formats/chart.h"
 #include "kernels/metrics.h"
 #include "service/cli_options.h"
@@ -210,7 +211,9 @@ Row bench_sequence(const std::vector<Loaded>& frames, const BenchArgs& args, con
 }  // namespace
 
 int run_bench(const BenchArgs& args) {
-  apply_thread_budget(args.request.threads);  // frames are computed in this process
+  // Frames are computed in this process: the heap and the threads as in a worker.
+  keep_freed_memory_for_reuse();
+  apply_thread_budget(args.request.threads);
   std::error_code ec;
   std::filesystem::create_directories(args.output_dir, ec);
   if (ec) {

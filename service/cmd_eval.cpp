@@ -8,6 +8,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "core/heap_policy.h"
 #include "kernels/metrics.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
@@ -86,7 +87,9 @@ void print_deciles(const ConfidenceDeciles& d) {
 }  // namespace
 
 int run_eval(const EvalArgs& args) {
-  apply_thread_budget(args.request.threads);  // frames are computed in this process
+  // Frames are computed in this process: the heap and the threads as in a worker.
+  keep_freed_memory_for_reuse();
+  apply_thread_budget(args.request.threads);
   ErrorAccumulator overall;
   ConfidenceDeciles overall_deciles;
   double overall_ms = 0;

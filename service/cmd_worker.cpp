@@ -1,7 +1,6 @@
 // `ssdo worker` (hidden): the process that decodes and computes frames for the batch and
 // the service (see service/worker_process.h). Reads requests from fd 3, answers on fd 4,
 // exits when the request pipe closes.
-#include <malloc.h>
 #include <poll.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -22,6 +21,7 @@
 #include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>
 
+#include "core/heap_policy.h"
 #include "formats/exr_header_check.h"
 #include "formats/oiio_module.h"
 #include "service/build_features.h"
@@ -42,7 +42,6 @@ constexpr size_t kMaxRequestBytes = size_t(1) << 20;
 constexpr size_t kMaxCachedOptionSets = 8;
 // A worker with no request for this long returns its free heap memory to the system.
 constexpr double kIdleTrimSeconds = 1.0;
-constexpr int kNeverTrimBytes = std::numeric_limits<int>::max();
 
 // The response descriptor, for the last words of a worker ending on an uncaught
 // exception (std::terminate runs no destructors and has no arguments).
@@ -350,20 +349,9 @@ int run_worker(const WorkerArgs& args) {
   ::signal(SIGPIPE, SIG_IGN);
   const rlimit no_core{0, 0};
   ::setrlimit(RLIMIT_CORE, &no_core);
-  // One malloc arena for every thread, before any pool thread allocates: each arena
-  // reserves 64 MiB of address space (one per thread would eat the RLIMIT_AS budget), and
-  // memory freed in one arena serves no allocation of another, so a second arena raises
-  // the peak: what is allocated after the terms (the denoised terms, the writer's chunks)
-  // could not reuse what the pool threads freed. Parallel loops allocate per strip at
-  // most, so the shared lock costs no measurable time.
-  ::mallopt(M_ARENA_MAX, 1);
-  // A frame's images (tens of MB each) come from the heap, not from mmap, and freed memory
-  // stays in it: the next frame reuses the same pages instead of faulting fresh zeroed
-  // ones in (a 1080p frame touches ~400 MB; on a VM each fresh MB costs ~0.5 ms of kernel
-  // time), and freeing a frame is bookkeeping instead of munmap. An idle worker hands the
-  // memory back (kIdleTrimSeconds below).
-  ::mallopt(M_MMAP_MAX, 0);
-  ::mallopt(M_TRIM_THRESHOLD, kNeverTrimBytes);
+  // Before any pool thread allocates (core/heap_policy.h); an idle worker hands the memory
+  // back (kIdleTrimSeconds below).
+  keep_freed_memory_for_reuse();
   // One thread budget for every pool in the worker: OpenCV's (the kernels and the reader's
   // conversions) and OpenEXR's (decoding and compression; one thread = in the calling
   // thread, no pool). Their threads are started before the address-space limit: their
@@ -390,7 +378,7 @@ int run_worker(const WorkerArgs& args) {
   ShotMemory shot_memory;    // from which size on a shot's frames are computed with a smaller window
   for (bool first = true;; first = false) {
     // After a frame, a worker idle for kIdleTrimSeconds returns its free memory, then waits.
-    if (!first && !request_within(args.request_fd, kIdleTrimSeconds)) ::malloc_trim(0);
+    if (!first && !request_within(args.request_fd, kIdleTrimSeconds)) return_free_memory();
     std::string message;
     const IoStatus s = read_message(args.request_fd, message, kMaxRequestBytes, no_deadline());
     if (s != IoStatus::ok) return s == IoStatus::closed ? 0 : 1;

@@ -256,4 +256,3 @@ BENCHMARK(BM_Temporal)->ArgsProduct({{1920}, {1, 2}, {1, 2}})->Unit(benchmark::k
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_MAIN();

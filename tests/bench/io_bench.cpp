@@ -84,5 +84,3 @@ void BM_WriteTerms(benchmark::State& state) {
 BENCHMARK(BM_WriteTerms)->ArgsProduct({{0, 1}, {1, 2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
-
-BENCHMARK_MAIN();

@@ -123,5 +123,3 @@ BENCHMARK(BM_Ssdo)->Apply(ssdo_args)->Unit(benchmark::kMillisecond)->UseRealTime
 BENCHMARK(BM_EnvironmentBuild)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Composite)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_CompositeEnvironmentBackground)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
-
-BENCHMARK_MAIN();

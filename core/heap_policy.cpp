@@ -1,0 +1,17 @@
+#include "core/heap_policy.h"
+
+#include <malloc.h>
+
+#include <limits>
+
+namespace ssdo {
+
+void keep_freed_memory_for_reuse() {
+  ::mallopt(M_ARENA_MAX, 1);
+  ::mallopt(M_MMAP_MAX, 0);
+  ::mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
+}
+
+void return_free_memory() { ::malloc_trim(0); }
+
+}  // namespace ssdo
