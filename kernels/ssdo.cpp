@@ -467,16 +467,13 @@ inline void bisect_entry(const Constants& c, const Receiver& rcv, const RayFrame
     int mx = 0, my = 0;
     const glm::vec4 clip = f.clip_p + mid * cw;
     const Tap m = classify(c, f.origin_px, -(rcv.p + mid * w).z, clip.x, clip.y, clip.w, true, mx, my);
-    if (m == Tap::visible) {
-      lo = mid;
-      continue;
-    }
-    hi = mid;
-    if (m == Tap::occluded) {
-      tap = Tap::occluded;
-      qx = mx;
-      qy = my;
-    }
+    // Selects, not branches: whether a midpoint is in front is a coin toss to the predictor.
+    const bool visible = m == Tap::visible, occluded = m == Tap::occluded;
+    lo = visible ? mid : lo;
+    hi = visible ? hi : mid;
+    tap = occluded ? Tap::occluded : tap;
+    qx = occluded ? mx : qx;
+    qy = occluded ? my : qy;
   }
 }
 
