@@ -1,0 +1,37 @@
+#include "core/heap_policy.h"
+
+#include <malloc.h>
+
+#include <cstdlib>
+#include <cstring>
+
+#include <gtest/gtest.h>
+
+namespace ssdo {
+namespace {
+
+// A frame-sized block comes from the heap, not from mmap; freed, it stays mapped for the
+// next frame; return_free_memory() hands it back.
+TEST(HeapPolicy, FreedFramesStayInTheHeapUntilReturned) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "the address sanitizer's allocator replaces malloc's heap";
+#endif
+  keep_freed_memory_for_reuse();
+  constexpr size_t kBlockBytes = size_t(48) << 20;  // above malloc's largest mmap threshold (32 MiB)
+  const struct mallinfo2 before = mallinfo2();
+  void* block = std::malloc(kBlockBytes);
+  ASSERT_NE(block, nullptr);
+  std::memset(block, 1, kBlockBytes);
+  const struct mallinfo2 held = mallinfo2();
+  EXPECT_EQ(held.hblkhd, before.hblkhd) << "the block was mapped with mmap";
+  EXPECT_GE(held.arena, before.arena + kBlockBytes);
+  std::free(block);
+  const struct mallinfo2 freed = mallinfo2();
+  EXPECT_GE(freed.arena, before.arena + kBlockBytes) << "the heap was trimmed on free";
+  EXPECT_GE(freed.fordblks, kBlockBytes);
+  return_free_memory();
+  EXPECT_LE(mallinfo2().arena + kBlockBytes / 2, freed.arena) << "the free block was not returned";
+}
+
+}  // namespace
+}  // namespace ssdo
