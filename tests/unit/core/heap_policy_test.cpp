@@ -1,4 +1,5 @@
 #include "core/heap_policy.h"
+#include "core/sanitizer_build.h"
 
 #include <malloc.h>
 
@@ -13,8 +14,8 @@ namespace {
 // A frame-sized block comes from the heap, not from mmap; freed, it stays mapped for the
 // next frame; return_free_memory() hands it back.
 TEST(HeapPolicy, FreedFramesStayInTheHeapUntilReturned) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "the address sanitizer's allocator replaces malloc's heap";
+#ifdef SSDO_SANITIZER_BUILD
+  GTEST_SKIP() << "the sanitizer's allocator replaces malloc's heap";
 #endif
   keep_freed_memory_for_reuse();
   constexpr size_t kBlockBytes = size_t(48) << 20;  // above malloc's largest mmap threshold (32 MiB)
