@@ -12,6 +12,6 @@ void keep_freed_memory_for_reuse() {
   ::mallopt(M_TRIM_THRESHOLD, std::numeric_limits<int>::max());
 }
 
-void return_free_memory() { ::malloc_trim(0); }
+bool return_free_memory() { return ::malloc_trim(0) != 0; }
 
 }  // namespace ssdo

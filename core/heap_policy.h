@@ -22,8 +22,9 @@ namespace ssdo {
 //   frame needed); return_free_memory() hands it back when the process idles.
 void keep_freed_memory_for_reuse();
 
-// Returns the heap's free memory to the system (malloc_trim): for a process that will be
-// idle for a while.
-void return_free_memory();
+// Returns the heap's free memory to the system (malloc_trim: the top of the heap is
+// unmapped, free pages within it are discarded), for a process that will be idle for a
+// while. True when some memory went back.
+bool return_free_memory();
 
 }  // namespace ssdo
