@@ -180,6 +180,11 @@ glm::vec3 Environment::radiance_filtered_env(const glm::vec3& d) const {
 }
 
 glm::vec3 Environment::irradiance_over_pi_env(const glm::vec3& n) const {
+  if (kind_ == EnvironmentKind::constant) return constant_irradiance_over_pi_;
+  return sh_irradiance_over_pi(n);
+}
+
+glm::vec3 Environment::sh_irradiance_over_pi(const glm::vec3& n) const {
   // E(n) / pi = sum_lm (A_l / pi) L_lm Y_lm(n), A_l / pi = 1, 2/3, 1/4 (R&H 2001, eq. 8).
   const std::array<float, 9> y = sh_basis(n);
   constexpr float kBand[9] = {1.0f, 2.0f / 3.0f, 2.0f / 3.0f, 2.0f / 3.0f,
@@ -467,6 +472,8 @@ void Environment::build() {
     // Exact: only L_00 = L * Y_00 * 4 pi is non-zero.
     sh_.fill(glm::vec3(0.0f));
     sh_[0] = constant_ * float(0.28209479177387814 * 4.0 * std::numbers::pi);
+    // Band 0 alone: the same for every normal (the other bands add exact zeros).
+    constant_irradiance_over_pi_ = sh_irradiance_over_pi(glm::vec3(0.0f, 0.0f, 1.0f));
     filtered_ = cv::Mat(settings_.filtered_height_px, 2 * settings_.filtered_height_px, CV_32FC3,
                         cv::Scalar(constant_.x, constant_.y, constant_.z));
     return;

@@ -142,6 +142,7 @@ class Environment {
   // The kind and its asserted-valid settings; a factory then sets the kind's radiance and builds.
   Environment(EnvironmentKind kind, const EnvironmentSettings& s);
   void build();  // SH projection and filtered map from the kind's radiance
+  glm::vec3 sh_irradiance_over_pi(const glm::vec3& n_env) const;  // the SH evaluation
 
   EnvironmentKind kind_ = EnvironmentKind::constant;
   EnvironmentSettings settings_;
@@ -150,6 +151,7 @@ class Environment {
   cv::Mat image_;     // equirect radiance, CV_32FC3
   cv::Mat filtered_;  // cone-filtered lat-long, CV_32FC3
   std::array<glm::vec3, 9> sh_{};
+  glm::vec3 constant_irradiance_over_pi_{0.0f};  // a constant's irradiance_over_pi_env, any normal
 };
 
 }  // namespace ssdo

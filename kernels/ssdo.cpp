@@ -121,10 +121,9 @@ struct Constants {
   const cv::Mat* lighting;  // may be null
   const Camera* camera;
   const Environment* env;
-  // A constant environment's filtered radiance and its irradiance over pi (the same every
-  // way and for every normal), looked up once; empty for a map or a sky.
+  // A constant environment's filtered radiance (the same every way), looked up once; empty
+  // for a map or a sky.
   std::optional<glm::vec3> constant_env;
-  std::optional<glm::vec3> constant_irradiance_over_pi;
   glm::mat4 clip_from_view;
   glm::mat3 env_from_view;  // = env_from_world * world_from_view (Camera::world_from_view_direction)
   float width_px, height_px;
@@ -633,22 +632,18 @@ inline void add_sample(const Constants& c, const Receiver& rcv, const cv::Mat& s
   if (want_indirect) add_sender(c, rcv, sender_direct, qx, qy, sums.indirect);
 }
 
-// E_SH(n) / pi of view-space direction n.
-inline glm::vec3 irradiance_over_pi(const Constants& c, const glm::vec3& n_view) {
-  return c.constant_irradiance_over_pi ? *c.constant_irradiance_over_pi
-                                       : c.env->irradiance_over_pi_env(c.env_from_view * n_view);
-}
-
 // direct = E / pi by the selected estimator (see ssdo.h) from a pixel's sums over N samples.
 inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, const SampleSums& sums, float inv_n) {
   if (c.bent_normal) {
     const float len = glm::length(sums.bent);
-    return len > 0.0f ? irradiance_over_pi(c, sums.bent / len) * (float(sums.visible) * inv_n) : glm::vec3(0.0f);
+    return len > 0.0f ? c.env->irradiance_over_pi_env(c.env_from_view * (sums.bent / len)) *
+                            (float(sums.visible) * inv_n)
+                      : glm::vec3(0.0f);
   }
   if (c.control_variate) {
     // E_SH(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
     // clamp removes negative values that noise can give where almost all is occluded.
-    return glm::max(irradiance_over_pi(c, rcv.n) - sums.occluded * inv_n, glm::vec3(0.0f));
+    return glm::max(c.env->irradiance_over_pi_env(c.env_from_view * rcv.n) - sums.occluded * inv_n, glm::vec3(0.0f));
   }
   return sums.direct * inv_n;
 }
@@ -897,10 +892,8 @@ Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, co
   c.lighting = in.lighting && !in.lighting->empty() ? in.lighting : nullptr;
   c.camera = &in.camera;
   c.env = &in.environment;
-  if (in.environment.kind() == EnvironmentKind::constant) {
+  if (in.environment.kind() == EnvironmentKind::constant)
     c.constant_env = in.environment.radiance_filtered_env(glm::vec3(0.0f, 0.0f, 1.0f));
-    c.constant_irradiance_over_pi = in.environment.irradiance_over_pi_env(glm::vec3(0.0f, 0.0f, 1.0f));
-  }
   c.clip_from_view = in.camera.view_to_clip;
   c.env_from_view = in.environment.env_from_world_matrix() * glm::mat3(in.camera.view_to_world);
   c.width_px = float(in.depth_view.cols);
