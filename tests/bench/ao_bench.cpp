@@ -9,17 +9,14 @@
 // width, threads (denoisers, BM_Confidence); width, K, threads (BM_Temporal, BM_TemporalSsdo).
 #include <benchmark/benchmark.h>
 
-#include <filesystem>
 #include <map>
 
-#include "formats/gbuffer_reader.h"
-#include "service/frame_inputs.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/denoise.h"
 #include "kernels/half_resolution.h"
-#include "kernels/positions.h"
 #include "tests/accuracy/shot_views.h"
+#include "tests/bench/bench_frames.h"
 #include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
 #include "kernels/temporal.h"
@@ -27,30 +24,7 @@
 
 namespace {
 
-ssdo::GBuffer load(int width) {
-  const std::filesystem::path dir = std::filesystem::path(SSDO_SHARED_DIR) / "gbuffers";
-  const std::filesystem::path file = dir / (width == 640 ? "cornell.exr" : "perf1080.exr");
-  if (std::filesystem::exists(file)) {
-    ssdo::ReadOptions options;
-    options.read_references = false;
-    ssdo::ReadResult r = ssdo::read_frame(file.string(), options);
-    if (r.ok()) {
-      ssdo::GBuffer g = std::move(r.gbuffer);
-      if (g.position_view.empty())
-        ssdo::view_positions_from_depth(g.depth_view, g.mask, g.camera, g.position_view);
-      return g;
-    }
-  }
-  const int height = width * 9 / 16;
-  return ssdo::raycast::render_gbuffer(ssdo::raycast::cornell_scene(),
-                                       ssdo::raycast::cornell_camera(width, height), 2);
-}
-
-const ssdo::GBuffer& frame(int width) {
-  static const ssdo::GBuffer small = load(640);
-  static const ssdo::GBuffer large = load(1920);
-  return width == 640 ? small : large;
-}
+using ssdo::bench::frame;
 
 void BM_Ao(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));

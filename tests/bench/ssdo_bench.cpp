@@ -8,43 +8,16 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
-#include <filesystem>
 
-#include "formats/gbuffer_reader.h"
 #include "kernels/half_resolution.h"
-#include "service/frame_inputs.h"
 #include "kernels/composite.h"
 #include "kernels/environment.h"
-#include "kernels/positions.h"
-#include "tests/support/raycast.h"
+#include "tests/bench/bench_frames.h"
 #include "kernels/ssdo.h"
 
 namespace {
 
-ssdo::GBuffer load(int width) {
-  const std::filesystem::path dir = std::filesystem::path(SSDO_SHARED_DIR) / "gbuffers";
-  const std::filesystem::path file = dir / (width == 640 ? "cornell.exr" : "perf1080.exr");
-  if (std::filesystem::exists(file)) {
-    ssdo::ReadOptions options;
-    options.read_references = false;
-    ssdo::ReadResult r = ssdo::read_frame(file.string(), options);
-    if (r.ok()) {
-      ssdo::GBuffer g = std::move(r.gbuffer);
-      if (g.position_view.empty())
-        ssdo::view_positions_from_depth(g.depth_view, g.mask, g.camera, g.position_view);
-      return g;
-    }
-  }
-  const int height = width * 9 / 16;
-  return ssdo::raycast::render_gbuffer(ssdo::raycast::cornell_scene(),
-                                       ssdo::raycast::cornell_camera(width, height), 2);
-}
-
-const ssdo::GBuffer& frame(int width) {
-  static const ssdo::GBuffer small = load(640);
-  static const ssdo::GBuffer large = load(1920);
-  return width == 640 ? small : large;
-}
+using ssdo::bench::frame;
 
 // The shared frames' world (docs/usage.md, "Environment light"): t = clamp((d.z + 0.4) / 0.8, 0, 1), L = (1 - t) bottom + t top.
 cv::Mat sky_equirect() {
