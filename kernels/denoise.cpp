@@ -568,6 +568,14 @@ std::string validate(const DenoiseSettings& s) {
   return {};
 }
 
+DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor) {
+  CV_Assert(resolution_divisor >= 1);
+  DenoiseSettings scaled = s;
+  scaled.radius_px = std::min(kMaxRadiusPx, s.radius_px * resolution_divisor);
+  scaled.sigma_px = s.sigma_px * float(resolution_divisor);
+  return scaled;
+}
+
 void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
                        const cv::Mat& mask, const DenoiseSettings& settings, cv::Mat& dst,
                        cv::Rect roi, int nthreads) {

@@ -29,6 +29,15 @@ struct DenoiseSettings {
 // Returns an empty string when valid, else the field, value and range.
 std::string validate(const DenoiseSettings& s);
 
+// The settings for a term computed on a grid of resolution_divisor (1 = every pixel, 2 =
+// the half-resolution grid, kernels/half_resolution.h) and upsampled: radius_px and sigma_px
+// times the divisor (the radius at most 32). Each estimate of a half-grid term, with its own
+// noise, covers 2 x 2 pixels once upsampled, so the same footprint in pixels holds a
+// quarter of the independent estimates; doubling it restores their count. Measured on the
+// shared frames against the SSDO oracle (docs/performance.md, "Directions against the
+// denoise's footprint").
+DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor);
+
 // Depth- and normal-aware separable bilateral blur (a horizontal pass, then a vertical
 // pass over its result) of a CV_32FC1 or CV_32FC3 image. Tap weight:
 //   g(k) * max(0, 1 - |d_tap - d| / (tol * d)) * max(0, n . n_tap)^power,

@@ -1031,11 +1031,14 @@ SsdoSettings ssdo_preset(SsdoMethod method, Preset preset) {
   SsdoSettings s;
   s.method = method;
   const int level = int(preset);  // 0 low .. 3 ultra
-  // Measured against the oracle at high on the shared frames (tests/accuracy): the
-  // denoised bounce of medium is within 14-17% relative MAE (16 samples x 6 points on
-  // every pixel: 10-15%); low and medium run on the half-resolution grid (a quarter of
-  // the pixels).
-  constexpr int kSamples[] = {8, 16, 16, 32};
+  // Measured against the oracle at high on the shared frames (tests/accuracy), denoised
+  // as the pipeline does (footprint scaled to the grid, kernels/denoise.h): the bounce of
+  // medium is within 13-18% relative MAE (16 samples x 6 points on every pixel: 10-15%);
+  // low and medium run on the half-resolution grid (a quarter of the pixels). Directions
+  // cost more than the denoise's wider footprint on that grid: medium's 8 with it are
+  // within 0.01 of 16 with the footprint of full resolution (docs/performance.md,
+  // "Directions against the denoise's footprint").
+  constexpr int kSamples[] = {8, 8, 16, 32};
   constexpr int kSampleSteps[] = {4, 6, 8, 8};
   constexpr int kRefinements[] = {2, 3, 3, 4};
   constexpr int kDivisor[] = {2, 2, 1, 1};

@@ -173,15 +173,28 @@ void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const 
                          request.threads);
 }
 
-// The denoised terms of `sources` (raw_terms' order), in one pass over the frame: the blur's
-// weights depend only on the guides, so AO and the two SSDO terms share them
-// (kernels/denoise.h).
+// The denoised terms of `sources` (raw_terms' order). Each term's footprint is scaled to the
+// grid it was computed on (scaled_to_grid, kernels/denoise.h); terms of one grid are
+// blurred in one pass over the frame, since the blur's weights depend only on the guides
+// (AO and the two SSDO terms share them when they share a grid).
 DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const std::vector<const cv::Mat*>& sources,
                             const TermsComputed& computed) {
   DenoisedTerms d;
   const std::vector<cv::Mat*> results = term_slots(d, computed);
-  if (!sources.empty())
-    denoise_bilateral(sources, g.depth_view, g.normal_view, g.mask, request.denoise, results, {}, request.threads);
+  if (sources.empty()) return d;
+  // The grid divisor of each source, in raw_terms' order.
+  std::vector<int> divisors;
+  if (computed.ao) divisors.push_back(runs_on_half_grid(request.ao) ? 2 : 1);
+  if (computed.ssdo) divisors.insert(divisors.end(), 2, runs_on_half_grid(request.ssdo) ? 2 : 1);
+  for (const int divisor : {1, 2}) {
+    std::vector<const cv::Mat*> in;
+    std::vector<cv::Mat*> out;
+    for (size_t i = 0; i < sources.size(); ++i)
+      if (divisors[i] == divisor) in.push_back(sources[i]), out.push_back(results[i]);
+    if (!in.empty())
+      denoise_bilateral(in, g.depth_view, g.normal_view, g.mask, scaled_to_grid(request.denoise, divisor), out, {},
+                        request.threads);
+  }
   return d;
 }
 

@@ -78,10 +78,12 @@ TEST_P(SsdoOnSharedFrames, FastKernelStaysCloseToTheOracle) {
   SsdoOutput fast_out, oracle_out;
   compute_ssdo_at_resolution(in, fast, fast_out);
   compute_ssdo_at_resolution(in, oracle, oracle_out, roi);
-  // The product writes the denoised terms; the oracle's many directions need no denoising.
+  // The product writes the denoised terms, their footprint scaled to the grid they were
+  // computed on; the oracle's many directions need no denoising.
   cv::Mat direct_denoised, indirect_denoised;
-  denoise_bilateral(fast_out.direct, f.g.depth_view, f.g.normal_view, f.g.mask, {}, direct_denoised);
-  denoise_bilateral(fast_out.indirect, f.g.depth_view, f.g.normal_view, f.g.mask, {}, indirect_denoised);
+  const DenoiseSettings denoise = scaled_to_grid({}, fast.resolution_divisor);
+  denoise_bilateral(fast_out.direct, f.g.depth_view, f.g.normal_view, f.g.mask, denoise, direct_denoised);
+  denoise_bilateral(fast_out.indirect, f.g.depth_view, f.g.normal_view, f.g.mask, denoise, indirect_denoised);
   const double direct = relative_mae(direct_denoised, oracle_out.direct, f.g.mask, band);
   const double indirect = relative_mae(indirect_denoised, oracle_out.indirect, f.g.mask, band);
   const double indirect_raw = relative_mae(fast_out.indirect, oracle_out.indirect, f.g.mask, band);

@@ -214,6 +214,22 @@ TEST(BoxBlur4x4, AveragesTheBlockAndRemovesATiledPattern) {
   EXPECT_FLOAT_EQ(dst.at<float>(0, 0), 2.5f);
 }
 
+// A half-grid term's footprint is twice the full grid's, the radius at most the bound.
+TEST(DenoiseSettings, ScaledToTheGridOfTheTerm) {
+  const DenoiseSettings s;
+  const DenoiseSettings full = scaled_to_grid(s, 1), half = scaled_to_grid(s, 2);
+  EXPECT_EQ(full.radius_px, s.radius_px);
+  EXPECT_EQ(full.sigma_px, s.sigma_px);
+  EXPECT_EQ(half.radius_px, 2 * s.radius_px);
+  EXPECT_EQ(half.sigma_px, 2.0f * s.sigma_px);
+  EXPECT_EQ(half.depth_tolerance_relative, s.depth_tolerance_relative);
+  EXPECT_EQ(half.normal_power, s.normal_power);
+  DenoiseSettings wide;
+  wide.radius_px = 20;
+  EXPECT_EQ(scaled_to_grid(wide, 2).radius_px, 32);
+  EXPECT_TRUE(validate(scaled_to_grid(wide, 2)).empty());
+}
+
 TEST(DenoiseSettings, Validate) {
   EXPECT_TRUE(validate(DenoiseSettings{}).empty());
   DenoiseSettings s;

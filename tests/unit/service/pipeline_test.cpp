@@ -1,5 +1,6 @@
 // The pipeline's read narrowing (reads_for, view_reads_for), the I/O floor's stand-in terms
-// (io_only_frame) against compute_frame, and compute_frame consuming its G-buffer.
+// (io_only_frame) against compute_frame, compute_frame consuming its G-buffer, and the
+// denoise's footprint per grid.
 #include "service/pipeline.h"
 
 #include <string>
@@ -145,6 +146,38 @@ TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
           << terms << " " << kept.terms[i].name;
     }
   }
+}
+
+// Each denoised term is its raw term blurred with the footprint of the grid it was computed
+// on (scaled_to_grid): AO at full resolution (high) with the settings as given, SSDO on the
+// half grid (low) with twice the radius; and the scaling shows (the plain settings give
+// other bits).
+TEST(ComputeFrame, DenoisedTermsUseTheFootprintOfTheirGrid) {
+  const GBuffer g = small_frame();
+  FrameRequest r = request_for("ao,ssdo");
+  r.ao = ao_preset(AoMethod::gtao, Preset::high);
+  r.threads = 1;
+  ASSERT_FALSE(runs_on_half_grid(r.ao));
+  ASSERT_TRUE(runs_on_half_grid(r.ssdo));
+  const ComputedFrame frame = compute_frame(g, r);
+  auto term = [&](const std::string& name) -> const cv::Mat& {
+    for (const OutputTerm& t : frame.terms)
+      if (t.name == name) return t.image;
+    ADD_FAILURE() << "no term " << name;
+    static const cv::Mat none;
+    return none;
+  };
+  auto denoised = [&](const std::string& raw, const DenoiseSettings& s) {
+    cv::Mat out;
+    denoise_bilateral(term(raw), g.depth_view, g.normal_view, g.mask, s, out, {}, 1);
+    return out;
+  };
+  EXPECT_EQ(cv::norm(term("ao_denoised"), denoised("ao", scaled_to_grid(r.denoise, 1)), cv::NORM_INF), 0.0);
+  for (const std::string name : {"ssdo_direct", "ssdo_indirect"})
+    EXPECT_EQ(cv::norm(term(name + "_denoised"), denoised(name, scaled_to_grid(r.denoise, 2)), cv::NORM_INF), 0.0)
+        << name;
+  // (The small frame's bounce is too faint to tell the footprints apart; its direct light is not.)
+  EXPECT_GT(cv::norm(term("ssdo_direct_denoised"), denoised("ssdo_direct", r.denoise), cv::NORM_INF), 1e-4);
 }
 
 }  // namespace
