@@ -121,9 +121,6 @@ struct Constants {
   const cv::Mat* lighting;  // may be null
   const Camera* camera;
   const Environment* env;
-  // A constant environment's filtered radiance (the same every way), looked up once; empty
-  // for a map or a sky.
-  std::optional<glm::vec3> constant_env;
   glm::mat4 clip_from_view;
   glm::mat3 env_from_view;  // = env_from_world * world_from_view (Camera::world_from_view_direction)
   float width_px, height_px;
@@ -609,9 +606,10 @@ inline void add_environment(const Constants& c, const SampleBatch& b, const bool
   bool any = false;
   for (int s = 0; s < b.count; ++s) any |= occluded[s] == c.control_variate;
   if (!any) return;
-  if (c.constant_env) {  // the same radiance every way
+  if (c.env->kind() == EnvironmentKind::constant) {  // the same radiance every way
+    const glm::vec3 radiance = c.env->radiance_filtered_env(glm::vec3(0.0f, 0.0f, 1.0f));
     for (int s = 0; s < b.count; ++s)
-      if (occluded[s] == c.control_variate) *sum += *c.constant_env;
+      if (occluded[s] == c.control_variate) *sum += radiance;
     return;
   }
   alignas(64) float red[kSampleBatch], green[kSampleBatch], blue[kSampleBatch];
@@ -892,8 +890,6 @@ Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, co
   c.lighting = in.lighting && !in.lighting->empty() ? in.lighting : nullptr;
   c.camera = &in.camera;
   c.env = &in.environment;
-  if (in.environment.kind() == EnvironmentKind::constant)
-    c.constant_env = in.environment.radiance_filtered_env(glm::vec3(0.0f, 0.0f, 1.0f));
   c.clip_from_view = in.camera.view_to_clip;
   c.env_from_view = in.environment.env_from_world_matrix() * glm::mat3(in.camera.view_to_world);
   c.width_px = float(in.depth_view.cols);

@@ -153,6 +153,14 @@ std::vector<cv::Mat*> term_slots(DenoisedTerms& d, const TermsComputed& computed
   return slots;
 }
 
+// The divisor of the grid each raw term was computed on (1 or 2), in raw_terms' order.
+std::vector<int> term_grids(const FrameRequest& request, const TermsComputed& computed) {
+  std::vector<int> grids;
+  if (computed.ao) grids.push_back(runs_on_half_grid(request.ao) ? 2 : 1);
+  if (computed.ssdo) grids.insert(grids.end(), 2, runs_on_half_grid(request.ssdo) ? 2 : 1);
+  return grids;
+}
+
 // The raw terms filtered over the neighbours' (kernels/temporal.h), into `filtered`; uses:
 // what each neighbour contributed. Without neighbours nothing is written.
 void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const RawFrame* const> neighbours,
@@ -181,18 +189,14 @@ DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const
                             const TermsComputed& computed) {
   DenoisedTerms d;
   const std::vector<cv::Mat*> results = term_slots(d, computed);
-  if (sources.empty()) return d;
-  // The grid divisor of each source, in raw_terms' order.
-  std::vector<int> divisors;
-  if (computed.ao) divisors.push_back(runs_on_half_grid(request.ao) ? 2 : 1);
-  if (computed.ssdo) divisors.insert(divisors.end(), 2, runs_on_half_grid(request.ssdo) ? 2 : 1);
-  for (const int divisor : {1, 2}) {
+  const std::vector<int> grids = term_grids(request, computed);
+  for (const int grid : {1, 2}) {
     std::vector<const cv::Mat*> in;
     std::vector<cv::Mat*> out;
     for (size_t i = 0; i < sources.size(); ++i)
-      if (divisors[i] == divisor) in.push_back(sources[i]), out.push_back(results[i]);
+      if (grids[i] == grid) in.push_back(sources[i]), out.push_back(results[i]);
     if (!in.empty())
-      denoise_bilateral(in, g.depth_view, g.normal_view, g.mask, scaled_to_grid(request.denoise, divisor), out, {},
+      denoise_bilateral(in, g.depth_view, g.normal_view, g.mask, scaled_to_grid(request.denoise, grid), out, {},
                         request.threads);
   }
   return d;

@@ -391,11 +391,10 @@ TEST(Ssdo, AccuracyAgainstOracleAndReferenceOnRayCasterScenes) {
       {"floating", raycast::floating_scene(), raycast::floating_camera(160, 90)},
   };
   const Environment sky = Environment::sky(SkyGradient{});
-  // The estimators themselves: every pixel (160 x 90 frames leave a half grid too coarse
-  // to tell estimator error from upsampling error).
-  // 16 directions: the estimators' own error per pixel, undenoised (medium's 8 are denoised
-  // over the half grid's wider footprint in the product: the accuracy tests on the shared
-  // frames measure that).
+  // The estimators themselves, their own error per pixel, undenoised: every pixel (160 x 90
+  // frames leave a half grid too coarse to tell estimator error from upsampling error) and
+  // 16 directions (medium's 8 are denoised over the half grid's wider footprint in the
+  // product; the accuracy tests on the shared frames measure that).
   SsdoSettings fast = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
   fast.resolution_divisor = 1;
   fast.samples = 16;
