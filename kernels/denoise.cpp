@@ -123,19 +123,23 @@ struct FilterConstants {
   const cv::Mat& normal_view;  // CV_32FC3 unit view-space normal
   const cv::Mat& mask;         // CV_8UC1, 0 = not filtered and not read
   int width, height;           // the frame
-  int radius;                  // R: taps k in [-R, R] per pass
-  float g[2 * kMaxRadiusPx + 1];  // the spatial Gaussian g(k), at k + R
+  int taps;                    // T: taps k in [-T, T] per pass, k spacing pixels apart
+  int spacing;                 // tap_spacing_px
+  int radius;                  // R = T spacing: the pixels a pass reaches either side (the halo)
+  float g[2 * kMaxRadiusPx + 1];  // the spatial Gaussian of tap k (at k spacing pixels), at k + T
   float inv_tol;               // 1 / depth_tolerance_relative
   int plane_stride;            // floats per plane row: kTileCols + 2R + kMaxLanes
   size_t plane;                // floats per plane: plane_stride x (kTileRows + 2R)
 
   FilterConstants(const cv::Mat& depth, const cv::Mat& normal, const cv::Mat& m, const DenoiseSettings& s)
       : depth_view(depth), normal_view(normal), mask(m), width(depth.cols), height(depth.rows),
-        radius(s.radius_px), g{}, inv_tol(1.0f / s.depth_tolerance_relative),
-        plane_stride(kTileCols + 2 * s.radius_px + kMaxLanes),
-        plane(size_t(plane_stride) * size_t(kTileRows + 2 * s.radius_px)) {
-    for (int k = -radius; k <= radius; ++k)
-      g[k + radius] = std::exp(-0.5f * float(k * k) / (s.sigma_px * s.sigma_px));
+        taps(s.radius_px / s.tap_spacing_px), spacing(s.tap_spacing_px), radius(taps * spacing), g{},
+        inv_tol(1.0f / s.depth_tolerance_relative), plane_stride(kTileCols + 2 * radius + kMaxLanes),
+        plane(size_t(plane_stride) * size_t(kTileRows + 2 * radius)) {
+    for (int k = -taps; k <= taps; ++k) {
+      const int d = k * spacing;
+      g[k + taps] = std::exp(-0.5f * float(d * d) / (s.sigma_px * s.sigma_px));
+    }
   }
 };
 
@@ -157,11 +161,11 @@ struct TilePlanes {
   float* nz;
   float* value;       // C planes: the source channels
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
-  float* lobe;        // R planes: the pass's pair lobes at offsets 1 .. R (pair_lobes)
+  float* lobe;        // T planes: the pass's pair lobes at taps 1 .. T (pair_lobes)
 };
 
-// Floats of a tile's planes of C channels: 4 guides, C values, C horizontal results, R lobes.
-size_t tile_floats(size_t plane, int channels, int radius) { return plane * size_t(4 + 2 * channels + radius); }
+// Floats of a tile's planes of C channels: 4 guides, C values, C horizontal results, T lobes.
+size_t tile_floats(size_t plane, int channels, int taps) { return plane * size_t(4 + 2 * channels + taps); }
 
 TilePlanes tile_planes(float* scratch, size_t plane, int channels) {
   TilePlanes p;
@@ -301,7 +305,7 @@ inline Lanes tap_weight(float g, Lanes depth, Lanes depth_scale, Lanes tap_depth
 }
 
 // Where a pass finds the pair lobes: the lobe of guide offsets (pos, pos + k step) at
-// data[(k - 1) plane + pos - origin], k = 1 .. R.
+// data[(k - 1) plane + pos - origin], k = 1 .. T (step: the guide offset of one tap).
 struct PairLobes {
   float* data;
   size_t plane;
@@ -309,16 +313,16 @@ struct PairLobes {
   float* at(int k, size_t pos) const { return data + size_t(k - 1) * plane + (pos - origin); }
 };
 
-// The pair lobes at offsets k = 1 .. R (step apart) of guide offsets [from, to) (extended to
+// The pair lobes at taps k = 1 .. T (step apart) of guide offsets [from, to) (extended to
 // whole vectors), into lobes.data.
 template <class Lobe>
-void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, int R, const PairLobes& lobes,
+void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, int T, const PairLobes& lobes,
                 const Lobe& lobe) {
   const FloatLanes d;
   const size_t n = size_t(lane_count());
   for (size_t pos = from; pos < to; pos += n) {
     const Lanes nx = hn::LoadU(d, p.nx + pos), ny = hn::LoadU(d, p.ny + pos), nz = hn::LoadU(d, p.nz + pos);
-    for (int k = 1; k <= R; ++k) {
+    for (int k = 1; k <= T; ++k) {
       const size_t tap = size_t(ptrdiff_t(pos) + k * step);
       const Lanes l = normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
                                   hn::LoadU(d, p.nz + tap), lobe);
@@ -329,14 +333,14 @@ void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, int
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
 // pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
-// k * step from it; tap k of channel c at values + c * plane + k * step + i; the lobes of
-// taps k != 0 in `lobes` (pair_lobes). The centre tap weighs g(0) > 0 (its depth and
-// normal match), so the weight sum is never 0.
+// k * step from it (step: a tap's spacing along the pass); tap k of channel c at values +
+// c * plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). The centre tap
+// weighs g(0) > 0 (its depth and normal match), so the weight sum is never 0.
 template <int C, class Lobe>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre,
                 ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe, const PairLobes& lobes) {
   const FloatLanes d;
-  const int R = k.radius, width = t.lane_width(), n = lane_count();
+  const int T = k.taps, width = t.lane_width(), n = lane_count();
   const Lanes inv_tol = broadcast(k.inv_tol);
   const size_t plane = k.plane;
   for (int i = 0; i < width; i += n) {
@@ -344,14 +348,14 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
     const Lanes depth_scale = hn::Div(inv_tol, c0.depth);
     Lanes sum[C], wsum = hn::Zero(d);
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
-    for (int tap = -R; tap <= R; ++tap) {
+    for (int tap = -T; tap <= T; ++tap) {
       const ptrdiff_t off = tap * step + i;
       const size_t at = size_t(ptrdiff_t(centre) + off);
       // Tap -k pairs with the pixel k before: the lobe of (at, at + k step).
       const Lanes tap_lobe = tap == 0 ? normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe)
                              : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
                                        : hn::LoadU(d, lobes.at(-tap, at));
-      const Lanes w = tap_weight(k.g[tap + R], c0.depth, depth_scale, hn::LoadU(d, p.depth + at), tap_lobe);
+      const Lanes w = tap_weight(k.g[tap + T], c0.depth, depth_scale, hn::LoadU(d, p.depth + at), tap_lobe);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * plane + off)));
       wsum = hn::Add(wsum, w);
     }
@@ -376,10 +380,11 @@ void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& 
         for (int i = 0; i < t.lane_width(); ++i) out[c][i] = 0.0f;
       continue;
     }
-    // Pairs (x, x + j) of the row: centres from column R, taps -j from column R - j.
+    // Pairs (x, x + j spacing) of the row: centres from column R, taps -j from column
+    // R - j spacing.
     const PairLobes lobes{p.lobe, size_t(k.plane_stride), row};
-    pair_lobes(p, row, row + size_t(t.lane_width() + R), 1, R, lobes, lobe);
-    filter_row<C>(k, p, t, row + size_t(R), 1, p.value + row + R, out, lobe, lobes);
+    pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, k.taps, lobes, lobe);
+    filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + row + R, out, lobe, lobes);
     const uint8_t* m = k.mask.ptr<uint8_t>(y);
     for (int c = 0; c < C; ++c)
       for (int i = 0; i < t.width(); ++i) out[c][i] = m[t.xa + i] ? out[c][i] : 0.0f;
@@ -432,17 +437,19 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
                    const Lobe& lobe) {
   const int R = k.radius;
   const size_t stride = size_t(k.plane_stride);
-  // Pairs (y, y + j) of the tile's columns: centres from plane row R, taps -j from row R - j.
+  // Pairs (y, y + j spacing) of the tile's columns: centres from plane row R, taps -j from
+  // row R - j spacing.
+  const ptrdiff_t tap_step = ptrdiff_t(k.spacing) * k.plane_stride;
   const PairLobes lobes{p.lobe, k.plane, 0};
   for (int j = 0; j < (t.yb - t.ya) + R; ++j)
-    pair_lobes(p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()),
-               k.plane_stride, R, lobes, lobe);
+    pair_lobes(p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
+               k.taps, lobes, lobe);
   for (int y = t.ya; y < t.yb; ++y) {
     const size_t row = size_t(y - t.ya + R) * stride;
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
-    filter_row<C>(k, p, t, row + size_t(R), k.plane_stride, p.horizontal + row, to, lobe, lobes);
+    filter_row<C>(k, p, t, row + size_t(R), tap_step, p.horizontal + row, to, lobe, lobes);
     write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
@@ -452,7 +459,7 @@ template <int C, class Lobe>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
                      const Lobe& lobe) {
   // The guide and value planes, and the horizontal results.
-  const size_t scratch_floats = tile_floats(k.plane, C, k.radius);
+  const size_t scratch_floats = tile_floats(k.plane, C, k.taps);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     thread_local TileScratch scratch;
     const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k.plane, C);
@@ -557,9 +564,12 @@ namespace ssdo {
 HWY_EXPORT(denoise_channels);
 HWY_EXPORT(box_blur_channels);
 using HWY_NAMESPACE::kMaxRadiusPx;
+constexpr int kMaxTapSpacingPx = 4;
 
 std::string validate(const DenoiseSettings& s) {
   if (s.radius_px < 0 || s.radius_px > kMaxRadiusPx) return detail::out_of_range("radius_px", s.radius_px, "[0, 32]");
+  if (s.tap_spacing_px < 1 || s.tap_spacing_px > kMaxTapSpacingPx)
+    return detail::out_of_range("tap_spacing_px", s.tap_spacing_px, "[1, 4]");
   if (!(s.sigma_px > 0.0f) || !std::isfinite(s.sigma_px)) return detail::out_of_range("sigma_px", s.sigma_px, "(0, inf)");
   if (!(s.depth_tolerance_relative > 0.0f) || !std::isfinite(s.depth_tolerance_relative))
     return detail::out_of_range("depth_tolerance_relative", s.depth_tolerance_relative, "(0, inf)");
@@ -573,6 +583,7 @@ DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor)
   DenoiseSettings scaled = s;
   scaled.radius_px = std::min(kMaxRadiusPx, s.radius_px * resolution_divisor);
   scaled.sigma_px = s.sigma_px * float(resolution_divisor);
+  scaled.tap_spacing_px = std::min(kMaxTapSpacingPx, s.tap_spacing_px * resolution_divisor);
   return scaled;
 }
 

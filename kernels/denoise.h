@@ -10,9 +10,14 @@
 namespace ssdo {
 
 struct DenoiseSettings {
-  // Half width of the kernel, pixels, [0, 32]: each pass reads 2 * radius_px + 1 taps.
+  // Half width of the kernel, pixels, [0, 32]: each pass reads the taps k tap_spacing_px
+  // pixels apart with |k tap_spacing_px| <= radius_px (2 * radius_px + 1 taps at spacing 1).
   // 4 covers a 4x4 noise tile plus a pixel either side.
   int radius_px = 4;
+  // Pixels between two taps of a pass, [1, 4]. 1 (default) reads every pixel. An image
+  // upsampled from a grid of divisor D holds one independent estimate per D x D pixels, so
+  // taps D apart see every estimate of the footprint (scaled_to_grid).
+  int tap_spacing_px = 1;
   // Standard deviation of the Gaussian spatial weight, pixels, (0, inf). 2.5 keeps the
   // outermost tap of radius 4 at weight exp(-16 / 12.5) = 0.28.
   float sigma_px = 2.5f;
@@ -30,12 +35,14 @@ struct DenoiseSettings {
 std::string validate(const DenoiseSettings& s);
 
 // The settings for a term computed on a grid of resolution_divisor (1 = every pixel, 2 =
-// the half-resolution grid, kernels/half_resolution.h) and upsampled: radius_px and sigma_px
-// times the divisor (the radius at most 32). Each estimate of a half-grid term, with its own
-// noise, covers 2 x 2 pixels once upsampled, so the same footprint in pixels holds a
-// quarter of the independent estimates; doubling it restores their count. Measured on the
-// shared frames against the SSDO oracle (docs/performance.md, "Directions against the
-// denoise's footprint").
+// the half-resolution grid, kernels/half_resolution.h) and upsampled: radius_px, sigma_px
+// and tap_spacing_px times the divisor (the radius at most 32, the spacing at most 4). Each
+// estimate of a half-grid term, with its own noise, covers 2 x 2 pixels once upsampled, so
+// the same footprint in pixels holds a quarter of the independent estimates; doubling it
+// restores their count (measured on the shared frames against the SSDO oracle:
+// docs/performance.md, "Directions against the denoise's footprint"). Taps as far apart as
+// the estimates keep the taps per pass of the full-resolution footprint: the pixels between
+// them are blends of the same estimates.
 DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor);
 
 // Depth- and normal-aware separable bilateral blur (a horizontal pass, then a vertical

@@ -31,9 +31,10 @@ Guides random_guides(cv::Size size, uint64_t seed) {
   return g;
 }
 
-// Brute force, obviously correct: the two passes written out with double sums.
+// Brute force, obviously correct: the two passes written out with double sums, a tap every
+// tap_spacing_px pixels within the radius.
 cv::Mat brute_force(const cv::Mat& src, const Guides& g, const DenoiseSettings& s) {
-  const int C = src.channels(), W = src.cols, H = src.rows, R = s.radius_px;
+  const int C = src.channels(), W = src.cols, H = src.rows, R = s.radius_px, D = s.tap_spacing_px;
   auto weight = [&](int cx, int cy, int tx, int ty, int k) -> double {
     if (tx < 0 || ty < 0 || tx >= W || ty >= H || !g.mask.at<uint8_t>(ty, tx)) return 0.0;
     const double d = g.depth.at<float>(cy, cx), dt = g.depth.at<float>(ty, tx);
@@ -51,7 +52,7 @@ cv::Mat brute_force(const cv::Mat& src, const Guides& g, const DenoiseSettings& 
         if (!g.mask.at<uint8_t>(y, x)) continue;
         std::vector<double> sum(C, 0.0);
         double wsum = 0.0;
-        for (int k = -R; k <= R; ++k) {
+        for (int k = -(R / D) * D; k <= R; k += D) {
           const int tx = pass == 0 ? x + k : x, ty = pass == 0 ? y : y + k;
           const double w = weight(x, y, tx, ty, k);
           if (w == 0.0) continue;
@@ -79,6 +80,27 @@ TEST(Denoise, MatchesBruteForce) {
       denoise_bilateral(src, g.depth, g.normal, g.mask, s, dst, {}, 1);
       EXPECT_LE(cv::norm(dst, brute_force(src, g, s), cv::NORM_INF), 1e-5)
           << "power " << power << ", " << channels << " channels";
+    }
+  }
+}
+
+// Taps spaced apart (the half grid's footprint, and a radius that is no multiple of the
+// spacing), against the brute force; wider than a tile, so the seams are crossed.
+TEST(Denoise, SpacedTapsMatchBruteForce) {
+  const cv::Size size(300, 45);
+  const Guides g = random_guides(size, 13);
+  for (const auto& [radius, spacing] : {std::pair{8, 2}, std::pair{7, 3}, std::pair{32, 4}}) {
+    DenoiseSettings s;
+    s.radius_px = radius;
+    s.sigma_px = 2.5f * float(spacing);
+    s.tap_spacing_px = spacing;
+    for (int channels : {1, 3}) {
+      cv::Mat src(size, CV_MAKETYPE(CV_32F, channels));
+      cv::randu(src, 0.0f, 1.0f);
+      cv::Mat dst;
+      denoise_bilateral(src, g.depth, g.normal, g.mask, s, dst, {}, 2);
+      EXPECT_LE(cv::norm(dst, brute_force(src, g, s), cv::NORM_INF), 1e-5)
+          << "radius " << radius << ", spacing " << spacing << ", " << channels << " channels";
     }
   }
 }
@@ -222,6 +244,8 @@ TEST(DenoiseSettings, ScaledToTheGridOfTheTerm) {
   EXPECT_EQ(full.sigma_px, s.sigma_px);
   EXPECT_EQ(half.radius_px, 2 * s.radius_px);
   EXPECT_EQ(half.sigma_px, 2.0f * s.sigma_px);
+  EXPECT_EQ(full.tap_spacing_px, 1);
+  EXPECT_EQ(half.tap_spacing_px, 2);
   EXPECT_EQ(half.depth_tolerance_relative, s.depth_tolerance_relative);
   EXPECT_EQ(half.normal_power, s.normal_power);
   DenoiseSettings wide;
@@ -238,6 +262,11 @@ TEST(DenoiseSettings, Validate) {
   s = {};
   s.depth_tolerance_relative = 0.0f;
   EXPECT_FALSE(validate(s).empty());
+  s = {};
+  s.tap_spacing_px = 0;
+  EXPECT_NE(validate(s).find("tap_spacing_px"), std::string::npos);
+  s.tap_spacing_px = 5;
+  EXPECT_NE(validate(s).find("tap_spacing_px"), std::string::npos);
 }
 
 }  // namespace
