@@ -1,12 +1,13 @@
 // Timings of the screen-space AO methods per preset, of SSDO per preset, of the denoisers
-// (1 and 3 channels), of the confidence term, of the temporal filter and of the whole
+// (1 and 3 channels; the frame's 7 at the half grid's footprint), of the confidence term, of the temporal filter and of the whole
 // compute step of a frame (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes),
 // at 640x360 (the shared
 // cornell dump) and 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without
 // ../shared the Cornell-like scene of the reference ray caster is rendered at both sizes
 // instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
-// width, threads (denoisers, BM_Confidence); width, K, threads (BM_Temporal, BM_TemporalSsdo).
+// width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
+// width, K, threads (BM_Temporal, BM_TemporalSsdo).
 #include <benchmark/benchmark.h>
 
 #include <map>
@@ -53,6 +54,25 @@ void BM_Denoise3(benchmark::State& state) {
   cv::randu(src, 0.0f, 1.0f);
   for (auto _ : state)
     ssdo::denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, {}, dst, {}, int(state.range(1)));
+}
+
+// The frame's denoise of AO and both SSDO terms (1 + 3 + 3 channels, one pass) computed on
+// the half-resolution grid: the footprint scaled to that grid (radius 8, sigma 5), with taps
+// every tap_spacing_px = range(1) pixels (2: the product's, scaled_to_grid; 1: every pixel
+// of the footprint). Args: width, spacing, threads.
+void BM_DenoiseHalfGridTerms(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  cv::Mat ao(g.depth_view.size(), CV_32FC1), direct(g.depth_view.size(), CV_32FC3),
+      indirect(g.depth_view.size(), CV_32FC3);
+  for (cv::Mat* m : {&ao, &direct, &indirect}) cv::randu(*m, 0.0f, 1.0f);
+  cv::Mat ao_out, direct_out, indirect_out;
+  const cv::Mat* srcs[] = {&ao, &direct, &indirect};
+  cv::Mat* dsts[] = {&ao_out, &direct_out, &indirect_out};
+  ssdo::DenoiseSettings s = ssdo::scaled_to_grid({}, 2);
+  s.tap_spacing_px = int(state.range(1));
+  for (auto _ : state)
+    ssdo::denoise_bilateral(srcs, g.depth_view, g.normal_view, g.mask, s, dsts, {}, int(state.range(2)));
+  state.SetLabel("radius " + std::to_string(s.radius_px) + ", spacing " + std::to_string(s.tap_spacing_px));
 }
 
 void BM_Ssdo(benchmark::State& state) {
@@ -221,6 +241,7 @@ void image_args(benchmark::internal::Benchmark* b) {
 BENCHMARK(BM_Ao)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_DenoiseHalfGridTerms)->ArgsProduct({{640, 1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
