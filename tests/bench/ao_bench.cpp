@@ -1,10 +1,9 @@
 // Timings of the screen-space AO methods per preset, of SSDO per preset, of the denoisers
-// (1 and 3 channels; the frame's 7 at the half grid's footprint), of the confidence term, of the temporal filter and of the whole
-// compute step of a frame (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes),
-// at 640x360 (the shared
-// cornell dump) and 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without
-// ../shared the Cornell-like scene of the reference ray caster is rendered at both sizes
-// instead.
+// (1 and 3 channels; the frame's 7 at the half grid's footprint), of the confidence term,
+// of the temporal filter and of the whole compute step of a frame (`compute_frame`, terms
+// ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
+// 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
+// Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
 // width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
 // width, K, threads (BM_Temporal, BM_TemporalSsdo).
