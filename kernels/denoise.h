@@ -48,7 +48,8 @@ DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor)
 // Depth- and normal-aware separable bilateral blur (a horizontal pass, then a vertical
 // pass over its result) of a CV_32FC1 or CV_32FC3 image. Tap weight:
 //   g(k) * max(0, 1 - |d_tap - d| / (tol * d)) * max(0, n . n_tap)^power,
-// g the Gaussian of sigma_px; taps outside the image or with mask 0 weigh 0. The centre
+// k the tap's offset in pixels (a multiple of tap_spacing_px, |k| <= radius_px), g the
+// Gaussian of sigma_px; taps outside the image or with mask 0 weigh 0. The centre
 // always weighs g(0) > 0, so the weight sum is never 0. Pixels with mask 0 are copied
 // unchanged. depth_view CV_32FC1 planar (> 0 on foreground), normal_view CV_32FC3 unit,
 // mask CV_8UC1 (255 = foreground). dst is allocated like src when needed and only roi
