@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "service/protocol.h"
@@ -34,6 +36,41 @@ int high_fd(int fd) {
 }
 
 void set_nonblocking(int fd) { ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK); }
+
+// CPU time (user + system, every thread) the process has used so far, in seconds: fields
+// 14 and 15 of /proc/PID/stat, utime and stime in clock ticks (proc(5)). The fields are
+// counted after the last ')', since the command name in parentheses may hold spaces.
+// Negative when the file cannot be read.
+double process_cpu_s(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const size_t close = text.rfind(')');
+  if (close == std::string::npos) return -1;
+  std::istringstream fields(text.substr(close + 1));
+  std::string field;
+  unsigned long long utime = 0, stime = 0;
+  for (int i = 3; i <= 13 && fields >> field; ++i) {
+  }
+  if (!(fields >> utime >> stime)) return -1;
+  return double(utime + stime) / double(::sysconf(_SC_CLK_TCK));
+}
+
+// The error of a frame whose worker did not answer within `timeout_s`, with the CPU time it
+// spent meanwhile (negative: unknown): a worker that computed all along needs a longer
+// --frame-timeout or a cheaper preset; one that hardly ran was waiting (a slow file system)
+// or starved (a machine busier than the worker count assumes).
+std::string timeout_error(double timeout_s, double cpu_s) {
+  char text[256];
+  if (cpu_s < 0)
+    std::snprintf(text, sizeof text, "timed out after %g s (worker killed and replaced; see --frame-timeout)",
+                  timeout_s);
+  else
+    std::snprintf(text, sizeof text,
+                  "timed out after %g s, in which the worker used %.1f s of CPU time%s (worker killed and "
+                  "replaced; see --frame-timeout)",
+                  timeout_s, cpu_s, cpu_s < 0.1 * timeout_s ? ": it was mostly waiting, not computing" : "");
+  return text;
+}
 
 }  // namespace
 
@@ -260,17 +297,17 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     }
   }
 
+  const double cpu_at_send_s = process_cpu_s(pid_);
   std::string response;
   const IoStatus s = read_message(from_worker_, response, kMaxResponseBytes, deadline);
   result.wall_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   if (s == IoStatus::timeout) {
+    const double cpu_now_s = process_cpu_s(pid_);
     ::kill(pid_, SIGKILL);
     reap_reason();
     result.worker_replaced = result.transient = true;
-    char text[128];
-    std::snprintf(text, sizeof text, "timed out after %.0f s (worker killed and replaced; see --frame-timeout)",
-                  limits_.frame_timeout_s);
-    result.error = text;
+    result.error = timeout_error(limits_.frame_timeout_s,
+                                 cpu_at_send_s < 0 || cpu_now_s < 0 ? -1.0 : cpu_now_s - cpu_at_send_s);
     return result;
   }
   if (s != IoStatus::ok) {

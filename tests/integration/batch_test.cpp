@@ -45,6 +45,7 @@ TEST(Batch, StalledAndOversizedFramesAreThatFramesErrors) {
                          " --method raymarch --preset ultra --frame-timeout 0.3 --jobs 1");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("timed out after"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("s of CPU time"), std::string::npos) << r.output;  // computing, or waiting
   // Memory: a limit the frame cannot fit in. A 3000 x 3000 depth-only frame: its G-buffer
   // (depth, reconstructed normals and positions) alone is over 300 MiB as float, above the
   // smallest limit, 256 MiB, whatever the worker's own footprint.
