@@ -225,7 +225,7 @@ TEST(ServeWatch, PoisonFramesEachGetAnErrorAndTheServiceStaysUp) {
   fs::create_directories(dir.path / "in");
   const fs::path in = dir.path / "in", out = dir.path / "out";
   const std::string socket = socket_path_for("poisonwatch");
-  SsdoProcess service(serve_args(dir, socket, {"--frame-timeout", "5", "--memory-limit", "1024", "--jobs", "2"}),
+  SsdoProcess service(serve_args(dir, socket, {"--memory-limit", "1024", "--jobs", "2"}),
                       dir.path / "serve.log");
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
   const auto files = damaged_files();
