@@ -145,32 +145,58 @@ struct RayVerdict {
   bool unknown = false;
 };
 
+// A ray's steps where they land, before any of them is tested: the steps do not depend on
+// each other, so this loop runs in vector lanes, and with it two of the three divisions of
+// a step (the march's cost). Per step j: its distance s, its clip-space w and its pixel
+// coordinates (garbage where w <= 0: the march stops there before reading them).
+struct RaySteps {
+  std::vector<float> s, clip_w, px, py;
+  void resize(int steps) {
+    for (std::vector<float>* v : {&s, &clip_w, &px, &py}) v->resize(size_t(steps));
+  }
+};
+
+// Step s_j = radius (j + 1 - jitter) / steps, jitter in [0, 1): one sample in each of the
+// `steps` equal segments of (0, radius], the last at most radius; clip(origin + s w) =
+// clip(origin) + s P [w, 0], the projection being linear in s.
+inline void place_steps(const Constants& k, const glm::vec4& origin_clip, const glm::vec4& dir_clip, float jitter,
+                        RaySteps& out) {
+  float* __restrict s_out = out.s.data();
+  float* __restrict w_out = out.clip_w.data();
+  float* __restrict px_out = out.px.data();
+  float* __restrict py_out = out.py.data();
+  for (int j = 0; j < k.steps; ++j) {
+    const float s = k.radius_world * (float(j) + 1.0f - jitter) / float(k.steps);
+    const float clip_x = origin_clip.x + s * dir_clip.x;
+    const float clip_y = origin_clip.y + s * dir_clip.y;
+    const float clip_w = origin_clip.w + s * dir_clip.w;
+    const float inv_w = 1.0f / clip_w;
+    s_out[j] = s;
+    w_out[j] = clip_w;
+    px_out[j] = 0.5f * (clip_x * inv_w + 1.0f) * k.width_px;
+    py_out[j] = 0.5f * (1.0f - clip_y * inv_w) * k.height_px;
+  }
+}
+
 // Marches direction w from the origin in `steps` jittered steps up to radius_world and tests
 // each step against the surface stored where it lands (the blocked rule at the top of this
 // file).
 inline RayVerdict march_ray(const Constants& k, const AoInputs& in, const std::vector<Tap>& taps,
-                            const RayOrigin& o, const glm::vec3& w, float jitter) {
+                            const RayOrigin& o, const glm::vec3& w, float jitter, RaySteps& steps) {
   const int width = in.depth_view.cols, height = in.depth_view.rows;
-  // clip(origin + s w) = clip(origin) + s P [w, 0]: the projection is linear in s.
-  const glm::vec4 clip_w = in.camera.view_to_clip * glm::vec4(w, 0.0f);
+  place_steps(k, o.clip, in.camera.view_to_clip * glm::vec4(w, 0.0f), jitter, steps);
   RayVerdict r;
   bool entered = false;
   for (int j = 0; j < k.steps && !r.blocked; ++j) {
-    // Step s_j = radius (j + 1 - jitter) / steps, jitter in [0, 1): one sample in each of
-    // the `steps` equal segments of (0, radius], the last at most radius.
-    const float s = k.radius_world * (float(j) + 1.0f - jitter) / float(k.steps);
-    const glm::vec4 clip = o.clip + s * clip_w;
     // Off-screen and behind-the-eye steps are unknown. Both are final once the ray has been
     // on screen: clip.w is linear in s (once <= 0, it stays so), and the screen path of a
     // segment in front of the eye is a segment, which leaves the convex screen rectangle
     // at most once.
-    if (!(clip.w > 0.0f)) {
+    if (!(steps.clip_w[size_t(j)] > 0.0f)) {
       r.unknown = true;
       break;
     }
-    const float inv_w = 1.0f / clip.w;
-    const float px = 0.5f * (clip.x * inv_w + 1.0f) * k.width_px;
-    const float py = 0.5f * (1.0f - clip.y * inv_w) * k.height_px;
+    const float px = steps.px[size_t(j)], py = steps.py[size_t(j)];
     if (!(px >= 0.0f && px < k.width_px && py >= 0.0f && py < k.height_px)) {
       r.unknown = true;
       if (entered) break;
@@ -183,6 +209,7 @@ inline RayVerdict march_ray(const Constants& k, const AoInputs& in, const std::v
       r.unknown = true;
       continue;
     }
+    const float s = steps.s[size_t(j)];
     const glm::vec3 q = o.view + s * w;
     const float depth_q = -q.z;
     const float depth_ref = reference_depth(tap, q, depth_q, k.perspective);
@@ -207,7 +234,8 @@ struct PixelResult {
 
 // Foreground pixel (x, y): the open fraction of its cosine-weighted rays, their mean
 // direction, and the fraction of rays whose verdict rests on known samples only.
-inline PixelResult shade_pixel(const Constants& k, const AoInputs& in, const std::vector<Tap>& taps, int x, int y) {
+inline PixelResult shade_pixel(const Constants& k, const AoInputs& in, const std::vector<Tap>& taps, int x, int y,
+                               RaySteps& steps) {
   const float depth = in.depth_view.ptr<float>(y)[x];
   const glm::vec3 p = detail::load3(in.position_view, x, y);
   const glm::vec3 n = detail::load3(in.normal_view, x, y);
@@ -227,7 +255,7 @@ inline PixelResult shade_pixel(const Constants& k, const AoInputs& in, const std
     float u, v;
     r2_point(uint32_t(i), shift_u, shift_v, u, v);
     const glm::vec3 w = sampling::cosine_hemisphere(n, t, b, u, v);
-    const RayVerdict r = march_ray(k, in, taps, o, w, unit_float(hash_u32(jitter_key + uint32_t(i))));
+    const RayVerdict r = march_ray(k, in, taps, o, w, unit_float(hash_u32(jitter_key + uint32_t(i))), steps);
     if (!r.blocked) {
       ++open;
       bent += w;
@@ -245,6 +273,8 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
   std::vector<Tap> taps;
   build_taps(in, k.thickness_world, taps, nthreads);
   parallel_rows(cv::Range(roi.y, roi.y + roi.height), nthreads, [&](const cv::Range& rows) {
+    RaySteps steps;
+    steps.resize(k.steps);
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
       float* ao_row = out.ao.ptr<float>(y);
@@ -252,7 +282,7 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
       float* conf_row = confidence ? confidence->ptr<float>(y) : nullptr;
       for (int x = roi.x; x < roi.x + roi.width; ++x) {
         // Background: AO 1, no bent normal, confidence 1.
-        const PixelResult r = mask_row[x] ? shade_pixel(k, in, taps, x, y) : PixelResult{1.0f, glm::vec3(0.0f), 1.0f};
+        const PixelResult r = mask_row[x] ? shade_pixel(k, in, taps, x, y, steps) : PixelResult{1.0f, glm::vec3(0.0f), 1.0f};
         ao_row[x] = r.ao;
         bent_row[x] = cv::Vec3f(r.bent_normal.x, r.bent_normal.y, r.bent_normal.z);
         if (conf_row) conf_row[x] = r.confidence;
