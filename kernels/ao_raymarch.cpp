@@ -112,26 +112,6 @@ void build_taps(const AoInputs& in, float thickness_world, std::vector<Tap>& tap
   });
 }
 
-// d_ref (top of this file): the depth where the view ray through step q meets the tap
-// pixel's tangent plane dot(n, x) = c, or the stored depth where that is ill-conditioned.
-// Perspective: x = a q, a = c / dot(n, q). Orthographic: x = (q.x, q.y, -d),
-// d = (n.x q.x + n.y q.y - c) / n.z.
-inline float reference_depth(const Tap& tap, const glm::vec3& q, float depth_q, bool perspective) {
-  constexpr float kMinTangentCos2 = kMinTangentCos * kMinTangentCos;
-  float depth_ref = tap.depth_view;
-  if (perspective) {
-    const float denom = tap.nx * q.x + tap.ny * q.y + tap.nz * q.z;
-    if (denom * denom >= kMinTangentCos2 * glm::dot(q, q)) {
-      const float d = tap.plane_c / denom * depth_q;
-      if (d > 0.0f) depth_ref = d;
-    }
-  } else if (std::abs(tap.nz) >= kMinTangentCos) {
-    const float d = (tap.nx * q.x + tap.ny * q.y - tap.plane_c) / tap.nz;
-    if (d > 0.0f) depth_ref = d;
-  }
-  return depth_ref;
-}
-
 // A pixel's ray origin: biased along the normal, and its clip-space image.
 struct RayOrigin {
   glm::vec3 view;
@@ -145,12 +125,20 @@ struct RayVerdict {
   bool unknown = false;
 };
 
+// Steps tested per batch: a batch's reference depths are computed together (below), so a
+// ray blocked early wastes at most a batch's worth of them.
+constexpr int kBatchSteps = 16;
+
 // A ray's steps where they land, before any of them is tested: the steps do not depend on
-// each other, so this loop runs in vector lanes, and with it two of the three divisions of
-// a step (the march's cost). Per step j: its distance s, its clip-space w and its pixel
-// coordinates (garbage where w <= 0: the march stops there before reading them).
+// each other, so the loops that fill this run in vector lanes, and with them the three
+// divisions of a step (the march's cost). Per step j: its distance s, its clip-space w and
+// its pixel coordinates (garbage where w <= 0: the march stops there before reading them);
+// per step of the batch being tested: its planar depth and d_ref.
 struct RaySteps {
   std::vector<float> s, clip_w, px, py;
+  float depth_q[kBatchSteps], depth_ref[kBatchSteps];
+  float tap_n[3][kBatchSteps], tap_plane_c[kBatchSteps], tap_depth[kBatchSteps];
+  const Tap* tap[kBatchSteps];  // null: off screen (or behind the eye)
   void resize(int steps) {
     for (std::vector<float>* v : {&s, &clip_w, &px, &py}) v->resize(size_t(steps));
   }
@@ -178,49 +166,92 @@ inline void place_steps(const Constants& k, const glm::vec4& origin_clip, const 
   }
 }
 
+// d_ref (top of this file) of the steps j0 .. j0 + n - 1: the depth where the view ray
+// through step q meets the tap pixel's tangent plane dot(n, x) = c, or the stored depth
+// where that is ill-conditioned. Perspective: x = a q, a = c / dot(n, q). Orthographic:
+// x = (q.x, q.y, -d), d = (n.x q.x + n.y q.y - c) / n.z. The taps the steps land on are
+// gathered first; a step off screen reads the first tap, and its d_ref is never used.
+inline void reference_depths(const Constants& k, const std::vector<Tap>& taps, int width, int height,
+                             const glm::vec3& origin, const glm::vec3& w, int j0, int n, RaySteps& st) {
+  for (int i = 0; i < n; ++i) {
+    const int j = j0 + i;
+    const float px = st.px[size_t(j)], py = st.py[size_t(j)];
+    const bool on_screen = st.clip_w[size_t(j)] > 0.0f && px >= 0.0f && px < k.width_px && py >= 0.0f &&
+                           py < k.height_px;
+    const Tap& tap = on_screen ? taps[size_t(std::min(int(py), height - 1)) * size_t(width) +
+                                      size_t(std::min(int(px), width - 1))]
+                               : taps[0];
+    st.tap[i] = on_screen ? &tap : nullptr;
+    st.tap_n[0][i] = tap.nx;
+    st.tap_n[1][i] = tap.ny;
+    st.tap_n[2][i] = tap.nz;
+    st.tap_plane_c[i] = tap.plane_c;
+    st.tap_depth[i] = tap.depth_view;
+  }
+  constexpr float kMinTangentCos2 = kMinTangentCos * kMinTangentCos;
+  for (int i = 0; i < n; ++i) {
+    const float s = st.s[size_t(j0 + i)];
+    const float qx = origin.x + s * w.x, qy = origin.y + s * w.y, qz = origin.z + s * w.z;
+    const float depth_q = -qz;
+    const float nx = st.tap_n[0][i], ny = st.tap_n[1][i], nz = st.tap_n[2][i];
+    float d;
+    bool usable;
+    if (k.perspective) {
+      const float denom = nx * qx + ny * qy + nz * qz;
+      usable = denom * denom >= kMinTangentCos2 * (qx * qx + qy * qy + qz * qz);
+      d = st.tap_plane_c[i] / denom * depth_q;
+    } else {
+      usable = std::abs(nz) >= kMinTangentCos;
+      d = (nx * qx + ny * qy - st.tap_plane_c[i]) / nz;
+    }
+    st.depth_q[i] = depth_q;
+    st.depth_ref[i] = usable && d > 0.0f ? d : st.tap_depth[i];
+  }
+}
+
 // Marches direction w from the origin in `steps` jittered steps up to radius_world and tests
 // each step against the surface stored where it lands (the blocked rule at the top of this
 // file).
 inline RayVerdict march_ray(const Constants& k, const AoInputs& in, const std::vector<Tap>& taps,
-                            const RayOrigin& o, const glm::vec3& w, float jitter, RaySteps& steps) {
+                            const RayOrigin& o, const glm::vec3& w, float jitter, RaySteps& st) {
   const int width = in.depth_view.cols, height = in.depth_view.rows;
-  place_steps(k, o.clip, in.camera.view_to_clip * glm::vec4(w, 0.0f), jitter, steps);
+  place_steps(k, o.clip, in.camera.view_to_clip * glm::vec4(w, 0.0f), jitter, st);
   RayVerdict r;
   bool entered = false;
-  for (int j = 0; j < k.steps && !r.blocked; ++j) {
-    // Off-screen and behind-the-eye steps are unknown. Both are final once the ray has been
-    // on screen: clip.w is linear in s (once <= 0, it stays so), and the screen path of a
-    // segment in front of the eye is a segment, which leaves the convex screen rectangle
-    // at most once.
-    if (!(steps.clip_w[size_t(j)] > 0.0f)) {
-      r.unknown = true;
-      break;
+  for (int j0 = 0; j0 < k.steps; j0 += kBatchSteps) {
+    const int n = std::min(kBatchSteps, k.steps - j0);
+    reference_depths(k, taps, width, height, o.view, w, j0, n, st);
+    for (int i = 0; i < n; ++i) {
+      // Off-screen and behind-the-eye steps are unknown. Both are final once the ray has
+      // been on screen: clip.w is linear in s (once <= 0, it stays so), and the screen path
+      // of a segment in front of the eye is a segment, which leaves the convex screen
+      // rectangle at most once.
+      if (!(st.clip_w[size_t(j0 + i)] > 0.0f)) {
+        r.unknown = true;
+        return r;
+      }
+      const Tap* tap = st.tap[i];
+      if (tap == nullptr) {
+        r.unknown = true;
+        if (entered) return r;
+        continue;
+      }
+      entered = true;
+      if (tap->depth_view < 0.0f) {  // masked
+        r.unknown = true;
+        continue;
+      }
+      const float depth_q = st.depth_q[i], depth_ref = st.depth_ref[i];
+      // Bias relative to the stored depth: its rounding error is relative (float: 6e-8,
+      // half: 4.9e-4 of the value), so a fixed bias would be too large near the camera and
+      // too small far away. The default 1e-3 covers half-float depth.
+      const float bias = k.bias_relative * tap->depth_view;
+      // With a back layer the bias also widens the slab: a thin object's two layers carry
+      // the same relative rounding.
+      r.blocked = depth_q > depth_ref + bias &&
+                  depth_q - depth_ref <= tap->thickness_world + (k.has_back ? bias : 0.0f);
+      if (r.blocked) return r;
     }
-    const float px = steps.px[size_t(j)], py = steps.py[size_t(j)];
-    if (!(px >= 0.0f && px < k.width_px && py >= 0.0f && py < k.height_px)) {
-      r.unknown = true;
-      if (entered) break;
-      continue;
-    }
-    entered = true;
-    const int tx = std::min(int(px), width - 1), ty = std::min(int(py), height - 1);
-    const Tap& tap = taps[size_t(ty) * size_t(width) + size_t(tx)];
-    if (tap.depth_view < 0.0f) {  // masked
-      r.unknown = true;
-      continue;
-    }
-    const float s = steps.s[size_t(j)];
-    const glm::vec3 q = o.view + s * w;
-    const float depth_q = -q.z;
-    const float depth_ref = reference_depth(tap, q, depth_q, k.perspective);
-    // Bias relative to the stored depth: its rounding error is relative (float: 6e-8,
-    // half: 4.9e-4 of the value), so a fixed bias would be too large near the camera and
-    // too small far away. The default 1e-3 covers half-float depth.
-    const float bias = k.bias_relative * tap.depth_view;
-    // With a back layer the bias also widens the slab: a thin object's two layers carry
-    // the same relative rounding.
-    r.blocked = depth_q > depth_ref + bias &&
-                depth_q - depth_ref <= tap.thickness_world + (k.has_back ? bias : 0.0f);
   }
   return r;
 }
