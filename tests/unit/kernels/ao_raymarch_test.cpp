@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include "tests/support/raycast.h"
@@ -89,6 +90,25 @@ TEST(AoRaymarch, OpenPlaneIsExactlyOne) {
           worst = std::min(worst, glm::dot(glm::vec3(b[0], b[1], b[2]), n_view));
         }
       EXPECT_GT(worst, 0.995f) << "elevation " << elevation;
+    }
+  }
+}
+
+// The same through parallel rays: the orthographic reference depth (the view ray through a
+// step is (q.x, q.y, -d); d where it meets the tap's tangent plane) keeps an open plane open
+// at oblique and grazing views too.
+TEST(AoRaymarch, OpenPlaneIsExactlyOneThroughAnOrthographicCamera) {
+  const glm::vec3 n_world = glm::normalize(glm::vec3(1, 2, 3));
+  for (float elevation : {90.0f, 30.0f, 5.0f}) {
+    Camera cam = raycast::open_plane_camera(n_world, elevation, 96, 54);
+    cam.view_to_clip = glm::ortho(-2.0f, 2.0f, -1.125f, 1.125f, 0.1f, 100.0f);
+    ASSERT_FALSE(cam.is_perspective());
+    const GBuffer g = raycast::render_gbuffer(raycast::open_plane(n_world), cam, 2);
+    ASSERT_GT(cv::countNonZero(g.mask), 96 * 54 / 4) << "elevation " << elevation;
+    for (float thickness : {kInf, 0.5f}) {
+      const Raymarched r = raymarch(g, raymarch_settings(64, 32, 1.0f, thickness));
+      EXPECT_EQ(cv::countNonZero((r.out.ao != 1.0f) & g.mask), 0)
+          << "elevation " << elevation << " thickness " << thickness;
     }
   }
 }
