@@ -47,10 +47,9 @@ double process_cpu_s(pid_t pid) {
   const size_t close = text.rfind(')');
   if (close == std::string::npos) return -1;
   std::istringstream fields(text.substr(close + 1));
-  std::string field;
+  std::string skipped;
+  for (int field = 3; field <= 13; ++field) fields >> skipped;  // state .. cmajflt
   unsigned long long utime = 0, stime = 0;
-  for (int i = 3; i <= 13 && fields >> field; ++i) {
-  }
   if (!(fields >> utime >> stime)) return -1;
   return double(utime + stime) / double(::sysconf(_SC_CLK_TCK));
 }
