@@ -19,7 +19,7 @@ struct ConfinedService {
     copy_example("cornell", dir.path / "frames", "cornell");
     copy_example("cornell", dir.path / "secret", "secret");
     std::vector<std::string> args = {"serve", "--socket", socket, "-o", dir / "out", "--allow", dir / "frames",
-                                     "--terms", "ao", "--preset", "low", "--frame-timeout", "20"};
+                                     "--terms", "ao", "--preset", "low", "--frame-timeout", kServiceFrameTimeoutS};
     args.insert(args.end(), extra.begin(), extra.end());
     process = std::make_unique<SsdoProcess>(args, dir.path / ("serve-" + tag + ".log"));
     ready = process->wait_for_log("ready", 30);

@@ -16,7 +16,7 @@ namespace {
 std::vector<std::string> watch_args(const fs::path& in, const fs::path& out, const std::string& socket,
                                     std::vector<std::string> extra = {}, const std::string& preset = "low") {
   std::vector<std::string> args = {"serve", "--watch", in.string(), "-o", out.string(), "--socket", socket,
-                                   "--terms", "ao", "--preset", preset, "--frame-timeout", "20",
+                                   "--terms", "ao", "--preset", preset, "--frame-timeout", kServiceFrameTimeoutS,
                                    "--memory-limit", "2048"};
   args.insert(args.end(), extra.begin(), extra.end());
   return args;
@@ -119,10 +119,7 @@ TEST(ServeLifetimes, WorkerKilledMidFrameIsRetried) {
   const fs::path in = dir.path / "in", out = dir.path / "out";
   fs::create_directories(in);
   const std::string socket = socket_path_for("retry");
-  // The high preset, so that the kill lands mid-frame: seconds in the sanitizer build, where
-  // the retry may run beside another test; the default --frame-timeout.
-  SsdoProcess service(watch_args(in, out, socket, {"--jobs", "1", "--frame-timeout", "300"}, "high"),
-                      dir.path / "serve.log");
+  SsdoProcess service(watch_args(in, out, socket, {"--jobs", "1"}, "high"), dir.path / "serve.log");
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
   std::vector<pid_t> workers;
   ASSERT_TRUE(wait_until([&] { return (workers = workers_of(service.pid())).size() == 1; }, 10));

@@ -18,7 +18,7 @@ struct SocketService {
     copy_example("cornell", dir.path / "frames", "cornell");
     copy_example("greeble", dir.path / "frames", "greeble");
     std::vector<std::string> args = {"serve",  "--socket", socket,  "-o",       dir / "out", "--allow",
-                                     dir / "frames", "--terms", "ao", "--preset", "low", "--frame-timeout", "20",
+                                     dir / "frames", "--terms", "ao", "--preset", "low", "--frame-timeout", kServiceFrameTimeoutS,
                                      "--memory-limit", "2048"};
     args.insert(args.end(), extra.begin(), extra.end());
     process = std::make_unique<SsdoProcess>(args, dir.path / ("serve-" + tag + ".log"));
@@ -245,10 +245,7 @@ TEST(ServeSocket, PoisonFramesOverTheSocketEachGetAnError) {
 
 TEST(ServeSocket, GracefulStopFinishesTheFrameInFlight) {
   ScratchDir dir;
-  // The frame in flight is the ultra preset: a third of a second here, but tens of seconds
-  // in the sanitizer build beside another test. What is tested is the stop, not the
-  // timeout: the default --frame-timeout.
-  SocketService service(dir, "graceful", {"--jobs", "1", "--frame-timeout", "300"});
+  SocketService service(dir, "graceful", {"--jobs", "1"});
   ASSERT_TRUE(service.ready) << service.log();
   json reply;
   std::thread slow([&] {

@@ -12,9 +12,10 @@ namespace {
 std::vector<std::string> serve_args(const ScratchDir& dir, const std::string& socket,
                                     std::vector<std::string> extra = {}) {
   // Each frame alone in time: the watched sequences' temporal window is the Temporal tests'.
-  std::vector<std::string> args = {"serve",   "--watch", dir / "in", "-o",      dir / "out",    "--socket",
-                                   socket,    "--terms", "ao",       "--preset", "low",          "--frame-timeout",
-                                   "20",      "--memory-limit", "2048", "--temporal", "0"};
+  std::vector<std::string> args = {"serve",    "--watch",          dir / "in",     "-o",     dir / "out",
+                                   "--socket", socket,             "--terms",      "ao",     "--preset",
+                                   "low",      "--frame-timeout",  kServiceFrameTimeoutS, "--memory-limit",
+                                   "2048",     "--temporal",       "0"};
   args.insert(args.end(), extra.begin(), extra.end());
   return args;
 }

@@ -37,6 +37,11 @@ namespace ssdo::test {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
+// The --frame-timeout of the services the tests start: a stalled frame fails its test in a
+// minute, and the slowest frame a test puts in flight has room (the ultra preset on the
+// 640 x 360 example: 0.3 s here, 15 s in the sanitizer build beside another test).
+inline const std::string kServiceFrameTimeoutS = "60";
+
 // Polls `condition` every 20 ms until it holds or `seconds` pass.
 inline bool wait_until(const std::function<bool()>& condition, double seconds) {
   const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
