@@ -19,14 +19,17 @@ reps="${1:-7}"
 filter="${2:-^(BM_Ao/1920/[0-2]/[01]|BM_Ssdo/1920/[01]|BM_Frame/1920/[01]|BM_Denoise/1920|BM_Denoise3/1920|BM_DenoiseHalfGridTerms/1920/[12]|BM_Confidence/1920|BM_BoxBlur/1920|BM_Temporal/1920/[12])}"
 bench="${AO_BENCH:-$here/build/tests/bench/ao_bench}"
 min_scaling="${MIN_SCALING:-1.8}"
+[[ "$reps" =~ ^[0-9]+$ && "$reps" -ge 2 ]] || { echo "REPS must be a whole number >= 2 (medians need repetitions), not '$reps'"; exit 1; }
 [ -x "$bench" ] || { echo "no benchmark binary at $bench (scripts/build.sh builds it)"; exit 1; }
 
-csv="$(mktemp)"
-trap 'rm -f "$csv"' EXIT
-# Thread counts are every benchmark's last argument.
+csv="$(mktemp)" log="$(mktemp)"
+trap 'rm -f "$csv" "$log"' EXIT
+# Thread counts are every benchmark's last argument. The CSV goes to stdout, the machine's
+# description and any error to stderr (shown when nothing was measured).
 "$bench" --benchmark_filter="$filter/[12]/real_time\$" --benchmark_repetitions="$reps" \
   --benchmark_enable_random_interleaving=true --benchmark_report_aggregates_only=true \
-  --benchmark_format=csv 2>/dev/null >"$csv"
+  --benchmark_format=csv >"$csv" 2>"$log" || { cat "$log"; exit 1; }
+grep -q '_median"' "$csv" || { cat "$log"; echo "no benchmark matched '$filter' with 1 and 2 threads"; exit 1; }
 
 echo "ao_bench, 1920x1080, medians of $reps interleaved runs, ms ($(git -C "$here" rev-parse --short HEAD 2>/dev/null || echo '?'), $(date -u +%Y-%m-%d))"
 printf "%-34s %-24s %10s %10s %8s\n" "benchmark" "what" "1 thread" "2 threads" "scaling"
