@@ -610,7 +610,8 @@ void unpack_lines(const uint8_t* pixels, size_t row, int lines, int64_t width, c
 }
 
 // Reads, inflates and converts one chunk into the images; "" on success, else what is wrong
-// with it. `stored` and `packed` are the calling thread's buffers.
+// with it. `stored` and `packed` are the calling thread's buffers (their contents are
+// overwritten).
 std::string decode_chunk(exr_const_context_t context, int part, const PixelBox& data,
                          const ZipPlan& plan, int chunk, std::vector<uint8_t>& stored,
                          std::vector<uint8_t>& packed) {
@@ -654,7 +655,11 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
   };
   // One strip per chunk (16 or 1 lines): the chunks are the unit of work.
   parallel_rows(cv::Range(0, plan.chunks), threads, [&](const cv::Range& range) {
-    std::vector<uint8_t> stored, packed;
+    // A strip is one chunk: buffers of the strip's own would allocate and zero a chunk's
+    // bytes (2 MB for 16 lines of a 1080p G-buffer) per chunk. The thread's are reused (as
+    // the writer's and the codec's scratch): they grow, and are zeroed, only when a chunk
+    // is larger than any before.
+    thread_local std::vector<uint8_t> stored, packed;
     for (int chunk = range.start; chunk < range.end; ++chunk) {
       // Chunks after a damaged one are not worth reading; those before it still decide which
       // error is reported.
