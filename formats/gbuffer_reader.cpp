@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <new>
 #include <sstream>
 #include <stdexcept>
@@ -640,6 +641,11 @@ std::string decode_chunk(exr_const_context_t context, int part, const PixelBox& 
   return "";
 }
 
+// A chunk's bytes as stored and as inflated.
+struct ChunkBuffers {
+  std::vector<uint8_t> stored, packed;
+};
+
 // Reads, inflates and converts every chunk of the part; throws on the first damaged chunk
 // (the lowest scanline, whatever the thread count), naming the part and the scanline.
 void read_zip_part(exr_const_context_t context, int part, const std::string& part_name,
@@ -653,19 +659,25 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
     while (chunk < seen && !first_failed.compare_exchange_weak(seen, chunk)) {
     }
   };
+  // A strip is one chunk, and buffers of its own would allocate and zero a chunk's bytes
+  // (2 MB for 16 lines of a 1080p G-buffer) per chunk: a strip takes a pair of buffers the
+  // strips before it returned (one pair per thread in flight; they grow, and are zeroed,
+  // only for a chunk larger than any before), and the part's read frees them.
+  std::mutex buffers_mutex;
+  std::vector<ChunkBuffers> free_buffers;
   // One strip per chunk (16 or 1 lines): the chunks are the unit of work.
   parallel_rows(cv::Range(0, plan.chunks), threads, [&](const cv::Range& range) {
-    // A strip is one chunk: buffers of the strip's own would allocate and zero a chunk's
-    // bytes (2 MB for 16 lines of a 1080p G-buffer) per chunk. The thread's are reused (as
-    // the writer's and the codec's scratch): they grow, and are zeroed, only when a chunk
-    // is larger than any before.
-    thread_local std::vector<uint8_t> stored, packed;
+    ChunkBuffers buffers;
+    {
+      const std::lock_guard lock(buffers_mutex);
+      if (!free_buffers.empty()) buffers = std::move(free_buffers.back()), free_buffers.pop_back();
+    }
     for (int chunk = range.start; chunk < range.end; ++chunk) {
       // Chunks after a damaged one are not worth reading; those before it still decide which
       // error is reported.
       if (chunk > first_failed.load()) break;
       try {
-        std::string error = decode_chunk(context, part, data, plan, chunk, stored, packed);
+        std::string error = decode_chunk(context, part, data, plan, chunk, buffers.stored, buffers.packed);
         if (!error.empty()) fail(chunk, std::move(error));
       } catch (const std::bad_alloc&) {
         out_of_memory = true;
@@ -673,6 +685,11 @@ void read_zip_part(exr_const_context_t context, int part, const std::string& par
       } catch (const std::exception& e) {
         fail(chunk, e.what());
       }
+    }
+    try {
+      const std::lock_guard lock(buffers_mutex);
+      free_buffers.push_back(std::move(buffers));
+    } catch (const std::bad_alloc&) {  // the buffers are freed here instead
     }
   }, 1);
   if (out_of_memory) throw std::bad_alloc();
