@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "kernels/denoise.h"
 #include "kernels/noise.h"
 #include "core/parallel.h"
 #include "core/uninitialized.h"
@@ -486,6 +487,13 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     confidence.create(size, CV_32FC1);
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
+  // The smoothing reads the fraction up to its radius around r: computed there first, into
+  // an image of its own (zero elsewhere: nothing undefined reaches the blur's planes).
+  const int reach = s.smoothing_radius_px;
+  const cv::Rect raw_r =
+      reach > 0 ? cv::Rect(r.x - reach, r.y - reach, r.width + 2 * reach, r.height + 2 * reach) & cv::Rect({}, size)
+                : r;
+  cv::Mat raw = reach > 0 ? cv::Mat::zeros(size, CV_32FC1) : confidence;
   const Spiral spiral = vogel_spiral(s.taps);
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
   std::unique_ptr<PointVerdicts> verdicts;
@@ -503,8 +511,9 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     taps.chord_offsets = chord_offsets.data();
   }
   const PixelFrame frame{depth_view, normal_view, mask, camera, s, taps, camera.is_perspective()};
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads,
-                [&](const cv::Range& rows) { confidence_rows(frame, rows, r, confidence); });
+  parallel_rows(cv::Range(raw_r.y, raw_r.y + raw_r.height), nthreads,
+                [&](const cv::Range& rows) { confidence_rows(frame, rows, raw_r, raw); });
+  if (reach > 0) denoise_bilateral(raw, depth_view, normal_view, mask, smoothing(s), confidence, r, nthreads);
 }
 
 }  // namespace ssdo::HWY_NAMESPACE
@@ -512,6 +521,13 @@ HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
 namespace ssdo {
+
+DenoiseSettings smoothing(const ConfidenceSettings& s) {
+  DenoiseSettings d;
+  d.radius_px = s.smoothing_radius_px;
+  d.sigma_px = 0.75f * float(s.smoothing_radius_px);
+  return d;
+}
 
 // Settings, not pixels: compiled once, outside the per-target code.
 bool runs_on_half_grid(const ConfidenceSettings& s) { return s.resolution_divisor == 2; }
@@ -521,6 +537,8 @@ std::string validate(const ConfidenceSettings& s) {
   if (s.taps < 4 || s.taps > HWY_NAMESPACE::kMaxTaps) return detail::out_of_range("taps", s.taps, "[4, 256]");
   if (!(s.depth_bias_relative >= 0.0f && s.depth_bias_relative <= 0.1f))
     return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
+  if (s.smoothing_radius_px < 0 || s.smoothing_radius_px > 8)
+    return detail::out_of_range("smoothing_radius_px", s.smoothing_radius_px, "[0, 8]");
   if (s.view_bins < 1 || s.view_bins > 8) return detail::out_of_range("view_bins", s.view_bins, "[1, 8]");
   if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
     return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");

@@ -15,9 +15,11 @@
 //   confidence = sum_k |observed_k| / sum_k |b_k - a_k|
 //
 // i.e. the observed fraction of H's volume as sampled along view rays (each chord's length
-// is its share of the volume). 1 = every point of the neighbourhood was in front of the
-// stored surfaces: an open plane, a corner seen from outside. 0 = none was. 1 on background
-// and where H covers no tap (projected radius below a pixel: the pixel itself is all).
+// is its share of the volume), then averaged with the neighbouring pixels' on the same
+// surface (ConfidenceSettings::smoothing_radius_px). 1 = every point of the neighbourhood
+// was in front of the stored surfaces: an open plane, a corner seen from outside. 0 = none
+// was. 1 on background and where H covers no tap (projected radius below a pixel: the pixel
+// itself is all).
 //
 // With other views of the scene (the neighbouring frames of a shot, kernels/multiview.h),
 // observed means observed by any view: the part of a chord this frame does not see (behind
@@ -35,6 +37,7 @@
 
 #include "core/camera.h"
 #include "core/gbuffer.h"
+#include "kernels/denoise.h"
 #include "kernels/multiview.h"
 
 namespace ssdo {
@@ -46,9 +49,20 @@ struct ConfidenceSettings {
   // Largest projected radius, pixels, [2, 4096]: the estimator's own bound (its taps do not
   // reach farther, so neither do these).
   float max_radius_px = 256.0f;
-  // Taps per pixel on the projected disk, [4, 256]. 32 resolves the confidence to ~3% (one
-  // tap); the taps are a Vogel spiral rotated per pixel, so neighbours average further.
-  int taps = 32;
+  // Taps per pixel on the projected disk, [4, 256]. One tap of 16 is ~6% of the fraction;
+  // the taps are a Vogel spiral rotated per pixel, so neighbours sample it differently and
+  // the smoothing below averages their taps.
+  int taps = 16;
+  // Half width, in pixels of the grid the confidence runs on, [0, 8], of the depth- and
+  // normal-aware blur of the fraction (denoise_bilateral, kernels/denoise.h: sigma 0.75 x
+  // the radius, its default depth and normal tolerances, so nothing is averaged across a
+  // silhouette or a crease); 0 = none. The fraction varies over the scale of the radius,
+  // not of a pixel, and a blur of radius 2 costs 10 reads per pixel where 16 more taps cost
+  // 16 chords. Against 256 taps unsmoothed on the shared frames (half grid, upsampled),
+  // the mean |difference| over the foreground is 0.007-0.010 with 16 taps and radius 2,
+  // 0.011-0.015 with 32 taps unsmoothed, 0.019-0.026 with 16 unsmoothed (docs/performance.md,
+  // "The confidence's taps and its smoothing").
+  int smoothing_radius_px = 2;
   // Relative depth tolerance of "in front of the stored surface", [0, 0.1]: the same role
   // and default as AoSettings::depth_bias_relative (half-float depth rounds to 4.9e-4 of the
   // value), so that a tap on the pixel's own plane counts as observed.
@@ -72,6 +86,9 @@ bool runs_on_half_grid(const ConfidenceSettings& s);
 
 // Empty when valid, else what is wrong (field, value, range).
 std::string validate(const ConfidenceSettings& s);
+
+// The blur of the smoothing (ConfidenceSettings::smoothing_radius_px > 0).
+DenoiseSettings smoothing(const ConfidenceSettings& s);
 
 // Other views of the scene that the confidence counts as observers.
 struct ConfidenceViews {

@@ -9,6 +9,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
+#include "kernels/denoise.h"
 #include "kernels/noise.h"
 #include "tests/support/raycast.h"
 
@@ -113,7 +114,15 @@ ConfidenceSettings full_resolution(float radius_world, int taps) {
   s.taps = taps;
   s.max_radius_px = 24.0f;
   s.seed = 7;
+  s.smoothing_radius_px = 0;  // the definition itself (the smoothing has tests of its own)
   return s;
+}
+
+// Mean |a - b| over the foreground of g.
+double foreground_mae(const GBuffer& g, const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat diff;
+  cv::absdiff(a, b, diff);
+  return cv::mean(diff, g.mask)[0];
 }
 
 // Scenes with silhouettes, depth gaps and background; the camera sizes are odd and not
@@ -145,6 +154,43 @@ TEST(Confidence, GivesTheReferenceBitsWithAnOrthographicCamera) {
   const cv::Mat reference = reference_confidence(g, s);
   EXPECT_LT(cv::mean(reference)[0], 1.0);
   EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 2), reference));
+}
+
+// The smoothing is the depth- and normal-aware blur (denoise_bilateral) of the fraction:
+// the same bits as blurring the per-pixel reference, for any thread count, and in a roi
+// (whose blur reads the fraction computed around it).
+TEST(Confidence, SmoothingIsTheBlurOfTheFraction) {
+  const GBuffer g = raycast::render_gbuffer(raycast::poles_scene(), raycast::poles_camera(157, 89), 0);
+  ConfidenceSettings s = full_resolution(0.3f, 16);
+  s.smoothing_radius_px = 2;
+  cv::Mat expected;
+  denoise_bilateral(reference_confidence(g, full_resolution(0.3f, 16)), g.depth_view, g.normal_view, g.mask,
+                    smoothing(s), expected, {}, 1);
+  EXPECT_GT(cv::norm(expected, reference_confidence(g, full_resolution(0.3f, 16)), cv::NORM_INF), 0.01)
+      << "the blur changes the fraction";
+  EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 1), expected));
+  EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 3), expected));
+  for (const cv::Rect roi : {cv::Rect(13, 9, 71, 40), cv::Rect(0, 0, 30, 89), cv::Rect(150, 80, 7, 9)})
+    EXPECT_TRUE(bitwise_equal(confidence_of(g, s, roi, 2)(roi), expected(roi))) << roi;
+}
+
+// Neighbours' tap patterns are rotated differently: 16 taps smoothed over radius 2 are
+// closer to the fraction's limit (256 taps) than 32 taps alone, and 16 alone are farther.
+TEST(Confidence, SixteenTapsSmoothedAreCloserToTheLimitThanThirtyTwo) {
+  const GBuffer scenes[] = {
+      raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(320, 180), 0),
+      raycast::render_gbuffer(raycast::poles_scene(), raycast::poles_camera(320, 180), 0)};
+  for (const GBuffer& g : scenes) {
+    const cv::Mat limit = confidence_of(g, full_resolution(0.5f, 256), {}, 2);
+    ConfidenceSettings smoothed = full_resolution(0.5f, 16);
+    smoothed.smoothing_radius_px = ConfidenceSettings{}.smoothing_radius_px;
+    const double mae_smoothed = foreground_mae(g, confidence_of(g, smoothed, {}, 2), limit);
+    const double mae_32 = foreground_mae(g, confidence_of(g, full_resolution(0.5f, 32), {}, 2), limit);
+    const double mae_16 = foreground_mae(g, confidence_of(g, full_resolution(0.5f, 16), {}, 2), limit);
+    EXPECT_LT(mae_smoothed, 0.85 * mae_32) << "16 smoothed " << mae_smoothed << ", 32 " << mae_32;
+    EXPECT_GT(mae_16, 1.3 * mae_32) << "16 " << mae_16 << ", 32 " << mae_32;
+    EXPECT_GT(mae_32, 0.002) << "the scene has neighbourhoods the taps resolve only partly";
+  }
 }
 
 // Thin posts 1.2 in front of a wall above a floor, seen from x = 0; views from x = +-1 see
