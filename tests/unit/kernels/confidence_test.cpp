@@ -174,6 +174,27 @@ TEST(Confidence, SmoothingIsTheBlurOfTheFraction) {
     EXPECT_TRUE(bitwise_equal(confidence_of(g, s, roi, 2)(roi), expected(roi))) << roi;
 }
 
+// Frames narrower or shorter than the blur's footprint, and rois at their edges: every
+// value in [0, 1], the background 1, the same bits for any thread count.
+TEST(Confidence, SmoothsFramesSmallerThanItsFootprint) {
+  for (const cv::Size size : {cv::Size(1, 1), cv::Size(2, 1), cv::Size(1, 5), cv::Size(4, 3), cv::Size(9, 2)}) {
+    const GBuffer g = raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(size.width, size.height), 0);
+    ConfidenceSettings s;
+    s.radius_world = 0.5f;
+    const cv::Mat whole = confidence_of(g, s, {}, 1);
+    ASSERT_EQ(whole.size(), size);
+    for (int y = 0; y < size.height; ++y)
+      for (int x = 0; x < size.width; ++x) {
+        const float c = whole.at<float>(y, x);
+        EXPECT_TRUE(c >= 0.0f && c <= 1.0f) << size << " " << x << "," << y << ": " << c;
+        if (!g.mask.at<uint8_t>(y, x)) EXPECT_EQ(c, 1.0f);
+      }
+    EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 3), whole)) << size;
+    const cv::Rect corner(size.width - 1, size.height - 1, 1, 1);
+    EXPECT_TRUE(bitwise_equal(confidence_of(g, s, corner, 2)(corner), whole(corner))) << size;
+  }
+}
+
 // Neighbours' tap patterns are rotated differently: 16 taps smoothed over radius 2 are
 // closer to the fraction's limit (256 taps) than 32 taps alone, and 16 alone are farther.
 TEST(Confidence, SixteenTapsSmoothedAreCloserToTheLimitThanThirtyTwo) {
