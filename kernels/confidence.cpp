@@ -491,8 +491,7 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   // an image of its own (zero elsewhere: nothing undefined reaches the blur's planes).
   const int reach = s.smoothing_radius_px;
   const cv::Rect raw_r =
-      reach > 0 ? cv::Rect(r.x - reach, r.y - reach, r.width + 2 * reach, r.height + 2 * reach) & cv::Rect({}, size)
-                : r;
+      cv::Rect(r.x - reach, r.y - reach, r.width + 2 * reach, r.height + 2 * reach) & cv::Rect({}, size);
   cv::Mat raw = reach > 0 ? cv::Mat::zeros(size, CV_32FC1) : confidence;
   const Spiral spiral = vogel_spiral(s.taps);
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
