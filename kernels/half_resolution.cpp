@@ -660,14 +660,20 @@ void allocate(cv::Mat& image, const cv::Size& size, int type) {
 // The full-resolution images the upsample writes, as the kernels allocate their outputs.
 void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, const cv::Size& size,
                         TermOutputs& out) {
+  const bool denoised = settings.denoise != nullptr;
   if (half.ao) {
     allocate(out.ao.ao, size, CV_32FC1);
     if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, CV_32FC3);
     else out.ao.bent_normal_view.release();
+    if (denoised) allocate(out.denoised.ao, size, CV_32FC1);
   }
   if (half.ssdo) {
     allocate(out.ssdo.direct, size, CV_32FC3);
     allocate(out.ssdo.indirect, size, CV_32FC3);
+    if (denoised) {
+      allocate(out.denoised.direct, size, CV_32FC3);
+      allocate(out.denoised.indirect, size, CV_32FC3);
+    }
   }
   if (half.confidence) allocate(out.confidence, size, CV_32FC1);
 }
@@ -824,16 +830,34 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
   crop_from_band(extended.indirect, g, roi, out.indirect);
 }
 
+// The texels the denoise of `roi` reads on a grid of `size`: roi grown by its reach.
+cv::Rect denoise_reads(const cv::Rect& roi, const DenoiseSettings& s, const cv::Size& size) {
+  const int reach = s.radius_px / s.tap_spacing_px * s.tap_spacing_px;
+  return cv::Rect(roi.x - reach, roi.y - reach, roi.width + 2 * reach, roi.height + 2 * reach) &
+         cv::Rect(cv::Point(), size);
+}
+
+// The half grid's AO and SSDO terms of `terms` (AO, then SSDO direct and indirect: those
+// computed) denoised on the grid's texels of roi, into `denoised` in the same order.
+void denoise_on_grid(const HalfGrid& h, const DenoiseSettings& s, std::span<const cv::Mat* const> terms,
+                     std::span<cv::Mat* const> denoised, const cv::Rect& roi, int nthreads) {
+  if (!terms.empty()) denoise_bilateral(terms, h.depth_view, h.normal_view, h.mask, s, denoised, roi, nthreads);
+}
+
 // The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
-// it), each kernel on the texels the upsample of r reads, then one upsample of all their
-// images. Background and no foreground texel near: AO 1 (unoccluded), bent normal 0 (set
-// to the normal by its unit_vector finish), SSDO 0 (nothing known of the light),
-// confidence 1. AO is clamped and the bent normals renormalised in the upsample's pass.
+// it), each kernel on the texels the upsample of r reads (and, with the denoise, the texels
+// its taps read around them), the denoise of AO and SSDO on the grid, then one upsample of
+// all their images. Background and no foreground texel near: AO 1 (unoccluded), bent
+// normal 0 (set to the normal by its unit_vector finish), SSDO 0 (nothing known of the
+// light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
+// pass.
 void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
                           const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads) {
   HalfGrid h;
   build_half_grid(full, h, nthreads, /*with_positions=*/half.ao || half.ssdo);
   const cv::Rect half_roi = half_grid_roi(r, full.depth_view.size());
+  const cv::Rect term_roi =
+      settings.denoise ? denoise_reads(half_roi, *settings.denoise, h.depth_view.size()) : half_roi;
   TermOutputs grid;
   GridInputs g;
   if (half.ao || half.ssdo) {
@@ -841,17 +865,32 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
     extend_grid_with_views(g, in, settings, out.views, nthreads);
   }
   std::vector<UpsampleImage> images;
+  std::vector<const cv::Mat*> noisy;
+  std::vector<cv::Mat*> denoised;
   if (half.ao) {
-    ao_on_grid(g, *settings.ao, half_roi, grid.ao, nthreads);
+    ao_on_grid(g, *settings.ao, term_roi, grid.ao, nthreads);
     images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval});
     if (!grid.ao.bent_normal_view.empty())
       images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0),
                         UpsampleFinish::unit_vector});
+    noisy.push_back(&grid.ao.ao), denoised.push_back(&grid.denoised.ao);
   }
   if (half.ssdo) {
-    ssdo_on_grid(g, in, *settings.ssdo, half_roi, grid.ssdo, nthreads);
+    ssdo_on_grid(g, in, *settings.ssdo, term_roi, grid.ssdo, nthreads);
     images.push_back({grid.ssdo.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
     images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
+    noisy.push_back(&grid.ssdo.direct), denoised.push_back(&grid.denoised.direct);
+    noisy.push_back(&grid.ssdo.indirect), denoised.push_back(&grid.denoised.indirect);
+  }
+  if (settings.denoise) {
+    denoise_on_grid(h, *settings.denoise, noisy, denoised, half_roi, nthreads);
+    if (half.ao)
+      images.push_back({grid.denoised.ao, out.denoised.ao, cv::Scalar(1.0), cv::Scalar(1.0),
+                        UpsampleFinish::clamp_unit_interval});
+    if (half.ssdo) {
+      images.push_back({grid.denoised.direct, out.denoised.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
+      images.push_back({grid.denoised.indirect, out.denoised.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
+    }
   }
   if (half.confidence) {
     // The views at the grid's density: the confidence's scattered asks read a quarter of

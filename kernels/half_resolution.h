@@ -26,6 +26,7 @@
 #include "core/camera.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
+#include "kernels/denoise.h"
 #include "kernels/multiview.h"
 #include "kernels/ssdo.h"
 
@@ -133,6 +134,13 @@ struct TermSettings {
   const AoSettings* ao = nullptr;
   const SsdoSettings* ssdo = nullptr;
   const ConfidenceSettings* confidence = nullptr;
+  // The edge-aware denoise (kernels/denoise.h) of the AO and SSDO terms that run on the half
+  // grid, run on that grid before the upsample, its radius, spacing and sigma counted in
+  // texels; null = not denoised here. It reads a quarter of the pixels that the same
+  // footprint at full resolution (scaled_to_grid) reads, and its taps are the grid's
+  // estimates themselves instead of their blends. Terms on the full grid are not denoised
+  // here.
+  const DenoiseSettings* denoise = nullptr;
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
@@ -140,10 +148,19 @@ struct TermSettings {
 // behind each surface.
 MultiViewSettings multiview_settings(const TermSettings& settings);
 
+// The denoised AO and SSDO terms (TermSettings::denoise), at full resolution like the raw.
+struct DenoisedTerms {
+  cv::Mat ao;                  // CV_32FC1, clamped to [0, 1] as the raw AO
+  cv::Mat direct, indirect;    // CV_32FC3
+};
+
 struct TermOutputs {
   AoOutput ao;
   SsdoOutput ssdo;
   cv::Mat confidence;  // CV_32FC1 (compute_confidence)
+  // With TermSettings::denoise, the denoised terms of AO and SSDO when they run on the half
+  // grid; empty otherwise.
+  DenoisedTerms denoised;
   std::vector<ViewUse> views;  // what each of TermInputs::views contributed
 };
 

@@ -119,24 +119,22 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
 // AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
 // run at half resolution share one grid and one upsample (kernels/half_resolution.h).
 // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
-// samples (kernels/confidence.h), written with every AO or SSDO output.
-TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, const TermsComputed& computed) {
+// samples (kernels/confidence.h), written with every AO or SSDO output. denoise_on_grid:
+// the terms on the half grid are also denoised there (TermOutputs::denoised), for a frame
+// whose raw terms are not filtered over time first.
+TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, const TermsComputed& computed,
+                              bool denoise_on_grid) {
   const bool confidence_wanted = request.terms.ao || request.terms.ssdo;
   const ConfidenceSettings confidence = confidence_settings(request);
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &frame_environment(request),
                       g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
   const TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
-                              confidence_wanted ? &confidence : nullptr};
+                              confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
   TermOutputs out;
   compute_terms(in, selected, out, {}, request.threads);
   return out;
 }
-
-// AO, SSDO direct and indirect: the terms that are denoised (and filtered over time first).
-struct DenoisedTerms {
-  cv::Mat ao, direct, indirect;
-};
 
 // The raw terms the denoise reads, in the order of DenoisedTerms (those computed).
 std::vector<const cv::Mat*> raw_terms(const TermOutputs& raw, const TermsComputed& computed) {
@@ -181,20 +179,22 @@ void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const 
                          request.threads);
 }
 
-// The denoised terms of `sources` (raw_terms' order). Each term's footprint is scaled to the
-// grid it was computed on (scaled_to_grid, kernels/denoise.h); terms of one grid are
-// blurred in one pass over the frame, since the blur's weights depend only on the guides
-// (AO and the two SSDO terms share them when they share a grid).
+// The denoised terms of `sources` (raw_terms' order): those of `done` (denoised on their
+// grid with the raw terms, TermSettings::denoise) as they are, the others here at full
+// resolution. Each term's footprint is scaled to the grid it was computed on
+// (scaled_to_grid, kernels/denoise.h); terms of one grid are blurred in one pass over the
+// frame, since the blur's weights depend only on the guides (AO and the two SSDO terms
+// share them when they share a grid).
 DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const std::vector<const cv::Mat*>& sources,
-                            const TermsComputed& computed) {
-  DenoisedTerms d;
+                            const TermsComputed& computed, DenoisedTerms done) {
+  DenoisedTerms d = std::move(done);
   const std::vector<cv::Mat*> results = term_slots(d, computed);
   const std::vector<int> grids = term_grids(request, computed);
   for (const int grid : {1, 2}) {
     std::vector<const cv::Mat*> in;
     std::vector<cv::Mat*> out;
     for (size_t i = 0; i < sources.size(); ++i)
-      if (grids[i] == grid) in.push_back(sources[i]), out.push_back(results[i]);
+      if (grids[i] == grid && results[i]->empty()) in.push_back(sources[i]), out.push_back(results[i]);
     if (!in.empty())
       denoise_bilateral(in, g.depth_view, g.normal_view, g.mask, scaled_to_grid(request.denoise, grid), out, {},
                         request.threads);
@@ -279,9 +279,10 @@ void release_after_raw_terms(GBuffer& g, TermOutputs& raw, const FrameRequest& r
   keep_in_half(raw.ao.bent_normal_view, request.threads);
 }
 
-// The raw terms of g, then release_after_raw_terms.
-TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request) {
-  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request));
+// The raw terms of g (denoised on their grid as compute_raw_terms), then
+// release_after_raw_terms.
+TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request, bool denoise_on_grid) {
+  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request), denoise_on_grid);
   release_after_raw_terms(g, raw, request);
   return raw;
 }
@@ -298,7 +299,7 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
     const std::vector<cv::Mat*> slots = term_slots(filtered, computed);
     sources.assign(slots.begin(), slots.end());
   }
-  const DenoisedTerms denoised = denoise_terms(g, request, sources, computed);
+  const DenoisedTerms denoised = denoise_terms(g, request, sources, computed, std::move(raw.denoised));
   // The guides of AO, SSDO, confidence and the denoise are read no more: their memory
   // goes to the composite.
   g.depth_view.release();
@@ -315,7 +316,7 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
 
 RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
   RawFrame f;
-  f.raw = raw_terms_releasing(g, request);
+  f.raw = raw_terms_releasing(g, request, /*denoise_on_grid=*/false);
   f.gbuffer = std::move(g);
   return f;
 }
@@ -333,7 +334,7 @@ ComputedFrame finish_frame(RawFrame&& f, std::span<const RawFrame* const> neighb
 }
 
 ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
-  TermOutputs raw = raw_terms_releasing(g, request);
+  TermOutputs raw = raw_terms_releasing(g, request, /*denoise_on_grid=*/true);
   return finish_in_place(g, raw, {}, request);
 }
 

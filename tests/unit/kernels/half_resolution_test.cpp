@@ -11,6 +11,7 @@
 
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
+#include "kernels/denoise.h"
 #include "kernels/positions.h"
 #include "tests/support/raycast.h"
 #include "kernels/ssdo.h"
@@ -327,6 +328,63 @@ TEST(HalfResolution, TermsComputedTogetherGiveTheBitsOfEachAlone) {
     EXPECT_EQ(cv::norm(light.indirect, together.ssdo.indirect, cv::NORM_INF), 0.0);
     EXPECT_EQ(cv::norm(confidence, together.confidence, cv::NORM_INF), 0.0);
   }
+}
+
+// With TermSettings::denoise, the denoised AO and SSDO terms are the upsample of the
+// grid's terms denoised on the grid (its guides, the settings in texels), finished as the
+// raw ones; the raw terms keep their bits; and a roi gets the bits of the whole frame's
+// pixels there (the grid's terms are computed as far as the denoise's taps reach).
+TEST(HalfResolution, TermsDenoisedOnTheGridAreTheUpsampleOfTheGridsDenoise) {
+  FrameGrids f;
+  const GBuffer& g = f.g;
+  const AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
+  const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
+  ASSERT_TRUE(runs_on_half_grid(ao_settings) && runs_on_half_grid(ssdo_settings));
+  const Environment sky = Environment::sky(SkyGradient{});
+  const DenoiseSettings ds;
+  const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo};
+  TermOutputs plain, denoised;
+  compute_terms(in, {&ao_settings, &ssdo_settings}, plain, {}, 2);
+  compute_terms(in, {&ao_settings, &ssdo_settings, nullptr, &ds}, denoised, {}, 2);
+  EXPECT_TRUE(plain.denoised.ao.empty());
+  EXPECT_EQ(cv::norm(plain.ao.ao, denoised.ao.ao, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(plain.ssdo.direct, denoised.ssdo.direct, cv::NORM_INF), 0.0);
+
+  // The definition, from the kernels on the grid.
+  AoOutput ao;
+  compute_ao({f.h.depth_view, f.h.normal_view, f.h.position_view, f.h.mask, f.h.camera}, ao_settings, ao, {}, 2);
+  cv::Mat albedo;
+  sample_at_texels(f.h, g.albedo, albedo, 2);
+  SsdoOutput light;
+  compute_ssdo({f.h.depth_view, f.h.normal_view, f.h.position_view, f.h.mask, f.h.camera, sky, &albedo},
+               ssdo_settings, light, {}, 2);
+  cv::Mat grid_ao, grid_direct, grid_indirect;
+  const cv::Mat* noisy[] = {&ao.ao, &light.direct, &light.indirect};
+  cv::Mat* smooth[] = {&grid_ao, &grid_direct, &grid_indirect};
+  denoise_bilateral(noisy, f.h.depth_view, f.h.normal_view, f.h.mask, ds, smooth, {}, 2);
+  cv::Mat want_ao(g.depth_view.size(), CV_32FC1), want_direct(g.depth_view.size(), CV_32FC3),
+      want_indirect(g.depth_view.size(), CV_32FC3);
+  const UpsampleImage images[] = {
+      {grid_ao, want_ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval},
+      {grid_direct, want_direct, cv::Scalar::all(0), cv::Scalar::all(0)},
+      {grid_indirect, want_indirect, cv::Scalar::all(0), cv::Scalar::all(0)}};
+  upsample_from_half_grid(f.full, f.h, images, cv::Rect(cv::Point(), g.depth_view.size()), 2);
+  EXPECT_EQ(cv::norm(denoised.denoised.ao, want_ao, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(denoised.denoised.direct, want_direct, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(denoised.denoised.indirect, want_indirect, cv::NORM_INF), 0.0);
+  // The denoise did something: neighbouring pixels differ less than in the raw term.
+  auto variation = [&](const cv::Mat& m) {
+    const int w = m.cols - 1;
+    return cv::norm(m(cv::Rect(1, 0, w, m.rows)), m(cv::Rect(0, 0, w, m.rows)), cv::NORM_L1);
+  };
+  EXPECT_LT(variation(denoised.denoised.ao), 0.8 * variation(denoised.ao.ao));
+
+  const cv::Rect r(37, 21, 50, 33);
+  TermOutputs part;
+  compute_terms(in, {&ao_settings, &ssdo_settings, nullptr, &ds}, part, r, 2);
+  EXPECT_EQ(cv::norm(part.denoised.ao(r), denoised.denoised.ao(r), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(part.denoised.direct(r), denoised.denoised.direct(r), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(part.ao.ao(r), denoised.ao.ao(r), cv::NORM_INF), 0.0);
 }
 
 // Without full-resolution positions the grid computes its texels' own from depth: the

@@ -148,10 +148,13 @@ TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
   }
 }
 
-// Each denoised term is its raw term blurred with the footprint of the grid it was computed
-// on (scaled_to_grid): AO at full resolution (high) with the settings as given, SSDO on the
-// half grid (low) with twice the radius; and the scaling shows (the plain settings give
-// other bits).
+// Each denoised term of a frame finished at full resolution (finish_frame, the temporal
+// path, here without neighbours) is its raw term blurred with the footprint of the grid it
+// was computed on (scaled_to_grid): AO at full resolution (high) with the settings as
+// given, SSDO on the half grid (low) with twice the radius; and the scaling shows (the
+// plain settings give other bits). compute_frame, for a lone frame, denoises the terms on
+// the half grid there (compute_terms with TermSettings::denoise): AO on the full grid as
+// before, SSDO with the bits of compute_terms' denoised terms.
 TEST(ComputeFrame, DenoisedTermsUseTheFootprintOfTheirGrid) {
   const GBuffer g = small_frame();
   FrameRequest r = request_for("ao,ssdo");
@@ -159,25 +162,38 @@ TEST(ComputeFrame, DenoisedTermsUseTheFootprintOfTheirGrid) {
   r.threads = 1;
   ASSERT_FALSE(runs_on_half_grid(r.ao));
   ASSERT_TRUE(runs_on_half_grid(r.ssdo));
-  const ComputedFrame frame = compute_frame(g, r);
-  auto term = [&](const std::string& name) -> const cv::Mat& {
-    for (const OutputTerm& t : frame.terms)
-      if (t.name == name) return t.image;
+  const ComputedFrame finished = finish_frame(compute_raw_frame(GBuffer(g), r), {}, r);
+  const ComputedFrame lone = compute_frame(g, r);
+  auto term = [&](const ComputedFrame& frame, const std::string& name) -> const cv::Mat& {
+    if (const cv::Mat* m = frame.find(name)) return *m;
     ADD_FAILURE() << "no term " << name;
     static const cv::Mat none;
     return none;
   };
   auto denoised = [&](const std::string& raw, const DenoiseSettings& s) {
     cv::Mat out;
-    denoise_bilateral(term(raw), g.depth_view, g.normal_view, g.mask, s, out, {}, 1);
+    denoise_bilateral(term(finished, raw), g.depth_view, g.normal_view, g.mask, s, out, {}, 1);
     return out;
   };
-  EXPECT_EQ(cv::norm(term("ao_denoised"), denoised("ao", scaled_to_grid(r.denoise, 1)), cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(term(finished, "ao_denoised"), denoised("ao", scaled_to_grid(r.denoise, 1)), cv::NORM_INF), 0.0);
   for (const std::string name : {"ssdo_direct", "ssdo_indirect"})
-    EXPECT_EQ(cv::norm(term(name + "_denoised"), denoised(name, scaled_to_grid(r.denoise, 2)), cv::NORM_INF), 0.0)
+    EXPECT_EQ(cv::norm(term(finished, name + "_denoised"), denoised(name, scaled_to_grid(r.denoise, 2)), cv::NORM_INF),
+              0.0)
         << name;
   // (The small frame's bounce is too faint to tell the footprints apart; its direct light is not.)
-  EXPECT_GT(cv::norm(term("ssdo_direct_denoised"), denoised("ssdo_direct", r.denoise), cv::NORM_INF), 1e-4);
+  EXPECT_GT(cv::norm(term(finished, "ssdo_direct_denoised"), denoised("ssdo_direct", r.denoise), cv::NORM_INF), 1e-4);
+
+  // The lone frame: the same raw terms; AO denoised as above; SSDO denoised on its grid.
+  for (const std::string name : {"ao", "ao_denoised", "ssdo_direct", "ssdo_indirect"})
+    EXPECT_EQ(cv::norm(term(lone, name), term(finished, name), cv::NORM_INF), 0.0) << name;
+  const Environment white;
+  const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &white, &g.albedo,
+                      &g.lighting};
+  TermOutputs on_grid;
+  compute_terms(in, {nullptr, &r.ssdo, nullptr, &r.denoise}, on_grid, {}, 1);
+  EXPECT_EQ(cv::norm(term(lone, "ssdo_direct_denoised"), on_grid.denoised.direct, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(term(lone, "ssdo_indirect_denoised"), on_grid.denoised.indirect, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(term(lone, "ssdo_direct_denoised"), term(finished, "ssdo_direct_denoised"), cv::NORM_INF), 1e-5);
 }
 
 }  // namespace
