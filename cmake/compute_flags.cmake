@@ -23,7 +23,7 @@ target_compile_options(ssdo_compute_flags INTERFACE -O3 -ffp-contract=off -fno-m
 #                      baseline (the sanitizer build: a third of the kernels' compile
 #                      time, and its test run covers the fallback every CPU can take).
 #                      The formats library's loops dispatch either way
-#                      (formats/simd_targets.h).
+#                      (core/simd_targets.h).
 #   SSDO_ARCH          none (default) or a -march value raising the baseline itself
 #                      (e.g. native: a binary for this machine only)
 find_package(hwy REQUIRED)

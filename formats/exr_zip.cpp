@@ -1,6 +1,6 @@
 #include "formats/exr_zip.h"
 
-#include "formats/simd_targets.h"  // before Highway
+#include "core/simd_targets.h"  // before Highway
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "formats/exr_zip.cpp"

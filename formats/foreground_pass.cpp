@@ -1,6 +1,6 @@
 #include "formats/foreground_pass.h"
 
-#include "formats/simd_targets.h"  // before Highway
+#include "core/simd_targets.h"  // before Highway
 
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "formats/foreground_pass.cpp"

@@ -35,7 +35,7 @@
 #include "formats/channel_profiles.h"
 #include "formats/exr_core.h"
 #include "formats/exr_header_check.h"
-#include "formats/half_samples.h"
+#include "core/half_samples.h"
 #include "formats/exr_zip.h"
 #include "formats/foreground_pass.h"
 #include "core/parallel.h"
@@ -558,7 +558,7 @@ std::optional<ZipPlan> plan_zip_part(exr_const_context_t context, int part, cons
 }
 
 // Converts `width` samples of one packed line to float, exactly as OpenEXR does: half as
-// Imath converts it (formats/half_samples.h), float as is.
+// Imath converts it (core/half_samples.h), float as is.
 void convert_samples(const uint8_t* from, exr_pixel_type_t type, int64_t width, float* to,
                      size_t pixel_floats) {
   if (type == EXR_PIXEL_HALF) {

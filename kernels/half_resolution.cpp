@@ -13,6 +13,7 @@
 #include <optional>
 #include <vector>
 
+#include "core/half_samples.h"
 #include "core/parallel.h"
 #include "kernels/normals.h"
 #include "kernels/positions.h"
@@ -212,48 +213,55 @@ inline void blend_any(const cv::Mat& half, const Footprint& f, const float w[4],
     default: blend<4>(half, f, w, wsum, out); break;
   }
 }
-// Foreground pixel (x, y) of depth d and texel weights w of every image: the normalised
-// blend, or the texel closest in depth, or the fallback (header).
-void upsample_pixel(const HalfGrid& h, std::span<const UpsampleImage> images, const Footprint& f, float d,
-                    const float w[4], int x, int y) {
+// The row the upsample writes of each image (`rows[i]` for images[i]): the image's own
+// row, or for a half-float image a float row that the strip converts once the row is
+// finished (OutputRows).
+using RowPointers = std::span<float* const>;
+
+// Foreground pixel x of depth d and texel weights w of every image: the normalised blend,
+// or the texel closest in depth, or the fallback (header).
+void upsample_pixel(const HalfGrid& h, std::span<const UpsampleImage> images, RowPointers rows, const Footprint& f,
+                    float d, const float w[4], int x) {
   float wsum = 0.0f;
   for (int k = 0; k < 4; ++k) wsum += w[k];
   if (!(wsum > kMinUpsampleWeight)) {
     int bi, bj;
     if (!nearest_in_depth(h, f, d, bi, bj)) {  // no foreground texel near: nothing known
-      for (const UpsampleImage& im : images)
-        write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.fallback,
-                     im.full.channels());
+      for (size_t i = 0; i < images.size(); ++i) {
+        const int cn = images[i].half.channels();
+        write_scalar(rows[i] + size_t(x) * size_t(cn), images[i].fallback, cn);
+      }
       return;
     }
-    for (const UpsampleImage& im : images) {
-      const int cn = im.half.channels();
-      std::copy_n(im.half.ptr<float>(bj) + size_t(bi) * size_t(cn), cn, im.full.ptr<float>(y) + size_t(x) * size_t(cn));
+    for (size_t i = 0; i < images.size(); ++i) {
+      const int cn = images[i].half.channels();
+      std::copy_n(images[i].half.ptr<float>(bj) + size_t(bi) * size_t(cn), cn, rows[i] + size_t(x) * size_t(cn));
     }
     return;
   }
-  for (const UpsampleImage& im : images)
-    blend_any(im.half, f, w, wsum, im.full.ptr<float>(y) + size_t(x) * size_t(im.half.channels()));
+  for (size_t i = 0; i < images.size(); ++i)
+    blend_any(images[i].half, f, w, wsum, rows[i] + size_t(x) * size_t(images[i].half.channels()));
 }
 
 // Pixels [x0, x1) of row y of every image.
-void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images, int y,
-                   const AxisFootprint& fy, int x0, int x1) {
+void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images, RowPointers rows,
+                   int y, const AxisFootprint& fy, int x0, int x1) {
   const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
   Footprint f;
   f.y = fy;
   for (int x = x0; x < x1; ++x) {
     if (!mask_row[x]) {
-      for (const UpsampleImage& im : images)
-        write_scalar(im.full.ptr<float>(y) + size_t(x) * size_t(im.full.channels()), im.background,
-                     im.full.channels());
+      for (size_t i = 0; i < images.size(); ++i) {
+        const int cn = images[i].half.channels();
+        write_scalar(rows[i] + size_t(x) * size_t(cn), images[i].background, cn);
+      }
       continue;
     }
     const float d = full.depth_view.ptr<float>(y)[x];
     f.x = axis_footprint(x, h.depth_view.cols);
     float w[4];
     texel_weights(h, f, d, full.normal_view.ptr<cv::Vec3f>(y)[x], w);
-    upsample_pixel(h, images, f, d, w, x, y);
+    upsample_pixel(h, images, rows, f, d, w, x);
   }
 }
 
@@ -434,12 +442,12 @@ inline LaneSpan lane_span(int x0, int x1, int width) {
   return {x1, x1};
 }
 
-// The images' values of pixels x .. x + N - 1 of row y (x odd, the row's texels in `row`),
+// The images' values of pixels x .. x + N - 1 of a row (x odd, the row's texels in `row`),
 // from weights w and their sum: the blend where a pixel is foreground, the background
 // elsewhere (pixels whose weights are too small are redone one by one after).
 void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p,
-                 std::span<const UpsampleImage> images, const Lanes w[4], Lanes wsum, hn::Mask<FloatLanes> fg,
-                 int x, int y) {
+                 std::span<const UpsampleImage> images, RowPointers rows, const Lanes w[4], Lanes wsum,
+                 hn::Mask<FloatLanes> fg, int x) {
   const FloatLanes d;
   const size_t n = hn::Lanes(d);
   const Lanes zero = hn::Zero(d);
@@ -458,7 +466,7 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
       }
       value[ch] = hn::IfThenElse(fg, hn::Div(acc, wsum), hn::Set(d, float(im.background[ch])));
     }
-    float* out = im.full.ptr<float>(y) + size_t(x) * size_t(cn);
+    float* out = rows[i] + size_t(x) * size_t(cn);
     if (cn == 1) {
       hn::StoreU(value[0], d, out);
     } else if (cn == 3) {
@@ -474,7 +482,7 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
 
 // Pixels [span.begin, span.end) of row y, a vector at a time.
 void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const UpsampleImage> images,
-                    lanes::TexelRows& texels, const lanes::LanePattern& p, const AxisFootprint& fy,
+                    RowPointers rows, lanes::TexelRows& texels, const lanes::LanePattern& p, const AxisFootprint& fy,
                     const LaneSpan& span, int y) {
   const FloatLanes d;
   const size_t n = hn::Lanes(d);
@@ -485,7 +493,7 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
     row.weights(x, p, fg, w);
     Lanes wsum = hn::Zero(d);
     for (int k = 0; k < 4; ++k) wsum = hn::Add(wsum, w[k]);
-    blend_lanes(texels, row, p, images, w, wsum, fg, x, y);
+    blend_lanes(texels, row, p, images, rows, w, wsum, fg, x);
     // Foreground pixels whose weights are too small go pixel by pixel.
     const auto low = hn::AndNot(hn::Gt(wsum, hn::Set(d, kMinUpsampleWeight)), fg);
     if (hn::AllFalse(d, low)) continue;
@@ -499,7 +507,7 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
       const int xl = x + int(l);
       f.x = axis_footprint(xl, h.depth_view.cols);
       const float wp[4] = {wl[0][l], wl[1][l], wl[2][l], wl[3][l]};
-      upsample_pixel(h, images, f, row.depth[xl], wp, xl, y);
+      upsample_pixel(h, images, rows, f, row.depth[xl], wp, xl);
     }
   }
 }
@@ -546,19 +554,53 @@ void unit_vectors(float* v, const float* n, const uint8_t* mask, int x0, int x1)
 
 // The images' finish (UpsampleFinish) on pixels [x0, x1) of row y, after the row's
 // upsample.
-void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, int y, int x0, int x1) {
+void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, RowPointers rows, int y, int x0,
+                int x1) {
   const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
-  for (const UpsampleImage& im : images) {
-    if (im.finish == UpsampleFinish::clamp_unit_interval) {
-      float* row = im.full.ptr<float>(y);
+  for (size_t i = 0; i < images.size(); ++i) {
+    float* row = rows[i];
+    if (images[i].finish == UpsampleFinish::clamp_unit_interval) {
       for (int x = x0; x < x1; ++x) row[x] = std::clamp(row[x], 0.0f, 1.0f);
-    } else if (im.finish == UpsampleFinish::unit_vector) {
-      cv::Vec3f* row = im.full.ptr<cv::Vec3f>(y);
-      const cv::Vec3f* normal_row = full.normal_view.ptr<cv::Vec3f>(y);
-      unit_vectors(reinterpret_cast<float*>(row), reinterpret_cast<const float*>(normal_row), mask_row, x0, x1);
+    } else if (images[i].finish == UpsampleFinish::unit_vector) {
+      const float* normal_row = full.normal_view.ptr<float>(y);
+      unit_vectors(row, normal_row, mask_row, x0, x1);
     }
   }
 }
+
+// The rows the upsample writes for a strip of rows (RowPointers): a float image's own rows;
+// a half-float image's values go to a float row first and are stored in half once the row
+// is finished (half_samples::to_half: round to nearest even, OpenEXR's bits).
+class OutputRows {
+ public:
+  OutputRows(std::span<const UpsampleImage> images, int width) : images_(images), rows_(images.size()) {
+    scratch_.resize(images.size());
+    for (size_t i = 0; i < images.size(); ++i)
+      if (images[i].full.depth() == CV_16F) scratch_[i].resize(size_t(width) * size_t(images[i].half.channels()));
+  }
+
+  // The rows of pixel row y.
+  RowPointers at(int y) {
+    for (size_t i = 0; i < images_.size(); ++i)
+      rows_[i] = scratch_[i].empty() ? images_[i].full.ptr<float>(y) : scratch_[i].data();
+    return rows_;
+  }
+
+  // Pixels [x0, x1) of row y, finished: stored in the half-float images.
+  void store(int y, int x0, int x1) const {
+    for (size_t i = 0; i < images_.size(); ++i) {
+      if (scratch_[i].empty()) continue;
+      const size_t cn = size_t(images_[i].half.channels());
+      half_samples::to_half(scratch_[i].data() + size_t(x0) * cn, int(size_t(x1 - x0) * cn),
+                            images_[i].full.ptr<uint16_t>(y) + size_t(x0) * cn);
+    }
+  }
+
+ private:
+  std::span<const UpsampleImage> images_;
+  std::vector<float*> rows_;
+  std::vector<std::vector<float>> scratch_;
+};
 
 }  // namespace
 
@@ -584,7 +626,8 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
   const int hh = h.depth_view.rows;
   for (const UpsampleImage& im : images) {
     CV_Assert(im.half.depth() == CV_32F && im.half.size() == h.depth_view.size());
-    CV_Assert(im.full.type() == im.half.type() && im.full.size() == full.depth_view.size());
+    CV_Assert((im.full.depth() == CV_32F || im.full.depth() == CV_16F) && im.full.channels() == im.half.channels() &&
+              im.full.size() == full.depth_view.size());
     CV_Assert(im.half.channels() <= kMaxChannels);
     CV_Assert(im.finish != UpsampleFinish::clamp_unit_interval || im.half.channels() == 1);
     CV_Assert(im.finish != UpsampleFinish::unit_vector || im.half.channels() == 3);
@@ -596,12 +639,15 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
     lanes::TexelRows texels(h, images);
     const std::optional<lanes::LanePattern> pattern =
         span.begin < span.end ? std::optional<lanes::LanePattern>(std::in_place) : std::nullopt;
+    OutputRows outputs(images, full.depth_view.cols);
     for (int y = rows.start; y < rows.end; ++y) {
       const AxisFootprint fy = axis_footprint(y, hh);
-      upsample_span(full, h, images, y, fy, r.x, span.begin);
-      if (pattern) upsample_lanes(full, h, images, texels, *pattern, fy, span, y);
-      upsample_span(full, h, images, y, fy, span.end, r.x + r.width);
-      if (finished) finish_row(full, images, y, r.x, r.x + r.width);
+      const RowPointers out = outputs.at(y);
+      upsample_span(full, h, images, out, y, fy, r.x, span.begin);
+      if (pattern) upsample_lanes(full, h, images, out, texels, *pattern, fy, span, y);
+      upsample_span(full, h, images, out, y, fy, span.end, r.x + r.width);
+      if (finished) finish_row(full, images, out, y, r.x, r.x + r.width);
+      outputs.store(y, r.x, r.x + r.width);
     }
   }, kRowsPerStrip);
 }
@@ -661,15 +707,16 @@ void allocate(cv::Mat& image, const cv::Size& size, int type) {
 void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, const cv::Size& size,
                         TermOutputs& out) {
   const bool denoised = settings.denoise != nullptr;
+  const int only_written = settings.half_for_output_only ? CV_16FC3 : CV_32FC3;
   if (half.ao) {
     allocate(out.ao.ao, size, CV_32FC1);
-    if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, CV_32FC3);
+    if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, only_written);
     else out.ao.bent_normal_view.release();
     if (denoised) allocate(out.denoised.ao, size, CV_32FC1);
   }
   if (half.ssdo) {
-    allocate(out.ssdo.direct, size, CV_32FC3);
-    allocate(out.ssdo.indirect, size, CV_32FC3);
+    allocate(out.ssdo.direct, size, denoised ? only_written : CV_32FC3);
+    allocate(out.ssdo.indirect, size, denoised ? only_written : CV_32FC3);
     if (denoised) {
       allocate(out.denoised.direct, size, CV_32FC3);
       allocate(out.denoised.indirect, size, CV_32FC3);
@@ -852,7 +899,8 @@ void denoise_on_grid(const HalfGrid& h, const DenoiseSettings& s, std::span<cons
 // light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
 // pass.
 void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
-                          const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads) {
+                          const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads,
+                          const std::function<void()>& inputs_read) {
   HalfGrid h;
   build_half_grid(full, h, nthreads, /*with_positions=*/half.ao || half.ssdo);
   const cv::Rect half_roi = half_grid_roi(r, full.depth_view.size());
@@ -903,11 +951,13 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
     images.push_back({grid.confidence, out.confidence, cv::Scalar(1.0), cv::Scalar(1.0)});
   }
   // The full-resolution images are allocated only now, after the kernels have freed their
-  // scratch and the grid its inputs that the upsample does not read: the heap hands that
-  // memory to them, where fresh pages would cost a fault each on first touch.
+  // scratch, the grid its inputs that the upsample does not read and the caller its own
+  // (inputs_read): the heap hands that memory to them, where fresh pages would cost a fault
+  // each on first touch.
   g = GridInputs();
   h.position_view.release();
   h.source.release();
+  if (inputs_read) inputs_read();
   allocate_upsampled(settings, half, full.depth_view.size(), out);
   upsample_from_half_grid(full, h, images, r, nthreads);
 }
@@ -930,7 +980,7 @@ MultiViewSettings multiview_settings(const TermSettings& settings) {
 }
 
 void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi,
-                   int nthreads) {
+                   int nthreads, const std::function<void()>& inputs_read) {
   CV_Assert(settings.ssdo == nullptr || in.environment != nullptr);
   const HalfTerms half = half_terms(settings);
   // Full-resolution positions only for a kernel that runs there.
@@ -956,14 +1006,26 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
     compute_confidence(in.depth_view, in.normal_view, in.mask, in.camera, *settings.confidence, out.confidence,
                        roi, nthreads, {observers, multiview_settings(settings)});
   }
-  if (!half.any()) return;
+  if (!half.any()) {
+    if (inputs_read) inputs_read();
+    return;
+  }
   CV_Assert(in.depth_view.type() == CV_32FC1);
   CV_Assert(in.mask.type() == CV_8UC1 && in.mask.size() == in.depth_view.size());
   CV_Assert(in.normal_view.type() == CV_32FC3 && in.normal_view.size() == in.depth_view.size());
   const cv::Rect r = resolve_roi(roi, in.depth_view.size());
-  if (r.empty()) return allocate_upsampled(settings, half, in.depth_view.size(), out);
+  if (r.empty()) {
+    if (inputs_read) inputs_read();
+    return allocate_upsampled(settings, half, in.depth_view.size(), out);
+  }
   const FullGrid full{in.depth_view, in.normal_view, position_view, in.mask, in.camera};
-  compute_on_half_grid(full, in, settings, half, out, r, nthreads);
+  // The upsample reads neither positions nor the second depth layer: their references go
+  // with the caller's inputs.
+  compute_on_half_grid(full, in, settings, half, out, r, nthreads, [&] {
+    position_view.release();
+    back.release();
+    if (inputs_read) inputs_read();
+  });
 }
 
 void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi,

@@ -19,6 +19,7 @@
 // is copied; with no foreground texel there, the image's fallback value is written.
 #pragma once
 
+#include <functional>
 #include <span>
 
 #include <opencv2/core.hpp>
@@ -84,8 +85,10 @@ cv::Rect half_grid_roi(const cv::Rect& full_roi, const cv::Size& full_size);
 enum class UpsampleFinish { none, clamp_unit_interval, unit_vector };
 
 // One image to bring to full resolution: `half` (CV_32F, any channels, the half grid's
-// size) into `full` (same type, the full size, allocated by the caller). Background pixels
-// get `background`, pixels with no foreground texel near get `fallback`; then `finish`.
+// size) into `full` (the same channels, the full size, allocated by the caller): CV_32F, or
+// CV_16F to store the values in half (core/half_samples.h: round to nearest even, the bits
+// a half-float output stores) at half the memory. Background pixels get `background`,
+// pixels with no foreground texel near get `fallback`; then `finish`, on the floats.
 struct UpsampleImage {
   const cv::Mat& half;
   cv::Mat& full;
@@ -141,6 +144,10 @@ struct TermSettings {
   // estimates themselves instead of their blends. Terms on the full grid are not denoised
   // here.
   const DenoiseSettings* denoise = nullptr;
+  // The upsampled outputs that nothing reads but a half-float output stored in half
+  // (UpsampleImage: CV_16F, the bits the output would store), at half the memory: the bent
+  // normal, and with `denoise` the raw SSDO terms (the later steps read the denoised ones).
+  bool half_for_output_only = false;
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
@@ -180,8 +187,12 @@ LightReads light_reads(bool ao_multibounce, bool ssdo, bool frame_has_lighting);
 // in one pass (background and fallback: AO 1, bent normal 0, SSDO 0, confidence 1), which
 // also clamps AO to [0, 1] and renormalises the bent normals (UpsampleFinish). Outputs as
 // each kernel's.
+// inputs_read, when given, is called once every kernel has run, before the upsample's
+// full-resolution outputs are allocated: the caller may free there what no later step of
+// its own reads, and the outputs reuse that memory. After it returns, only in.depth_view,
+// in.normal_view and in.mask are read (by the upsample).
 void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi = {},
-                   int nthreads = 0);
+                   int nthreads = 0, const std::function<void()>& inputs_read = {});
 
 // One term through compute_terms: what a frame computes for it.
 void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi = {},

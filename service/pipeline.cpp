@@ -4,11 +4,12 @@
 #include <chrono>
 #include <cstdio>
 #include <exception>
+#include <functional>
 #include <stdexcept>
 #include <sstream>
 
 #include "core/parallel.h"
-#include "formats/half_samples.h"
+#include "core/half_samples.h"
 #include "kernels/confidence.h"
 #include "kernels/half_resolution.h"
 #include "service/frame_inputs.h"
@@ -123,16 +124,17 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
 // the terms on the half grid are also denoised there (TermOutputs::denoised), for a frame
 // whose raw terms are not filtered over time first.
 TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, const TermsComputed& computed,
-                              bool denoise_on_grid) {
+                              bool denoise_on_grid, const std::function<void()>& inputs_read) {
   const bool confidence_wanted = request.terms.ao || request.terms.ssdo;
   const ConfidenceSettings confidence = confidence_settings(request);
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &frame_environment(request),
                       g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
-  const TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
-                              confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
+  TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
+                        confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
+  selected.half_for_output_only = true;
   TermOutputs out;
-  compute_terms(in, selected, out, {}, request.threads);
+  compute_terms(in, selected, out, {}, request.threads, inputs_read);
   return out;
 }
 
@@ -266,23 +268,30 @@ void keep_in_half(cv::Mat& term, int threads) {
   term = stored;
 }
 
-// Releases what no step after the raw terms reads: g's views and its positions, and the
-// lighting and albedo unless the composite reads them (the denoised terms and the composite
-// reuse their memory: the worker's heap keeps freed memory, and fresh pages cost a fault
-// each). The bent normal, read by nothing but the output, is kept in half from here (in
-// memory the released images leave).
-void release_after_raw_terms(GBuffer& g, TermOutputs& raw, const FrameRequest& request) {
+// Releases the inputs no step after the raw terms reads: g's views and its positions, and
+// the lighting and albedo unless the composite reads them (the upsampled and denoised terms
+// and the composite reuse their memory: the worker's heap keeps freed memory, and fresh
+// pages cost a fault each).
+void release_read_inputs(GBuffer& g, const FrameRequest& request) {
   g.views.clear();
   g.position_view.release();
   if (!composite_reads_lighting(request, terms_computed(request))) g.lighting.release();
   if (!request.terms.composite) g.albedo.release();
+}
+
+// release_read_inputs; the bent normal, read by nothing but the output, is kept in half
+// from here (in memory the released images leave).
+void release_after_raw_terms(GBuffer& g, TermOutputs& raw, const FrameRequest& request) {
+  release_read_inputs(g, request);
   keep_in_half(raw.ao.bent_normal_view, request.threads);
 }
 
-// The raw terms of g (denoised on their grid as compute_raw_terms), then
+// The raw terms of g (denoised on their grid as compute_raw_terms), g's inputs released as
+// soon as the kernels have read them, before the upsample's outputs are allocated; then
 // release_after_raw_terms.
 TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request, bool denoise_on_grid) {
-  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request), denoise_on_grid);
+  TermOutputs raw = compute_raw_terms(g, request, terms_computed(request), denoise_on_grid,
+                                      [&] { release_read_inputs(g, request); });
   release_after_raw_terms(g, raw, request);
   return raw;
 }
@@ -392,9 +401,15 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
       frame.terms.push_back({"bent_normal", bent_normal, SampleType::half, true});
     }
   }
-  if (c.ssdo && terms.ssdo)
-    for (const char* name : {"ssdo_direct", "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"})
-      colour(name);
+  if (c.ssdo && terms.ssdo) {
+    // The raw terms of a lone frame's half grid are kept in half, as compute_frame keeps them.
+    cv::Mat raw_in_half = g.normal_view;
+    if (runs_on_half_grid(request.ssdo)) keep_in_half(raw_in_half, request.threads);
+    for (const char* name : {"ssdo_direct", "ssdo_indirect"}) {
+      frame.terms.push_back({name, raw_in_half, SampleType::half, false});
+      colour((std::string(name) + "_denoised").c_str());
+    }
+  }
   if (terms.ao || terms.ssdo) scalar("confidence");
   if (terms.composite) colour("composite");
   return frame;

@@ -27,6 +27,17 @@ inline std::vector<RawFrame> raw_frames(const std::vector<const GBuffer*>& frame
   return raws;
 }
 
+// Every frame computed alone, as the product computes a frame without temporal neighbours
+// (compute_frame: the half grid's terms denoised on the grid); ms: the mean time of a frame.
+inline std::vector<ComputedFrame> lone_frames(const std::vector<const GBuffer*>& frames, const FrameRequest& request,
+                                              double& ms) {
+  std::vector<ComputedFrame> out;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const GBuffer* g : frames) out.push_back(compute_frame(*g, request));
+  ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / double(frames.size());
+  return out;
+}
+
 // Frame t finished with the frames t-k..t+k of the shot (those that exist) as temporal
 // neighbours, nearest first per side as the service orders them; ms: the mean time of a
 // frame's finish.

@@ -19,7 +19,7 @@
 #include <OpenEXR/openexr.h>
 
 #include "formats/gbuffer_reader.h"
-#include "formats/half_samples.h"
+#include "core/half_samples.h"
 #include "formats_test_util.h"
 
 namespace ssdo::test {

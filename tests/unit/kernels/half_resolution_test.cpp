@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "core/half_samples.h"
+
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/denoise.h"
@@ -126,6 +128,37 @@ TEST(HalfResolution, UpsampleOfSeveralImagesGivesTheBitsOfEachAlone) {
   EXPECT_EQ(cv::norm(gray_alone, gray_together, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::norm(color_alone, color_together, cv::NORM_INF), 0.0);
   EXPECT_EQ(cv::countNonZero(gray_together == -1), 161 * 91 - roi.area());
+}
+
+// A half-float image gets the float image's values, finished, rounded to half
+// (half_samples::to_half), in the roi only; a float image beside it keeps its bits.
+TEST(HalfResolution, UpsampleIntoHalfStoresTheFinishedFloatsInHalf) {
+  const FrameGrids grids;
+  const GBuffer& g = grids.g;
+  cv::Mat vectors(grids.h.depth_view.size(), CV_32FC3), gray(grids.h.depth_view.size(), CV_32FC1);
+  cv::randu(vectors, -1.0f, 1.0f);
+  cv::randu(gray, 0.0f, 1.0f);
+  cv::Mat as_float(g.depth_view.size(), CV_32FC3), gray_alone(g.depth_view.size(), CV_32FC1);
+  cv::Mat as_half(g.depth_view.size(), CV_16FC3, cv::Scalar::all(7)), gray_beside(g.depth_view.size(), CV_32FC1);
+  const cv::Rect roi(3, 5, 150, 80);
+  const UpsampleImage floats[] = {{vectors, as_float, cv::Scalar::all(0), cv::Scalar::all(0), UpsampleFinish::unit_vector},
+                                  {gray, gray_alone, cv::Scalar(1), cv::Scalar(1)}};
+  const UpsampleImage mixed[] = {{vectors, as_half, cv::Scalar::all(0), cv::Scalar::all(0), UpsampleFinish::unit_vector},
+                                 {gray, gray_beside, cv::Scalar(1), cv::Scalar(1)}};
+  upsample_from_half_grid(grids.full, grids.h, floats, roi, 2);
+  upsample_from_half_grid(grids.full, grids.h, mixed, roi, 2);
+  EXPECT_EQ(cv::norm(gray_alone(roi), gray_beside(roi), cv::NORM_INF), 0.0);
+  cv::Mat want(roi.size(), CV_16FC3);
+  for (int y = 0; y < roi.height; ++y)
+    half_samples::to_half(as_float.ptr<float>(roi.y + y) + 3 * roi.x, 3 * roi.width, want.ptr<uint16_t>(y));
+  auto bits = [](const cv::Mat& m) { return cv::Mat(m.rows, m.cols, CV_16UC3, m.data, m.step); };
+  EXPECT_EQ(cv::norm(bits(as_half(roi)), bits(want), cv::NORM_INF), 0.0);
+  // Outside the roi nothing is written.
+  cv::Mat outside = as_half.clone();
+  outside(roi).setTo(cv::Scalar::all(7));
+  cv::Mat outside_values;
+  outside.convertTo(outside_values, CV_32F);
+  EXPECT_EQ(cv::countNonZero(outside_values.reshape(1) != 7.0f), 0);
 }
 
 // The finishes: the clamp to [0, 1] of each value, and each foreground vector over its

@@ -1,6 +1,6 @@
 // Half-sample conversions against Imath on every instruction set this CPU runs: every value
 // class, at every position in a vector of samples, and groups with and without NaNs.
-#include "formats/half_samples.h"
+#include "core/half_samples.h"
 
 #include <cstring>
 #include <random>

@@ -1,9 +1,9 @@
-#include "formats/half_samples.h"
+#include "core/half_samples.h"
 
-#include "formats/simd_targets.h"  // before Highway
+#include "core/simd_targets.h"  // before Highway
 
 #undef HWY_TARGET_INCLUDE
-#define HWY_TARGET_INCLUDE "formats/half_samples.cpp"
+#define HWY_TARGET_INCLUDE "core/half_samples.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
 #include <hwy/highway.h>
 
