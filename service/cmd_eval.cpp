@@ -22,10 +22,13 @@ namespace ssdo {
 
 namespace {
 
+// The channel mean of each pixel, in float (terms kept in half are read as they are).
 cv::Mat to_single_channel(const cv::Mat& m) {
-  if (m.channels() == 1) return m;
+  cv::Mat values = m;
+  if (m.depth() != CV_32F) m.convertTo(values, CV_32F);
+  if (values.channels() == 1) return values;
   cv::Mat out;
-  cv::transform(m, out, cv::Matx<float, 1, 3>(1.0f / 3, 1.0f / 3, 1.0f / 3));
+  cv::transform(values, out, cv::Matx<float, 1, 3>(1.0f / 3, 1.0f / 3, 1.0f / 3));
   return out;
 }
 
@@ -148,7 +151,7 @@ int run_eval(const EvalArgs& args) {
     }
     // Scalar terms (AO) compare with a scalar reference (Cycles' AO is R = G = B);
     // colour terms compare the channel mean of each pixel.
-    const cv::Mat estimate = found->channels() == 1 ? *found : to_single_channel(*found);
+    const cv::Mat estimate = to_single_channel(*found);
     cv::Mat reference;
     if (args.oracle_preset.empty()) {
       reference = to_single_channel(ref_it->second);

@@ -131,9 +131,10 @@ struct RawFrame {
 // the raw terms of `neighbours` when given, kernels/temporal.h; denoised at full resolution,
 // the footprint scaled to each term's grid; composited). finish_frame releases the frame's
 // images as compute_frame does. compute_frame(g, r), for a frame without neighbours, gives
-// the bits of finish_frame(compute_raw_frame(g, r), {}, r) but for the denoised terms that
-// run on the half grid: it denoises them there, before the upsample (TermSettings::denoise,
-// kernels/half_resolution.h), a quarter of the reads.
+// the bits of finish_frame(compute_raw_frame(g, r), {}, r) but for the terms that run on
+// the half grid: it denoises them there, before the upsample (TermSettings::denoise,
+// kernels/half_resolution.h), a quarter of the reads, and keeps the raw SSDO terms in half
+// (CV_16F: nothing but the output reads them).
 RawFrame compute_raw_frame(GBuffer&& gbuffer, const FrameRequest& request);
 ComputedFrame finish_frame(RawFrame&& frame, std::span<const RawFrame* const> neighbours, const FrameRequest& request);
 // The raw frame of a G-buffer whose raw terms `raw` were computed before, by
