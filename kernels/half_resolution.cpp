@@ -707,16 +707,17 @@ void allocate(cv::Mat& image, const cv::Size& size, int type) {
 void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, const cv::Size& size,
                         TermOutputs& out) {
   const bool denoised = settings.denoise != nullptr;
-  const int only_written = settings.half_for_output_only ? CV_16FC3 : CV_32FC3;
+  const HalfOutputs& in_half = settings.stored_in_half;
+  auto colour = [](bool stored_in_half) { return stored_in_half ? CV_16FC3 : CV_32FC3; };
   if (half.ao) {
     allocate(out.ao.ao, size, CV_32FC1);
-    if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, only_written);
+    if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, colour(in_half.bent_normal));
     else out.ao.bent_normal_view.release();
     if (denoised) allocate(out.denoised.ao, size, CV_32FC1);
   }
   if (half.ssdo) {
-    allocate(out.ssdo.direct, size, denoised ? only_written : CV_32FC3);
-    allocate(out.ssdo.indirect, size, denoised ? only_written : CV_32FC3);
+    allocate(out.ssdo.direct, size, colour(in_half.ssdo));
+    allocate(out.ssdo.indirect, size, colour(in_half.ssdo));
     if (denoised) {
       allocate(out.denoised.direct, size, CV_32FC3);
       allocate(out.denoised.indirect, size, CV_32FC3);

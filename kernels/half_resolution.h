@@ -132,6 +132,12 @@ struct TermInputs {
   std::span<const DepthView> views = {};
 };
 
+// Which of the terms upsampled from the half grid compute_terms stores in half.
+struct HalfOutputs {
+  bool bent_normal = false;
+  bool ssdo = false;  // the raw SSDO terms
+};
+
 // The terms to compute, each with its settings; null = not computed.
 struct TermSettings {
   const AoSettings* ao = nullptr;
@@ -144,10 +150,9 @@ struct TermSettings {
   // estimates themselves instead of their blends. Terms on the full grid are not denoised
   // here.
   const DenoiseSettings* denoise = nullptr;
-  // The upsampled outputs that nothing reads but a half-float output stored in half
-  // (UpsampleImage: CV_16F, the bits the output would store), at half the memory: the bent
-  // normal, and with `denoise` the raw SSDO terms (the later steps read the denoised ones).
-  bool half_for_output_only = false;
+  // Upsampled outputs stored in half (UpsampleImage: CV_16F, the bits a half-float output
+  // would store), at half the memory: for those that nothing but such an output reads.
+  HalfOutputs stored_in_half;
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth

@@ -132,7 +132,9 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
   TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
                         confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
-  selected.half_for_output_only = true;
+  // What nothing but the half-float output reads: the bent normal, and a lone frame's raw
+  // SSDO terms (the denoise read them on the grid; the composite reads the denoised ones).
+  selected.stored_in_half = {true, denoise_on_grid};
   TermOutputs out;
   compute_terms(in, selected, out, {}, request.threads, inputs_read);
   return out;
@@ -403,11 +405,11 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   }
   if (c.ssdo && terms.ssdo) {
     // The raw terms of a lone frame's half grid are kept in half, as compute_frame keeps them.
-    cv::Mat raw_in_half = g.normal_view;
-    if (runs_on_half_grid(request.ssdo)) keep_in_half(raw_in_half, request.threads);
-    for (const char* name : {"ssdo_direct", "ssdo_indirect"}) {
-      frame.terms.push_back({name, raw_in_half, SampleType::half, false});
-      colour((std::string(name) + "_denoised").c_str());
+    cv::Mat raw = g.normal_view;
+    if (runs_on_half_grid(request.ssdo)) keep_in_half(raw, request.threads);
+    for (const std::string name : {"ssdo_direct", "ssdo_indirect"}) {
+      frame.terms.push_back({name, raw, SampleType::half, false});
+      frame.terms.push_back({name + "_denoised", g.normal_view, SampleType::half, false});
     }
   }
   if (terms.ao || terms.ssdo) scalar("confidence");

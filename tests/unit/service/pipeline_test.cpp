@@ -185,15 +185,17 @@ TEST(ComputeFrame, DenoisedTermsUseTheFootprintOfTheirGrid) {
 
   // The lone frame: the same raw terms (SSDO's kept in half: nothing but the output reads
   // them); AO denoised as above; SSDO denoised on its grid.
+  auto values = [](const cv::Mat& m) {  // rounded to half as the output stores it, as floats
+    cv::Mat in_half = m, out;
+    if (m.depth() != CV_16F) m.convertTo(in_half, CV_16F);
+    in_half.convertTo(out, CV_32F);
+    return out;
+  };
   for (const std::string name : {"ao", "ao_denoised"})
     EXPECT_EQ(cv::norm(term(lone, name), term(finished, name), cv::NORM_INF), 0.0) << name;
   for (const std::string name : {"ssdo_direct", "ssdo_indirect"}) {
     ASSERT_EQ(term(lone, name).type(), CV_16FC3) << name;
-    cv::Mat lone_values, finished_in_half, finished_values;
-    term(lone, name).convertTo(lone_values, CV_32F);
-    term(finished, name).convertTo(finished_in_half, CV_16F);
-    finished_in_half.convertTo(finished_values, CV_32F);
-    EXPECT_EQ(cv::norm(lone_values, finished_values, cv::NORM_INF), 0.0) << name;
+    EXPECT_EQ(cv::norm(values(term(lone, name)), values(term(finished, name)), cv::NORM_INF), 0.0) << name;
   }
   const Environment white;
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &white, &g.albedo,
