@@ -152,7 +152,7 @@ struct TermSettings {
   const DenoiseSettings* denoise = nullptr;
   // Upsampled outputs stored in half (UpsampleImage: CV_16F, the bits a half-float output
   // would store), at half the memory: for those that nothing but such an output reads.
-  HalfOutputs stored_in_half;
+  HalfOutputs stored_in_half = {};
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
@@ -162,8 +162,8 @@ MultiViewSettings multiview_settings(const TermSettings& settings);
 
 // The denoised AO and SSDO terms (TermSettings::denoise), at full resolution like the raw.
 struct DenoisedTerms {
-  cv::Mat ao;                  // CV_32FC1, clamped to [0, 1] as the raw AO
-  cv::Mat direct, indirect;    // CV_32FC3
+  cv::Mat ao;                // CV_32FC1, clamped to [0, 1] as the raw AO
+  cv::Mat direct, indirect;  // CV_32FC3
 };
 
 struct TermOutputs {
