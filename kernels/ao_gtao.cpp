@@ -712,7 +712,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& t, 
     // The side's last tap: unchanged without a tap or on the centre line; else this one,
     // with nothing to connect to off screen, on background and beyond the radius.
     const bool keep = (index == kNoTap) | centre;
-    st.depth_view[l] = keep ? st.depth_view[l] : has | below ? t.depth_view[l] : -1.0f;
+    st.depth_view[l] = keep ? st.depth_view[l] : (has | below) ? t.depth_view[l] : -1.0f;
     st.u0[l] = keep ? st.u0[l] : has ? t.u0[l] : u_lim;
     st.u1[l] = keep ? st.u1[l] : has ? t.u1[l] : u_lim;
     st.texel[l] = keep ? st.texel[l] : std::max(index, 0);

@@ -186,7 +186,9 @@ TEST(Confidence, SmoothsFramesSmallerThanItsFootprint) {
       for (int x = 0; x < size.width; ++x) {
         const float c = whole.at<float>(y, x);
         EXPECT_TRUE(c >= 0.0f && c <= 1.0f) << size << " " << x << "," << y << ": " << c;
-        if (!g.mask.at<uint8_t>(y, x)) EXPECT_EQ(c, 1.0f);
+        if (!g.mask.at<uint8_t>(y, x)) {
+          EXPECT_EQ(c, 1.0f);
+        }
       }
     EXPECT_TRUE(bitwise_equal(confidence_of(g, s, {}, 3), whole)) << size;
     const cv::Rect corner(size.width - 1, size.height - 1, 1, 1);
