@@ -489,10 +489,9 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   if (r.empty()) return;
   // The smoothing reads the fraction up to its radius around r: computed there first, into
   // an image of its own (zero elsewhere: nothing undefined reaches the blur's planes).
-  const int reach = s.smoothing_radius_px;
-  const cv::Rect raw_r =
-      cv::Rect(r.x - reach, r.y - reach, r.width + 2 * reach, r.height + 2 * reach) & cv::Rect({}, size);
-  cv::Mat raw = reach > 0 ? cv::Mat::zeros(size, CV_32FC1) : confidence;
+  const bool smoothed = s.smoothing_radius_px > 0;
+  const cv::Rect raw_r = denoise_reads(r, smoothing(s), size);
+  cv::Mat raw = smoothed ? cv::Mat::zeros(size, CV_32FC1) : confidence;
   const Spiral spiral = vogel_spiral(s.taps);
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
   std::unique_ptr<PointVerdicts> verdicts;
@@ -512,7 +511,7 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   const PixelFrame frame{depth_view, normal_view, mask, camera, s, taps, camera.is_perspective()};
   parallel_rows(cv::Range(raw_r.y, raw_r.y + raw_r.height), nthreads,
                 [&](const cv::Range& rows) { confidence_rows(frame, rows, raw_r, raw); });
-  if (reach > 0) denoise_bilateral(raw, depth_view, normal_view, mask, smoothing(s), confidence, r, nthreads);
+  if (smoothed) denoise_bilateral(raw, depth_view, normal_view, mask, smoothing(s), confidence, r, nthreads);
 }
 
 }  // namespace ssdo::HWY_NAMESPACE

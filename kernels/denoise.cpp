@@ -587,6 +587,12 @@ DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor)
   return scaled;
 }
 
+cv::Rect denoise_reads(const cv::Rect& roi, const DenoiseSettings& s, const cv::Size& size) {
+  const int reach = s.radius_px / s.tap_spacing_px * s.tap_spacing_px;
+  return cv::Rect(roi.x - reach, roi.y - reach, roi.width + 2 * reach, roi.height + 2 * reach) &
+         cv::Rect(cv::Point(), size);
+}
+
 void denoise_bilateral(const cv::Mat& src, const cv::Mat& depth_view, const cv::Mat& normal_view,
                        const cv::Mat& mask, const DenoiseSettings& settings, cv::Mat& dst,
                        cv::Rect roi, int nthreads) {

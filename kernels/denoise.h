@@ -45,6 +45,11 @@ std::string validate(const DenoiseSettings& s);
 // them are blends of the same estimates.
 DenoiseSettings scaled_to_grid(const DenoiseSettings& s, int resolution_divisor);
 
+// The pixels the blur of `roi` reads in an image of `size`: roi grown by the farthest tap,
+// floor(radius_px / tap_spacing_px) x tap_spacing_px, clipped to the image. A caller that
+// computes the source for the blur computes it there.
+cv::Rect denoise_reads(const cv::Rect& roi, const DenoiseSettings& s, const cv::Size& size);
+
 // Depth- and normal-aware separable bilateral blur (a horizontal pass, then a vertical
 // pass over its result) of a CV_32FC1 or CV_32FC3 image. Tap weight:
 //   g(k) * max(0, 1 - |d_tap - d| / (tol * d)) * max(0, n . n_tap)^power,

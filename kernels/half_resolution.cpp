@@ -878,20 +878,6 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
   crop_from_band(extended.indirect, g, roi, out.indirect);
 }
 
-// The texels the denoise of `roi` reads on a grid of `size`: roi grown by its reach.
-cv::Rect denoise_reads(const cv::Rect& roi, const DenoiseSettings& s, const cv::Size& size) {
-  const int reach = s.radius_px / s.tap_spacing_px * s.tap_spacing_px;
-  return cv::Rect(roi.x - reach, roi.y - reach, roi.width + 2 * reach, roi.height + 2 * reach) &
-         cv::Rect(cv::Point(), size);
-}
-
-// The half grid's AO and SSDO terms of `terms` (AO, then SSDO direct and indirect: those
-// computed) denoised on the grid's texels of roi, into `denoised` in the same order.
-void denoise_on_grid(const HalfGrid& h, const DenoiseSettings& s, std::span<const cv::Mat* const> terms,
-                     std::span<cv::Mat* const> denoised, const cv::Rect& roi, int nthreads) {
-  if (!terms.empty()) denoise_bilateral(terms, h.depth_view, h.normal_view, h.mask, s, denoised, roi, nthreads);
-}
-
 // The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
 // it), each kernel on the texels the upsample of r reads (and, with the denoise, the texels
 // its taps read around them), the denoise of AO and SSDO on the grid, then one upsample of
@@ -932,7 +918,9 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
     noisy.push_back(&grid.ssdo.indirect), denoised.push_back(&grid.denoised.indirect);
   }
   if (settings.denoise) {
-    denoise_on_grid(h, *settings.denoise, noisy, denoised, half_roi, nthreads);
+    // AO, then SSDO direct and indirect (those on the grid), blurred with the grid's guides.
+    if (!noisy.empty())
+      denoise_bilateral(noisy, h.depth_view, h.normal_view, h.mask, *settings.denoise, denoised, half_roi, nthreads);
     if (half.ao)
       images.push_back({grid.denoised.ao, out.denoised.ao, cv::Scalar(1.0), cv::Scalar(1.0),
                         UpsampleFinish::clamp_unit_interval});

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/support/raycast.h"
+
 namespace ssdo {
 namespace {
 
@@ -263,6 +265,36 @@ TEST(DenoiseSettings, Validate) {
   EXPECT_NE(validate(s).find("tap_spacing_px"), std::string::npos);
   s.tap_spacing_px = 5;
   EXPECT_NE(validate(s).find("tap_spacing_px"), std::string::npos);
+}
+
+// What the blur of a roi reads: the roi grown by the farthest tap (a multiple of the
+// spacing), clipped to the image; and the blur of the roi over a source that holds only
+// those pixels gives the bits of the blur over the whole source.
+TEST(Denoise, ReadsTheRoiGrownByTheFarthestTap) {
+  const cv::Size size(100, 60);
+  DenoiseSettings s;
+  s.radius_px = 5;
+  s.tap_spacing_px = 2;  // taps at 0, 2, 4: reach 4
+  EXPECT_EQ(denoise_reads(cv::Rect(10, 10, 20, 20), s, size), cv::Rect(6, 6, 28, 28));
+  EXPECT_EQ(denoise_reads(cv::Rect(0, 50, 100, 10), s, size), cv::Rect(0, 46, 100, 14));
+  s.tap_spacing_px = 1;
+  EXPECT_EQ(denoise_reads(cv::Rect(10, 10, 20, 20), s, size), cv::Rect(5, 5, 30, 30));
+  s.radius_px = 0;
+  EXPECT_EQ(denoise_reads(cv::Rect(10, 10, 20, 20), s, size), cv::Rect(10, 10, 20, 20));
+
+  const GBuffer g = raycast::render_gbuffer(raycast::cornell_scene(), raycast::cornell_camera(100, 60), 0);
+  cv::Mat src(size, CV_32FC1);
+  cv::randu(src, 0.0f, 1.0f);
+  s = DenoiseSettings{};
+  s.tap_spacing_px = 2;
+  s.radius_px = 7;
+  const cv::Rect roi(30, 20, 25, 15);
+  cv::Mat whole, part;
+  denoise_bilateral(src, g.depth_view, g.normal_view, g.mask, s, whole, {}, 2);
+  cv::Mat only_read = cv::Mat::zeros(size, CV_32FC1);
+  src(denoise_reads(roi, s, size)).copyTo(only_read(denoise_reads(roi, s, size)));
+  denoise_bilateral(only_read, g.depth_view, g.normal_view, g.mask, s, part, roi, 2);
+  EXPECT_EQ(cv::norm(part(roi), whole(roi), cv::NORM_INF), 0.0);
 }
 
 }  // namespace
