@@ -17,13 +17,18 @@
 
 namespace ssdo::shot {
 
+// Milliseconds per frame since t0, over n frames.
+inline double ms_per_frame(std::chrono::steady_clock::time_point t0, size_t n) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / double(n);
+}
+
 // Every frame's raw terms (compute_raw_frame), computed once for every K; ms: their mean time.
 inline std::vector<RawFrame> raw_frames(const std::vector<const GBuffer*>& frames, const FrameRequest& request,
                                         double& ms) {
   std::vector<RawFrame> raws;
   const auto t0 = std::chrono::steady_clock::now();
   for (const GBuffer* g : frames) raws.push_back(compute_raw_frame(GBuffer(*g), request));
-  ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / double(frames.size());
+  ms = ms_per_frame(t0, frames.size());
   return raws;
 }
 
@@ -34,7 +39,7 @@ inline std::vector<ComputedFrame> lone_frames(const std::vector<const GBuffer*>&
   std::vector<ComputedFrame> out;
   const auto t0 = std::chrono::steady_clock::now();
   for (const GBuffer* g : frames) out.push_back(compute_frame(*g, request));
-  ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / double(frames.size());
+  ms = ms_per_frame(t0, frames.size());
   return out;
 }
 
@@ -57,7 +62,7 @@ inline std::vector<ComputedFrame> finished_frames(const std::vector<RawFrame>& r
     r.temporal_per_side = k;
     out.push_back(finish_frame(RawFrame(raws[size_t(t)]), neighbours, r));
   }
-  ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / double(n);
+  ms = ms_per_frame(t0, size_t(n));
   return out;
 }
 
