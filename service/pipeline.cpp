@@ -117,6 +117,13 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
   return cs;
 }
 
+// The terms a frame keeps in half float as the kernels' upsample writes them, because
+// nothing but the half-float output reads them: the bent normal, and a lone frame's raw SSDO
+// terms (its denoise read them on the grid; the composite reads the denoised ones). A shot's
+// raw SSDO terms stay float: the temporal filter reads them. io_only_frame's stand-ins have
+// the same types.
+HalfOutputs outputs_in_half(bool lone_frame) { return {.bent_normal = true, .ssdo = lone_frame}; }
+
 // AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
 // run at half resolution share one grid and one upsample (kernels/half_resolution.h).
 // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
@@ -132,9 +139,7 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
   TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
                         confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
-  // What nothing but the half-float output reads: the bent normal, and a lone frame's raw
-  // SSDO terms (the denoise read them on the grid; the composite reads the denoised ones).
-  selected.stored_in_half = {true, denoise_on_grid};
+  selected.stored_in_half = outputs_in_half(/*lone_frame=*/denoise_on_grid);
   TermOutputs out;
   compute_terms(in, selected, out, {}, request.threads, inputs_read);
   return out;
@@ -281,20 +286,18 @@ void release_read_inputs(GBuffer& g, const FrameRequest& request) {
   if (!request.terms.composite) g.albedo.release();
 }
 
-// release_read_inputs; the bent normal, read by nothing but the output, is kept in half
-// from here (in memory the released images leave).
-void release_after_raw_terms(GBuffer& g, TermOutputs& raw, const FrameRequest& request) {
-  release_read_inputs(g, request);
+// The bent normal, read by nothing but the output (outputs_in_half), in half from here when
+// it was computed at full resolution (the upsample stores a half grid's in half already).
+void keep_bent_normal_in_half(TermOutputs& raw, const FrameRequest& request) {
   keep_in_half(raw.ao.bent_normal_view, request.threads);
 }
 
 // The raw terms of g (denoised on their grid as compute_raw_terms), g's inputs released as
-// soon as the kernels have read them, before the upsample's outputs are allocated; then
-// release_after_raw_terms.
+// soon as the kernels have read them, before the upsample's outputs are allocated.
 TermOutputs raw_terms_releasing(GBuffer& g, const FrameRequest& request, bool denoise_on_grid) {
   TermOutputs raw = compute_raw_terms(g, request, terms_computed(request), denoise_on_grid,
                                       [&] { release_read_inputs(g, request); });
-  release_after_raw_terms(g, raw, request);
+  keep_bent_normal_in_half(raw, request);
   return raw;
 }
 
@@ -335,7 +338,8 @@ RawFrame compute_raw_frame(GBuffer&& g, const FrameRequest& request) {
 RawFrame with_raw_terms(GBuffer&& g, TermOutputs raw, const FrameRequest& request) {
   RawFrame f;
   f.raw = std::move(raw);
-  release_after_raw_terms(g, f.raw, request);
+  release_read_inputs(g, request);
+  keep_bent_normal_in_half(f.raw, request);
   f.gbuffer = std::move(g);
   return f;
 }
@@ -388,6 +392,7 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const TermSelection& terms = request.terms;
   const TermsComputed c = terms_computed(request);
+  const HalfOutputs in_half = outputs_in_half(/*lone_frame=*/true);  // as compute_frame stores them
   cv::Mat normal_z;
   cv::extractChannel(g.normal_view, normal_z, 2);
   auto scalar = [&](const char* name) { frame.terms.push_back({name, normal_z, SampleType::float32, false}); };
@@ -397,16 +402,15 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   if (c.ao && terms.ao) {
     scalar("ao");
     scalar("ao_denoised");
-    if (has_bent_normal(request.ao)) {  // kept in half, as compute_frame keeps it
+    if (has_bent_normal(request.ao)) {
       cv::Mat bent_normal = g.normal_view;
-      keep_in_half(bent_normal, request.threads);
+      if (in_half.bent_normal) keep_in_half(bent_normal, request.threads);
       frame.terms.push_back({"bent_normal", bent_normal, SampleType::half, true});
     }
   }
   if (c.ssdo && terms.ssdo) {
-    // The raw terms of a lone frame's half grid are kept in half, as compute_frame keeps them.
-    cv::Mat raw = g.normal_view;
-    if (runs_on_half_grid(request.ssdo)) keep_in_half(raw, request.threads);
+    cv::Mat raw = g.normal_view;  // stored in half where the upsample writes them
+    if (in_half.ssdo && runs_on_half_grid(request.ssdo)) keep_in_half(raw, request.threads);
     for (const std::string name : {"ssdo_direct", "ssdo_indirect"}) {
       frame.terms.push_back({name, raw, SampleType::half, false});
       frame.terms.push_back({name + "_denoised", g.normal_view, SampleType::half, false});
