@@ -885,6 +885,29 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
 // normal 0 (set to the normal by its unit_vector finish), SSDO 0 (nothing known of the
 // light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
 // pass.
+// The grid's AO and SSDO terms (those not empty in `terms`) blurred on the grid with its
+// guides over half_roi into grid_denoised (whose images the upsample then reads), and the
+// upsample of each into `out` (allocated by the caller) added to `images`.
+void denoise_grid_terms(const HalfGrid& h, const HalfGridTerms& terms, const DenoiseSettings& settings,
+                        const cv::Rect& half_roi, DenoisedTerms& grid_denoised, DenoisedTerms& out,
+                        std::vector<UpsampleImage>& images, int nthreads) {
+  std::vector<const cv::Mat*> noisy;
+  std::vector<cv::Mat*> denoised;
+  if (!terms.ao.empty()) {
+    noisy.push_back(&terms.ao), denoised.push_back(&grid_denoised.ao);
+    images.push_back({grid_denoised.ao, out.ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval});
+  }
+  if (!terms.direct.empty()) {
+    noisy.push_back(&terms.direct), denoised.push_back(&grid_denoised.direct);
+    noisy.push_back(&terms.indirect), denoised.push_back(&grid_denoised.indirect);
+    images.push_back({grid_denoised.direct, out.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
+    images.push_back({grid_denoised.indirect, out.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
+  }
+  // AO, then SSDO direct and indirect, in one pass: the weights are the grid's.
+  if (!noisy.empty())
+    denoise_bilateral(noisy, h.depth_view, h.normal_view, h.mask, settings, denoised, half_roi, nthreads);
+}
+
 void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
                           const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads,
                           const std::function<void()>& inputs_read) {
@@ -900,35 +923,21 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
     extend_grid_with_views(g, in, settings, out.views, nthreads);
   }
   std::vector<UpsampleImage> images;
-  std::vector<const cv::Mat*> noisy;
-  std::vector<cv::Mat*> denoised;
   if (half.ao) {
     ao_on_grid(g, *settings.ao, term_roi, grid.ao, nthreads);
     images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval});
     if (!grid.ao.bent_normal_view.empty())
       images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0),
                         UpsampleFinish::unit_vector});
-    noisy.push_back(&grid.ao.ao), denoised.push_back(&grid.denoised.ao);
   }
   if (half.ssdo) {
     ssdo_on_grid(g, in, *settings.ssdo, term_roi, grid.ssdo, nthreads);
     images.push_back({grid.ssdo.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
     images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
-    noisy.push_back(&grid.ssdo.direct), denoised.push_back(&grid.denoised.direct);
-    noisy.push_back(&grid.ssdo.indirect), denoised.push_back(&grid.denoised.indirect);
   }
-  if (settings.denoise) {
-    // AO, then SSDO direct and indirect (those on the grid), blurred with the grid's guides.
-    if (!noisy.empty())
-      denoise_bilateral(noisy, h.depth_view, h.normal_view, h.mask, *settings.denoise, denoised, half_roi, nthreads);
-    if (half.ao)
-      images.push_back({grid.denoised.ao, out.denoised.ao, cv::Scalar(1.0), cv::Scalar(1.0),
-                        UpsampleFinish::clamp_unit_interval});
-    if (half.ssdo) {
-      images.push_back({grid.denoised.direct, out.denoised.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
-      images.push_back({grid.denoised.indirect, out.denoised.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
-    }
-  }
+  if (settings.denoise)
+    denoise_grid_terms(h, {h, grid.ao.ao, grid.ssdo.direct, grid.ssdo.indirect}, *settings.denoise, half_roi,
+                       grid.denoised, out.denoised, images, nthreads);
   if (half.confidence) {
     // The views at the grid's density: the confidence's scattered asks read a quarter of
     // the memory for a fraction the grid's taps cannot resolve finer.
@@ -949,6 +958,7 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   if (inputs_read) inputs_read();
   allocate_upsampled(settings, half, full.depth_view.size(), out);
   upsample_from_half_grid(full, h, images, r, nthreads);
+  if (settings.keep_grid_terms) out.grid = {h, grid.ao.ao, grid.ssdo.direct, grid.ssdo.indirect};
 }
 
 }  // namespace
@@ -1015,6 +1025,19 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
     back.release();
     if (inputs_read) inputs_read();
   });
+}
+
+void denoise_on_half_grid(const FullGrid& full, const HalfGridTerms& terms, const DenoiseSettings& settings,
+                          DenoisedTerms& out, int nthreads) {
+  if (terms.empty()) return;
+  const cv::Size size = full.depth_view.size();
+  const cv::Rect all(0, 0, size.width, size.height);
+  DenoisedTerms grid_denoised;
+  std::vector<UpsampleImage> images;
+  denoise_grid_terms(terms.grid, terms, settings, half_grid_roi(all, size), grid_denoised, out, images, nthreads);
+  if (!terms.ao.empty()) allocate(out.ao, size, CV_32FC1);
+  if (!terms.direct.empty()) allocate(out.direct, size, CV_32FC3), allocate(out.indirect, size, CV_32FC3);
+  upsample_from_half_grid(full, terms.grid, images, all, nthreads);
 }
 
 void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi,

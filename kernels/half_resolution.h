@@ -153,6 +153,10 @@ struct TermSettings {
   // Upsampled outputs stored in half (UpsampleImage: CV_16F, the bits a half-float output
   // would store), at half the memory: for those that nothing but such an output reads.
   HalfOutputs stored_in_half = {};
+  // Keep the half grid and the raw AO and SSDO terms computed on it (TermOutputs::grid), for
+  // a later step on the grid: a shot's filter over time (kernels/temporal.h), then
+  // denoise_on_half_grid.
+  bool keep_grid_terms = false;
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
@@ -166,6 +170,16 @@ struct DenoisedTerms {
   cv::Mat direct, indirect;  // CV_32FC3
 };
 
+// The raw AO and SSDO terms computed on the half grid, and the grid (its guides and camera;
+// no positions or sources): what a step on the grid after compute_terms reads.
+struct HalfGridTerms {
+  HalfGrid grid;
+  cv::Mat ao;                // CV_32FC1 AO on the grid, or empty (AO not on the grid)
+  cv::Mat direct, indirect;  // CV_32FC3 SSDO light on the grid, or empty
+
+  bool empty() const { return ao.empty() && direct.empty(); }
+};
+
 struct TermOutputs {
   AoOutput ao;
   SsdoOutput ssdo;
@@ -173,6 +187,8 @@ struct TermOutputs {
   // With TermSettings::denoise, the denoised terms of AO and SSDO when they run on the half
   // grid; empty otherwise.
   DenoisedTerms denoised;
+  // With TermSettings::keep_grid_terms, the terms that ran on the half grid; empty otherwise.
+  HalfGridTerms grid;
   std::vector<ViewUse> views;  // what each of TermInputs::views contributed
 };
 
@@ -198,6 +214,15 @@ LightReads light_reads(bool ao_multibounce, bool ssdo, bool frame_has_lighting);
 // in.normal_view and in.mask are read (by the upsample).
 void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi = {},
                    int nthreads = 0, const std::function<void()>& inputs_read = {});
+
+// The denoise (kernels/denoise.h) of the grid's AO and SSDO terms on the grid, with its
+// guides, `settings` counted in texels, then their upsample (as compute_terms upsamples
+// them): out's ao, direct and indirect (CV_32F, the size of full), for the terms present in
+// `terms`; the others are left as they are. terms.ao etc. may be other values than the raw
+// terms on the same grid (a shot's filtered terms). With the raw terms of compute_terms,
+// the bits of compute_terms' own TermOutputs::denoised (TermSettings::denoise).
+void denoise_on_half_grid(const FullGrid& full, const HalfGridTerms& terms, const DenoiseSettings& settings,
+                          DenoisedTerms& out, int nthreads = 0);
 
 // One term through compute_terms: what a frame computes for it.
 void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi = {},

@@ -420,6 +420,54 @@ TEST(HalfResolution, TermsDenoisedOnTheGridAreTheUpsampleOfTheGridsDenoise) {
   EXPECT_EQ(cv::norm(part.ao.ao(r), denoised.ao.ao(r), cv::NORM_INF), 0.0);
 }
 
+// The grid terms kept for a later step (TermSettings::keep_grid_terms) are the kernels' own
+// on the grid, and denoise_on_half_grid of them gives the bits of compute_terms' denoise on
+// the grid; of other values on the grid (a shot's filtered terms), their own denoise.
+TEST(HalfResolution, KeptGridTermsDenoisedLaterGiveTheBitsOfTheDenoiseOnTheGrid) {
+  FrameGrids f;
+  const GBuffer& g = f.g;
+  const AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
+  const SsdoSettings ssdo_settings = ssdo_preset(SsdoMethod::ssdo, Preset::low);
+  const Environment sky = Environment::sky(SkyGradient{});
+  const DenoiseSettings ds;
+  const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo};
+  TermSettings keep{&ao_settings, &ssdo_settings};
+  keep.keep_grid_terms = true;
+  TermOutputs kept, denoised;
+  compute_terms(in, keep, kept, {}, 2);
+  compute_terms(in, {&ao_settings, &ssdo_settings, nullptr, &ds}, denoised, {}, 2);
+  ASSERT_FALSE(kept.grid.empty());
+  EXPECT_EQ(kept.grid.ao.size(), f.h.depth_view.size());
+  EXPECT_EQ(cv::norm(kept.grid.grid.depth_view, f.h.depth_view, cv::NORM_INF), 0.0);
+  EXPECT_TRUE(kept.grid.grid.position_view.empty());
+  EXPECT_TRUE(denoised.grid.empty());  // kept only when asked
+  AoOutput ao;
+  compute_ao({f.h.depth_view, f.h.normal_view, f.h.position_view, f.h.mask, f.h.camera}, ao_settings, ao, {}, 2);
+  EXPECT_EQ(cv::norm(kept.grid.ao, ao.ao, cv::NORM_INF), 0.0);
+
+  DenoisedTerms later;
+  denoise_on_half_grid(f.full, kept.grid, ds, later, 2);
+  EXPECT_EQ(cv::norm(later.ao, denoised.denoised.ao, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(later.direct, denoised.denoised.direct, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(later.indirect, denoised.denoised.indirect, cv::NORM_INF), 0.0);
+
+  // Other values on the grid: AO alone, a constant 0.25, stays 0.25 on foreground and 1 on
+  // background (the upsample's AO background); the SSDO slots are left as they were.
+  HalfGridTerms constant;
+  constant.grid = kept.grid.grid;
+  constant.ao = cv::Mat(f.h.depth_view.size(), CV_32FC1, cv::Scalar(0.25f));
+  DenoisedTerms only_ao;
+  denoise_on_half_grid(f.full, constant, ds, only_ao, 2);
+  EXPECT_TRUE(only_ao.direct.empty());
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(only_ao.ao, &lo, &hi, nullptr, nullptr, g.mask);
+  EXPECT_NEAR(lo, 0.25, 1e-6);
+  EXPECT_NEAR(hi, 0.25, 1e-6);
+  cv::minMaxLoc(only_ao.ao, &lo, &hi, nullptr, nullptr, g.mask == 0);
+  EXPECT_EQ(lo, 1.0);
+  EXPECT_EQ(hi, 1.0);
+}
+
 // Without full-resolution positions the grid computes its texels' own from depth: the
 // bits of view_positions_from_depth at the source pixels, so kernels on the grid return
 // the bits they return given the full-resolution positions computed from depth.
