@@ -118,18 +118,18 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
 }
 
 // The terms a frame keeps in half float as the kernels' upsample writes them, because
-// nothing but the half-float output reads them: the bent normal, and a lone frame's raw SSDO
-// terms (its denoise read them on the grid; the composite reads the denoised ones). A shot's
-// raw SSDO terms stay float: the temporal filter reads them. io_only_frame's stand-ins have
-// the same types.
-HalfOutputs outputs_in_half(bool lone_frame) { return {.bent_normal = true, .ssdo = lone_frame}; }
+// nothing but the half-float output reads them: the bent normal, and the raw SSDO terms of
+// the half grid (the denoise and a shot's filter over time read them on the grid; the
+// composite reads the denoised ones). io_only_frame's stand-ins have the same types.
+constexpr HalfOutputs kOutputsInHalf{.bent_normal = true, .ssdo = true};
 
 // AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
 // run at half resolution share one grid and one upsample (kernels/half_resolution.h).
 // confidence: the observed fraction of the neighbourhood the AO (else SSDO) radius
 // samples (kernels/confidence.h), written with every AO or SSDO output. denoise_on_grid:
 // the terms on the half grid are also denoised there (TermOutputs::denoised), for a frame
-// whose raw terms are not filtered over time first.
+// whose raw terms are not filtered over time first; else the grid and its raw terms are kept
+// (TermOutputs::grid) for finish_frame, which filters them over time there.
 TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, const TermsComputed& computed,
                               bool denoise_on_grid, const std::function<void()>& inputs_read) {
   const bool confidence_wanted = request.terms.ao || request.terms.ssdo;
@@ -139,7 +139,8 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
                       g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
   TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
                         confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
-  selected.stored_in_half = outputs_in_half(/*lone_frame=*/denoise_on_grid);
+  selected.stored_in_half = kOutputsInHalf;
+  selected.keep_grid_terms = !denoise_on_grid;
   TermOutputs out;
   compute_terms(in, selected, out, {}, request.threads, inputs_read);
   return out;
@@ -168,24 +169,72 @@ std::vector<int> term_grids(const FrameRequest& request, const TermsComputed& co
   return grids;
 }
 
-// The raw terms filtered over the neighbours' (kernels/temporal.h), into `filtered`; uses:
-// what each neighbour contributed. Without neighbours nothing is written.
+// The entries of `all` (in raw_terms' order) whose term was computed on the full grid.
+template <typename T>
+std::vector<T> on_full_grid(const std::vector<T>& all, const FrameRequest& request, const TermsComputed& computed) {
+  const std::vector<int> grids = term_grids(request, computed);
+  std::vector<T> kept;
+  for (size_t i = 0; i < all.size(); ++i)
+    if (grids[i] == 1) kept.push_back(all[i]);
+  return kept;
+}
+
+// The raw terms computed on the full grid filtered over the neighbours' (kernels/temporal.h)
+// at full resolution, into `filtered`; uses: what each neighbour contributed. Without
+// neighbours or such terms nothing is written.
 void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const RawFrame* const> neighbours,
                       const FrameRequest& request, const TermsComputed& computed, DenoisedTerms& filtered,
                       std::vector<TemporalUse>& uses) {
-  if (neighbours.empty()) return;
-  const std::vector<const cv::Mat*> terms = raw_terms(raw, computed);
+  const std::vector<const cv::Mat*> terms = on_full_grid(raw_terms(raw, computed), request, computed);
+  if (neighbours.empty() || terms.empty()) return;
   std::vector<std::vector<const cv::Mat*>> neighbour_terms;
   std::vector<TemporalFrame> frames;
   neighbour_terms.reserve(neighbours.size());
   for (const RawFrame* n : neighbours) {
-    neighbour_terms.push_back(raw_terms(n->raw, computed));
+    neighbour_terms.push_back(on_full_grid(raw_terms(n->raw, computed), request, computed));
     frames.push_back({n->gbuffer.camera, n->gbuffer.depth_view, n->gbuffer.normal_view, n->gbuffer.mask,
                       neighbour_terms.back()});
   }
-  const std::vector<cv::Mat*> results = term_slots(filtered, computed);
+  const std::vector<cv::Mat*> results = on_full_grid(term_slots(filtered, computed), request, computed);
   uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, request.temporal, results, {},
                          request.threads);
+}
+
+// The terms of a grid (HalfGridTerms), AO then SSDO direct and indirect, those present.
+std::vector<const cv::Mat*> grid_terms(const HalfGridTerms& t) {
+  std::vector<const cv::Mat*> terms;
+  if (!t.ao.empty()) terms.push_back(&t.ao);
+  if (!t.direct.empty()) terms.push_back(&t.direct), terms.push_back(&t.indirect);
+  return terms;
+}
+
+// The raw terms computed on the half grid filtered over the neighbours' on their own half
+// grids (kernels/temporal.h: each grid's camera, guides and texels, a quarter of the pixels);
+// uses: what each neighbour contributed. Without neighbours, the raw terms themselves.
+HalfGridTerms filter_grid_over_time(const HalfGridTerms& own, std::span<const RawFrame* const> neighbours,
+                                    const FrameRequest& request, std::vector<TemporalUse>& uses) {
+  if (neighbours.empty()) return own;
+  const std::vector<const cv::Mat*> terms = grid_terms(own);
+  std::vector<std::vector<const cv::Mat*>> neighbour_terms;
+  std::vector<TemporalFrame> frames;
+  neighbour_terms.reserve(neighbours.size());
+  for (const RawFrame* n : neighbours) {
+    const HalfGridTerms& grid = n->raw.grid;
+    neighbour_terms.push_back(grid_terms(grid));
+    // The same request computes the same terms on the same grids in every frame.
+    CV_Assert(neighbour_terms.back().size() == terms.size());
+    frames.push_back({grid.grid.camera, grid.grid.depth_view, grid.grid.normal_view, grid.grid.mask,
+                      neighbour_terms.back()});
+  }
+  HalfGridTerms filtered;
+  filtered.grid = own.grid;
+  std::vector<cv::Mat*> results;
+  if (!own.ao.empty()) results.push_back(&filtered.ao);
+  if (!own.direct.empty()) results.push_back(&filtered.direct), results.push_back(&filtered.indirect);
+  const HalfGrid& h = own.grid;
+  uses = filter_temporal({h.camera, h.depth_view, h.normal_view, h.mask, terms}, frames, request.temporal, results, {},
+                         request.threads);
+  return filtered;
 }
 
 // The denoised terms of `sources` (raw_terms' order): those of `done` (denoised on their
@@ -286,7 +335,7 @@ void release_read_inputs(GBuffer& g, const FrameRequest& request) {
   if (!request.terms.composite) g.albedo.release();
 }
 
-// The bent normal, read by nothing but the output (outputs_in_half), in half from here when
+// The bent normal, read by nothing but the output (kOutputsInHalf), in half from here when
 // it was computed at full resolution (the upsample stores a half grid's in half already).
 void keep_bent_normal_in_half(TermOutputs& raw, const FrameRequest& request) {
   keep_in_half(raw.ao.bent_normal_view, request.threads);
@@ -306,14 +355,27 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
                               const FrameRequest& request) {
   const TermsComputed computed = terms_computed(request);
   ComputedFrame frame;
-  DenoisedTerms filtered;
-  filter_over_time(g, raw, neighbours, request, computed, filtered, frame.temporal);
-  std::vector<const cv::Mat*> sources = raw_terms(raw, computed);
-  if (!neighbours.empty()) {
-    const std::vector<cv::Mat*> slots = term_slots(filtered, computed);
-    sources.assign(slots.begin(), slots.end());
+  // A lone frame's terms on the half grid come denoised from compute_terms; a shot's (kept
+  // on the grid by compute_raw_frame) are filtered over time on the grid, denoised there
+  // and upsampled here.
+  DenoisedTerms done = std::move(raw.denoised);
+  if (!raw.grid.empty()) {
+    const HalfGridTerms on_grid = filter_grid_over_time(raw.grid, neighbours, request, frame.temporal);
+    const cv::Mat no_positions;  // the upsample reads none
+    denoise_on_half_grid({g.depth_view, g.normal_view, no_positions, g.mask, g.camera}, on_grid, request.denoise, done,
+                         request.threads);
+    raw.grid = HalfGridTerms();
   }
-  const DenoisedTerms denoised = denoise_terms(g, request, sources, computed, std::move(raw.denoised));
+  // The terms on the full grid: filtered over time and denoised at full resolution.
+  DenoisedTerms filtered;
+  std::vector<TemporalUse> full_grid_uses;
+  filter_over_time(g, raw, neighbours, request, computed, filtered, full_grid_uses);
+  if (frame.temporal.empty()) frame.temporal = std::move(full_grid_uses);
+  std::vector<const cv::Mat*> sources = raw_terms(raw, computed);
+  const std::vector<cv::Mat*> slots = term_slots(filtered, computed);
+  for (size_t i = 0; i < sources.size(); ++i)
+    if (!slots[i]->empty()) sources[i] = slots[i];
+  const DenoisedTerms denoised = denoise_terms(g, request, sources, computed, std::move(done));
   // The guides of AO, SSDO, confidence and the denoise are read no more: their memory
   // goes to the composite.
   g.depth_view.release();
@@ -359,9 +421,13 @@ RawFrame temporal_part(const RawFrame& f) {
   part.gbuffer.depth_view = f.gbuffer.depth_view;
   part.gbuffer.normal_view = f.gbuffer.normal_view;
   part.gbuffer.mask = f.gbuffer.mask;
-  part.raw.ao.ao = f.raw.ao.ao;
-  part.raw.ssdo.direct = f.raw.ssdo.direct;
-  part.raw.ssdo.indirect = f.raw.ssdo.indirect;
+  // A term on the half grid is read there; one on the full grid at full resolution.
+  part.raw.grid = f.raw.grid;
+  if (f.raw.grid.ao.empty()) part.raw.ao.ao = f.raw.ao.ao;
+  if (f.raw.grid.direct.empty()) {
+    part.raw.ssdo.direct = f.raw.ssdo.direct;
+    part.raw.ssdo.indirect = f.raw.ssdo.indirect;
+  }
   return part;
 }
 
@@ -392,7 +458,7 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const TermSelection& terms = request.terms;
   const TermsComputed c = terms_computed(request);
-  const HalfOutputs in_half = outputs_in_half(/*lone_frame=*/true);  // as compute_frame stores them
+  const HalfOutputs& in_half = kOutputsInHalf;  // as compute_frame stores them
   cv::Mat normal_z;
   cv::extractChannel(g.normal_view, normal_z, 2);
   auto scalar = [&](const char* name) { frame.terms.push_back({name, normal_z, SampleType::float32, false}); };
