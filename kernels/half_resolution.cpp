@@ -709,15 +709,18 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
   const bool denoised = settings.denoise != nullptr;
   const HalfOutputs& in_half = settings.stored_in_half;
   auto colour = [](bool stored_in_half) { return stored_in_half ? CV_16FC3 : CV_32FC3; };
+  const bool raw = !settings.keep_grid_terms;
   if (half.ao) {
-    allocate(out.ao.ao, size, CV_32FC1);
+    if (raw) allocate(out.ao.ao, size, CV_32FC1);
     if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, colour(in_half.bent_normal));
     else out.ao.bent_normal_view.release();
     if (denoised) allocate(out.denoised.ao, size, CV_32FC1);
   }
-  if (half.ssdo) {
+  if (half.ssdo && raw) {
     allocate(out.ssdo.direct, size, colour(in_half.ssdo));
     allocate(out.ssdo.indirect, size, colour(in_half.ssdo));
+  }
+  if (half.ssdo) {
     if (denoised) {
       allocate(out.denoised.direct, size, CV_32FC3);
       allocate(out.denoised.indirect, size, CV_32FC3);
@@ -885,12 +888,25 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
 // normal 0 (set to the normal by its unit_vector finish), SSDO 0 (nothing known of the
 // light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
 // pass.
+// The upsample of the grid's raw AO and SSDO terms (those not empty in `raw`) into out's
+// (allocated by the caller), added to `images`: AO clamped to [0, 1], 1 on background, SSDO
+// 0 there.
+void add_raw_grid_terms(const HalfGridTerms& raw, TermOutputs& out, std::vector<UpsampleImage>& images) {
+  if (!raw.ao.empty())
+    images.push_back({raw.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval});
+  if (!raw.direct.empty()) {
+    images.push_back({raw.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
+    images.push_back({raw.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
+  }
+}
+
 // The grid's AO and SSDO terms (those not empty in `terms`) blurred on the grid with its
 // guides over half_roi into grid_denoised (whose images the upsample then reads), and the
 // upsample of each into `out` (allocated by the caller) added to `images`.
-void denoise_grid_terms(const HalfGrid& h, const HalfGridTerms& terms, const DenoiseSettings& settings,
-                        const cv::Rect& half_roi, DenoisedTerms& grid_denoised, DenoisedTerms& out,
-                        std::vector<UpsampleImage>& images, int nthreads) {
+void denoise_grid_terms(const HalfGridTerms& terms, const DenoiseSettings& settings, const cv::Rect& half_roi,
+                        DenoisedTerms& grid_denoised, DenoisedTerms& out, std::vector<UpsampleImage>& images,
+                        int nthreads) {
+  const HalfGrid& h = terms.grid;
   std::vector<const cv::Mat*> noisy;
   std::vector<cv::Mat*> denoised;
   if (!terms.ao.empty()) {
@@ -925,19 +941,14 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   std::vector<UpsampleImage> images;
   if (half.ao) {
     ao_on_grid(g, *settings.ao, term_roi, grid.ao, nthreads);
-    images.push_back({grid.ao.ao, out.ao.ao, cv::Scalar(1.0), cv::Scalar(1.0), UpsampleFinish::clamp_unit_interval});
     if (!grid.ao.bent_normal_view.empty())
       images.push_back({grid.ao.bent_normal_view, out.ao.bent_normal_view, cv::Scalar(0, 0, 0), cv::Scalar(0, 0, 0),
                         UpsampleFinish::unit_vector});
   }
-  if (half.ssdo) {
-    ssdo_on_grid(g, in, *settings.ssdo, term_roi, grid.ssdo, nthreads);
-    images.push_back({grid.ssdo.direct, out.ssdo.direct, cv::Scalar::all(0), cv::Scalar::all(0)});
-    images.push_back({grid.ssdo.indirect, out.ssdo.indirect, cv::Scalar::all(0), cv::Scalar::all(0)});
-  }
-  if (settings.denoise)
-    denoise_grid_terms(h, {h, grid.ao.ao, grid.ssdo.direct, grid.ssdo.indirect}, *settings.denoise, half_roi,
-                       grid.denoised, out.denoised, images, nthreads);
+  if (half.ssdo) ssdo_on_grid(g, in, *settings.ssdo, term_roi, grid.ssdo, nthreads);
+  HalfGridTerms raw{h, grid.ao.ao, grid.ssdo.direct, grid.ssdo.indirect};
+  if (!settings.keep_grid_terms) add_raw_grid_terms(raw, out, images);
+  if (settings.denoise) denoise_grid_terms(raw, *settings.denoise, half_roi, grid.denoised, out.denoised, images, nthreads);
   if (half.confidence) {
     // The views at the grid's density: the confidence's scattered asks read a quarter of
     // the memory for a fraction the grid's taps cannot resolve finer.
@@ -953,12 +964,11 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   // (inputs_read): the heap hands that memory to them, where fresh pages would cost a fault
   // each on first touch.
   g = GridInputs();
-  h.position_view.release();
-  h.source.release();
+  for (HalfGrid* grid_of : {&h, &raw.grid}) grid_of->position_view.release(), grid_of->source.release();
   if (inputs_read) inputs_read();
   allocate_upsampled(settings, half, full.depth_view.size(), out);
   upsample_from_half_grid(full, h, images, r, nthreads);
-  if (settings.keep_grid_terms) out.grid = {h, grid.ao.ao, grid.ssdo.direct, grid.ssdo.indirect};
+  if (settings.keep_grid_terms) out.grid = raw;
 }
 
 }  // namespace
@@ -1027,17 +1037,24 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
   });
 }
 
-void denoise_on_half_grid(const FullGrid& full, const HalfGridTerms& terms, const DenoiseSettings& settings,
-                          DenoisedTerms& out, int nthreads) {
-  if (terms.empty()) return;
+void finish_half_grid_terms(const FullGrid& full, const HalfGridTerms& raw, const HalfGridTerms& to_denoise,
+                            const DenoiseSettings& settings, const HalfOutputs& stored_in_half, TermOutputs& out,
+                            int nthreads) {
+  if (raw.empty()) return;
+  CV_Assert(to_denoise.ao.empty() == raw.ao.empty() && to_denoise.direct.empty() == raw.direct.empty());
   const cv::Size size = full.depth_view.size();
   const cv::Rect all(0, 0, size.width, size.height);
-  DenoisedTerms grid_denoised;
   std::vector<UpsampleImage> images;
-  denoise_grid_terms(terms.grid, terms, settings, half_grid_roi(all, size), grid_denoised, out, images, nthreads);
-  if (!terms.ao.empty()) allocate(out.ao, size, CV_32FC1);
-  if (!terms.direct.empty()) allocate(out.direct, size, CV_32FC3), allocate(out.indirect, size, CV_32FC3);
-  upsample_from_half_grid(full, terms.grid, images, all, nthreads);
+  add_raw_grid_terms(raw, out, images);
+  DenoisedTerms grid_denoised;
+  denoise_grid_terms(to_denoise, settings, half_grid_roi(all, size), grid_denoised, out.denoised, images, nthreads);
+  const int ssdo_type = stored_in_half.ssdo ? CV_16FC3 : CV_32FC3;
+  if (!raw.ao.empty()) allocate(out.ao.ao, size, CV_32FC1), allocate(out.denoised.ao, size, CV_32FC1);
+  if (!raw.direct.empty()) {
+    allocate(out.ssdo.direct, size, ssdo_type), allocate(out.ssdo.indirect, size, ssdo_type);
+    allocate(out.denoised.direct, size, CV_32FC3), allocate(out.denoised.indirect, size, CV_32FC3);
+  }
+  upsample_from_half_grid(full, raw.grid, images, all, nthreads);
 }
 
 void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi,

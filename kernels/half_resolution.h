@@ -153,9 +153,10 @@ struct TermSettings {
   // Upsampled outputs stored in half (UpsampleImage: CV_16F, the bits a half-float output
   // would store), at half the memory: for those that nothing but such an output reads.
   HalfOutputs stored_in_half = {};
-  // Keep the half grid and the raw AO and SSDO terms computed on it (TermOutputs::grid), for
-  // a later step on the grid: a shot's filter over time (kernels/temporal.h), then
-  // denoise_on_half_grid.
+  // Keep the raw AO and SSDO terms computed on the half grid there, with the grid
+  // (TermOutputs::grid), instead of upsampling them: for a step on the grid before they are
+  // denoised (a shot's filter over time, kernels/temporal.h); finish_half_grid_terms then
+  // denoises and upsamples them. (The bent normal and the confidence are upsampled as usual.)
   bool keep_grid_terms = false;
 };
 
@@ -187,7 +188,8 @@ struct TermOutputs {
   // With TermSettings::denoise, the denoised terms of AO and SSDO when they run on the half
   // grid; empty otherwise.
   DenoisedTerms denoised;
-  // With TermSettings::keep_grid_terms, the terms that ran on the half grid; empty otherwise.
+  // With TermSettings::keep_grid_terms, the raw AO and SSDO terms that ran on the half grid,
+  // on the grid (their full-resolution images above are then left empty); empty otherwise.
   HalfGridTerms grid;
   std::vector<ViewUse> views;  // what each of TermInputs::views contributed
 };
@@ -215,14 +217,16 @@ LightReads light_reads(bool ao_multibounce, bool ssdo, bool frame_has_lighting);
 void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutputs& out, cv::Rect roi = {},
                    int nthreads = 0, const std::function<void()>& inputs_read = {});
 
-// The denoise (kernels/denoise.h) of the grid's AO and SSDO terms on the grid, with its
-// guides, `settings` counted in texels, then their upsample (as compute_terms upsamples
-// them): out's ao, direct and indirect (CV_32F, the size of full), for the terms present in
-// `terms`; the others are left as they are. terms.ao etc. may be other values than the raw
-// terms on the same grid (a shot's filtered terms). With the raw terms of compute_terms,
-// the bits of compute_terms' own TermOutputs::denoised (TermSettings::denoise).
-void denoise_on_half_grid(const FullGrid& full, const HalfGridTerms& terms, const DenoiseSettings& settings,
-                          DenoisedTerms& out, int nthreads = 0);
+// The rest of compute_terms for the terms it kept on the half grid (TermSettings::
+// keep_grid_terms): `to_denoise` (the raw terms themselves, or other values on the same grid,
+// such as a shot's terms filtered over time) denoised on the grid with its guides
+// (kernels/denoise.h, `settings` counted in texels), then the raw terms and the denoised
+// ones upsampled in one pass: out.ao.ao, out.ssdo.direct and indirect (stored_in_half.ssdo:
+// CV_16F), out.denoised's, for the terms present in `raw`; the others are left as they are.
+// With to_denoise = raw, the bits compute_terms gives with TermSettings::denoise.
+void finish_half_grid_terms(const FullGrid& full, const HalfGridTerms& raw, const HalfGridTerms& to_denoise,
+                            const DenoiseSettings& settings, const HalfOutputs& stored_in_half, TermOutputs& out,
+                            int nthreads = 0);
 
 // One term through compute_terms: what a frame computes for it.
 void compute_ao_at_resolution(const AoInputs& in, const AoSettings& settings, AoOutput& out, cv::Rect roi = {},

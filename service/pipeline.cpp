@@ -355,17 +355,17 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
                               const FrameRequest& request) {
   const TermsComputed computed = terms_computed(request);
   ComputedFrame frame;
-  // A lone frame's terms on the half grid come denoised from compute_terms; a shot's (kept
-  // on the grid by compute_raw_frame) are filtered over time on the grid, denoised there
-  // and upsampled here.
-  DenoisedTerms done = std::move(raw.denoised);
+  // A lone frame's terms on the half grid come upsampled and denoised from compute_terms; a
+  // shot's, kept on the grid by compute_raw_frame, are filtered over time on the grid,
+  // denoised there and upsampled here, the raw with the denoised.
   if (!raw.grid.empty()) {
     const HalfGridTerms on_grid = filter_grid_over_time(raw.grid, neighbours, request, frame.temporal);
     const cv::Mat no_positions;  // the upsample reads none
-    denoise_on_half_grid({g.depth_view, g.normal_view, no_positions, g.mask, g.camera}, on_grid, request.denoise, done,
-                         request.threads);
+    finish_half_grid_terms({g.depth_view, g.normal_view, no_positions, g.mask, g.camera}, raw.grid, on_grid,
+                           request.denoise, kOutputsInHalf, raw, request.threads);
     raw.grid = HalfGridTerms();
   }
+  DenoisedTerms done = std::move(raw.denoised);
   // The terms on the full grid: filtered over time and denoised at full resolution.
   DenoisedTerms filtered;
   std::vector<TemporalUse> full_grid_uses;
@@ -416,17 +416,20 @@ ComputedFrame compute_frame(GBuffer&& g, const FrameRequest& request) {
 }
 
 RawFrame temporal_part(const RawFrame& f) {
+  // A term on the half grid is read there, with the grid's guides (TermOutputs::grid); one
+  // on the full grid at full resolution, with the frame's.
   RawFrame part;
   part.gbuffer.camera = f.gbuffer.camera;
-  part.gbuffer.depth_view = f.gbuffer.depth_view;
-  part.gbuffer.normal_view = f.gbuffer.normal_view;
-  part.gbuffer.mask = f.gbuffer.mask;
-  // A term on the half grid is read there; one on the full grid at full resolution.
   part.raw.grid = f.raw.grid;
   if (f.raw.grid.ao.empty()) part.raw.ao.ao = f.raw.ao.ao;
   if (f.raw.grid.direct.empty()) {
     part.raw.ssdo.direct = f.raw.ssdo.direct;
     part.raw.ssdo.indirect = f.raw.ssdo.indirect;
+  }
+  if (!part.raw.ao.ao.empty() || !part.raw.ssdo.direct.empty()) {
+    part.gbuffer.depth_view = f.gbuffer.depth_view;
+    part.gbuffer.normal_view = f.gbuffer.normal_view;
+    part.gbuffer.mask = f.gbuffer.mask;
   }
   return part;
 }

@@ -127,22 +127,23 @@ struct RawFrame {
   TermOutputs raw;
 };
 
-// A frame in two steps, for temporal filtering: the raw terms, then the rest (filtered over
-// the raw terms of `neighbours` when given, kernels/temporal.h; denoised at full resolution,
-// the footprint scaled to each term's grid; composited). finish_frame releases the frame's
-// images as compute_frame does. compute_frame(g, r), for a frame without neighbours, gives
-// the bits of finish_frame(compute_raw_frame(g, r), {}, r) but for the terms that run on
-// the half grid: it denoises them there, before the upsample (TermSettings::denoise,
-// kernels/half_resolution.h), a quarter of the reads, and keeps the raw SSDO terms in half
-// (CV_16F: nothing but the output reads them).
+// A frame in two steps, for temporal filtering: the raw terms (those computed on the half
+// grid kept there, with the grid, not yet upsampled: TermOutputs::grid), then the rest: each
+// term filtered over the same term of `neighbours` when given (kernels/temporal.h) on the
+// grid it was computed on, denoised there (a half grid's raw and denoised terms then
+// upsampled in one pass: finish_half_grid_terms), composited. finish_frame releases the frame's images as compute_frame does.
+// finish_frame(compute_raw_frame(g, r), {}, r) gives the bits of compute_frame(g, r), which
+// denoises a lone frame's half-grid terms inside compute_terms and upsamples them with the
+// raw ones in one pass.
 RawFrame compute_raw_frame(GBuffer&& gbuffer, const FrameRequest& request);
 ComputedFrame finish_frame(RawFrame&& frame, std::span<const RawFrame* const> neighbours, const FrameRequest& request);
 // The raw frame of a G-buffer whose raw terms `raw` were computed before, by
 // compute_raw_frame of the same frame and request: the G-buffer released as it releases it.
 RawFrame with_raw_terms(GBuffer&& gbuffer, TermOutputs raw, const FrameRequest& request);
 
-// What of a frame's raw frame the temporal filter reads when it is a neighbour: camera,
-// depth, normals, mask and the raw AO and SSDO light (image headers: no copy).
+// What of a frame's raw frame the temporal filter reads when it is a neighbour: the camera,
+// the half grid with its raw terms, and for terms on the full grid their raw images with
+// the frame's depth, normals and mask (image headers: no copy).
 RawFrame temporal_part(const RawFrame& frame);
 
 // Computes the selected terms for a frame already in memory (no I/O).

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "core/half_samples.h"
+#include "tests/support/image_difference.h"
 
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
@@ -421,9 +422,10 @@ TEST(HalfResolution, TermsDenoisedOnTheGridAreTheUpsampleOfTheGridsDenoise) {
 }
 
 // The grid terms kept for a later step (TermSettings::keep_grid_terms) are the kernels' own
-// on the grid, and denoise_on_half_grid of them gives the bits of compute_terms' denoise on
-// the grid; of other values on the grid (a shot's filtered terms), their own denoise.
-TEST(HalfResolution, KeptGridTermsDenoisedLaterGiveTheBitsOfTheDenoiseOnTheGrid) {
+// on the grid, not upsampled; finish_half_grid_terms of them gives the bits compute_terms
+// gives with its denoise on the grid; of other values to denoise (a shot's filtered terms),
+// their own denoise, beside the same raw terms.
+TEST(HalfResolution, KeptGridTermsFinishedLaterGiveTheBitsOfComputeTerms) {
   FrameGrids f;
   const GBuffer& g = f.g;
   const AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
@@ -433,10 +435,15 @@ TEST(HalfResolution, KeptGridTermsDenoisedLaterGiveTheBitsOfTheDenoiseOnTheGrid)
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &sky, &g.albedo};
   TermSettings keep{&ao_settings, &ssdo_settings};
   keep.keep_grid_terms = true;
+  keep.stored_in_half = {true, true};
+  TermSettings at_once{&ao_settings, &ssdo_settings, nullptr, &ds};
+  at_once.stored_in_half = {true, true};
   TermOutputs kept, denoised;
   compute_terms(in, keep, kept, {}, 2);
-  compute_terms(in, {&ao_settings, &ssdo_settings, nullptr, &ds}, denoised, {}, 2);
+  compute_terms(in, at_once, denoised, {}, 2);
   ASSERT_FALSE(kept.grid.empty());
+  EXPECT_TRUE(kept.ao.ao.empty() && kept.ssdo.direct.empty());  // not upsampled
+  EXPECT_EQ(test::max_difference(kept.ao.bent_normal_view, denoised.ao.bent_normal_view), 0.0);
   EXPECT_EQ(kept.grid.ao.size(), f.h.depth_view.size());
   EXPECT_EQ(cv::norm(kept.grid.grid.depth_view, f.h.depth_view, cv::NORM_INF), 0.0);
   EXPECT_TRUE(kept.grid.grid.position_view.empty());
@@ -445,25 +452,32 @@ TEST(HalfResolution, KeptGridTermsDenoisedLaterGiveTheBitsOfTheDenoiseOnTheGrid)
   compute_ao({f.h.depth_view, f.h.normal_view, f.h.position_view, f.h.mask, f.h.camera}, ao_settings, ao, {}, 2);
   EXPECT_EQ(cv::norm(kept.grid.ao, ao.ao, cv::NORM_INF), 0.0);
 
-  DenoisedTerms later;
-  denoise_on_half_grid(f.full, kept.grid, ds, later, 2);
-  EXPECT_EQ(cv::norm(later.ao, denoised.denoised.ao, cv::NORM_INF), 0.0);
-  EXPECT_EQ(cv::norm(later.direct, denoised.denoised.direct, cv::NORM_INF), 0.0);
-  EXPECT_EQ(cv::norm(later.indirect, denoised.denoised.indirect, cv::NORM_INF), 0.0);
+  finish_half_grid_terms(f.full, kept.grid, kept.grid, ds, {true, true}, kept, 2);
+  EXPECT_EQ(cv::norm(kept.ao.ao, denoised.ao.ao, cv::NORM_INF), 0.0);
+  ASSERT_EQ(kept.ssdo.direct.type(), CV_16FC3);
+  EXPECT_EQ(test::max_difference(kept.ssdo.direct, denoised.ssdo.direct), 0.0);
+  EXPECT_EQ(test::max_difference(kept.ssdo.indirect, denoised.ssdo.indirect), 0.0);
+  EXPECT_EQ(cv::norm(kept.denoised.ao, denoised.denoised.ao, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(kept.denoised.direct, denoised.denoised.direct, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(kept.denoised.indirect, denoised.denoised.indirect, cv::NORM_INF), 0.0);
 
-  // Other values on the grid: AO alone, a constant 0.25, stays 0.25 on foreground and 1 on
-  // background (the upsample's AO background); the SSDO slots are left as they were.
+  // Other values to denoise: AO a constant 0.25 stays 0.25 on foreground and 1 on
+  // background (the upsample's AO background); the raw AO is upsampled as before.
+  TermSettings ao_only{&ao_settings};
+  ao_only.keep_grid_terms = true;
+  TermOutputs mine;
+  compute_terms(in, ao_only, mine, {}, 2);
   HalfGridTerms constant;
-  constant.grid = kept.grid.grid;
+  constant.grid = mine.grid.grid;
   constant.ao = cv::Mat(f.h.depth_view.size(), CV_32FC1, cv::Scalar(0.25f));
-  DenoisedTerms only_ao;
-  denoise_on_half_grid(f.full, constant, ds, only_ao, 2);
-  EXPECT_TRUE(only_ao.direct.empty());
+  finish_half_grid_terms(f.full, mine.grid, constant, ds, {}, mine, 2);
+  EXPECT_TRUE(mine.denoised.direct.empty() && mine.ssdo.direct.empty());
+  EXPECT_EQ(cv::norm(mine.ao.ao, denoised.ao.ao, cv::NORM_INF), 0.0);
   double lo = 0, hi = 0;
-  cv::minMaxLoc(only_ao.ao, &lo, &hi, nullptr, nullptr, g.mask);
+  cv::minMaxLoc(mine.denoised.ao, &lo, &hi, nullptr, nullptr, g.mask);
   EXPECT_NEAR(lo, 0.25, 1e-6);
   EXPECT_NEAR(hi, 0.25, 1e-6);
-  cv::minMaxLoc(only_ao.ao, &lo, &hi, nullptr, nullptr, g.mask == 0);
+  cv::minMaxLoc(mine.denoised.ao, &lo, &hi, nullptr, nullptr, g.mask == 0);
   EXPECT_EQ(lo, 1.0);
   EXPECT_EQ(hi, 1.0);
 }

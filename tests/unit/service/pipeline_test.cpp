@@ -2,6 +2,7 @@
 // (io_only_frame) against compute_frame, compute_frame consuming its G-buffer, and the
 // denoise's footprint per grid.
 #include "service/pipeline.h"
+#include "tests/support/image_difference.h"
 
 #include <string>
 
@@ -142,7 +143,7 @@ TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
     ASSERT_EQ(released.terms.size(), kept.terms.size()) << terms;
     for (size_t i = 0; i < kept.terms.size(); ++i) {
       EXPECT_EQ(released.terms[i].name, kept.terms[i].name);
-      EXPECT_EQ(cv::norm(released.terms[i].image, kept.terms[i].image, cv::NORM_INF), 0.0)
+      EXPECT_EQ(test::max_difference(released.terms[i].image, kept.terms[i].image), 0.0)
           << terms << " " << kept.terms[i].name;
     }
   }
@@ -184,13 +185,13 @@ TEST(ComputeFrame, DenoisedTermsUseTheGridTheyWereComputedOn) {
   ASSERT_EQ(term(lone, "ssdo_direct").type(), CV_16FC3);
   cv::Mat raw_in_half;
   on_grid.ssdo.direct.convertTo(raw_in_half, CV_16F);
-  EXPECT_EQ(cv::norm(term(lone, "ssdo_direct"), raw_in_half, cv::NORM_INF), 0.0);
+  EXPECT_EQ(test::max_difference(term(lone, "ssdo_direct"), raw_in_half), 0.0);
 
   ASSERT_EQ(finished.terms.size(), lone.terms.size());
   for (size_t i = 0; i < lone.terms.size(); ++i) {
     EXPECT_EQ(finished.terms[i].name, lone.terms[i].name);
     EXPECT_EQ(finished.terms[i].image.type(), lone.terms[i].image.type()) << lone.terms[i].name;
-    EXPECT_EQ(cv::norm(finished.terms[i].image, lone.terms[i].image, cv::NORM_INF), 0.0) << lone.terms[i].name;
+    EXPECT_EQ(test::max_difference(finished.terms[i].image, lone.terms[i].image), 0.0) << lone.terms[i].name;
   }
 }
 
