@@ -881,13 +881,6 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
   crop_from_band(extended.indirect, g, roi, out.indirect);
 }
 
-// The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
-// it), each kernel on the texels the upsample of r reads (and, with the denoise, the texels
-// its taps read around them), the denoise of AO and SSDO on the grid, then one upsample of
-// all their images. Background and no foreground texel near: AO 1 (unoccluded), bent
-// normal 0 (set to the normal by its unit_vector finish), SSDO 0 (nothing known of the
-// light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
-// pass.
 // The upsample of the grid's raw AO and SSDO terms (those not empty in `raw`) into out's
 // (allocated by the caller), added to `images`: AO clamped to [0, 1], 1 on background, SSDO
 // 0 there.
@@ -924,9 +917,18 @@ void denoise_grid_terms(const HalfGridTerms& terms, const DenoiseSettings& setti
     denoise_bilateral(noisy, h.depth_view, h.normal_view, h.mask, settings, denoised, half_roi, nthreads);
 }
 
+// The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
+// it), each kernel on the texels the upsample of r reads (and, with the denoise, the texels
+// its taps read around them), the denoise of AO and SSDO on the grid, then one upsample of
+// all their images. Background and no foreground texel near: AO 1 (unoccluded), bent
+// normal 0 (set to the normal by its unit_vector finish), SSDO 0 (nothing known of the
+// light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
+// pass. With keep_grid_terms, the raw AO and SSDO terms stay on the grid (out.grid).
 void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
                           const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads,
                           const std::function<void()>& inputs_read) {
+  // finish_half_grid_terms upsamples the whole frame from the kept terms.
+  CV_Assert(!settings.keep_grid_terms || r == cv::Rect(cv::Point(), full.depth_view.size()));
   HalfGrid h;
   build_half_grid(full, h, nthreads, /*with_positions=*/half.ao || half.ssdo);
   const cv::Rect half_roi = half_grid_roi(r, full.depth_view.size());

@@ -157,6 +157,7 @@ struct TermSettings {
   // (TermOutputs::grid), instead of upsampling them: for a step on the grid before they are
   // denoised (a shot's filter over time, kernels/temporal.h); finish_half_grid_terms then
   // denoises and upsamples them. (The bent normal and the confidence are upsampled as usual.)
+  // For the whole frame only (an empty roi).
   bool keep_grid_terms = false;
 };
 
