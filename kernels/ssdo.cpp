@@ -906,9 +906,10 @@ Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, co
 
 // Each sample's sender from the sender pass (method ssdo, indirect wanted, no `lighting`),
 // so that the receiver pass need not march again: per pixel, per sample, the sender's
-// pixel index or -1 (ssdo_pixel). Empty when not wanted or over kRecordBudgetBytes.
+// pixel index or -1 (ssdo_pixel). Empty when not wanted or over kRecordBudgetBytes. Not
+// zeroed: the sender pass writes every foreground pixel's record, the only ones read.
 struct SenderRecord {
-  std::vector<int32_t> senders;
+  UninitializedVector<int32_t> senders;
   size_t width = 0, samples = 0;
 
   int32_t* at(int x, int y) { return senders.empty() ? nullptr : &senders[offset(x, y)]; }
