@@ -195,5 +195,40 @@ TEST(ComputeFrame, DenoisedTermsUseTheGridTheyWereComputedOn) {
   }
 }
 
+// A shot's frame whose AO runs on the full grid (high) and SSDO on the half grid (low): each
+// term is filtered over the neighbour's same term on the grid it was computed on, from what
+// temporal_part keeps of the neighbour. The neighbour here is the same view with other noise
+// (another seed): the raw terms stay the frame's own, the denoised ones move.
+TEST(FinishFrame, EachTermIsFilteredOverTimeOnItsOwnGrid) {
+  const GBuffer g = small_frame();
+  FrameRequest r = request_for("ao,ssdo");
+  r.ao = ao_preset(AoMethod::gtao, Preset::high);
+  r.threads = 1;
+  ASSERT_FALSE(runs_on_half_grid(r.ao));
+  ASSERT_TRUE(runs_on_half_grid(r.ssdo));
+  FrameRequest other_noise = r;
+  other_noise.ao.seed = 7;
+  other_noise.ssdo.seed = 7;
+  const RawFrame neighbour = temporal_part(compute_raw_frame(GBuffer(g), other_noise));
+  EXPECT_TRUE(neighbour.raw.ssdo.direct.empty()) << "a half grid's terms are kept on the grid";
+  EXPECT_FALSE(neighbour.raw.grid.direct.empty());
+  EXPECT_FALSE(neighbour.raw.ao.ao.empty());
+  const RawFrame* neighbours[] = {&neighbour};
+  const ComputedFrame filtered = finish_frame(compute_raw_frame(GBuffer(g), r), neighbours, r);
+  const ComputedFrame alone = compute_frame(g, r);
+  ASSERT_EQ(filtered.temporal.size(), 1u);
+  EXPECT_TRUE(filtered.temporal[0].used);
+  auto term = [](const ComputedFrame& frame, const std::string& name) -> const cv::Mat& {
+    static const cv::Mat none;
+    const cv::Mat* m = frame.find(name);
+    EXPECT_NE(m, nullptr) << name;
+    return m ? *m : none;
+  };
+  for (const std::string name : {"ao", "ssdo_direct", "ssdo_indirect"})
+    EXPECT_EQ(test::max_difference(term(filtered, name), term(alone, name)), 0.0) << name;
+  for (const std::string name : {"ao_denoised", "ssdo_direct_denoised"})
+    EXPECT_GT(test::max_difference(term(filtered, name), term(alone, name)), 1e-4) << name;
+}
+
 }  // namespace
 }  // namespace ssdo
