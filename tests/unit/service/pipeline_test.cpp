@@ -149,6 +149,24 @@ TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
   }
 }
 
+// The frame's term `name` (a test failure and an empty image when it has none).
+const cv::Mat& term(const ComputedFrame& frame, const std::string& name) {
+  static const cv::Mat none;
+  const cv::Mat* m = frame.find(name);
+  EXPECT_NE(m, nullptr) << "no term " << name;
+  return m ? *m : none;
+}
+
+// AO on the full grid (gtao high), SSDO on the half grid (low), one thread.
+FrameRequest mixed_grids_request() {
+  FrameRequest r = request_for("ao,ssdo");
+  r.ao = ao_preset(AoMethod::gtao, Preset::high);
+  r.threads = 1;
+  EXPECT_FALSE(runs_on_half_grid(r.ao));
+  EXPECT_TRUE(runs_on_half_grid(r.ssdo));
+  return r;
+}
+
 // Each denoised term is its raw term blurred on the grid it was computed on: AO at full
 // resolution (high) with the settings as given (scaled_to_grid of divisor 1), SSDO on the
 // half grid (low) there, before the upsample (compute_terms with TermSettings::denoise).
@@ -156,19 +174,9 @@ TEST(ComputeFrame, ConsumingTheGBufferGivesTheSameTerms) {
 // here without neighbours) gives the bits of compute_frame for every term.
 TEST(ComputeFrame, DenoisedTermsUseTheGridTheyWereComputedOn) {
   const GBuffer g = small_frame();
-  FrameRequest r = request_for("ao,ssdo");
-  r.ao = ao_preset(AoMethod::gtao, Preset::high);
-  r.threads = 1;
-  ASSERT_FALSE(runs_on_half_grid(r.ao));
-  ASSERT_TRUE(runs_on_half_grid(r.ssdo));
+  const FrameRequest r = mixed_grids_request();
   const ComputedFrame finished = finish_frame(compute_raw_frame(GBuffer(g), r), {}, r);
   const ComputedFrame lone = compute_frame(g, r);
-  auto term = [&](const ComputedFrame& frame, const std::string& name) -> const cv::Mat& {
-    if (const cv::Mat* m = frame.find(name)) return *m;
-    ADD_FAILURE() << "no term " << name;
-    static const cv::Mat none;
-    return none;
-  };
   cv::Mat ao_denoised;
   denoise_bilateral(term(lone, "ao"), g.depth_view, g.normal_view, g.mask, scaled_to_grid(r.denoise, 1), ao_denoised, {},
                     1);
@@ -201,11 +209,7 @@ TEST(ComputeFrame, DenoisedTermsUseTheGridTheyWereComputedOn) {
 // (another seed): the raw terms stay the frame's own, the denoised ones move.
 TEST(FinishFrame, EachTermIsFilteredOverTimeOnItsOwnGrid) {
   const GBuffer g = small_frame();
-  FrameRequest r = request_for("ao,ssdo");
-  r.ao = ao_preset(AoMethod::gtao, Preset::high);
-  r.threads = 1;
-  ASSERT_FALSE(runs_on_half_grid(r.ao));
-  ASSERT_TRUE(runs_on_half_grid(r.ssdo));
+  const FrameRequest r = mixed_grids_request();
   FrameRequest other_noise = r;
   other_noise.ao.seed = 7;
   other_noise.ssdo.seed = 7;
@@ -218,12 +222,6 @@ TEST(FinishFrame, EachTermIsFilteredOverTimeOnItsOwnGrid) {
   const ComputedFrame alone = compute_frame(g, r);
   ASSERT_EQ(filtered.temporal.size(), 1u);
   EXPECT_TRUE(filtered.temporal[0].used);
-  auto term = [](const ComputedFrame& frame, const std::string& name) -> const cv::Mat& {
-    static const cv::Mat none;
-    const cv::Mat* m = frame.find(name);
-    EXPECT_NE(m, nullptr) << name;
-    return m ? *m : none;
-  };
   for (const std::string name : {"ao", "ssdo_direct", "ssdo_indirect"})
     EXPECT_EQ(test::max_difference(term(filtered, name), term(alone, name)), 0.0) << name;
   for (const std::string name : {"ao_denoised", "ssdo_direct_denoised"})
