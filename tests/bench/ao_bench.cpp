@@ -1,12 +1,13 @@
 // Timings of the screen-space AO methods per preset, of SSDO per preset, of the denoisers
 // (1 and 3 channels; the frame's 7 at the half grid's footprint), of the confidence term,
-// of the temporal filter and of the whole compute step of a frame (`compute_frame`, terms
-// ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
+// of the temporal filter, of a shot frame's finish and of the whole compute step of a
+// frame (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
 // width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
-// width, K, threads (BM_Temporal, BM_TemporalSsdo).
+// width, K, threads (BM_Temporal, BM_TemporalSsdo); width, K, threads, with SSDO
+// (BM_ShotFinish).
 #include <benchmark/benchmark.h>
 
 #include <map>
@@ -190,6 +191,32 @@ void BM_Temporal(benchmark::State& state) { time_temporal(state, {1}, "ao"); }
 // AO and the two SSDO terms (--terms ao,ssdo): 7 channels.
 void BM_TemporalSsdo(benchmark::State& state) { time_temporal(state, {1, 3, 3}, "ao,ssdo"); }
 
+// A shot frame's finish (service/pipeline.h: finish_frame) over the K frames on each side
+// of the truck shot's middle frame, every raw frame computed once outside the timing: the
+// temporal filter, the denoise, the upsample of the half grid's terms. range(3): 0 = --terms
+// ao, 1 = --terms ao,ssdo (no composite), the medium presets.
+void BM_ShotFinish(benchmark::State& state) {
+  const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
+  const int k = int(state.range(1)), middle = ssdo::raycast::kTruckShotFrames / 2;
+  const bool with_ssdo = state.range(3) != 0;
+  ssdo::FrameRequest request;
+  request.terms = {true, with_ssdo, false};
+  request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, ssdo::Preset::medium);
+  request.ssdo = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, ssdo::Preset::medium);
+  request.threads = int(state.range(2));
+  const ssdo::RawFrame frame = ssdo::compute_raw_frame(ssdo::GBuffer(shot[size_t(middle)]), request);
+  std::vector<ssdo::RawFrame> parts;
+  for (int t = middle - k; t <= middle + k; ++t)
+    if (t != middle) parts.push_back(ssdo::temporal_part(ssdo::compute_raw_frame(ssdo::GBuffer(shot[size_t(t)]), request)));
+  std::vector<const ssdo::RawFrame*> neighbours;
+  for (const ssdo::RawFrame& p : parts) neighbours.push_back(&p);
+  // finish_frame consumes its frame: each run finishes a copy of the image headers (the
+  // finish writes new images and releases headers, never the shared pixels).
+  for (auto _ : state) benchmark::DoNotOptimize(ssdo::finish_frame(ssdo::RawFrame(frame), neighbours, request));
+  state.SetLabel("truck shot, --temporal " + std::to_string(k) + (with_ssdo ? ", ao,ssdo" : ", ao") + " medium, " +
+                 std::to_string(request.threads) + "t");
+}
+
 // The confidence term at the default settings as the pipeline runs it: on the frame's half
 // grid (built once, outside the timing), then upsampled (in a frame, in the one upsample of
 // every half-resolution term).
@@ -248,5 +275,6 @@ BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::
 BENCHMARK(BM_ShotChosenViews)->ArgsProduct({{1920}, {2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_Temporal)->ArgsProduct({{1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
