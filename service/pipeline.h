@@ -131,10 +131,10 @@ struct RawFrame {
 // grid kept there, with the grid, not yet upsampled: TermOutputs::grid), then the rest: each
 // term filtered over the same term of `neighbours` when given (kernels/temporal.h) on the
 // grid it was computed on, denoised there (a half grid's raw and denoised terms then
-// upsampled in one pass: finish_half_grid_terms), composited. finish_frame releases the frame's images as compute_frame does.
-// finish_frame(compute_raw_frame(g, r), {}, r) gives the bits of compute_frame(g, r), which
-// denoises a lone frame's half-grid terms inside compute_terms and upsamples them with the
-// raw ones in one pass.
+// upsampled in one pass: finish_half_grid_terms), composited. finish_frame releases the
+// frame's images as compute_frame does. finish_frame(compute_raw_frame(g, r), {}, r) gives
+// the bits of compute_frame(g, r), which denoises a lone frame's half-grid terms inside
+// compute_terms and upsamples them with the raw ones in one pass.
 RawFrame compute_raw_frame(GBuffer&& gbuffer, const FrameRequest& request);
 ComputedFrame finish_frame(RawFrame&& frame, std::span<const RawFrame* const> neighbours, const FrameRequest& request);
 // The raw frame of a G-buffer whose raw terms `raw` were computed before, by
