@@ -6,8 +6,8 @@
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
 // width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
-// width, K, threads (BM_Temporal, BM_TemporalSsdo); width, K, threads, with SSDO
-// (BM_ShotFinish).
+// width, K, threads (BM_Temporal, BM_TemporalSsdo); width, K, with SSDO, threads
+// (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
 
 #include <map>
@@ -193,17 +193,17 @@ void BM_TemporalSsdo(benchmark::State& state) { time_temporal(state, {1, 3, 3}, 
 
 // A shot frame's finish (service/pipeline.h: finish_frame) over the K frames on each side
 // of the truck shot's middle frame, every raw frame computed once outside the timing: the
-// temporal filter, the denoise, the upsample of the half grid's terms. range(3): 0 = --terms
+// temporal filter, the denoise, the upsample of the half grid's terms. range(2): 0 = --terms
 // ao, 1 = --terms ao,ssdo (no composite), the medium presets.
 void BM_ShotFinish(benchmark::State& state) {
   const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
   const int k = int(state.range(1)), middle = ssdo::raycast::kTruckShotFrames / 2;
-  const bool with_ssdo = state.range(3) != 0;
+  const bool with_ssdo = state.range(2) != 0;
   ssdo::FrameRequest request;
   request.terms = {true, with_ssdo, false};
   request.ao = ssdo::ao_preset(ssdo::AoSettings{}.method, ssdo::Preset::medium);
   request.ssdo = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, ssdo::Preset::medium);
-  request.threads = int(state.range(2));
+  request.threads = int(state.range(3));
   const ssdo::RawFrame frame = ssdo::compute_raw_frame(ssdo::GBuffer(shot[size_t(middle)]), request);
   std::vector<ssdo::RawFrame> parts;
   for (int t = middle - k; t <= middle + k; ++t)
@@ -275,6 +275,6 @@ BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::
 BENCHMARK(BM_ShotChosenViews)->ArgsProduct({{1920}, {2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_Temporal)->ArgsProduct({{1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {2}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();

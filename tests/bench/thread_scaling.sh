@@ -12,11 +12,11 @@
 #
 # FILTER (a regex over the benchmark names, without the thread count; default: the AO
 # methods and SSDO at low and medium, the whole frame, the denoisers, the confidence,
-# the box blur and the temporal filter, all at 1920).
+# the box blur, the temporal filter and a shot frame's finish, all at 1920).
 set -euo pipefail
 here="$(cd "$(dirname "$0")/../.." && pwd)"
 reps="${1:-7}"
-filter="${2:-^(BM_Ao/1920/[0-2]/[01]|BM_Ssdo/1920/[01]|BM_Frame/1920/[01]|BM_Denoise/1920|BM_Denoise3/1920|BM_DenoiseHalfGridTerms/1920/[12]|BM_Confidence/1920|BM_BoxBlur/1920|BM_Temporal/1920/[12])}"
+filter="${2:-^(BM_Ao/1920/[0-2]/[01]|BM_Ssdo/1920/[01]|BM_Frame/1920/[01]|BM_Denoise/1920|BM_Denoise3/1920|BM_DenoiseHalfGridTerms/1920/[12]|BM_Confidence/1920|BM_BoxBlur/1920|BM_Temporal/1920/[12]|BM_ShotFinish/1920/2/[01])}"
 bench="${AO_BENCH:-$here/build/tests/bench/ao_bench}"
 min_scaling="${MIN_SCALING:-1.8}"
 [[ "$reps" =~ ^[0-9]+$ && "$reps" -ge 2 ]] || { echo "REPS must be a whole number >= 2 (medians need repetitions), not '$reps'"; exit 1; }
