@@ -37,6 +37,7 @@
 #include "formats/camera_io.h"
 #include "formats/exr_core.h"
 #include "formats/exr_zip.h"
+#include "formats/sample_planes.h"
 #include "core/half_samples.h"
 #include "formats/png_file.h"
 #include "core/parallel.h"
@@ -322,51 +323,62 @@ struct ChannelSource {
 // Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
 // header's (alphabetical) order, the samples of the whole line, little-endian. Half
 // samples are Imath's conversion of the float (round to nearest even), exactly as
-// OpenEXR's writer stores them. A half channel takes its samples from its image's whole row
-// converted at once (contiguous: no strided loads), kept while the next channels read the
-// same row.
+// OpenEXR's writer stores them. An image's row is converted to half at once and, with more
+// than one channel, split into one plane per channel at once (sample_planes.h), kept while
+// the next channels read the same row: each channel's line is then one contiguous copy.
 void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int y1,
                 uint8_t* out) {
   static_assert(sizeof(half) == 2 && sizeof(float) == 4);
   // Samples are copied in the host's byte order: write_own_exr, the only caller, runs on
   // little-endian hosts only.
-  thread_local UninitializedVector<uint16_t> row_half;  // the converted row of row_image at row_y
+  thread_local UninitializedVector<uint16_t> row_half;  // a row converted to half
+  // The row of row_image at row_y (as half samples when row_half_samples), plane by plane.
+  thread_local UninitializedVector<uint32_t> row_planes;
   const cv::Mat* row_image = nullptr;
   int row_y = -1;
+  bool row_half_samples = false;
   for (int y = y0; y < y1; ++y)
     for (const ChannelSource& c : channels) {
-      const size_t step = size_t(c.components);
-      if (c.is_half) {
-        const uint16_t* from = nullptr;
-        if (c.given_half) {
-          from = c.image->ptr<uint16_t>(y) + c.component;
-        } else {
-          if (row_image != c.image || row_y != y) {
-            row_half.resize(size_t(width) * step);
-            half_samples::to_half(c.image->ptr<float>(y), int(size_t(width) * step), row_half.data());
-            row_image = c.image;
-            row_y = y;
-          }
-          from = row_half.data() + c.component;
-        }
-        if (step == 1) {
-          std::memcpy(out, from, size_t(width) * 2);
-        } else {
-          for (int x = 0; x < width; ++x) std::memcpy(out + 2 * size_t(x), &from[size_t(x) * step], 2);
-        }
-        out += size_t(width) * 2;
+      const int components = c.components;
+      const size_t sample_bytes = c.is_half ? 2 : 4;
+      const size_t line_bytes = size_t(width) * sample_bytes;
+      const size_t row_samples = size_t(width) * size_t(components);
+      // The image's row y as the file stores its samples (interleaved pixels).
+      auto stored_row = [&]() -> const void* {
+        if (!c.is_half) return c.image->ptr<float>(y);
+        if (c.given_half) return c.image->ptr<uint16_t>(y);
+        row_half.resize(row_samples);
+        half_samples::to_half(c.image->ptr<float>(y), int(row_samples), row_half.data());
+        return row_half.data();
+      };
+      if (components == 1) {
+        std::memcpy(out, stored_row(), line_bytes);
+        out += line_bytes;
         continue;
       }
-      const float* in = c.image->ptr<float>(y) + c.component;
-      if (step == 1) {
-        std::memcpy(out, in, size_t(width) * 4);
-        out += size_t(width) * 4;
-      } else {
-        for (int x = 0; x < width; ++x) {
-          std::memcpy(out, in + size_t(x) * step, 4);
-          out += 4;
+      if (row_image != c.image || row_y != y || row_half_samples != c.is_half) {
+        const void* interleaved = stored_row();
+        row_planes.resize((row_samples * sample_bytes + 3) / 4);
+        // Plane k starts k lines into row_planes.
+        auto split = [&](const auto* samples, auto* planes, auto& to) {
+          to.resize(size_t(components));
+          for (int k = 0; k < components; ++k) to[size_t(k)] = planes + size_t(k) * size_t(width);
+          sample_planes::split(samples, width, components, to.data());
+        };
+        if (c.is_half) {
+          thread_local std::vector<uint16_t*> to;
+          split(static_cast<const uint16_t*>(interleaved), reinterpret_cast<uint16_t*>(row_planes.data()), to);
+        } else {
+          thread_local std::vector<uint32_t*> to;
+          split(static_cast<const uint32_t*>(interleaved), row_planes.data(), to);
         }
+        row_image = c.image;
+        row_y = y;
+        row_half_samples = c.is_half;
       }
+      std::memcpy(out, reinterpret_cast<const uint8_t*>(row_planes.data()) + size_t(c.component) * line_bytes,
+                  line_bytes);
+      out += line_bytes;
     }
 }
 

@@ -1,0 +1,17 @@
+// The channels of interleaved pixels split into one plane per channel, as a scanline
+// chunk stores them (OpenEXR "Technical Introduction", "Pixel Data": per line, each
+// channel's samples of the whole line). Part of the output writer (output_writer.cpp), in
+// its own file because its loop runs over every sample a frame writes and is compiled once
+// per instruction set and dispatched at run time (core/simd.h).
+#pragma once
+
+#include <cstdint>
+
+namespace ssdo::sample_planes {
+
+// planes[c][x] = pixels[x * channels + c] for x < n and c < channels (channels >= 1), the
+// samples' bits copied: 2-byte samples (half bits) or 4-byte ones (floats).
+void split(const uint16_t* pixels, int64_t n, int channels, uint16_t* const* planes);
+void split(const uint32_t* pixels, int64_t n, int channels, uint32_t* const* planes);
+
+}  // namespace ssdo::sample_planes

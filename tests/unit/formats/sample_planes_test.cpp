@@ -1,0 +1,47 @@
+// Interleaved pixels split into planes (formats/sample_planes.h) on every instruction set
+// this CPU runs: each sample lands in its channel's plane at its pixel, for the channel
+// counts with vector loops (2, 3, 4) and without (1, 5), for row lengths around the vector
+// widths, and nothing past a plane's end is written.
+#include "formats/sample_planes.h"
+
+#include <cstdint>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "tests/support/each_simd_target.h"
+
+namespace ssdo::sample_planes {
+namespace {
+
+template <class T>
+void expect_split(int channels, int64_t n, const std::string& target) {
+  std::vector<T> pixels(size_t(n * channels));
+  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = T(0x9E37u * uint32_t(i) + 1u);  // distinct samples
+  constexpr T kUnwritten = T(0xABCD);
+  const int64_t guard = 8;  // samples after each plane that must stay unwritten
+  std::vector<T> planes(size_t(channels * (n + guard)), kUnwritten);
+  std::vector<T*> to;
+  for (int c = 0; c < channels; ++c) to.push_back(planes.data() + c * (n + guard));
+  split(pixels.data(), n, channels, to.data());
+  for (int c = 0; c < channels; ++c) {
+    for (int64_t x = 0; x < n; ++x)
+      ASSERT_EQ(to[size_t(c)][x], pixels[size_t(x * channels + c)])
+          << target << ": " << sizeof(T) << "-byte samples, " << channels << " channels, n " << n << ", x " << x;
+    for (int64_t x = n; x < n + guard; ++x)
+      ASSERT_EQ(to[size_t(c)][x], kUnwritten) << target << ": written past the plane's end at " << x;
+  }
+}
+
+TEST(SamplePlanes, EverySampleLandsInItsChannelsPlane) {
+  test::for_each_simd_target([](const std::string& target) {
+    for (int channels = 1; channels <= 5; ++channels)
+      for (const int64_t n : {0, 1, 3, 7, 8, 15, 16, 17, 31, 32, 33, 64, 100, 1920}) {
+        expect_split<uint16_t>(channels, n, target);
+        expect_split<uint32_t>(channels, n, target);
+      }
+  });
+}
+
+}  // namespace
+}  // namespace ssdo::sample_planes
