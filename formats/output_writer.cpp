@@ -319,6 +319,19 @@ struct ChannelSource {
   bool given_half = false;  // the image holds the half samples
 };
 
+// A row of `width` pixels of `components` interleaved samples split into one plane per
+// channel, the planes one after another in `planes` (kept by the caller while the next
+// channels read the same row).
+template <class T>
+const T* split_row(const T* pixels, int width, int components, UninitializedVector<T>& planes) {
+  thread_local std::vector<T*> plane;
+  planes.resize(size_t(width) * size_t(components));
+  plane.resize(size_t(components));
+  for (int k = 0; k < components; ++k) plane[size_t(k)] = planes.data() + size_t(k) * size_t(width);
+  sample_planes::split(pixels, width, components, plane.data());
+  return planes.data();
+}
+
 // Packs scanlines [y0, y1) as a chunk stores them before compression (OpenEXR "Technical
 // Introduction", "Scan Line Blocks"; "Pixel Data"): per scanline, for each channel in the
 // header's (alphabetical) order, the samples of the whole line, little-endian. Half
@@ -332,52 +345,40 @@ void pack_lines(std::span<const ChannelSource> channels, int width, int y0, int 
   // Samples are copied in the host's byte order: write_own_exr, the only caller, runs on
   // little-endian hosts only.
   thread_local UninitializedVector<uint16_t> row_half;  // a row converted to half
-  // The row of row_image at row_y (as half samples when row_half_samples), plane by plane.
-  thread_local UninitializedVector<uint32_t> row_planes;
+  // The planes of the row of row_image at row_y, as the image's channels are stored (one
+  // image holds one term: one sample type).
+  thread_local UninitializedVector<uint16_t> planes_half;
+  thread_local UninitializedVector<float> planes_float;
   const cv::Mat* row_image = nullptr;
   int row_y = -1;
-  bool row_half_samples = false;
+  const uint8_t* planes = nullptr;
   for (int y = y0; y < y1; ++y)
     for (const ChannelSource& c : channels) {
       const int components = c.components;
-      const size_t sample_bytes = c.is_half ? 2 : 4;
-      const size_t line_bytes = size_t(width) * sample_bytes;
+      const size_t line_bytes = size_t(width) * (c.is_half ? 2 : 4);
       const size_t row_samples = size_t(width) * size_t(components);
       // The image's row y as the file stores its samples (interleaved pixels).
-      auto stored_row = [&]() -> const void* {
-        if (!c.is_half) return c.image->ptr<float>(y);
-        if (c.given_half) return c.image->ptr<uint16_t>(y);
+      const uint16_t* row_as_half = nullptr;
+      if (c.is_half && c.given_half) {
+        row_as_half = c.image->ptr<uint16_t>(y);
+      } else if (c.is_half && (components == 1 || row_image != c.image || row_y != y)) {
         row_half.resize(row_samples);
         half_samples::to_half(c.image->ptr<float>(y), int(row_samples), row_half.data());
-        return row_half.data();
-      };
+        row_as_half = row_half.data();
+      }
       if (components == 1) {
-        std::memcpy(out, stored_row(), line_bytes);
+        std::memcpy(out, c.is_half ? static_cast<const void*>(row_as_half) : c.image->ptr<float>(y), line_bytes);
         out += line_bytes;
         continue;
       }
-      if (row_image != c.image || row_y != y || row_half_samples != c.is_half) {
-        const void* interleaved = stored_row();
-        row_planes.resize((row_samples * sample_bytes + 3) / 4);
-        // Plane k starts k lines into row_planes.
-        auto split = [&](const auto* samples, auto* planes, auto& to) {
-          to.resize(size_t(components));
-          for (int k = 0; k < components; ++k) to[size_t(k)] = planes + size_t(k) * size_t(width);
-          sample_planes::split(samples, width, components, to.data());
-        };
-        if (c.is_half) {
-          thread_local std::vector<uint16_t*> to;
-          split(static_cast<const uint16_t*>(interleaved), reinterpret_cast<uint16_t*>(row_planes.data()), to);
-        } else {
-          thread_local std::vector<uint32_t*> to;
-          split(static_cast<const uint32_t*>(interleaved), row_planes.data(), to);
-        }
+      if (row_image != c.image || row_y != y) {
+        planes = c.is_half ? reinterpret_cast<const uint8_t*>(split_row(row_as_half, width, components, planes_half))
+                           : reinterpret_cast<const uint8_t*>(
+                                 split_row(c.image->ptr<float>(y), width, components, planes_float));
         row_image = c.image;
         row_y = y;
-        row_half_samples = c.is_half;
       }
-      std::memcpy(out, reinterpret_cast<const uint8_t*>(row_planes.data()) + size_t(c.component) * line_bytes,
-                  line_bytes);
+      std::memcpy(out, planes + size_t(c.component) * line_bytes, line_bytes);
       out += line_bytes;
     }
 }

@@ -51,7 +51,7 @@ void split_lanes(const T* pixels, int64_t n, int channels, T* const* planes) {
 void split16(const uint16_t* pixels, int64_t n, int channels, uint16_t* const* planes) {
   split_lanes(pixels, n, channels, planes);
 }
-void split32(const uint32_t* pixels, int64_t n, int channels, uint32_t* const* planes) {
+void split32(const float* pixels, int64_t n, int channels, float* const* planes) {
   split_lanes(pixels, n, channels, planes);
 }
 
@@ -67,7 +67,7 @@ HWY_EXPORT(split32);
 void split(const uint16_t* pixels, int64_t n, int channels, uint16_t* const* planes) {
   HWY_DYNAMIC_DISPATCH(split16)(pixels, n, channels, planes);
 }
-void split(const uint32_t* pixels, int64_t n, int channels, uint32_t* const* planes) {
+void split(const float* pixels, int64_t n, int channels, float* const* planes) {
   HWY_DYNAMIC_DISPATCH(split32)(pixels, n, channels, planes);
 }
 

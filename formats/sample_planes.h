@@ -10,8 +10,9 @@
 namespace ssdo::sample_planes {
 
 // planes[c][x] = pixels[x * channels + c] for x < n and c < channels (channels >= 1), the
-// samples' bits copied: 2-byte samples (half bits) or 4-byte ones (floats).
+// samples' bits copied: half samples (their bits) or floats (moved, never computed on, so
+// that NaN payloads are kept).
 void split(const uint16_t* pixels, int64_t n, int channels, uint16_t* const* planes);
-void split(const uint32_t* pixels, int64_t n, int channels, uint32_t* const* planes);
+void split(const float* pixels, int64_t n, int channels, float* const* planes);
 
 }  // namespace ssdo::sample_planes
