@@ -703,29 +703,28 @@ void allocate(cv::Mat& image, const cv::Size& size, int type) {
   if (image.size() != size || image.type() != type) image.create(size, type);
 }
 
+// The full-resolution images of the half grid's AO and SSDO terms that the upsample writes,
+// for those present (ao, ssdo): the raw ones (`raw`; SSDO's in half with in_half.ssdo) and
+// the denoised ones (`denoised`).
+void allocate_grid_terms(bool ao, bool ssdo, bool raw, bool denoised, const HalfOutputs& in_half,
+                         const cv::Size& size, TermOutputs& out) {
+  const int light = in_half.ssdo ? CV_16FC3 : CV_32FC3;
+  if (ao && raw) allocate(out.ao.ao, size, CV_32FC1);
+  if (ao && denoised) allocate(out.denoised.ao, size, CV_32FC1);
+  if (ssdo && raw) allocate(out.ssdo.direct, size, light), allocate(out.ssdo.indirect, size, light);
+  if (ssdo && denoised)
+    allocate(out.denoised.direct, size, CV_32FC3), allocate(out.denoised.indirect, size, CV_32FC3);
+}
+
 // The full-resolution images the upsample writes, as the kernels allocate their outputs.
 void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, const cv::Size& size,
                         TermOutputs& out) {
-  const bool denoised = settings.denoise != nullptr;
-  const HalfOutputs& in_half = settings.stored_in_half;
-  auto colour = [](bool stored_in_half) { return stored_in_half ? CV_16FC3 : CV_32FC3; };
-  const bool raw = !settings.keep_grid_terms;
-  if (half.ao) {
-    if (raw) allocate(out.ao.ao, size, CV_32FC1);
-    if (has_bent_normal(*settings.ao)) allocate(out.ao.bent_normal_view, size, colour(in_half.bent_normal));
-    else out.ao.bent_normal_view.release();
-    if (denoised) allocate(out.denoised.ao, size, CV_32FC1);
-  }
-  if (half.ssdo && raw) {
-    allocate(out.ssdo.direct, size, colour(in_half.ssdo));
-    allocate(out.ssdo.indirect, size, colour(in_half.ssdo));
-  }
-  if (half.ssdo) {
-    if (denoised) {
-      allocate(out.denoised.direct, size, CV_32FC3);
-      allocate(out.denoised.indirect, size, CV_32FC3);
-    }
-  }
+  allocate_grid_terms(half.ao, half.ssdo, /*raw=*/!settings.keep_grid_terms, settings.denoise != nullptr,
+                      settings.stored_in_half, size, out);
+  if (half.ao && has_bent_normal(*settings.ao))
+    allocate(out.ao.bent_normal_view, size, settings.stored_in_half.bent_normal ? CV_16FC3 : CV_32FC3);
+  else if (half.ao)
+    out.ao.bent_normal_view.release();
   if (half.confidence) allocate(out.confidence, size, CV_32FC1);
 }
 
@@ -1050,12 +1049,8 @@ void finish_half_grid_terms(const FullGrid& full, const HalfGridTerms& raw, cons
   add_raw_grid_terms(raw, out, images);
   DenoisedTerms grid_denoised;
   denoise_grid_terms(to_denoise, settings, half_grid_roi(all, size), grid_denoised, out.denoised, images, nthreads);
-  const int ssdo_type = stored_in_half.ssdo ? CV_16FC3 : CV_32FC3;
-  if (!raw.ao.empty()) allocate(out.ao.ao, size, CV_32FC1), allocate(out.denoised.ao, size, CV_32FC1);
-  if (!raw.direct.empty()) {
-    allocate(out.ssdo.direct, size, ssdo_type), allocate(out.ssdo.indirect, size, ssdo_type);
-    allocate(out.denoised.direct, size, CV_32FC3), allocate(out.denoised.indirect, size, CV_32FC3);
-  }
+  allocate_grid_terms(!raw.ao.empty(), !raw.direct.empty(), /*raw=*/true, /*denoised=*/true, stored_in_half, size,
+                      out);
   upsample_from_half_grid(full, raw.grid, images, all, nthreads);
 }
 

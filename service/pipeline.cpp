@@ -239,10 +239,10 @@ HalfGridTerms filter_grid_over_time(const HalfGridTerms& own, std::span<const Ra
 
 // The denoised terms of `sources` (raw_terms' order): those of `done` (the half grid's,
 // denoised on the grid: compute_terms' TermSettings::denoise or finish_half_grid_terms) as
-// they are, the others here at full resolution. Each term's footprint is scaled to the grid it was computed on
-// (scaled_to_grid, kernels/denoise.h); terms of one grid are blurred in one pass over the
-// frame, since the blur's weights depend only on the guides (AO and the two SSDO terms
-// share them when they share a grid).
+// they are, the others here at full resolution. Each term's footprint is scaled to the
+// grid it was computed on (scaled_to_grid, kernels/denoise.h); terms of one grid are
+// blurred in one pass over the frame, since the blur's weights depend only on the guides
+// (AO and the two SSDO terms share them when they share a grid).
 DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const std::vector<const cv::Mat*>& sources,
                             const TermsComputed& computed, DenoisedTerms done) {
   DenoisedTerms d = std::move(done);
