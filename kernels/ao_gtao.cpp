@@ -227,7 +227,7 @@ struct Constants {
   float thickness_world;
   bool height_field;  // thickness_world = inf: the paper's height-field occluders
   float depth_bias_relative;
-  uint32_t seed;
+  StratifiedNoise noise;  // of the seed: a pixel's slice rotation and step jitter
   bool multibounce;
   bool perspective;
   float r2;  // radius_world^2
@@ -248,7 +248,7 @@ struct Constants {
         thickness_world(s.thickness_world),
         height_field(!std::isfinite(s.thickness_world)),
         depth_bias_relative(s.depth_bias_relative),
-        seed(s.seed),
+        noise(s.seed),
         multibounce(s.multibounce && in.albedo != nullptr && !in.albedo->empty()),
         perspective(in.camera.is_perspective()),
         r2(s.radius_world * s.radius_world),
@@ -302,24 +302,27 @@ struct TileRow {
   alignas(64) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
 };
 
+static_assert(kTileWidthPx <= 64, "a tile row's noise is one run of a HilbertTile row");
+
 // The tap patterns of row y's pixels x0 .. x0 + n - 1 (at 0 .. n - 1 in the row), computed
 // for every pixel and kept where it has taps (no branch: the loop vectorises).
 inline void pixel_taps(const Constants& k, const AoInputs& in, int x0, int n, int y, TileRow& row) {
   const uint8_t* mask = in.mask.ptr<uint8_t>(y) + x0;
   const float* depth = in.depth_view.ptr<float>(y) + x0;
+  // The frame's pixels (without a guard band's offset): their spatially stratified noise.
+  const uint16_t* hilbert = StratifiedNoise::row_indices(x0 - in.frame_origin_px.x, y - in.frame_origin_px.y);
   for (int xi = 0; xi < n; ++xi) {
     const bool foreground = mask[xi] != 0;
     const float radius_px = projected_radius_px(in.camera, depth[xi], k.radius_world, k.max_radius_px);
     // Below 2 px the whole occlusion sphere fits in the pixel's neighbour: no tap can see it.
     const bool has_taps = foreground & !(radius_px < 2.0f * kMinTapDistancePx);
-    const int nx = x0 + xi - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
-    const float slice_noise = noise01(nx, ny, 0, k.seed);
+    const float slice_noise = k.noise.u(hilbert[xi]), step_noise = k.noise.v(hilbert[xi]);
     float rot_c, rot_s;
     // The rotation slice_noise pi / slices, in turns.
     sincos_turns(slice_noise / float(2 * k.slices), rot_c, rot_s);
     row.has_taps[xi] = has_taps;
     row.radius_px[xi] = foreground ? radius_px : 0.0f;
-    row.step_noise[xi] = has_taps ? noise01(nx, ny, 1, k.seed) : 0.0f;
+    row.step_noise[xi] = has_taps ? step_noise : 0.0f;
     row.rot_c[xi] = has_taps ? rot_c : 1.0f;
     row.rot_s[xi] = has_taps ? rot_s : 0.0f;
     row.state[xi] = !foreground ? kBackground : has_taps ? kShaded : kNoTaps;

@@ -179,11 +179,13 @@ inline glm::vec3 half_slice_bent_normal(const Horizon& h, const HalfSlice& hs, c
     return;
   }
   const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
+  float rotation_noise, step_noise;
+  stratified_noise(nx, ny, k.seed, rotation_noise, step_noise);
   const ShadedPixel px{x, y, biased_origin(p, normal, depth, k.depth_bias_relative), normal,
-                       view_vector(in.camera, p), radius_px, noise01(nx, ny, 1, k.seed)};
+                       view_vector(in.camera, p), radius_px, step_noise};
   // Direction angles phi_i = (i + noise) 2 pi / directions as the fixed angles
   // i 2 pi / directions rotated by the pixel's noise angle: one sin/cos per pixel.
-  const float rot = noise01(nx, ny, 0, k.seed) / float(k.directions) * (2.0f * std::numbers::pi_v<float>);
+  const float rot = rotation_noise / float(k.directions) * (2.0f * std::numbers::pi_v<float>);
   const float rot_c = std::cos(rot), rot_s = std::sin(rot);
   float occlusion_sum = 0.0f, weight_sum = 0.0f;
   glm::vec3 bent(0.0f);

@@ -36,6 +36,69 @@ inline void r2_point(uint32_t n, float shift_x, float shift_y, float& u, float& 
   v = float(y - static_cast<double>(static_cast<int64_t>(y)));
 }
 
+// Index of pixel (x, y) along a Hilbert curve over the 64 x 64 tile it lies in (the tiles
+// repeat): consecutive indices are neighbouring pixels, and any run of indices covers a
+// compact patch (Hilbert 1891; the iterative form of "xy2d", one quadrant bit pair per
+// level, the quadrant rotated by selects).
+constexpr uint32_t hilbert_index_64(int x_px, int y_px) {
+  uint32_t x = uint32_t(x_px) & 63u, y = uint32_t(y_px) & 63u, d = 0;
+  for (uint32_t s = 32; s > 0; s >>= 1) {
+    const uint32_t rx = (x & s) != 0, ry = (y & s) != 0;
+    d += s * s * ((3u * rx) ^ ry);
+    const uint32_t flip = (ry == 0 && rx == 1) ? 63u : 0u;
+    x ^= flip, y ^= flip;
+    const uint32_t tx = ry ? x : y, ty = ry ? y : x;
+    x = tx, y = ty;
+  }
+  return d;
+}
+
+// The Hilbert indices of the 64 x 64 tile, each row stored twice over (entry x for x mod 64,
+// x in [0, 128)), so that the indices of up to 64 consecutive pixels of a row are
+// consecutive entries: a row's loop loads them, and vectorises.
+struct HilbertTile {
+  uint16_t index[64][128];
+};
+
+inline const HilbertTile& hilbert_tile() {
+  static const HilbertTile tile = [] {
+    HilbertTile t{};
+    for (int y = 0; y < 64; ++y)
+      for (int x = 0; x < 128; ++x) t.index[y][x] = uint16_t(hilbert_index_64(x, y));
+    return t;
+  }();
+  return tile;
+}
+
+// Spatially stratified noise, two values in [0, 1) per pixel: the R2 sequence (r2_point)
+// at the pixel's Hilbert index, shifted per seed (the scheme of XeGTAO's spatial noise).
+// Neighbouring pixels take points far apart in the sequence's well-spread order, so any
+// compact patch of pixels covers [0, 1)^2 nearly evenly: a blur over the patch averages
+// its pixels' estimates as a stratified sample, where white noise (noise01) would leave
+// clumps and gaps. Fixed-point arithmetic: the sequence's fractional parts modulo 2^32.
+struct StratifiedNoise {
+  static constexpr uint32_t kStepU = 3242174889u;  // 2^32 / plastic number
+  static constexpr uint32_t kStepV = 2447445414u;  // 2^32 / plastic number^2
+  uint32_t shift_u, shift_v;                       // the seed's offsets, 2^-32 units
+
+  explicit StratifiedNoise(uint32_t seed) : shift_u(hash_u32(seed * 2u + 1u)), shift_v(hash_u32(seed * 2u + 2u)) {}
+  float u(uint32_t hilbert_index) const { return unit_float(hilbert_index * kStepU + shift_u); }
+  float v(uint32_t hilbert_index) const { return unit_float(hilbert_index * kStepV + shift_v); }
+
+  // The Hilbert indices of pixels x_px .. x_px + 63 of row y_px (frame pixels, any sign).
+  static const uint16_t* row_indices(int x_px, int y_px) {
+    return hilbert_tile().index[uint32_t(y_px) & 63u] + (uint32_t(x_px) & 63u);
+  }
+};
+
+// The two values of pixel (x_px, y_px) alone.
+inline void stratified_noise(int x_px, int y_px, uint32_t seed, float& u, float& v) {
+  const StratifiedNoise noise(seed);
+  const uint32_t n = hilbert_index_64(x_px, y_px);
+  u = noise.u(n);
+  v = noise.v(n);
+}
+
 // cos(2 pi t) and sin(2 pi t): a per-pixel rotation from a noise value t (any float of
 // moderate size; noise01's in [0, 1)). Within 1e-7 of the exact values (measured at every
 // noise01 value), a quarter of the library's sincos time: the nearest quarter turn is
