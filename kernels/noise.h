@@ -75,7 +75,9 @@ inline const HilbertTile& hilbert_tile() {
 // Neighbouring pixels take points far apart in the sequence's well-spread order, so any
 // compact patch of pixels covers [0, 1)^2 nearly evenly: a blur over the patch averages
 // its pixels' estimates as a stratified sample, where white noise (noise01) would leave
-// clumps and gaps. Fixed-point arithmetic: the sequence's fractional parts modulo 2^32.
+// clumps and gaps. A pixel that takes S points of the sequence takes those from index n S
+// on (n its Hilbert index), so that neighbours' runs do not overlap. Fixed-point
+// arithmetic: the sequence's fractional parts modulo 2^32.
 struct StratifiedNoise {
   static constexpr uint32_t kStepU = 3242174889u;  // 2^32 / plastic number
   static constexpr uint32_t kStepV = 2447445414u;  // 2^32 / plastic number^2

@@ -325,7 +325,14 @@ inline void add_sender(const Constants& c, const Receiver& rcv, const cv::Mat& s
 }
 
 // A pixel's rotation of the R2 sequence (Cranley-Patterson shift (shift_u, shift_v)), with
-// cos and sin of the azimuth shift 2 pi shift_v.
+// cos and sin of the azimuth shift 2 pi shift_v. The shift is the sequence's point n S (n
+// the pixel's Hilbert index, S its samples; StratifiedNoise), so that the pixel's directions
+// are the points n S .. n S + S - 1: neighbouring pixels take neighbouring runs of the
+// sequence, and a patch of them, which the denoise averages, covers the sphere as evenly as
+// one pixel with all their samples would. (A shift at index n, as GTAO's rotation, would give
+// the next pixel the same directions but one.) Against the oracle at high on the shared
+// frames, medium's relative MAE (indirect / direct) fell from 0.144 / 0.031 (white noise) to
+// 0.134 / 0.029 on cornell, 0.183 / 0.024 to 0.176 / 0.022 on greeble (docs/accuracy.md).
 struct SampleShift {
   float u, v;
   float cos_v, sin_v;
@@ -334,8 +341,10 @@ struct SampleShift {
 inline SampleShift sample_shift(const Constants& c, int x, int y) {
   SampleShift h;
   const int frame_x = x - c.frame_origin_px.x, frame_y = y - c.frame_origin_px.y;
-  h.u = noise01(frame_x, frame_y, 0, c.s.seed);
-  h.v = noise01(frame_x, frame_y, 1, c.s.seed);
+  const StratifiedNoise noise(c.s.seed);
+  const uint32_t n = hilbert_index_64(frame_x, frame_y) * uint32_t(c.s.samples);
+  h.u = noise.u(n);
+  h.v = noise.v(n);
   sincos_turns(h.v, h.cos_v, h.sin_v);
   return h;
 }
