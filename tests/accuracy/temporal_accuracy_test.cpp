@@ -152,9 +152,9 @@ TEST(TemporalAccuracy, OrbitFlickersLessAndIsNoWorse) {
                   ms_finish);
       if (k < 0) alone = m;
       if (k != kDefaultTemporalPerSide || preset != Preset::medium) continue;
-      // Measured: 0.0046 against 0.0087 alone (0.53; 0.45 while a pixel's slice rotation was
-      // white noise, which left a lone frame more flicker to remove), and below Cycles' own
-      // (0.0065, its Monte-Carlo noise).
+      // Measured: 0.0046 against 0.0087 alone (0.53: the stratified noise leaves a lone
+      // frame's denoise little flicker to remove), and below Cycles' own (0.0065, its
+      // Monte-Carlo noise).
       EXPECT_LE(m.flicker, 0.6 * alone.flicker);
       EXPECT_LT(m.flicker, m.reference_flicker);
       EXPECT_LE(m.mae, alone.mae);

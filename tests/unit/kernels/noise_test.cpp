@@ -59,7 +59,10 @@ TEST(Noise, HilbertIndexWalksTheTileInNeighbouringSteps) {
       for (int bx = 0; bx < 64; bx += size) {
         uint32_t lo = 4096, hi = 0;
         for (int y = by; y < by + size; ++y)
-          for (int x = bx; x < bx + size; ++x) lo = std::min(lo, hilbert_index_64(x, y)), hi = std::max(hi, hilbert_index_64(x, y));
+          for (int x = bx; x < bx + size; ++x) {
+            lo = std::min(lo, hilbert_index_64(x, y));
+            hi = std::max(hi, hilbert_index_64(x, y));
+          }
         EXPECT_EQ(hi - lo + 1, uint32_t(size * size)) << size << " at " << bx << ", " << by;
       }
   }
@@ -68,8 +71,9 @@ TEST(Noise, HilbertIndexWalksTheTileInNeighbouringSteps) {
 // |mean of exp(2 pi i f t)| over the values t: 0 for values spread evenly over the circle
 // [0, 1) at frequency f, ~1 / sqrt(n) for n independent uniform ones.
 double fourier_mean(const std::vector<float>& t, int f) {
+  constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
   double c = 0.0, s = 0.0;
-  for (const float v : t) c += std::cos(2.0 * 3.14159265358979323846 * f * v), s += std::sin(2.0 * 3.14159265358979323846 * f * v);
+  for (const float v : t) c += std::cos(kTwoPi * f * v), s += std::sin(kTwoPi * f * v);
   return std::hypot(c, s) / double(t.size());
 }
 
