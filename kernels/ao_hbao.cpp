@@ -52,7 +52,7 @@ struct Constants {
   int width, height;
   int directions, steps;
   float radius_world, max_radius_px, depth_bias_relative;
-  uint32_t seed;
+  StratifiedNoise noise;  // of the seed: a pixel's direction rotation and step jitter
   bool multibounce;
   // Direction angles i 2 pi / directions as (cos, sin), rotated per pixel by one angle.
   std::vector<std::array<float, 2>> dir_rot;
@@ -67,7 +67,7 @@ struct Constants {
         radius_world(s.radius_world),
         max_radius_px(s.max_radius_px),
         depth_bias_relative(s.depth_bias_relative),
-        seed(s.seed),
+        noise(s.seed),
         multibounce(s.multibounce && in.albedo != nullptr && !in.albedo->empty()),
         dir_rot(static_cast<size_t>(s.directions)) {
     for (int i = 0; i < directions; ++i) {
@@ -180,7 +180,7 @@ inline glm::vec3 half_slice_bent_normal(const Horizon& h, const HalfSlice& hs, c
   }
   const int nx = x - in.frame_origin_px.x, ny = y - in.frame_origin_px.y;  // the frame's pixel
   float rotation_noise, step_noise;
-  stratified_noise(nx, ny, k.seed, rotation_noise, step_noise);
+  k.noise.at(nx, ny, rotation_noise, step_noise);
   const ShadedPixel px{x, y, biased_origin(p, normal, depth, k.depth_bias_relative), normal,
                        view_vector(in.camera, p), radius_px, step_noise};
   // Direction angles phi_i = (i + noise) 2 pi / directions as the fixed angles

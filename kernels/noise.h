@@ -27,11 +27,13 @@ constexpr float noise01(int x_px, int y_px, uint32_t index, uint32_t seed) {
 }
 
 // The R2 low-discrepancy sequence (Roberts 2018, "The Unreasonable Effectiveness of
-// Quasirandom Sequences"): point n in [0,1)^2, offset by `shift` (e.g. per-pixel noise).
+// Quasirandom Sequences"): point n is frac(n (kR2First, kR2Second)).
+inline constexpr double kR2First = 0.7548776662466927;   // 1 / plastic number
+inline constexpr double kR2Second = 0.5698402909980532;  // 1 / plastic number^2
+
+// R2's point n in [0,1)^2, offset by `shift` (e.g. per-pixel noise).
 inline void r2_point(uint32_t n, float shift_x, float shift_y, float& u, float& v) {
-  constexpr double a1 = 0.7548776662466927;  // 1 / plastic number
-  constexpr double a2 = 0.5698402909980532;  // 1 / plastic number^2
-  double x = shift_x + a1 * double(n), y = shift_y + a2 * double(n);
+  double x = shift_x + kR2First * double(n), y = shift_y + kR2Second * double(n);
   u = float(x - static_cast<double>(static_cast<int64_t>(x)));
   v = float(y - static_cast<double>(static_cast<int64_t>(y)));
 }
@@ -79,27 +81,27 @@ inline const HilbertTile& hilbert_tile() {
 // on (n its Hilbert index), so that neighbours' runs do not overlap. Fixed-point
 // arithmetic: the sequence's fractional parts modulo 2^32.
 struct StratifiedNoise {
-  static constexpr uint32_t kStepU = 3242174889u;  // 2^32 / plastic number
-  static constexpr uint32_t kStepV = 2447445414u;  // 2^32 / plastic number^2
-  uint32_t shift_u, shift_v;                       // the seed's offsets, 2^-32 units
+  // R2's generators in units of 2^-32, rounded.
+  static constexpr uint32_t kStepU = uint32_t(kR2First * 4294967296.0 + 0.5);
+  static constexpr uint32_t kStepV = uint32_t(kR2Second * 4294967296.0 + 0.5);
+  uint32_t shift_u = 0, shift_v = 0;  // the seed's offsets, 2^-32 units
 
+  StratifiedNoise() = default;  // no offsets: for constants that assign theirs after (ssdo.cpp)
   explicit StratifiedNoise(uint32_t seed) : shift_u(hash_u32(seed * 2u + 1u)), shift_v(hash_u32(seed * 2u + 2u)) {}
   float u(uint32_t hilbert_index) const { return unit_float(hilbert_index * kStepU + shift_u); }
   float v(uint32_t hilbert_index) const { return unit_float(hilbert_index * kStepV + shift_v); }
+  // The two values of pixel (x_px, y_px) alone.
+  void at(int x_px, int y_px, float& u_out, float& v_out) const {
+    const uint32_t n = hilbert_index_64(x_px, y_px);
+    u_out = u(n);
+    v_out = v(n);
+  }
 
   // The Hilbert indices of pixels x_px .. x_px + 63 of row y_px (frame pixels, any sign).
   static const uint16_t* row_indices(int x_px, int y_px) {
     return hilbert_tile().index[uint32_t(y_px) & 63u] + (uint32_t(x_px) & 63u);
   }
 };
-
-// The two values of pixel (x_px, y_px) alone.
-inline void stratified_noise(int x_px, int y_px, uint32_t seed, float& u, float& v) {
-  const StratifiedNoise noise(seed);
-  const uint32_t n = hilbert_index_64(x_px, y_px);
-  u = noise.u(n);
-  v = noise.v(n);
-}
 
 // cos(2 pi t) and sin(2 pi t): a per-pixel rotation from a noise value t (any float of
 // moderate size; noise01's in [0, 1)). Within 1e-7 of the exact values (measured at every

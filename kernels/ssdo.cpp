@@ -137,6 +137,7 @@ struct Constants {
   const float* azimuth_cos;
   const float* azimuth_sin;
   cv::Point frame_origin_px;  // SsdoInputs::frame_origin_px: the noise is the frame pixel's
+  StratifiedNoise noise;      // of s.seed: a pixel's shift of the R2 sequence (sample_shift)
 };
 // Cosine-distributed direction (pdf cos / pi) from (u, v) in [0, 1)^2 (Malley's method).
 inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const glm::vec3& b,
@@ -340,10 +341,9 @@ struct SampleShift {
 inline SampleShift sample_shift(const Constants& c, int x, int y) {
   SampleShift h;
   const int frame_x = x - c.frame_origin_px.x, frame_y = y - c.frame_origin_px.y;
-  const StratifiedNoise noise(c.s.seed);
   const uint32_t n = hilbert_index_64(frame_x, frame_y) * uint32_t(c.s.samples);
-  h.u = noise.u(n);
-  h.v = noise.v(n);
+  h.u = c.noise.u(n);
+  h.v = c.noise.v(n);
   sincos_turns(h.v, h.cos_v, h.sin_v);
   return h;
 }
@@ -873,8 +873,7 @@ struct SampleAzimuths {
 SampleAzimuths sample_azimuths(int samples) {
   SampleAzimuths a{std::vector<float>(size_t(samples)), std::vector<float>(size_t(samples))};
   for (int i = 0; i < samples; ++i) {
-    constexpr double a2 = 0.5698402909980532;  // r2_point's second generator
-    const double angle = 2.0 * std::numbers::pi * (a2 * double(i) - std::floor(a2 * double(i)));
+    const double angle = 2.0 * std::numbers::pi * (kR2Second * double(i) - std::floor(kR2Second * double(i)));
     a.cos[size_t(i)] = float(std::cos(angle));
     a.sin[size_t(i)] = float(std::sin(angle));
   }
@@ -909,6 +908,7 @@ Constants frame_constants(const SsdoInputs& in, const SsdoSettings& settings, co
   c.sender_distance_min2_world = settings.sender_distance_min_world * settings.sender_distance_min_world;
   c.azimuth_cos = azimuths.cos.data();
   c.azimuth_sin = azimuths.sin.data();
+  c.noise = StratifiedNoise(settings.seed);
   return c;
 }
 

@@ -93,7 +93,7 @@ TEST(Noise, StratifiedNoiseSpreadsEveryFourByFourBlock) {
           for (int y = by; y < by + 4; ++y)
             for (int x = bx; x < bx + 4; ++x) {
               float a = 0.0f, b = 0.0f;
-              stratified_noise(x, y, seed, a, b);
+              StratifiedNoise(seed).at(x, y, a, b);
               ASSERT_GE(a, 0.0f);
               ASSERT_LT(a, 1.0f);
               ASSERT_GE(b, 0.0f);
@@ -112,8 +112,8 @@ TEST(Noise, StratifiedNoiseSpreadsEveryFourByFourBlock) {
     }
   }
   float a0 = 0.0f, b0 = 0.0f, a1 = 0.0f, b1 = 0.0f;
-  stratified_noise(5, 9, 0, a0, b0);
-  stratified_noise(5, 9, 1, a1, b1);
+  StratifiedNoise(0).at(5, 9, a0, b0);
+  StratifiedNoise(1).at(5, 9, a1, b1);
   EXPECT_NE(a0, a1);
   EXPECT_NE(b0, b1);
 }
