@@ -260,13 +260,16 @@ DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const
   return d;
 }
 
-// The written terms, in the output's channel order.
+// The written terms, in the output's channel order. Every term is stored in half float, as
+// Cycles stores its own AO and light passes: AO and the confidence lie in [0, 1], where half
+// keeps steps of at most 2^-11 (at 1, finer below), an eighth of an 8-bit display step; in
+// float their noisy low mantissa bits made a third of a zip file and of its deflate time.
 void add_output_terms(const FrameRequest& request, const TermsComputed& computed, const TermOutputs& raw,
                       const DenoisedTerms& d, ComputedFrame& frame) {
   const TermSelection& terms = request.terms;
   if (computed.ao && terms.ao) {
-    frame.terms.push_back({"ao", raw.ao.ao, SampleType::float32, false});
-    frame.terms.push_back({"ao_denoised", d.ao, SampleType::float32, false});
+    frame.terms.push_back({"ao", raw.ao.ao, SampleType::half, false});
+    frame.terms.push_back({"ao_denoised", d.ao, SampleType::half, false});
     if (!raw.ao.bent_normal_view.empty())
       frame.terms.push_back({"bent_normal", raw.ao.bent_normal_view, SampleType::half, true});
   }
@@ -276,7 +279,7 @@ void add_output_terms(const FrameRequest& request, const TermsComputed& computed
     frame.terms.push_back({"ssdo_indirect", raw.ssdo.indirect, SampleType::half, false});
     frame.terms.push_back({"ssdo_indirect_denoised", d.indirect, SampleType::half, false});
   }
-  if (terms.ao || terms.ssdo) frame.terms.push_back({"confidence", raw.confidence, SampleType::float32, false});
+  if (terms.ao || terms.ssdo) frame.terms.push_back({"confidence", raw.confidence, SampleType::half, false});
 }
 
 // The composite of the selected terms (kernels/composite.h), over the frame's Env pass as
@@ -464,7 +467,7 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   const HalfOutputs& in_half = kOutputsInHalf;  // as compute_frame stores them
   cv::Mat normal_z;
   cv::extractChannel(g.normal_view, normal_z, 2);
-  auto scalar = [&](const char* name) { frame.terms.push_back({name, normal_z, SampleType::float32, false}); };
+  auto scalar = [&](const char* name) { frame.terms.push_back({name, normal_z, SampleType::half, false}); };
   auto colour = [&](const char* name, bool vector = false) {
     frame.terms.push_back({name, g.normal_view, SampleType::half, vector});
   };

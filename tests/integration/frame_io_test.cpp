@@ -73,11 +73,13 @@ TEST(FrameIo, FastPathsWriteTheSameNumbers) {
     EXPECT_EQ(a.back().compression, p.compression) << p.name;
   }
   ASSERT_EQ(a[0].names.size(), 21u);  // ao, ao_denoised, confidence, bent normal, 4 SSDO terms, composite
+  // Every term in half float, AO and the confidence too (as Cycles stores its AO pass).
+  for (size_t c = 0; c < a[0].types.size(); ++c) EXPECT_EQ(a[0].types[c], OIIO::TypeDesc::HALF) << a[0].names[c];
   for (size_t i = 0; i < paths.size(); ++i) {
     EXPECT_EQ(a[i].names, a[0].names) << paths[i].name;
     EXPECT_EQ(a[i].types, a[0].types) << paths[i].name;
     ASSERT_EQ(a[i].values.size(), a[0].values.size()) << paths[i].name;
-    // Bit-identical: every channel is stored losslessly (AO and confidence as float).
+    // Bit-identical: every codec stores the same half samples losslessly.
     EXPECT_EQ(std::memcmp(a[i].values.data(), a[0].values.data(), a[0].values.size() * sizeof(float)), 0)
         << paths[i].name;
     EXPECT_EQ(std::memcmp(b[i].values.data(), a[0].values.data(), a[0].values.size() * sizeof(float)), 0)
