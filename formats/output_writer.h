@@ -41,9 +41,9 @@ inline constexpr int kFastZipLevel = 1;
 // OpenEXR reader decodes to the same values; only the compressed bytes differ.
 enum class ChunkEncoder {
   // The writer packs the chunks itself, converting to half with the CPU's half
-  // conversions where it has them (core/half_samples.h), and deflates zip and zips chunks with libdeflate
-  // (formats/exr_zip: faster than zlib, files slightly smaller), on the thread
-  // pool; OpenEXRCore writes the header and the chunks.
+  // conversions where it has them (core/half_samples.h), and deflates zip and zips chunks
+  // with ISA-L at level 1, libdeflate above (formats/exr_zip: both faster than zlib), on
+  // the thread pool; OpenEXRCore writes the header and the chunks.
   own,
   // OpenEXR's own writer (Imf::OutputFile, zlib), as every other compression uses.
   openexr,
