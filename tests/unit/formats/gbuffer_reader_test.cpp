@@ -531,6 +531,55 @@ TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
   EXPECT_EQ(r.info.uses[1].space, "view");
 }
 
+// The kernels multiply with albedo and lighting: a non-finite sample there becomes 0, and
+// so does a lighting product that overflows; every other sample is kept as stored.
+TEST(ReadConversions, NanAndInfInAlbedoAndLightingBecomeZero) {
+  ScratchDir dir;
+  const int w = 8, h = 4, n = w * h;
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  TestExr t;
+  t.width = w;
+  t.height = h;
+  t.channels.push_back({"ViewLayer.Depth.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(n, 3.0f)});
+  std::vector<float> col(3 * size_t(n)), light(3 * size_t(n));
+  for (int i = 0; i < 3 * n; ++i) col[i] = 0.1f + 0.01f * float(i), light[i] = 2.0f + 0.5f * float(i);
+  col[0] = nan, col[4] = inf, col[8] = -inf;      // albedo itself non-finite
+  light[12] = nan, light[16] = -inf;               // the direct pass non-finite
+  col[20] = 1e30f, light[20] = 1e30f;              // a finite product that overflows
+  const char* rgb = "RGB";
+  for (int c = 0; c < 3; ++c) {
+    std::vector<float> a(n), l(n);
+    for (int i = 0; i < n; ++i) a[i] = col[3 * i + c], l[i] = light[3 * i + c];
+    t.channels.push_back({std::string("ViewLayer.DiffCol.") + rgb[c], OIIO::TypeDesc::FLOAT, a});
+    t.channels.push_back({std::string("ViewLayer.DiffDir.") + rgb[c], OIIO::TypeDesc::FLOAT, l});
+  }
+  const fs::path path = dir / "nonfinite_light.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(threads);
+    options.threads = threads;
+    const ReadResult r = read_gbuffer(path.string(), options);
+    ASSERT_TRUE(r.ok()) << r.error;
+    const GBuffer& g = r.gbuffer;
+    ASSERT_EQ(g.albedo.type(), CV_32FC3);
+    ASSERT_EQ(g.lighting.type(), CV_32FC3);
+    for (int i = 0; i < 3 * n; ++i) {
+      SCOPED_TRACE(i);
+      const int pixel = i / 3, c = i % 3;
+      const float albedo = g.albedo.at<cv::Vec3f>(pixel / w, pixel % w)[c];
+      const float lighting = g.lighting.at<cv::Vec3f>(pixel / w, pixel % w)[c];
+      const bool albedo_finite = std::isfinite(col[i]);
+      EXPECT_EQ(albedo, albedo_finite ? col[i] : 0.0f);
+      const float product = (albedo_finite ? col[i] : 0.0f) * light[i];
+      EXPECT_EQ(lighting, std::isfinite(product) ? product : 0.0f);
+    }
+    // The direct pass as a reference keeps what the renderer wrote.
+    EXPECT_TRUE(std::isnan(g.references.at("DiffDir").at<cv::Vec3f>(0, 4)[0]));  // light[12]
+  }
+}
+
 TEST(ReadConversions, ConformanceNanInfImageIsMaskedAndCounted) {
   // BrightRingsNanInf.exr: half RGB with NaN and Inf samples; R serves as depth here.
   const fs::path path = conformance_dir() / "valid" / "TestImages" / "BrightRingsNanInf.exr";
