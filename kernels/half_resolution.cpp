@@ -320,15 +320,35 @@ class TexelRows {
 
   void fill_array(float* a, const float* src, int step) {
     for (int i = 0; i < hw_; ++i) a[i + 1] = src[size_t(i) * size_t(step)];
+    repeat_edges(a);
+  }
+
+  void repeat_edges(float* a) const {
     a[0] = a[1];
     a[hw_ + 1] = a[hw_];
+  }
+
+  // The three channels of an interleaved 3-channel row into arrays a, a + length_ and
+  // a + 2 length_: whole vectors de-interleaved at once, the last texels one by one.
+  void fill_arrays3(float* a, const float* src) {
+    const FloatLanes d;
+    const int n = int(hn::Lanes(d));
+    float* out[3] = {a + 1, a + length_ + 1, a + 2 * length_ + 1};
+    int i = 0;
+    for (; i + n <= hw_; i += n) {
+      Lanes v[3];
+      hn::LoadInterleaved3(d, src + 3 * size_t(i), v[0], v[1], v[2]);
+      for (int c = 0; c < 3; ++c) hn::StoreU(v[c], d, out[c] + i);
+    }
+    for (; i < hw_; ++i)
+      for (int c = 0; c < 3; ++c) out[c][i] = src[3 * size_t(i) + size_t(c)];
+    for (int c = 0; c < 3; ++c) repeat_edges(a + c * length_);
   }
 
   void fill(int s, int j) {
     float* base = slot(s);
     fill_array(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
-    const float* n = h_.normal_view.ptr<float>(j);
-    for (int c = 0; c < 3; ++c) fill_array(base + (kNormalX + c) * length_, n + c, 3);
+    fill_arrays3(base + kNormalX * length_, h_.normal_view.ptr<float>(j));
     const uint8_t* m = h_.mask.ptr<uint8_t>(j);
     float* a = base + kMask * length_;
     for (int i = 0; i < hw_; ++i) a[i + 1] = std::bit_cast<float>(m[i] ? ~uint32_t(0) : uint32_t(0));
@@ -337,6 +357,10 @@ class TexelRows {
     for (size_t k = 0; k < images_.size(); ++k) {
       const int cn = images_[k].half.channels();
       const float* v = images_[k].half.ptr<float>(j);
+      if (cn == 3) {
+        fill_arrays3(base + image_first_[k] * length_, v);
+        continue;
+      }
       for (int c = 0; c < cn; ++c) fill_array(base + (image_first_[k] + c) * length_, v + c, cn);
     }
     row_[s] = j;
