@@ -4,6 +4,7 @@
 
 #include <cstring>
 #include <random>
+#include <thread>
 
 #include <Imath/half.h>
 #include <OpenEXR/openexr.h>
@@ -61,6 +62,46 @@ TEST(ExrZip, EveryInstructionSetGivesTheSameStreams) {
       ASSERT_TRUE(exr_zip::decompress(compressed, back)) << target << ", " << n << " bytes";
       EXPECT_EQ(back, packed) << target << ", " << n << " bytes";
     });
+  }
+}
+
+// Leaves the stack below the caller's frame full of bytes that are not zero.
+[[gnu::noinline]] void dirty_stack(unsigned seed) {
+  volatile uint8_t bytes[64 * 1024];
+  for (size_t i = 0; i < sizeof(bytes); ++i) bytes[i] = uint8_t(seed * 131u + i * 7u + 1u);
+}
+
+// A stream is a function of the packed bytes and the level alone: not of what the thread
+// compressed before (its compressor's buffers), nor of which thread compresses it. The
+// writer deflates a file's chunks on whichever pool thread takes them, and the same frame
+// must give the same file bytes.
+TEST(ExrZip, StreamsDependOnTheBytesAloneNotOnEarlierChunks) {
+  const std::vector<uint8_t> packed = pseudo_image_bytes(122880, 7u);
+  for (int level : {exr_zip::kFastestLevel, 4}) {
+    SCOPED_TRACE(level);
+    UninitializedVector<uint8_t> first;
+    ASSERT_TRUE(exr_zip::compress(packed, level, first));
+    const std::vector<uint8_t> expected(first.begin(), first.end());
+    auto same_after = [&](unsigned seed) {
+      // Other chunks first, of other sizes and contents (a constant run, noise, smaller and
+      // larger blocks), then the same bytes again.
+      std::mt19937 rng(seed);
+      for (int k = 0; k < 6; ++k) {
+        std::vector<uint8_t> other = pseudo_image_bytes(size_t(4096 + rng() % 200000), rng());
+        if (k % 3 == 1) std::fill(other.begin(), other.begin() + other.size() / 2, uint8_t(0));
+        if (k % 3 == 2) for (uint8_t& b : other) b = uint8_t(rng());
+        UninitializedVector<uint8_t> scratch;
+        exr_zip::compress(other, level, scratch);
+      }
+      dirty_stack(seed);
+      UninitializedVector<uint8_t> again;
+      EXPECT_TRUE(exr_zip::compress(packed, level, again));
+      return std::vector<uint8_t>(again.begin(), again.end()) == expected;
+    };
+    for (unsigned seed = 1; seed <= 4; ++seed) EXPECT_TRUE(same_after(seed)) << "this thread, seed " << seed;
+    bool on_other_thread = false;
+    std::thread([&] { on_other_thread = same_after(9u); }).join();
+    EXPECT_TRUE(on_other_thread);
   }
 }
 
