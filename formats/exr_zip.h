@@ -32,8 +32,10 @@ inline constexpr int kFastestLevel = kMinLevel;
 // storage is not zeroed first). Returns
 // false when the stream would not be smaller than the packed bytes: the file format then
 // stores the chunk uncompressed, and so must the caller. Thread-safe: each thread keeps
-// its own compressor per level. ISA-L picks its code for the CPU, so its streams
-// may differ between CPUs; every one inflates to the same bytes.
+// its own compressor per level. ISA-L (level 1) picks its code for the CPU, so its streams
+// may differ between CPUs, and on a loaded machine an ISA-L deflate of the same bytes
+// rarely picks another match (docs/performance.md, "Output codecs"); every stream inflates
+// to the same bytes. libdeflate's levels give the same stream every time.
 bool compress(std::span<const uint8_t> packed, int level, UninitializedVector<uint8_t>& compressed);
 
 // Inflates one chunk into `packed`, whose size is the chunk's unpacked size (known from the

@@ -90,6 +90,27 @@ inline bool exr_has_channel(const std::string& path, const std::string& channel)
   return std::find(names.begin(), names.end(), channel) != names.end();
 }
 
+// What an EXR holds, as one string: its windows, every header attribute (name, type, value),
+// the channels' names and types, and every sample's bits (read as float: half widens
+// exactly); empty when unreadable. Two outputs are the same frame when these are equal,
+// whatever bytes their codec wrote: ISA-L's deflate (zip's default level) may pick other
+// matches for the same samples on another CPU and, rarely, on another run.
+inline std::string exr_content(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) return {};
+  const OIIO::ImageSpec spec = in->spec();
+  std::ostringstream s;
+  s << spec.x << ' ' << spec.y << ' ' << spec.width << ' ' << spec.height << ' ' << spec.full_x << ' '
+    << spec.full_y << ' ' << spec.full_width << ' ' << spec.full_height << '\n';
+  for (const OIIO::ParamValue& p : spec.extra_attribs)
+    s << p.name() << ' ' << p.type().c_str() << ' ' << p.get_string(1 << 20) << '\n';
+  for (int c = 0; c < spec.nchannels; ++c) s << spec.channelnames[size_t(c)] << ' ' << spec.channelformat(c).c_str() << '\n';
+  std::vector<float> samples(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels));
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, samples.data())) return {};
+  s.write(reinterpret_cast<const char*>(samples.data()), std::streamsize(samples.size() * sizeof(float)));
+  return s.str();
+}
+
 // One channel of an EXR as floats, row-major; empty when unreadable or absent.
 inline std::vector<float> exr_channel_pixels(const std::string& path, const std::string& channel) {
   auto in = OIIO::ImageInput::open(path);
