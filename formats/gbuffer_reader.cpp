@@ -1007,8 +1007,8 @@ void set_nonfinite_to_zero(cv::Mat& m, int threads) {
   });
 }
 
-// out = finite_or_zero(a x b) per sample (out may be b), rows in parallel: the product
-// cv::multiply computes, on every thread.
+// out = finite_or_zero(a x b) per sample (out may be b; the product as cv::multiply rounds
+// it), rows in parallel.
 void multiply_finite(const cv::Mat& a, const cv::Mat& b, cv::Mat& out, int threads) {
   CV_Assert(a.type() == CV_32FC3 && b.type() == CV_32FC3 && a.size() == b.size());
   if (out.data != b.data) out.create(b.size(), b.type());

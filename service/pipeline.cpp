@@ -262,8 +262,8 @@ DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const
 
 // The written terms, in the output's channel order. Every term is stored in half float, as
 // Cycles stores its own AO and light passes: AO and the confidence lie in [0, 1], where half
-// keeps steps of at most 2^-11 (at 1, finer below), an eighth of an 8-bit display step; in
-// float their noisy low mantissa bits made a third of a zip file and of its deflate time.
+// keeps steps of at most 2^-11 (at 1, finer below), an eighth of an 8-bit display step,
+// and drops the noisy low mantissa bits of float, which no lossless codec shrinks.
 void add_output_terms(const FrameRequest& request, const TermsComputed& computed, const TermOutputs& raw,
                       const DenoisedTerms& d, ComputedFrame& frame) {
   const TermSelection& terms = request.terms;
