@@ -1,5 +1,5 @@
-// The instruction sets of the per-sample loops over whole frames (formats' exr_zip,
-// foreground_pass and sample_planes, core's half_samples): the kernels'
+// The instruction sets of the per-sample loops over whole frames (formats' exr_zip and
+// foreground_pass, core's half_samples and sample_planes): the kernels'
 // (cmake/compute_flags.cmake) and SSSE3 besides. Highway's x86 baseline is scalar: on the
 // kernels' set alone a CPU without AVX2 (before 2013) would run these loops one sample at
 // a time, 3-4x slower than with 128-bit vectors (zip's prefix sum, the foreground pass).

@@ -37,7 +37,7 @@
 #include "formats/camera_io.h"
 #include "formats/exr_core.h"
 #include "formats/exr_zip.h"
-#include "formats/sample_planes.h"
+#include "core/sample_planes.h"
 #include "core/half_samples.h"
 #include "formats/png_file.h"
 #include "core/parallel.h"

@@ -15,6 +15,7 @@
 
 #include "core/half_samples.h"
 #include "core/parallel.h"
+#include "core/sample_planes.h"
 #include "kernels/normals.h"
 #include "kernels/positions.h"
 #include "kernels/mask_lanes.h"
@@ -318,37 +319,23 @@ class TexelRows {
   int slot_of(int j) const { return row_[0] == j ? 0 : row_[1] == j ? 1 : -1; }
   float* slot(int s) { return data_.data() + size_t(s) * size_t(arrays_) * size_t(length_); }
 
-  void fill_array(float* a, const float* src, int step) {
-    for (int i = 0; i < hw_; ++i) a[i + 1] = src[size_t(i) * size_t(step)];
-    repeat_edges(a);
-  }
-
-  void repeat_edges(float* a) const {
-    a[0] = a[1];
-    a[hw_ + 1] = a[hw_];
-  }
-
-  // The three channels of an interleaved 3-channel row into arrays a, a + length_ and
-  // a + 2 length_: whole vectors de-interleaved at once, the last texels one by one.
-  void fill_arrays3(float* a, const float* src) {
-    const FloatLanes d;
-    const int n = int(hn::Lanes(d));
-    float* out[3] = {a + 1, a + length_ + 1, a + 2 * length_ + 1};
-    int i = 0;
-    for (; i + n <= hw_; i += n) {
-      Lanes v[3];
-      hn::LoadInterleaved3(d, src + 3 * size_t(i), v[0], v[1], v[2]);
-      for (int c = 0; c < 3; ++c) hn::StoreU(v[c], d, out[c] + i);
+  // The `channels` channels of an interleaved row into the consecutive arrays from a
+  // (sample_planes::split: a vector of texels at a time), each with its edge texels repeated.
+  void fill_arrays(float* a, const float* src, int channels) {
+    float* planes[kMaxChannels];  // channels <= kMaxChannels (upsample_from_half_grid checks)
+    for (int c = 0; c < channels; ++c) planes[c] = a + c * length_ + 1;
+    sample_planes::split(src, hw_, channels, planes);
+    for (int c = 0; c < channels; ++c) {
+      float* plane = a + c * length_;
+      plane[0] = plane[1];
+      plane[hw_ + 1] = plane[hw_];
     }
-    for (; i < hw_; ++i)
-      for (int c = 0; c < 3; ++c) out[c][i] = src[3 * size_t(i) + size_t(c)];
-    for (int c = 0; c < 3; ++c) repeat_edges(a + c * length_);
   }
 
   void fill(int s, int j) {
     float* base = slot(s);
-    fill_array(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
-    fill_arrays3(base + kNormalX * length_, h_.normal_view.ptr<float>(j));
+    fill_arrays(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
+    fill_arrays(base + kNormalX * length_, h_.normal_view.ptr<float>(j), 3);
     const uint8_t* m = h_.mask.ptr<uint8_t>(j);
     float* a = base + kMask * length_;
     for (int i = 0; i < hw_; ++i) a[i + 1] = std::bit_cast<float>(m[i] ? ~uint32_t(0) : uint32_t(0));
@@ -356,12 +343,7 @@ class TexelRows {
     a[hw_ + 1] = a[hw_];
     for (size_t k = 0; k < images_.size(); ++k) {
       const int cn = images_[k].half.channels();
-      const float* v = images_[k].half.ptr<float>(j);
-      if (cn == 3) {
-        fill_arrays3(base + image_first_[k] * length_, v);
-        continue;
-      }
-      for (int c = 0; c < cn; ++c) fill_array(base + (image_first_[k] + c) * length_, v + c, cn);
+      fill_arrays(base + image_first_[k] * length_, images_[k].half.ptr<float>(j), cn);
     }
     row_[s] = j;
   }

@@ -1,8 +1,8 @@
-// Interleaved pixels split into planes (formats/sample_planes.h) on every instruction set
+// Interleaved pixels split into planes (core/sample_planes.h) on every instruction set
 // this CPU runs: each sample lands in its channel's plane at its pixel, for the channel
 // counts with vector loops (2, 3, 4) and without (1, 5), for row lengths around the vector
 // widths, and nothing past a plane's end is written.
-#include "formats/sample_planes.h"
+#include "core/sample_planes.h"
 
 #include <bit>
 #include <cstdint>

@@ -1,9 +1,9 @@
-#include "formats/sample_planes.h"
+#include "core/sample_planes.h"
 
 #include "core/simd_targets.h"  // before Highway
 
 #undef HWY_TARGET_INCLUDE
-#define HWY_TARGET_INCLUDE "formats/sample_planes.cpp"
+#define HWY_TARGET_INCLUDE "core/sample_planes.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
 #include <hwy/highway.h>
 

@@ -1,8 +1,9 @@
-// The channels of interleaved pixels split into one plane per channel, as a scanline
-// chunk stores them (OpenEXR "Technical Introduction", "Pixel Data": per line, each
-// channel's samples of the whole line). Part of the output writer (output_writer.cpp), in
-// its own file because its loop runs over every sample a frame writes and is compiled once
-// per instruction set and dispatched at run time (core/simd.h).
+// The channels of interleaved pixels split into one plane per channel: as a scanline chunk
+// stores them (OpenEXR "Technical Introduction", "Pixel Data": per line, each channel's
+// samples of the whole line; formats/output_writer.cpp), and as the upsample reads a half
+// grid's rows (kernels/half_resolution.cpp). In its own file because its loop runs over
+// every sample of a frame and is compiled once per instruction set and dispatched at run
+// time (core/simd.h).
 #pragma once
 
 #include <cstdint>
