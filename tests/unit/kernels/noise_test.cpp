@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -71,7 +72,7 @@ TEST(Noise, HilbertIndexWalksTheTileInNeighbouringSteps) {
 // |mean of exp(2 pi i f t)| over the values t: 0 for values spread evenly over the circle
 // [0, 1) at frequency f, ~1 / sqrt(n) for n independent uniform ones.
 double fourier_mean(const std::vector<float>& t, int f) {
-  constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
+  constexpr double kTwoPi = 2.0 * std::numbers::pi;
   double c = 0.0, s = 0.0;
   for (const float v : t) c += std::cos(kTwoPi * f * v), s += std::sin(kTwoPi * f * v);
   return std::hypot(c, s) / double(t.size());
