@@ -160,9 +160,10 @@ void build_texels(const AoInputs& in, UninitializedVector<Texel>& texels, Uninit
 constexpr float kCoplanarMinCos = 0.95f;
 
 // b lies on a's tangent plane within tol, and their normals agree: the same surface.
+// Both tests are evaluated (no short circuit), so that a loop over lanes vectorises.
 inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_pos, float tol) {
-  return a.nx * b.nx + a.ny * b.ny + a.nz * b.nz >= kCoplanarMinCos &&
-         std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol;
+  return (a.nx * b.nx + a.ny * b.ny + a.nz * b.nz >= kCoplanarMinCos) &
+         (std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol);
 }
 
 // Pixels shaded together, one per vector lane (16 floats: one AVX-512 register, two AVX2
@@ -504,22 +505,28 @@ struct StepLanes {
 
 [[gnu::always_inline]] inline bool occluder(const StepLanes& t, int l) { return t.occluder[l] != 0; }
 
-// The taps' texels, one 16-byte load each, transposed to fields in lanes (a vector of
-// lanes per field, load_records4). Lanes without a texel read texel 0's, for nobody.
-inline void gather_texels(const Texel* texels, StepLanes& t) {
+// The 16-byte records (Texel, TexelPlane) at index[l] of `records`, one load each,
+// transposed to their four fields in lanes (a vector of lanes per field, load_records4):
+// field[f][l] = field f of record index[l]. Lanes with index < 0 read record 0's, for
+// nobody.
+template <class Record>
+inline void gather_records(const Record* records, const int32_t* index, float* const field[4]) {
   namespace hn = hwy::HWY_NAMESPACE;
-  static_assert(sizeof(Texel) == 4 * sizeof(float));
+  static_assert(sizeof(Record) == 4 * sizeof(float));
   const hn::CappedTag<float, kLanes> d;
   alignas(64) int32_t offset[kLanes];
-  for (int l = 0; l < kLanes; ++l) offset[l] = 4 * std::max(t.index[l], 0);
+  for (int l = 0; l < kLanes; ++l) offset[l] = 4 * std::max(index[l], 0);
   for (size_t l0 = 0; l0 < size_t(kLanes); l0 += hn::Lanes(d)) {
-    hn::Vec<decltype(d)> field[4];
-    ssdo::HWY_NAMESPACE::load_records4(d, &texels[0].x, offset + l0, field);
-    hn::Store(field[0], d, t.x + l0);
-    hn::Store(field[1], d, t.y + l0);
-    hn::Store(field[2], d, t.z + l0);
-    hn::Store(field[3], d, t.depth_view + l0);
+    hn::Vec<decltype(d)> v[4];
+    ssdo::HWY_NAMESPACE::load_records4(d, reinterpret_cast<const float*>(records), offset + l0, v);
+    for (int f = 0; f < 4; ++f) hn::Store(v[f], d, field[f] + l0);
   }
+}
+
+// The taps' texels in lanes.
+inline void gather_texels(const Texel* texels, StepLanes& t) {
+  float* const field[4] = {t.x, t.y, t.z, t.depth_view};
+  gather_records(texels, t.index, field);
 }
 
 // The taps' texels and coordinates in the slice frame (no branches: the loop vectorises).
@@ -670,18 +677,30 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& t, 
     any_near |= near[l];
     any_plane |= plane[l];
   }
-  if (any_near)
+  // The last taps' texels and planes, and the taps' planes, gathered in lanes (the lanes
+  // that do not need them read them for nobody).
+  if (any_near) {
+    alignas(64) float last[4][kLanes];
+    float* const field[4] = {last[0], last[1], last[2], last[3]};
+    gather_records(f.texels.data(), st.texel, field);
     for (int l = 0; l < kLanes; ++l) {
-      const Texel& p = f.texels[size_t(st.texel[l])];
-      const float ddx = t.x[l] - p.x, ddy = t.y[l] - p.y, ddz = t.z[l] - p.z;
+      const float ddx = t.x[l] - last[0][l], ddy = t.y[l] - last[1][l], ddz = t.z[l] - last[2][l];
       connect[l] |= near[l] & (ddx * ddx + ddy * ddy + ddz * ddz <= thickness * thickness);
     }
-  if (any_plane)
+  }
+  if (any_plane) {
+    alignas(64) float last[4][kLanes], tap[4][kLanes];
+    float* const last_field[4] = {last[0], last[1], last[2], last[3]};
+    float* const tap_field[4] = {tap[0], tap[1], tap[2], tap[3]};
+    gather_records(f.planes.data(), st.texel, last_field);
+    gather_records(f.planes.data(), t.index, tap_field);
     for (int l = 0; l < kLanes; ++l) {
+      const TexelPlane a{last[0][l], last[1][l], last[2][l], last[3][l]};
+      const TexelPlane b{tap[0][l], tap[1][l], tap[2][l], tap[3][l]};
       const Texel tx{t.x[l], t.y[l], t.z[l], t.depth_view[l]};
-      connect[l] |= plane[l] & coplanar(f.planes[size_t(st.texel[l])], f.planes[size_t(std::max(t.index[l], 0))],
-                                        tx, thickness);
+      connect[l] |= plane[l] & coplanar(a, b, tx, thickness);
     }
+  }
 }
 
 // One step of side `side` of the visibility mask (Therrien et al. 2023; finite
