@@ -17,17 +17,18 @@
 namespace {
 
 // `ssdo eval` and `ssdo bench` compute frames in their own process, so that process starts
-// again (once: the tunables then hold the setting) with a worker's heap tunables
-// (core/heap_policy.h), and their times are a worker's. When it cannot (no /proc), it goes
-// on as it is.
+// again with a worker's heap tunables (core/heap_policy.h), and their times are a worker's.
+// At most once (kRestarted marks the second start, whatever the C library makes of the
+// tunables); when it cannot (no /proc), it goes on as it is.
 void restart_with_worker_heap(int argc, char** argv) {
-  if (argc < 2) return;
+  constexpr const char* kRestarted = "SSDO_HEAP_RESTARTED";
+  if (argc < 2 || std::getenv(kRestarted)) return;
   const std::string_view command = argv[1];
   if (command != "eval" && command != "bench") return;
   const char* inherited = std::getenv("GLIBC_TUNABLES");
   const std::string tunables = ssdo::worker_glibc_tunables(inherited);
   if (inherited && tunables == inherited) return;
-  if (::setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0) return;
+  if (::setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0 || ::setenv(kRestarted, "1", 1) != 0) return;
   ::execv("/proc/self/exe", argv);
 }
 

@@ -78,9 +78,9 @@ TEST(WorkerEnvironment, HugePagesUnlessTheParentChose) {
     WorkerProcess worker(WorkerLimits{}, SSDO_BINARY);
     std::string error;
     ASSERT_TRUE(worker.start(error)) << error;
-    // The worker shows its tunables as its C library's loader rewrote them (glibc 2.36
-    // leaves glibc.malloc.hugetlb out of the string after another tunable, and still
-    // applies it): what matters is that no =1 was added.
+    // /proc shows the tunables as the worker's C library rewrote them in place (glibc 2.36
+    // cuts glibc.malloc.hugetlb after another tunable there, while the process itself sees
+    // and applies the whole string): what matters is that no =1 was added.
     const std::vector<std::string> env = environment_of(worker.pid());
     const std::vector<std::string> tunables = tunables_of(env);
     ASSERT_EQ(tunables.size(), 1u);
