@@ -6,11 +6,11 @@
 # Installs Debian's slurmctld, slurmd, slurm-client and munge when missing (root only),
 # starts munged, slurmctld and slurmd with their own key, ports, state and logs in a temp
 # folder, and then:
-#   1. one `ssdo process` over 12 frames (the reference outputs and wall time),
-#   2. the 12 frames as a 4-task array job (sbatch --wait): every output written exactly
+#   1. one `ssdo process` over 24 frames (the reference outputs and wall time),
+#   2. the 24 frames as a 4-task array job (sbatch --wait): every output written exactly
 #      once, by the task whose chunk holds the frame, identical to the reference,
 #   3. the array again, task 3 cancelled (scancel) in the middle of its chunk, then
-#      requeued (scontrol requeue): all 12 outputs, identical to the reference, each
+#      requeued (scontrol requeue): all 24 outputs, identical to the reference, each
 #      written once, no temp files,
 #   4. a rerun of one finished task (sbatch --array=2): every frame skipped, exit 0.
 # Daemons and jobs are stopped on every exit path. Exit 77 (CTest's SKIP_RETURN_CODE)
@@ -236,11 +236,12 @@ done
 say "cluster up: node $node, $cpus CPUs, slurmctld port $ctld_port, in $T"
 
 # ---------------------------------------------------------------------------------------
-# Frames: a shot of 12 copies of the example frames (with their camera sidecars)
+# Frames: a shot of 24 copies of the example frames (with their camera sidecars)
 # ---------------------------------------------------------------------------------------
-# 12 frames in 4 tasks: 3 frames per task, so a task cancelled after its first output
-# still has frames left to compute when it is requeued.
-shot_frames=12
+# 24 frames in 4 tasks: 6 frames per task, so a task cancelled after its first output
+# still has frames left to compute when it is requeued (a frame takes 0.3-0.5 s on one
+# core, and a cancelled task finishes the frame in flight before it ends).
+shot_frames=24
 frames="$T/frames"
 mkdir -p "$frames"
 for i in $(seq 1 $shot_frames); do
@@ -251,8 +252,10 @@ for i in $(seq 1 $shot_frames); do
   cp "$src/examples/frames/$name.camera.json" "$frames/shot.$n.camera.json"
 done
 pattern="$frames/shot.####.exr"
-# About 1.3 s per frame on one core: slow enough to cancel a task in the middle.
-options=(--frames 1-$shot_frames --method gtao --preset high)
+# gtao high, the slowest GTAO preset. Without compression, so that outputs of different
+# processes compare byte for byte (zip's streams may differ for the same samples:
+# docs/usage.md, "Render farms").
+options=(--frames 1-$shot_frames --method gtao --preset high --compression none)
 chunks=4
 export SSDO="$ssdo"
 
