@@ -70,12 +70,12 @@ void BatchProgress::finished(const std::string& input, const std::string& output
   std::snprintf(rate, sizeof rate, " (%.0f ms; %.2f frames/s, ETA %.0f s)", r.wall_ms, fps, eta_s);
   line += rate;
   if (verbose_) {
-    char stages[192];
+    char stages[224];
     std::snprintf(stages, sizeof stages,
                   " read %.1f ms, compute %.1f ms, write %.1f ms, worker %.1f ms, isolation %.2f ms, worker peak RSS "
-                  "%.0f MiB",
+                  "%.0f MiB, %d page faults",
                   r.times.read_ms, r.times.compute_ms, r.times.write_ms, r.handled_ms,
-                  std::max(0.0, r.wall_ms - r.handled_ms), r.peak_rss_mib);
+                  std::max(0.0, r.wall_ms - r.handled_ms), r.peak_rss_mib, r.page_faults);
     line += stages;
   }
   // Notes are -v's; the one of a smaller window, which changes the frame's terms, is shown always.

@@ -256,7 +256,9 @@ Command register_process(CLI::App& app) {
                   "JSON file of options: the long flag names without '--' as keys, e.g. "
                   "{\"method\": \"hbao\", \"terms\": \"all\"}; flags given override it")
       ->check(CLI::ExistingFile);
-  cmd->add_flag("-v,--verbose", p.verbose, "Per-stage timings (read, compute, write, isolation) and the worker plan");
+  cmd->add_flag("-v,--verbose", p.verbose,
+                "Per-stage timings (read, compute, write, isolation), the worker's peak memory and page faults, "
+                "and the worker plan");
   add_frame_options(*cmd, p.options);
   add_worker_limits(*cmd, p.jobs, p.limits);
   cmd->add_option("--shot-frames", st->shot_frames,

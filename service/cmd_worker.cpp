@@ -8,6 +8,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstring>
@@ -383,6 +384,8 @@ int run_worker(const WorkerArgs& args) {
     const IoStatus s = read_message(args.request_fd, message, kMaxRequestBytes, no_deadline());
     if (s != IoStatus::ok) return s == IoStatus::closed ? 0 : 1;
     const auto received = Clock::now();
+    rusage usage{};
+    const long faults_before = ::getrusage(RUSAGE_SELF, &usage) == 0 ? usage.ru_minflt + usage.ru_majflt : 0;
     nlohmann::json response{{"ok", false}};
     const nlohmann::json j = nlohmann::json::parse(message, nullptr, false);
     if (j.is_discarded() || !j.is_object() || !j.contains("input") || !j["input"].is_string()) {
@@ -394,9 +397,12 @@ int run_worker(const WorkerArgs& args) {
     // the cost of isolation (pipes, scheduling).
     response["handled_ms"] = std::chrono::duration<double, std::milli>(Clock::now() - received).count();
     // Peak resident memory (the batch does not wait for its workers to exit, so its own
-    // rusage does not include theirs).
-    rusage usage{};
-    if (::getrusage(RUSAGE_SELF, &usage) == 0) response["peak_rss_mib"] = double(usage.ru_maxrss) / 1024.0;
+    // rusage does not include theirs), and the page faults of this request: the first
+    // touches of fresh memory, dear on a virtual machine (core/heap_policy.h).
+    if (::getrusage(RUSAGE_SELF, &usage) == 0) {
+      response["peak_rss_mib"] = double(usage.ru_maxrss) / 1024.0;
+      response["page_faults"] = std::max(0L, usage.ru_minflt + usage.ru_majflt - faults_before);
+    }
     if (write_message(args.response_fd, to_wire(response), no_deadline()) != IoStatus::ok) return 1;
   }
 }

@@ -256,6 +256,7 @@ void read_worker_response(const nlohmann::json& j, WorkerResult& result) {
   result.times.write_ms = number("write_ms", 0.0);
   result.handled_ms = number("handled_ms", 0.0);
   result.peak_rss_mib = number("peak_rss_mib", 0.0);
+  result.page_faults = count(j, "page_faults");
   result.width_px = count(j, "width");
   result.height_px = count(j, "height");
   const auto strings = [&](const char* key, std::vector<std::string>& out) {

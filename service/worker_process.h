@@ -60,6 +60,7 @@ struct WorkerResult {
   double wall_ms = 0;                 // request sent -> response read, as the parent saw it
   double handled_ms = 0;              // request received -> response sent, as the worker saw it
   double peak_rss_mib = 0;            // the worker's peak resident memory so far
+  int page_faults = 0;                // the page faults the worker took for this request
   std::vector<std::string> terms;     // terms written
   int width_px = 0, height_px = 0;
   std::vector<std::string> notes;     // the reader's and the sequence context's notes

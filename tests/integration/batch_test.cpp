@@ -2,6 +2,7 @@
 // config files, the frame selection of a farm chunk.
 #include <cstdlib>
 #include <fstream>
+#include <regex>
 
 #include <OpenImageIO/imageio.h>
 
@@ -34,6 +35,25 @@ TEST(Batch, PoisonFramesFailOneByOneBatchFinishesWithExitOne) {
   EXPECT_EQ(mapped.exit_code, 1);
   EXPECT_NE(mapped.output.find(", failed "), std::string::npos);
   EXPECT_EQ(count_occurrences(mapped.output, ": FAILED: ") + count_occurrences(mapped.output, ": ok ("), 185);
+}
+
+// -v gives each frame's stages as the worker measured them, its peak memory and the page
+// faults it took (a lone frame touches all of its memory fresh: some faults, however large
+// the pages).
+TEST(Batch, VerboseLinesGiveStagesMemoryAndPageFaults) {
+  ScratchDir dir;
+  copy_example("cornell", dir.path, "a");
+  const RunResult r = run_ssdo("process " + dir / "a.exr" + " -o " + dir / "out" + " --terms ao --preset low -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::smatch m;
+  const std::regex line(
+      R"(read ([0-9.]+) ms, compute ([0-9.]+) ms, write ([0-9.]+) ms, worker ([0-9.]+) ms, isolation [0-9.]+ ms, )"
+      R"(worker peak RSS ([0-9]+) MiB, ([0-9]+) page faults)");
+  ASSERT_TRUE(std::regex_search(r.output, m, line)) << r.output;
+  for (int stage = 1; stage <= 3; ++stage) EXPECT_GT(std::stod(m[stage].str()), 0.0) << m[0];
+  EXPECT_GE(std::stod(m[4].str()), std::stod(m[1].str()) + std::stod(m[2].str()) + std::stod(m[3].str())) << m[0];
+  EXPECT_GT(std::stoi(m[5].str()), 0) << m[0];
+  EXPECT_GT(std::stoi(m[6].str()), 0) << m[0];
 }
 
 TEST(Batch, StalledAndOversizedFramesAreThatFramesErrors) {

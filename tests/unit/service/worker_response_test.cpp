@@ -44,6 +44,7 @@ TEST(WorkerResponse, FieldsAreReadAndControlCharactersEscaped) {
                                {"write_ms", "fast"},
                                {"width", 640},
                                {"height", 360},
+                               {"page_faults", 1234},
                                {"terms", {"ao", 7, "composite"}},
                                {"notes", {"view a\nb.exr not used", "tab\there"}},
                                {"window", {{"views", 1}, {"temporal", 1}, {"note", "computed with\rfewer"}}}});
@@ -53,6 +54,7 @@ TEST(WorkerResponse, FieldsAreReadAndControlCharactersEscaped) {
   EXPECT_DOUBLE_EQ(r.times.write_ms, 0.0);
   EXPECT_EQ(r.width_px, 640);
   EXPECT_EQ(r.height_px, 360);
+  EXPECT_EQ(r.page_faults, 1234);
   EXPECT_EQ(r.terms, (std::vector<std::string>{"ao", "composite"}));
   EXPECT_EQ(r.notes, (std::vector<std::string>{"view a\\nb.exr not used", "tab\\there"}));
   EXPECT_EQ(r.views_per_side, 1);
@@ -60,8 +62,10 @@ TEST(WorkerResponse, FieldsAreReadAndControlCharactersEscaped) {
   EXPECT_EQ(r.window_note, "computed with\\rfewer");
   EXPECT_TRUE(r.window_reduced());
   // Sizes and counts are integers in range, else absent.
-  const WorkerResult odd = read({{"ok", true}, {"width", 1e300}, {"height", -5}, {"window", {{"views", 2.5}}}});
+  const WorkerResult odd =
+      read({{"ok", true}, {"width", 1e300}, {"height", -5}, {"page_faults", "many"}, {"window", {{"views", 2.5}}}});
   EXPECT_EQ(odd.width_px, 0);
+  EXPECT_EQ(odd.page_faults, 0);
   EXPECT_EQ(odd.height_px, 0);
   EXPECT_EQ(odd.views_per_side, 0);
 }
