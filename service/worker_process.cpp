@@ -159,7 +159,7 @@ bool WorkerProcess::spawn(std::string& error) {
   const std::string tunables = "GLIBC_TUNABLES=" + worker_glibc_tunables(std::getenv("GLIBC_TUNABLES"));
   std::vector<char*> envp;
   for (char** e = environ; *e; ++e)
-    if (std::string_view(*e).substr(0, 15) != "GLIBC_TUNABLES=") envp.push_back(*e);
+    if (!std::string_view(*e).starts_with("GLIBC_TUNABLES=")) envp.push_back(*e);
   envp.push_back(const_cast<char*>(tunables.c_str()));
   envp.push_back(nullptr);
   pid_t pid = -1;

@@ -98,11 +98,7 @@ TEST(Batch, AKilledWorkerFailsItsFrameTheOthersGoOn) {
   // In sanitizer builds the runtime would catch the SIGSEGV and exit with status 1; the
   // worker must die by the signal, as in production. (Children read the options at start.)
   const std::string asan_options = std::getenv("ASAN_OPTIONS") ? std::getenv("ASAN_OPTIONS") : "";
-  ::setenv("ASAN_OPTIONS", (asan_options + ":handle_segv=0").c_str(), 1);
-  struct Restore {
-    std::string value;
-    ~Restore() { ::setenv("ASAN_OPTIONS", value.c_str(), 1); }
-  } restore{asan_options};
+  const ScopedVariable no_segv_handler("ASAN_OPTIONS", asan_options + ":handle_segv=0");
   SsdoProcess batch({"process", dir / "in", "-o", dir / "out", "--jobs", "1", "--terms", "ao", "--preset", "low"},
                     dir.path / "batch.log");
   ASSERT_TRUE(wait_until([&] { return !workers_of(batch.pid()).empty() || !batch.running(); }, 20));
