@@ -18,6 +18,7 @@
 
 #include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
+#include "kernels/record_lanes.h"
 #include "core/enum_names.h"
 #include "core/parallel.h"
 #include "core/uninitialized.h"
@@ -358,7 +359,7 @@ struct SampleBatch {
   float u_at[kSampleBatch];
   // Zero past `count` (the environment's lanes read every direction of the batch).
   float wx[kSampleBatch] = {}, wy[kSampleBatch] = {}, wz[kSampleBatch] = {};
-  float cwx[kSampleBatch], cwy[kSampleBatch], cwz[kSampleBatch], cww[kSampleBatch];
+  float cwx[kSampleBatch] = {}, cwy[kSampleBatch] = {}, cww[kSampleBatch] = {};  // clip z is not needed
   float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
   float lambda[kPoints], depth_s[kPoints];
   float clip_x[kPoints], clip_y[kPoints];
@@ -374,7 +375,6 @@ struct SampleBatch {
   float thickness[kPoints];  // the occluder thickness behind each point's texel (tap_thickness)
 
   glm::vec3 w(int s) const { return {wx[s], wy[s], wz[s]}; }
-  glm::vec4 clip_w_dir(int s) const { return {cwx[s], cwy[s], cwz[s], cww[s]}; }
 };
 
 // Sample directions (paper sec. 3.1): w_i cosine-distributed about n (pdf cos / pi, so
@@ -403,7 +403,7 @@ inline void sample_directions(const Constants& c, const Receiver& rcv, const Ray
     b.wz[s] = f.t.z * along_t + f.b.z * along_b + rcv.n.z * along_n;
     // clip_from_view * (w, 0), in glm's order of operations.
     const glm::vec4 cw = (m[0] * b.wx[s] + m[1] * b.wy[s]) + (m[2] * b.wz[s] + m[3] * 0.0f);
-    b.cwx[s] = cw.x, b.cwy[s] = cw.y, b.cwz[s] = cw.z, b.cww[s] = cw.w;
+    b.cwx[s] = cw.x, b.cwy[s] = cw.y, b.cww[s] = cw.w;
     // Points along w at lambda_ij = m (j + xi_i) / (k - 1 + xi_i), j = 0..k-1, xi_i in
     // (0, 1], m = the on-screen part of r: k = 1 is the paper's single point at a uniform
     // distance in (0, r]; k > 1 marches the radius with the last point at m, so that an
@@ -460,61 +460,138 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
   }
 }
 
-// Bisection between lambda lo (in front of the depth buffer) and hi (behind it), on
-// full-resolution texels: sample_refinements halvings; each occluded midpoint becomes the
-// sample's occluder and sender (qx, qy). Both ends are on screen, so every point between is
-// (projection keeps segments convex).
-inline void bisect_entry(const Constants& c, const Receiver& rcv, const RayFrame& f, const glm::vec3& w,
-                         const glm::vec4& cw, float lo, float hi, Tap& tap, int& qx, int& qy) {
-  for (int h = 0; h < c.s.sample_refinements; ++h) {
-    const float mid = 0.5f * (lo + hi);
-    int mx = 0, my = 0;
-    const glm::vec4 clip = f.clip_p + mid * cw;
-    const Tap m = classify(c, f.origin_px, -(rcv.p + mid * w).z, clip.x, clip.y, clip.w, true, mx, my);
-    // Selects, not branches: whether a midpoint is in front is a coin toss to the predictor.
-    const bool visible = m == Tap::visible, occluded = m == Tap::occluded;
-    lo = visible ? mid : lo;
-    hi = visible ? hi : mid;
-    tap = occluded ? Tap::occluded : tap;
-    qx = occluded ? mx : qx;
-    qy = occluded ? my : qy;
-  }
-}
+namespace hn = hwy::HWY_NAMESPACE;
 
-// The march of direction s of the batch: the first point behind the depth buffer within the
-// thickness decides; on `occluded`, (qx, qy) is the sender. Between two steps, bisection:
+// The march of each direction s of the batch, one direction per lane: the first point
+// behind the depth buffer within the thickness decides; occluded[s] says whether it was
+// found, and (qx, qy)[s] is then the sender. Between two steps, bisection (bisect below):
 // - after an occluded step, for the entry point (when locate_sender): the sender is the
 //   surface where w enters the occluder, not wherever a coarse step overshot to (an
 //   overshot point projects onto a face of the occluder that often faces away from P, which
 //   the back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
+//   The march ends there whatever the bisection finds, so these run together at the end.
 // - after a step farther behind the surface than the thickness right after one in front:
 //   the ray crossed the stored surface in between, and the part within the thickness lies
 //   between the steps (large occluders seen face-on: deep inside, a point is farther than
-//   the thickness behind the front face the screen shows).
-inline Tap march_direction(const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleBatch& b, int s,
-                           bool locate_sender, int& qx, int& qy) {
-  const glm::vec3 w = b.w(s);
-  const glm::vec4 cw = b.clip_w_dir(s);
-  Tap tap = Tap::visible;
-  float lambda_front = 0.0f;  // the last point in front of the depth buffer (P itself)
-  bool after_front = true;
-  for (int j = 0; j < c.s.sample_steps && tap != Tap::occluded; ++j) {
-    const int k = j * b.count + s;
-    const Tap tj = b.tap_at[k];
-    if (tj == Tap::off_screen) break;
-    if (tj == Tap::visible) {
-      lambda_front = b.lambda[k];
-      after_front = true;
-      continue;
+//   the thickness behind the front face the screen shows). The march goes on when the
+//   bisection finds nothing, so these run at their step.
+// The lanes step together: a direction's steps and halvings depend on each other, and
+// branches on what a tap found, or texel reads one after the other (each a cache miss
+// when it lands far from the last), cost more than the lanes' wasted work.
+void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleBatch& b,
+                 bool locate_sender, bool* occluded_out, int* qx_out, int* qy_out) {
+  const hn::CappedTag<float, kSampleBatch> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const hn::RebindToUnsigned<decltype(d)> du;
+  using V = hn::Vec<decltype(d)>;
+  using VI = hn::Vec<decltype(di)>;
+  using M = hn::Mask<decltype(d)>;
+  static_assert(sizeof(Tap) == sizeof(int32_t) && sizeof(TapTexel) == 4 * sizeof(float));
+  const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
+  const V width_v = hn::Set(d, c.width_px), height_v = hn::Set(d, c.height_px);
+  const V plane_limit = hn::Set(d, kPlaneCorrectionMaxRelative), bias = hn::Set(d, c.s.depth_bias_relative);
+  const V infinity = hn::Set(d, std::numeric_limits<float>::infinity());
+  const VI width_i = hn::Set(di, int32_t(c.width_px));
+  const float* texels = reinterpret_cast<const float*>(c.pyramid);
+  const int32_t* taps = reinterpret_cast<const int32_t*>(b.tap_at);
+  auto is = [&](const VI& tap, Tap value) { return hn::RebindMask(d, hn::Eq(tap, hn::Set(di, int32_t(value)))); };
+  for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
+    const V cwx = hn::LoadU(d, b.cwx + s0), cwy = hn::LoadU(d, b.cwy + s0), cww = hn::LoadU(d, b.cww + s0);
+    const V wz = hn::LoadU(d, b.wz + s0);
+    // Bisection of the brackets [lo, hi] of the lanes `which` (lo in front of the depth
+    // buffer, hi behind it; both on screen, so every point between is: projection keeps
+    // segments convex), on full-resolution texels: sample_refinements halvings, each an
+    // occlusion test (project() at level 0 and classify_at(), the same operations in the
+    // same order, so the same bits as one point at a time); each occluded midpoint becomes
+    // the lane's occluder and sender (qx, qy).
+    auto bisect = [&](M which, V lo, V hi, M& occluded, VI& qx, VI& qy) {
+      for (int h = 0; h < c.s.sample_refinements; ++h) {
+        const V mid = hn::Mul(half, hn::Add(lo, hi));
+        // f.clip_p + mid * cw and -(rcv.p + mid * w).z.
+        const V clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(mid, cwx));
+        const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(mid, cwy));
+        const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(mid, cww));
+        const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(mid, wz)));
+        const V inv_w = hn::Div(one, clip_w);
+        const V px = hn::Mul(hn::Mul(half, hn::Add(hn::Mul(clip_x, inv_w), one)), width_v);
+        const V py = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Mul(clip_y, inv_w))), height_v);
+        const M on_screen = hn::And(hn::And(which, hn::Gt(clip_w, zero)),
+                                    hn::And(hn::And(hn::Ge(px, zero), hn::Lt(px, width_v)),
+                                            hn::And(hn::Ge(py, zero), hn::Lt(py, height_v))));
+        const VI mx = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, px));
+        const VI my = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, py));
+        const VI texel = hn::Add(hn::Mul(my, width_i), mx);  // level 0; texel 0 off screen
+        alignas(64) int32_t offset[hn::MaxLanes(di)];
+        hn::Store(hn::ShiftLeft<2>(texel), di, offset);
+        V t[4];  // TapTexel's fields
+        load_records4(d, texels, offset, t);
+        const V thickness = c.pyramid_thickness ? hn::GatherIndex(d, c.pyramid_thickness, texel)
+                                                : hn::Set(d, c.s.thickness_world);
+        const auto source = hn::BitCast(du, t[3]);
+        const V sx = hn::ConvertTo(d, hn::BitCast(di, hn::And(source, hn::Set(du, 0xFFFFu))));
+        const V sy = hn::ConvertTo(d, hn::BitCast(di, hn::ShiftRight<16>(source)));
+        const V depth_q = t[0];
+        const M background = hn::Not(hn::Lt(depth_q, infinity));
+        const V inv = hn::Add(hn::Add(hn::Div(one, depth_q), hn::Mul(t[1], hn::Sub(hn::Sub(px, sx), half))),
+                              hn::Mul(t[2], hn::Sub(hn::Sub(py, sy), half)));
+        const V limit = hn::Mul(plane_limit, depth_q);
+        const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(one, inv)));
+        const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(inv, zero), clamped, depth_q));
+        const M beyond_bias = hn::Gt(behind, hn::Mul(bias, depth_s));
+        const M visible = hn::And(on_screen, hn::Or(background, hn::Not(beyond_bias)));
+        const M hit = hn::AndNot(background, hn::And(on_screen, hn::And(beyond_bias, hn::Lt(behind, thickness))));
+        lo = hn::IfThenElse(visible, mid, lo);
+        hi = hn::IfThenElse(visible, hi, mid);
+        occluded = hn::Or(occluded, hit);
+        qx = hn::IfThenElse(hn::RebindMask(di, hit), mx, qx);
+        qy = hn::IfThenElse(hn::RebindMask(di, hit), my, qy);
+      }
+    };
+    // Lanes past the batch's count never start.
+    M active = hn::RebindMask(d, hn::Lt(hn::Iota(di, int32_t(s0)), hn::Set(di, b.count)));
+    const M none = hn::FirstN(d, 0);
+    const M locate_sender_m = locate_sender ? active : none;
+    M after_front = active, occluded = none, locate = none;
+    V lambda_front = zero, locate_lo = zero, locate_hi = zero;  // the last point in front: P itself
+    VI qx = hn::Zero(di), qy = hn::Zero(di);
+    for (int j = 0; j < c.s.sample_steps && !hn::AllFalse(d, active); ++j) {
+      const size_t k = size_t(j * b.count) + s0;
+      const VI tap = hn::LoadU(di, taps + k);
+      const V lambda = hn::LoadU(d, b.lambda + k);
+      active = hn::AndNot(is(tap, Tap::off_screen), active);
+      const M visible = hn::And(active, is(tap, Tap::visible));
+      lambda_front = hn::IfThenElse(visible, lambda, lambda_front);
+      const M hit = hn::AndNot(is(tap, Tap::visible), active);  // occluded or behind: tap = tj
+      const M hit_occluded = hn::And(hit, is(tap, Tap::occluded));
+      occluded = hn::Or(hit_occluded, hn::AndNot(hit, occluded));
+      qx = hn::IfThenElse(hn::RebindMask(di, hit), hn::LoadU(di, b.qx_at + k), qx);
+      qy = hn::IfThenElse(hn::RebindMask(di, hit), hn::LoadU(di, b.qy_at + k), qy);
+      // An occluded step ends the march, its bisection left for the end.
+      const M locate_now = hn::And(hit_occluded, locate_sender_m);
+      locate_lo = hn::IfThenElse(locate_now, lambda_front, locate_lo);
+      locate_hi = hn::IfThenElse(locate_now, lambda, locate_hi);
+      locate = hn::Or(locate, locate_now);
+      active = hn::AndNot(hit_occluded, active);
+      const M crossed = hn::AndNot(hit_occluded, hn::And(hit, after_front));
+      after_front = hn::Or(hn::AndNot(hit, after_front), visible);
+      if (!hn::AllFalse(d, crossed)) {
+        M found = none;
+        bisect(crossed, lambda_front, lambda, found, qx, qy);
+        occluded = hn::Or(occluded, found);
+        active = hn::AndNot(found, active);
+      }
     }
-    tap = tj;
-    qx = b.qx_at[k];
-    qy = b.qy_at[k];
-    if (tj == Tap::occluded ? locate_sender : after_front)
-      bisect_entry(c, rcv, f, w, cw, lambda_front, b.lambda[k], tap, qx, qy);
-    after_front = false;
+    if (!hn::AllFalse(d, locate)) bisect(locate, locate_lo, locate_hi, occluded, qx, qy);
+    alignas(64) int32_t occluded_lanes[hn::MaxLanes(di)];
+    hn::Store(hn::VecFromMask(di, hn::RebindMask(di, occluded)), di, occluded_lanes);
+    const size_t n = std::min(hn::Lanes(d), size_t(std::max(0, b.count - int(s0))));
+    for (size_t l = 0; l < n; ++l) occluded_out[s0 + l] = occluded_lanes[l] != 0;
+    alignas(64) int32_t lanes_x[hn::MaxLanes(di)], lanes_y[hn::MaxLanes(di)];
+    hn::Store(qx, di, lanes_x);
+    hn::Store(qy, di, lanes_y);
+    std::copy_n(lanes_x, n, qx_out + s0);
+    std::copy_n(lanes_y, n, qy_out + s0);
   }
-  return tap;
 }
 
 // A pixel's sums over its samples.
@@ -525,8 +602,6 @@ struct SampleSums {
   glm::vec3 indirect{0.0f};  // sum over occluded w_i of the sender's light (add_sender)
   int visible = 0;
 };
-
-namespace hn = hwy::HWY_NAMESPACE;
 
 // Environment::radiance_filtered_env of the batch's kSampleBatch directions w (view space)
 // at once, one per lane, into (red, green, blue): env_from_view * w in glm's order, then
@@ -681,11 +756,11 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       sample_directions(c, rcv, f, shift, x, y, b);
       test_points(c, rcv, f, b);
       bool occluded[kSampleBatch];
+      int qx[kSampleBatch], qy[kSampleBatch];
+      march_batch(c, rcv, f, b, locate_sender, occluded, qx, qy);
       for (int s = 0; s < b.count; ++s) {
-        int qx = 0, qy = 0;
-        occluded[s] = march_direction(c, rcv, f, b, s, locate_sender, qx, qy) == Tap::occluded;
-        if (record) record[i0 + s] = occluded[s] ? qy * width + qx : -1;
-        add_sample(c, rcv, sender_direct, want_direct, want_indirect, b.w(s), occluded[s], qx, qy, sums);
+        if (record) record[i0 + s] = occluded[s] ? qy[s] * width + qx[s] : -1;
+        add_sample(c, rcv, sender_direct, want_direct, want_indirect, b.w(s), occluded[s], qx[s], qy[s], sums);
       }
       if (want_direct) add_environment(c, b, occluded, sums);
     }
