@@ -361,18 +361,12 @@ struct SampleBatch {
   float wx[kSampleBatch] = {}, wy[kSampleBatch] = {}, wz[kSampleBatch] = {};
   float cwx[kSampleBatch] = {}, cwy[kSampleBatch] = {}, cww[kSampleBatch] = {};  // clip z is not needed
   float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
+  // kPoints is a multiple of any vector's lanes: test_points fills whole vectors.
   float lambda[kPoints], depth_s[kPoints];
   float clip_x[kPoints], clip_y[kPoints];
   float clip_w[kPoints];
   Tap tap_at[kPoints];
-  int qx_at[kPoints], qy_at[kPoints];
-  float px_at[kPoints], py_at[kPoints];
-  int texel_at[kPoints];
-  int on_screen_at[kPoints];
-  // Each point's texel, field by field: the copies are read by a loop over the points.
-  float texel_depth[kPoints], texel_inv_depth_dx[kPoints], texel_inv_depth_dy[kPoints];
-  uint32_t texel_source[kPoints];
-  float thickness[kPoints];  // the occluder thickness behind each point's texel (tap_thickness)
+  int32_t qx_at[kPoints], qy_at[kPoints];
 
   glm::vec3 w(int s) const { return {wx[s], wy[s], wz[s]}; }
 };
@@ -420,11 +414,83 @@ inline void sample_directions(const Constants& c, const Receiver& rcv, const Ray
   }
 }
 
+namespace hn = hwy::HWY_NAMESPACE;
+
 // The occlusion test (paper sec. 3.1: a point is occluded when it lies behind the depth
-// buffer) of every point of every direction of the batch, in loops without branches: the
-// points, where they project (vectorises), their texels copied together (one 16-byte read
-// each, stored field by field) with their occluder thickness, the tests (vectorises,
-// reading the copies' fields as arrays).
+// buffer) of the points of a vector's lanes, given their clip coordinates and planar
+// depth: project() and classify_at() with the same operations in the same order, so the
+// same bits as one point at a time, and without branches. tap: the Tap of each lane;
+// (qx, qy) its pixel (0 off screen). full_resolution: level 0 whatever the distance.
+template <class D>
+struct PointLanes {
+  hn::Vec<hn::RebindToSigned<D>> tap, qx, qy;
+};
+
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE PointLanes<D> test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V clip_x, V clip_y, V clip_w,
+                                    V depth_s, bool full_resolution) {
+  const hn::RebindToSigned<D> di;
+  const hn::RebindToUnsigned<D> du;
+  using VI = hn::Vec<decltype(di)>;
+  using M = hn::Mask<D>;
+  const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
+  const V width_v = hn::Set(d, c.width_px), height_v = hn::Set(d, c.height_px);
+  const VI width_i = hn::Set(di, int32_t(c.width_px));
+  PointLanes<D> r;
+  // project().
+  const V inv_w = hn::Div(one, clip_w);
+  const V px = hn::Mul(hn::Mul(half, hn::Add(hn::Mul(clip_x, inv_w), one)), width_v);
+  const V py = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Mul(clip_y, inv_w))), height_v);
+  const M on_screen = hn::And(hn::And(hn::Gt(clip_w, zero), hn::And(hn::Ge(px, zero), hn::Lt(px, width_v))),
+                              hn::And(hn::Ge(py, zero), hn::Lt(py, height_v)));
+  r.qx = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, px));
+  r.qy = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, py));
+  VI texel;
+  if (full_resolution || c.n_levels == 1) {
+    texel = hn::Add(hn::Mul(r.qy, width_i), r.qx);
+  } else {
+    const V dx = hn::Sub(px, hn::Set(d, origin_px.x)), dy = hn::Sub(py, hn::Set(d, origin_px.y));
+    const V rho2 = hn::Mul(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Set(d, 1.0f / (kMipStartPx * kMipStartPx)));
+    // min(top level, exponent_of(rho2) / 2 + 1), or 0 below kMipStartPx.
+    const VI exponent =
+        hn::Sub(hn::And(hn::ShiftRight<23>(hn::BitCast(di, rho2)), hn::Set(di, 0xFF)), hn::Set(di, 127));
+    const VI level = hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
+                                        hn::Min(hn::Set(di, c.n_levels - 1), hn::Add(hn::ShiftRight<1>(exponent), hn::Set(di, 1))));
+    const VI rows_2h = hn::Set(di, c.pyramid_rows_2h);
+    const VI row = hn::Add(hn::Sub(rows_2h, hn::operator>>(rows_2h, level)), hn::operator>>(r.qy, level));
+    texel = hn::Add(hn::Mul(row, width_i), hn::operator>>(r.qx, level));
+  }
+  alignas(64) int32_t offset[hn::MaxLanes(di)];
+  hn::Store(hn::ShiftLeft<2>(texel), di, offset);
+  V t[4];  // TapTexel's fields
+  static_assert(sizeof(TapTexel) == 4 * sizeof(float));
+  load_records4(d, reinterpret_cast<const float*>(c.pyramid), offset, t);
+  const V thickness =
+      c.pyramid_thickness ? hn::GatherIndex(d, c.pyramid_thickness, texel) : hn::Set(d, c.s.thickness_world);
+  // classify_at().
+  const auto source = hn::BitCast(du, t[3]);
+  const V sx = hn::ConvertTo(d, hn::BitCast(di, hn::And(source, hn::Set(du, 0xFFFFu))));
+  const V sy = hn::ConvertTo(d, hn::BitCast(di, hn::ShiftRight<16>(source)));
+  const V depth_q = t[0];
+  const M background = hn::Not(hn::Lt(depth_q, hn::Set(d, std::numeric_limits<float>::infinity())));
+  const V inv = hn::Add(hn::Add(hn::Div(one, depth_q), hn::Mul(t[1], hn::Sub(hn::Sub(px, sx), half))),
+                        hn::Mul(t[2], hn::Sub(hn::Sub(py, sy), half)));
+  const V limit = hn::Mul(hn::Set(d, kPlaneCorrectionMaxRelative), depth_q);
+  const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(one, inv)));
+  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(inv, zero), clamped, depth_q));
+  const M beyond_bias = hn::Gt(behind, hn::Mul(hn::Set(d, c.s.depth_bias_relative), depth_s));
+  const M within_thickness = hn::Lt(behind, thickness);
+  static_assert(int(Tap::visible) == 0 && int(Tap::occluded) == 1 && int(Tap::behind) == 2 &&
+                int(Tap::off_screen) == 3);
+  const VI in_view = hn::IfThenElseZero(hn::RebindMask(di, hn::AndNot(background, beyond_bias)),
+                                        hn::IfThenElse(hn::RebindMask(di, within_thickness), hn::Set(di, 1), hn::Set(di, 2)));
+  r.tap = hn::IfThenElse(hn::RebindMask(di, on_screen), in_view, hn::Set(di, 3));
+  return r;
+}
+
+// The occlusion test of every point of every direction of the batch: the points (a loop
+// over them that vectorises), then their tests in full-width lanes (test_lanes), without
+// branches, so that the texel reads of all the batch's points overlap.
 inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame& f, SampleBatch& b) {
   const int steps = c.s.sample_steps;
   for (int j = 0; j < steps; ++j)
@@ -436,31 +502,22 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
       b.clip_y[k] = f.clip_p.y + b.lambda[k] * b.cwy[s];
       b.clip_w[k] = f.clip_p.w + b.lambda[k] * b.cww[s];
     }
-  const int points = b.count * steps;
-  for (int k = 0; k < points; ++k) {
-    const Projection q = project(c, f.origin_px, b.clip_x[k], b.clip_y[k], b.clip_w[k], false);
-    b.px_at[k] = q.px, b.py_at[k] = q.py, b.qx_at[k] = q.qx, b.qy_at[k] = q.qy;
-    b.texel_at[k] = q.texel;
-    b.on_screen_at[k] = int(q.on_screen);
-  }
-  for (int k = 0; k < points; ++k) {
-    const TapTexel& t = c.pyramid[b.texel_at[k]];
-    b.texel_depth[k] = t.depth_view;
-    b.texel_inv_depth_dx[k] = t.inv_depth_dx;
-    b.texel_inv_depth_dy[k] = t.inv_depth_dy;
-    b.texel_source[k] = t.source;
-  }
-  if (c.pyramid_thickness)
-    for (int k = 0; k < points; ++k) b.thickness[k] = c.pyramid_thickness[b.texel_at[k]];
-  else
-    std::fill_n(b.thickness, points, c.s.thickness_world);
-  for (int k = 0; k < points; ++k) {
-    const TapTexel t{b.texel_depth[k], b.texel_inv_depth_dx[k], b.texel_inv_depth_dy[k], b.texel_source[k]};
-    b.tap_at[k] = classify_at(c, b.depth_s[k], b.px_at[k], b.py_at[k], b.on_screen_at[k] != 0, t, b.thickness[k]);
+  const hn::ScalableTag<float> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const size_t points = size_t(b.count * steps);
+  // The last vector's lanes past `points` test a point at the eye (clip w 0: off screen).
+  const size_t padded = hwy::RoundUpTo(points, hn::Lanes(d));
+  for (float* a : {b.depth_s, b.clip_x, b.clip_y, b.clip_w}) std::fill(a + points, a + padded, 0.0f);
+  for (size_t k = 0; k < padded; k += hn::Lanes(d)) {
+    const auto t =
+        test_lanes(d, c, f.origin_px, hn::LoadU(d, b.clip_x + k), hn::LoadU(d, b.clip_y + k),
+                   hn::LoadU(d, b.clip_w + k), hn::LoadU(d, b.depth_s + k), false);
+    hn::StoreU(t.tap, di, reinterpret_cast<int32_t*>(b.tap_at) + k);
+    hn::StoreU(t.qx, di, b.qx_at + k);
+    hn::StoreU(t.qy, di, b.qy_at + k);
   }
 }
 
-namespace hn = hwy::HWY_NAMESPACE;
 
 // The march of each direction s of the batch, one direction per lane: the first point
 // behind the depth buffer within the thickness decides; occluded[s] says whether it was
@@ -482,17 +539,11 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
                  bool locate_sender, bool* occluded_out, int* qx_out, int* qy_out) {
   const hn::CappedTag<float, kSampleBatch> d;
   const hn::RebindToSigned<decltype(d)> di;
-  const hn::RebindToUnsigned<decltype(d)> du;
   using V = hn::Vec<decltype(d)>;
   using VI = hn::Vec<decltype(di)>;
   using M = hn::Mask<decltype(d)>;
-  static_assert(sizeof(Tap) == sizeof(int32_t) && sizeof(TapTexel) == 4 * sizeof(float));
-  const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
-  const V width_v = hn::Set(d, c.width_px), height_v = hn::Set(d, c.height_px);
-  const V plane_limit = hn::Set(d, kPlaneCorrectionMaxRelative), bias = hn::Set(d, c.s.depth_bias_relative);
-  const V infinity = hn::Set(d, std::numeric_limits<float>::infinity());
-  const VI width_i = hn::Set(di, int32_t(c.width_px));
-  const float* texels = reinterpret_cast<const float*>(c.pyramid);
+  static_assert(sizeof(Tap) == sizeof(int32_t));
+  const V zero = hn::Zero(d), half = hn::Set(d, 0.5f);
   const int32_t* taps = reinterpret_cast<const int32_t*>(b.tap_at);
   auto is = [&](const VI& tap, Tap value) { return hn::RebindMask(d, hn::Eq(tap, hn::Set(di, int32_t(value)))); };
   for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
@@ -512,39 +563,13 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
         const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(mid, cwy));
         const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(mid, cww));
         const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(mid, wz)));
-        const V inv_w = hn::Div(one, clip_w);
-        const V px = hn::Mul(hn::Mul(half, hn::Add(hn::Mul(clip_x, inv_w), one)), width_v);
-        const V py = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Mul(clip_y, inv_w))), height_v);
-        const M on_screen = hn::And(hn::And(which, hn::Gt(clip_w, zero)),
-                                    hn::And(hn::And(hn::Ge(px, zero), hn::Lt(px, width_v)),
-                                            hn::And(hn::Ge(py, zero), hn::Lt(py, height_v))));
-        const VI mx = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, px));
-        const VI my = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, py));
-        const VI texel = hn::Add(hn::Mul(my, width_i), mx);  // level 0; texel 0 off screen
-        alignas(64) int32_t offset[hn::MaxLanes(di)];
-        hn::Store(hn::ShiftLeft<2>(texel), di, offset);
-        V t[4];  // TapTexel's fields
-        load_records4(d, texels, offset, t);
-        const V thickness = c.pyramid_thickness ? hn::GatherIndex(d, c.pyramid_thickness, texel)
-                                                : hn::Set(d, c.s.thickness_world);
-        const auto source = hn::BitCast(du, t[3]);
-        const V sx = hn::ConvertTo(d, hn::BitCast(di, hn::And(source, hn::Set(du, 0xFFFFu))));
-        const V sy = hn::ConvertTo(d, hn::BitCast(di, hn::ShiftRight<16>(source)));
-        const V depth_q = t[0];
-        const M background = hn::Not(hn::Lt(depth_q, infinity));
-        const V inv = hn::Add(hn::Add(hn::Div(one, depth_q), hn::Mul(t[1], hn::Sub(hn::Sub(px, sx), half))),
-                              hn::Mul(t[2], hn::Sub(hn::Sub(py, sy), half)));
-        const V limit = hn::Mul(plane_limit, depth_q);
-        const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(one, inv)));
-        const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(inv, zero), clamped, depth_q));
-        const M beyond_bias = hn::Gt(behind, hn::Mul(bias, depth_s));
-        const M visible = hn::And(on_screen, hn::Or(background, hn::Not(beyond_bias)));
-        const M hit = hn::AndNot(background, hn::And(on_screen, hn::And(beyond_bias, hn::Lt(behind, thickness))));
+        const auto m = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true);
+        const M visible = hn::And(which, is(m.tap, Tap::visible)), hit = hn::And(which, is(m.tap, Tap::occluded));
         lo = hn::IfThenElse(visible, mid, lo);
         hi = hn::IfThenElse(visible, hi, mid);
         occluded = hn::Or(occluded, hit);
-        qx = hn::IfThenElse(hn::RebindMask(di, hit), mx, qx);
-        qy = hn::IfThenElse(hn::RebindMask(di, hit), my, qy);
+        qx = hn::IfThenElse(hn::RebindMask(di, hit), m.qx, qx);
+        qy = hn::IfThenElse(hn::RebindMask(di, hit), m.qy, qy);
       }
     };
     // Lanes past the batch's count never start.
