@@ -519,9 +519,44 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
 }
 
 
+// The lanes of `tap` (Tap values) that are `value`, as a mask of d.
+template <class D, class VI>
+HWY_INLINE hn::Mask<D> tap_is(D d, VI tap, Tap value) {
+  return hn::RebindMask(d, hn::Eq(tap, hn::Set(hn::RebindToSigned<D>(), int32_t(value))));
+}
+
+// Bisection of the brackets [lo, hi] of the lanes `which` of the batch's directions s0 ..
+// (lo in front of the depth buffer, hi behind it; both on screen, so every point between
+// is: projection keeps segments convex), on full-resolution texels (project()):
+// sample_refinements halvings; each occluded midpoint becomes the lane's occluder and
+// sender (qx, qy).
+template <class D, class V = hn::Vec<D>, class M = hn::Mask<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
+HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleBatch& b,
+                             size_t s0, M which, V lo, V hi, M& occluded, VI& qx, VI& qy) {
+  const hn::RebindToSigned<D> di;
+  const V cwx = hn::LoadU(d, b.cwx + s0), cwy = hn::LoadU(d, b.cwy + s0), cww = hn::LoadU(d, b.cww + s0);
+  const V wz = hn::LoadU(d, b.wz + s0);
+  for (int h = 0; h < c.s.sample_refinements; ++h) {
+    const V mid = hn::Mul(hn::Set(d, 0.5f), hn::Add(lo, hi));
+    // f.clip_p + mid * cw and -(rcv.p + mid * w).z.
+    const V clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(mid, cwx));
+    const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(mid, cwy));
+    const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(mid, cww));
+    const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(mid, wz)));
+    const auto m = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true);
+    const M visible = hn::And(which, tap_is(d, m.tap, Tap::visible));
+    const M hit = hn::And(which, tap_is(d, m.tap, Tap::occluded));
+    lo = hn::IfThenElse(visible, mid, lo);
+    hi = hn::IfThenElse(visible, hi, mid);
+    occluded = hn::Or(occluded, hit);
+    qx = hn::IfThenElse(hn::RebindMask(di, hit), m.qx, qx);
+    qy = hn::IfThenElse(hn::RebindMask(di, hit), m.qy, qy);
+  }
+}
+
 // The march of each direction s of the batch, one direction per lane: the first point
 // behind the depth buffer within the thickness decides; occluded[s] says whether it was
-// found, and (qx, qy)[s] is then the sender. Between two steps, bisection (bisect below):
+// found, and (qx, qy)[s] is then the sender. Between two steps, bisection (bisect_lanes):
 // - after an occluded step, for the entry point (when locate_sender): the sender is the
 //   surface where w enters the occluder, not wherever a coarse step overshot to (an
 //   overshot point projects onto a face of the occluder that often faces away from P, which
@@ -543,35 +578,10 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
   using VI = hn::Vec<decltype(di)>;
   using M = hn::Mask<decltype(d)>;
   static_assert(sizeof(Tap) == sizeof(int32_t));
-  const V zero = hn::Zero(d), half = hn::Set(d, 0.5f);
+  const V zero = hn::Zero(d);
   const int32_t* taps = reinterpret_cast<const int32_t*>(b.tap_at);
-  auto is = [&](const VI& tap, Tap value) { return hn::RebindMask(d, hn::Eq(tap, hn::Set(di, int32_t(value)))); };
+  auto is = [&](const VI& tap, Tap value) { return tap_is(d, tap, value); };
   for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
-    const V cwx = hn::LoadU(d, b.cwx + s0), cwy = hn::LoadU(d, b.cwy + s0), cww = hn::LoadU(d, b.cww + s0);
-    const V wz = hn::LoadU(d, b.wz + s0);
-    // Bisection of the brackets [lo, hi] of the lanes `which` (lo in front of the depth
-    // buffer, hi behind it; both on screen, so every point between is: projection keeps
-    // segments convex), on full-resolution texels: sample_refinements halvings, each an
-    // occlusion test (project() at level 0 and classify_at(), the same operations in the
-    // same order, so the same bits as one point at a time); each occluded midpoint becomes
-    // the lane's occluder and sender (qx, qy).
-    auto bisect = [&](M which, V lo, V hi, M& occluded, VI& qx, VI& qy) {
-      for (int h = 0; h < c.s.sample_refinements; ++h) {
-        const V mid = hn::Mul(half, hn::Add(lo, hi));
-        // f.clip_p + mid * cw and -(rcv.p + mid * w).z.
-        const V clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(mid, cwx));
-        const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(mid, cwy));
-        const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(mid, cww));
-        const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(mid, wz)));
-        const auto m = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true);
-        const M visible = hn::And(which, is(m.tap, Tap::visible)), hit = hn::And(which, is(m.tap, Tap::occluded));
-        lo = hn::IfThenElse(visible, mid, lo);
-        hi = hn::IfThenElse(visible, hi, mid);
-        occluded = hn::Or(occluded, hit);
-        qx = hn::IfThenElse(hn::RebindMask(di, hit), m.qx, qx);
-        qy = hn::IfThenElse(hn::RebindMask(di, hit), m.qy, qy);
-      }
-    };
     // Lanes past the batch's count never start.
     M active = hn::RebindMask(d, hn::Lt(hn::Iota(di, int32_t(s0)), hn::Set(di, b.count)));
     const M none = hn::FirstN(d, 0);
@@ -601,12 +611,12 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
       after_front = hn::Or(hn::AndNot(hit, after_front), visible);
       if (!hn::AllFalse(d, crossed)) {
         M found = none;
-        bisect(crossed, lambda_front, lambda, found, qx, qy);
+        bisect_lanes(d, c, rcv, f, b, s0, crossed, lambda_front, lambda, found, qx, qy);
         occluded = hn::Or(occluded, found);
         active = hn::AndNot(found, active);
       }
     }
-    if (!hn::AllFalse(d, locate)) bisect(locate, locate_lo, locate_hi, occluded, qx, qy);
+    if (!hn::AllFalse(d, locate)) bisect_lanes(d, c, rcv, f, b, s0, locate, locate_lo, locate_hi, occluded, qx, qy);
     alignas(64) int32_t occluded_lanes[hn::MaxLanes(di)];
     hn::Store(hn::VecFromMask(di, hn::RebindMask(di, occluded)), di, occluded_lanes);
     const size_t n = std::min(hn::Lanes(d), size_t(std::max(0, b.count - int(s0))));
