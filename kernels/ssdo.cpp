@@ -419,35 +419,29 @@ namespace hn = hwy::HWY_NAMESPACE;
 // The occlusion test (paper sec. 3.1: a point is occluded when it lies behind the depth
 // buffer) of the points of a vector's lanes, given their clip coordinates and planar
 // depth: project() and classify_at() with the same operations in the same order, so the
-// same bits as one point at a time, and without branches. tap: the Tap of each lane;
-// (qx, qy) its pixel (0 off screen). full_resolution: level 0 whatever the distance.
-template <class D>
-struct PointLanes {
-  hn::Vec<hn::RebindToSigned<D>> tap, qx, qy;
-};
-
-template <class D, class V = hn::Vec<D>>
-HWY_INLINE PointLanes<D> test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V clip_x, V clip_y, V clip_w,
-                                    V depth_s, bool full_resolution) {
+// same bits as one point at a time, and without branches. Returns the Tap of each lane;
+// (qx, qy) receive its pixel (0 off screen). full_resolution: level 0 whatever the
+// distance.
+template <class D, class V = hn::Vec<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
+HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V clip_x, V clip_y, V clip_w, V depth_s,
+                         bool full_resolution, VI& qx, VI& qy) {
   const hn::RebindToSigned<D> di;
   const hn::RebindToUnsigned<D> du;
-  using VI = hn::Vec<decltype(di)>;
   using M = hn::Mask<D>;
   const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
   const V width_v = hn::Set(d, c.width_px), height_v = hn::Set(d, c.height_px);
   const VI width_i = hn::Set(di, int32_t(c.width_px));
-  PointLanes<D> r;
   // project().
   const V inv_w = hn::Div(one, clip_w);
   const V px = hn::Mul(hn::Mul(half, hn::Add(hn::Mul(clip_x, inv_w), one)), width_v);
   const V py = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Mul(clip_y, inv_w))), height_v);
   const M on_screen = hn::And(hn::And(hn::Gt(clip_w, zero), hn::And(hn::Ge(px, zero), hn::Lt(px, width_v))),
                               hn::And(hn::Ge(py, zero), hn::Lt(py, height_v)));
-  r.qx = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, px));
-  r.qy = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, py));
+  qx = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, px));
+  qy = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, py));
   VI texel;
   if (full_resolution || c.n_levels == 1) {
-    texel = hn::Add(hn::Mul(r.qy, width_i), r.qx);
+    texel = hn::Add(hn::Mul(qy, width_i), qx);
   } else {
     const V dx = hn::Sub(px, hn::Set(d, origin_px.x)), dy = hn::Sub(py, hn::Set(d, origin_px.y));
     const V rho2 = hn::Mul(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Set(d, 1.0f / (kMipStartPx * kMipStartPx)));
@@ -457,8 +451,8 @@ HWY_INLINE PointLanes<D> test_lanes(D d, const Constants& c, const glm::vec2& or
     const VI level = hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
                                         hn::Min(hn::Set(di, c.n_levels - 1), hn::Add(hn::ShiftRight<1>(exponent), hn::Set(di, 1))));
     const VI rows_2h = hn::Set(di, c.pyramid_rows_2h);
-    const VI row = hn::Add(hn::Sub(rows_2h, hn::operator>>(rows_2h, level)), hn::operator>>(r.qy, level));
-    texel = hn::Add(hn::Mul(row, width_i), hn::operator>>(r.qx, level));
+    const VI row = hn::Add(hn::Sub(rows_2h, hn::operator>>(rows_2h, level)), hn::operator>>(qy, level));
+    texel = hn::Add(hn::Mul(row, width_i), hn::operator>>(qx, level));
   }
   alignas(64) int32_t offset[hn::MaxLanes(di)];
   hn::Store(hn::ShiftLeft<2>(texel), di, offset);
@@ -484,8 +478,7 @@ HWY_INLINE PointLanes<D> test_lanes(D d, const Constants& c, const glm::vec2& or
                 int(Tap::off_screen) == 3);
   const VI in_view = hn::IfThenElseZero(hn::RebindMask(di, hn::AndNot(background, beyond_bias)),
                                         hn::IfThenElse(hn::RebindMask(di, within_thickness), hn::Set(di, 1), hn::Set(di, 2)));
-  r.tap = hn::IfThenElse(hn::RebindMask(di, on_screen), in_view, hn::Set(di, 3));
-  return r;
+  return hn::IfThenElse(hn::RebindMask(di, on_screen), in_view, hn::Set(di, 3));
 }
 
 // The occlusion test of every point of every direction of the batch: the points (a loop
@@ -509,12 +502,12 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
   const size_t padded = hwy::RoundUpTo(points, hn::Lanes(d));
   for (float* a : {b.depth_s, b.clip_x, b.clip_y, b.clip_w}) std::fill(a + points, a + padded, 0.0f);
   for (size_t k = 0; k < padded; k += hn::Lanes(d)) {
-    const auto t =
-        test_lanes(d, c, f.origin_px, hn::LoadU(d, b.clip_x + k), hn::LoadU(d, b.clip_y + k),
-                   hn::LoadU(d, b.clip_w + k), hn::LoadU(d, b.depth_s + k), false);
-    hn::StoreU(t.tap, di, reinterpret_cast<int32_t*>(b.tap_at) + k);
-    hn::StoreU(t.qx, di, b.qx_at + k);
-    hn::StoreU(t.qy, di, b.qy_at + k);
+    auto qx = hn::Zero(di), qy = hn::Zero(di);
+    const auto tap = test_lanes(d, c, f.origin_px, hn::LoadU(d, b.clip_x + k), hn::LoadU(d, b.clip_y + k),
+                                hn::LoadU(d, b.clip_w + k), hn::LoadU(d, b.depth_s + k), false, qx, qy);
+    hn::StoreU(tap, di, reinterpret_cast<int32_t*>(b.tap_at) + k);
+    hn::StoreU(qx, di, b.qx_at + k);
+    hn::StoreU(qy, di, b.qy_at + k);
   }
 }
 
@@ -543,14 +536,15 @@ HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const
     const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(mid, cwy));
     const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(mid, cww));
     const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(mid, wz)));
-    const auto m = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true);
-    const M visible = hn::And(which, tap_is(d, m.tap, Tap::visible));
-    const M hit = hn::And(which, tap_is(d, m.tap, Tap::occluded));
+    VI mx = hn::Zero(di), my = hn::Zero(di);
+    const VI tap = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true, mx, my);
+    const M visible = hn::And(which, tap_is(d, tap, Tap::visible));
+    const M hit = hn::And(which, tap_is(d, tap, Tap::occluded));
     lo = hn::IfThenElse(visible, mid, lo);
     hi = hn::IfThenElse(visible, hi, mid);
     occluded = hn::Or(occluded, hit);
-    qx = hn::IfThenElse(hn::RebindMask(di, hit), m.qx, qx);
-    qy = hn::IfThenElse(hn::RebindMask(di, hit), m.qy, qy);
+    qx = hn::IfThenElse(hn::RebindMask(di, hit), mx, qx);
+    qy = hn::IfThenElse(hn::RebindMask(di, hit), my, qy);
   }
 }
 
