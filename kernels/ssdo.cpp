@@ -357,7 +357,8 @@ struct SampleBatch {
   static constexpr int kPoints = kSampleBatch * kMaxSampleSteps;
   int first, count;
   float u_at[kSampleBatch];
-  // Zero past `count` (the environment's lanes read every direction of the batch).
+  // Zero past `count` (the environment's and the march's lanes read every direction of the
+  // batch).
   float wx[kSampleBatch] = {}, wy[kSampleBatch] = {}, wz[kSampleBatch] = {};
   float cwx[kSampleBatch] = {}, cwy[kSampleBatch] = {}, cww[kSampleBatch] = {};  // clip z is not needed
   float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
@@ -497,6 +498,7 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
     }
   const hn::ScalableTag<float> d;
   const hn::RebindToSigned<decltype(d)> di;
+  static_assert(SampleBatch::kPoints % hn::MaxLanes(d) == 0);
   const size_t points = size_t(b.count * steps);
   // The last vector's lanes past `points` test a point at the eye (clip w 0: off screen).
   const size_t padded = hwy::RoundUpTo(points, hn::Lanes(d));
@@ -510,7 +512,6 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
     hn::StoreU(qy, di, b.qy_at + k);
   }
 }
-
 
 // The lanes of `tap` (Tap values) that are `value`, as a mask of d.
 template <class D, class VI>
