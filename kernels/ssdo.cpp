@@ -342,7 +342,7 @@ struct SampleShift {
 inline SampleShift sample_shift(const Constants& c, int x, int y) {
   SampleShift h;
   const int frame_x = x - c.frame_origin_px.x, frame_y = y - c.frame_origin_px.y;
-  const uint32_t n = hilbert_index_64(frame_x, frame_y) * uint32_t(c.s.samples);
+  const uint32_t n = StratifiedNoise::index(frame_x, frame_y) * uint32_t(c.s.samples);
   h.u = c.noise.u(n);
   h.v = c.noise.v(n);
   sincos_turns(h.v, h.cos_v, h.sin_v);

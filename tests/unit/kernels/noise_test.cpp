@@ -69,6 +69,16 @@ TEST(Noise, HilbertIndexWalksTheTileInNeighbouringSteps) {
   }
 }
 
+// The tile's lookup (StratifiedNoise::index, row_indices) gives the curve's own index at
+// every pixel, negative frame coordinates included (a tile of a frame's region of interest).
+TEST(Noise, HilbertTileLookupIsTheCurvesIndex) {
+  for (int y = -130; y < 130; y += 3)
+    for (int x = -200; x < 200; ++x) {
+      ASSERT_EQ(StratifiedNoise::index(x, y), hilbert_index_64(x, y)) << x << ", " << y;
+      ASSERT_EQ(uint32_t(StratifiedNoise::row_indices(x, y)[0]), hilbert_index_64(x, y)) << x << ", " << y;
+    }
+}
+
 // |mean of exp(2 pi i f t)| over the values t: 0 for values spread evenly over the circle
 // [0, 1) at frequency f, ~1 / sqrt(n) for n independent uniform ones.
 double fourier_mean(const std::vector<float>& t, int f) {
