@@ -8,7 +8,6 @@
 #include "kernels/settings_check.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -148,10 +147,6 @@ inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const gl
   return t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u));
 }
 
-// std::ilogb of a finite float >= 1 (the biased exponent field minus the bias), without
-// the library call: the tap loop's pyramid level.
-inline int exponent_of(float v) { return int((std::bit_cast<uint32_t>(v) >> 23) & 0xFFu) - 127; }
-
 // The fraction of [0, r] over which the point clip_p + lambda clip_w (homogeneous clip
 // coordinates of a ray from an on-screen receiver) stays inside the view frustum's side
 // planes, -w <= x, y <= w, w > 0 (Liang and Barsky 1984, "A New Concept and Method for
@@ -178,76 +173,6 @@ inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w
 // off_screen: the point projects outside the frame (or behind the eye); a straight ray
 // whose point has left the frame does not come back, so marches stop there.
 enum class Tap { visible, occluded, behind, off_screen };
-
-// Where a point with clip coordinates (clip_x, clip_y, ., clip_w) projects, for the
-// receiver at pixel coordinates origin_px: continuous pixel coordinates (px, py), its pixel
-// (qx, qy) (0 when off screen or behind the eye) and the texel the occlusion test reads.
-// full_resolution: read level 0 whatever the distance (the bisection steps: on the shared
-// frames, bisecting on coarse texels left the bounce 27-31% from the oracle, on
-// full-resolution texels 13-17%). Without branches, like classify_at.
-struct Projection {
-  float px, py;
-  int qx, qy;
-  int texel;       // index into Constants::pyramid (texel 0 when off screen)
-  bool on_screen;  // in front of the eye and inside the frame
-};
-
-inline Projection project(const Constants& c, const glm::vec2& origin_px, float clip_x, float clip_y, float clip_w,
-                          bool full_resolution) {
-  Projection q;
-  const bool in_front_of_eye = clip_w > 0.0f;
-  const float inv_w = 1.0f / clip_w;
-  q.px = 0.5f * (clip_x * inv_w + 1.0f) * c.width_px;
-  q.py = 0.5f * (1.0f - clip_y * inv_w) * c.height_px;
-  q.on_screen = in_front_of_eye & (q.px >= 0.0f) & (q.px < c.width_px) & (q.py >= 0.0f) & (q.py < c.height_px);
-  q.qx = int(q.on_screen ? q.px : 0.0f);
-  q.qy = int(q.on_screen ? q.py : 0.0f);
-  const float dx = q.px - origin_px.x, dy = q.py - origin_px.y;
-  const float rho2 = (dx * dx + dy * dy) * (1.0f / (kMipStartPx * kMipStartPx));
-  // rho in [16, 32) px: rho2 in [1, 4), ilogb 0..1, level 1; [32, 64): level 2; ...
-  const bool coarse = c.n_levels > 1 && !full_resolution && rho2 >= 1.0f;
-  const int level = coarse ? std::min(c.n_levels - 1, (exponent_of(rho2) >> 1) + 1) : 0;
-  const int row = c.pyramid_rows_2h - (c.pyramid_rows_2h >> level) + (q.qy >> level);
-  q.texel = row * int(c.width_px) + (q.qx >> level);
-  return q;
-}
-
-// The occluder thickness behind pyramid texel `texel`: its source pixel's, from the second
-// depth layer, or the settings' thickness_world.
-inline float tap_thickness(const Constants& c, int texel) {
-  return c.pyramid_thickness ? c.pyramid_thickness[texel] : c.s.thickness_world;
-}
-
-// Occlusion test of view-space point S at planar depth depth_s projected to q (see
-// ssdo.h), with t = the texel q reads. Without branches (every case is computed and
-// selected), so that a loop over many points has no branch to mispredict.
-inline Tap classify_at(const Constants& c, float depth_s, float px, float py, bool on_screen, const TapTexel& t,
-                       float thickness_world) {
-  // The texel's tangent plane is its source pixel's.
-  const int sx = int(t.source & 0xFFFFu), sy = int(t.source >> 16);
-  const float depth_q = t.depth_view;
-  const bool background = !(depth_q < std::numeric_limits<float>::infinity());
-  // The surface depth on S's own ray: the tangent plane at S's sub-pixel offset.
-  const float inv = 1.0f / depth_q + t.inv_depth_dx * (px - float(sx) - 0.5f) +
-                    t.inv_depth_dy * (py - float(sy) - 0.5f);
-  const float limit = kPlaneCorrectionMaxRelative * depth_q;
-  const float depth_surface = inv > 0.0f ? std::clamp(1.0f / inv, depth_q - limit, depth_q + limit) : depth_q;
-  const float behind = depth_s - depth_surface;
-  const bool beyond_bias = behind > c.s.depth_bias_relative * depth_s;
-  const bool within_thickness = behind < thickness_world;
-  const Tap in_view = !beyond_bias ? Tap::visible : within_thickness ? Tap::occluded : Tap::behind;
-  return !on_screen ? Tap::off_screen : background ? Tap::visible : in_view;
-}
-
-// project() and classify_at() for one point (the bisection steps, the oracle): on
-// `occluded` the pixel (qx, qy) S projects to is the sender.
-inline Tap classify(const Constants& c, const glm::vec2& origin_px, float depth_s, float clip_x, float clip_y,
-                    float clip_w, bool full_resolution, int& qx, int& qy) {
-  const Projection q = project(c, origin_px, clip_x, clip_y, clip_w, full_resolution);
-  qx = q.qx;
-  qy = q.qy;
-  return classify_at(c, depth_s, q.px, q.py, q.on_screen, c.pyramid[q.texel], tap_thickness(c, q.texel));
-}
 
 // Outgoing radiance of sender pixel q (see ssdo.h).
 inline glm::vec3 sender_radiance(const Constants& c, const cv::Mat& sender_direct, int qx, int qy) {
@@ -418,11 +343,20 @@ inline void sample_directions(const Constants& c, const Receiver& rcv, const Ray
 namespace hn = hwy::HWY_NAMESPACE;
 
 // The occlusion test (paper sec. 3.1: a point is occluded when it lies behind the depth
-// buffer) of the points of a vector's lanes, given their clip coordinates and planar
-// depth: project() and classify_at() with the same operations in the same order, so the
-// same bits as one point at a time, and without branches. Returns the Tap of each lane;
-// (qx, qy) receive its pixel (0 off screen). full_resolution: level 0 whatever the
-// distance.
+// buffer) of the points S of a vector's lanes, given their clip coordinates (clip_x,
+// clip_y, ., clip_w) and planar depth depth_s, for the receiver at pixel coordinates
+// origin_px. Returns the Tap of each lane; (qx, qy) receive the pixel S projects to (0 off
+// screen or behind the eye): on `occluded`, the sender. Without branches (every case is
+// computed and selected), so that the texel reads of many points overlap.
+// - The texel: the pyramid level of S's distance from the receiver (one level per octave
+//   from kMipStartPx on); full_resolution: level 0 whatever the distance (the bisection
+//   steps: on the shared frames, bisecting on coarse texels left the bounce 27-31% from
+//   the oracle, on full-resolution texels 13-17%).
+// - The surface depth on S's own ray: the texel's tangent plane (its source pixel's) at
+//   S's sub-pixel offset, as 1 / depth affine in screen position, clamped to
+//   kPlaneCorrectionMaxRelative of the texel's depth.
+// - The thickness: the texel's source pixel's, from the second depth layer, or the
+//   settings' thickness_world.
 template <class D, class V = hn::Vec<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
 HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V clip_x, V clip_y, V clip_w, V depth_s,
                          bool full_resolution, VI& qx, VI& qy) {
@@ -432,7 +366,7 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
   const V width_v = hn::Set(d, c.width_px), height_v = hn::Set(d, c.height_px);
   const VI width_i = hn::Set(di, int32_t(c.width_px));
-  // project().
+  // Projection.
   const V inv_w = hn::Div(one, clip_w);
   const V px = hn::Mul(hn::Mul(half, hn::Add(hn::Mul(clip_x, inv_w), one)), width_v);
   const V py = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Mul(clip_y, inv_w))), height_v);
@@ -446,7 +380,8 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   } else {
     const V dx = hn::Sub(px, hn::Set(d, origin_px.x)), dy = hn::Sub(py, hn::Set(d, origin_px.y));
     const V rho2 = hn::Mul(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Set(d, 1.0f / (kMipStartPx * kMipStartPx)));
-    // min(top level, exponent_of(rho2) / 2 + 1), or 0 below kMipStartPx.
+    // min(top level, (exponent of rho2) / 2 + 1), or 0 below kMipStartPx: rho in [16, 32) px
+    // is rho2 in [1, 4), exponent 0..1, level 1; [32, 64) px level 2; ...
     const VI exponent =
         hn::Sub(hn::And(hn::ShiftRight<23>(hn::BitCast(di, rho2)), hn::Set(di, 0xFF)), hn::Set(di, 127));
     const VI level = hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
@@ -462,7 +397,7 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   load_records4(d, reinterpret_cast<const float*>(c.pyramid), offset, t);
   const V thickness =
       c.pyramid_thickness ? hn::GatherIndex(d, c.pyramid_thickness, texel) : hn::Set(d, c.s.thickness_world);
-  // classify_at().
+  // The class.
   const auto source = hn::BitCast(du, t[3]);
   const V sx = hn::ConvertTo(d, hn::BitCast(di, hn::And(source, hn::Set(du, 0xFFFFu))));
   const V sy = hn::ConvertTo(d, hn::BitCast(di, hn::ShiftRight<16>(source)));
@@ -521,7 +456,7 @@ HWY_INLINE hn::Mask<D> tap_is(D d, VI tap, Tap value) {
 
 // Bisection of the brackets [lo, hi] of the lanes `which` of the batch's directions s0 ..
 // (lo in front of the depth buffer, hi behind it; both on screen, so every point between
-// is: projection keeps segments convex), on full-resolution texels (project()):
+// is: projection keeps segments convex), on full-resolution texels:
 // sample_refinements halvings; each occluded midpoint becomes the lane's occluder and
 // sender (qx, qy).
 template <class D, class V = hn::Vec<D>, class M = hn::Mask<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
@@ -575,7 +510,6 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
   static_assert(sizeof(Tap) == sizeof(int32_t));
   const V zero = hn::Zero(d);
   const int32_t* taps = reinterpret_cast<const int32_t*>(b.tap_at);
-  auto is = [&](const VI& tap, Tap value) { return tap_is(d, tap, value); };
   for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
     // Lanes past the batch's count never start.
     M active = hn::RebindMask(d, hn::Lt(hn::Iota(di, int32_t(s0)), hn::Set(di, b.count)));
@@ -588,11 +522,11 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
       const size_t k = size_t(j * b.count) + s0;
       const VI tap = hn::LoadU(di, taps + k);
       const V lambda = hn::LoadU(d, b.lambda + k);
-      active = hn::AndNot(is(tap, Tap::off_screen), active);
-      const M visible = hn::And(active, is(tap, Tap::visible));
+      active = hn::AndNot(tap_is(d, tap, Tap::off_screen), active);
+      const M visible = hn::And(active, tap_is(d, tap, Tap::visible));
       lambda_front = hn::IfThenElse(visible, lambda, lambda_front);
-      const M hit = hn::AndNot(is(tap, Tap::visible), active);  // occluded or behind: tap = tj
-      const M hit_occluded = hn::And(hit, is(tap, Tap::occluded));
+      const M hit = hn::AndNot(tap_is(d, tap, Tap::visible), active);  // occluded or behind: tap = tj
+      const M hit_occluded = hn::And(hit, tap_is(d, tap, Tap::occluded));
       occluded = hn::Or(hit_occluded, hn::AndNot(hit, occluded));
       qx = hn::IfThenElse(hn::RebindMask(di, hit), hn::LoadU(di, b.qx_at + k), qx);
       qy = hn::IfThenElse(hn::RebindMask(di, hit), hn::LoadU(di, b.qy_at + k), qy);
@@ -804,19 +738,55 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
   }
 }
 
+// The oracle's march along view-space direction w: oracle_steps evenly spaced points up to
+// r (jittered by step_jitter), tested four at a time (test_lanes at full resolution: the
+// oracle's pyramid has one level). The first point that is occluded (true; its pixel
+// (qx, qy) is the sender) or off screen (false) ends it; a straight ray whose point has
+// left the frame does not come back.
+bool oracle_march(const Constants& c, const Receiver& rcv, const RayFrame& f, const glm::vec3& w, float step_jitter,
+                  int& qx, int& qy) {
+  const hn::CappedTag<float, 4> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const int steps = c.s.oracle_steps;
+  const float step = rcv.r / float(steps);
+  const glm::vec4 cw = c.clip_from_view * glm::vec4(w, 0.0f);
+  for (int k0 = 0; k0 < steps; k0 += int(hn::Lanes(d))) {
+    // lambda = (k + step_jitter) step + 1e-7 r: > 0 always.
+    const auto k = hn::ConvertTo(d, hn::Iota(di, k0));
+    const auto lambda = hn::Add(hn::Mul(hn::Add(k, hn::Set(d, step_jitter)), hn::Set(d, step)), hn::Set(d, 1e-7f * rcv.r));
+    // f.clip_p + lambda * cw and -(rcv.p + lambda * w).z.
+    const auto clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(lambda, hn::Set(d, cw.x)));
+    const auto clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(lambda, hn::Set(d, cw.y)));
+    const auto clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(lambda, hn::Set(d, cw.w)));
+    const auto depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(lambda, hn::Set(d, w.z))));
+    auto lane_x = hn::Zero(di), lane_y = hn::Zero(di);
+    const auto tap = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true, lane_x, lane_y);
+    const auto in_range = hn::FirstN(d, size_t(steps - k0));
+    const auto ends = hn::And(in_range, hn::Or(tap_is(d, tap, Tap::occluded), tap_is(d, tap, Tap::off_screen)));
+    const intptr_t first = hn::FindFirstTrue(d, ends);
+    if (first < 0) continue;
+    alignas(16) int32_t taps[hn::MaxLanes(di)], xs[hn::MaxLanes(di)], ys[hn::MaxLanes(di)];
+    hn::Store(tap, di, taps);
+    hn::Store(lane_x, di, xs);
+    hn::Store(lane_y, di, ys);
+    qx = xs[first];
+    qy = ys[first];
+    return taps[first] == int32_t(Tap::occluded);
+  }
+  return false;
+}
+
 // One pixel of the oracle (method oracle).
 void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
                   const cv::Mat& sender_direct, glm::vec3& direct, glm::vec3& indirect) {
   const Receiver rcv = receiver_at(c, x, y);
   const glm::vec3& p = rcv.p;
-  const float r = rcv.r;
   const RayFrame f = ray_frame(c, rcv, x, y);
   // Cranley-Patterson rotation of the stratified grid and of the step positions, per pixel.
   const int nx = x - c.frame_origin_px.x, ny = y - c.frame_origin_px.y;  // the frame's pixel
   const float shift_u = noise01(nx, ny, 0, c.s.seed), shift_v = noise01(nx, ny, 1, c.s.seed);
   const float step_jitter = noise01(nx, ny, 2, c.s.seed);
-  const int g = c.s.oracle_grid, steps = c.s.oracle_steps;
-  const float step = r / float(steps);
+  const int g = c.s.oracle_grid;
 
   glm::vec3 direct_sum(0.0f), indirect_sum(0.0f);
   for (int a = 0; a < g; ++a) {
@@ -826,20 +796,8 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
       u -= std::floor(u);
       v -= std::floor(v);
       const glm::vec3 w = cosine_direction(u, v, f.t, f.b, rcv.n);
-      const glm::vec4 clip_w = c.clip_from_view * glm::vec4(w, 0.0f);
-      bool hit = false;
       int qx = 0, qy = 0;
-      for (int k = 0; k < steps; ++k) {
-        const float lambda = (float(k) + step_jitter) * step + 1e-7f * r;  // > 0 always
-        const glm::vec4 clip = f.clip_p + lambda * clip_w;
-        if (!(clip.w > 0.0f)) break;
-        const Tap tap = classify(c, f.origin_px, -(p + lambda * w).z, clip.x, clip.y, clip.w, false, qx, qy);
-        if (tap == Tap::off_screen) break;
-        if (tap == Tap::occluded) {
-          hit = true;
-          break;
-        }
-      }
+      const bool hit = oracle_march(c, rcv, f, w, step_jitter, qx, qy);
       if (!hit) {
         if (want_direct) direct_sum += c.env->radiance_env(c.env_from_view * w);
         continue;
@@ -946,7 +904,7 @@ void write_coarse_levels(TapPyramid& p) {
 }
 
 // Each texel's occluder thickness from the second depth layer: back - front of its source
-// pixel, as a planar depth difference (classify_at compares planar depths); 0 where the
+// pixel, as a planar depth difference (test_lanes compares planar depths); 0 where the
 // back layer is not behind the front one (only the bias' allowance then).
 void write_thickness(const SsdoInputs& in, TapPyramid& p) {
   p.thickness.assign(p.taps.size(), 0.0f);
