@@ -17,9 +17,13 @@
 #                            GLM, nlohmann-json and CLI11) parses those headers once.
 #                            Left out when a compiler launcher is set: ccache caches
 #                            nothing that reads a precompiled header.
-# Test programs are compiled with -O1 in every build type: the code under test keeps its
-# own flags (the libraries'), and -O3 on test files costs a third more compile time for
-# assertions and fixtures that run once.
+#   SSDO_TEST_OPTIMIZATION   the test programs' optimization flag in every build type
+#                            (-O1): the code under test keeps its own flags (the
+#                            libraries'), and -O3 on test files costs a third more compile
+#                            time for assertions and fixtures that run once. The asan
+#                            preset uses -O0: clang with the sanitizers compiles the test
+#                            programs at -O0 in half the time of -O1.
+set(SSDO_TEST_OPTIMIZATION -O1 CACHE STRING "Optimization flag of the test programs (-O0, -O1, ...)")
 option(SSDO_UNITY_TESTS "Compile each test program's sources in batches" OFF)
 option(SSDO_UNITY_LIBRARIES "Compile ssdo_service's and ssdo_formats' sources in batches" OFF)
 set(SSDO_UNITY_BATCH 8 CACHE STRING "Source files per unity batch")
@@ -42,7 +46,7 @@ endfunction()
 
 # ssdo_test_build_flags(TARGET): a test program's compile settings above.
 function(ssdo_test_build_flags target)
-  target_compile_options(${target} PRIVATE -O1)
+  target_compile_options(${target} PRIVATE ${SSDO_TEST_OPTIMIZATION})
   if(SSDO_UNITY_TESTS)
     set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${SSDO_UNITY_BATCH})
   endif()

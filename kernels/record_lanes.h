@@ -23,40 +23,45 @@ namespace ssdo::HWY_NAMESPACE {
 // base[offset[l] .. offset[l] + 3] is read. A vector's 128-bit blocks are filled from four
 // lanes' records each: block b of A_i holds the record of lane 4 b + i, so that the
 // transpose within blocks (two rounds of interleaves) leaves lane 4 b + i of every field in
-// its place. Loads and shuffles beat a gather instruction per field (four per vector).
+// its place. Loads and shuffles beat a gather instruction per field (four per vector). d
+// has whole 128-bit blocks, or one lane (four loads).
 template <class D>
 HWY_INLINE void load_records4(D d, const float* base, const int32_t* offset, hwy::HWY_NAMESPACE::Vec<D>* field) {
   namespace hn = hwy::HWY_NAMESPACE;
-#if HWY_TARGET == HWY_SCALAR
-  for (size_t f = 0; f < 4; ++f) field[f] = hn::Set(d, base[offset[0] + ptrdiff_t(f)]);
-#else
-  const hn::RebindToSigned<D> di;
-  const hn::Repartition<uint64_t, D> d64;
-  constexpr size_t kBlockLanes = 16 / sizeof(float);
-  constexpr size_t kMaxBlocks = HWY_MAX_BYTES / 16;
-  const size_t blocks = hn::Lanes(d) / kBlockLanes;
-  // Lanes of block b (b >= 1).
-  hn::Mask<D> block[kMaxBlocks];
-  const auto lane = hn::Iota(di, 0);
-  for (size_t b = 1; b < blocks; ++b)
-    block[b] = hn::RebindMask(d, hn::And(hn::Gt(lane, hn::Set(di, int32_t(b * kBlockLanes) - 1)),
-                                         hn::Lt(lane, hn::Set(di, int32_t((b + 1) * kBlockLanes)))));
-  auto record = [&](size_t l) { return hn::LoadDup128(d, base + offset[l]); };
-  hn::Vec<D> a[4];
-  for (size_t i = 0; i < 4; ++i) {
-    a[i] = record(i);
-    for (size_t b = 1; b < blocks; ++b) a[i] = hn::IfThenElse(block[b], record(b * kBlockLanes + i), a[i]);
+  static_assert(hn::MaxLanes(d) == 1 || hn::MaxLanes(d) % 4 == 0, "one lane or whole blocks of four floats");
+#if HWY_TARGET != HWY_SCALAR
+  if constexpr (hn::MaxLanes(d) > 1) {
+    const hn::RebindToSigned<D> di;
+    const hn::Repartition<uint64_t, D> d64;
+    constexpr size_t kBlockLanes = 16 / sizeof(float);
+    constexpr size_t kMaxBlocks = HWY_MAX_BYTES / 16;
+    const size_t blocks = hn::Lanes(d) / kBlockLanes;
+    // Lanes of block b (b >= 1).
+    hn::Mask<D> block[kMaxBlocks];
+    const auto lane = hn::Iota(di, 0);
+    for (size_t b = 1; b < blocks; ++b)
+      block[b] = hn::RebindMask(d, hn::And(hn::Gt(lane, hn::Set(di, int32_t(b * kBlockLanes) - 1)),
+                                           hn::Lt(lane, hn::Set(di, int32_t((b + 1) * kBlockLanes)))));
+    auto record = [&](size_t l) { return hn::LoadDup128(d, base + offset[l]); };
+    hn::Vec<D> a[4];
+    for (size_t i = 0; i < 4; ++i) {
+      a[i] = record(i);
+      for (size_t b = 1; b < blocks; ++b) a[i] = hn::IfThenElse(block[b], record(b * kBlockLanes + i), a[i]);
+    }
+    // Per block: t0 = (x0 x1 y0 y1), t1 = (x2 x3 y2 y3), t2 = (z0 z1 w0 w1), t3 = (z2 z3 w2 w3).
+    const auto t0 = hn::BitCast(d64, hn::InterleaveLower(d, a[0], a[1]));
+    const auto t1 = hn::BitCast(d64, hn::InterleaveLower(d, a[2], a[3]));
+    const auto t2 = hn::BitCast(d64, hn::InterleaveUpper(d, a[0], a[1]));
+    const auto t3 = hn::BitCast(d64, hn::InterleaveUpper(d, a[2], a[3]));
+    field[0] = hn::BitCast(d, hn::InterleaveLower(d64, t0, t1));
+    field[1] = hn::BitCast(d, hn::InterleaveUpper(d64, t0, t1));
+    field[2] = hn::BitCast(d, hn::InterleaveLower(d64, t2, t3));
+    field[3] = hn::BitCast(d, hn::InterleaveUpper(d64, t2, t3));
+    return;
   }
-  // Per block: t0 = (x0 x1 y0 y1), t1 = (x2 x3 y2 y3), t2 = (z0 z1 w0 w1), t3 = (z2 z3 w2 w3).
-  const auto t0 = hn::BitCast(d64, hn::InterleaveLower(d, a[0], a[1]));
-  const auto t1 = hn::BitCast(d64, hn::InterleaveLower(d, a[2], a[3]));
-  const auto t2 = hn::BitCast(d64, hn::InterleaveUpper(d, a[0], a[1]));
-  const auto t3 = hn::BitCast(d64, hn::InterleaveUpper(d, a[2], a[3]));
-  field[0] = hn::BitCast(d, hn::InterleaveLower(d64, t0, t1));
-  field[1] = hn::BitCast(d, hn::InterleaveUpper(d64, t0, t1));
-  field[2] = hn::BitCast(d, hn::InterleaveLower(d64, t2, t3));
-  field[3] = hn::BitCast(d, hn::InterleaveUpper(d64, t2, t3));
 #endif
+  // One lane.
+  for (size_t f = 0; f < 4; ++f) field[f] = hn::Set(d, base[offset[0] + ptrdiff_t(f)]);
 }
 
 }  // namespace ssdo::HWY_NAMESPACE
