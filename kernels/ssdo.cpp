@@ -454,6 +454,19 @@ HWY_INLINE hn::Mask<D> tap_is(D d, VI tap, Tap value) {
   return hn::RebindMask(d, hn::Eq(tap, hn::Set(hn::RebindToSigned<D>(), int32_t(value))));
 }
 
+// test_lanes of the points rcv.p + lambda w of the lanes, given w's clip coordinates (cwx,
+// cwy, ., cww) and view z wz per lane: clip coordinates f.clip_p + lambda cw, planar depth
+// -(rcv.p + lambda w).z.
+template <class D, class V = hn::Vec<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
+HWY_INLINE VI test_along(D d, const Constants& c, const Receiver& rcv, const RayFrame& f, V lambda, V cwx, V cwy,
+                         V cww, V wz, bool full_resolution, VI& qx, VI& qy) {
+  const V clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(lambda, cwx));
+  const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(lambda, cwy));
+  const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(lambda, cww));
+  const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(lambda, wz)));
+  return test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, full_resolution, qx, qy);
+}
+
 // Bisection of the brackets [lo, hi] of the lanes `which` of the batch's directions s0 ..
 // (lo in front of the depth buffer, hi behind it; both on screen, so every point between
 // is: projection keeps segments convex), on full-resolution texels:
@@ -467,13 +480,8 @@ HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const
   const V wz = hn::LoadU(d, b.wz + s0);
   for (int h = 0; h < c.s.sample_refinements; ++h) {
     const V mid = hn::Mul(hn::Set(d, 0.5f), hn::Add(lo, hi));
-    // f.clip_p + mid * cw and -(rcv.p + mid * w).z.
-    const V clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(mid, cwx));
-    const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(mid, cwy));
-    const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(mid, cww));
-    const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(mid, wz)));
     VI mx = hn::Zero(di), my = hn::Zero(di);
-    const VI tap = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true, mx, my);
+    const VI tap = test_along(d, c, rcv, f, mid, cwx, cwy, cww, wz, true, mx, my);
     const M visible = hn::And(which, tap_is(d, tap, Tap::visible));
     const M hit = hn::And(which, tap_is(d, tap, Tap::occluded));
     lo = hn::IfThenElse(visible, mid, lo);
@@ -759,13 +767,9 @@ bool oracle_march(const Constants& c, const Receiver& rcv, const RayFrame& f, co
     // lambda = (k + step_jitter) step + 1e-7 r: > 0 always.
     const auto k = hn::ConvertTo(d, hn::Iota(di, k0));
     const auto lambda = hn::Add(hn::Mul(hn::Add(k, hn::Set(d, step_jitter)), hn::Set(d, step)), hn::Set(d, 1e-7f * rcv.r));
-    // f.clip_p + lambda * cw and -(rcv.p + lambda * w).z.
-    const auto clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(lambda, hn::Set(d, cw.x)));
-    const auto clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(lambda, hn::Set(d, cw.y)));
-    const auto clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(lambda, hn::Set(d, cw.w)));
-    const auto depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(lambda, hn::Set(d, w.z))));
     auto lane_x = hn::Zero(di), lane_y = hn::Zero(di);
-    const auto tap = test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, true, lane_x, lane_y);
+    const auto tap = test_along(d, c, rcv, f, lambda, hn::Set(d, cw.x), hn::Set(d, cw.y), hn::Set(d, cw.w),
+                                hn::Set(d, w.z), true, lane_x, lane_y);
     const auto in_range = hn::FirstN(d, size_t(steps - k0));
     const auto ends = hn::And(in_range, hn::Or(tap_is(d, tap, Tap::occluded), tap_is(d, tap, Tap::off_screen)));
     const intptr_t first = hn::FindFirstTrue(d, ends);
