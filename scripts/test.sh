@@ -30,11 +30,7 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 # docs/fuzzing.md.
 # The sanitizer build compiles the kernels for the baseline instruction set only
 # (CMakePresets.json), so this stage also runs the suite on the fallback of CPUs without
-# AVX2. Measured from a clean clone on a 2-core 2.1 GHz machine with AVX-512 on 2026-11-28,
-# no compiler cache (`CI=true .ci/run`): 18.3 min in all (main build 3.6 min, its 403 tests
-# 4.2 min, sanitizer build 5.2 min, its 360 tests 5.3 min), and 14.7 min half an hour later
-# (3.0, 3.6, 4.0 and 4.1 min: the machine's speed varies). On faster 2-core machines on
-# 2026-11-26: 14.5 min; on an older one 20.1 min.
+# AVX2. The four stages' times, measured: docs/fuzzing.md.
 if [ "${SSDO_SANITIZE:-1}" != 0 ]; then
   cmake --preset asan >/dev/null
   cmake --build build-asan -j "${JOBS:-$(nproc)}"
