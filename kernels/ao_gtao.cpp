@@ -660,22 +660,34 @@ struct SideLanes {
 // within the thickness; from the tangent plane, the two points within the thickness in 3D
 // (a wall standing on the floor, never the gap under a floating object); or the two taps on
 // one plane. Each of the last two tests runs only when some lane needs it.
-inline void connections(const Constants& k, const Frame& f, const StepLanes& t, const SideLanes& st,
-                        int32_t* __restrict interval, int32_t* __restrict connect) {
+inline void connections(const Constants& k, const Frame& f, const StepLanes& __restrict t,
+                        const SideLanes& __restrict st, int32_t* __restrict interval, int32_t* __restrict connect) {
+  namespace hn = hwy::HWY_NAMESPACE;
   const float thickness = k.thickness_world;
   alignas(64) int32_t near[kLanes], plane[kLanes];
-  int any_near = 0, any_plane = 0;
-  for (int l = 0; l < kLanes; ++l) {
-    const bool has = occluder(t, l) & !(t.u0[l] > t.u1[l]);
-    const bool last = st.depth_view[l] >= 0.0f;
-    const bool below = st.below[l] != 0;
-    const bool by_depth = std::abs(t.depth_view[l] - st.depth_view[l]) <= thickness;
-    interval[l] = has;
-    connect[l] = has & last & !below & by_depth;
-    near[l] = has & last & below;
-    plane[l] = has & last & !below & !by_depth;
-    any_near |= near[l];
-    any_plane |= plane[l];
+  // In vector masks, so that "some lane needs the test" is one test of a mask per vector
+  // rather than a reduction of each lane's flag. Flags are stored as 1 or 0.
+  const hn::CappedTag<float, kLanes> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const auto one = hn::Set(di, 1), zero = hn::Zero(di);
+  bool any_near = false, any_plane = false;
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
+    const auto has = hn::AndNot(hn::RebindMask(di, hn::Gt(hn::Load(d, t.u0 + l), hn::Load(d, t.u1 + l))),
+                                hn::Ne(hn::Load(di, t.occluder + l), zero));
+    const auto st_depth = hn::Load(d, st.depth_view + l);
+    const auto last = hn::And(has, hn::RebindMask(di, hn::Ge(st_depth, hn::Zero(d))));
+    const auto below = hn::Ne(hn::Load(di, st.below + l), zero);
+    const auto by_depth = hn::RebindMask(
+        di, hn::Le(hn::Abs(hn::Sub(hn::Load(d, t.depth_view + l), st_depth)), hn::Set(d, thickness)));
+    const auto above_last = hn::AndNot(below, last);
+    const auto near_lanes = hn::And(last, below);
+    const auto plane_lanes = hn::AndNot(by_depth, above_last);
+    hn::Store(hn::IfThenElseZero(has, one), di, interval + l);
+    hn::Store(hn::IfThenElseZero(hn::And(above_last, by_depth), one), di, connect + l);
+    hn::Store(hn::IfThenElseZero(near_lanes, one), di, near + l);
+    hn::Store(hn::IfThenElseZero(plane_lanes, one), di, plane + l);
+    any_near |= !hn::AllFalse(di, near_lanes);
+    any_plane |= !hn::AllFalse(di, plane_lanes);
   }
   // The last taps' texels and planes, and the taps' planes, gathered in lanes (the lanes
   // that do not need them read them for nobody).
@@ -707,7 +719,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& t, 
 // thickness_world) of each lane: the sectors the tap's segment occludes, with the side's
 // last tap's when they connect, into `occupied`; the side's last tap and its horizon (the
 // taps within the radius) updated.
-[[gnu::noinline]] void visibility_mask_step(const Constants& k, const Frame& f, const StepLanes& t, int side,
+[[gnu::noinline]] void visibility_mask_step(const Constants& k, const Frame& f, const StepLanes& __restrict t, int side,
                                             SideLanes& __restrict st, uint64_t* __restrict occupied) {
   alignas(64) int32_t interval[kLanes], connect[kLanes];
   connections(k, f, t, st, interval, connect);
