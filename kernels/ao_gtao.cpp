@@ -675,12 +675,12 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& __r
     const auto has = hn::AndNot(hn::RebindMask(di, hn::Gt(hn::Load(d, t.u0 + l), hn::Load(d, t.u1 + l))),
                                 hn::Ne(hn::Load(di, t.occluder + l), zero));
     const auto st_depth = hn::Load(d, st.depth_view + l);
-    const auto last = hn::And(has, hn::RebindMask(di, hn::Ge(st_depth, hn::Zero(d))));
+    const auto has_last = hn::And(has, hn::RebindMask(di, hn::Ge(st_depth, hn::Zero(d))));
     const auto below = hn::Ne(hn::Load(di, st.below + l), zero);
     const auto by_depth = hn::RebindMask(
         di, hn::Le(hn::Abs(hn::Sub(hn::Load(d, t.depth_view + l), st_depth)), hn::Set(d, thickness)));
-    const auto above_last = hn::AndNot(below, last);
-    const auto near_lanes = hn::And(last, below);
+    const auto above_last = hn::AndNot(below, has_last);
+    const auto near_lanes = hn::And(has_last, below);
     const auto plane_lanes = hn::AndNot(by_depth, above_last);
     hn::Store(hn::IfThenElseZero(has, one), di, interval + l);
     hn::Store(hn::IfThenElseZero(hn::And(above_last, by_depth), one), di, connect + l);
