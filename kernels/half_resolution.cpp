@@ -710,12 +710,12 @@ void allocate(cv::Mat& image, const cv::Size& size, int type) {
 }
 
 // The full-resolution images of the half grid's AO and SSDO terms that the upsample writes,
-// for those present (ao, ssdo): the raw ones (`raw`; SSDO's in half with in_half.ssdo) and
-// the denoised ones (`denoised`).
+// for those present (ao, ssdo): the raw ones (`raw`; in half with in_half.ao and
+// in_half.ssdo) and the denoised ones (`denoised`).
 void allocate_grid_terms(bool ao, bool ssdo, bool raw, bool denoised, const HalfOutputs& in_half,
                          const cv::Size& size, TermOutputs& out) {
   const int light = in_half.ssdo ? CV_16FC3 : CV_32FC3;
-  if (ao && raw) allocate(out.ao.ao, size, CV_32FC1);
+  if (ao && raw) allocate(out.ao.ao, size, in_half.ao ? CV_16FC1 : CV_32FC1);
   if (ao && denoised) allocate(out.denoised.ao, size, CV_32FC1);
   if (ssdo && raw) allocate(out.ssdo.direct, size, light), allocate(out.ssdo.indirect, size, light);
   if (ssdo && denoised)
@@ -731,7 +731,7 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
     allocate(out.ao.bent_normal_view, size, settings.stored_in_half.bent_normal ? CV_16FC3 : CV_32FC3);
   else if (half.ao)
     out.ao.bent_normal_view.release();
-  if (half.confidence) allocate(out.confidence, size, CV_32FC1);
+  if (half.confidence) allocate(out.confidence, size, settings.stored_in_half.confidence ? CV_16FC1 : CV_32FC1);
 }
 
 // The second depth layer on a grid (depth, mask, camera of the grid; `file_back` the

@@ -136,6 +136,8 @@ struct TermInputs {
 struct HalfOutputs {
   bool bent_normal = false;
   bool ssdo = false;  // the raw SSDO terms
+  bool ao = false;    // the raw AO
+  bool confidence = false;
 };
 
 // The terms to compute, each with its settings; null = not computed.
@@ -185,7 +187,10 @@ struct HalfGridTerms {
 struct TermOutputs {
   AoOutput ao;
   SsdoOutput ssdo;
-  cv::Mat confidence;  // CV_32FC1 (compute_confidence)
+  // CV_32FC1 (compute_confidence); CV_16FC1 when upsampled with stored_in_half.confidence.
+  // So is the upsampled raw AO with stored_in_half.ao, the raw SSDO terms with .ssdo and
+  // the bent normal with .bent_normal (CV_16FC3).
+  cv::Mat confidence;
   // With TermSettings::denoise, the denoised terms of AO and SSDO when they run on the half
   // grid; empty otherwise.
   DenoisedTerms denoised;

@@ -162,8 +162,8 @@ int run_eval(const EvalArgs& args) {
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
     overall.add(estimate, reference, frame.gbuffer.mask);
     ConfidenceDeciles deciles;
-    if (const cv::Mat* confidence = computed.find("confidence"))
-      deciles.add(estimate, reference, *confidence, frame.gbuffer.mask);
+    if (const cv::Mat* confidence = computed.find("confidence"))  // stored in half
+      deciles.add(estimate, reference, to_single_channel(*confidence), frame.gbuffer.mask);
     overall_deciles.add(deciles);
     overall_ms += ms;
 

@@ -118,10 +118,11 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
 }
 
 // The terms a frame keeps in half float as the kernels' upsample writes them, because
-// nothing but the half-float output reads them: the bent normal, and the raw SSDO terms of
-// the half grid (the denoise and a shot's filter over time read them on the grid; the
-// composite reads the denoised ones). io_only_frame's stand-ins have the same types.
-constexpr HalfOutputs kOutputsInHalf{.bent_normal = true, .ssdo = true};
+// nothing but the half-float output reads them: the bent normal, the confidence, and the
+// raw AO and SSDO terms of the half grid (the denoise and a shot's filter over time read
+// them on the grid; the composite reads the denoised ones). io_only_frame's stand-ins have
+// the same types.
+constexpr HalfOutputs kOutputsInHalf{.bent_normal = true, .ssdo = true, .ao = true, .confidence = true};
 
 // AO, SSDO and the confidence, each at the resolution its settings ask: the kernels that
 // run at half resolution share one grid and one upsample (kernels/half_resolution.h).
@@ -472,7 +473,9 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
     frame.terms.push_back({name, g.normal_view, SampleType::half, vector});
   };
   if (c.ao && terms.ao) {
-    scalar("ao");
+    cv::Mat raw = normal_z;  // stored in half where the upsample writes it
+    if (in_half.ao && runs_on_half_grid(request.ao)) keep_in_half(raw, request.threads);
+    frame.terms.push_back({"ao", raw, SampleType::half, false});
     scalar("ao_denoised");
     if (has_bent_normal(request.ao)) {
       cv::Mat bent_normal = g.normal_view;
@@ -488,7 +491,11 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
       frame.terms.push_back({name + "_denoised", g.normal_view, SampleType::half, false});
     }
   }
-  if (terms.ao || terms.ssdo) scalar("confidence");
+  if (terms.ao || terms.ssdo) {
+    cv::Mat confidence = normal_z;
+    if (in_half.confidence && runs_on_half_grid(confidence_settings(request))) keep_in_half(confidence, request.threads);
+    frame.terms.push_back({"confidence", confidence, SampleType::half, false});
+  }
   if (terms.composite) colour("composite");
   return frame;
 }

@@ -100,9 +100,11 @@ TEST(ConfidenceIntegration, PipelineWritesConfidenceWithAoAndSsdo) {
     const ComputedFrame frame = compute_frame(r.gbuffer, request);
     const cv::Mat* c = frame.find("confidence");
     ASSERT_NE(c, nullptr) << terms;
-    EXPECT_EQ(c->type(), CV_32FC1);
+    EXPECT_EQ(c->type(), CV_16FC1) << "stored in half, as the output writes it";
+    cv::Mat values;
+    c->convertTo(values, CV_32F);
     double lo, hi;
-    cv::minMaxLoc(*c, &lo, &hi);
+    cv::minMaxLoc(values, &lo, &hi);
     EXPECT_GE(lo, 0.0);
     EXPECT_LE(hi, 1.0);
     EXPECT_LT(lo, 0.5) << "a frame with depth gaps and borders has unobserved neighbourhoods";
