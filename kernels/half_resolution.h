@@ -188,8 +188,8 @@ struct TermOutputs {
   AoOutput ao;
   SsdoOutput ssdo;
   // CV_32FC1 (compute_confidence); CV_16FC1 when upsampled with stored_in_half.confidence.
-  // So is the upsampled raw AO with stored_in_half.ao, the raw SSDO terms with .ssdo and
-  // the bent normal with .bent_normal (CV_16FC3).
+  // Likewise in half when upsampled with stored_in_half: the raw AO (.ao), the raw SSDO
+  // terms (.ssdo) and the bent normal (.bent_normal).
   cv::Mat confidence;
   // With TermSettings::denoise, the denoised terms of AO and SSDO when they run on the half
   // grid; empty otherwise.

@@ -493,7 +493,8 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   }
   if (terms.ao || terms.ssdo) {
     cv::Mat confidence = normal_z;
-    if (in_half.confidence && runs_on_half_grid(confidence_settings(request))) keep_in_half(confidence, request.threads);
+    if (in_half.confidence && runs_on_half_grid(confidence_settings(request)))
+      keep_in_half(confidence, request.threads);
     frame.terms.push_back({"confidence", confidence, SampleType::half, false});
   }
   if (terms.composite) colour("composite");
