@@ -468,36 +468,30 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   const HalfOutputs& in_half = kOutputsInHalf;  // as compute_frame stores them
   cv::Mat normal_z;
   cv::extractChannel(g.normal_view, normal_z, 2);
-  auto scalar = [&](const char* name) { frame.terms.push_back({name, normal_z, SampleType::half, false}); };
-  auto colour = [&](const char* name, bool vector = false) {
-    frame.terms.push_back({name, g.normal_view, SampleType::half, vector});
+  // A stand-in with `source`'s pixels, in half where compute_frame stores that term in half.
+  auto stand_in = [&](const cv::Mat& source, bool stored_in_half) {
+    cv::Mat image = source;
+    if (stored_in_half) keep_in_half(image, request.threads);
+    return image;
+  };
+  auto add = [&](const std::string& name, const cv::Mat& image, bool vector = false) {
+    frame.terms.push_back({name, image, SampleType::half, vector});
   };
   if (c.ao && terms.ao) {
-    cv::Mat raw = normal_z;  // stored in half where the upsample writes it
-    if (in_half.ao && runs_on_half_grid(request.ao)) keep_in_half(raw, request.threads);
-    frame.terms.push_back({"ao", raw, SampleType::half, false});
-    scalar("ao_denoised");
-    if (has_bent_normal(request.ao)) {
-      cv::Mat bent_normal = g.normal_view;
-      if (in_half.bent_normal) keep_in_half(bent_normal, request.threads);
-      frame.terms.push_back({"bent_normal", bent_normal, SampleType::half, true});
-    }
+    add("ao", stand_in(normal_z, in_half.ao && runs_on_half_grid(request.ao)));
+    add("ao_denoised", normal_z);
+    if (has_bent_normal(request.ao)) add("bent_normal", stand_in(g.normal_view, in_half.bent_normal), true);
   }
   if (c.ssdo && terms.ssdo) {
-    cv::Mat raw = g.normal_view;  // stored in half where the upsample writes them
-    if (in_half.ssdo && runs_on_half_grid(request.ssdo)) keep_in_half(raw, request.threads);
+    const cv::Mat raw = stand_in(g.normal_view, in_half.ssdo && runs_on_half_grid(request.ssdo));
     for (const std::string name : {"ssdo_direct", "ssdo_indirect"}) {
-      frame.terms.push_back({name, raw, SampleType::half, false});
-      frame.terms.push_back({name + "_denoised", g.normal_view, SampleType::half, false});
+      add(name, raw);
+      add(name + "_denoised", g.normal_view);
     }
   }
-  if (terms.ao || terms.ssdo) {
-    cv::Mat confidence = normal_z;
-    if (in_half.confidence && runs_on_half_grid(confidence_settings(request)))
-      keep_in_half(confidence, request.threads);
-    frame.terms.push_back({"confidence", confidence, SampleType::half, false});
-  }
-  if (terms.composite) colour("composite");
+  if (terms.ao || terms.ssdo)
+    add("confidence", stand_in(normal_z, in_half.confidence && runs_on_half_grid(confidence_settings(request))));
+  if (terms.composite) add("composite", g.normal_view);
   return frame;
 }
 
