@@ -7,9 +7,15 @@
 // threshold comes from mmap and goes back with munmap: each frame faults fresh zeroed pages
 // in again (on a VM ~0.5 ms of kernel time per fresh MB; the zeroing also evicts the cache).
 // Kept in the heap, the next frame reuses the same pages.
+//
+// The pages are the system's size: 4 KiB unless the kernel's transparent huge pages are
+// "always", or the environment's GLIBC_TUNABLES asks malloc for them
+// (glibc.malloc.hugetlb=1; a worker inherits its parent's environment). On a virtual
+// machine that hands free memory back to its host (free page reporting), a lone frame's
+// fresh huge pages cost the host's faults again after the machine idled, while small pages
+// come first from the fragments the guest kept (docs/performance.md, "A lone frame after
+// the machine idles").
 #pragma once
-
-#include <string>
 
 namespace ssdo {
 
@@ -28,17 +34,5 @@ void keep_freed_memory_for_reuse();
 // unmapped, free pages within it are discarded), for a process that will be idle for a
 // while. True when some memory went back.
 bool return_free_memory();
-
-// The GLIBC_TUNABLES a worker process starts with, from its parent's (`inherited`, null
-// when unset): the parent's, plus glibc.malloc.hugetlb=1 unless they set that tunable
-// themselves (then theirs holds, e.g. =0 to turn it off). With it, malloc asks for
-// transparent huge pages (madvise MADV_HUGEPAGE) for the heap it grows, so a frame's first
-// touch of its memory takes one page fault per 2 MiB instead of one per 4 KiB: on a virtual
-// machine, where a fault costs a trip to the hypervisor, those faults are a large part of a
-// lone frame's time (docs/performance.md, "Huge pages for the worker's heap"). Where the
-// kernel gives no huge pages on request (THP "never"), or on a glibc before 2.35, which
-// ignores the name, nothing changes. glibc reads its tunables once, as the process starts,
-// so the parent sets them in the worker's environment.
-std::string worker_glibc_tunables(const char* inherited);
 
 }  // namespace ssdo

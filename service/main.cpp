@@ -2,41 +2,16 @@
 // Each subcommand registers its options (cmd_*.cpp); main parses and runs the one chosen.
 #include <CLI/CLI.hpp>
 
-#include <unistd.h>
-
 #include <cstdio>
 #include <cstdlib>
 #include <string>
-#include <string_view>
 
-#include "core/heap_policy.h"
 #include "core/simd.h"
 #include "service/commands.h"
 #include "service/version.h"
 
-namespace {
-
-// `ssdo eval` and `ssdo bench` compute frames in their own process, so that process starts
-// again with a worker's heap tunables (core/heap_policy.h), and their times are a worker's.
-// At most once (kRestarted marks the second start, whatever the C library makes of the
-// tunables); when it cannot (no /proc), it goes on as it is.
-void restart_with_worker_heap(int argc, char** argv) {
-  constexpr const char* kRestarted = "SSDO_HEAP_RESTARTED";
-  if (argc < 2 || std::getenv(kRestarted)) return;
-  const std::string_view command = argv[1];
-  if (command != "eval" && command != "bench") return;
-  const char* inherited = std::getenv("GLIBC_TUNABLES");
-  const std::string tunables = ssdo::worker_glibc_tunables(inherited);
-  if (inherited && tunables == inherited) return;
-  if (::setenv("GLIBC_TUNABLES", tunables.c_str(), 1) != 0 || ::setenv(kRestarted, "1", 1) != 0) return;
-  ::execv("/proc/self/exe", argv);
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   using namespace ssdo;
-  restart_with_worker_heap(argc, argv);
   CLI::App app{
       "ssdo turns G-buffer dumps (EXR with depth, optionally normals, positions, albedo and light\n"
       "passes, plus a camera) into screen-space ambient occlusion (hemisphere SSAO, HBAO, GTAO),\n"

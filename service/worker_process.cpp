@@ -12,11 +12,9 @@
 #include <cstring>
 #include <fstream>
 #include <sstream>
-#include <string_view>
 #include <thread>
 #include <vector>
 
-#include "core/heap_policy.h"
 #include "service/protocol.h"
 
 extern char** environ;
@@ -155,16 +153,9 @@ bool WorkerProcess::spawn(std::string& error) {
   const char* argv[] = {"ssdo",       "worker",       "--threads", threads.c_str(), "--memory-limit",
                         memory.c_str(), "--max-pixels", pixels.c_str(), "--parent", parent.c_str(),
                         nullptr};
-  // The parent's environment, with the worker's heap tunables (core/heap_policy.h).
-  const std::string tunables = "GLIBC_TUNABLES=" + worker_glibc_tunables(std::getenv("GLIBC_TUNABLES"));
-  std::vector<char*> envp;
-  for (char** e = environ; *e; ++e)
-    if (!std::string_view(*e).starts_with("GLIBC_TUNABLES=")) envp.push_back(*e);
-  envp.push_back(const_cast<char*>(tunables.c_str()));
-  envp.push_back(nullptr);
   pid_t pid = -1;
   const int rc =
-      ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, const_cast<char**>(argv), envp.data());
+      ::posix_spawn(&pid, executable_.c_str(), &actions, &attr, const_cast<char**>(argv), environ);
   posix_spawn_file_actions_destroy(&actions);
   posix_spawnattr_destroy(&attr);
   ::close(req[0]);

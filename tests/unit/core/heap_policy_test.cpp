@@ -33,18 +33,5 @@ TEST(HeapPolicy, FreedFramesStayInTheHeapUntilReturned) {
   EXPECT_TRUE(return_free_memory()) << "the free block was not returned";
 }
 
-// A worker asks for huge pages unless its parent's tunables choose for it; the parent's
-// other tunables pass through unchanged.
-TEST(HeapPolicy, WorkerTunablesAddHugePagesUnlessSet) {
-  EXPECT_EQ(worker_glibc_tunables(nullptr), "glibc.malloc.hugetlb=1");
-  EXPECT_EQ(worker_glibc_tunables(""), "glibc.malloc.hugetlb=1");
-  EXPECT_EQ(worker_glibc_tunables("glibc.malloc.check=3"), "glibc.malloc.check=3:glibc.malloc.hugetlb=1");
-  EXPECT_EQ(worker_glibc_tunables("glibc.malloc.hugetlb=0"), "glibc.malloc.hugetlb=0");
-  EXPECT_EQ(worker_glibc_tunables("glibc.malloc.check=3:glibc.malloc.hugetlb=2"),
-            "glibc.malloc.check=3:glibc.malloc.hugetlb=2");
-  // A name that only ends like the tunable is another tunable.
-  EXPECT_EQ(worker_glibc_tunables("x.glibc.malloc.hugetlb=0"), "x.glibc.malloc.hugetlb=0:glibc.malloc.hugetlb=1");
-}
-
 }  // namespace
 }  // namespace ssdo
