@@ -90,7 +90,8 @@ TEST(Batch, AKilledWorkerFailsItsFrameTheOthersGoOn) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
-  // a: a 1080p frame (seconds to read and compute), b and c: small ones.
+  // a: a 1080p frame at the ultra preset (a second or more to read and compute, so the kill
+  // below lands in it), b and c: small ones.
   fs::copy_file(shared_dir() / "gbuffers" / "perf1080.exr", dir.path / "in" / "a.exr");
   fs::copy_file(shared_dir() / "gbuffers" / "perf1080.camera.json", dir.path / "in" / "a.camera.json");
   copy_example("cornell", dir.path / "in", "b");
@@ -99,7 +100,7 @@ TEST(Batch, AKilledWorkerFailsItsFrameTheOthersGoOn) {
   // worker must die by the signal, as in production. (Children read the options at start.)
   const std::string asan_options = std::getenv("ASAN_OPTIONS") ? std::getenv("ASAN_OPTIONS") : "";
   const ScopedVariable no_segv_handler("ASAN_OPTIONS", asan_options + ":handle_segv=0");
-  SsdoProcess batch({"process", dir / "in", "-o", dir / "out", "--jobs", "1", "--terms", "ao", "--preset", "low"},
+  SsdoProcess batch({"process", dir / "in", "-o", dir / "out", "--jobs", "1", "--terms", "ao", "--preset", "ultra"},
                     dir.path / "batch.log");
   ASSERT_TRUE(wait_until([&] { return !workers_of(batch.pid()).empty() || !batch.running(); }, 20));
   const auto workers = workers_of(batch.pid());
