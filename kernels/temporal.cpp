@@ -77,11 +77,22 @@ Vec3L ray_point(const PixelRays& r, VF px, VF py, VF d) {
 struct NeighbourPlanes {
   cv::Mat foreground_depth;
   Plane depth, normal;
-  // Offsets below this read their normal's record of 4 floats inside the image (only the
-  // last pixel's would not: its x, y, z are the image's last floats).
+  // Float offsets below this read the normal's record of 4 floats inside the image
+  // (triples_at).
   int32_t normal_records_below;
   std::vector<Plane> terms;  // the frame's terms' order
+  // Per term, as normal_records_below for a term of 3 channels (0 for the others, which are
+  // gathered channel by channel).
+  std::vector<int32_t> term_records_below;
 };
+
+// The offset below which a record of 4 floats from a pixel's first channel lies inside an
+// image of 3 channels: every pixel's but the last one's (its channels are the image's last
+// floats).
+int32_t records_below(const cv::Mat& m) {
+  return int32_t((m.rows - 1) * (m.step[0] / sizeof(float)) + 3 * (m.cols - 1));
+}
+
 NeighbourPlanes planes_of(const TemporalFrame& u, int nthreads) {
   NeighbourPlanes p;
   p.foreground_depth.create(u.depth_view.size(), CV_32FC1);
@@ -95,8 +106,11 @@ NeighbourPlanes planes_of(const TemporalFrame& u, int nthreads) {
   }, 16);
   p.depth = plane_of(p.foreground_depth);
   p.normal = plane_of(u.normal_view);
-  p.normal_records_below = (u.normal_view.rows - 1) * p.normal.stride + 3 * (u.normal_view.cols - 1);
-  for (const cv::Mat* term : u.terms) p.terms.push_back(plane_of(*term));
+  p.normal_records_below = records_below(u.normal_view);
+  for (const cv::Mat* term : u.terms) {
+    p.terms.push_back(plane_of(*term));
+    p.term_records_below.push_back(term->channels() == 3 ? records_below(*term) : 0);
+  }
   return p;
 }
 
@@ -151,19 +165,18 @@ struct GroupSums {
   VF total;
 };
 
-// The normals of neighbour u at float offsets normal_at: one 16-byte load per lane (x, y, z
-// and the next pixel's x, load_records4) instead of three gathers, unless a lane reads the
-// image's last pixel.
-Vec3L normals_at(const NeighbourPlanes& u, VI normal_at) {
+// The three channels of an image of three (data) at float offsets `at`: one 16-byte load
+// per lane (the channels and the next pixel's first, load_records4) instead of three
+// gathers, unless a lane reads the image's last pixel (at >= below).
+Vec3L triples_at(const float* data, VI at, int32_t below) {
   const DF d;
   const DI di;
-  if (!hn::AllTrue(di, hn::Lt(normal_at, hn::Set(di, u.normal_records_below))))
-    return {hn::GatherIndex(d, u.normal.data, normal_at), hn::GatherIndex(d, u.normal.data + 1, normal_at),
-            hn::GatherIndex(d, u.normal.data + 2, normal_at)};
+  if (!hn::AllTrue(di, hn::Lt(at, hn::Set(di, below))))
+    return {hn::GatherIndex(d, data, at), hn::GatherIndex(d, data + 1, at), hn::GatherIndex(d, data + 2, at)};
   HWY_ALIGN int32_t offsets[kMaxLanes];
-  hn::Store(normal_at, di, offsets);
+  hn::Store(at, di, offsets);
   VF field[4];
-  load_records4(d, u.normal.data, offsets, field);
+  load_records4(d, data, offsets, field);
   return {field[0], field[1], field[2]};
 }
 
@@ -182,7 +195,7 @@ VF texel_weight_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside
   sx = hn::IfThenElseZero(hn::RebindMask(di, ok), tx), sy = hn::IfThenElseZero(hn::RebindMask(di, ok), ty);
   const VF depth_u = hn::GatherIndex(d, u.depth.data, hn::Add(hn::Mul(sy, hn::Set(di, u.depth.stride)), sx));
   const VI normal_at = hn::Add(hn::Mul(sy, hn::Set(di, u.normal.stride)), hn::Mul(sx, hn::Set(di, 3)));
-  const Vec3L normal_u = normals_at(u, normal_at);
+  const Vec3L normal_u = triples_at(u.normal.data, normal_at, u.normal_records_below);
   // PixelPoints::PlaneDistance::signed_at at the texel's centre.
   const VF half = hn::Set(d, 0.5f);
   const VF tpx = hn::Add(hn::ConvertTo(d, tx), half), tpy = hn::Add(hn::ConvertTo(d, ty), half);
@@ -207,14 +220,21 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
   VI sx, sy;
   const VF w = texel_weight_lanes(u, c, inside, x0, y0, bilinear, inverse_tolerance, normal_power, cols, rows, ok, sx, sy);
   sums.total = hn::IfThenElse(ok, hn::Add(sums.total, w), sums.total);
+  auto add_channel = [&](int k, VF v) {
+    const VF sum = hn::Load(d, sums.channel[k]);
+    hn::Store(hn::IfThenElse(ok, hn::Add(sum, hn::Mul(w, v)), sum), d, sums.channel[k]);
+  };
   int k = 0;
-  for (const Plane& term : u.terms) {
+  for (size_t t = 0; t < u.terms.size(); ++t) {
+    const Plane& term = u.terms[t];
     const VI at = hn::Add(hn::Mul(sy, hn::Set(di, term.stride)), hn::Mul(sx, hn::Set(di, term.channels)));
-    for (int ch = 0; ch < term.channels; ++ch, ++k) {
-      const VF sum = hn::Load(d, sums.channel[k]);
-      const VF v = hn::GatherIndex(d, term.data + ch, at);
-      hn::Store(hn::IfThenElse(ok, hn::Add(sum, hn::Mul(w, v)), sum), d, sums.channel[k]);
+    if (term.channels == 3) {  // an RGB term: its texels' records
+      const Vec3L v = triples_at(term.data, at, u.term_records_below[t]);
+      add_channel(k, v.x), add_channel(k + 1, v.y), add_channel(k + 2, v.z);
+      k += 3;
+      continue;
     }
+    for (int ch = 0; ch < term.channels; ++ch, ++k) add_channel(k, hn::GatherIndex(d, term.data + ch, at));
   }
 }
 
