@@ -82,7 +82,7 @@ TEST(Temporal, FramesOfAShotOverTheMemoryLimitAreComputedWithASmallerWindow) {
   }
   // perf1080 (1080p) with one neighbour each side (views and temporal filter) fits in 280
   // MiB of address space; with the default two it needs about 320 (it fits in 330, and in
-  // 320 in one run of eight): a limit midway between them.
+  // 2 of 25 runs it fit in 320): a limit midway between them.
   const RunResult shot = run_ssdo("process " + dir / "in" + " -o " + dir / "shot" +
                                   " --terms ao --preset low --memory-limit 300 --jobs 1");
   ASSERT_EQ(shot.exit_code, 0) << shot.output;
