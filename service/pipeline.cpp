@@ -468,28 +468,33 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   const HalfOutputs& in_half = kOutputsInHalf;  // as compute_frame stores them
   cv::Mat normal_z;
   cv::extractChannel(g.normal_view, normal_z, 2);
-  // A stand-in with `source`'s pixels, in half where compute_frame stores that term in half
-  // (`source_in_half`: source's half copy, made once for every term that takes it).
-  cv::Mat normal_z_in_half, normal_in_half;
-  auto stand_in = [&](const cv::Mat& source, cv::Mat& source_in_half, bool stored_in_half) -> cv::Mat {
-    if (!stored_in_half) return source;
-    if (source_in_half.empty()) {
-      source_in_half = source;
-      keep_in_half(source_in_half, request.threads);
+  // The stand-ins' sources: a term's stand-in has its source's pixels, in half where
+  // compute_frame stores that term in half (one half copy per source, made for the first
+  // term that takes it).
+  struct StandInSource {
+    const cv::Mat& pixels;
+    int threads;
+    cv::Mat in_half = {};
+    cv::Mat stand_in(bool stored_in_half) {
+      if (!stored_in_half) return pixels;
+      if (in_half.empty()) {
+        in_half = pixels;
+        keep_in_half(in_half, threads);
+      }
+      return in_half;
     }
-    return source_in_half;
   };
+  StandInSource normal_z_source{normal_z, request.threads}, normal_source{g.normal_view, request.threads};
   auto add = [&](const std::string& name, const cv::Mat& image, bool vector = false) {
     frame.terms.push_back({name, image, SampleType::half, vector});
   };
   if (c.ao && terms.ao) {
-    add("ao", stand_in(normal_z, normal_z_in_half, in_half.ao && runs_on_half_grid(request.ao)));
+    add("ao", normal_z_source.stand_in(in_half.ao && runs_on_half_grid(request.ao)));
     add("ao_denoised", normal_z);
-    if (has_bent_normal(request.ao))
-      add("bent_normal", stand_in(g.normal_view, normal_in_half, in_half.bent_normal), true);
+    if (has_bent_normal(request.ao)) add("bent_normal", normal_source.stand_in(in_half.bent_normal), true);
   }
   if (c.ssdo && terms.ssdo) {
-    const cv::Mat raw = stand_in(g.normal_view, normal_in_half, in_half.ssdo && runs_on_half_grid(request.ssdo));
+    const cv::Mat raw = normal_source.stand_in(in_half.ssdo && runs_on_half_grid(request.ssdo));
     for (const std::string name : {"ssdo_direct", "ssdo_indirect"}) {
       add(name, raw);
       add(name + "_denoised", g.normal_view);
@@ -497,7 +502,7 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   }
   if (terms.ao || terms.ssdo) {
     const bool confidence_in_half = in_half.confidence && runs_on_half_grid(confidence_settings(request));
-    add("confidence", stand_in(normal_z, normal_z_in_half, confidence_in_half));
+    add("confidence", normal_z_source.stand_in(confidence_in_half));
   }
   if (terms.composite) add("composite", g.normal_view);
   return frame;
