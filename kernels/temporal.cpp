@@ -81,15 +81,16 @@ struct NeighbourPlanes {
   // (triples_at).
   int32_t normal_records_below;
   std::vector<Plane> terms;  // the frame's terms' order
-  // Per term, as normal_records_below for a term of 3 channels (0 for the others, which are
-  // gathered channel by channel).
+  // Per term, as normal_records_below (records_below: 0 for a term that is not RGB, which
+  // is gathered channel by channel).
   std::vector<int32_t> term_records_below;
 };
 
-// The offset below which a record of 4 floats from a pixel's first channel lies inside an
-// image of 3 channels: every pixel's but the last one's (its channels are the image's last
-// floats).
+// The float offset below which a record of 4 floats from a pixel's first channel lies
+// inside an image of 3 channels: every pixel's but the last one's (its channels are the
+// image's last floats). 0 for other images, which are not read as records (triples_at).
 int32_t records_below(const cv::Mat& m) {
+  if (m.channels() != 3) return 0;
   return int32_t((m.rows - 1) * (m.step[0] / sizeof(float)) + 3 * (m.cols - 1));
 }
 
@@ -109,7 +110,7 @@ NeighbourPlanes planes_of(const TemporalFrame& u, int nthreads) {
   p.normal_records_below = records_below(u.normal_view);
   for (const cv::Mat* term : u.terms) {
     p.terms.push_back(plane_of(*term));
-    p.term_records_below.push_back(term->channels() == 3 ? records_below(*term) : 0);
+    p.term_records_below.push_back(records_below(*term));
   }
   return p;
 }
