@@ -80,9 +80,9 @@ namespace {
 
 constexpr int kSectors = 64;
 
-// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: four groups of lanes
-// per row, whose taps stay in cache across the tile's rows; 32 tall: the strips of the
-// parallel loop, whose count balances the threads.
+// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: a row is one group of
+// lanes (kLanes), whose taps stay in cache across the tile's rows; 32 tall: the strips of
+// the parallel loop, whose count balances the threads.
 constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
 
@@ -166,13 +166,17 @@ inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_po
          (std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol);
 }
 
-// Pixels shaded together, one per vector lane (16 floats: one AVX-512 register, two AVX2
-// ones, four NEON ones). Every loop over the lanes runs each pixel's operations in the
-// same order as for the pixel alone, so the lanes change the speed, not the bits; the
-// taps of a slice side then run in order of distance across the pixels, and the ordered
-// pass of the visibility mask is a select per lane instead of a branch per tap. Lanes
-// without taps (background, sub-pixel radius, past the tile's edge) compute for nobody.
-constexpr int kLanes = 16;
+// Pixels shaded together, one per vector lane: a tile row (four AVX-512 registers per
+// value, eight AVX2 ones, sixteen NEON ones). Every loop over the lanes runs each pixel's
+// operations in the same order as for the pixel alone, so the lanes change the speed, not
+// the bits; the taps of a slice side then run in order of distance across the pixels, and
+// the ordered pass of the visibility mask is a select per lane instead of a branch per tap.
+// Several registers per value rather than one: a step's arithmetic is one long chain of
+// dependent operations per register (square roots, divisions, arccosines), and
+// independent registers in each loop keep the arithmetic units busy while a chain waits
+// (docs/performance.md, "GTAO's groups of lanes"). Lanes without taps (background,
+// sub-pixel radius, past the tile's edge) compute for nobody.
+constexpr int kLanes = 64;
 static_assert(kTileWidthPx % kLanes == 0);
 
 // Slice-steps per pixel (slices x steps) whose tap indices are computed for a whole tile
@@ -797,8 +801,9 @@ struct GroupSums {
 };
 
 // The taps of step j of slice i, both sides, of the group at xi0: kept by the row's plan
-// when they fit, computed now otherwise; with kept indices, the next group's texels of the
-// same step are asked for (a group's taps are shaded by then).
+// when they fit, computed now otherwise; with kept indices and a next group in the row
+// (kLanes < kTileWidthPx), its texels of the same step are asked for (a group's taps are
+// shaded by then).
 [[gnu::always_inline]] inline void step_taps(const Constants& k, const Frame& f, const TileRow& row,
                                              const SliceLanes& s, int x0, int y, int xi0, int row_lanes, int i,
                                              int j, StepLanes t[2]) {
@@ -808,10 +813,11 @@ struct GroupSums {
   }
   const int ij = i * k.steps + j;
   for (int side = 0; side < 2; ++side) std::copy_n(row.index[ij][side] + xi0, kLanes, t[side].index);
-  if (xi0 + kLanes < row_lanes)
-    for (int side = 0; side < 2; ++side)
-      for (int l = 0; l < kLanes; ++l)
-        __builtin_prefetch(f.texels.data() + std::max(row.index[ij][side][xi0 + kLanes + l], 0));
+  if constexpr (kLanes < kTileWidthPx)  // else a tile row is one group
+    if (xi0 + kLanes < row_lanes)
+      for (int side = 0; side < 2; ++side)
+        for (int l = 0; l < kLanes; ++l)
+          __builtin_prefetch(f.texels.data() + std::max(row.index[ij][side][xi0 + kLanes + l], 0));
 }
 
 // Slice i of the group of pixels xi0 .. xi0 + kLanes - 1 of row y (GTAO Alg. 1 lines 5-30):
@@ -960,9 +966,9 @@ void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow
     for (int i = 0; i < k.slices; ++i) bases.compute_slice(k, row, i, i, 0, row_lanes);
 }
 
-// The tile [x0, x1) x [y0, y1), row by row: a row is planned (plan_row), then shaded a
-// group of kLanes pixels at a time, each group's taps step by step, while the next group's
-// texels are asked for.
+// The tile [x0, x1) x [y0, y1), row by row: a row is planned (plan_row, which asks for its
+// first group's texels), then shaded a group of kLanes pixels at a time, each group's taps
+// step by step.
 inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
   TileRow row;
   RowBases bases;
