@@ -41,8 +41,11 @@ constexpr int kMaxTaps = 256;
 
 // kLanes foreground pixels of a row evaluated together, one per vector lane: every lane
 // runs the same operations in the same order as a pixel alone (its sums in tap order), so
-// the lanes change the speed, not the bits.
-constexpr int kLanes = 16;  // one AVX-512 register of floats, two AVX2 ones
+// the lanes change the speed, not the bits. Two AVX-512 registers of floats (four AVX2
+// ones) rather than one: each loop then runs independent chains of operations, which keep
+// the arithmetic units busy while one waits on a square root or a division (as GTAO's
+// groups, kernels/ao_gtao.cpp).
+constexpr int kLanes = 32;
 
 struct PixelLanes {  // the per-pixel constants, one entry per lane
   alignas(64) float pxc[kLanes], pyc[kLanes];            // pixel centre
