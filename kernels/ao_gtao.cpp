@@ -80,9 +80,9 @@ namespace {
 
 constexpr int kSectors = 64;
 
-// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: a row is one group of
-// lanes (kLanes), whose taps stay in cache across the tile's rows; 32 tall: the strips of
-// the parallel loop, whose count balances the threads.
+// Tiles the pixels are shaded in, pixels (see shade_tile). 64 wide: a row is one to four
+// groups of lanes (kLanes), whose taps stay in cache across the tile's rows; 32 tall: the
+// strips of the parallel loop, whose count balances the threads.
 constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
 
@@ -166,17 +166,19 @@ inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_po
          (std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol);
 }
 
-// Pixels shaded together, one per vector lane: a tile row (four AVX-512 registers per
-// value, eight AVX2 ones, sixteen NEON ones). Every loop over the lanes runs each pixel's
-// operations in the same order as for the pixel alone, so the lanes change the speed, not
-// the bits; the taps of a slice side then run in order of distance across the pixels, and
-// the ordered pass of the visibility mask is a select per lane instead of a branch per tap.
-// Several registers per value rather than one: a step's arithmetic is one long chain of
-// dependent operations per register (square roots, divisions, arccosines), and
-// independent registers in each loop keep the arithmetic units busy while a chain waits
-// (docs/performance.md, "GTAO's groups of lanes"). Lanes without taps (background,
-// sub-pixel radius, past the tile's edge) compute for nobody.
-constexpr int kLanes = 64;
+// Pixels shaded together, one per vector lane: four vector registers' worth per value (64
+// on AVX-512, 32 on AVX2, 16 on NEON and the baseline; a tile row at most). Every loop over
+// the lanes runs each pixel's operations in the same order as for the pixel alone, so the
+// lanes change the speed, not the bits; the taps of a slice side then run in order of
+// distance across the pixels, and the ordered pass of the visibility mask is a select per
+// lane instead of a branch per tap. Four registers rather than one: a step's arithmetic is
+// one long chain of dependent operations per register (square roots, divisions,
+// arccosines), and independent registers in each loop keep the arithmetic units busy while
+// a chain waits; more than four only add to the working set (docs/performance.md, "GTAO's
+// groups of lanes"). Lanes without taps (background, sub-pixel radius, past the tile's
+// edge) compute for nobody.
+constexpr int kLanes =
+    std::clamp(4 * int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>())), 16, kTileWidthPx);
 static_assert(kTileWidthPx % kLanes == 0);
 
 // Slice-steps per pixel (slices x steps) whose tap indices are computed for a whole tile
