@@ -44,7 +44,8 @@ constexpr int kMaxTaps = 256;
 // the lanes change the speed, not the bits. Two AVX-512 registers of floats (four AVX2
 // ones) rather than one: each loop then runs independent chains of operations, which keep
 // the arithmetic units busy while one waits on a square root or a division (as GTAO's
-// groups, kernels/ao_gtao.cpp).
+// groups, kernels/ao_gtao.cpp); four AVX-512 registers measured no faster than two
+// (docs/performance.md, "GTAO's groups of lanes").
 constexpr int kLanes = 32;
 
 struct PixelLanes {  // the per-pixel constants, one entry per lane
