@@ -13,6 +13,8 @@
 #   cp build/tests/bench/ao_bench /tmp/ao_before   # at the commit before
 #   tests/bench/ab_compare.sh /tmp/ao_before build/tests/bench/ao_bench 'BM_TemporalSsdo' 12
 set -euo pipefail
+# shellcheck source=tests/bench/bench_lib.sh
+source "$(dirname "$0")/bench_lib.sh"  # median
 [ $# -ge 3 ] || { sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 1; }
 a="$1" b="$2" filter="$3" pairs="${4:-10}"
 [[ "$pairs" =~ ^[0-9]+$ && "$pairs" -ge 1 ]] || { echo "PAIRS must be a whole number >= 1, not '$pairs'"; exit 1; }
@@ -35,20 +37,11 @@ echo "A: $a"
 echo "B: $b"
 echo "$pairs alternated pairs of single runs, time as the benchmark reports it ($(date -u +%Y-%m-%d))"
 printf "%-44s %17s %17s %12s\n" "benchmark" "fastest A / B" "median A / B" "median B/A"
-awk '
-  function median(list,    n, v, i, j, t) {
-    n = split(list, v, " ")
-    for (i = 2; i <= n; ++i) for (j = i; j > 1 && v[j - 1] + 0 > v[j] + 0; --j) { t = v[j]; v[j] = v[j - 1]; v[j - 1] = t }
-    return n % 2 ? v[(n + 1) / 2] : (v[n / 2] + v[n / 2 + 1]) / 2
-  }
-  { key = $3; time[$1, $2, key] = $4; all[$1, key] = all[$1, key] " " $4; names[key] = 1
-    if (!(($1, key) in low) || $4 + 0 < low[$1, key]) low[$1, key] = $4 + 0 }
-  END {
-    for (key in names) {
-      ratios = ""
-      for (k in time) { split(k, f, SUBSEP); if (f[1] == "A" && f[3] == key && (("B", f[2], key) in time))
-        ratios = ratios " " time["B", f[2], key] / time["A", f[2], key] }
-      printf "%-44s %8.4g / %-8.4g %8.4g / %-8.4g %12.3f\n", key, low["A", key], low["B", key],
-             median(all["A", key]), median(all["B", key]), median(ratios)
-    }
-  }' "$runs" | sort
+awk '{ print $3 }' "$runs" | sort -u | while read -r key; do
+  times() { awk -v tag="$1" -v key="$key" '$1 == tag && $3 == key { print $4 }' "$runs"; }
+  # B / A within each pair that has both runs.
+  ratios="$(awk -v key="$key" '$3 == key { t[$1, $2] = $4; pair[$2] = 1 }
+    END { for (p in pair) if ((("A", p) in t) && (("B", p) in t)) print t["B", p] / t["A", p] }' "$runs")"
+  printf "%-44s %8.4g / %-8.4g %8.4g / %-8.4g %12.3f\n" "$key" "$(times A | sort -g | head -1)" \
+    "$(times B | sort -g | head -1)" "$(times A | median)" "$(times B | median)" "$(median <<<"$ratios")"
+done

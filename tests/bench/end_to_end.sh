@@ -30,8 +30,8 @@ for i in $(seq "$count"); do
   [ -f "$sidecar" ] && cp "$sidecar" "$work/in/f$i.camera.json"
 done
 
-median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
-stage() { sed -n "s/.* $1 \([0-9.]*\) ms.*/\1/p"; }
+# shellcheck source=tests/bench/bench_lib.sh
+source "$here/tests/bench/bench_lib.sh"  # median, stage
 
 echo "load average at start: $(cut -d' ' -f1-3 /proc/loadavg)"
 echo "ssdo settings: ${ssdo_args[*]}"

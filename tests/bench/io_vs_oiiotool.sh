@@ -40,9 +40,8 @@ layer="$(oiiotool --info -v "$frame" | sed -n 's/.*channel list: //p' | tr ',' '
 
 now() { date +%s.%N; }
 calc() { awk "BEGIN { print $* }"; }
-median() { sort -g | awk '{a[NR]=$1} END {print (NR%2) ? a[(NR+1)/2] : (a[NR/2]+a[NR/2+1])/2}'; }
-# ssdo process -v prints "... read R ms, compute C ms, write W ms, ..." per frame.
-stage() { sed -n "s/.* $1 \([0-9.]*\) ms.*/\1/p"; }
+# shellcheck source=tests/bench/bench_lib.sh
+source "$here/tests/bench/bench_lib.sh"  # median, stage
 
 configs=(zip none io)
 config_args() {
