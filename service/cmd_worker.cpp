@@ -191,8 +191,8 @@ std::string describe_memory_error(const std::string& error, ResourceFailure exha
 // (views and temporal neighbours per side: 2 -> 1 -> 0, alone) until the frame fits, with a
 // note, and computes every later frame of the shot at least as large with that window: a
 // shot whose window of 2 per side does not fit keeps the views and the temporal filtering
-// of a smaller one rather than losing both (a 1080p --terms ao shot: 300 MiB of address
-// space alone, 330 with 1 per side, over 350 with 2).
+// of a smaller one rather than losing both (a 1080p shot, --terms ao --preset low: about 320
+// MiB of address space with 2 per side, 280 with 1; tests/integration/temporal_test.cpp).
 struct ShotMemory {
   int64_t from_pixels = std::numeric_limits<int64_t>::max();  // frames this large or larger
   int views_per_side = std::numeric_limits<int>::max();        // use at most these
@@ -235,8 +235,13 @@ FittedFrame process_frame_within_memory(const FrameRequest& request, int64_t pix
   }
   FittedFrame f;
   f.result = process_frame(used, &context);
-  while (!f.result.ok() && in_shot(used) && f.result.exhausted == ResourceFailure::memory) {
+  // A thread that cannot start ran out of the same address space (its stack, under
+  // RLIMIT_AS) as an allocation that fails: either may fit once the context is emptied.
+  while (!f.result.ok() && in_shot(used) && f.result.exhausted != ResourceFailure::none) {
     context.clear();
+    // Freed, the context's memory serves the heap's next allocations but still holds its
+    // address space (keep_freed_memory_for_reuse), which a thread's stack needs: unmapped.
+    return_free_memory();
     used.views_per_side /= 2;
     used.temporal_per_side /= 2;
     shot_memory.from_pixels = std::min(shot_memory.from_pixels, pixels);
@@ -320,8 +325,9 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   for (std::string& note : r.info.notes) note = files.named(note);
   response["ok"] = r.ok();
   if (!r.ok()) response["error"] = files.named(describe_memory_error(r.error, r.exhausted, args.memory_limit_mb));
-  // The same frame may succeed in a new worker (service/worker_process.h, transient).
-  if (r.exhausted == ResourceFailure::memory) response["out_of_memory"] = true;
+  // The same frame may succeed in a new worker (service/worker_process.h, transient), with
+  // its memory and its threads' stacks.
+  if (r.exhausted != ResourceFailure::none) response["out_of_memory"] = true;
   response["read_ms"] = r.times.read_ms;
   response["compute_ms"] = r.times.compute_ms;
   response["write_ms"] = r.times.write_ms;
