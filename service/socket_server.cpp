@@ -11,6 +11,7 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <system_error>
 
 #include "service/frame_list.h"
 #include "service/path_policy.h"
@@ -218,7 +219,15 @@ void SocketServer::accept_loop() {
     }
     connections_.emplace(fd, Connection{});
     ++clients_;
-    std::thread([this, fd] { serve_connection(fd); }).detach();
+    try {
+      std::thread([this, fd] { serve_connection(fd); }).detach();
+    } catch (const std::system_error&) {  // no thread could start (a thread limit): this client only
+      connections_.erase(fd);
+      --clients_;
+      write_message(fd, to_wire(error_response("busy", "the service could not start a thread for this client; try again later")),
+                    deadline_in(kBusyReplySeconds));
+      ::close(fd);
+    }
   }
 }
 

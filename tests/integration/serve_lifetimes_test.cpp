@@ -3,11 +3,13 @@
 // limits that keep many or hostile clients from taking the service's memory, disk or
 // connection slots.
 #include <sys/file.h>
+#include <sys/resource.h>
 
 #include <atomic>
 #include <fstream>
 #include <thread>
 
+#include "service/build_features.h"
 #include "service_harness.h"
 
 namespace ssdo::test {
@@ -28,11 +30,14 @@ json watch_stats(const std::string& socket) {
   return s.contains("watch") && s["watch"].is_object() ? s["watch"] : json::object();
 }
 
-long resident_kib(pid_t pid) {
+// A field of /proc/PID/status in KiB (VmRSS, VmSize), 0 when absent.
+long status_kib(pid_t pid, const std::string& field) {
   const std::string status = read_text("/proc/" + std::to_string(pid) + "/status");
-  const size_t at = status.find("VmRSS:");
-  return at == std::string::npos ? 0 : std::stol(status.substr(at + 6));
+  const size_t at = status.find(field + ":");
+  return at == std::string::npos ? 0 : std::stol(status.substr(at + field.size() + 1));
 }
+
+long resident_kib(pid_t pid) { return status_kib(pid, "VmRSS"); }
 
 // --- 11: retries, late sidecars, error files ------------------------------------------
 
@@ -305,6 +310,32 @@ TEST(ServeLifetimes, IdleConnectionsDoNotLockOthersOut) {
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_EQ(ping(socket).value("ok", false), true);
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 2.0);
+}
+
+// A client the service cannot start a thread for (here: its address space capped just above
+// what it maps, so no new thread gets a stack) is told so and closed; the service goes on and
+// serves the next client once threads start again.
+TEST(ServeLifetimes, AClientWithoutAThreadIsRefusedAndTheServiceGoesOn) {
+  if (!kMemoryLimitEnforced)
+    GTEST_SKIP() << "sanitizer build: its runtime's own mappings fail under an address-space cap (service/build_features.h)";
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("nothread");
+  SsdoProcess service({"serve", "--socket", socket, "-o", dir / "out", "--allow", dir / "in"}, dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  rlimit old{};
+  ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, nullptr, &old), 0);
+  const long mapped_kib = status_kib(service.pid(), "VmSize");
+  ASSERT_GT(mapped_kib, 0);
+  const rlimit capped{rlim_t(mapped_kib + 1024) * 1024, old.rlim_max};  // 1 MiB over: no 8 MiB stack
+  ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, &capped, nullptr), 0);
+  const json refused = ping(socket);
+  ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, &old, nullptr), 0);
+  EXPECT_EQ(refused.value("code", ""), "busy") << refused.dump();
+  EXPECT_NE(refused.value("error", "").find("could not start a thread"), std::string::npos) << refused.dump();
+  ASSERT_TRUE(service.running()) << service.log();
+  EXPECT_EQ(ping(socket).value("ok", false), true);
+  EXPECT_EQ(stats(socket).value("clients", -1), 1) << "the refused client is not counted";
 }
 
 // --- 16: memory estimated from the header; one pixel limit ------------------------------
