@@ -1,5 +1,6 @@
 #include "formats/camera_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -35,6 +36,21 @@ bool matrix_from_json(const nlohmann::json& j, glm::mat4& out) {
   return all_finite(out);
 }
 
+// Whether b is a's inverse, as far as float matrices can be: b a's linear part within 1e-4
+// of the identity, and its translation within 1e-5 of the poses' largest translation (a
+// float pose 12 km from the origin is exact to about a millimetre, not to 1e-4 absolute).
+bool inverse_of(const glm::mat4& a, const glm::mat4& b) {
+  const glm::dmat4 product = glm::dmat4(b) * glm::dmat4(a);
+  double reach = 1.0;
+  for (int r = 0; r < 3; ++r) reach = std::max({reach, std::abs(double(a[3][r])), std::abs(double(b[3][r]))});
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) {
+      const double tolerance = c == 3 && r < 3 ? 1e-5 * reach : 1e-4;
+      if (!(std::abs(product[c][r] - (c == r ? 1.0 : 0.0)) <= tolerance)) return false;
+    }
+  return true;
+}
+
 }  // namespace
 
 std::string sidecar_path_for(const std::string& exr_path) {
@@ -64,9 +80,13 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
   if (!j.contains("world_to_camera") ||
       !matrix_from_json(j["world_to_camera"], s.camera.world_to_view))
     return fail("missing or malformed \"world_to_camera\" (row-major 4x4 numbers)");
+  if (!(std::abs(glm::determinant(glm::dmat4(s.camera.world_to_view))) > 1e-12))
+    return fail("\"world_to_camera\" is singular (no camera pose maps the world onto view space)");
   if (j.contains("camera_to_world")) {
     if (!matrix_from_json(j["camera_to_world"], s.camera.view_to_world))
       return fail("malformed \"camera_to_world\" (row-major 4x4 numbers)");
+    if (!inverse_of(s.camera.world_to_view, s.camera.view_to_world))
+      return fail("\"camera_to_world\" is not the inverse of \"world_to_camera\" (leave it out to derive it)");
   } else {
     s.camera.view_to_world = glm::inverse(s.camera.world_to_view);
   }
@@ -95,8 +115,12 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
     return fail("\"depth_kind\" must be \"planar\" or \"radial\", not \"" + *s.depth_kind + "\"");
   s.normal_space = text("normal_space");
   s.position_space = text("position_space");
-  if (s.camera.view_to_clip[2][3] == 0.0f && s.camera.view_to_clip[3][3] == 0.0f)
-    return fail("\"projection\" has a zero w row");
+  const glm::mat4& p = s.camera.view_to_clip;
+  if (p[2][3] == 0.0f && p[3][3] == 0.0f) return fail("\"projection\" has a zero w row");
+  if (p[0][0] == 0.0f || p[1][1] == 0.0f) return fail("\"projection\" does not project view-space x and y");
+  // Perspective: w = -z for a camera looking down -Z (OpenGL-style, as documented).
+  if (p[2][3] > 0.0f)
+    return fail("\"projection\" looks down +Z (w = +z); the sidecar's camera looks down -Z (OpenGL-style: w = -z)");
   return s;
 }
 

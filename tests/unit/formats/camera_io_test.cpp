@@ -67,6 +67,62 @@ TEST(CameraSidecar, MalformedSidecarsNameTheField) {
   EXPECT_NE(error.find("\"projection\""), std::string::npos) << error;
 }
 
+// A glm matrix as the sidecar's row-major JSON.
+nlohmann::json row_major(const glm::mat4& m) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({m[0][r], m[1][r], m[2][r], m[3][r]});
+  return rows;
+}
+
+// Sidecars whose numbers parse but describe no camera are refused, each naming its field;
+// a pose far from the origin with its float inverse is accepted.
+TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
+  ScratchDir dir;
+  Camera cam = posed_camera(64, 48, 60.0f);
+  cam.view_to_world[3] = glm::vec4(12000.0f, -3000.0f, 150.0f, 1.0f);  // a set 12 km out
+  cam.world_to_view = glm::inverse(cam.view_to_world);
+  const nlohmann::json valid = {{"projection", row_major(cam.view_to_clip)},
+                                {"world_to_camera", row_major(cam.world_to_view)},
+                                {"camera_to_world", row_major(cam.view_to_world)},
+                                {"width", 64},
+                                {"height", 48}};
+  auto read = [&](const nlohmann::json& j, std::string& error) {
+    const fs::path path = dir / "cam.json";
+    std::ofstream(path) << j.dump();
+    return read_camera_sidecar(path.string(), &error).has_value();
+  };
+  std::string error;
+  ASSERT_TRUE(read(valid, error)) << error;
+
+  nlohmann::json singular = valid;
+  singular["world_to_camera"] = row_major(glm::mat4(0.0f));
+  singular.erase("camera_to_world");
+  EXPECT_FALSE(read(singular, error));
+  EXPECT_NE(error.find("\"world_to_camera\" is singular"), std::string::npos) << error;
+
+  nlohmann::json other_pose = valid;
+  glm::mat4 moved = cam.view_to_world;
+  moved[3].x += 1.0f;  // a metre off: another camera
+  other_pose["camera_to_world"] = row_major(moved);
+  EXPECT_FALSE(read(other_pose, error));
+  EXPECT_NE(error.find("\"camera_to_world\" is not the inverse of \"world_to_camera\""), std::string::npos)
+      << error;
+
+  nlohmann::json flat = valid;
+  glm::mat4 p = cam.view_to_clip;
+  p[1][1] = 0.0f;
+  flat["projection"] = row_major(p);
+  EXPECT_FALSE(read(flat, error));
+  EXPECT_NE(error.find("does not project view-space x and y"), std::string::npos) << error;
+
+  nlohmann::json backwards = valid;
+  p = cam.view_to_clip;
+  p[2][3] = 1.0f;  // w = +z: a camera looking down +Z
+  backwards["projection"] = row_major(p);
+  EXPECT_FALSE(read(backwards, error));
+  EXPECT_NE(error.find("looks down +Z"), std::string::npos) << error;
+}
+
 TEST(CameraSidecar, PathBesideTheFrame) {
   EXPECT_EQ(sidecar_path_for("/a/b/shot.0001.exr"), "/a/b/shot.0001.camera.json");
   EXPECT_EQ(sidecar_path_for("cornell.exr"), "cornell.camera.json");
