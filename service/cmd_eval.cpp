@@ -105,6 +105,12 @@ int run_eval(const EvalArgs& args) {
   // `process` reads them.
   const auto neighbours = sequence_neighbours(
       args.files, neighbour_places(args.request.views_per_side, args.request.temporal_per_side));
+  // A light term compared with a pass lit by the frame's own world says nothing without
+  // that world: say so once (on stderr, which --json leaves clean).
+  if (args.term != "ao" && args.oracle_preset.empty() && !args.request.environment)
+    std::cerr << "ssdo eval: note: no --env, --sky or --env-constant: " << args.term
+              << " is lit by uniform radiance 1, the reference pass '" << args.reference
+              << "' by whatever lit the render; give the render's environment to compare them\n";
   SequenceContext sequence;
   for (size_t index = 0; index < args.files.size(); ++index) {
     const std::string& file = args.files[index];

@@ -224,8 +224,8 @@ void SocketServer::accept_loop() {
     } catch (const std::system_error&) {  // no thread could start (a thread limit): this client only
       connections_.erase(fd);
       --clients_;
-      write_message(fd, to_wire(error_response("busy", "the service could not start a thread for this client; try again later")),
-                    deadline_in(kBusyReplySeconds));
+      const json busy = error_response("busy", "the service could not start a thread for this client; try again later");
+      write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
       ::close(fd);
     }
   }

@@ -32,5 +32,25 @@ TEST(EvalTerms, RawAndDenoisedLightTermsAgainstTheirPasses) {
   }
 }
 
+// Without an environment SSDO is lit by uniform radiance 1, not by the render's world:
+// eval says so (the error then says nothing of the method), and not when one is given.
+TEST(EvalTerms, ALightTermWithoutTheRendersEnvironmentIsNoted) {
+  const fs::path frame = shared_dir() / "gbuffers" / "cornell.exr";
+  if (!fs::exists(frame)) GTEST_SKIP() << "no shared frames at " << frame.parent_path();
+  const std::string base =
+      "eval " + frame.string() + " --term ssdo_direct --reference DiffDir --preset low --views 0 --temporal 0";
+  const RunResult white = run_ssdo(base + " --json");
+  ASSERT_EQ(white.exit_code, 0) << white.output;
+  EXPECT_NE(white.output.find("note: no --env, --sky or --env-constant: ssdo_direct is lit by uniform radiance 1"),
+            std::string::npos)
+      << white.output;
+  const RunResult lit = run_ssdo(base + " --env " + (frame.parent_path() / "env_equirect.exr").string());
+  ASSERT_EQ(lit.exit_code, 0) << lit.output;
+  EXPECT_EQ(lit.output.find("note: no --env"), std::string::npos) << lit.output;
+  const RunResult ao = run_ssdo("eval " + frame.string() + " --reference AO --preset low --views 0 --temporal 0");
+  ASSERT_EQ(ao.exit_code, 0) << ao.output;
+  EXPECT_EQ(ao.output.find("note: no --env"), std::string::npos) << ao.output;
+}
+
 }  // namespace
 }  // namespace ssdo::test

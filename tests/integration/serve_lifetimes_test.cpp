@@ -317,7 +317,8 @@ TEST(ServeLifetimes, IdleConnectionsDoNotLockOthersOut) {
 // serves the next client once threads start again.
 TEST(ServeLifetimes, AClientWithoutAThreadIsRefusedAndTheServiceGoesOn) {
   if (!kMemoryLimitEnforced)
-    GTEST_SKIP() << "sanitizer build: its runtime's own mappings fail under an address-space cap (service/build_features.h)";
+    GTEST_SKIP() << "sanitizer build: its runtime's own mappings fail under an address-space cap "
+                    "(service/build_features.h)";
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
   const std::string socket = socket_path_for("nothread");
