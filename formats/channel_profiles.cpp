@@ -73,9 +73,14 @@ std::optional<std::string> generic_depth(const PartChannels& p) {
 // each sample's back (OpenEXR, "Interpreting OpenEXR Deep Pixels"), not a second surface.
 const std::vector<std::string> kGenericBackDepth = {"Z.back", "depth_back"};
 
+// Whether the mapping names a channel (else at most spaces, for the detected channels).
+bool maps_channels(const ChannelMapping& m) {
+  return !(m.depth.empty() && m.depth_back.empty() && m.normal.empty() && m.position.empty() &&
+           m.albedo.empty() && m.lighting.empty() && m.references.empty());
+}
+
 bool mapping_is_empty(const ChannelMapping& m) {
-  return m.depth.empty() && m.depth_back.empty() && m.normal.empty() && m.position.empty() &&
-         m.albedo.empty() && m.lighting.empty() && m.references.empty();
+  return !maps_channels(m) && m.normal_space == Space::automatic && m.position_space == Space::automatic;
 }
 
 // " (part "NAME")" in a multi-part file, else "".
@@ -183,7 +188,7 @@ struct MappingApplier {
   }
 
   bool apply(const ChannelMapping& map) {
-    res.profile = "mapping";
+    if (maps_channels(map)) res.profile = "mapping";
     if (!map.depth.empty() && !scalar("depth", map.depth)) return false;
     if (!map.depth_back.empty() && !scalar("depth_back", map.depth_back)) return false;
     if (!map.normal.empty() && !vector("normal", map.normal, map.normal_space)) return false;

@@ -656,6 +656,35 @@ TEST(ReadConversions, NormalsFacingAwayAreFlippedAndWorldNormalsRotated) {
   EXPECT_GT(n[2], 0.9f);
 }
 
+// A space given alone (--map normal-space=view) applies to the detected channels: the
+// profile stays the detected one, and the normals are taken as they are, not rotated.
+TEST(ReadConversions, AnExplicitSpaceAloneAppliesToTheDetectedNormals) {
+  SSDO_SKIP_WITHOUT(gbuffer_dir() / "cornell.camera.json");
+  ScratchDir dir;
+  const fs::path path = dir / "space.exr";
+  TestExr t = generic_frame(640, 360, 4.0f);
+  t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 0.0f)});
+  t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 0.0f)});
+  t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 1.0f)});
+  ASSERT_TRUE(t.write(path));
+  fs::copy_file(gbuffer_dir() / "cornell.camera.json", dir / "space.camera.json");
+  ReadOptions options;
+  options.mapping.normal_space = Space::view;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.profile, "generic");
+  EXPECT_EQ(r.info.uses[1].space, "view");
+  const cv::Vec3f n = r.gbuffer.normal_view.at<cv::Vec3f>(180, 320);  // +Z view: faces the camera
+  EXPECT_FLOAT_EQ(n[0], 0.0f);
+  EXPECT_FLOAT_EQ(n[1], 0.0f);
+  EXPECT_FLOAT_EQ(n[2], 1.0f);
+  // Without it the sidecar's camera makes them world normals, rotated into view space.
+  const ReadResult world = read_gbuffer(path.string());
+  ASSERT_TRUE(world.ok()) << world.error;
+  EXPECT_EQ(world.info.uses[1].space, "world");
+  EXPECT_LT(world.gbuffer.normal_view.at<cv::Vec3f>(180, 320)[2], 0.5f);
+}
+
 TEST(ReadConversions, RadialDepthBecomesPlanar) {
   ScratchDir dir;
   const int w = 64, h = 48;
