@@ -15,6 +15,7 @@
 
 #include "core/heap_policy.h"
 #include "formats/chart.h"
+#include "formats/output_writer.h"
 #include "kernels/metrics.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
@@ -254,9 +255,10 @@ int run_bench(const BenchArgs& args) {
     return 1;
   }
 
-  std::ofstream csv(std::filesystem::path(args.output_dir) / "bench.csv");
+  // The tables are written when complete, each through a temporary file (complete or
+  // absent, as the frames' outputs), and a failure to write one fails the run.
+  std::ostringstream csv, calibration;
   csv << "file,method,preset,samples,resolution,ms,mae,rmse,bias,p95\n";
-  std::ofstream calibration(std::filesystem::path(args.output_dir) / "calibration.csv");
   calibration << "method,preset,samples,ms,mae\n";
   std::map<std::string, ChartSeries> by_method;
   std::printf("%-10s %-7s %7s %10s %8s %8s %8s\n", "method", "preset", "samples", "ms", "MAE", "RMSE", "p95");
@@ -331,11 +333,17 @@ int run_bench(const BenchArgs& args) {
   chart.title = "AO error against time per frame (" + std::to_string(frames.size()) + " frame" +
                 (frames.size() > 1 ? "s" : "") + ", reference " + args.reference + ")";
   chart.y_label = "MAE against " + args.reference + " (AO units, 0..1)";
-  const std::string png = (std::filesystem::path(args.output_dir) / "bench.png").string();
-  if (const std::string e = write_chart_png(png, series, chart); !e.empty()) {
-    std::cerr << "ssdo bench: " << e << "\n";
-    return 1;
-  }
+  const std::filesystem::path out(args.output_dir);
+  const std::string png = (out / "bench.png").string();
+  bool written = true;
+  for (const std::string& e : {write_file_atomically(out / "bench.csv", csv.str()),
+                               write_file_atomically(out / "calibration.csv", calibration.str()),
+                               write_chart_png(png, series, chart)})
+    if (!e.empty()) {
+      std::cerr << "ssdo bench: " << e << "\n";
+      written = false;
+    }
+  if (!written) return 1;
   std::printf("wrote %s/bench.csv, %s/calibration.csv and %s\n", args.output_dir.c_str(),
               args.output_dir.c_str(), png.c_str());
   return failed ? 1 : 0;

@@ -99,7 +99,15 @@ int run_eval(const EvalArgs& args) {
   int failed = 0;
   nlohmann::json files = nlohmann::json::array();
   const std::string method(to_string(args.request.ao.method));
-  if (!args.heatmap_dir.empty()) std::filesystem::create_directories(args.heatmap_dir);
+  if (!args.heatmap_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(args.heatmap_dir, ec);
+    if (ec || !std::filesystem::is_directory(args.heatmap_dir, ec)) {
+      std::cerr << "ssdo eval: --heatmap " << args.heatmap_dir << ": cannot create the folder"
+                << (ec ? ": " + ec.message() : std::string(" (a file of that name is in the way)")) << "\n";
+      return 2;
+    }
+  }
 
   // With --views, the files of one shot are each other's extra views, read once each as
   // `process` reads them.
@@ -198,10 +206,13 @@ int run_eval(const EvalArgs& args) {
       w.png_previews = true;
       const std::string err = write_outputs(
           out, {{"error", error_heatmap(estimate, reference, frame.gbuffer.mask), SampleType::half, false},
-                {"ao", estimate, SampleType::float32, false},
+                {args.term, estimate, SampleType::float32, false},
                 {"reference", reference, SampleType::float32, false}},
           frame.gbuffer.camera, w);
-      if (!err.empty()) std::cerr << "ssdo eval: " << err << "\n";
+      if (!err.empty()) {
+        std::cerr << "ssdo eval: " << err << "\n";
+        ++failed;
+      }
     }
   }
   const ErrorStats all = overall.result();
@@ -230,7 +241,8 @@ Command register_eval(CLI::App& app) {
               "ray-traced AO) over foreground pixels: MAE, RMSE, bias, 95th percentile, time, and "
               "the MAE per confidence decile (pixels binned by the confidence channel)");
   cmd->add_option("files", e.files, "EXR frames holding the reference pass")->required();
-  cmd->add_option("--reference", e.reference, "Reference pass name (AO for Cycles dumps)")->capture_default_str();
+  cmd->add_option("--reference", e.reference,
+                  "Reference pass name (default: the term's Cycles pass: AO, DiffDir or DiffInd)");
   cmd->add_option("--term", e.term,
                   "Term to compare: ao (with --reference AO), ssdo_direct (--reference DiffDir) "
                   "or ssdo_indirect (--reference DiffInd)")
@@ -253,6 +265,8 @@ Command register_eval(CLI::App& app) {
                 !resolve_compute_options(compute, eval.request, error))
               return usage_error(error);
             eval.request.terms = {eval.term == "ao", eval.term != "ao", false};
+            if (eval.reference.empty())
+              eval.reference = eval.term == "ao" ? "AO" : eval.term == "ssdo_direct" ? "DiffDir" : "DiffInd";
             eval.preset = compute.preset;
             return run_eval(eval);
           }};

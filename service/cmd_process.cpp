@@ -12,6 +12,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <set>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -57,6 +58,24 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
     for (int n : numbers) frames.push_back(expand_frame_pattern(input, n));
   }
   if (!expand_inputs(plain, frames, error)) return false;
+  if (!numbers.empty() && std::none_of(args.inputs.begin(), args.inputs.end(), has_frame_pattern)) {
+    error = "--frames selects frames of a pattern (NAME.####.exr), and no input is one";
+    return false;
+  }
+  // A frame listed twice (overlapping ranges, a file named twice) is computed once; two
+  // frames that would write one output (the same file name in two folders) are refused
+  // before anything is computed: one would silently replace the other.
+  std::set<std::string> listed;
+  std::erase_if(frames, [&](const std::string& f) { return !listed.insert(f).second; });
+  std::map<std::string, std::string> writer_of;
+  for (const std::string& f : frames) {
+    const auto [it, fresh] = writer_of.emplace(output_path_for(f, args.output_dir), f);
+    if (!fresh) {
+      error = it->second + " and " + f + " would both write " + it->first +
+              " (the same file name): process them into different folders (-o)";
+      return false;
+    }
+  }
   all = frames;
   if (!args.chunk.empty()) {
     int index = 0, count = 0;

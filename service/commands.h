@@ -68,7 +68,8 @@ int run_process(const ProcessArgs& args);
 
 struct EvalArgs {
   std::vector<std::string> files;
-  std::string reference = "AO";     // reference channel/pass name in the frame
+  // Reference channel/pass name in the frame; empty = the term's Cycles pass (AO, DiffDir, DiffInd).
+  std::string reference;
   std::string preset = "high";      // preset name, for the report
   std::string term = "ao";          // ao | ssdo_direct | ssdo_indirect (denoised output compared)
   bool raw = false;                 // compare the raw term instead of the denoised one

@@ -51,9 +51,14 @@ bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::stri
       return false;
     }
     if (fs::is_directory(st)) {
+      // Every frame file but folders, also one that cannot be opened (a dangling link, say):
+      // that frame fails with its own reason, and the others are computed. Only the listing
+      // itself can fail the folder (its own error code: an entry's does not).
       std::vector<std::string> found;
-      for (const fs::directory_entry& e : fs::directory_iterator(input, ec))
-        if (e.is_regular_file(ec) && is_frame_file(e.path().string())) found.push_back(e.path().string());
+      for (fs::directory_iterator it(input, ec); !ec && it != fs::directory_iterator(); it.increment(ec)) {
+        std::error_code entry_ec;
+        if (!it->is_directory(entry_ec) && is_frame_file(it->path().string())) found.push_back(it->path().string());
+      }
       if (ec) {
         error = input + ": cannot list the folder: " + ec.message();
         return false;

@@ -140,5 +140,77 @@ TEST(Cli, PatternsFramesAndChunksSelectFrames) {
   EXPECT_NE(r.output.find("shot.0007.exr"), std::string::npos) << r.output;
 }
 
+// Two inputs of one file name would write one output: refused before anything is
+// computed. The same frame listed twice (overlapping ranges) is computed once. --frames
+// without a pattern selects nothing: refused rather than ignored.
+TEST(Cli, ABatchNeverWritesOneOutputTwice) {
+  ScratchDir dir;
+  for (const char* folder : {"a", "b"}) {
+    fs::create_directories(dir.path / folder);
+    fs::copy_file(example("cornell.exr"), dir.path / folder / "shot.0001.exr");
+    fs::copy_file(example("cornell.camera.json"), dir.path / folder / "shot.0001.camera.json");
+  }
+  const std::string quick = " --terms ao --preset low --views 0 --temporal 0";
+  RunResult r = run_ssdo("process " + dir / "a/shot.0001.exr" + " " + dir / "b/shot.0001.exr" + " -o " +
+                         dir / "out" + quick);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("would both write"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "shot.0001.ssdo.exr"));
+
+  r = run_ssdo("process '" + dir / "a/shot.####.exr" + "' --frames 1,1,1 -o " + dir / "out" + quick);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("done 1, skipped 0, failed 0"), std::string::npos) << r.output;
+
+  r = run_ssdo("process " + dir / "b" + " --frames 1 -o " + dir / "out2" + quick);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--frames selects frames of a pattern"), std::string::npos) << r.output;
+}
+
+// A folder's frame that cannot be opened (a dangling link) is that frame's failure,
+// wherever the folder lists it; the other frames are computed.
+TEST(Cli, ADanglingLinkInAFolderFailsOnlyItsFrame) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  fs::copy_file(example("cornell.exr"), dir.path / "in" / "b.exr");
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "b.camera.json");
+  fs::create_symlink(dir.path / "nowhere", dir.path / "in" / "zz.exr");
+  fs::create_symlink(dir.path / "nowhere", dir.path / "in" / "zz.txt");  // not a frame: ignored
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("zz.exr"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("done 1, skipped 0, failed 1"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "b.ssdo.exr"));
+}
+
+// eval and bench report what they could not write, with a non-zero exit, and do not crash.
+TEST(Cli, EvalAndBenchFailWhenTheyCannotWrite) {
+  ScratchDir dir;
+  std::ofstream(dir.path / "afile") << "x";
+  RunResult r = run_ssdo("eval " + example("cornell.exr") + " --preset low --heatmap " + dir / "afile");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--heatmap"), std::string::npos) << r.output;
+  fs::create_directories(dir.path / "maps" / "cornell.error.exr");  // a folder where the map goes
+  r = run_ssdo("eval " + example("cornell.exr") + " --preset low --heatmap " + dir / "maps");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cornell.error.exr"), std::string::npos) << r.output;
+  fs::create_directories(dir.path / "bench" / "bench.csv");
+  r = run_ssdo("bench " + example("cornell.exr") + " -o " + dir / "bench" +
+               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("bench.csv"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("wrote "), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::is_regular_file(dir.path / "bench" / "calibration.csv"));
+}
+
+// eval's reference follows the term: ssdo_direct against DiffDir unless told otherwise.
+TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
+  const RunResult r = run_ssdo("eval " + example("greeble.exr") + " --term ssdo_direct --preset low --json --env " +
+                               (source_dir() / "examples" / "env_equirect.exr").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_EQ(j.at("files").at(0).at("reference"), "DiffDir");
+  EXPECT_LT(j.at("overall").at("mae").get<double>(), 0.2);
+}
+
 }  // namespace
 }  // namespace ssdo::test
