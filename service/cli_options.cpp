@@ -1,5 +1,6 @@
 #include "service/cli_options.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -8,6 +9,7 @@
 #include <variant>
 
 #include "formats/env_map.h"
+#include "service/parallelism.h"
 #include "service/quality.h"
 #include "service/request_options.h"
 
@@ -323,7 +325,7 @@ bool resolve_environment(const ComputeOptionArgs& a, FrameRequest& request, std:
 bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error,
                              bool build_environment) {
   if (!resolve_settings(a, request, error)) return false;
-  request.threads = a.threads;
+  request.threads = std::min(a.threads, available_cores());  // as plan_parallelism
   request.radius_given_world = a.radius_world;
   request.views_per_side = a.views;
   request.temporal_per_side = a.temporal;

@@ -376,7 +376,7 @@ Command register_bench(CLI::App& app) {
                   "CSV of an external reference's cost (series,label,ms,mae), e.g. a ray "
                   "tracer at several sample counts, plotted beside the methods")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores)")->check(CLI::Range(0, 1024));
+  cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores; at most the cores)")->check(CLI::Range(0, 1024));
   cmd->add_option("--temporal", b.temporal,
                   "Also each preset computed as a shot, with --temporal K: the frames of a sequence among the files "
                   "(names that differ in a frame number) filtered over K frames each side, their time including the "
@@ -397,6 +397,7 @@ Command register_bench(CLI::App& app) {
               for (const std::string& m : st->methods) bench.methods.push_back(*parse_ao_method(m));
             }
             bench.sweep = !st->no_sweep;
+            bench.request.threads = std::min(bench.request.threads, available_cores());  // as plan_parallelism
             return run_bench(bench);
           }};
 }

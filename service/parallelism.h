@@ -29,9 +29,10 @@ void apply_thread_budget(int threads);
 // CPUs this process may run on (its affinity mask), at least 1.
 int available_cores();
 
-// jobs > 0: that many workers; threads > 0: that many threads per frame. Otherwise, for
-// a batch (`service` false): one worker with every core; for a service: one worker per
-// core, one thread each. `threads` alone sets the workers to cores / threads.
+// jobs > 0: that many workers; threads > 0: that many threads per frame, at most the
+// cores. Otherwise, for a batch (`service` false): one worker with every core; for a
+// service: one worker per core, one thread each. `threads` alone sets the workers to cores
+// / threads.
 Parallelism plan_parallelism(int jobs, int threads, bool service);
 
 }  // namespace ssdo

@@ -202,6 +202,16 @@ TEST(Cli, EvalAndBenchFailWhenTheyCannotWrite) {
   EXPECT_TRUE(fs::is_regular_file(dir.path / "bench" / "calibration.csv"));
 }
 
+// --threads beyond the cores runs on the cores: 1024 threads' stacks and OpenEXR's pool of
+// 1024 exceeded the worker's default memory limit, and the frame failed as out of memory.
+TEST(Cli, MoreThreadsThanCoresRunOnTheCores) {
+  ScratchDir dir;
+  const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + dir / "out" +
+                               " --terms ao --preset low --threads 1024");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "cornell.ssdo.exr"));
+}
+
 // eval's reference follows the term: ssdo_direct against DiffDir unless told otherwise.
 TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
   const RunResult r = run_ssdo("eval " + example("greeble.exr") + " --term ssdo_direct --preset low --json --env " +
