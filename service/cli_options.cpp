@@ -79,6 +79,26 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   return resolve_frame_options(options, check, error, /*build_environment=*/false);
 }
 
+CLI::Validator seconds_in(double lo, double hi) {
+  auto text = [](double v) {
+    std::ostringstream out;
+    out << v;
+    return out.str();
+  };
+  const std::string range = "[" + text(lo) + ", " + text(hi) + "]";
+  return CLI::Validator(
+      [lo, hi, range](std::string& value) -> std::string {
+        try {
+          size_t used = 0;
+          const double v = std::stod(value, &used);
+          if (used == value.size() && std::isfinite(v) && v >= lo && v <= hi) return {};
+        } catch (const std::exception&) {
+        }
+        return "'" + value + "' is not a number of seconds in " + range;
+      },
+      "SECONDS in " + range);
+}
+
 void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
   cmd.add_option("-j,--jobs", jobs,
                  "Worker processes = frames computed at once, each with cores/jobs threads (0 = "
@@ -88,7 +108,7 @@ void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
       ->group("Workers");
   cmd.add_option("--frame-timeout", limits.frame_timeout_s,
                  "Seconds a frame may take (read + compute + write) before its worker is killed")
-      ->check(CLI::PositiveNumber)
+      ->check(seconds_in(0.001, 604800.0))
       ->capture_default_str()
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");

@@ -37,6 +37,10 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
 // Limits of the worker processes (--jobs, --frame-timeout, --memory-limit, --max-pixels).
 void add_worker_limits(CLI::App& app, int& jobs, WorkerLimits& limits);
 
+// A duration option's check: a finite number of seconds in [lo, hi] (CLI11's number
+// checks let NaN through, which turns a timeout off).
+CLI::Validator seconds_in(double lo, double hi);
+
 // Fill the request; on a bad value return false with a message naming the option.
 bool resolve_read_options(const ReadOptionArgs& args, ReadOptions& read, std::string& error);
 // Also loads the environment map (once) when one is named. build_environment = false:

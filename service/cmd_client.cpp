@@ -182,7 +182,7 @@ Command register_client(CLI::App& app) {
       ->check(CLI::Range(size_t(1), size_t(1) << 20))
       ->capture_default_str();
   cmd->add_option("--timeout", c.timeout_s, "Seconds to wait for each response")
-      ->check(CLI::PositiveNumber)
+      ->check(seconds_in(0.001, 604800.0))
       ->capture_default_str();
   add_frame_options(*cmd, st->options);
   return {cmd, [st, cmd] {

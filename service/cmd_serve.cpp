@@ -200,7 +200,7 @@ Command register_serve(CLI::App& app) {
   cmd->add_option("-o,--out", s.out_dir, "Output folder: NAME.ssdo.exr, or NAME.error.json")->required();
   cmd->add_option("--poll", s.poll_s,
                   "Also rescan --watch every SECONDS (network file systems, where inotify sees nothing)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(seconds_in(0.0, 86400.0));
   cmd->add_option("--socket", s.socket_path, "Unix domain socket to serve requests on");
   cmd->add_option("--socket-mode", s.socket_mode, "Permissions of the socket (octal)")->capture_default_str();
   cmd->add_option("--allow", s.allow,
@@ -215,7 +215,7 @@ Command register_serve(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--client-timeout", s.client_timeout_s,
                   "Seconds a client has to send a whole request (inline frame included) or take a reply")
-      ->check(CLI::PositiveNumber)
+      ->check(seconds_in(0.001, 86400.0))
       ->capture_default_str();
   cmd->add_option("--max-request-bytes", s.protocol.max_header_bytes, "Largest JSON request header")
       ->check(CLI::Range(size_t(64), size_t(1) << 30))

@@ -230,6 +230,10 @@ std::string check_choice(const FrameOption& o, const std::string& value) {
 }
 
 std::string check_number(const FrameOption& o, double value) {
+  // Number options are float fields: a finite double beyond a float's range would become
+  // inf in the field, past every range check.
+  if (o.kind == OptionKind::number && std::isfinite(value) && std::abs(value) > std::numeric_limits<float>::max())
+    return "must be at most " + number_text(std::numeric_limits<float>::max()) + " in magnitude (a float)";
   const bool in_range = std::isfinite(value) && value >= o.lo && value <= o.hi;
   const bool integral = o.kind != OptionKind::integer || value == std::floor(value);
   if ((in_range || (o.zero_unset && value == 0)) && integral) return {};

@@ -7,6 +7,7 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -25,6 +26,25 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 
 namespace {
+
+// A request's spool folder, and the spool itself when it is gone (removed by hand, say):
+// private to the service, as cmd_serve creates it.
+void make_spool_folder(const fs::path& folder, std::error_code& ec) {
+  const fs::path spool = folder.parent_path();
+  if (!fs::is_directory(spool, ec)) {
+    fs::create_directory(spool, ec);
+    fs::permissions(spool, fs::perms::owner_all, ec);
+  }
+  fs::create_directory(folder, ec);
+}
+
+// NAME.exr, any case.
+bool is_exr_name(const std::string& name) {
+  if (name.size() < 5) return false;
+  std::string ext = name.substr(name.size() - 4);
+  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".exr";
+}
 
 // How long an over-limit client gets to read its "busy" answer before it is closed.
 constexpr double kBusyReplySeconds = 0.5;
@@ -389,8 +409,15 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     if (path->empty()) continue;
     std::string resolved;
     if (!resolve_allowed_input(*path, options_.allow_roots, resolved, error)) return refuse("forbidden", error);
+    std::error_code ec;
+    if (!fs::is_regular_file(resolved, ec)) return refuse("bad_request", *path + ": not a regular file");
     *path = resolved;
   }
+  // Every option resolved as the worker will (the environment by its header only): a
+  // value no frame could be computed with is the request's error, answered now, before a
+  // worker fails the frame and its error file replaces the frame's good output.
+  if (FrameRequest checked; !resolve_frame_options(options, checked, error, /*build_environment=*/false))
+    return refuse("bad_request", "options: " + error);
 
   // Where the frame comes from and where its output goes.
   const bool inline_input = request.inline_size > 0;
@@ -417,7 +444,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
                                 std::to_string(options_.max_spool_bytes >> 20) + " MiB, --max-spool-mb); try again later");
     spool_bytes.bytes = request.inline_size;
     std::error_code ec;
-    fs::create_directory(spool, ec);
+    make_spool_folder(spool, ec);
     guard.used = true;
     if (ec) return refuse("internal", "cannot create a spool folder: " + ec.message());
     input = (spool / (request.name + ".exr")).string();
@@ -447,13 +474,17 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   std::string output, error_path;
   if (request.reply_inline) {
     std::error_code ec;
-    fs::create_directory(spool, ec);
+    make_spool_folder(spool, ec);
     guard.used = true;
     output = (spool / (fs::path(input).stem().string() + ".ssdo.exr")).string();
   } else if (!request.output.empty()) {
     if (!resolve_allowed_output(request.output, options_.out_dir, output, error)) return refuse("forbidden", error);
     if (path_is_under(output, options_.spool_dir))
       return refuse("forbidden", request.output + ": inside the service's private spool folder");
+    // Not the service's own files (its lock, spool and temp files start with '.') nor error
+    // files or frames' sidecars: an output is an EXR.
+    if (const std::string name = fs::path(output).filename().string(); name[0] == '.' || !is_exr_name(name))
+      return refuse("bad_request", request.output + ": an output is an .exr file name, and not a hidden one");
     error_path = (fs::path(output).parent_path() / (fs::path(output).stem().string() + ".error.json")).string();
   } else {
     output = output_path_for(input, options_.out_dir);

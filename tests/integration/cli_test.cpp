@@ -115,6 +115,11 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --chunk 0/4");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("count from 1"), std::string::npos) << r.output;
+  // Values past what the field holds (a float's range; NaN seconds turned the timeout off).
+  for (const char* bad : {"--radius 1e39", "--env-constant 1e39", "--frame-timeout nan", "--frame-timeout 0"}) {
+    const RunResult v = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " " + bad);
+    EXPECT_EQ(v.exit_code, 2) << bad << ": " << v.output;
+  }
 }
 
 TEST(Cli, PatternsFramesAndChunksSelectFrames) {

@@ -326,17 +326,25 @@ TEST(ServeLifetimes, AClientWithoutAThreadIsRefusedAndTheServiceGoesOn) {
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
   rlimit old{};
   ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, nullptr, &old), 0);
-  const long mapped_kib = status_kib(service.pid(), "VmSize");
-  ASSERT_GT(mapped_kib, 0);
-  const rlimit capped{rlim_t(mapped_kib + 1024) * 1024, old.rlim_max};  // 1 MiB over: no 8 MiB stack
-  ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, &capped, nullptr), 0);
-  const json refused = ping(socket);
-  ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, &old, nullptr), 0);
+  // A thread may still start under the cap on a stack the C library kept from an ended one,
+  // or where the service unmapped memory since its size was read: then the ping is served,
+  // and the cap is tried again (the service before this change ended at the first refusal).
+  json refused = json::object();
+  for (int attempt = 0; attempt < 5 && refused.value("code", "") != "busy"; ++attempt) {
+    const long mapped_kib = status_kib(service.pid(), "VmSize");
+    ASSERT_GT(mapped_kib, 0);
+    const rlimit capped{rlim_t(mapped_kib + 1024) * 1024, old.rlim_max};  // 1 MiB over: no 8 MiB stack
+    ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, &capped, nullptr), 0);
+    refused = ping(socket);
+    ASSERT_EQ(::prlimit(service.pid(), RLIMIT_AS, &old, nullptr), 0);
+    ASSERT_TRUE(service.running()) << service.log();
+  }
   EXPECT_EQ(refused.value("code", ""), "busy") << refused.dump();
   EXPECT_NE(refused.value("error", "").find("could not start a thread"), std::string::npos) << refused.dump();
-  ASSERT_TRUE(service.running()) << service.log();
   EXPECT_EQ(ping(socket).value("ok", false), true);
-  EXPECT_EQ(stats(socket).value("clients", -1), 1) << "the refused client is not counted";
+  // The refused client is not counted: only the stats request's own connection is, once the
+  // pings' connections have closed.
+  EXPECT_TRUE(wait_until([&] { return stats(socket).value("clients", -1) == 1; }, 10));
 }
 
 // --- 16: memory estimated from the header; one pixel limit ------------------------------

@@ -175,6 +175,47 @@ TEST(ServeSocket, MalformedOversizeAndEscapingRequestsAreRefusedServiceStaysHeal
   EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 0);
 }
 
+// Options no frame can be computed with are the request's error (bad_request, answered
+// before any work): a frame failure's error file would replace the frame's good output.
+// An "output" may not name the service's own files (lock, spool, temp files), error files
+// or sidecars; a spool folder removed by hand is made again.
+TEST(ServeSocket, BadOptionsAndForeignOutputNamesTouchNoOutput) {
+  ScratchDir dir;
+  SocketService service(dir, "badopts");
+  ASSERT_TRUE(service.ready) << service.log();
+  const std::string input = dir / "frames/cornell.exr";
+  ASSERT_EQ(process_path(service.socket, input).value("ok", false), true);
+  const fs::path output = dir.path / "out" / "cornell.ssdo.exr";
+  ASSERT_TRUE(fs::exists(output));
+  const auto written = fs::last_write_time(output);
+  for (const json& options : {json{{"terms", ""}}, json{{"sky", "x"}}, json{{"composite", "bogus"}},
+                              json{{"sky", "1,1"}, {"env-constant", 2}}, json{{"radius", 1e308}},
+                              json{{"thickness", 1e300}}, json{{"camera", dir / "frames"}}}) {
+    const json r = process_path(service.socket, input, {{"options", options}});
+    EXPECT_EQ(r.value("code", ""), "bad_request") << options.dump() << " " << r.dump();
+    EXPECT_FALSE(r.contains("error_file")) << r.dump();
+  }
+  EXPECT_TRUE(fs::exists(output));
+  EXPECT_EQ(fs::last_write_time(output), written);
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "cornell.error.json"));
+
+  for (const char* name : {".ssdo-serve.lock", "cornell.error.json", "cornell.camera.json", "noext", ".hidden.exr"}) {
+    const json r = process_path(service.socket, input, {{"output", (dir.path / "out" / name).string()}});
+    EXPECT_EQ(r.value("code", ""), "bad_request") << name << " " << r.dump();
+  }
+  EXPECT_LT(fs::file_size(dir.path / "out" / ".ssdo-serve.lock"), 64u);  // its pid, not an EXR
+
+  fs::remove_all(dir.path / "out" / ".ssdo-spool");
+  Client c(service.socket);
+  const std::string bytes = read_text(input);
+  std::string reply_bytes;
+  const json sidecar = json::parse(read_text(dir.path / "frames" / "cornell.camera.json"));
+  const json r =
+      c.request({{"op", "process"}, {"name", "up"}, {"sidecar", sidecar}, {"reply", "inline"}}, bytes, &reply_bytes);
+  EXPECT_EQ(r.value("ok", false), true) << r.dump();
+  EXPECT_FALSE(reply_bytes.empty());
+}
+
 TEST(ServeSocket, FullQueueAnswersBusy) {
   ScratchDir dir;
   SocketService service(dir, "busy", {"--jobs", "1", "--queue", "1"});
