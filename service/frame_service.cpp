@@ -167,6 +167,14 @@ void FrameService::dispatch_loop() {
     if (!tasks_.empty()) {
       FrameTask task = std::move(tasks_.front());
       tasks_.pop_front();
+      if (task.is_abandoned()) {  // its client is gone: nobody waits for it
+        lock.unlock();
+        log("dropped " + task.input + ": its client closed the connection while it was queued");
+        WorkerResult r;
+        r.error = "the client closed the connection";
+        if (task.done) task.done(r);
+        continue;
+      }
       ++in_flight_;
       lock.unlock();
       run_task(worker, task);
@@ -193,9 +201,13 @@ void FrameService::dispatch_loop() {
   }
 }
 
-WorkerResult FrameService::run_with_retries(WorkerProcess& worker, const WorkerJob& job) {
+WorkerResult FrameService::run_with_retries(WorkerProcess& worker, const WorkerJob& job, const FrameTask* task) {
   WorkerResult r = worker.run(job);
   for (int attempt = 1; !r.ok() && r.transient && attempt <= options_.retries; ++attempt) {
+    if (task && task->is_abandoned()) {
+      log("not retrying " + job.input_path + ": its client closed the connection");
+      break;
+    }
     {
       std::lock_guard<std::mutex> lock(mutex_);
       if (stopping_) break;
@@ -213,7 +225,8 @@ WorkerResult FrameService::run_with_retries(WorkerProcess& worker, const WorkerJ
 
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   const std::string before_key = task.error_path.empty() ? std::string() : frame_version_key(task.input);
-  const WorkerResult r = run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine});
+  const WorkerResult r =
+      run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine}, &task);
   record(r);
   if (!task.error_path.empty()) {
     std::error_code ec;

@@ -19,10 +19,12 @@
 // "retry": true, and a restarted service computes such a frame again.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
 #include <deque>
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <set>
 #include <string>
@@ -55,6 +57,10 @@ struct FrameTask {
   Confinement confine;                   // where the worker may open the task's files
   std::function<void(const WorkerResult&)> done;  // called once, from a dispatcher thread
   Clock::time_point queued_at = Clock::now();
+  // Set when the client has gone (closed its connection): a queued task is dropped (done
+  // gets an error, nothing is written), a failed one is not tried again. Null: never.
+  std::shared_ptr<const std::atomic<bool>> abandoned;
+  bool is_abandoned() const { return abandoned && abandoned->load(); }
 };
 
 struct ServiceStats {
@@ -91,8 +97,9 @@ class FrameService {
   // True when the input changed while it was computed (to be computed again).
   bool run_watched(WorkerProcess& worker, const std::string& input, bool force);
   void run_task(WorkerProcess& worker, FrameTask& task);
-  // Runs the job, again on a new worker after a transient failure (options_.retries times).
-  WorkerResult run_with_retries(WorkerProcess& worker, const WorkerJob& job);
+  // Runs the job, again on a new worker after a transient failure (options_.retries times),
+  // unless `task` (when given) is abandoned by then.
+  WorkerResult run_with_retries(WorkerProcess& worker, const WorkerJob& job, const FrameTask* task = nullptr);
   // True when a watched input needs no computing: its output, or an error file that is
   // final (not a transient failure, or one this run already gave up on), is up to date.
   bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);

@@ -38,6 +38,16 @@ void make_spool_folder(const fs::path& folder, std::error_code& ec) {
   fs::create_directory(folder, ec);
 }
 
+// How often a connection waiting for its frame checks that its client is still there, ms.
+constexpr int kPeerCheckMs = 250;
+
+// Whether the client has closed its end of the connection (both directions: a client that
+// only shut down its sending side still reads the reply).
+bool peer_closed(int fd) {
+  pollfd p{fd, 0, 0};  // POLLHUP and POLLERR are reported whatever is asked
+  return ::poll(&p, 1, 0) > 0 && (p.revents & (POLLHUP | POLLERR)) != 0;
+}
+
 // NAME.exr, any case.
 bool is_exr_name(const std::string& name) {
   if (name.size() < 5) return false;
@@ -514,6 +524,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   task.confine.input_roots = inline_input ? std::vector<std::string>{spool.string()} : options_.allow_roots;
   task.confine.option_roots = options_.allow_roots;
   task.confine.output_root = request.reply_inline ? spool.string() : options_.out_dir;
+  auto abandoned = std::make_shared<std::atomic<bool>>(false);
+  task.abandoned = abandoned;
   task.done = [outcome](const WorkerResult& r) {
     std::lock_guard<std::mutex> lock(outcome->mutex);
     outcome->result = r;
@@ -525,8 +537,16 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     const ServiceStats s = frames_.stats();
     return refuse("busy", "the queue is full (" + std::to_string(s.queue_capacity) + " frames); try again later");
   }
+  // While it waits, the connection watches its client: one that has closed (not merely
+  // shut its sending side: POLLHUP, not POLLRDHUP) gives its slot back at once, and its
+  // frame is dropped from the queue or not tried again (a frame in flight finishes).
   std::unique_lock<std::mutex> lock(outcome->mutex);
-  outcome->cv.wait(lock, [&] { return outcome->done; });
+  while (!outcome->cv.wait_for(lock, std::chrono::milliseconds(kPeerCheckMs), [&] { return outcome->done; })) {
+    if (peer_closed(fd)) {
+      abandoned->store(true);
+      return false;
+    }
+  }
   const WorkerResult r = outcome->result;
   lock.unlock();
 

@@ -1,4 +1,6 @@
 // `ssdo serve --socket`: the real service, real clients on a real Unix socket.
+#include <poll.h>
+
 #include <atomic>
 #include <mutex>
 #include <thread>
@@ -214,6 +216,39 @@ TEST(ServeSocket, BadOptionsAndForeignOutputNamesTouchNoOutput) {
       c.request({{"op", "process"}, {"name", "up"}, {"sidecar", sidecar}, {"reply", "inline"}}, bytes, &reply_bytes);
   EXPECT_EQ(r.value("ok", false), true) << r.dump();
   EXPECT_FALSE(reply_bytes.empty());
+}
+
+// A client that closes its connection while its frame waits gives its slot back at once
+// (while the frame before it still computes), and its queued frame is dropped: nothing is
+// computed or written for it.
+TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
+  ScratchDir dir;
+  SocketService service(dir, "leave", {"--jobs", "1"});
+  ASSERT_TRUE(service.ready) << service.log();
+  const json slow = {{"method", "raymarch"}, {"preset", "medium"}};  // seconds per frame
+  const std::string input = dir / "frames/cornell.exr";
+  Client first(service.socket);
+  ASSERT_EQ(write_message(first.fd(), json{{"op", "process"}, {"input", input}, {"options", slow}}.dump(),
+                          deadline_in(5)),
+            IoStatus::ok);
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30)) << service.log();
+  {
+    Client gone(service.socket);
+    const json queued = {{"op", "process"}, {"input", input}, {"output", (dir.path / "out" / "gone.exr").string()},
+                         {"options", slow}};
+    ASSERT_EQ(write_message(gone.fd(), queued.dump(), deadline_in(5)), IoStatus::ok);
+    ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30));
+    EXPECT_EQ(stats(service.socket).value("clients", 0), 3);  // first, gone and this request's own
+  }
+  // Its slot back: first's and the stats request's own only.
+  EXPECT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 2; }, 30));
+  pollfd p{first.fd(), POLLIN, 0};
+  EXPECT_EQ(::poll(&p, 1, 0), 0) << "the first frame is still computing";
+  EXPECT_EQ(first.read_response().value("ok", false), true);
+  ASSERT_TRUE(wait_until([&] { return service.log().find("dropped") != std::string::npos; }, 30)) << service.log();
+  EXPECT_NE(service.log().find("its client closed the connection while it was queued"), std::string::npos);
+  EXPECT_EQ(stats(service.socket).value("queue_depth", -1), 0);
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "gone.exr"));
 }
 
 TEST(ServeSocket, FullQueueAnswersBusy) {
