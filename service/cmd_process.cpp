@@ -272,7 +272,8 @@ Command register_process(CLI::App& app) {
   cmd->add_option("-o,--out", p.output_dir, "Output folder")->required();
   cmd->add_flag("--force", p.force, "Recompute frames whose output is up to date");
   cmd->add_option("--config", st->config,
-                  "JSON file of options: the long flag names without '--' as keys, e.g. "
+                  "JSON file of frame options (those 'ssdo options' lists: what decides a frame's output, not "
+                  "--frames, --jobs or -o): their long names without '--' as keys, e.g. "
                   "{\"method\": \"hbao\", \"terms\": \"all\"}; flags given override it")
       ->check(CLI::ExistingFile);
   cmd->add_flag("-v,--verbose", p.verbose,

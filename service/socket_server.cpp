@@ -449,6 +449,10 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   } spool_bytes{*this};
   std::string input;
   if (request.inline_size > 0) {
+    if (request.inline_size > options_.max_spool_bytes)  // never fits, however long the client waits
+      return refuse("bad_request", "an inline frame of " + std::to_string(request.inline_size) +
+                                       " bytes is larger than the whole spool (--max-spool-mb " +
+                                       std::to_string(options_.max_spool_bytes >> 20) + ")");
     if (!take(spool_bytes_, options_.max_spool_bytes, request.inline_size))
       return refuse("busy", "the spool holds as many inline frames as it may (" +
                                 std::to_string(options_.max_spool_bytes >> 20) + " MiB, --max-spool-mb); try again later");

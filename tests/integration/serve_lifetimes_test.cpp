@@ -295,6 +295,17 @@ TEST(ServeLifetimes, InlineUploadsShareABoundedSpool) {
   const json r = second.read_response(nullptr, 5);
   EXPECT_EQ(r.value("code", ""), "busy") << r.dump();
   EXPECT_NE(r.value("error", "").find("--max-spool-mb"), std::string::npos) << r.dump();
+  // Larger than the whole spool (and within --max-inline-mb): never fits, so not "busy"
+  // (try again) but a bad request.
+  const std::string small_spool = socket_path_for("spool2");
+  SsdoProcess other({"serve", "--socket", small_spool, "-o", dir / "out2", "--allow", dir / "in", "--max-inline-mb",
+                     "8", "--max-spool-mb", "2"},
+                    dir.path / "serve2.log");
+  ASSERT_TRUE(other.wait_for_log("ready", 30)) << other.log();
+  Client third(small_spool);
+  const json big = third.request({{"op", "process"}, {"inline_size", 4 << 20}}, {}, nullptr, 5);
+  EXPECT_EQ(big.value("code", ""), "bad_request") << big.dump();
+  EXPECT_NE(big.value("error", "").find("larger than the whole spool"), std::string::npos) << big.dump();
 }
 
 TEST(ServeLifetimes, IdleConnectionsDoNotLockOthersOut) {
