@@ -206,6 +206,10 @@ bool parse_composite(const std::string& spec, std::vector<WeightedTerm>& terms, 
         return false;
       }
     }
+    if (std::any_of(terms.begin(), terms.end(), [&](const WeightedTerm& t) { return t.term == w.term; })) {
+      error = "--composite: '" + name + "' is given twice (give each term once, with its weight)";
+      return false;
+    }
     terms.push_back(w);
   }
   if (terms.empty()) {

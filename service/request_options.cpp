@@ -158,6 +158,13 @@ bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std:
   if (!resolve_read_options(a.read, request.read, error) ||
       !resolve_compute_options(a.compute, request, error, build_environment))
     return false;
+  // DWAA quantises in a perceptual colour space: only the composite (a picture) may be
+  // stored with it, and every AO or SSDO output also writes numeric and vector terms.
+  if (a.compression == "dwaa" && (request.terms.ao || request.terms.ssdo)) {
+    error = "--compression dwaa is lossy and only for colour terms: with --terms ao or ssdo the outputs hold "
+            "numeric and vector terms (AO, bent normal, confidence); use zip or piz, or --terms composite";
+    return false;
+  }
   request.write.compression = a.compression;
   request.write.png_previews = a.png;
   request.write.string_attributes = output_attributes(a);

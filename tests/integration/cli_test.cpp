@@ -115,8 +115,10 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --chunk 0/4");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("count from 1"), std::string::npos) << r.output;
-  // Values past what the field holds (a float's range; NaN seconds turned the timeout off).
-  for (const char* bad : {"--radius 1e39", "--env-constant 1e39", "--frame-timeout nan", "--frame-timeout 0"}) {
+  // Values past what the field holds (a float's range; NaN seconds turned the timeout off)
+  // ... and values no frame can be written with, refused before any frame is computed.
+  for (const char* bad : {"--radius 1e39", "--env-constant 1e39", "--frame-timeout nan", "--frame-timeout 0",
+                          "--composite ambient,ambient", "--compression dwaa --terms ao"}) {
     const RunResult v = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " " + bad);
     EXPECT_EQ(v.exit_code, 2) << bad << ": " << v.output;
   }
