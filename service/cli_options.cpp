@@ -134,6 +134,11 @@ bool parse_sky(const std::string& spec, glm::vec3& top, glm::vec3& bottom, std::
       size_t used = 0;
       const float v = std::stof(token, &used);
       if (used != token.size() || !(v >= 0.0f) || !std::isfinite(v)) throw std::invalid_argument(token);
+      if (v > kMaxRadiance) {
+        error = "--sky '" + spec + "': '" + token + "' is over " + std::to_string(int(kMaxRadiance)) +
+                " (the largest half float: the outputs store radiance in half)";
+        return false;
+      }
       groups.back().push_back(v);
     } catch (const std::exception&) {
       error = "--sky '" + spec + "': '" + token + "' is not a non-negative number";

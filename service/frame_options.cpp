@@ -116,7 +116,9 @@ std::vector<FrameOption> ssdo_options() {
                "0.25:0.5:1,1:0.35:0.08",
        .field = +[](A& a) -> std::string& { return a.compute.sky; }},
       {.name = "env-constant", .kind = OptionKind::number, .set = OptionSet::compute, .group = "SSDO",
-       .help = "Environment light: uniform radiance", .unset = "1 unless --env or --sky", .lo = 0, .hi = kInf,
+       .help = "Environment light: uniform radiance, at most the largest half float (the outputs store radiance "
+               "in half)",
+       .unset = "1 unless --env or --sky", .lo = 0, .hi = kMaxRadiance,
        .field = +[](A& a) -> float& { return a.compute.env_constant; }},
       {.name = "env-up", .kind = OptionKind::choice, .set = OptionSet::compute, .group = "SSDO",
        .help = "World up axis of the environment: z (Blender) or y", .choices = {"z", "y"},

@@ -26,6 +26,10 @@ inline constexpr int kDefaultViewsPerSide = 2;
 // by 2.4 to 3.5 for SSDO's terms, where K = 1 is just above 2x. 0 is a frame alone, bit for bit.
 inline constexpr int kDefaultTemporalPerSide = 2;
 
+// The largest radiance an option may give the environment (--env-constant, --sky): the
+// largest half float, since the outputs store radiance in half (more would be inf there).
+inline constexpr float kMaxRadiance = 65504.0f;
+
 // Raw option values as typed; resolved into a request by resolve_* (cli_options.h).
 struct ReadOptionArgs {
   std::vector<std::string> maps;  // --map input=channel

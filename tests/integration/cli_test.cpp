@@ -118,7 +118,8 @@ TEST(Cli, UsageErrorsExitWithTwo) {
   // Values past what the field holds (a float's range; NaN seconds turned the timeout off)
   // ... and values no frame can be written with, refused before any frame is computed.
   for (const char* bad : {"--radius 1e39", "--env-constant 1e39", "--frame-timeout nan", "--frame-timeout 0",
-                          "--composite ambient,ambient", "--compression dwaa --terms ao"}) {
+                          "--composite ambient,ambient", "--compression dwaa --terms ao", "--env-constant 70000",
+                          "--sky 70000,1"}) {
     const RunResult v = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " " + bad);
     EXPECT_EQ(v.exit_code, 2) << bad << ": " << v.output;
   }
