@@ -76,7 +76,24 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   }
   // The workers read and build what they compute with; here only the checks.
   FrameRequest check;
-  return resolve_frame_options(options, check, error, /*build_environment=*/false);
+  if (!resolve_frame_options(options, check, error, /*build_environment=*/false)) return false;
+  if (const std::string note = quality_choice_note(options.compute); !note.empty())
+    std::fprintf(stderr, "ssdo: %s%s\n", note.c_str(),
+                 given(app, "method") || given(app, "preset") ? " (--method and --preset give way to --quality auto)"
+                                                              : "");
+  return true;
+}
+
+std::string quality_choice_note(const ComputeOptionArgs& a) {
+  if (a.quality != "auto") return {};
+  bool met = false;
+  const CalibrationEntry choice = choose_quality(shipped_calibration(), a.max_error, met);
+  char text[256];
+  std::snprintf(text, sizeof text, "--quality auto --max-error %.3g: %s %s (calibrated MAE %.3f, %.0f ms at 640x360)%s",
+                a.max_error, std::string(to_string(choice.method)).c_str(),
+                std::string(to_string(choice.preset)).c_str(), choice.mae, choice.ms,
+                met ? "" : "; no method reaches that error, this is the most accurate");
+  return text;
 }
 
 CLI::Validator seconds_in(double lo, double hi) {
@@ -274,15 +291,11 @@ namespace {
 bool resolve_settings(const ComputeOptionArgs& a, FrameRequest& request, std::string& error) {
   auto method = parse_ao_method(a.method);
   auto preset = parse_preset(a.preset);
-  if (a.quality == "auto") {
+  if (a.quality == "auto") {  // quality_choice_note says what was chosen, once per command
     bool met = false;
     const CalibrationEntry choice = choose_quality(shipped_calibration(), a.max_error, met);
     method = choice.method;
     preset = choice.preset;
-    std::fprintf(stderr, "ssdo: --quality auto --max-error %.3g: %s %s (calibrated MAE %.3f, %.0f ms at 640x360)%s\n",
-                 a.max_error, std::string(to_string(choice.method)).c_str(),
-                 std::string(to_string(choice.preset)).c_str(), choice.mae, choice.ms,
-                 met ? "" : "; no method reaches that error, this is the most accurate");
   }
   if (!method || !preset) {
     error = "unknown method or preset: " + a.method + " / " + a.preset;

@@ -34,6 +34,10 @@ bool given(const CLI::App& app, const std::string& key);
 bool frame_options_over_config(const CLI::App& app, const std::string& config, FrameOptionArgs& options,
                                std::string& error);
 
+// What --quality auto chooses for these options, as one line for the user; empty without
+// --quality auto. Printed once by the command (frame_options_over_config), not per frame.
+std::string quality_choice_note(const ComputeOptionArgs& args);
+
 // Limits of the worker processes (--jobs, --frame-timeout, --memory-limit, --max-pixels).
 void add_worker_limits(CLI::App& app, int& jobs, WorkerLimits& limits);
 

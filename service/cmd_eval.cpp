@@ -264,6 +264,8 @@ Command register_eval(CLI::App& app) {
             if (!resolve_read_options(st->options.read, eval.request.read, error) ||
                 !resolve_compute_options(compute, eval.request, error))
               return usage_error(error);
+            if (const std::string note = quality_choice_note(compute); !note.empty())
+              std::cerr << "ssdo eval: " << note << "\n";
             eval.request.terms = {eval.term == "ao", eval.term != "ao", false};
             if (eval.reference.empty())
               eval.reference = eval.term == "ao" ? "AO" : eval.term == "ssdo_direct" ? "DiffDir" : "DiffInd";

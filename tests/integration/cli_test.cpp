@@ -220,6 +220,19 @@ TEST(Cli, MoreThreadsThanCoresRunOnTheCores) {
   EXPECT_TRUE(fs::exists(dir.path / "out" / "cornell.ssdo.exr"));
 }
 
+// --quality auto says once what it chose (not again from each worker), and that it
+// overrides an explicit --method.
+TEST(Cli, QualityAutoSaysItsChoiceOnce) {
+  ScratchDir dir;
+  const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + dir / "out" +
+                               " --terms ao --quality auto --method hbao");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const size_t first = r.output.find("--quality auto --max-error");
+  ASSERT_NE(first, std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("--quality auto --max-error", first + 1), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("give way to --quality auto"), std::string::npos) << r.output;
+}
+
 // eval's reference follows the term: ssdo_direct against DiffDir unless told otherwise.
 TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
   const RunResult r = run_ssdo("eval " + example("greeble.exr") + " --term ssdo_direct --preset low --json --env " +
