@@ -220,6 +220,21 @@ TEST(ServeWatch, PollFindsFramesWithoutEvents) {
   EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "linked.ssdo.exr"); }, 60)) << service.log();
 }
 
+// A symbolic link made in the watched folder is complete when made (no close to wait for):
+// its frame is computed without a rescan.
+TEST(ServeWatch, ASymbolicLinkMadeInTheFolderIsComputed) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("symlink");
+  // --fov: the link needs no sidecar of its own, whose arrival would queue it too.
+  SsdoProcess service(serve_args(dir, socket, {"--fov", "60"}), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  copy_example("cornell", dir.path / "in", "real");
+  ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "real.ssdo.exr"); }, 60)) << service.log();
+  fs::create_symlink("real.exr", dir.path / "in" / "alias.exr");
+  EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "alias.ssdo.exr"); }, 60)) << service.log();
+}
+
 TEST(ServeWatch, PoisonFramesEachGetAnErrorAndTheServiceStaysUp) {
   SSDO_REQUIRE_CONFORMANCE();
   ScratchDir dir;
