@@ -238,26 +238,36 @@ void SocketServer::accept_loop() {
     if (!(fds[0].revents & POLLIN)) continue;
     const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (fd < 0) continue;
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (stopping_ || (open_slots() <= 0 && !evict_idle_connection())) {
-      const json busy = error_response(
-          "busy", stopping_ ? "the service is stopping"
-                            : "too many clients (" + std::to_string(options_.max_clients) + "); try again later");
-      write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
-      ::close(fd);
-      continue;
-    }
-    connections_.emplace(fd, Connection{});
-    ++clients_;
+    // Nothing a client brings may end the accept loop (it would end the service): a
+    // connection that cannot be set up (no thread, no memory) is answered and closed.
     try {
-      std::thread([this, fd] { serve_connection(fd); }).detach();
-    } catch (const std::system_error&) {  // no thread could start (a thread limit): this client only
-      connections_.erase(fd);
-      --clients_;
-      const json busy = error_response("busy", "the service could not start a thread for this client; try again later");
-      write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
+      accept_connection(fd);
+    } catch (const std::exception&) {
       ::close(fd);
     }
+  }
+}
+
+void SocketServer::accept_connection(int fd) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (stopping_ || (open_slots() <= 0 && !evict_idle_connection())) {
+    const json busy = error_response(
+        "busy", stopping_ ? "the service is stopping"
+                          : "too many clients (" + std::to_string(options_.max_clients) + "); try again later");
+    write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
+    ::close(fd);
+    return;
+  }
+  connections_.emplace(fd, Connection{});
+  ++clients_;
+  try {
+    std::thread([this, fd] { serve_connection(fd); }).detach();
+  } catch (const std::exception&) {  // no thread could start (a thread or memory limit): this client only
+    connections_.erase(fd);
+    --clients_;
+    const json busy = error_response("busy", "the service could not start a thread for this client; try again later");
+    write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
+    ::close(fd);
   }
 }
 

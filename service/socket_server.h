@@ -69,6 +69,9 @@ class SocketServer {
 
  private:
   void accept_loop();
+  // Registers an accepted client and starts its thread, or answers it busy; throws only
+  // when even that fails (the loop then closes it).
+  void accept_connection(int fd);
   void serve_connection(int fd);
   // Handles one request; false when the connection must close (the stream is out of step).
   bool handle_request(int fd, const std::string& header);

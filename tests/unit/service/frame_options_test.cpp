@@ -98,6 +98,18 @@ TEST(FrameOptionTable, NumericRangesAreAcceptedByTheKernelsAtBothEnds) {
   }
 }
 
+TEST(FrameOptionTable, CompressionDwaaNeedsColourTermsOnly) {
+  for (const char* terms : {"ao,composite", "ao", "ssdo", "all"}) {
+    FrameOptionArgs a;
+    a.compression = "dwaa";
+    a.compute.terms = terms;
+    FrameRequest request;
+    std::string error;
+    EXPECT_FALSE(resolve_frame_options(a, request, error, /*build_environment=*/false)) << terms;
+    EXPECT_NE(error.find("dwaa"), std::string::npos) << error;
+  }
+}
+
 TEST(FrameOptionTable, EveryChoiceResolves) {
   for (const FrameOption& o : frame_options()) {
     if (o.kind != OptionKind::choice) continue;
@@ -105,6 +117,9 @@ TEST(FrameOptionTable, EveryChoiceResolves) {
       FrameOptionArgs a;
       std::string error;
       ASSERT_TRUE(apply_json(json{{o.name, c}}, a, error)) << o.name << " " << c << ": " << error;
+      // dwaa stores colour terms only: it resolves with the composite alone (and with the
+      // default terms, which hold AO, is refused: CompressionDwaaNeedsColourTermsOnly).
+      if (std::string(o.name) == "compression" && c == "dwaa") a.compute.terms = "composite";
       FrameRequest request;
       EXPECT_TRUE(resolve_frame_options(a, request, error, /*build_environment=*/false))
           << o.name << " = '" << c << "': " << error;
