@@ -234,18 +234,44 @@ std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   return temp.commit(final_path);
 }
 
+// The output's data window (the terms' grid at the frame's data origin) and display window.
+struct Windows {
+  PixelBox data, display;
+};
+
+Windows output_windows(const WriteOptions& options, cv::Size size) {
+  Windows w;
+  w.data = {options.data_x, options.data_y, options.data_x + size.width - 1, options.data_y + size.height - 1};
+  w.display = options.display_window.value_or(w.data);
+  return w;
+}
+
+// The header's camera matrices: the camera is over the data window (the pixel grid);
+// worldToNDC is over the display window (projection_for_data_window from the data window
+// to the display window: the inverse of the reader's re-targeting).
+ExrCameraMatrices header_matrices(const Camera& camera, const Windows& w) {
+  if (w.display == w.data) return exr_matrices_from_camera(camera);
+  Camera display = camera;
+  display.view_to_clip = projection_for_data_window(camera.view_to_clip, w.data, w.display);
+  display.width_px = int(w.display.width());
+  display.height_px = int(w.display.height());
+  return exr_matrices_from_camera(display);
+}
+
 // OpenEXR's writer: every compression, and zip, zips and none with ChunkEncoder::openexr.
 // Throws on failure (the caller removes the temp file).
 void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const Camera& camera,
                const WriteOptions& options, Imf::Compression compression, cv::Size size) {
-  Imf::Header header(size.width, size.height);
+  const Windows w = output_windows(options, size);
+  Imf::Header header(Imath::Box2i({w.display.min_x, w.display.min_y}, {w.display.max_x, w.display.max_y}),
+                     Imath::Box2i({w.data.min_x, w.data.min_y}, {w.data.max_x, w.data.max_y}));
   header.compression() = compression;
   header.zipCompressionLevel() = options.zip_level;
   for (const auto& t : terms)
     for (const auto& c : channel_names(t))
       header.channels().insert(c, Imf::Channel(t.type == SampleType::half ? Imf::HALF
                                                                           : Imf::FLOAT));
-  const ExrCameraMatrices m = exr_matrices_from_camera(camera);
+  const ExrCameraMatrices m = header_matrices(camera, w);
   Imf::addWorldToCamera(header, to_imath(m.world_to_camera));
   Imf::addWorldToNDC(header, to_imath(m.world_to_ndc));
   if (camera.near_view > 0.0f)
@@ -257,17 +283,21 @@ void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const
 
   // OpenEXR writes a slice only into a channel of the same pixel type, so half terms are
   // converted into an interleaved half buffer first; float terms are written in place.
+  // A slice is addressed by absolute pixel (x, y): its base is where pixel (0, 0) would be,
+  // the grid's first sample moved back by the data window's origin.
   Imf::FrameBuffer fb;
   std::vector<std::vector<half>> half_buffers;
+  auto slice = [&](Imf::PixelType type, const void* first, size_t x_stride, size_t y_stride) {
+    char* base = const_cast<char*>(static_cast<const char*>(first)) - ptrdiff_t(w.data.min_x) * ptrdiff_t(x_stride) -
+                 ptrdiff_t(w.data.min_y) * ptrdiff_t(y_stride);
+    return Imf::Slice(type, base, x_stride, y_stride);
+  };
   for (const auto& t : terms) {
     const auto channels = channel_names(t);
     const int n = t.image.channels();
     if (t.image.depth() == CV_16F) {  // stored as given
       for (int c = 0; c < n; ++c)
-        fb.insert(channels[c], Imf::Slice(Imf::HALF,
-                                          const_cast<char*>(reinterpret_cast<const char*>(
-                                              t.image.ptr<uint16_t>() + c)),
-                                          sizeof(half) * n, t.image.step[0]));
+        fb.insert(channels[c], slice(Imf::HALF, t.image.ptr<uint16_t>() + c, sizeof(half) * n, t.image.step[0]));
       continue;
     }
     if (t.type == SampleType::half) {
@@ -280,16 +310,11 @@ void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const
         }
       }, 32);
       for (int c = 0; c < n; ++c)
-        fb.insert(channels[c], Imf::Slice(Imf::HALF, reinterpret_cast<char*>(buffer.data() + c),
-                                          sizeof(half) * n, sizeof(half) * n * size.width));
+        fb.insert(channels[c], slice(Imf::HALF, buffer.data() + c, sizeof(half) * n, sizeof(half) * n * size.width));
       continue;
     }
     for (int c = 0; c < n; ++c)
-      fb.insert(channels[c],
-                Imf::Slice(Imf::FLOAT,
-                           const_cast<char*>(reinterpret_cast<const char*>(
-                               t.image.ptr<float>() + c)),
-                           sizeof(float) * n, t.image.step[0]));
+      fb.insert(channels[c], slice(Imf::FLOAT, t.image.ptr<float>() + c, sizeof(float) * n, t.image.step[0]));
   }
   {
     // Compression runs on OpenEXR's global pool (sized by its owner, e.g. the worker);
@@ -406,11 +431,22 @@ std::map<std::string, ChannelSource> write_own_header(exr_context_t context, int
     for (const auto& c : channel_names(t)) long_names = long_names || c.size() > 31;
   if (long_names) check_core(exr_set_longname_support(context, 1), "cannot allow long names");
   check_core(exr_add_part(context, nullptr, EXR_STORAGE_SCANLINE, &part), "cannot add the part");
-  check_core(exr_initialize_required_attr_simple(
-                 context, part, size.width, size.height,
-                 compression == Imf::ZIPS_COMPRESSION  ? EXR_COMPRESSION_ZIPS
-                 : compression == Imf::NO_COMPRESSION ? EXR_COMPRESSION_NONE
-                                                      : EXR_COMPRESSION_ZIP),
+  // The defaults of exr_initialize_required_attr_simple (Imf::Header's too), with the
+  // output's windows.
+  const Windows w = output_windows(options, size);
+  auto box = [](const PixelBox& b) {
+    exr_attr_box2i_t out;
+    out.min.x = b.min_x, out.min.y = b.min_y, out.max.x = b.max_x, out.max.y = b.max_y;
+    return out;
+  };
+  const exr_attr_box2i_t display = box(w.display), data = box(w.data);
+  exr_attr_v2f_t screen_centre;
+  screen_centre.x = screen_centre.y = 0.0f;
+  check_core(exr_initialize_required_attr(context, part, &display, &data, 1.0f, &screen_centre, 1.0f,
+                                          EXR_LINEORDER_INCREASING_Y,
+                                          compression == Imf::ZIPS_COMPRESSION  ? EXR_COMPRESSION_ZIPS
+                                          : compression == Imf::NO_COMPRESSION ? EXR_COMPRESSION_NONE
+                                                                               : EXR_COMPRESSION_ZIP),
              "cannot set the required attributes");
   std::map<std::string, ChannelSource> sources;
   for (const auto& t : terms) {
@@ -425,7 +461,7 @@ std::map<std::string, ChannelSource> write_own_header(exr_context_t context, int
                  "cannot add a channel");
     }
   }
-  const ExrCameraMatrices m = exr_matrices_from_camera(camera);
+  const ExrCameraMatrices m = header_matrices(camera, w);
   // Same 16 floats in memory order as to_imath's; the names are Imf::addWorldToCamera's and
   // Imf::addWorldToNDC's (ImfStandardAttributes.h).
   exr_attr_m44f_t world_to_camera, world_to_ndc;
@@ -519,7 +555,7 @@ void write_own_chunks(exr_context_t context, int part, const ChunkLayout& layout
       exr_core::forget_error();
       for (int i = 0; i < count; ++i) {
         const UninitializedVector<uint8_t>& bytes = stored[b][size_t(i)];
-        check_core(exr_write_scanline_chunk(context, part, (first + i) * lines_per_chunk,
+        check_core(exr_write_scanline_chunk(context, part, options.data_y + (first + i) * lines_per_chunk,
                                             bytes.data(), bytes.size()),
                    "cannot write a chunk");
       }

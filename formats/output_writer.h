@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -11,6 +12,7 @@
 
 #include "core/camera.h"
 #include "core/resource_failure.h"
+#include "formats/camera_io.h"
 
 namespace ssdo {
 
@@ -59,6 +61,12 @@ struct WriteOptions {
   // says how it was made. Names must not be those the writer sets itself (the required
   // attributes, worldToCamera, worldToNDC, clipNear, clipFar).
   std::vector<std::pair<std::string, std::string>> string_attributes;
+  // Where the terms' pixel grid sits in absolute EXR pixels (the input frame's data window
+  // origin) and the display window it belongs to (empty: the grid itself). The output keeps
+  // both, so that a crop's or an overscan frame's terms land where its pixels do; its
+  // worldToNDC is then over the display window, as OpenEXR defines it.
+  int data_x = 0, data_y = 0;
+  std::optional<PixelBox> display_window;
   // Threads that convert and compress: 0 = OpenEXR's global pool and OpenCV's pool as
   // configured; 1 = serial in the calling thread; N = N threads. ChunkEncoder::own packs
   // and compresses chunks on OpenCV's pool (parallel_rows) only.

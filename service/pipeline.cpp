@@ -582,6 +582,14 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
       t0 = std::chrono::steady_clock::now();
       WriteOptions write = request.write;
       if (write.threads == 0) write.threads = request.threads;  // the frame's thread budget
+      // The terms sit where the frame's pixels do (inside its guard band, when cropped).
+      const int band = std::max(0, request.guard_band_px);
+      write.data_x = result.info.data_x + band;
+      write.data_y = result.info.data_y + band;
+      if (result.info.display_width_px > 0 && result.info.display_height_px > 0)
+        write.display_window = PixelBox{result.info.display_x, result.info.display_y,
+                                        result.info.display_x + result.info.display_width_px - 1,
+                                        result.info.display_y + result.info.display_height_px - 1};
       const std::string err = write_outputs(request.output_path, computed.terms, camera, write, result.exhausted);
       result.times.write_ms = ms_since(t0);
       if (!err.empty()) {

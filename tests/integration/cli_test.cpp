@@ -2,6 +2,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -231,6 +233,30 @@ TEST(Cli, QualityAutoSaysItsChoiceOnce) {
   ASSERT_NE(first, std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("--quality auto --max-error", first + 1), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("give way to --quality auto"), std::string::npos) << r.output;
+}
+
+// The output of a crop sits where the crop does: its data and display windows are the
+// input's (a compositor merges it over the plate in place).
+TEST(Cli, ACropsOutputKeepsItsWindows) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  OIIO::ImageBuf full(example("cornell.exr"));
+  OIIO::ImageBuf crop = OIIO::ImageBufAlgo::crop(full, OIIO::ROI(100, 300, 80, 230));
+  ASSERT_TRUE(crop.write((dir.path / "in" / "crop.exr").string())) << crop.geterror();
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "crop.camera.json");
+  const RunResult r = run_ssdo("process " + dir / "in/crop.exr" + " -o " + dir / "out" + " --terms ao --preset low");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto in = OIIO::ImageInput::open((dir.path / "out" / "crop.ssdo.exr").string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  EXPECT_EQ(spec.x, 100);
+  EXPECT_EQ(spec.y, 80);
+  EXPECT_EQ(spec.width, 200);
+  EXPECT_EQ(spec.height, 150);
+  EXPECT_EQ(spec.full_x, 0);
+  EXPECT_EQ(spec.full_y, 0);
+  EXPECT_EQ(spec.full_width, 640);
+  EXPECT_EQ(spec.full_height, 360);
 }
 
 // eval's reference follows the term: ssdo_direct against DiffDir unless told otherwise.

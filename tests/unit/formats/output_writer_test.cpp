@@ -15,6 +15,7 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/openexr.h>
 
@@ -74,7 +75,10 @@ std::map<std::string, std::vector<uint8_t>> stored_samples(const fs::path& path)
     const size_t bytes = it.channel().type == Imf::HALF ? 2 : 4;
     std::vector<uint8_t>& s = samples[it.name()];
     s.resize(w * h * bytes);
-    fb.insert(it.name(), Imf::Slice(it.channel().type, reinterpret_cast<char*>(s.data()), bytes, bytes * w));
+    // Addressed by absolute pixel: the buffer's first sample is the data window's corner.
+    char* base = reinterpret_cast<char*>(s.data()) - ptrdiff_t(window.min.x) * ptrdiff_t(bytes) -
+                 ptrdiff_t(window.min.y) * ptrdiff_t(bytes * w);
+    fb.insert(it.name(), Imf::Slice(it.channel().type, base, bytes, bytes * w));
   }
   in.setFrameBuffer(fb);
   in.readPixels(window.min.y, window.max.y);
@@ -414,12 +418,57 @@ TEST(WriteOutputs, ChunkEncodersWriteTheSameHeaderAndSamples) {
   expect_encoders_agree(dir.path, "noclip", {terms[0]}, no_clip, o);
   // Channel names beyond 31 bytes: the long-names flag of the version field.
   expect_encoders_agree(dir.path, "long", {{"ssdo_indirect_denoised_with_a_long_name", colour}}, cam, o);
+  // A crop's and an overscan frame's windows (the grid away from the display's origin).
+  WriteOptions crop = o;
+  crop.data_x = 100, crop.data_y = 80;
+  crop.display_window = PixelBox{0, 0, 639, 359};
+  expect_encoders_agree(dir.path, "crop", terms, cam, crop);
+  WriteOptions overscan = o;
+  overscan.data_x = -5, overscan.data_y = -3;
+  overscan.display_window = PixelBox{0, 0, w - 11, h - 7};
+  expect_encoders_agree(dir.path, "overscan", terms, cam, overscan);
   // The values themselves (the reference is OpenEXR's writer).
   const auto back = read_channels_oiio(dir / "zip-2.libdeflate.exr", {"ssdo_direct.R", "ssdo_direct.G"});
   ASSERT_EQ(back.size(), size_t(w) * h * 2);
   EXPECT_EQ(back[(size_t(1) * w + 2) * 2], 1.0f);
   EXPECT_EQ(back[(size_t(1) * w + 2) * 2 + 1], 1.0f + 0x1p-9f);
-  EXPECT_EQ(files_in(dir.path), 2u * (9 + 4));
+  EXPECT_EQ(files_in(dir.path), 2u * (9 + 6));
+}
+
+// A crop keeps its place: the output's data and display windows are the frame's, and the
+// header camera read back over them (as the reader re-targets it) is the grid's camera.
+TEST(WriteOutputs, ACropKeepsItsWindowsAndItsCamera) {
+  ScratchDir dir;
+  const PixelBox display{0, 0, 639, 359}, data{100, 80, 299, 229};
+  Camera full = test_camera(640, 360);
+  Camera crop = full;
+  crop.view_to_clip = projection_for_data_window(full.view_to_clip, display, data);
+  crop.width_px = 200, crop.height_px = 150;
+  for (const ChunkEncoder encoder : {ChunkEncoder::own, ChunkEncoder::openexr}) {
+    WriteOptions o;
+    o.chunk_encoder = encoder;
+    o.data_x = data.min_x, o.data_y = data.min_y;
+    o.display_window = display;
+    const fs::path path = dir / (encoder == ChunkEncoder::own ? "own.exr" : "openexr.exr");
+    ASSERT_EQ(write_outputs(path.string(), {{"ao", ramp(200, 150, 1, 1e-5f, 0.0f)}}, crop, o), "");
+    Imf::InputFile in(path.c_str());
+    const Imath::Box2i dw = in.header().dataWindow(), dsw = in.header().displayWindow();
+    EXPECT_EQ(PixelBox({dw.min.x, dw.min.y, dw.max.x, dw.max.y}), data);
+    EXPECT_EQ(PixelBox({dsw.min.x, dsw.min.y, dsw.max.x, dsw.max.y}), display);
+    ExrCameraMatrices m;
+    const auto* w2c = in.header().findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
+    const auto* w2n = in.header().findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
+    ASSERT_TRUE(w2c && w2n);
+    std::memcpy(&m.world_to_camera[0][0], &w2c->value().x[0][0], 64);
+    std::memcpy(&m.world_to_ndc[0][0], &w2n->value().x[0][0], 64);
+    std::string error, note;
+    const auto back = camera_from_exr_matrices(m, display, data, crop.near_view, crop.far_view, &error, &note);
+    ASSERT_TRUE(back) << error;
+    for (int c = 0; c < 4; ++c)
+      for (int r = 0; r < 2; ++r) EXPECT_NEAR(back->view_to_clip[c][r], crop.view_to_clip[c][r], 1e-5f) << c << r;
+    // The first sample is the crop's first pixel.
+    EXPECT_EQ(read_channels_oiio(path, {"ao"})[0], 0.0f);
+  }
 }
 
 // A chunk deflate cannot shrink is stored uncompressed (the format's rule); a frame whose
