@@ -27,6 +27,8 @@
 #include <OpenEXR/ImfInputPart.h>
 #include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfPartType.h>
+#include <OpenEXR/ImfDoubleAttribute.h>
+#include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
@@ -322,11 +324,15 @@ bool camera_from_header(const std::string& path, int part, ReadResult& result, P
   // Same 16 floats in the same order: Imath row-vector == glm column-vector form.
   std::copy(&w2c.x[0][0], &w2c.x[0][0] + 16, &m.world_to_camera[0][0]);
   std::copy(&w2n.x[0][0], &w2n.x[0][0] + 16, &m.world_to_ndc[0][0]);
-  float near_view = 0.0f, far_view = 0.0f;
-  if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipNearAttribute))
-    near_view = a->value();
-  if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(kClipFarAttribute))
-    far_view = a->value();
+  // A clip distance as float (OpenEXR's convention), double or int (as some tools write a
+  // whole number, e.g. oiiotool's --attrib clipFar 1000); 0 when absent.
+  auto clip_distance = [&](const char* name) -> float {
+    if (auto* a = h.findTypedAttribute<Imf::FloatAttribute>(name)) return a->value();
+    if (auto* a = h.findTypedAttribute<Imf::DoubleAttribute>(name)) return float(a->value());
+    if (auto* a = h.findTypedAttribute<Imf::IntAttribute>(name)) return float(a->value());
+    return 0.0f;
+  };
+  const float near_view = clip_distance(kClipNearAttribute), far_view = clip_distance(kClipFarAttribute);
   std::string error, note;
   // The matrices refer to this part's display window; the grid is the depth part's.
   auto cam = camera_from_exr_matrices(m, box_of(h.displayWindow()), prep.data, near_view,

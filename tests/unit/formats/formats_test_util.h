@@ -60,6 +60,7 @@ struct TestExr {
   int display_x = 0, display_y = 0, display_width = 0, display_height = 0;
   std::vector<TestChannel> channels;
   std::vector<std::pair<std::string, glm::mat4>> matrices;
+  std::vector<std::pair<std::string, int>> int_attributes;
   std::string compression = "zip";
 
   bool write(const fs::path& path, std::string* error = nullptr) const {
@@ -79,6 +80,7 @@ struct TestExr {
     spec.attribute("compression", compression);
     for (const auto& [name, m] : matrices)
       spec.attribute(name, OIIO::TypeDesc::TypeMatrix44, &m[0][0]);
+    for (const auto& [name, v] : int_attributes) spec.attribute(name, v);
     std::vector<float> interleaved(size_t(width) * height * channels.size());
     for (size_t i = 0; i < size_t(width) * height; ++i)
       for (size_t c = 0; c < channels.size(); ++c)

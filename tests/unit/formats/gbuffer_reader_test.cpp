@@ -319,6 +319,25 @@ TestExr generic_frame(int w, int h, float depth) {
   return t;
 }
 
+// Clip distances written as whole numbers (int attributes, as oiiotool's --attrib writes
+// clipFar 5) are read as the float ones are, not dropped.
+TEST(HeaderCamera, IntegerClipDistancesAreRead) {
+  ScratchDir dir;
+  TestExr t = generic_frame(16, 8, 3.0f);
+  const Camera cam = Camera::from_fov_x(16, 8, 60.0f, 0.1f, 100.0f);
+  glm::mat4 uv_from_gl(1.0f);
+  uv_from_gl[0][0] = 0.5f, uv_from_gl[3][0] = 0.5f, uv_from_gl[1][1] = -0.5f, uv_from_gl[3][1] = 0.5f;
+  t.matrices = {{"worldToCamera", glm::mat4(1.0f)}, {"worldToNDC", uv_from_gl * cam.view_to_clip}};
+  t.int_attributes = {{"clipNear", 1}, {"clipFar", 5}};
+  const fs::path path = dir / "int_clip.exr";
+  ASSERT_TRUE(t.write(path));
+  const ReadResult r = read_gbuffer(path.string());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.camera_source, "header worldToCamera/worldToNDC");
+  EXPECT_FLOAT_EQ(r.gbuffer.camera.near_view, 1.0f);
+  EXPECT_FLOAT_EQ(r.gbuffer.camera.far_view, 5.0f);
+}
+
 TEST(ReadErrors, MissingFile) {
   const ReadResult r = read_gbuffer("/nonexistent/folder/frame.exr");
   ASSERT_FALSE(r.ok());
