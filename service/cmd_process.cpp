@@ -32,16 +32,32 @@ namespace ssdo {
 namespace {
 
 // Inputs -> the ordered frame list of this batch (patterns expanded with --frames),
-// then this chunk's slice of it. `all`: the whole list, whose frames outside the chunk are
-// still its frames' neighbours.
+// then this chunk's slice of it. `all`: the sequence the frames take their neighbours
+// from: the whole list (frames outside the chunk are still its frames' neighbours), with
+// --shot-frames the patterns' frames of the whole shot (a farm task's frames see those
+// outside its range, as in a run of the whole shot).
 bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, std::vector<std::string>& all,
                     std::string& error) {
-  std::vector<int> numbers;
+  std::vector<int> numbers, shot;
   if (!args.frames.empty() && !parse_frame_ranges(args.frames, numbers, error)) {
     error = "--frames: " + error;
     return false;
   }
-  std::vector<std::string> plain;
+  if (!args.shot_frames.empty() && !parse_frame_ranges(args.shot_frames, shot, error)) {
+    error = "--shot-frames: " + error;
+    return false;
+  }
+  // `frames` in order, and beside them the sequence their neighbours come from: the same
+  // list, but a pattern's frames over the whole shot when --shot-frames gives it.
+  std::vector<std::string> plain, sequence;
+  auto add_plain = [&]() {
+    std::vector<std::string> found;
+    if (!expand_inputs(plain, found, error)) return false;
+    frames.insert(frames.end(), found.begin(), found.end());
+    sequence.insert(sequence.end(), found.begin(), found.end());
+    plain.clear();
+    return true;
+  };
   for (const std::string& input : args.inputs) {
     if (!has_frame_pattern(input)) {
       plain.push_back(input);
@@ -52,12 +68,13 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
       return false;
     }
     // Pattern frames are listed even when the file is missing: a missing frame of a
-    // requested range is that frame's error, reported like any other.
-    if (!expand_inputs(plain, frames, error)) return false;
-    plain.clear();
+    // requested range is that frame's error, reported like any other (a missing neighbour
+    // is skipped with a note).
+    if (!add_plain()) return false;
     for (int n : numbers) frames.push_back(expand_frame_pattern(input, n));
+    for (int n : shot.empty() ? numbers : shot) sequence.push_back(expand_frame_pattern(input, n));
   }
-  if (!expand_inputs(plain, frames, error)) return false;
+  if (!add_plain()) return false;
   if (!numbers.empty() && std::none_of(args.inputs.begin(), args.inputs.end(), has_frame_pattern)) {
     error = "--frames selects frames of a pattern (NAME.####.exr), and no input is one";
     return false;
@@ -65,8 +82,9 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
   // A frame listed twice (overlapping ranges, a file named twice) is computed once; two
   // frames that would write one output (the same file name in two folders) are refused
   // before anything is computed: one would silently replace the other.
-  std::set<std::string> listed;
+  std::set<std::string> listed, in_sequence;
   std::erase_if(frames, [&](const std::string& f) { return !listed.insert(f).second; });
+  std::erase_if(sequence, [&](const std::string& f) { return !in_sequence.insert(f).second; });
   std::map<std::string, std::string> writer_of;
   for (const std::string& f : frames) {
     const auto [it, fresh] = writer_of.emplace(output_path_for(f, args.output_dir), f);
@@ -76,7 +94,7 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
       return false;
     }
   }
-  all = frames;
+  all = sequence;
   if (!args.chunk.empty()) {
     int index = 0, count = 0;
     if (!parse_chunk(args.chunk, index, count, error)) return false;
@@ -248,6 +266,7 @@ bool clip_to_shot(ProcessArgs& process, const std::string& shot_frames, int& exi
               << (clipped.empty() ? "none, nothing to do" : clipped) << "\n";
   exit_code = 0;
   process.frames = clipped;
+  process.shot_frames = shot_frames;
   return !clipped.empty();
 }
 

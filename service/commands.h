@@ -57,6 +57,10 @@ struct ProcessArgs {
   std::vector<std::string> inputs;  // files, folders and frame patterns (shot.####.exr)
   std::string frames;               // --frames "1-100x2,200": numbers for the patterns
   std::string chunk;                // --chunk "I/N": the I-th of N slices of the frame list
+  // --shot-frames: the whole shot's numbers. The patterns' frames of the shot are the
+  // sequence every frame of this task takes its neighbours from (views and temporal
+  // filtering), as in a run of the whole shot; empty = the task's frames are the sequence.
+  std::string shot_frames;
   std::string output_dir;
   FrameOptionArgs options;          // every frame's options (checked by the caller)
   bool force = false;               // recompute frames whose output is up to date

@@ -259,6 +259,25 @@ TEST(Cli, ACropsOutputKeepsItsWindows) {
   EXPECT_EQ(spec.full_height, 360);
 }
 
+// A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its
+// frames' neighbours from the whole shot, as a run of the whole shot does: frame 3's
+// temporal neighbours are 1, 2, 4 and 5 although the task computes frame 3 alone.
+TEST(Cli, AFarmTaskTakesItsNeighboursFromTheWholeShot) {
+  ScratchDir dir;
+  for (int f = 1; f <= 6; ++f) {
+    char name[32];
+    std::snprintf(name, sizeof name, "shot.%04d", f);
+    fs::copy_file(example("cornell.exr"), dir.path / (std::string(name) + ".exr"));
+    fs::copy_file(example("cornell.camera.json"), dir.path / (std::string(name) + ".camera.json"));
+  }
+  const RunResult r = run_ssdo("process '" + dir / "shot.####.exr" + "' --frames 3 --shot-frames 1-6 -o " +
+                               dir / "out" + " --terms ao --preset low -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("temporal: shot.0002.exr shot.0004.exr shot.0001.exr shot.0005.exr"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "shot.0002.ssdo.exr"));  // neighbours are not written
+}
+
 // eval's reference follows the term: ssdo_direct against DiffDir unless told otherwise.
 TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
   const RunResult r = run_ssdo("eval " + example("greeble.exr") + " --term ssdo_direct --preset low --json --env " +
