@@ -665,11 +665,12 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
     exhausted = resource_failure(e);
     return path + ": cannot write EXR: " + e.what();
   }
-  if (std::string error = temp.commit(final_path); !error.empty()) return error;
-
   if (options.png_previews) {
-    // One preview per term, written side by side on the write's threads; the first
-    // term's error in the terms' order is the one reported.
+    // One preview per term, written side by side on the write's threads, before the EXR is
+    // renamed into place: an output's EXR then means its previews exist too, so a rerun
+    // that skips up-to-date EXRs never leaves previews missing (the EXR is the frame's
+    // completion mark). The first term's error in the terms' order is the one reported;
+    // the EXR's temp file is then removed.
     const fs::path stem = final_path.parent_path() / final_path.stem();
     std::vector<std::string> errors(terms.size());
     parallel_rows(cv::Range(0, int(terms.size())), options.threads, [&](const cv::Range& r) {
@@ -681,7 +682,7 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
     for (const std::string& error : errors)
       if (!error.empty()) return error;
   }
-  return {};
+  return temp.commit(final_path);
 }
 
 }  // namespace

@@ -558,6 +558,26 @@ TEST(WriteOutputs, FailureLeavesNoTempFileAndTheFinalNameUntouched) {
   EXPECT_EQ(channel_names(out), std::vector<std::string>{"ao"});
 }
 
+// The EXR is renamed into place after its previews: a preview that cannot be written
+// leaves no EXR (a rerun, which skips frames whose EXR is up to date, computes it again)
+// and no temp file.
+TEST(WriteOutputs, APreviewThatCannotBeWrittenLeavesNoExr) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(4, 2, 60.0f);
+  WriteOptions o;
+  o.png_previews = true;
+  fs::create_directories(dir / "frame.bent_normal.png");  // a folder where the preview goes
+  const std::string error = write_outputs(
+      (dir / "frame.exr").string(),
+      {{"ao", cv::Mat(2, 4, CV_32FC1, cv::Scalar(0.5f))},
+       {"bent_normal", cv::Mat(2, 4, CV_32FC3, cv::Scalar(0.0f, 0.0f, 1.0f)), SampleType::half, true}},
+      cam, o);
+  EXPECT_NE(error.find("frame.bent_normal.png"), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(dir / "frame.exr"));
+  for (const auto& e : fs::directory_iterator(dir.path))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
 TEST(WriteOutputs, PngPreviewsAreSrgbClampedEightBit) {
   ScratchDir dir;
   const Camera cam = Camera::from_fov_x(4, 2, 60.0f);
