@@ -179,7 +179,7 @@ int run_process(const ProcessArgs& args) {
   const bool bar = ::isatty(STDERR_FILENO) == 1;
   std::vector<std::string> todo, up_to_date;
   for (const std::string& f : frames)
-    (!args.force && output_up_to_date(f, output_path_for(f, args.output_dir)) ? up_to_date : todo).push_back(f);
+    (!args.force && output_up_to_date_with_sidecar(f, output_path_for(f, args.output_dir)) ? up_to_date : todo).push_back(f);
   BatchProgress progress(int(frames.size()), int(todo.size()), bar, args.verbose);
   for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
 

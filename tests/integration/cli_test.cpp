@@ -95,6 +95,22 @@ TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {
   EXPECT_NE(r.output.find("done 1, skipped 0, failed 0"), std::string::npos) << r.output;
 }
 
+// A rerun recomputes a frame whose camera sidecar changed after its output was written.
+TEST(Cli, ARerunRecomputesAFrameWhoseSidecarChanged) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  fs::copy_file(example("cornell.exr"), dir.path / "in" / "a.exr");
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "a.camera.json");
+  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
+  ASSERT_EQ(run_ssdo(run).exit_code, 0);
+  RunResult r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+  fs::last_write_time(dir.path / "in" / "a.camera.json",
+                      fs::last_write_time(dir.path / "out" / "a.ssdo.exr") + std::chrono::seconds(2));
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+}
+
 TEST(Cli, BadFrameFailsItsFrameNotTheBatch) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
