@@ -105,6 +105,12 @@ namespace {
 long temp_file_pid(const std::string& name, const std::string& host) {
   const size_t at = name.rfind(".tmp-");
   if (name.empty() || name[0] != '.' || at == std::string::npos) return 0;
+  // Only names of what ssdo writes (outputs, previews, error files, tables): another
+  // program's ".notes.tmp-..." in a shared folder is not ours to remove.
+  const std::string final_name = name.substr(1, at - 1);
+  if (!ends_with(final_name, ".exr") && !ends_with(final_name, ".png") && !ends_with(final_name, ".json") &&
+      !ends_with(final_name, ".csv"))
+    return 0;
   const std::string rest = name.substr(at + 5);
   const size_t last_dash = rest.rfind('-');
   if (last_dash == std::string::npos || last_dash == 0) return 0;

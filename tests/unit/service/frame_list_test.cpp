@@ -73,11 +73,15 @@ TEST(FrameList, OnlyThisHostsAbandonedTempFilesAreRemoved) {
   const std::string dead = "." "a.ssdo.exr.tmp-" + host + "-999999999-1f";   // no such pid
   const std::string live = ".b.ssdo.exr.tmp-" + host + "-" + std::to_string(::getpid()) + "-2e";
   const std::string other = ".c.ssdo.exr.tmp-farm-node-17-999999999-3d";      // another host
-  for (const std::string& n : {dead, live, other}) d.touch(n);
-  EXPECT_EQ(remove_stale_temp_files(d.path.string()), 1);
+  const std::string preview = ".d.ssdo.ao.png.tmp-" + host + "-999999998-4c";  // no such pid
+  const std::string foreign = ".notes.tmp-" + host + "-999999997-5b";           // not ssdo's
+  for (const std::string& n : {dead, live, other, preview, foreign}) d.touch(n);
+  EXPECT_EQ(remove_stale_temp_files(d.path.string()), 2);
   EXPECT_FALSE(fs::exists(d.path / dead));
+  EXPECT_FALSE(fs::exists(d.path / preview));
   EXPECT_TRUE(fs::exists(d.path / live));
   EXPECT_TRUE(fs::exists(d.path / other));
+  EXPECT_TRUE(fs::exists(d.path / foreign));
 }
 
 }  // namespace
