@@ -17,6 +17,22 @@ namespace fs = std::filesystem;
 
 std::string example(const std::string& name) { return (source_dir() / "examples" / "frames" / name).string(); }
 
+// The example cornell frame and its camera sidecar as FOLDER/STEM.exr and STEM.camera.json.
+void copy_frame(const fs::path& folder, const std::string& stem) {
+  fs::create_directories(folder);
+  fs::copy_file(example("cornell.exr"), folder / (stem + ".exr"));
+  fs::copy_file(example("cornell.camera.json"), folder / (stem + ".camera.json"));
+}
+
+// A numbered shot of `count` copies of it: FOLDER/shot.0001.exr ...
+void copy_shot(const fs::path& folder, int count) {
+  for (int f = 1; f <= count; ++f) {
+    char stem[32];
+    std::snprintf(stem, sizeof stem, "shot.%04d", f);
+    copy_frame(folder, stem);
+  }
+}
+
 std::vector<std::string> channel_names(const std::string& path) {
   auto in = OIIO::ImageInput::open(path);
   if (!in) return {};
@@ -98,9 +114,7 @@ TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {
 // A rerun recomputes a frame whose camera sidecar changed after its output was written.
 TEST(Cli, ARerunRecomputesAFrameWhoseSidecarChanged) {
   ScratchDir dir;
-  fs::create_directories(dir.path / "in");
-  fs::copy_file(example("cornell.exr"), dir.path / "in" / "a.exr");
-  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "a.camera.json");
+  copy_frame(dir.path / "in", "a");
   const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
   ASSERT_EQ(run_ssdo(run).exit_code, 0);
   RunResult r = run_ssdo(run);
@@ -113,9 +127,7 @@ TEST(Cli, ARerunRecomputesAFrameWhoseSidecarChanged) {
 
 TEST(Cli, BadFrameFailsItsFrameNotTheBatch) {
   ScratchDir dir;
-  fs::create_directories(dir.path / "in");
-  fs::copy_file(example("cornell.exr"), dir.path / "in" / "a.exr");
-  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "a.camera.json");
+  copy_frame(dir.path / "in", "a");
   std::ofstream(dir.path / "in" / "b.exr") << "not an exr";
   const RunResult r = run_ssdo("process " + (dir.path / "in").string() + " -o " + dir / "out" + " --terms ao");
   EXPECT_EQ(r.exit_code, 1) << r.output;
@@ -145,12 +157,7 @@ TEST(Cli, UsageErrorsExitWithTwo) {
 
 TEST(Cli, PatternsFramesAndChunksSelectFrames) {
   ScratchDir dir;
-  for (int f : {1, 2, 3, 4, 5, 6}) {
-    char name[32];
-    std::snprintf(name, sizeof name, "shot.%04d", f);
-    fs::copy_file(example("cornell.exr"), dir.path / (std::string(name) + ".exr"));
-    fs::copy_file(example("cornell.camera.json"), dir.path / (std::string(name) + ".camera.json"));
-  }
+  copy_shot(dir.path, 6);
   const std::string pattern = dir / "shot.####.exr";
   RunResult r = run_ssdo("process '" + pattern + "' --frames 1-6x2 --chunk 2/2 -o " + dir / "out" +
                          " --terms ao --preset low");
@@ -171,11 +178,7 @@ TEST(Cli, PatternsFramesAndChunksSelectFrames) {
 // without a pattern selects nothing: refused rather than ignored.
 TEST(Cli, ABatchNeverWritesOneOutputTwice) {
   ScratchDir dir;
-  for (const char* folder : {"a", "b"}) {
-    fs::create_directories(dir.path / folder);
-    fs::copy_file(example("cornell.exr"), dir.path / folder / "shot.0001.exr");
-    fs::copy_file(example("cornell.camera.json"), dir.path / folder / "shot.0001.camera.json");
-  }
+  for (const char* folder : {"a", "b"}) copy_frame(dir.path / folder, "shot.0001");
   const std::string quick = " --terms ao --preset low --views 0 --temporal 0";
   RunResult r = run_ssdo("process " + dir / "a/shot.0001.exr" + " " + dir / "b/shot.0001.exr" + " -o " +
                          dir / "out" + quick);
@@ -196,9 +199,7 @@ TEST(Cli, ABatchNeverWritesOneOutputTwice) {
 // wherever the folder lists it; the other frames are computed.
 TEST(Cli, ADanglingLinkInAFolderFailsOnlyItsFrame) {
   ScratchDir dir;
-  fs::create_directories(dir.path / "in");
-  fs::copy_file(example("cornell.exr"), dir.path / "in" / "b.exr");
-  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "b.camera.json");
+  copy_frame(dir.path / "in", "b");
   fs::create_symlink(dir.path / "nowhere", dir.path / "in" / "zz.exr");
   fs::create_symlink(dir.path / "nowhere", dir.path / "in" / "zz.txt");  // not a frame: ignored
   const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low");
@@ -280,12 +281,7 @@ TEST(Cli, ACropsOutputKeepsItsWindows) {
 // temporal neighbours are 1, 2, 4 and 5 although the task computes frame 3 alone.
 TEST(Cli, AFarmTaskTakesItsNeighboursFromTheWholeShot) {
   ScratchDir dir;
-  for (int f = 1; f <= 6; ++f) {
-    char name[32];
-    std::snprintf(name, sizeof name, "shot.%04d", f);
-    fs::copy_file(example("cornell.exr"), dir.path / (std::string(name) + ".exr"));
-    fs::copy_file(example("cornell.camera.json"), dir.path / (std::string(name) + ".camera.json"));
-  }
+  copy_shot(dir.path, 6);
   const RunResult r = run_ssdo("process '" + dir / "shot.####.exr" + "' --frames 3 --shot-frames 1-6 -o " +
                                dir / "out" + " --terms ao --preset low -v");
   ASSERT_EQ(r.exit_code, 0) << r.output;
