@@ -25,12 +25,18 @@ bool ends_with(const std::string& s, const std::string& suffix) {
 
 }  // namespace
 
-bool is_frame_file(const std::string& path) {
-  const std::string name = fs::path(path).filename().string();
-  if (name.empty()) return false;
+bool has_exr_extension(const std::string& name) {
   std::string lower = name;
   std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
-  return ends_with(lower, ".exr") && !ends_with(lower, ".ssdo.exr") && name[0] != '.';
+  return lower.size() > 4 && ends_with(lower, ".exr");
+}
+
+bool is_frame_file(const std::string& path) {
+  const std::string name = fs::path(path).filename().string();
+  if (name.empty() || name[0] == '.' || !has_exr_extension(name)) return false;
+  std::string lower = name;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+  return !ends_with(lower, ".ssdo.exr");
 }
 
 std::string frame_for_sidecar(const std::string& path) {

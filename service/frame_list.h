@@ -17,6 +17,9 @@ bool expand_inputs(const std::vector<std::string>& inputs, std::vector<std::stri
 // not hidden (".NAME", which is also how temp files are named).
 bool is_frame_file(const std::string& path);
 
+// Whether the file name `name` ends in .exr, in any case (NAME.exr, NAME.EXR).
+bool has_exr_extension(const std::string& name);
+
 // For a camera sidecar "DIR/NAME.camera.json" (formats/camera_io.h, sidecar_path_for):
 // its frame "DIR/NAME.exr"; empty for any other name (hidden names included).
 std::string frame_for_sidecar(const std::string& path);

@@ -7,7 +7,6 @@
 #include <sys/un.h>
 #include <unistd.h>
 
-#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -46,14 +45,6 @@ constexpr int kPeerCheckMs = 250;
 bool peer_closed(int fd) {
   pollfd p{fd, 0, 0};  // POLLHUP and POLLERR are reported whatever is asked
   return ::poll(&p, 1, 0) > 0 && (p.revents & (POLLHUP | POLLERR)) != 0;
-}
-
-// NAME.exr, any case.
-bool is_exr_name(const std::string& name) {
-  if (name.size() < 5) return false;
-  std::string ext = name.substr(name.size() - 4);
-  for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return ext == ".exr";
 }
 
 // How long an over-limit client gets to read its "busy" answer before it is closed.
@@ -507,7 +498,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
       return refuse("forbidden", request.output + ": inside the service's private spool folder");
     // Not the service's own files (its lock, spool and temp files start with '.') nor error
     // files or frames' sidecars: an output is an EXR.
-    if (const std::string name = fs::path(output).filename().string(); name[0] == '.' || !is_exr_name(name))
+    if (const std::string name = fs::path(output).filename().string(); name[0] == '.' || !has_exr_extension(name))
       return refuse("bad_request", request.output + ": an output is an .exr file name, and not a hidden one");
     error_path = (fs::path(output).parent_path() / (fs::path(output).stem().string() + ".error.json")).string();
   } else {
