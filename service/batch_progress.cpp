@@ -83,11 +83,12 @@ void BatchProgress::finished(const std::string& input, const std::string& output
     for (const std::string& note : r.notes) line += "\n  note: " + note;
   const bool changed_terms = r.ok() && r.window_reduced();
   if (changed_terms) line += "\n  note: " + r.window_note;
+  for (const std::string& warning : r.warnings) line += "\n  note: " + warning;
   if (!bar_) {
     std::cout << line << "\n" << std::flush;
     return;
   }
-  if (!r.ok() || verbose_ || changed_terms) std::cerr << "\r\033[K" << line << "\n";
+  if (!r.ok() || verbose_ || changed_terms || !r.warnings.empty()) std::cerr << "\r\033[K" << line << "\n";
   draw_bar();
 }
 

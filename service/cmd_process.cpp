@@ -2,7 +2,9 @@
 // (service/worker_process.h). A bad frame is reported and the batch goes on; exit code 1
 // if any frame failed (or the batch was interrupted), 0 otherwise (2 for usage errors,
 // before any work). SIGINT / SIGTERM: no new frame starts, frames in flight finish.
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -20,6 +22,7 @@
 #include "service/batch_progress.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
+#include "service/file_version.h"
 #include "service/frame_list.h"
 #include "service/frame_range.h"
 #include "service/parallelism.h"
@@ -157,6 +160,27 @@ WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const Proc
   return job;
 }
 
+// Whether a frame's input or sidecar is no longer the version `found` (input, sidecar).
+bool changed_since(const std::string& frame, const std::pair<FileVersion, FileVersion>& found) {
+  return !(version_of(frame) == found.first) || !(version_of(sidecar_path_for(frame)) == found.second);
+}
+
+// Dates the output back to the last change of its input and sidecar as the batch found
+// them, so that the up-to-date test (output_up_to_date_with_sidecar) finds the changed
+// files newer. False when the time cannot be set.
+bool mark_out_of_date(const std::string& output, const std::pair<FileVersion, FileVersion>& found) {
+  auto later = [](const timespec& a, const timespec& b) {
+    return a.tv_sec != b.tv_sec ? a.tv_sec > b.tv_sec : a.tv_nsec > b.tv_nsec;
+  };
+  timespec last{0, 0};
+  for (const FileVersion* v : {&found.first, &found.second})
+    if (v->exists)
+      for (const timespec& t : {v->mtime, v->ctime})
+        if (later(t, last)) last = t;
+  const timespec times[2] = {{0, UTIME_OMIT}, last};
+  return ::utimensat(AT_FDCWD, output.c_str(), times, 0) == 0;
+}
+
 }  // namespace
 
 int run_process(const ProcessArgs& args) {
@@ -211,6 +235,10 @@ int run_process(const ProcessArgs& args) {
   ::signal(SIGPIPE, SIG_IGN);
   const pthread_t main_thread = ::pthread_self();
 
+  // Each frame's input and sidecar as the batch found them: a frame changed while the batch
+  // runs may have been read before or after the change (workers read ahead).
+  std::vector<std::pair<FileVersion, FileVersion>> found(todo.size());
+  for (size_t i = 0; i < todo.size(); ++i) found[i] = {version_of(todo[i]), version_of(sidecar_path_for(todo[i]))};
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::atomic<int> running{0};
@@ -224,7 +252,13 @@ int run_process(const ProcessArgs& args) {
         FrameTurns turns(next, todo.size(), t, n_threads, places > 0);
         for (size_t i; !stop && (i = turns.take()) < todo.size();) {
           const WorkerJob job = job_for(todo, i, args, options, neighbours, todo_index, turns);
-          progress.finished(job.input_path, job.output_path, worker.run(job));
+          WorkerResult r = worker.run(job);
+          if (r.ok() && changed_since(todo[i], found[i]))
+            r.warnings.push_back(mark_out_of_date(job.output_path, found[i])
+                                  ? "the input or its sidecar changed while the batch ran: its output is marked out "
+                                    "of date, and a rerun computes it again"
+                                  : "the input or its sidecar changed while the batch ran: rerun with --force");
+          progress.finished(job.input_path, job.output_path, r);
         }
         // Every output is in place: the batch need not wait for the worker to exit.
         worker.release();

@@ -64,6 +64,7 @@ struct WorkerResult {
   std::vector<std::string> terms;     // terms written
   int width_px = 0, height_px = 0;
   std::vector<std::string> notes;     // the reader's and the sequence context's notes
+  std::vector<std::string> warnings;  // the batch's own words on the frame, shown without -v too
   // The shot's window the frame was computed with: views and temporal neighbours per side.
   // Smaller than asked when the asked one did not fit under --memory-limit; window_note then
   // says so and why (shown without -v too: it changes the frame's terms), else it is empty.

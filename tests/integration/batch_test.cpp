@@ -114,6 +114,30 @@ TEST(Batch, AKilledWorkerFailsItsFrameTheOthersGoOn) {
   EXPECT_TRUE(exr_has_channel(dir / "out/b.ssdo.exr", "ao"));
 }
 
+// A frame replaced while the batch runs (a worker may have read it before the change) has
+// its output marked out of date, said without -v: the rerun computes it again, the other
+// frames are skipped.
+TEST(Batch, AFrameReplacedWhileTheBatchRunsIsComputedAgainByTheRerun) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  for (int i = 0; i < 3; ++i) copy_example("cornell", dir.path / "in", numbered("f", i));
+  const fs::path out = dir.path / "out";
+  const std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
+                                         "--method", "raymarch", "--preset", "low", "--views", "0", "--temporal", "0"};
+  {
+    SsdoProcess batch(args, dir.path / "batch1.log");
+    ASSERT_TRUE(wait_until([&] { return path_exists(out / "f0.ssdo.exr"); }, 120)) << batch.log();
+    copy_example("greeble", dir.path / "in", "f2.new");  // written aside, then renamed over f2
+    fs::rename(dir.path / "in" / "f2.new.exr", dir.path / "in" / "f2.exr");
+    fs::rename(dir.path / "in" / "f2.new.camera.json", dir.path / "in" / "f2.camera.json");
+    EXPECT_EQ(batch.signal_and_wait(0, 300), 0) << batch.log();
+    EXPECT_NE(batch.log().find("changed while the batch ran"), std::string::npos) << batch.log();
+  }
+  SsdoProcess rerun(args, dir.path / "batch2.log");
+  EXPECT_EQ(rerun.signal_and_wait(0, 300), 0) << rerun.log();
+  EXPECT_NE(rerun.log().find("done 1, skipped 2"), std::string::npos) << rerun.log();
+}
+
 TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
   // The frames alone in time (f0..f7 are a sequence): the temporal window's resume is the
   // Temporal and Sequence tests'.
