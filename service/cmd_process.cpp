@@ -169,14 +169,9 @@ bool changed_since(const std::string& frame, const std::pair<FileVersion, FileVe
 // them, so that the up-to-date test (output_up_to_date_with_sidecar) finds the changed
 // files newer. False when the time cannot be set.
 bool mark_out_of_date(const std::string& output, const std::pair<FileVersion, FileVersion>& found) {
-  auto later = [](const timespec& a, const timespec& b) {
-    return a.tv_sec != b.tv_sec ? a.tv_sec > b.tv_sec : a.tv_nsec > b.tv_nsec;
-  };
   timespec last{0, 0};
   for (const FileVersion* v : {&found.first, &found.second})
-    if (v->exists)
-      for (const timespec& t : {v->mtime, v->ctime})
-        if (later(t, last)) last = t;
+    if (v->exists && later_than(v->last_change(), last)) last = v->last_change();
   const timespec times[2] = {{0, UTIME_OMIT}, last};
   return ::utimensat(AT_FDCWD, output.c_str(), times, 0) == 0;
 }

@@ -9,6 +9,12 @@ bool FileVersion::operator==(const FileVersion& o) const {
          mtime.tv_nsec == o.mtime.tv_nsec && ctime.tv_sec == o.ctime.tv_sec && ctime.tv_nsec == o.ctime.tv_nsec;
 }
 
+bool later_than(const timespec& a, const timespec& b) {
+  return a.tv_sec != b.tv_sec ? a.tv_sec > b.tv_sec : a.tv_nsec > b.tv_nsec;
+}
+
+timespec FileVersion::last_change() const { return later_than(ctime, mtime) ? ctime : mtime; }
+
 FileVersion version_of(const std::string& path) {
   FileVersion v;
   struct stat st {};

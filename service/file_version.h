@@ -15,7 +15,13 @@ struct FileVersion {
   off_t size = 0;
   timespec mtime{}, ctime{};
   bool operator==(const FileVersion& o) const;
+  // The later of the modification and change times. A copy that keeps the source's times
+  // (cp -p, rsync -t) or a rename into place sets an old mtime but a new ctime, so both count.
+  timespec last_change() const;
 };
+
+// Whether `a` is strictly later than `b`.
+bool later_than(const timespec& a, const timespec& b);
 
 // stat(2) of `path` (following links: a "/proc/self/fd/N" name gives the file the descriptor
 // holds, not a name that may have been swapped since).

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "formats/camera_io.h"
+#include "service/file_version.h"
 #include "formats/output_writer.h"
 
 namespace ssdo {
@@ -94,13 +95,9 @@ std::string error_path_for(const std::string& input, const std::string& output_d
 }
 
 bool output_up_to_date(const std::string& input, const std::string& output) {
-  struct stat in {}, out {};
-  if (::stat(input.c_str(), &in) != 0 || ::stat(output.c_str(), &out) != 0) return false;
-  auto later = [](const timespec& a, const timespec& b) {
-    return a.tv_sec != b.tv_sec ? a.tv_sec > b.tv_sec : a.tv_nsec > b.tv_nsec;
-  };
-  const timespec& changed = later(in.st_ctim, in.st_mtim) ? in.st_ctim : in.st_mtim;
-  return !later(changed, out.st_mtim);
+  const FileVersion in = version_of(input), out = version_of(output);
+  if (!in.exists || !out.exists) return false;
+  return !later_than(in.last_change(), out.mtime);
 }
 
 namespace {
