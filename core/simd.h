@@ -5,6 +5,8 @@
 #pragma once
 
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace ssdo {
 
@@ -26,8 +28,18 @@ void use_best_simd();
 // The baseline's name (what simd_target() returns after use_baseline_simd()).
 std::string simd_baseline_target();
 
-// use_baseline_simd() when `value` (the SSDO_SIMD environment variable) is "baseline";
-// false, with the reason in `error`, for a value other than "", "best" or "baseline".
+// Every instruction set the build holds code for and this CPU runs, best first (the
+// baseline last): the ones use_simd_target() takes.
+std::vector<std::string> simd_targets_runnable();
+
+// From now on the kernels run the named instruction set (a name of simd_targets_runnable(),
+// case-insensitive: "avx2" on an AVX-512 machine runs what an AVX2 farm node runs). False,
+// changing nothing, for a name the build or the CPU lacks. Call before any kernel runs.
+bool use_simd_target(std::string_view name);
+
+// What the SSDO_SIMD environment variable asks for (`value`): "" or "best" the best,
+// "baseline" the baseline, else a target's name (use_simd_target). False, with the reason
+// in `error`, for anything else.
 bool apply_simd_choice(const char* value, std::string& error);
 
 }  // namespace ssdo

@@ -4,6 +4,8 @@
 // two other views of the scene.
 #include "core/simd.h"
 
+#include <array>
+#include <cctype>
 #include <cstdint>
 #include <cstdio>
 #include <string>
@@ -67,35 +69,58 @@ TEST(Simd, EveryInstructionSetGivesTheSameBits) {
     view->albedo = frame->albedo;
     view->lighting = frame->lighting;
   }
-  const bool was_baseline = simd_target() == simd_baseline_target();
-  use_best_simd();
-  const std::string best = simd_target();
-  const Terms on_best[] = {all_terms(g, sky), all_terms(middle, sky, views)};
-  use_baseline_simd();
-  EXPECT_EQ(simd_target(), simd_baseline_target());
-  const Terms on_baseline[] = {all_terms(g, sky), all_terms(middle, sky, views)};
-  if (!was_baseline) use_best_simd();
-  ASSERT_EQ(on_best[1].terms.views.size(), 2u);
-  EXPECT_TRUE(on_best[1].terms.views[0].used && on_best[1].terms.views[1].used);
-  for (int with_views : {0, 1}) {
-    const Terms& a = on_best[with_views];
-    const Terms& b = on_baseline[with_views];
-    const std::string what = best + (with_views ? " with views" : "");
-    EXPECT_LT(cv::mean(a.terms.ao.ao)[0], 0.99);  // something is occluded
-    EXPECT_EQ(differing(a.terms.ao.ao, b.terms.ao.ao), 0.0) << what;
-    EXPECT_EQ(differing(a.terms.ao.bent_normal_view, b.terms.ao.bent_normal_view), 0.0) << what;
-    EXPECT_EQ(differing(a.terms.ssdo.direct, b.terms.ssdo.direct), 0.0) << what;
-    EXPECT_EQ(differing(a.terms.ssdo.indirect, b.terms.ssdo.indirect), 0.0) << what;
-    EXPECT_EQ(differing(a.terms.confidence, b.terms.confidence), 0.0) << what;
-    EXPECT_EQ(differing(a.normals, b.normals), 0.0) << what;
-    EXPECT_EQ(differing(a.denoised, b.denoised), 0.0) << what;
-    EXPECT_EQ(differing(a.blurred, b.blurred), 0.0) << what;
+  // Every instruction set this build and CPU run (AVX-512, AVX2 and the baseline on an
+  // AVX-512 machine) against the baseline.
+  const std::string chosen = simd_target();
+  const std::vector<std::string> targets = simd_targets_runnable();
+  ASSERT_FALSE(targets.empty());
+  EXPECT_EQ(targets.back(), simd_baseline_target());
+  std::vector<std::array<Terms, 2>> on(targets.size());
+  for (size_t t = 0; t < targets.size(); ++t) {
+    ASSERT_TRUE(use_simd_target(targets[t])) << targets[t];
+    EXPECT_EQ(simd_target(), targets[t]);
+    on[t] = {all_terms(g, sky), all_terms(middle, sky, views)};
   }
+  ASSERT_TRUE(use_simd_target(chosen));
+  const std::array<Terms, 2>& on_baseline = on.back();
+  ASSERT_EQ(on[0][1].terms.views.size(), 2u);
+  EXPECT_TRUE(on[0][1].terms.views[0].used && on[0][1].terms.views[1].used);
+  for (size_t t = 0; t + 1 < targets.size(); ++t)
+    for (int with_views : {0, 1}) {
+      const Terms& a = on[t][size_t(with_views)];
+      const Terms& b = on_baseline[size_t(with_views)];
+      const std::string what = targets[t] + (with_views ? " with views" : "");
+      EXPECT_LT(cv::mean(a.terms.ao.ao)[0], 0.99);  // something is occluded
+      EXPECT_EQ(differing(a.terms.ao.ao, b.terms.ao.ao), 0.0) << what;
+      EXPECT_EQ(differing(a.terms.ao.bent_normal_view, b.terms.ao.bent_normal_view), 0.0) << what;
+      EXPECT_EQ(differing(a.terms.ssdo.direct, b.terms.ssdo.direct), 0.0) << what;
+      EXPECT_EQ(differing(a.terms.ssdo.indirect, b.terms.ssdo.indirect), 0.0) << what;
+      EXPECT_EQ(differing(a.terms.confidence, b.terms.confidence), 0.0) << what;
+      EXPECT_EQ(differing(a.normals, b.normals), 0.0) << what;
+      EXPECT_EQ(differing(a.denoised, b.denoised), 0.0) << what;
+      EXPECT_EQ(differing(a.blurred, b.blurred), 0.0) << what;
+    }
   // The views change the terms (else the comparison above would not reach their passes).
   const Terms alone = all_terms(middle, sky);
-  EXPECT_GT(differing(alone.terms.ao.ao, on_best[1].terms.ao.ao), 0.0);
-  EXPECT_GT(differing(alone.terms.ssdo.indirect, on_best[1].terms.ssdo.indirect), 0.0);
-  EXPECT_GT(differing(alone.terms.confidence, on_best[1].terms.confidence), 0.0);
+  EXPECT_GT(differing(alone.terms.ao.ao, on[0][1].terms.ao.ao), 0.0);
+  EXPECT_GT(differing(alone.terms.ssdo.indirect, on[0][1].terms.ssdo.indirect), 0.0);
+  EXPECT_GT(differing(alone.terms.confidence, on[0][1].terms.confidence), 0.0);
+}
+
+TEST(Simd, TheEnvironmentNamesAnInstructionSetInAnyCase) {
+  const std::string chosen = simd_target();
+  std::string error;
+  std::string lower = simd_baseline_target();
+  for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+  EXPECT_TRUE(apply_simd_choice(lower.c_str(), error)) << error;
+  EXPECT_EQ(simd_target(), simd_baseline_target());
+  EXPECT_FALSE(apply_simd_choice("avx9", error));
+  EXPECT_NE(error.find("SSDO_SIMD='avx9'"), std::string::npos) << error;
+  EXPECT_NE(error.find(simd_baseline_target()), std::string::npos) << error;  // the choices are listed
+  EXPECT_EQ(simd_target(), simd_baseline_target());  // a refused name changes nothing
+  EXPECT_TRUE(apply_simd_choice("best", error));
+  EXPECT_EQ(simd_target(), simd_targets_runnable().front());
+  ASSERT_TRUE(use_simd_target(chosen));
 }
 
 // 64-bit FNV-1a of an image's samples, row by row (the bytes of its pixels only).
