@@ -36,6 +36,7 @@
 
 #include "formats/camera_io.h"
 #include "formats/exr_core.h"
+#include "formats/exr_header_check.h"
 #include "formats/exr_zip.h"
 #include "core/sample_planes.h"
 #include "core/half_samples.h"
@@ -706,6 +707,20 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
                           const Camera& camera, const WriteOptions& options) {
   ResourceFailure exhausted;
   return write_outputs(path, terms, camera, options, exhausted);
+}
+
+std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name) {
+  if (!check_exr_headers(path).ok()) return std::nullopt;
+  exr_core::Context file;
+  exr_context_initializer_t init = exr_core::quiet_initializer();
+  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) return std::nullopt;
+  int32_t length = 0;
+  const char* value = nullptr;
+  if (exr_attr_get_string(file.get(), 0, name.c_str(), &length, &value) != EXR_ERR_SUCCESS || value == nullptr ||
+      length < 0)
+    return std::nullopt;
+  return std::string(value, size_t(length));
 }
 
 }  // namespace ssdo

@@ -108,6 +108,11 @@ class TempFile {
 // success, else a message naming `path`.
 std::string write_file_atomically(const std::filesystem::path& path, const std::string& bytes);
 
+// The string attribute `name` of the first part of the EXR at `path` (what write_outputs
+// wrote with options.string_attributes); nullopt when the file cannot be read, its headers
+// fail check_exr_headers, or it has no such string attribute.
+std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name);
+
 // Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<host>-<pid>-<rnd>"
 // in the same folder and renamed into place, so the file is complete or absent (on failure
 // the temp file is removed and an existing `path` is left as it was). All terms must share

@@ -196,9 +196,21 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: removed " << n << " temp files of an interrupted run in " << args.output_dir << "\n";
 
   const bool bar = ::isatty(STDERR_FILENO) == 1;
+  // An output newer than its frame and sidecar is up to date when it was made with this
+  // run's options too.
   std::vector<std::string> todo, up_to_date;
-  for (const std::string& f : frames)
-    (!args.force && output_up_to_date_with_sidecar(f, output_path_for(f, args.output_dir)) ? up_to_date : todo).push_back(f);
+  const std::string made_with = options_attribute(args.options);
+  int other_options = 0;
+  for (const std::string& f : frames) {
+    const std::string output = output_path_for(f, args.output_dir);
+    const bool current = !args.force && output_up_to_date_with_sidecar(f, output);
+    const bool same_options = current && output_made_with(output, made_with);
+    other_options += current && !same_options;
+    (same_options ? up_to_date : todo).push_back(f);
+  }
+  if (other_options > 0)
+    std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
+              << " made with other options than this run's: computed again\n";
   BatchProgress progress(int(frames.size()), int(todo.size()), bar, args.verbose);
   for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
 

@@ -11,7 +11,9 @@
 #include <vector>
 
 #include "formats/camera_io.h"
+#include "formats/output_writer.h"
 #include "service/file_version.h"
+#include "service/request_options.h"
 #include "formats/output_writer.h"
 
 namespace ssdo {
@@ -132,6 +134,10 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 }
 
 }  // namespace
+
+bool output_made_with(const std::string& output, const std::string& options_attribute) {
+  return read_string_attribute(output, kOptionsAttribute) == options_attribute;
+}
 
 bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output) {
   const std::string sidecar = sidecar_path_for(input);

@@ -39,6 +39,11 @@ bool output_up_to_date(const std::string& input, const std::string& output);
 // that arrives or changes after the output makes the output stale too.
 bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output);
 
+// Whether `output`'s header says it was made with the options whose attribute is
+// `options_attribute` (request_options.h: kOptionsAttribute, options_attribute): false for
+// other options, and for a file without them (unreadable, or not ssdo's).
+bool output_made_with(const std::string& output, const std::string& options_attribute);
+
 // Removes the temp files of this host's output writers that no longer run
 // (".NAME.tmp-HOST-PID-*", and the older ".NAME.tmp-PID-err" / "-client", in `dir` and its
 // subfolders, with HOST this host and no process PID: left by a kill -9); other hosts'

@@ -14,6 +14,7 @@
 #include "service/file_version.h"
 #include "service/frame_list.h"
 #include "service/frame_options.h"
+#include "service/request_options.h"
 #include "service/sequence.h"
 #include "service/view_selection.h"
 
@@ -39,6 +40,14 @@ std::string timing(const WorkerResult& r) {
   return s;
 }
 
+// The options attribute of outputs made with `options` (JSON of FrameOptionArgs); empty
+// when they do not parse.
+std::string options_attribute_of(const nlohmann::json& options) {
+  FrameOptionArgs args;
+  std::string error;
+  return apply_json(options, args, error) ? options_attribute(args) : std::string();
+}
+
 }  // namespace
 
 
@@ -56,7 +65,8 @@ bool record_frame_failure(const std::string& output, const std::string& error_pa
   return write_error_file(error_path, input, result.error, result.transient, version);
 }
 
-FrameService::FrameService(FrameServiceOptions options) : options_(std::move(options)) {}
+FrameService::FrameService(FrameServiceOptions options)
+    : options_(std::move(options)), watch_made_with_(options_attribute_of(options_.watch_options)) {}
 
 FrameService::~FrameService() { stop(); }
 
@@ -292,7 +302,8 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
 
 bool FrameService::watched_frame_done(const std::string& input, const std::string& output,
                                       const std::string& error_path) {
-  if (output_up_to_date_with_sidecar(input, output)) return true;
+  if (output_up_to_date_with_sidecar(input, output))
+    return watch_made_with_.empty() || output_made_with(output, watch_made_with_);
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   std::ifstream in(error_path);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);

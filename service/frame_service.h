@@ -107,6 +107,9 @@ class FrameService {
   void log(const std::string& line);
 
   const FrameServiceOptions options_;
+  // The options attribute of watched frames' outputs (request_options.h): an output made
+  // with other options is computed again. Empty when watch_options do not parse.
+  const std::string watch_made_with_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<FrameTask> tasks_;

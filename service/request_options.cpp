@@ -173,12 +173,15 @@ bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std:
   return true;
 }
 
-std::vector<std::pair<std::string, std::string>> output_attributes(const FrameOptionArgs& a) {
+std::string options_attribute(const FrameOptionArgs& a) {
   // Every option but "threads": outputs are the same bytes for any thread count, and so
   // are their headers.
-  json options = to_json(a, [](const std::string& key) { return key != "threads"; });
-  return {{kVersionAttribute, version_string()},
-          {kOptionsAttribute, options.dump(-1, ' ', false, json::error_handler_t::replace)}};
+  const json options = to_json(a, [](const std::string& key) { return key != "threads"; });
+  return options.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+std::vector<std::pair<std::string, std::string>> output_attributes(const FrameOptionArgs& a) {
+  return {{kVersionAttribute, version_string()}, {kOptionsAttribute, options_attribute(a)}};
 }
 
 std::vector<std::string> option_paths(const FrameOptionArgs& a) {

@@ -47,6 +47,8 @@ bool resolve_frame_options(const FrameOptionArgs& args, FrameRequest& request, s
 inline constexpr const char* kVersionAttribute = "ssdo/version";
 inline constexpr const char* kOptionsAttribute = "ssdo/options";
 std::vector<std::pair<std::string, std::string>> output_attributes(const FrameOptionArgs& args);
+// The kOptionsAttribute value of outputs made with `args`.
+std::string options_attribute(const FrameOptionArgs& args);
 
 // The paths an options object names (camera, env): the service checks them against its
 // allowed roots before a worker opens them.

@@ -104,10 +104,11 @@ TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {
   for (const auto& e : fs::directory_iterator(out.path))
     EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
 
-  r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --terms ao");
+  r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --terms ao --method gtao --preset low");
   EXPECT_EQ(r.exit_code, 0);
   EXPECT_NE(r.output.find("done 0, skipped 1, failed 0"), std::string::npos) << r.output;
-  r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() + " --terms ao --force");
+  r = run_ssdo("process " + example("cornell.exr") + " -o " + out.path.string() +
+               " --terms ao --method gtao --preset low --force");
   EXPECT_NE(r.output.find("done 1, skipped 0, failed 0"), std::string::npos) << r.output;
 }
 
@@ -123,6 +124,34 @@ TEST(Cli, ARerunRecomputesAFrameWhoseSidecarChanged) {
                       fs::last_write_time(dir.path / "out" / "a.ssdo.exr") + std::chrono::seconds(2));
   r = run_ssdo(run);
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+}
+
+// A rerun recomputes a frame whose output was made with other options (its header says
+// which), or is not ssdo's; the thread count is not an option that changes an output.
+TEST(Cli, ARerunWithOtherOptionsRecomputes) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
+  ASSERT_EQ(run_ssdo(run).exit_code, 0);
+  RunResult r = run_ssdo(run + " --threads 1");
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+  r = run_ssdo(run + " --radius 0.25");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("1 output was made with other options than this run's: computed again"), std::string::npos)
+      << r.output;
+  r = run_ssdo(run + " --radius 0.25");
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("other options"), std::string::npos) << r.output;
+  // Another program's file by the output's name, newer than the frame.
+  const fs::path output = dir.path / "out" / "a.ssdo.exr";
+  fs::remove(output);
+  fs::copy_file(dir.path / "in" / "a.exr", output);
+  fs::last_write_time(output, fs::last_write_time(dir.path / "in" / "a.exr") + std::chrono::seconds(2));
+  r = run_ssdo(run + " --radius 0.25");
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  const std::vector<std::string> names = channel_names(output.string());
+  EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
 }
 
 TEST(Cli, BadFrameFailsItsFrameNotTheBatch) {

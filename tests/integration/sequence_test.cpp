@@ -171,7 +171,7 @@ TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
   }
   ASSERT_LT(finished_before, kFrames) << "the batch finished before it was killed";
   const RunResult r =
-      run_ssdo("process " + dir / "in" + " -o " + out.string() + " --jobs 2 --views 2 --terms ao --preset low");
+      run_ssdo("process " + dir / "in" + " -o " + out.string() + " --jobs 2 --views 2 --terms ao --method raymarch --preset low");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   char summary[64];
   std::snprintf(summary, sizeof summary, "done %d, skipped %d, failed 0", kFrames - finished_before, finished_before);

@@ -266,6 +266,34 @@ TEST(ServeWatch, PoisonFramesEachGetAnErrorAndTheServiceStaysUp) {
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
+// A restart with other options computes the watched frames again: their outputs' headers
+// name the options they were made with (a restart with the same ones rewrites nothing:
+// KillNineThenRestartProcessesEveryFrameExactlyOnce).
+TEST(ServeWatch, ARestartWithOtherOptionsComputesTheFramesAgain) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "a");
+  const fs::path output = dir.path / "out" / "a.ssdo.exr";
+  const std::string socket = socket_path_for("reopts");
+  auto radius = [&] {
+    auto in = OIIO::ImageInput::open(output.string());
+    if (!in) return -1.0;
+    const json options = json::parse(in->spec().get_string_attribute("ssdo/options"), nullptr, false);
+    return options.is_object() ? options.value("radius", -1.0) : -1.0;
+  };
+  {
+    SsdoProcess service(serve_args(dir, socket), dir.path / "serve1.log");
+    ASSERT_TRUE(wait_until([&] { return path_exists(output); }, 60)) << service.log();
+    EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+  }
+  EXPECT_EQ(radius(), 0.0);  // the frame's own radius
+  SsdoProcess service(serve_args(dir, socket, {"--radius", "0.25"}), dir.path / "serve2.log");
+  ASSERT_TRUE(wait_until([&] { return radius() == 0.25; }, 60)) << service.log();
+  EXPECT_NE(service.log().find("ok " + (dir.path / "in" / "a.exr").string() + " ->"), std::string::npos)
+      << service.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
 TEST(ServeWatch, KillNineThenRestartProcessesEveryFrameExactlyOnce) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
