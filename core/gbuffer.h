@@ -76,6 +76,12 @@ struct GBuffer {
   // service fills them (a shot's sequence context); formats/ never does.
   std::vector<DepthView> views;
 
+  // Where the images' pixel (0, 0) lies in the picture's pixel space: the EXR data window's
+  // origin (a crop's offset in its display window; negative with overscan). The terms'
+  // per-pixel noise is keyed to the picture's pixels, so a crop of a frame gets the same
+  // noise as the whole frame, and the same terms wherever its taps stay inside it.
+  cv::Point data_origin_px{0, 0};
+
   int width_px() const { return depth_view.cols; }
   int height_px() const { return depth_view.rows; }
   bool has_normals() const { return !normal_view.empty(); }

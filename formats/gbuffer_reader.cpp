@@ -1226,6 +1226,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
     Prepared prep;
     if (!prepare(path, options, result, prep)) return result;
     result.gbuffer.camera = prep.camera;
+    result.gbuffer.data_origin_px = cv::Point(int(prep.data.min_x), int(prep.data.min_y));
     Images img;
     try {
       read_pixels(prep, options, img);

@@ -111,10 +111,12 @@ struct AoInputs {
   // resolution) take each tap's own thickness depth_back_view - depth_view instead of
   // thickness_world (+inf back = solid behind).
   const cv::Mat* depth_back_view = nullptr;
-  // Where the frame's pixel (0, 0) lies in these images: (0, 0), or the widths of the left and
-  // top sides of a guard band of off-screen texels (kernels/multiview.h, extend_with_views).
-  // The per-pixel noise is a function of the frame's pixel, so a band changes only the
-  // pixels whose taps reach it.
+  // Where the picture's pixel (0, 0) lies in these images: (0, 0) for a whole frame; plus the
+  // widths of the left and top sides of a guard band of off-screen texels
+  // (kernels/multiview.h, extend_with_views); minus a crop's offset in the picture
+  // (GBuffer::data_origin_px, in these images' pixels). The per-pixel noise is a function of
+  // the picture's pixel, so a band changes only the pixels whose taps reach it, and a crop
+  // gets the whole frame's noise.
   cv::Point frame_origin_px{0, 0};
 };
 

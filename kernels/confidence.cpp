@@ -376,6 +376,7 @@ struct PixelFrame {
   const ConfidenceSettings& settings;
   const TapFrame& taps;
   bool perspective;  // camera.is_perspective()
+  cv::Point frame_origin_px;  // compute_confidence's: the rotation is the picture pixel's
 };
 
 // The foreground pixels waiting for a full set of lanes; lanes fill across the rows of a
@@ -398,7 +399,7 @@ void set_up_lanes(const PixelFrame& frame, const PendingPixels& pending, PixelLa
     const cv::Vec3f& n = frame.normal_view.ptr<cv::Vec3f>(y)[x];
     lane.nx[j] = n[0], lane.ny[j] = n[1], lane.nz[j] = n[2];
     lane.pxc[j] = float(x) + 0.5f, lane.pyc[j] = float(y) + 0.5f;
-    rotation_turns[j] = noise01(x, y, 0, s.seed);
+    rotation_turns[j] = noise01(x - frame.frame_origin_px.x, y - frame.frame_origin_px.y, 0, s.seed);
   }
   for (int j = 0; j < kLanes; ++j) {
     const glm::vec2 ppu = frame.camera.pixels_per_unit(depth[j]);
@@ -480,7 +481,7 @@ void confidence_rows(const PixelFrame& frame, const cv::Range& rows, const cv::R
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& s, cv::Mat& confidence, cv::Rect roi,
-                        int nthreads, const ConfidenceViews& views) {
+                        int nthreads, const ConfidenceViews& views, cv::Point frame_origin_px) {
   CV_Assert(ssdo::validate(s).empty());
   CV_Assert(depth_view.type() == CV_32FC1);
   const cv::Size size = depth_view.size();
@@ -512,7 +513,7 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
     for (int k = 0; k < s.taps; ++k) chord_offsets.push_back(std::fmod(0.5f + 0.6180339887f * float(k), 1.0f));
     taps.chord_offsets = chord_offsets.data();
   }
-  const PixelFrame frame{depth_view, normal_view, mask, camera, s, taps, camera.is_perspective()};
+  const PixelFrame frame{depth_view, normal_view, mask, camera, s, taps, camera.is_perspective(), frame_origin_px};
   parallel_rows(cv::Range(raw_r.y, raw_r.y + raw_r.height), nthreads,
                 [&](const cv::Range& rows) { confidence_rows(frame, rows, raw_r, raw); });
   if (smoothed) denoise_bilateral(raw, depth_view, normal_view, mask, smoothing(s), confidence, r, nthreads);
@@ -550,9 +551,9 @@ std::string validate(const ConfidenceSettings& s) {
 HWY_EXPORT(compute_confidence);
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view, const cv::Mat& mask,
                         const Camera& camera, const ConfidenceSettings& settings, cv::Mat& confidence, cv::Rect roi,
-                        int nthreads, const ConfidenceViews& views) {
+                        int nthreads, const ConfidenceViews& views, cv::Point frame_origin_px) {
   HWY_DYNAMIC_DISPATCH(compute_confidence)(depth_view, normal_view, mask, camera, settings, confidence, roi, nthreads,
-                                           views);
+                                           views, frame_origin_px);
 }
 
 }  // namespace ssdo

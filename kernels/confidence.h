@@ -101,10 +101,12 @@ struct ConfidenceViews {
 // background), normal_view CV_32FC3 unit view-space normals facing the camera, mask CV_8UC1
 // (255 = foreground). Deterministic: the same bytes for any thread count. Computed on the
 // grid of the inputs (resolution_divisor is compute_terms' to apply). Without views the
-// frame's own observation only.
+// frame's own observation only. frame_origin_px: where the picture's pixel (0, 0) lies in
+// these images (AoInputs::frame_origin_px): the taps' rotation is the picture pixel's.
 void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
                         const cv::Mat& mask, const Camera& camera,
                         const ConfidenceSettings& settings, cv::Mat& confidence,
-                        cv::Rect roi = {}, int nthreads = 0, const ConfidenceViews& views = {});
+                        cv::Rect roi = {}, int nthreads = 0, const ConfidenceViews& views = {},
+                        cv::Point frame_origin_px = {});
 
 }  // namespace ssdo

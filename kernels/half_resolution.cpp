@@ -778,8 +778,15 @@ struct GridInputs {
   Camera camera;
   cv::Mat albedo, lighting, back;  // empty when the kernels do not read them
   cv::Rect inside;  // the frame's grid in these images; empty: the images are the grid
+  cv::Point data_origin;  // TermInputs::data_origin_px in this grid's pixels
   cv::Point origin() const { return inside.tl(); }
+  // The kernels' frame_origin_px: where the picture's pixel (0, 0) lies in these images.
+  cv::Point picture_origin() const { return origin() - data_origin; }
 };
+
+// A point of the full grid's pixel space in the half grid's (floor(p / 2): texel i covers
+// pixels 2i and 2i + 1, at any sign).
+cv::Point on_half_grid(cv::Point p) { return {p.x >> 1, p.y >> 1}; }
 
 // light_reads of the inputs and settings (the albedo only where the frame has one).
 LightReads light_reads(const TermInputs& in, const TermSettings& s) {
@@ -793,7 +800,8 @@ bool reads_lighting(const TermInputs& in, const TermSettings& s) { return light_
 
 GridInputs half_grid_inputs(const HalfGrid& h, const TermInputs& in, const TermSettings& s, const cv::Mat& back,
                             int nthreads) {
-  GridInputs g{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, {}, {}, back, {}};
+  GridInputs g{h.depth_view, h.normal_view, h.position_view, h.mask, h.camera, {}, {}, back, {},
+               on_half_grid(in.data_origin_px)};
   if (reads_albedo(in, s)) sample_at_texels(h, *in.albedo, g.albedo, nthreads);
   if (reads_lighting(in, s)) sample_at_texels(h, *in.lighting, g.lighting, nthreads);
   return g;
@@ -801,7 +809,8 @@ GridInputs half_grid_inputs(const HalfGrid& h, const TermInputs& in, const TermS
 
 GridInputs full_grid_inputs(const TermInputs& in, const TermSettings& s, const cv::Mat& position_view,
                             const cv::Mat& back) {
-  GridInputs g{in.depth_view, in.normal_view, position_view, in.mask, in.camera, {}, {}, back, {}};
+  GridInputs g{in.depth_view, in.normal_view, position_view, in.mask, in.camera, {}, {}, back, {},
+               in.data_origin_px};
   if (reads_albedo(in, s)) g.albedo = *in.albedo;
   if (reads_lighting(in, s)) g.lighting = *in.lighting;
   return g;
@@ -863,7 +872,7 @@ void crop_from_band(const cv::Mat& extended, const GridInputs& g, const cv::Rect
 // AO on the grid's pixels of roi.
 void ao_on_grid(const GridInputs& g, const AoSettings& s, const cv::Rect& roi, AoOutput& out, int nthreads) {
   const AoInputs grid{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera,
-                      g.albedo.empty() ? nullptr : &g.albedo, g.back.empty() ? nullptr : &g.back, g.origin()};
+                      g.albedo.empty() ? nullptr : &g.albedo, g.back.empty() ? nullptr : &g.back, g.picture_origin()};
   if (g.inside.empty()) return compute_ao(grid, s, out, roi, nthreads);
   AoOutput extended;
   compute_ao(grid, s, extended, roi + g.origin(), nthreads);
@@ -878,7 +887,7 @@ void ssdo_on_grid(const GridInputs& g, const TermInputs& in, const SsdoSettings&
   const bool lit = !g.lighting.empty();
   const SsdoInputs grid{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, *in.environment,
                         g.albedo.empty() || lit ? nullptr : &g.albedo, lit ? &g.lighting : nullptr,
-                        g.back.empty() ? nullptr : &g.back, g.origin()};
+                        g.back.empty() ? nullptr : &g.back, g.picture_origin()};
   if (g.inside.empty()) return compute_ssdo(grid, s, out, roi, nthreads);
   SsdoOutput extended;
   compute_ssdo(grid, s, extended, roi + g.origin(), nthreads);
@@ -963,7 +972,7 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
         confidence_observers(h.depth_view, h.mask, h.camera, in, settings, out.views, nthreads), h.camera.width_px,
         nthreads);
     compute_confidence(h.depth_view, h.normal_view, h.mask, h.camera, *settings.confidence, grid.confidence,
-                       half_roi, nthreads, {observers, multiview_settings(settings)});
+                       half_roi, nthreads, {observers, multiview_settings(settings)}, -on_half_grid(in.data_origin_px));
     images.push_back({grid.confidence, out.confidence, cv::Scalar(1.0), cv::Scalar(1.0)});
   }
   // The full-resolution images are allocated only now, after the kernels have freed their
@@ -1020,7 +1029,7 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
     const std::vector<DepthView> observers = confidence_observers(in.depth_view, in.mask, in.camera, in, settings,
                                                                   out.views, nthreads);
     compute_confidence(in.depth_view, in.normal_view, in.mask, in.camera, *settings.confidence, out.confidence,
-                       roi, nthreads, {observers, multiview_settings(settings)});
+                       roi, nthreads, {observers, multiview_settings(settings)}, -in.data_origin_px);
   }
   if (!half.any()) {
     if (inputs_read) inputs_read();

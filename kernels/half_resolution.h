@@ -130,6 +130,9 @@ struct TermInputs {
   // on each grid a kernel runs on, in place of depth_back_view; the confidence counts what
   // the used views observe (ConfidenceViews, kernels/confidence.h).
   std::span<const DepthView> views = {};
+  // GBuffer::data_origin_px: the per-pixel noise is keyed to the picture's pixels (on the
+  // half grid, to its texels: a crop at an even offset gets the whole frame's).
+  cv::Point data_origin_px{0, 0};
 };
 
 // Which of the terms upsampled from the half grid compute_terms stores in half.

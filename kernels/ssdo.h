@@ -171,10 +171,8 @@ struct SsdoInputs {
   // back - front of the pixel it reads instead of thickness_world (depth peeling, Ritschel
   // et al. 2009, sec. 3.3).
   const cv::Mat* depth_back_view = nullptr;
-  // Where the frame's pixel (0, 0) lies in these images: (0, 0), or the widths of the left and
-  // top sides of a guard band of off-screen texels (kernels/multiview.h, extend_with_views).
-  // The per-pixel noise is a function of the frame's pixel, so a band changes only the
-  // pixels whose taps reach it.
+  // Where the picture's pixel (0, 0) lies in these images (AoInputs::frame_origin_px): the
+  // per-pixel noise is a function of the picture's pixel.
   cv::Point frame_origin_px{0, 0};
 };
 

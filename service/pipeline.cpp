@@ -137,7 +137,7 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
   const ConfidenceSettings confidence = confidence_settings(request);
   const TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, &frame_environment(request),
                       g.has_albedo() ? &g.albedo : nullptr, g.lighting.empty() ? nullptr : &g.lighting,
-                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views};
+                      g.depth_back_view.empty() ? nullptr : &g.depth_back_view, g.views, g.data_origin_px};
   TermSettings selected{computed.ao ? &request.ao : nullptr, computed.ssdo ? &request.ssdo : nullptr,
                         confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
   selected.stored_in_half = kOutputsInHalf;

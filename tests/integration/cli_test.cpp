@@ -135,12 +135,12 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   ASSERT_EQ(run_ssdo(run).exit_code, 0);
   RunResult r = run_ssdo(run + " --threads 1");
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
-  r = run_ssdo(run + " --radius 0.25");
+  r = run_ssdo(run + " --radius RADIUS5");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("1 output was made with other options than this run's: computed again"), std::string::npos)
       << r.output;
-  r = run_ssdo(run + " --radius 0.25");
+  r = run_ssdo(run + " --radius RADIUS5");
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("other options"), std::string::npos) << r.output;
   // Another program's file by the output's name, newer than the frame.
@@ -148,7 +148,7 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   fs::remove(output);
   fs::copy_file(dir.path / "in" / "a.exr", output);
   fs::last_write_time(output, fs::last_write_time(dir.path / "in" / "a.exr") + std::chrono::seconds(2));
-  r = run_ssdo(run + " --radius 0.25");
+  r = run_ssdo(run + " --radius RADIUS5");
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
   const std::vector<std::string> names = channel_names(output.string());
   EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
@@ -303,6 +303,47 @@ TEST(Cli, ACropsOutputKeepsItsWindows) {
   EXPECT_EQ(spec.full_y, 0);
   EXPECT_EQ(spec.full_width, 640);
   EXPECT_EQ(spec.full_height, 360);
+}
+
+// A crop of a frame (data window inside the display window, at an even offset) gets the
+// whole frame's noise, so its terms equal the whole frame's wherever its taps, the denoise
+// and the upsample stay inside it: a re-rendered region patches into the frame without a
+// seam of other noise.
+TEST(Cli, ACropGetsTheWholeFramesTermsAwayFromItsEdges) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  OIIO::ImageBuf full(example("cornell.exr"));
+  const OIIO::ROI region(102, 302, 82, 232);
+  OIIO::ImageBuf crop = OIIO::ImageBufAlgo::crop(full, region);
+  ASSERT_TRUE(crop.write((dir.path / "in" / "crop.exr").string())) << crop.geterror();
+  fs::copy_file(example("cornell.exr"), dir.path / "in" / "full.exr");
+  for (const char* stem : {"crop", "full"})
+    fs::copy_file(example("cornell.camera.json"), dir.path / "in" / (std::string(stem) + ".camera.json"));
+  // A radius of 10-20 pixels: the interior below is out of every tap's reach of the edges.
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --terms ao,ssdo --preset low --radius 0.2 --jobs 1");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  OIIO::ImageBuf crop_out((dir.path / "out" / "crop.ssdo.exr").string());
+  OIIO::ImageBuf full_out((dir.path / "out" / "full.ssdo.exr").string());
+  constexpr int kMargin = 40;
+  const OIIO::ROI interior(region.xbegin + kMargin, region.xend - kMargin, region.ybegin + kMargin,
+                           region.yend - kMargin);
+  for (const char* name : {"ao", "ao_denoised", "ssdo_direct.R", "confidence"}) {
+    const int cc = crop_out.spec().channelindex(name), cf = full_out.spec().channelindex(name);
+    ASSERT_GE(cc, 0) << name;
+    ASSERT_GE(cf, 0) << name;
+    double sum = 0.0, worst = 0.0, value = 0.0;
+    int n = 0;
+    for (int y = interior.ybegin; y < interior.yend; ++y)
+      for (int x = interior.xbegin; x < interior.xend; ++x) {
+        const double d = std::abs(double(crop_out.getchannel(x, y, 0, cc)) - double(full_out.getchannel(x, y, 0, cf)));
+        sum += d, worst = std::max(worst, d), ++n;
+        value += full_out.getchannel(x, y, 0, cf);
+      }
+    std::printf("%s: value %.4f mean |difference| %.6f max %.6f over %d pixels\n", name, value / n, sum / n, worst, n);
+    EXPECT_LT(sum / n, 1e-4) << name;
+    if (std::string(name) == "ao") EXPECT_LT(value / n, 0.99);  // occluded: the noise matters
+  }
 }
 
 // A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its
