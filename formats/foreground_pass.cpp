@@ -53,8 +53,14 @@ void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
   counts.depth_max = std::max(counts.depth_max, d);
   if (!normal) return;
   if (pass.normals_world) n = pass.normal_to_view * n;
-  const float len = glm::length(n);
-  if (!(len > kMinNormalLength)) {
+  float len = glm::length(n);
+  // A finite normal whose squared length overflows (components past ~1.8e19): its
+  // direction, scaled down by its largest component first.
+  if (len == std::numeric_limits<float>::infinity() && std::isfinite(n.x) && std::isfinite(n.y) && std::isfinite(n.z)) {
+    n /= std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)});
+    len = glm::length(n);
+  }
+  if (!(len > kMinNormalLength) || !std::isfinite(len)) {
     row.repair[x] = 1;
     ++counts.repaired;
     normal[x] = cv::Vec3f(0, 0, 0);
@@ -75,7 +81,7 @@ struct Vec3s {
 
 // ForegroundPass and the row's first eye ray, broadcast to every lane.
 struct ForegroundLanes {
-  VF zero, infinity, background_depth, far_view, background, min_length;
+  VF zero, infinity, min_depth, background_depth, far_view, background, min_length;
   VF m00, m10, m20, m01, m11, m21, m02, m12, m22;  // normal_to_view
   VF ray_row_x, ray_row_y, ray_row_z, step_x, step_y, step_z, lanes;
 };
@@ -89,6 +95,7 @@ HWY_INLINE ForegroundLanes broadcast(const ForegroundPass& pass, const glm::vec3
   const auto set = [&](float v) { return hn::Set(df, v); };
   return {hn::Zero(df),
           set(inf),
+          set(kMinForegroundDepth),
           set(kBackgroundDepth),
           // No far clip: +inf, which no depth exceeds; no background value: NaN, which no
           // depth equals.
@@ -148,11 +155,11 @@ HWY_INLINE bool foreground_group(const ForegroundPass& pass, const ForegroundLan
   const Vec3s ray = eye_rays(c, pass.perspective, x);
   VF d = stored;
   if (pass.radial && pass.perspective) d = hn::Div(d, hn::Sqrt(dot(ray, ray)));
-  usable = hn::And(usable, hn::And(hn::Gt(d, c.zero), hn::Lt(d, c.background_depth)));
+  usable = hn::And(usable, hn::And(hn::Ge(d, c.min_depth), hn::Lt(d, c.background_depth)));
   usable = hn::AndNot(hn::Or(hn::Gt(d, c.far_view), hn::Eq(stored, c.background)), usable);
   if (pass.normals_world) n = to_view(c, n);
   const VF len = hn::Sqrt(dot(n, n));
-  usable = hn::And(usable, hn::Gt(len, c.min_length));
+  usable = hn::And(usable, hn::And(hn::Gt(len, c.min_length), hn::Lt(len, c.infinity)));
   if (!hn::AllTrue(df, usable)) return false;
   n = {hn::Div(n.x, len), hn::Div(n.y, len), hn::Div(n.z, len)};
   // Face the camera (foreground_pixel): -n is n with its sign bits flipped.

@@ -16,6 +16,10 @@ namespace ssdo::foreground {
 // Depth at or beyond this is background: renderers write "no hit" as a huge finite value
 // (Cycles: 1e10, see ../shared/gbuffers/README.md) rather than +inf.
 inline constexpr float kBackgroundDepth = 1e9f;
+// Depth below this is no surface either: no renderer's near clip comes within orders of
+// it, and the kernels divide by depth and by products of depths (reconstructed normals,
+// the denoise's depth scale), which overflow to inf below ~1e-19.
+inline constexpr float kMinForegroundDepth = 1e-10f;
 // A stored normal shorter than this is "no normal" (Cycles writes (0, 0, 0) where it has
 // none); unit normals in half precision are ~1 +- 1e-3.
 inline constexpr float kMinNormalLength = 1e-6f;
@@ -50,8 +54,8 @@ inline glm::vec3 eye_ray(const ForegroundPass& pass, const glm::vec3& ray_row, i
   return pass.perspective ? ray_row + float(x) * pass.ray_step_x : glm::vec3(0.0f, 0.0f, -1.0f);
 }
 
-// A stored depth sample as planar depth, or +inf when it is background: non-finite, <= 0,
-// >= kBackgroundDepth, beyond the far clip or the sidecar's background value. Radial
+// A stored depth sample as planar depth, or +inf when it is background: non-finite, below
+// kMinForegroundDepth (0 and negative included), >= kBackgroundDepth, beyond the far clip or the sidecar's background value. Radial
 // distance from the eye -> planar depth along -Z: d_planar = d cos(angle to the axis) =
 // d / |ray| for a ray with z = -1.
 inline float planar_depth(const ForegroundPass& pass, const glm::vec3& ray, float stored) {
@@ -59,7 +63,7 @@ inline float planar_depth(const ForegroundPass& pass, const glm::vec3& ray, floa
   if (!std::isfinite(stored)) return inf;
   float d = stored;
   if (pass.radial && pass.perspective) d /= glm::length(ray);
-  const bool foreground = d > 0.0f && d < kBackgroundDepth &&
+  const bool foreground = d >= kMinForegroundDepth && d < kBackgroundDepth &&
                           !(pass.far_view > 0.0f && d > pass.far_view) &&
                           !(pass.has_background && stored == pass.background);
   return foreground ? d : inf;

@@ -3,6 +3,7 @@
 // runs, for every kind of pixel at every lane position.
 #include "formats/foreground_pass.h"
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -41,7 +42,7 @@ Row random_row(int width, unsigned seed, const ForegroundPass& pass) {
   for (int x = 0; x < width; ++x) {
     r.depth[x] = depth(rng);
     r.normal[x] = cv::Vec3f(unit(rng), unit(rng), unit(rng));
-    switch (rng() % 12 == 0 ? rng() % 10 : 99) {
+    switch (rng() % 12 == 0 ? rng() % 12 : 99) {
       case 0: r.depth[x] = nan; break;
       case 1: r.depth[x] = inf; break;
       case 2: r.depth[x] = -1.0f; break;
@@ -52,6 +53,8 @@ Row random_row(int width, unsigned seed, const ForegroundPass& pass) {
       case 7: r.normal[x][1] = nan; break;
       case 8: r.normal[x] = cv::Vec3f(1e-8f, 0, 0); break;
       case 9: r.depth[x] = 0.0f; break;
+      case 10: r.depth[x] = 1e-23f; break;
+      case 11: r.normal[x] *= 1e20f; break;
       default: break;
     }
   }
@@ -107,6 +110,29 @@ TEST(ForegroundPass, VectorGroupsGiveEachPixelsBits) {
           expect_same_rows(pass, pass.width, unsigned(perspective * 4 + world * 2 + radial));
         });
       }
+}
+
+// A depth below kMinForegroundDepth is background (the kernels' 1 / d and products of depths
+// overflow); a finite normal whose squared length overflows keeps its direction.
+TEST(ForegroundPass, TinyDepthIsBackgroundAndHugeNormalsKeepTheirDirection) {
+  ForegroundPass pass;
+  pass.width = 3;
+  pass.ray_origin = glm::vec3(0.0f, 0.0f, -1.0f);
+  pass.ray_step_x = glm::vec3(0.01f, 0.0f, 0.0f);
+  pass.perspective = true;
+  Row r{{1e-23f, 2.0f, 2.0f}, std::vector<uint8_t>(3, 7), std::vector<uint8_t>(3, 0),
+        {cv::Vec3f(0, 0, 1), cv::Vec3f(0, 3e20f, 4e20f), cv::Vec3f(3e38f, 3e38f, 0)}};
+  const RowCounts counts = foreground_row(pass, row_ray(pass, 0), r.at(0));
+  EXPECT_EQ(r.mask[0], 0);
+  EXPECT_EQ(r.depth[0], std::numeric_limits<float>::infinity());
+  EXPECT_EQ(r.mask[1], 255);
+  EXPECT_EQ(r.repair[1], 0);
+  EXPECT_NEAR(r.normal[1][1], 0.6f, 1e-6f);
+  EXPECT_NEAR(r.normal[1][2], 0.8f, 1e-6f);
+  EXPECT_EQ(r.mask[2], 255);  // its length overflows even scaled: (1, 1, 0) / sqrt 2
+  EXPECT_NEAR(std::abs(r.normal[2][0]), std::sqrt(0.5f), 1e-6f);  // turned to face the eye
+  EXPECT_EQ(counts.foreground, 2);
+  EXPECT_EQ(counts.repaired, 0);
 }
 
 }  // namespace
