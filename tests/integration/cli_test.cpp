@@ -135,12 +135,12 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   ASSERT_EQ(run_ssdo(run).exit_code, 0);
   RunResult r = run_ssdo(run + " --threads 1");
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
-  r = run_ssdo(run + " --radius RADIUS5");
+  r = run_ssdo(run + " --radius 0.25");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("1 output was made with other options than this run's: computed again"), std::string::npos)
       << r.output;
-  r = run_ssdo(run + " --radius RADIUS5");
+  r = run_ssdo(run + " --radius 0.25");
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("other options"), std::string::npos) << r.output;
   // Another program's file by the output's name, newer than the frame.
@@ -148,7 +148,7 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   fs::remove(output);
   fs::copy_file(dir.path / "in" / "a.exr", output);
   fs::last_write_time(output, fs::last_write_time(dir.path / "in" / "a.exr") + std::chrono::seconds(2));
-  r = run_ssdo(run + " --radius RADIUS5");
+  r = run_ssdo(run + " --radius 0.25");
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
   const std::vector<std::string> names = channel_names(output.string());
   EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
