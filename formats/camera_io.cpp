@@ -51,6 +51,23 @@ bool inverse_of(const glm::mat4& a, const glm::mat4& b) {
   return true;
 }
 
+// Why the 3x3 part of a world-to-camera matrix is not a rotation with one uniform scale
+// (its rows, the camera's axes in the world, orthogonal and of equal length within 1e-3):
+// empty when it is. A pose with unequal axes would shear the view's angles.
+std::string not_a_pose(const glm::mat4& m) {
+  const glm::dvec3 axis[3] = {glm::dvec3(m[0][0], m[1][0], m[2][0]), glm::dvec3(m[0][1], m[1][1], m[2][1]),
+                              glm::dvec3(m[0][2], m[1][2], m[2][2])};
+  const double lengths[3] = {glm::length(axis[0]), glm::length(axis[1]), glm::length(axis[2])};
+  const double scale = (lengths[0] + lengths[1] + lengths[2]) / 3.0;
+  for (int i = 0; i < 3; ++i) {
+    if (!(std::abs(lengths[i] - scale) <= 1e-3 * scale))
+      return "its axes are scaled unequally (" + std::to_string(lengths[0]) + ", " + std::to_string(lengths[1]) +
+             ", " + std::to_string(lengths[2]) + ")";
+    if (!(std::abs(glm::dot(axis[i], axis[(i + 1) % 3])) <= 1e-3 * scale * scale)) return "its axes are not orthogonal";
+  }
+  return {};
+}
+
 }  // namespace
 
 std::string sidecar_path_for(const std::string& exr_path) {
@@ -58,6 +75,59 @@ std::string sidecar_path_for(const std::string& exr_path) {
   p.replace_extension(".camera.json");
   return p.string();
 }
+
+namespace {
+
+// Why a sidecar's world_to_camera is no camera pose: empty when it is one.
+std::string sidecar_pose_error(const glm::mat4& pose) {
+  if (!(std::abs(glm::determinant(glm::dmat4(pose))) > 1e-12))
+    return "\"world_to_camera\" is singular (no camera pose maps the world onto view space)";
+  if (!(std::max({std::abs(pose[0][3]), std::abs(pose[1][3]), std::abs(pose[2][3]), std::abs(pose[3][3] - 1.0f)}) <=
+        1e-6f))
+    return "\"world_to_camera\"'s last row is not (0, 0, 0, 1): not a camera pose (written column by column?)";
+  if (const std::string why = not_a_pose(pose); !why.empty())
+    return "\"world_to_camera\" is not a rotation with a uniform scale: " + why;
+  return {};
+}
+
+// Why a sidecar's projection is none the kernels can use: empty when it is one.
+std::string sidecar_projection_error(const glm::mat4& p) {
+  if (p[2][3] == 0.0f && p[3][3] == 0.0f) return "\"projection\" has a zero w row";
+  const float w_scale = std::max(std::abs(p[2][3]), std::abs(p[3][3]));
+  if (!(std::abs(p[0][3]) <= 1e-6f * w_scale && std::abs(p[1][3]) <= 1e-6f * w_scale))
+    return "\"projection\"'s w row depends on view-space x or y (written column by column?)";
+  if (p[0][0] == 0.0f || p[1][1] == 0.0f) return "\"projection\" does not project view-space x and y";
+  // Perspective: w = -z for a camera looking down -Z (OpenGL-style, as documented).
+  if (p[2][3] > 0.0f)
+    return "\"projection\" looks down +Z (w = +z); the sidecar's camera looks down -Z (OpenGL-style: w = -z)";
+  // The transpose of an OpenGL perspective projection: its w row (0, 0, -2fn / (f - n), 0)
+  // passes for a perspective one with a zoom of about 1 / 2n, but its z row's constant is
+  // the original w's -1, which a projection scaled by any factor has only by chance.
+  if (p[2][3] != 0.0f && std::abs(p[2][3]) != 1.0f && std::abs(p[3][2]) == 1.0f)
+    return "\"projection\" looks transposed (its z row ends in " + std::to_string(p[3][2]) + " and w = " +
+           std::to_string(p[2][3]) + " z): written column by column?";
+  return {};
+}
+
+// The sidecar's camera in our conventions. One homogeneous scale: w = -z (perspective) or
+// w = 1 (orthographic), as Camera's field of view and every reader of the matrix assume. A
+// projection whose NDC x grows to the left or y downwards (Vulkan's clip space, or a frame
+// stored bottom row first) describes the same rays per pixel as one that does not, with
+// view-space x or y negated: the view space becomes ours (x right, y up), and the pose with
+// it, so that every kernel's screen-to-view direction holds.
+void normalise_sidecar_camera(Camera& camera) {
+  glm::mat4& p = camera.view_to_clip;
+  p = p * (p[2][3] != 0.0f ? -1.0f / p[2][3] : 1.0f / p[3][3]);
+  const float sign_x = p[0][0] < 0.0f ? -1.0f : 1.0f, sign_y = p[1][1] < 0.0f ? -1.0f : 1.0f;
+  if (sign_x > 0.0f && sign_y > 0.0f) return;
+  const glm::mat4 flip(glm::vec4(sign_x, 0, 0, 0), glm::vec4(0, sign_y, 0, 0), glm::vec4(0, 0, 1, 0),
+                       glm::vec4(0, 0, 0, 1));  // its own inverse
+  p = p * flip;
+  camera.world_to_view = flip * camera.world_to_view;
+  camera.view_to_world = camera.view_to_world * flip;
+}
+
+}  // namespace
 
 std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::string* error) {
   std::ifstream in(path);
@@ -80,8 +150,7 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
   if (!j.contains("world_to_camera") ||
       !matrix_from_json(j["world_to_camera"], s.camera.world_to_view))
     return fail("missing or malformed \"world_to_camera\" (row-major 4x4 numbers)");
-  if (!(std::abs(glm::determinant(glm::dmat4(s.camera.world_to_view))) > 1e-12))
-    return fail("\"world_to_camera\" is singular (no camera pose maps the world onto view space)");
+  if (const std::string e = sidecar_pose_error(s.camera.world_to_view); !e.empty()) return fail(e);
   if (j.contains("camera_to_world")) {
     if (!matrix_from_json(j["camera_to_world"], s.camera.view_to_world))
       return fail("malformed \"camera_to_world\" (row-major 4x4 numbers)");
@@ -115,12 +184,12 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
     return fail("\"depth_kind\" must be \"planar\" or \"radial\", not \"" + *s.depth_kind + "\"");
   s.normal_space = text("normal_space");
   s.position_space = text("position_space");
-  const glm::mat4& p = s.camera.view_to_clip;
-  if (p[2][3] == 0.0f && p[3][3] == 0.0f) return fail("\"projection\" has a zero w row");
-  if (p[0][0] == 0.0f || p[1][1] == 0.0f) return fail("\"projection\" does not project view-space x and y");
-  // Perspective: w = -z for a camera looking down -Z (OpenGL-style, as documented).
-  if (p[2][3] > 0.0f)
-    return fail("\"projection\" looks down +Z (w = +z); the sidecar's camera looks down -Z (OpenGL-style: w = -z)");
+  for (const auto& [key, space] : {std::pair{"normal_space", s.normal_space}, std::pair{"position_space", s.position_space}})
+    if (space && *space != "world" && *space != "view" && *space != "camera")
+      return fail(std::string("\"") + key + "\" must be \"world\", \"view\" or \"camera\" (= view), not \"" + *space +
+                  "\"");
+  if (const std::string e = sidecar_projection_error(s.camera.view_to_clip); !e.empty()) return fail(e);
+  normalise_sidecar_camera(s.camera);
   return s;
 }
 
@@ -158,6 +227,24 @@ void set_gl_depth_row(glm::mat4& p, float n, float f) {
   }
 }
 
+namespace {
+
+// Why a header's worldToCamera and worldToNDC describe no camera: empty when they do.
+std::string header_matrices_error(const ExrCameraMatrices& m) {
+  if (!all_finite(m.world_to_camera) || !all_finite(m.world_to_ndc)) return "matrices are not finite";
+  if (!(std::abs(glm::determinant(glm::dmat4(m.world_to_camera))) > 1e-12)) return "worldToCamera is singular";
+  if (const std::string why = not_a_pose(m.world_to_camera); !why.empty())
+    return "worldToCamera is not a rotation with a uniform scale: " + why;
+  const glm::dmat4 camera_to_ndc = glm::dmat4(m.world_to_ndc) * glm::inverse(glm::dmat4(m.world_to_camera));
+  const glm::dvec4 w_row(camera_to_ndc[0][3], camera_to_ndc[1][3], camera_to_ndc[2][3], camera_to_ndc[3][3]);
+  const double w_scale = std::max(std::abs(w_row.z), std::abs(w_row.w));
+  if (!(std::abs(w_row.x) <= 1e-6 * w_scale && std::abs(w_row.y) <= 1e-6 * w_scale))
+    return "worldToNDC's w depends on camera-space x or y (no pinhole or orthographic camera; transposed?)";
+  return {};
+}
+
+}  // namespace
+
 std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
                                                const PixelBox& display, const PixelBox& data,
                                                float near_view, float far_view,
@@ -166,10 +253,7 @@ std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
     *error = "header camera (worldToCamera/worldToNDC): " + what;
     return std::nullopt;
   };
-  if (!all_finite(m.world_to_camera) || !all_finite(m.world_to_ndc))
-    return fail("matrices are not finite");
-  const double det = glm::determinant(glm::dmat4(m.world_to_camera));
-  if (!(std::abs(det) > 1e-12)) return fail("worldToCamera is singular");
+  if (const std::string e = header_matrices_error(m); !e.empty()) return fail(e);
   const glm::dmat4 camera_to_ndc =
       glm::dmat4(m.world_to_ndc) * glm::inverse(glm::dmat4(m.world_to_camera));
   // NDC w row, as a function of camera-space (x, y, z, 1).

@@ -2,6 +2,8 @@
 // both camera conventions.
 #include "formats/camera_io.h"
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "formats_test_util.h"
 
 namespace ssdo::test {
@@ -123,6 +125,100 @@ TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
   EXPECT_NE(error.find("looks down +Z"), std::string::npos) << error;
 }
 
+// Matrices written column by column, unequal axis scales and unknown spaces are refused,
+// naming the field.
+TEST(CameraSidecar, TransposedOrShearedMatricesAndUnknownSpacesAreRefused) {
+  ScratchDir dir;
+  const Camera cam = posed_camera(64, 48, 60.0f);
+  const nlohmann::json valid = {{"projection", row_major(cam.view_to_clip)},
+                                {"world_to_camera", row_major(cam.world_to_view)},
+                                {"width", 64},
+                                {"height", 48}};
+  auto read = [&](const nlohmann::json& j, std::string& error) {
+    const fs::path path = dir / "cam.json";
+    std::ofstream(path) << j.dump();
+    return read_camera_sidecar(path.string(), &error).has_value();
+  };
+  std::string error;
+  ASSERT_TRUE(read(valid, error)) << error;
+  nlohmann::json j = valid;
+  j["world_to_camera"] = row_major(glm::transpose(cam.world_to_view));
+  EXPECT_FALSE(read(j, error));
+  EXPECT_NE(error.find("\"world_to_camera\"'s last row is not (0, 0, 0, 1)"), std::string::npos) << error;
+  j = valid;
+  j["world_to_camera"] = row_major(glm::scale(glm::mat4(1.0f), glm::vec3(1.0f, 2.0f, 1.0f)) * cam.world_to_view);
+  EXPECT_FALSE(read(j, error));
+  EXPECT_NE(error.find("scaled unequally"), std::string::npos) << error;
+  j = valid;
+  j["world_to_camera"] = row_major(glm::scale(glm::mat4(1.0f), glm::vec3(100.0f)) * cam.world_to_view);
+  EXPECT_TRUE(read(j, error)) << error;  // centimetres: a uniform scale
+  j = valid;
+  j["projection"] = row_major(glm::transpose(cam.view_to_clip));
+  EXPECT_FALSE(read(j, error));
+  EXPECT_NE(error.find("\"projection\" looks transposed"), std::string::npos) << error;
+  glm::mat4 shifted = cam.view_to_clip;
+  shifted[2][0] = 0.1f;  // a lens shift
+  j["projection"] = row_major(glm::transpose(shifted));
+  EXPECT_FALSE(read(j, error));
+  EXPECT_NE(error.find("\"projection\" looks transposed"), std::string::npos) << error;
+  glm::mat4 ortho(1.0f);  // an orthographic projection shifted in x: its transpose's w depends on x
+  ortho[0][0] = 0.5f, ortho[1][1] = 0.6f, ortho[2][2] = -0.01f, ortho[3][0] = 0.1f, ortho[3][2] = -1.001f;
+  j["projection"] = row_major(ortho);
+  EXPECT_TRUE(read(j, error)) << error;
+  j["projection"] = row_major(glm::transpose(ortho));
+  EXPECT_FALSE(read(j, error));
+  EXPECT_NE(error.find("w row depends on view-space x or y"), std::string::npos) << error;
+  j["projection"] = row_major(2.0f * shifted);  // the same projection, homogeneously scaled
+  ASSERT_TRUE(read(j, error)) << error;
+  {
+    std::string e;
+    const auto scaled = read_camera_sidecar((dir / "cam.json").string(), &e);
+    ASSERT_TRUE(scaled) << e;
+    expect_mat_near(scaled->camera.view_to_clip, shifted, 1e-6f);  // w = -z again
+  }
+  for (const char* key : {"normal_space", "position_space"}) {
+    j = valid;
+    j[key] = "World";
+    EXPECT_FALSE(read(j, error)) << key;
+    EXPECT_NE(error.find(std::string("\"") + key + "\" must be \"world\", \"view\" or \"camera\""), std::string::npos)
+        << error;
+    j[key] = "camera";
+    EXPECT_TRUE(read(j, error)) << error;
+  }
+}
+
+// A projection whose NDC y grows downwards (Vulkan's clip space; a frame stored bottom row
+// first) or x to the left describes the same rays per pixel: read as our camera with the
+// view's axis negated, so every pixel sees the same world point and the projection's
+// scales are positive (the kernels' screen-to-view directions assume them).
+TEST(CameraSidecar, AProjectionWithFlippedAxesKeepsTheRaysPerPixel) {
+  ScratchDir dir;
+  const Camera cam = posed_camera(64, 48, 60.0f);
+  for (const glm::vec3 flip : {glm::vec3(1, -1, 1), glm::vec3(-1, 1, 1), glm::vec3(-1, -1, 1)}) {
+    // The stored frame is mirrored along the flipped axes: pixel (x, y) of the flipped
+    // camera is pixel (w - 1 - x, y) or (x, h - 1 - y) of the original.
+    glm::mat4 p = cam.view_to_clip;
+    for (int c = 0; c < 4; ++c) p[c][0] *= flip.x, p[c][1] *= flip.y;
+    const nlohmann::json j = {{"projection", row_major(p)},
+                              {"world_to_camera", row_major(cam.world_to_view)},
+                              {"width", 64},
+                              {"height", 48}};
+    std::ofstream(dir / "cam.json") << j.dump();
+    std::string error;
+    const auto s = read_camera_sidecar((dir / "cam.json").string(), &error);
+    ASSERT_TRUE(s) << error;
+    EXPECT_GT(s->camera.view_to_clip[0][0], 0.0f);
+    EXPECT_GT(s->camera.view_to_clip[1][1], 0.0f);
+    expect_mat_near(s->camera.view_to_world * s->camera.world_to_view, glm::mat4(1.0f), 1e-5f);
+    for (const glm::vec3 world : {glm::vec3(1.3f, 7.0f, 2.5f), glm::vec3(-0.4f, 9.0f, 4.0f)}) {
+      const glm::vec4 a = cam.view_to_clip * cam.world_to_view * glm::vec4(world, 1.0f);
+      const glm::vec4 b = s->camera.view_to_clip * s->camera.world_to_view * glm::vec4(world, 1.0f);
+      EXPECT_NEAR(b.x / b.w, flip.x * a.x / a.w, 1e-5f);
+      EXPECT_NEAR(b.y / b.w, flip.y * a.y / a.w, 1e-5f);
+    }
+  }
+}
+
 TEST(CameraSidecar, PathBesideTheFrame) {
   EXPECT_EQ(sidecar_path_for("/a/b/shot.0001.exr"), "/a/b/shot.0001.camera.json");
   EXPECT_EQ(sidecar_path_for("cornell.exr"), "cornell.camera.json");
@@ -187,6 +283,22 @@ TEST(HeaderMatrices, MinusZCameraAndMirroredAxesAreDetected) {
       for (int r : {0, 1, 3}) EXPECT_NEAR(back->view_to_clip[c][r], cam.view_to_clip[c][r], 1e-5f);
     EXPECT_EQ(back->near_view, 0.0f);  // unknown clips stay unknown
   }
+}
+
+TEST(HeaderMatrices, TransposedOrShearedMatricesAreErrors) {
+  const Camera cam = posed_camera(64, 48, 50.0f);
+  const ExrCameraMatrices exr = exr_matrices_from_camera(cam);
+  const PixelBox box{0, 0, 63, 47};
+  std::string error, note;
+  ASSERT_TRUE(camera_from_exr_matrices(exr, box, box, 0, 0, &error, &note)) << error;
+  ExrCameraMatrices m = exr;
+  m.world_to_ndc = glm::transpose(exr.world_to_ndc);
+  EXPECT_FALSE(camera_from_exr_matrices(m, box, box, 0, 0, &error, &note));
+  EXPECT_NE(error.find("w depends on camera-space x or y"), std::string::npos) << error;
+  m = exr;
+  m.world_to_camera = glm::scale(glm::mat4(1.0f), glm::vec3(1.0f, 2.0f, 1.0f)) * exr.world_to_camera;
+  EXPECT_FALSE(camera_from_exr_matrices(m, box, box, 0, 0, &error, &note));
+  EXPECT_NE(error.find("scaled unequally"), std::string::npos) << error;
 }
 
 TEST(HeaderMatrices, SingularMatricesAreErrors) {
