@@ -413,6 +413,18 @@ void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
     if (r.input == "position")
       r.space = decide_space(r.space, prep.sidecar_position_space, prep.camera_has_world);
   }
+  // World-space normals or positions under a camera without a pose (a bare --fov) cannot be
+  // brought into view space: they are not read (the normals are rebuilt from depth, the
+  // positions computed from it), rather than taken as view space.
+  if (!prep.camera_has_world)
+    std::erase_if(prep.channels.inputs, [&](const ResolvedInput& r) {
+      const bool world = (r.input == "normal" || r.input == "position") && r.space == Space::world;
+      if (world)
+        info.notes.push_back(r.input + " channels " + r.describe() +
+                             " are world space and the camera (--fov) has no pose to rotate them: " +
+                             (r.input == "normal" ? "normals rebuilt from depth" : "positions computed from depth"));
+      return world;
+    });
   for (const auto& r : prep.channels.inputs) {
     if (!wanted(r, options, prep.lighting_from_passes) || r.input == "diffdir") continue;
     if (r.input == "albedo" && !options.read_albedo) continue;

@@ -675,6 +675,34 @@ TEST(ReadConversions, NormalsFacingAwayAreFlippedAndWorldNormalsRotated) {
   EXPECT_GT(n[2], 0.9f);
 }
 
+// World-space normals under a camera without a pose (--fov, no sidecar or header matrices)
+// cannot be rotated into view space: they are not read (rebuilt from depth later), with a
+// note, instead of being taken as view-space normals.
+TEST(ReadConversions, WorldNormalsUnderABareFovAreRebuiltNotMisread) {
+  ScratchDir dir;
+  const fs::path path = dir / "fov.exr";
+  TestExr t = generic_frame(64, 36, 4.0f);
+  t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(64 * 36, 0.0f)});
+  t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(64 * 36, 1.0f)});
+  t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64 * 36, 0.0f)});
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  options.mapping.normal_space = Space::world;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.gbuffer.normal_view.empty());
+  EXPECT_TRUE(r.info.normals_reconstructed);
+  bool noted = false;
+  for (const std::string& n : r.info.notes) noted |= n.find("world space and the camera (--fov) has no pose") != std::string::npos;
+  EXPECT_TRUE(noted);
+  // View-space normals under the same camera are read.
+  options.mapping.normal_space = Space::view;
+  const ReadResult view = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(view.ok()) << view.error;
+  EXPECT_FALSE(view.gbuffer.normal_view.empty());
+}
+
 // A space given alone (--map normal-space=view) applies to the detected channels: the
 // profile stays the detected one, and the normals are taken as they are, not rotated.
 TEST(ReadConversions, AnExplicitSpaceAloneAppliesToTheDetectedNormals) {
