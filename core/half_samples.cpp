@@ -33,9 +33,16 @@ namespace hn = hwy::HWY_NAMESPACE;
 #define SSDO_HARDWARE_HALF 0
 #endif
 
-// Imath's conversion (round to nearest even) of n consecutive floats into half bits.
+// Half's largest finite value.
+constexpr float kHalfMax = 65504.0f;
+
+// Imath's conversion (round to nearest even) of n consecutive floats into half bits,
+// saturated to +-kHalfMax (NaN stays NaN).
 void to_half_imath(const float* in, int64_t n, uint16_t* out) {
-  for (int64_t x = 0; x < n; ++x) out[x] = half(in[x]).bits();
+  for (int64_t x = 0; x < n; ++x) {
+    const float v = in[x] > kHalfMax ? kHalfMax : in[x] < -kHalfMax ? -kHalfMax : in[x];
+    out[x] = half(v).bits();
+  }
 }
 
 // Imath's conversion of n half samples (little-endian bits) to floats `pixel_floats` floats
@@ -62,7 +69,8 @@ void to_half_lanes(const float* in, int n, uint16_t* out) {
       to_half_imath(in + x, lanes, out + x);
       continue;
     }
-    hn::StoreU(hn::DemoteTo(dh, v), dh, reinterpret_cast<hwy::float16_t*>(out + x));
+    const auto saturated = hn::Min(hn::Max(v, hn::Set(df, -kHalfMax)), hn::Set(df, kHalfMax));
+    hn::StoreU(hn::DemoteTo(dh, saturated), dh, reinterpret_cast<hwy::float16_t*>(out + x));
   }
 #endif
   to_half_imath(in + x, n - x, out + x);

@@ -39,7 +39,11 @@ std::string check_exr(const std::string& path, long long max_pixels, const Imf::
   else if (channels.findChannel("Y"))
     names = {"Y", "Y", "Y"};
   else
-    return path + ": the environment map has no R, G, B or Y channels";
+  {
+    std::string found;
+    for (auto it = channels.begin(); it != channels.end(); ++it) found += (found.empty() ? "" : ", ") + std::string(it.name());
+    return path + ": the environment map needs channels R, G and B, or Y (it has " + found + ")";
+  }
   return {};
 }
 
@@ -120,11 +124,12 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
       }
     }
     // Radiance is finite and >= 0: anything else (NaN, Inf, negative from a bad filter)
-    // would poison the SH projection and every pixel with it.
+    // would poison the SH projection and every pixel with it. It is at most
+    // kMaxEnvRadiance, so that sums of texels times solid angles stay finite.
     for (int y = 0; y < r.radiance_rgb.rows; ++y) {
       float* p = r.radiance_rgb.ptr<float>(y);
       for (int i = 0; i < r.radiance_rgb.cols * 3; ++i)
-        if (!std::isfinite(p[i]) || p[i] < 0.0f) p[i] = 0.0f;
+        p[i] = !std::isfinite(p[i]) || p[i] < 0.0f ? 0.0f : std::min(p[i], kMaxEnvRadiance);
     }
   } catch (const std::exception& e) {
     r.error = path + ": cannot read the environment map: " + e.what();

@@ -18,9 +18,14 @@ struct EnvMapResult {
   bool ok() const { return error.empty(); }
 };
 
+// The brightest radiance an environment texel keeps: above any captured sky (an HDR
+// capture's sun disk is ~1e5-1e8 in its units), and small enough that the projection's
+// sums of texels times solid angles stay finite in float (3.4e38).
+inline constexpr float kMaxEnvRadiance = 1e9f;
+
 // Reads the first three channels (R, G, B; a single channel is replicated). Refuses
 // images larger than max_pixels before allocating; non-finite or negative radiance is
-// clamped to 0.
+// clamped to 0, radiance above kMaxEnvRadiance to it.
 EnvMapResult read_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);
 
 // What read_env_map would refuse that is known without decoding the pixels: for EXR the

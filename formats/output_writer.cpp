@@ -305,9 +305,9 @@ void write_exr(const fs::path& temp, const std::vector<OutputTerm>& terms, const
       std::vector<half>& buffer = half_buffers.emplace_back(size_t(size.area()) * n);
       parallel_rows(cv::Range(0, size.height), options.threads, [&](const cv::Range& rows) {
         for (int y = rows.start; y < rows.end; ++y) {
-          const float* row = t.image.ptr<float>(y);
-          half* out = buffer.data() + size_t(y) * size.width * n;
-          for (int i = 0; i < size.width * n; ++i) out[i] = half(row[i]);
+          // As the own encoders round (saturating beyond half's range).
+          half_samples::to_half(t.image.ptr<float>(y), size.width * n,
+                                reinterpret_cast<uint16_t*>(buffer.data() + size_t(y) * size.width * n));
         }
       }, 32);
       for (int c = 0; c < n; ++c)

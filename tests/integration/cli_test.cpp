@@ -346,6 +346,32 @@ TEST(Cli, ACropGetsTheWholeFramesTermsAwayFromItsEdges) {
   }
 }
 
+// A sky brighter than half floats can hold, or near float's largest, gives finite outputs:
+// the light terms saturate at 65504 where stored, never inf or NaN.
+TEST(Cli, ASkyBrighterThanHalfGivesFiniteOutputs) {
+  ScratchDir dir;
+  for (const float radiance : {1e5f, 3e38f}) {
+    const std::string env = dir / "env.exr";
+    OIIO::ImageBuf sky(OIIO::ImageSpec(8, 4, 3, OIIO::TypeDesc::FLOAT));
+    const float rgb[3] = {radiance, radiance, radiance};
+    OIIO::ImageBufAlgo::fill(sky, rgb);
+    ASSERT_TRUE(sky.write(env)) << sky.geterror();
+    const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + dir / "out" +
+                                 " --terms all --preset low --force --env " + env);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    OIIO::ImageBuf out((dir.path / "out" / "cornell.ssdo.exr").string());
+    ASSERT_TRUE(out.read()) << out.geterror();
+    const OIIO::ImageBufAlgo::PixelStats stats = OIIO::ImageBufAlgo::computePixelStats(out);
+    for (int c = 0; c < out.nchannels(); ++c) {
+      EXPECT_EQ(stats.nancount[size_t(c)] + stats.infcount[size_t(c)], 0u) << radiance << " " << out.spec().channelnames[c];
+      EXPECT_LE(stats.max[size_t(c)], 65504.0f) << out.spec().channelnames[c];
+    }
+    const int direct = out.spec().channelindex("ssdo_direct.R");
+    ASSERT_GE(direct, 0);
+    EXPECT_EQ(stats.max[size_t(direct)], 65504.0f) << radiance;  // saturated, not inf
+  }
+}
+
 // A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its
 // frames' neighbours from the whole shot, as a run of the whole shot does: frame 3's
 // temporal neighbours are 1, 2, 4 and 5 although the task computes frame 3 alone.

@@ -28,6 +28,7 @@ TestExr rgb_map(int w, int h) {
     r.values.push_back(float(i % 17) * 0.5f);
     g.values.push_back(float(i) * 0.25f);
     b.values.push_back(i == 5 ? -1.0f : 2.0f);  // negative radiance is clamped to 0
+    if (i == 6) g.values.back() = 3e38f;        // beyond kMaxEnvRadiance: clamped to it
   }
   exr.channels = {b, g, r};
   return exr;
@@ -46,7 +47,7 @@ TEST(EnvMap, ExrRgbIsReadInPlaceWithNegativesClamped) {
   for (int i = 0; i < w * h; ++i) {
     const cv::Vec3f p = env.radiance_rgb.at<cv::Vec3f>(i / w, i % w);
     EXPECT_EQ(p[0], float(i % 17) * 0.5f) << i;
-    EXPECT_EQ(p[1], float(i) * 0.25f) << i;
+    EXPECT_EQ(p[1], i == 6 ? kMaxEnvRadiance : float(i) * 0.25f) << i;
     EXPECT_EQ(p[2], i == 5 ? 0.0f : 2.0f) << i;
   }
   EXPECT_FALSE(oiio_module::loaded()) << "an EXR map must not need OpenImageIO";
@@ -120,7 +121,7 @@ TEST(EnvMap, ErrorsNameTheFile) {
   ASSERT_TRUE(exr.write(dir / "depth.exr"));
   const EnvMapResult depth = read_env_map((dir / "depth.exr").string());
   EXPECT_FALSE(depth.ok());
-  EXPECT_NE(depth.error.find("no R, G, B or Y"), std::string::npos) << depth.error;
+  EXPECT_NE(depth.error.find("needs channels R, G and B, or Y (it has Z)"), std::string::npos) << depth.error;
   const TestExr big = rgb_map(8, 4);
   ASSERT_TRUE(big.write(dir / "big.exr"));
   const EnvMapResult over = read_env_map((dir / "big.exr").string(), 31);

@@ -285,7 +285,7 @@ TEST(WriteOutputs, LosslessCompressionsStoreTheSameBits) {
   ao(cv::Rect(0, 0, w, 9)).setTo(0.0f);
   ao.at<float>(20, 30) = std::numeric_limits<float>::infinity();
   colour.at<cv::Vec3f>(5, 6)[1] = std::numeric_limits<float>::quiet_NaN();
-  colour.at<cv::Vec3f>(7, 8)[2] = 1e6f;  // beyond half: +inf
+  colour.at<cv::Vec3f>(7, 8)[2] = 1e6f;  // beyond half: saturates at 65504
   const std::vector<OutputTerm> terms = {{"ao", ao, SampleType::float32},
                                          {"ssdo_direct", colour, SampleType::half},
                                          {"bent_normal", colour, SampleType::half, true}};
@@ -320,7 +320,7 @@ TEST(WriteOutputs, LosslessCompressionsStoreTheSameBits) {
   EXPECT_EQ(s[(size_t(40) * w + 41) * n], ao.at<float>(40, 41));
   EXPECT_EQ(s[(size_t(40) * w + 41) * n + 1], float(half(colour.at<cv::Vec3f>(40, 41)[0])));
   EXPECT_TRUE(std::isnan(s[(size_t(5) * w + 6) * n + 2]));
-  EXPECT_EQ(s[(size_t(7) * w + 8) * n + 3], std::numeric_limits<float>::infinity());
+  EXPECT_EQ(s[(size_t(7) * w + 8) * n + 3], 65504.0f);
 }
 
 // A half term may come already rounded (CV_16F, half_samples::to_half): every writer stores
@@ -333,7 +333,7 @@ TEST(WriteOutputs, HalfTermsGivenInHalfStoreTheBitsOfTheirFloats) {
   cv::RNG rng(11);
   rng.fill(ao, cv::RNG::UNIFORM, 0.0f, 1.0f);
   rng.fill(colour, cv::RNG::NORMAL, 0.3f, 1.5f);
-  colour.at<cv::Vec3f>(3, 4)[0] = 1e6f;     // beyond half: +inf
+  colour.at<cv::Vec3f>(3, 4)[0] = 1e6f;     // beyond half: saturates at 65504
   colour.at<cv::Vec3f>(9, 10)[2] = 1e-6f;   // a subnormal half
   cv::Mat colour_half(h, w, CV_16FC3);
   for (int y = 0; y < h; ++y)
@@ -362,7 +362,7 @@ TEST(WriteOutputs, HalfTermsGivenInHalfStoreTheBitsOfTheirFloats) {
     ASSERT_EQ(stored[0].size(), size_t(w) * h * names.size()) << compression;
     EXPECT_EQ(stored[1], stored[0]) << compression;
     EXPECT_EQ(bytes[1], bytes[0]) << compression;
-    EXPECT_EQ(stored[1][(size_t(3) * w + 4) * 4 + 1], std::numeric_limits<float>::infinity()) << compression;
+    EXPECT_EQ(stored[1][(size_t(3) * w + 4) * 4 + 1], 65504.0f) << compression;
     EXPECT_EQ(stored[1][(size_t(20) * w + 21) * 4 + 3], float(half(colour.at<cv::Vec3f>(20, 21)[2]))) << compression;
   }
   // Half samples are only taken for half terms: a float term cannot be stored from them.
