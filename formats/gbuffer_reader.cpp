@@ -1008,26 +1008,27 @@ void read_pixels(Prepared& prep, const ReadOptions& options, Images& img) {
   for (auto& [alias, source] : plan.aliases) *alias = *source;
 }
 
-// v, or 0 when v is NaN or infinite: |v| <= FLT_MAX is false for both, and as a select
-// (not a branch) the loops over a row vectorise.
-inline float finite_or_zero(float v) { return std::abs(v) <= std::numeric_limits<float>::max() ? v : 0.0f; }
+// Albedo and light are finite and >= 0: NaN, infinities and negatives (a renderer's
+// filter ringing, a bad pass) would spread as negative or undefined light through the
+// bounce and the composite. 0 instead, as for environment texels.
+inline float light_or_zero(float v) { return v >= 0.0f && v <= std::numeric_limits<float>::max() ? v : 0.0f; }
 
-// finite_or_zero of every sample of a CV_32F image, rows in parallel.
-void set_nonfinite_to_zero(cv::Mat& m, int threads) {
+// light_or_zero of every sample of a CV_32F image, rows in parallel.
+void set_unusable_light_to_zero(cv::Mat& m, int threads) {
   if (m.empty()) return;
   CV_Assert(m.depth() == CV_32F);
   const int row_floats = m.cols * m.channels();
   parallel_rows(cv::Range(0, m.rows), threads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       float* p = m.ptr<float>(y);
-      for (int i = 0; i < row_floats; ++i) p[i] = finite_or_zero(p[i]);
+      for (int i = 0; i < row_floats; ++i) p[i] = light_or_zero(p[i]);
     }
   });
 }
 
-// out = finite_or_zero(a x b) per sample (out may be b; the product as cv::multiply rounds
+// out = light_or_zero(a x b) per sample (out may be b; the product as cv::multiply rounds
 // it), rows in parallel.
-void multiply_finite(const cv::Mat& a, const cv::Mat& b, cv::Mat& out, int threads) {
+void multiply_light(const cv::Mat& a, const cv::Mat& b, cv::Mat& out, int threads) {
   CV_Assert(a.type() == CV_32FC3 && b.type() == CV_32FC3 && a.size() == b.size());
   if (out.data != b.data) out.create(b.size(), b.type());
   const int row_floats = b.cols * 3;
@@ -1036,7 +1037,7 @@ void multiply_finite(const cv::Mat& a, const cv::Mat& b, cv::Mat& out, int threa
       const float* pa = a.ptr<float>(y);
       const float* pb = b.ptr<float>(y);
       float* po = out.ptr<float>(y);
-      for (int i = 0; i < row_floats; ++i) po[i] = finite_or_zero(pb[i] * pa[i]);
+      for (int i = 0; i < row_floats; ++i) po[i] = light_or_zero(pb[i] * pa[i]);
     }
   });
 }
@@ -1166,11 +1167,11 @@ void positions_to_view(const Prepared& prep, const ReadOptions& options, Images&
 // Albedo, lighting and the reference passes. Kernels multiply with albedo and lighting:
 // non-finite values become 0 (the reference passes are left as the renderer wrote them).
 void shading_inputs(const ReadOptions& options, Images& img, GBuffer& g) {
-  set_nonfinite_to_zero(img.albedo, options.threads);
+  set_unusable_light_to_zero(img.albedo, options.threads);
   if (options.read_lighting) {
     if (!img.lighting.empty()) {
       g.lighting = img.lighting;
-      set_nonfinite_to_zero(g.lighting, options.threads);
+      set_unusable_light_to_zero(g.lighting, options.threads);
     } else if (!img.albedo.empty() && !img.diffdir.empty()) {
       // Sender radiance of a Lambertian pixel under the renderer's direct light:
       // albedo x direct irradiance-like pass (Cycles: DiffCol * DiffDir, docs/usage.md),
@@ -1178,7 +1179,7 @@ void shading_inputs(const ReadOptions& options, Images& img, GBuffer& g) {
       bool shared = false;
       for (const auto& [name, m] : img.references) shared = shared || m.data == img.diffdir.data;
       if (!shared) g.lighting = img.diffdir;
-      multiply_finite(img.albedo, img.diffdir, g.lighting, options.threads);
+      multiply_light(img.albedo, img.diffdir, g.lighting, options.threads);
     }
   }
   if (options.read_albedo) g.albedo = img.albedo;

@@ -552,7 +552,7 @@ TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
 
 // The kernels multiply with albedo and lighting: a non-finite sample there becomes 0, and
 // so does a lighting product that overflows; every other sample is kept as stored.
-TEST(ReadConversions, NanAndInfInAlbedoAndLightingBecomeZero) {
+TEST(ReadConversions, NanInfAndNegativeAlbedoAndLightingBecomeZero) {
   ScratchDir dir;
   const int w = 8, h = 4, n = w * h;
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
@@ -565,6 +565,8 @@ TEST(ReadConversions, NanAndInfInAlbedoAndLightingBecomeZero) {
   col[0] = nan, col[4] = inf, col[8] = -inf;      // albedo itself non-finite
   light[12] = nan, light[16] = -inf;               // the direct pass non-finite
   col[20] = 1e30f, light[20] = 1e30f;              // a finite product that overflows
+  col[24] = -0.5f, light[28] = -5.0f;              // negative albedo, negative direct light
+  col[32] = -0.5f, light[32] = -5.0f;              // both negative: no positive product
   const char* rgb = "RGB";
   for (int c = 0; c < 3; ++c) {
     std::vector<float> a(n), l(n);
@@ -589,10 +591,11 @@ TEST(ReadConversions, NanAndInfInAlbedoAndLightingBecomeZero) {
       const int pixel = i / 3, c = i % 3;
       const float albedo = g.albedo.at<cv::Vec3f>(pixel / w, pixel % w)[c];
       const float lighting = g.lighting.at<cv::Vec3f>(pixel / w, pixel % w)[c];
-      const bool albedo_finite = std::isfinite(col[i]);
-      EXPECT_EQ(albedo, albedo_finite ? col[i] : 0.0f);
-      const float product = (albedo_finite ? col[i] : 0.0f) * light[i];
-      EXPECT_EQ(lighting, std::isfinite(product) ? product : 0.0f);
+      const bool albedo_usable = std::isfinite(col[i]) && col[i] >= 0.0f;
+      EXPECT_EQ(albedo, albedo_usable ? col[i] : 0.0f);
+      const float product = (albedo_usable ? col[i] : 0.0f) * light[i];
+      EXPECT_EQ(lighting, std::isfinite(product) && product >= 0.0f ? product : 0.0f);
+      EXPECT_GE(lighting, 0.0f);
     }
     // The direct pass as a reference keeps what the renderer wrote.
     EXPECT_TRUE(std::isnan(g.references.at("DiffDir").at<cv::Vec3f>(0, 4)[0]));  // light[12]
