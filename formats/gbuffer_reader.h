@@ -52,6 +52,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/gbuffer.h"
@@ -127,6 +128,9 @@ struct ChannelUse {
   std::string space;     // "world" | "view" | "" (not spatial)
 };
 
+// The start of a FrameInfo note that is a warning.
+inline constexpr std::string_view kWarningNote = "warning: ";
+
 struct FrameInfo {
   std::string path;
   int width_px = 0, height_px = 0;            // data window size (= the pixel grid)
@@ -157,7 +161,9 @@ struct FrameInfo {
   // Foreground pixels whose normal is (0, 0, 0) in the file (GBuffer::normal_missing), to
   // be replaced by the normal reconstructed from depth.
   int64_t repaired_normal_pixels = 0;
-  std::vector<std::string> notes;             // assumptions made while converting
+  // Assumptions made while converting; those that begin with kWarningNote say the terms
+  // are likely not what the user meant (shown without -v too).
+  std::vector<std::string> notes;
 };
 
 struct ReadResult {

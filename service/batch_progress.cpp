@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <iostream>
 
+#include "formats/gbuffer_reader.h"
+
 namespace ssdo {
 
 BatchProgress::BatchProgress(int total, int to_compute, bool bar, bool verbose)
@@ -78,9 +80,14 @@ void BatchProgress::finished(const std::string& input, const std::string& output
                   std::max(0.0, r.wall_ms - r.handled_ms), r.peak_rss_mib, r.page_faults);
     line += stages;
   }
-  // Notes are -v's; the one of a smaller window, which changes the frame's terms, is shown always.
-  if (verbose_)
-    for (const std::string& note : r.notes) line += "\n  note: " + note;
+  // Notes are -v's, but warnings (FrameInfo::notes) and the one of a smaller window, which
+  // change the frame's terms, are shown always.
+  bool warned = false;
+  for (const std::string& note : r.notes) {
+    const bool warning = note.rfind(kWarningNote, 0) == 0;
+    warned |= warning;
+    if (verbose_ || warning) line += "\n  note: " + note;
+  }
   const bool changed_terms = r.ok() && r.window_reduced();
   if (changed_terms) line += "\n  note: " + r.window_note;
   for (const std::string& warning : r.warnings) line += "\n  note: " + warning;
@@ -88,7 +95,7 @@ void BatchProgress::finished(const std::string& input, const std::string& output
     std::cout << line << "\n" << std::flush;
     return;
   }
-  if (!r.ok() || verbose_ || changed_terms || !r.warnings.empty()) std::cerr << "\r\033[K" << line << "\n";
+  if (!r.ok() || verbose_ || changed_terms || warned || !r.warnings.empty()) std::cerr << "\r\033[K" << line << "\n";
   draw_bar();
 }
 

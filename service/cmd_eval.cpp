@@ -174,6 +174,20 @@ int run_eval(const EvalArgs& args) {
       reference = oracle.channels() == 1 ? oracle : to_single_channel(oracle);
     }
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
+    // An error over no pixel is no measurement (an MAE of 0 would read as perfect).
+    const int64_t foreground = cv::countNonZero(frame.gbuffer.mask);
+    if (s.pixels == 0) {
+      std::cerr << "ssdo eval: " << file << ": no pixel to compare: "
+                << (foreground == 0 ? "the frame has no foreground (every depth sample is background: non-finite, "
+                                      "below 1e-10 as in a negated depth pass, or at least 1e9)"
+                                    : "the reference is not finite on any foreground pixel")
+                << "\n";
+      ++failed;
+      continue;
+    }
+    if (int64_t(s.pixels) < foreground)
+      std::cerr << "ssdo eval: " << file << ": " << foreground - int64_t(s.pixels)
+                << " foreground pixels left out: the reference or the estimate is not finite there\n";
     overall.add(estimate, reference, frame.gbuffer.mask);
     ConfidenceDeciles deciles;
     if (const cv::Mat* confidence = computed.find("confidence"))  // stored in half

@@ -342,7 +342,9 @@ TEST(Cli, ACropGetsTheWholeFramesTermsAwayFromItsEdges) {
       }
     std::printf("%s: value %.4f mean |difference| %.6f max %.6f over %d pixels\n", name, value / n, sum / n, worst, n);
     EXPECT_LT(sum / n, 1e-4) << name;
-    if (std::string(name) == "ao") EXPECT_LT(value / n, 0.99);  // occluded: the noise matters
+    if (std::string(name) == "ao") {
+      EXPECT_LT(value / n, 0.99);  // occluded: the noise matters
+    }
   }
 }
 
@@ -370,6 +372,29 @@ TEST(Cli, ASkyBrighterThanHalfGivesFiniteOutputs) {
     ASSERT_GE(direct, 0);
     EXPECT_EQ(stats.max[size_t(direct)], 65504.0f) << radiance;  // saturated, not inf
   }
+}
+
+// A frame whose every depth sample is background (a negated depth pass): process warns
+// without -v, and eval refuses to report an error over no pixel.
+TEST(Cli, AFrameWithoutForegroundIsWarnedAboutAndNotScored) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  OIIO::ImageBuf full(example("cornell.exr"));
+  ASSERT_TRUE(full.read()) << full.geterror();
+  const int depth = full.spec().channelindex("ViewLayer.Depth.Z");
+  ASSERT_GE(depth, 0);
+  std::vector<float> factors(size_t(full.nchannels()), 1.0f);
+  factors[size_t(depth)] = -1.0f;
+  const OIIO::ImageBuf negated = OIIO::ImageBufAlgo::mul(full, factors);
+  ASSERT_TRUE(negated.write((dir.path / "in" / "neg.exr").string())) << negated.geterror();
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "neg.camera.json");
+  RunResult r = run_ssdo("process " + dir / "in/neg.exr" + " -o " + dir / "out" + " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("note: warning: no foreground pixel"), std::string::npos) << r.output;
+  r = run_ssdo("eval " + dir / "in/neg.exr" + " --preset low");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("neg.exr: no pixel to compare: the frame has no foreground"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("MAE 0.0000"), std::string::npos) << r.output;
 }
 
 // A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its
