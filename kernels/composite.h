@@ -58,7 +58,8 @@ struct CompositeSettings {
   // The terms to add, each at most once. Default: SSDO direct + indirect (the Cycles sum).
   std::vector<WeightedTerm> terms = composite_mode_terms(CompositeMode::ssdo);
   // Radiance of the uniform ambient light of the ambient terms (RGB, >= 0). 1 = the white
-  // sky under which AO is defined (ambient_ao then equals albedo x AO).
+  // sky under which AO is defined (ambient_ao then equals albedo x AO); a frame's composite
+  // takes its environment's mean radiance (Environment::mean_radiance).
   glm::vec3 ambient_radiance{1.0f};
 };
 

@@ -111,6 +111,12 @@ Environment Environment::constant(const glm::vec3& radiance_rgb, const Environme
   return e;
 }
 
+glm::vec3 Environment::mean_radiance() const {
+  // integral of L Y_00 over the sphere = L_00, Y_00 = 1 / (2 sqrt(pi)) and 4 pi Y_00^2 = 1:
+  // the mean 1 / (4 pi) integral of L = Y_00 L_00.
+  return kind_ == EnvironmentKind::constant ? constant_ : sh_[0] * float(0.28209479177387814);
+}
+
 Environment Environment::sky(const SkyGradient& sky, const EnvironmentSettings& s) {
   Environment e(EnvironmentKind::sky, s);
   CV_Assert(sky.up_begin < sky.up_end);

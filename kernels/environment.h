@@ -115,6 +115,10 @@ class Environment {
   glm::vec3 radiance_filtered_env(const glm::vec3& d_env) const;
   glm::vec3 irradiance_over_pi_env(const glm::vec3& n_env) const;
 
+  // The mean radiance over the sphere: the uniform light of the same power (a constant's
+  // own radiance, exactly; else Y_00 L_00 of the SH projection below).
+  glm::vec3 mean_radiance() const;
+
   // Order-2 SH projection of the radiance in the environment frame, L_lm = integral of
   // L(d) Y_lm(d) over the sphere, index k = l (l + 1) + m (0..8), real SH basis.
   const std::array<glm::vec3, 9>& sh_radiance() const { return sh_; }

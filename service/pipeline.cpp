@@ -289,6 +289,9 @@ cv::Mat composite_frame(const GBuffer& g, const FrameRequest& request, const Ter
                         const DenoisedTerms& d) {
   CompositeSettings settings;
   settings.terms = computed.composite_terms;
+  // The ambient terms' uniform light is the environment's of the same power, as SSDO's
+  // light is the environment itself.
+  settings.ambient_radiance = frame_environment(request).mean_radiance();
   const auto env_pass = g.references.find("Env");
   const cv::Mat* background =
       env_pass != g.references.end() && env_pass->second.type() == CV_32FC3 ? &env_pass->second : nullptr;

@@ -397,6 +397,26 @@ TEST(Cli, AFrameWithoutForegroundIsWarnedAboutAndNotScored) {
   EXPECT_EQ(r.output.find("MAE 0.0000"), std::string::npos) << r.output;
 }
 
+// The composite's ambient terms are lit by the environment, as SSDO is: four times the
+// light, four times the foreground's composite (the background shows the light itself).
+TEST(Cli, TheCompositesAmbientTermsFollowTheEnvironment) {
+  ScratchDir dir;
+  float foreground[2] = {};
+  int n = 0;
+  for (const char* radiance : {"1", "4"}) {
+    const fs::path out = dir.path / radiance;
+    const RunResult r = run_ssdo("process " + example("cornell.exr") + " -o " + out.string() +
+                                 " --terms ao,composite --composite ambient_ao --preset low --env-constant " + radiance);
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    OIIO::ImageBuf image((out / "cornell.ssdo.exr").string());
+    const int c = image.spec().channelindex("composite.R");
+    ASSERT_GE(c, 0);
+    foreground[n++] = image.getchannel(320, 300, 0, c);
+  }
+  EXPECT_GT(foreground[0], 0.05f);
+  EXPECT_NEAR(foreground[1], 4.0f * foreground[0], 0.002f * foreground[1]);
+}
+
 // A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its
 // frames' neighbours from the whole shot, as a run of the whole shot does: frame 3's
 // temporal neighbours are 1, 2, 4 and 5 although the task computes frame 3 alone.

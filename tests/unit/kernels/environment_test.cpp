@@ -60,6 +60,20 @@ TEST(Environment, ConstantEquirectProjectsExactly) {
   EXPECT_NEAR(env.irradiance_over_pi(glm::vec3(0, 0, 1)).y, 2.0f, 1e-5f);
 }
 
+// The mean radiance over the sphere (the ambient terms' uniform light): a constant's own,
+// exactly; the sky's is (top + bottom) / 2 (its blend is symmetric about the horizon and
+// the sphere's area is uniform in the up-component); an image's, its solid-angle mean.
+TEST(Environment, MeanRadianceIsTheUniformLightOfTheSamePower) {
+  const glm::vec3 l(0.3f, 1.0f, 2.5f);
+  EXPECT_EQ(Environment::constant(l).mean_radiance(), l);
+  const SkyGradient sky;
+  const glm::vec3 sky_mean = Environment::sky(sky).mean_radiance(), expected = 0.5f * (sky.top + sky.bottom);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(sky_mean[c], expected[c], 0.005f * expected[c]) << c;
+  cv::Mat img(64, 128, CV_32FC3, cv::Scalar(2.0, 2.0, 2.0));
+  img.rowRange(0, 32).setTo(cv::Scalar(6.0, 6.0, 6.0));  // the upper hemisphere 3x brighter
+  EXPECT_NEAR(Environment::equirect(img).mean_radiance().x, 4.0f, 1e-4f);
+}
+
 TEST(Environment, CyclesSkyIrradianceMatchesIntegrationWithinOnePercent) {
   const SkyGradient sky;  // defaults = the Cycles world of the shared dumps
   const Environment env = Environment::sky(sky);
