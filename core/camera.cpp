@@ -6,14 +6,15 @@
 namespace ssdo {
 
 Camera Camera::from_fov_x(int width_px, int height_px, float fov_x_deg, float near_view,
-                          float far_view) {
+                          float far_view, float pixel_aspect) {
   Camera c;
   c.width_px = width_px;
   c.height_px = height_px;
   c.near_view = near_view;
   c.far_view = far_view;
   const float sx = 1.0f / std::tan(0.5f * glm::radians(fov_x_deg));
-  const float sy = sx * float(width_px) / float(height_px);  // square pixels
+  // The image's width over its height, in the scene: width x pixel_aspect / height.
+  const float sy = sx * float(width_px) * pixel_aspect / float(height_px);
   glm::mat4 p(0.0f);
   p[0][0] = sx;
   p[1][1] = sy;

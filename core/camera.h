@@ -26,10 +26,11 @@ struct Camera {
   float near_view = 0.0f;         // near clip distance, scene units (0 = unknown)
   float far_view = 0.0f;          // far clip distance, scene units (0 = unknown)
 
-  // A symmetric perspective camera from the full horizontal field of view (degrees),
-  // square pixels. near/far only fill the projection's depth rows.
+  // A symmetric perspective camera from the full horizontal field of view (degrees), with
+  // pixels pixel_aspect times as wide as they are tall (OpenEXR's pixelAspectRatio; 1 =
+  // square). near/far only fill the projection's depth rows.
   static Camera from_fov_x(int width_px, int height_px, float fov_x_deg,
-                           float near_view = 0.05f, float far_view = 1000.0f);
+                           float near_view = 0.05f, float far_view = 1000.0f, float pixel_aspect = 1.0f);
 
   bool is_perspective() const { return view_to_clip[2][3] != 0.0f; }
 

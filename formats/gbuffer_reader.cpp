@@ -359,7 +359,14 @@ bool camera_from_fov(const std::string& path, const std::string& sidecar,
   if (!(fov > 0.0f && fov < 180.0f))
     return fail(result, path + ": field of view " + std::to_string(fov) +
                             " degrees is outside (0, 180)");
-  Camera cam = Camera::from_fov_x(int(prep.display.width()), int(prep.display.height()), fov);
+  // Pixels wider than tall (anamorphic plates) narrow the vertical field of view.
+  const float pixel_aspect = prep.file->header(prep.channels.part).pixelAspectRatio();
+  const bool square = !(std::isfinite(pixel_aspect) && pixel_aspect > 0.0f) || pixel_aspect == 1.0f;
+  Camera cam = Camera::from_fov_x(int(prep.display.width()), int(prep.display.height()), fov, 0.05f, 1000.0f,
+                                  square ? 1.0f : pixel_aspect);
+  if (!square)
+    result.info.notes.push_back("pixels " + std::to_string(pixel_aspect) +
+                                " times as wide as tall (pixelAspectRatio): the vertical field of view follows");
   cam.view_to_clip = projection_for_data_window(cam.view_to_clip, prep.display, prep.data);
   cam.width_px = int(prep.data.width());
   cam.height_px = int(prep.data.height());

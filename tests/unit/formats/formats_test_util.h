@@ -61,6 +61,7 @@ struct TestExr {
   std::vector<TestChannel> channels;
   std::vector<std::pair<std::string, glm::mat4>> matrices;
   std::vector<std::pair<std::string, int>> int_attributes;
+  std::vector<std::pair<std::string, float>> float_attributes;
   std::string compression = "zip";
 
   bool write(const fs::path& path, std::string* error = nullptr) const {
@@ -81,6 +82,7 @@ struct TestExr {
     for (const auto& [name, m] : matrices)
       spec.attribute(name, OIIO::TypeDesc::TypeMatrix44, &m[0][0]);
     for (const auto& [name, v] : int_attributes) spec.attribute(name, v);
+    for (const auto& [name, v] : float_attributes) spec.attribute(name, v);
     std::vector<float> interleaved(size_t(width) * height * channels.size());
     for (size_t i = 0; i < size_t(width) * height; ++i)
       for (size_t c = 0; c < channels.size(); ++c)

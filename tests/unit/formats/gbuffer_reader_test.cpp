@@ -706,6 +706,23 @@ TEST(ReadConversions, WorldNormalsUnderABareFovAreRebuiltNotMisread) {
   EXPECT_FALSE(view.gbuffer.normal_view.empty());
 }
 
+// Under --fov, pixels wider than tall (pixelAspectRatio, anamorphic plates) narrow the
+// vertical field of view: the image is width x aspect / height as wide as tall.
+TEST(ReadConversions, FovFollowsThePixelAspectRatio) {
+  ScratchDir dir;
+  const fs::path path = dir / "anamorphic.exr";
+  TestExr t = generic_frame(320, 360, 4.0f);
+  t.float_attributes.push_back({"PixelAspectRatio", 2.0f});
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 50.0f;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  const double expected_y = 2.0 * std::atan(std::tan(glm::radians(25.0)) * 360.0 / (320.0 * 2.0));
+  EXPECT_NEAR(r.info.fov_y_deg, glm::degrees(expected_y), 1e-3);
+  EXPECT_NEAR(r.info.fov_x_deg, 50.0, 1e-3);
+}
+
 // A space given alone (--map normal-space=view) applies to the detected channels: the
 // profile stays the detected one, and the normals are taken as they are, not rotated.
 TEST(ReadConversions, AnExplicitSpaceAloneAppliesToTheDetectedNormals) {
