@@ -405,8 +405,13 @@ bool resolve_camera(const std::string& path, const ReadOptions& options, ReadRes
   else if (!prep.depth_kind_stated)
     info.notes.push_back("depth kind not stated by the file or sidecar: planar assumed");
   info.depth_kind = prep.radial_depth ? "radial" : "planar";
-  info.fov_x_deg = prep.camera.fov_x_deg();
-  info.fov_y_deg = prep.camera.fov_y_deg();
+  if (prep.camera.is_perspective()) {
+    info.fov_x_deg = prep.camera.fov_x_deg();
+    info.fov_y_deg = prep.camera.fov_y_deg();
+  } else {  // NDC x = p00 x + p30 spans 2 over the data window
+    info.view_width = 2.0f / std::abs(prep.camera.view_to_clip[0][0]);
+    info.view_height = 2.0f / std::abs(prep.camera.view_to_clip[1][1]);
+  }
   info.near_view = prep.camera.near_view;
   info.far_view = prep.camera.far_view;
   return true;

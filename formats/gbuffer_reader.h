@@ -144,7 +144,8 @@ struct FrameInfo {
   std::string layer;                          // blender view layer prefix, e.g. "ViewLayer"
   std::vector<ChannelUse> uses;
   std::string camera_source;                  // "sidecar PATH" | "header worldToCamera/worldToNDC" | "--fov"
-  float fov_x_deg = 0, fov_y_deg = 0;         // full fields of view of the camera, degrees
+  float fov_x_deg = 0, fov_y_deg = 0;         // full fields of view of a perspective camera, degrees
+  float view_width = 0, view_height = 0;      // an orthographic camera's view of the data window, scene units
   float near_view = 0, far_view = 0;          // clip distances, scene units (0 = unknown)
   std::string depth_kind;                     // "planar" | "radial", as converted
   // Where GBuffer::depth_back_view comes from: "channel NAME", "deep samples of NAME" or

@@ -43,9 +43,15 @@ nlohmann::json info_json(const ReadResult& r) {
   }
   j["uses"] = uses;
   j["normals_reconstructed"] = i.normals_reconstructed;
-  j["camera"] = {{"source", i.camera_source}, {"fov_x_deg", i.fov_x_deg},
-                 {"fov_y_deg", i.fov_y_deg},  {"near", i.near_view},
-                 {"far", i.far_view},         {"perspective", r.gbuffer.camera.is_perspective()}};
+  j["camera"] = {{"source", i.camera_source}, {"near", i.near_view}, {"far", i.far_view},
+                 {"perspective", r.gbuffer.camera.is_perspective()}};
+  if (r.gbuffer.camera.is_perspective()) {
+    j["camera"]["fov_x_deg"] = i.fov_x_deg;
+    j["camera"]["fov_y_deg"] = i.fov_y_deg;
+  } else {
+    j["camera"]["view_width"] = i.view_width;
+    j["camera"]["view_height"] = i.view_height;
+  }
   j["depth_kind"] = i.depth_kind;
   if (!i.back_layer.empty()) j["back_layer"] = i.back_layer;
   if (i.ao_distance_world) j["ao_distance"] = *i.ao_distance_world;
@@ -84,8 +90,12 @@ std::string info_text(const ReadResult& r) {
   }
   if (i.normals_reconstructed) s << "    normal            reconstructed from depth\n";
   char buf[256];
-  std::snprintf(buf, sizeof buf, "  camera         %s\n                 fov %.3f x %.3f deg, ",
-                i.camera_source.c_str(), i.fov_x_deg, i.fov_y_deg);
+  if (r.gbuffer.camera.is_perspective())
+    std::snprintf(buf, sizeof buf, "  camera         %s\n                 fov %.3f x %.3f deg, ",
+                  i.camera_source.c_str(), i.fov_x_deg, i.fov_y_deg);
+  else
+    std::snprintf(buf, sizeof buf, "  camera         %s\n                 orthographic, %.4g x %.4g scene units, ",
+                  i.camera_source.c_str(), i.view_width, i.view_height);
   s << buf;
   if (i.near_view > 0 || i.far_view > 0)
     s << "near " << i.near_view << ", far " << i.far_view << "\n";

@@ -723,6 +723,24 @@ TEST(ReadConversions, FovFollowsThePixelAspectRatio) {
   EXPECT_NEAR(r.info.fov_x_deg, 50.0, 1e-3);
 }
 
+// An orthographic camera has no field of view: info gives the width and height its data
+// window sees, in scene units.
+TEST(ReadConversions, AnOrthographicCameraReportsItsViewSize) {
+  ScratchDir dir;
+  const fs::path path = dir / "ortho.exr";
+  ASSERT_TRUE(generic_frame(32, 16, 3.0f).write(path));
+  const nlohmann::json identity = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+  const nlohmann::json projection = {{0.5, 0, 0, 0}, {0, 1.0, 0, 0}, {0, 0, -0.01, -1.001}, {0, 0, 0, 1}};
+  std::ofstream(dir / "ortho.camera.json")
+      << nlohmann::json{{"projection", projection}, {"world_to_camera", identity}, {"width", 32}, {"height", 16}}.dump();
+  const ReadResult r = read_gbuffer(path.string());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_FALSE(r.gbuffer.camera.is_perspective());
+  EXPECT_FLOAT_EQ(r.info.view_width, 4.0f);
+  EXPECT_FLOAT_EQ(r.info.view_height, 2.0f);
+  EXPECT_EQ(r.info.fov_x_deg, 0.0f);
+}
+
 // A space given alone (--map normal-space=view) applies to the detected channels: the
 // profile stays the detected one, and the normals are taken as they are, not rotated.
 TEST(ReadConversions, AnExplicitSpaceAloneAppliesToTheDetectedNormals) {
