@@ -76,6 +76,21 @@ nlohmann::json row_major(const glm::mat4& m) {
   return rows;
 }
 
+// A sidecar of `cam` (without camera_to_world).
+nlohmann::json sidecar_of(const Camera& cam) {
+  return {{"projection", row_major(cam.view_to_clip)},
+          {"world_to_camera", row_major(cam.world_to_view)},
+          {"width", cam.width_px},
+          {"height", cam.height_px}};
+}
+
+// Whether sidecar j, written to DIR/cam.json, is read (error: why not).
+bool reads_sidecar(const ScratchDir& dir, const nlohmann::json& j, std::string& error) {
+  const fs::path path = dir / "cam.json";
+  std::ofstream(path) << j.dump();
+  return read_camera_sidecar(path.string(), &error).has_value();
+}
+
 // Sidecars whose numbers parse but describe no camera are refused, each naming its field;
 // a pose far from the origin with its float inverse is accepted.
 TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
@@ -83,16 +98,9 @@ TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
   Camera cam = posed_camera(64, 48, 60.0f);
   cam.view_to_world[3] = glm::vec4(12000.0f, -3000.0f, 150.0f, 1.0f);  // a set 12 km out
   cam.world_to_view = glm::inverse(cam.view_to_world);
-  const nlohmann::json valid = {{"projection", row_major(cam.view_to_clip)},
-                                {"world_to_camera", row_major(cam.world_to_view)},
-                                {"camera_to_world", row_major(cam.view_to_world)},
-                                {"width", 64},
-                                {"height", 48}};
-  auto read = [&](const nlohmann::json& j, std::string& error) {
-    const fs::path path = dir / "cam.json";
-    std::ofstream(path) << j.dump();
-    return read_camera_sidecar(path.string(), &error).has_value();
-  };
+  nlohmann::json valid = sidecar_of(cam);
+  valid["camera_to_world"] = row_major(cam.view_to_world);
+  auto read = [&](const nlohmann::json& j, std::string& error) { return reads_sidecar(dir, j, error); };
   std::string error;
   ASSERT_TRUE(read(valid, error)) << error;
 
@@ -130,15 +138,8 @@ TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
 TEST(CameraSidecar, TransposedOrShearedMatricesAndUnknownSpacesAreRefused) {
   ScratchDir dir;
   const Camera cam = posed_camera(64, 48, 60.0f);
-  const nlohmann::json valid = {{"projection", row_major(cam.view_to_clip)},
-                                {"world_to_camera", row_major(cam.world_to_view)},
-                                {"width", 64},
-                                {"height", 48}};
-  auto read = [&](const nlohmann::json& j, std::string& error) {
-    const fs::path path = dir / "cam.json";
-    std::ofstream(path) << j.dump();
-    return read_camera_sidecar(path.string(), &error).has_value();
-  };
+  const nlohmann::json valid = sidecar_of(cam);
+  auto read = [&](const nlohmann::json& j, std::string& error) { return reads_sidecar(dir, j, error); };
   std::string error;
   ASSERT_TRUE(read(valid, error)) << error;
   nlohmann::json j = valid;
@@ -199,10 +200,8 @@ TEST(CameraSidecar, AProjectionWithFlippedAxesKeepsTheRaysPerPixel) {
     // camera is pixel (w - 1 - x, y) or (x, h - 1 - y) of the original.
     glm::mat4 p = cam.view_to_clip;
     for (int c = 0; c < 4; ++c) p[c][0] *= flip.x, p[c][1] *= flip.y;
-    const nlohmann::json j = {{"projection", row_major(p)},
-                              {"world_to_camera", row_major(cam.world_to_view)},
-                              {"width", 64},
-                              {"height", 48}};
+    nlohmann::json j = sidecar_of(cam);
+    j["projection"] = row_major(p);
     std::ofstream(dir / "cam.json") << j.dump();
     std::string error;
     const auto s = read_camera_sidecar((dir / "cam.json").string(), &error);

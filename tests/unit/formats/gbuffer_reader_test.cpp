@@ -319,6 +319,14 @@ TestExr generic_frame(int w, int h, float depth) {
   return t;
 }
 
+// Generic N.X, N.Y, N.Z channels holding one normal on every pixel of t.
+void add_constant_normals(TestExr& t, const glm::vec3& n) {
+  const size_t pixels = size_t(t.width) * size_t(t.height);
+  t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.x)});
+  t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.y)});
+  t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.z)});
+}
+
 // Clip distances written as whole numbers (int attributes, as oiiotool's --attrib writes
 // clipFar 5) are read as the float ones are, not dropped.
 TEST(HeaderCamera, IntegerClipDistancesAreRead) {
@@ -685,9 +693,7 @@ TEST(ReadConversions, WorldNormalsUnderABareFovAreRebuiltNotMisread) {
   ScratchDir dir;
   const fs::path path = dir / "fov.exr";
   TestExr t = generic_frame(64, 36, 4.0f);
-  t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(64 * 36, 0.0f)});
-  t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(64 * 36, 1.0f)});
-  t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64 * 36, 0.0f)});
+  add_constant_normals(t, {0.0f, 1.0f, 0.0f});
   ASSERT_TRUE(t.write(path));
   ReadOptions options;
   options.fov_x_deg = 60.0f;
@@ -748,9 +754,7 @@ TEST(ReadConversions, AnExplicitSpaceAloneAppliesToTheDetectedNormals) {
   ScratchDir dir;
   const fs::path path = dir / "space.exr";
   TestExr t = generic_frame(640, 360, 4.0f);
-  t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 0.0f)});
-  t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 0.0f)});
-  t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(640 * 360, 1.0f)});
+  add_constant_normals(t, {0.0f, 0.0f, 1.0f});
   ASSERT_TRUE(t.write(path));
   fs::copy_file(gbuffer_dir() / "cornell.camera.json", dir / "space.camera.json");
   ReadOptions options;
