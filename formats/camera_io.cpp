@@ -261,10 +261,17 @@ std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
                          camera_to_ndc[3][3]);
   const bool perspective = std::abs(w_row.z) > 1e-6 * std::abs(w_row.w) && w_row.z != 0.0;
   if (!perspective && w_row.w == 0.0) return fail("worldToNDC has a zero w row");
-  const double forward_z = perspective ? (w_row.z > 0.0 ? 1.0 : -1.0) : 1.0;
+  // An orthographic camera's w says nothing of its direction; its NDC depth (z / w) grows
+  // away from the eye in every convention but a reversed one: the sign of its slope in
+  // camera z, when it has one, else OpenEXR's +Z.
+  const double depth_slope = camera_to_ndc[2][2] * w_row.w;
+  const double forward_z = perspective ? (w_row.z > 0.0 ? 1.0 : -1.0) : depth_slope < 0.0 ? -1.0 : 1.0;
   std::string assumed;
-  if (!perspective)
+  if (!perspective && depth_slope == 0.0)
     assumed = "orthographic header camera: viewing direction assumed +Z (OpenEXR convention)";
+  else if (!perspective)
+    assumed = std::string("orthographic header camera looks down ") + (forward_z > 0.0 ? "+Z" : "-Z") +
+              " (where its NDC depth grows)";
   else if (forward_z > 0.0)
     assumed = "header camera looks down +Z (OpenEXR/RenderMan convention): z negated";
   else

@@ -300,6 +300,33 @@ TEST(HeaderMatrices, TransposedOrShearedMatricesAreErrors) {
   EXPECT_NE(error.find("scaled unequally"), std::string::npos) << error;
 }
 
+// An orthographic camera's w row says nothing of its direction: the header's NDC depth,
+// growing away from the eye, does. A right-handed (-Z) orthographic camera is read as
+// itself, not mirrored (its AO came out nearly inverted).
+TEST(HeaderMatrices, AnOrthographicCameraLooksWhereItsDepthGrows) {
+  Camera cam = posed_camera(64, 48, 50.0f);
+  glm::mat4 ortho(0.0f);  // OpenGL's orthographic projection, 6.5 units wide, near 0.05, far 1000
+  ortho[0][0] = 2.0f / 6.5f, ortho[1][1] = ortho[0][0] * 64.0f / 48.0f;
+  ortho[2][2] = -2.0f / (1000.0f - 0.05f), ortho[3][2] = -(1000.0f + 0.05f) / (1000.0f - 0.05f), ortho[3][3] = 1.0f;
+  cam.view_to_clip = ortho;
+  glm::mat4 uv(1.0f);  // OpenGL NDC -> OpenEXR's (u right, v down, [0, 1])
+  uv[0][0] = 0.5f, uv[3][0] = 0.5f, uv[1][1] = -0.5f, uv[3][1] = 0.5f;
+  glm::mat4 plus_z(1.0f);
+  plus_z[2][2] = -1.0f;
+  const PixelBox box{0, 0, 63, 47};
+  for (const bool minus_z : {true, false}) {
+    ExrCameraMatrices m;
+    m.world_to_camera = minus_z ? cam.world_to_view : plus_z * cam.world_to_view;
+    m.world_to_ndc = uv * ortho * cam.world_to_view;
+    std::string error, note;
+    const auto back = camera_from_exr_matrices(m, box, box, 0.0f, 0.0f, &error, &note);
+    ASSERT_TRUE(back) << error;
+    EXPECT_FALSE(back->is_perspective());
+    EXPECT_NE(note.find(minus_z ? "looks down -Z" : "looks down +Z"), std::string::npos) << note;
+    expect_mat_near(back->world_to_view, cam.world_to_view, 1e-5f);
+  }
+}
+
 TEST(HeaderMatrices, SingularMatricesAreErrors) {
   ExrCameraMatrices m;
   m.world_to_camera = glm::mat4(0.0f);
