@@ -33,13 +33,15 @@ cv::Mat to_single_channel(const cv::Mat& m) {
 }
 
 // Signed error as colour: red where the estimate is too open (bright), blue where it is
-// too dark; full intensity at |error| >= 0.25. Background black.
+// too dark; full intensity at |error| >= 0.25. Background, and pixels not compared (a
+// non-finite reference), black.
 cv::Mat error_heatmap(const cv::Mat& estimate, const cv::Mat& reference, const cv::Mat& mask) {
   cv::Mat heat(estimate.size(), CV_32FC3, cv::Scalar::all(0));
   for (int y = 0; y < estimate.rows; ++y)
     for (int x = 0; x < estimate.cols; ++x) {
-      if (!mask.at<uint8_t>(y, x)) continue;
-      const float e = std::clamp((estimate.at<float>(y, x) - reference.at<float>(y, x)) * 4.0f, -1.0f, 1.0f);
+      const float difference = estimate.at<float>(y, x) - reference.at<float>(y, x);
+      if (!mask.at<uint8_t>(y, x) || !std::isfinite(difference)) continue;  // as compare_images: not compared
+      const float e = std::clamp(difference * 4.0f, -1.0f, 1.0f);
       heat.at<cv::Vec3f>(y, x) = e > 0 ? cv::Vec3f(e, 0, 0) : cv::Vec3f(0, 0, -e);
     }
   return heat;

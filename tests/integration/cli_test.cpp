@@ -417,6 +417,39 @@ TEST(Cli, TheCompositesAmbientTermsFollowTheEnvironment) {
   EXPECT_NEAR(foreground[1], 4.0f * foreground[0], 0.002f * foreground[1]);
 }
 
+// A reference with NaN on part of the foreground: eval says how many pixels it left out,
+// and its heatmap is black there, not NaN.
+TEST(Cli, EvalLeavesOutAndSaysWhereTheReferenceIsNotFinite) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  OIIO::ImageBuf full(example("cornell.exr"));
+  ASSERT_TRUE(full.read(0, 0, /*force=*/true, OIIO::TypeDesc::FLOAT)) << full.geterror();  // local pixels, writable
+  const int ao = full.spec().channelindex("ViewLayer.AO.R");
+  ASSERT_GE(ao, 0);
+  std::vector<float> pixel(size_t(full.nchannels()));
+  for (int y = 200; y < 240; ++y)
+    for (int x = 300; x < 340; ++x) {
+      full.getpixel(x, y, pixel.data());
+      pixel[size_t(ao)] = std::numeric_limits<float>::quiet_NaN();
+      full.setpixel(x, y, pixel.data());
+    }
+  ASSERT_TRUE(full.write((dir.path / "in" / "nan.exr").string())) << full.geterror();
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "nan.camera.json");
+  const RunResult r = run_ssdo("eval " + dir / "in/nan.exr" + " --preset low --heatmap " + dir / "heat");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("foreground pixels left out: the reference or the estimate is not finite there"),
+            std::string::npos)
+      << r.output;
+  OIIO::ImageBuf heat((dir.path / "heat" / "nan.error.exr").string());
+  ASSERT_TRUE(heat.read()) << heat.geterror();
+  const OIIO::ImageBufAlgo::PixelStats stats = OIIO::ImageBufAlgo::computePixelStats(heat);
+  for (const char* channel : {"error.R", "error.G", "error.B"}) {
+    const int c = heat.spec().channelindex(channel);
+    ASSERT_GE(c, 0) << channel;
+    EXPECT_EQ(stats.nancount[size_t(c)], 0u) << channel;
+  }
+}
+
 // A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its
 // frames' neighbours from the whole shot, as a run of the whole shot does: frame 3's
 // temporal neighbours are 1, 2, 4 and 5 although the task computes frame 3 alone.
