@@ -243,6 +243,17 @@ std::string header_matrices_error(const ExrCameraMatrices& m) {
   return {};
 }
 
+// What a header camera was taken for: its viewing direction and why.
+std::string convention_note(bool perspective, double forward_z, double depth_slope) {
+  if (!perspective && depth_slope == 0.0)
+    return "orthographic header camera: viewing direction assumed +Z (OpenEXR convention)";
+  if (!perspective)
+    return std::string("orthographic header camera looks down ") + (forward_z > 0.0 ? "+Z" : "-Z") +
+           " (where its NDC depth grows)";
+  if (forward_z > 0.0) return "header camera looks down +Z (OpenEXR/RenderMan convention): z negated";
+  return "header camera looks down -Z (right-handed, Blender/Arnold style)";
+}
+
 }  // namespace
 
 std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
@@ -266,16 +277,7 @@ std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
   // camera z, when it has one, else OpenEXR's +Z.
   const double depth_slope = camera_to_ndc[2][2] * w_row.w;
   const double forward_z = perspective ? (w_row.z > 0.0 ? 1.0 : -1.0) : depth_slope < 0.0 ? -1.0 : 1.0;
-  std::string assumed;
-  if (!perspective && depth_slope == 0.0)
-    assumed = "orthographic header camera: viewing direction assumed +Z (OpenEXR convention)";
-  else if (!perspective)
-    assumed = std::string("orthographic header camera looks down ") + (forward_z > 0.0 ? "+Z" : "-Z") +
-              " (where its NDC depth grows)";
-  else if (forward_z > 0.0)
-    assumed = "header camera looks down +Z (OpenEXR/RenderMan convention): z negated";
-  else
-    assumed = "header camera looks down -Z (right-handed, Blender/Arnold style)";
+  std::string assumed = convention_note(perspective, forward_z, depth_slope);
 
   auto ndc_of = [&](glm::dvec3 p) {
     const glm::dvec4 q = camera_to_ndc * glm::dvec4(p, 1.0);
