@@ -241,8 +241,19 @@ void choose_back_layer(const ReadOptions& options, Prepared& prep) {
 // Every part a used channel comes from must share the depth part's pixel grid, with
 // full-resolution channels (flat or deep).
 bool check_used_parts(const std::string& path, const ReadOptions& options, ReadResult& result,
-                      const Prepared& prep) {
+                      Prepared& prep) {
   const int part = prep.channels.part;
+  // A reference pass (what eval compares with) in a part of another size is left out with
+  // a note: the frame's terms do not need it.
+  std::erase_if(prep.channels.inputs, [&](const ResolvedInput& r) {
+    if (r.input.rfind("reference:", 0) != 0 || !wanted(r, options, prep.lighting_from_passes)) return false;
+    const PixelBox box = box_of(prep.file->header(r.part).dataWindow());
+    if (box == prep.data) return false;
+    result.info.notes.push_back(r.input + " left out: its part \"" + prep.parts[r.part].name + "\" has data window " +
+                                describe_box(box) + ", depth's part \"" + prep.parts[part].name + "\" has " +
+                                describe_box(prep.data));
+    return true;
+  });
   for (const auto& r : prep.channels.inputs) {
     if (!wanted(r, options, prep.lighting_from_passes)) continue;
     const Imf::Header& h = prep.file->header(r.part);

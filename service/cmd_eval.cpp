@@ -142,6 +142,8 @@ int run_eval(const EvalArgs& args) {
       for (const auto& [name, img] : frame.gbuffer.references) present += (present.empty() ? "" : ", ") + name;
       std::cerr << "ssdo eval: " << file << ": no reference pass '" << args.reference
                 << "' (reference passes present: " << (present.empty() ? "none" : present) << ")\n";
+      for (const std::string& note : frame.info.notes)
+        if (note.rfind("reference:", 0) == 0) std::cerr << "  " << note << "\n";
       ++failed;
       continue;
     }

@@ -503,11 +503,21 @@ TEST(ReadErrors, ChannelsFromPartsOfDifferentSizes) {
   ReadOptions options;
   options.part = "depth_left";  // 877 x 876 at (688, 245)
   options.fov_x_deg = 40.0f;
-  options.mapping.references["mask"] = "whitebarmask.mask";  // whitebarmask_left: 385 x 769
+  options.mapping.depth_back = "whitebarmask.mask";  // whitebarmask_left: 385 x 769
   const ReadResult r = read_gbuffer(mp.string(), options);
   ASSERT_FALSE(r.ok());
   EXPECT_TRUE(contains(r.error, "parts of different sizes")) << r.error;
   EXPECT_TRUE(contains(r.error, "whitebarmask_left")) << r.error;
+  // A reference pass there is only left out, with a note: the terms do not need it.
+  options.mapping.depth_back.clear();
+  options.mapping.references["mask"] = "whitebarmask.mask";
+  const ReadResult with_reference = read_gbuffer(mp.string(), options);
+  ASSERT_TRUE(with_reference.ok()) << with_reference.error;
+  EXPECT_EQ(with_reference.gbuffer.references.count("mask"), 0u);
+  bool noted = false;
+  for (const std::string& n : with_reference.info.notes)
+    noted |= contains(n, "reference:mask left out: its part \"whitebarmask_left\"");
+  EXPECT_TRUE(noted);
 }
 
 TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
