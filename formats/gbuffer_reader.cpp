@@ -375,9 +375,11 @@ bool camera_from_fov(const std::string& path, const std::string& sidecar,
   const bool square = !(std::isfinite(pixel_aspect) && pixel_aspect > 0.0f) || pixel_aspect == 1.0f;
   Camera cam = Camera::from_fov_x(int(prep.display.width()), int(prep.display.height()), fov, 0.05f, 1000.0f,
                                   square ? 1.0f : pixel_aspect);
-  if (!square)
-    result.info.notes.push_back("pixels " + std::to_string(pixel_aspect) +
-                                " times as wide as tall (pixelAspectRatio): the vertical field of view follows");
+  if (!square) {
+    std::ostringstream note;
+    note << "pixels " << pixel_aspect << " times as wide as tall (pixelAspectRatio): the vertical field of view follows";
+    result.info.notes.push_back(note.str());
+  }
   cam.view_to_clip = projection_for_data_window(cam.view_to_clip, prep.display, prep.data);
   cam.width_px = int(prep.data.width());
   cam.height_px = int(prep.data.height());
@@ -1192,7 +1194,8 @@ void positions_to_view(const Prepared& prep, const ReadOptions& options, Images&
 }
 
 // Albedo, lighting and the reference passes. Kernels multiply with albedo and lighting:
-// non-finite values become 0 (the reference passes are left as the renderer wrote them).
+// non-finite and negative values become 0 (the reference passes are left as the renderer
+// wrote them).
 void shading_inputs(const ReadOptions& options, Images& img, GBuffer& g) {
   set_unusable_light_to_zero(img.albedo, options.threads);
   if (options.read_lighting) {

@@ -162,7 +162,8 @@ inline float shade_pixel(const Constants& k, const AoInputs& in, int x, int y) {
   const float radius = full_px > k.max_radius_px ? k.radius_world * (k.max_radius_px / full_px) : k.radius_world;
   const Falloff falloff(radius, k.falloff_fraction);
   const float bias = k.depth_bias_relative * depth;
-  const PlacedKernel pk = place_kernel(in.camera.view_to_clip, p, kernel_frame(k, x - in.frame_origin_px.x, y - in.frame_origin_px.y, normal), normal, radius);
+  const KernelFrame frame = kernel_frame(k, x - in.frame_origin_px.x, y - in.frame_origin_px.y, normal);
+  const PlacedKernel pk = place_kernel(in.camera.view_to_clip, p, frame, normal, radius);
   const float occlusion = sample_occlusion(k, in, p, pk, falloff, bias);
   float ao = std::clamp(1.0f - occlusion * k.inv_samples, 0.0f, 1.0f);
   if (k.multibounce) ao = multibounce(ao, albedo_luminance(in.albedo->ptr<cv::Vec3f>(y)[x]));
