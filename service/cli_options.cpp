@@ -367,7 +367,7 @@ bool resolve_environment(const ComputeOptionArgs& a, FrameRequest& request, std:
 bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, std::string& error,
                              bool build_environment) {
   if (!resolve_settings(a, request, error)) return false;
-  request.threads = std::min(a.threads, available_cores());  // as plan_parallelism
+  request.threads = frame_threads(a.threads);
   request.radius_given_world = a.radius_world;
   request.views_per_side = a.views;
   request.temporal_per_side = a.temporal;

@@ -397,7 +397,7 @@ Command register_bench(CLI::App& app) {
               for (const std::string& m : st->methods) bench.methods.push_back(*parse_ao_method(m));
             }
             bench.sweep = !st->no_sweep;
-            bench.request.threads = std::min(bench.request.threads, available_cores());  // as plan_parallelism
+            bench.request.threads = frame_threads(bench.request.threads);
             return run_bench(bench);
           }};
 }

@@ -97,8 +97,7 @@ int run_serve(const ServeArgs& args) {
   // Inline frames are spooled here; leftovers of a killed run are removed.
   const std::string spool = (fs::path(out_dir) / ".ssdo-spool").string();
   fs::remove_all(spool, ec);
-  fs::create_directory(spool, ec);
-  fs::permissions(spool, fs::perms::owner_all, ec);
+  make_private_folder(spool, ec);
   if (const int n = remove_stale_temp_files(out_dir); n > 0)
     std::cout << "removed " << n << " temp files of an interrupted run in " << out_dir << "\n";
 

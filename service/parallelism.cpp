@@ -24,11 +24,11 @@ int available_cores() {
   return std::max(1u, std::thread::hardware_concurrency());
 }
 
+int frame_threads(int threads) { return std::min(threads, available_cores()); }
+
 Parallelism plan_parallelism(int jobs, int threads, bool service) {
   const int cores = available_cores();
-  // A frame's threads beyond its cores cannot run at once (TBB, OpenCV's backend, never
-  // starts more workers than cores), and each costs a stack and its scratch.
-  threads = std::min(threads, cores);
+  threads = frame_threads(threads);
   Parallelism p;
   if (jobs > 0) p.workers = jobs;
   else if (threads > 0) p.workers = std::max(1, cores / threads);

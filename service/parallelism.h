@@ -35,4 +35,9 @@ int available_cores();
 // / threads.
 Parallelism plan_parallelism(int jobs, int threads, bool service);
 
+// A frame's thread count at most the cores available (0, the default, stays 0): threads
+// beyond them cannot run at once (TBB, OpenCV's backend, never starts more workers than
+// cores), and each costs a stack and its scratch.
+int frame_threads(int threads);
+
 }  // namespace ssdo

@@ -30,10 +30,7 @@ namespace {
 // private to the service, as cmd_serve creates it.
 void make_spool_folder(const fs::path& folder, std::error_code& ec) {
   const fs::path spool = folder.parent_path();
-  if (!fs::is_directory(spool, ec)) {
-    fs::create_directory(spool, ec);
-    fs::permissions(spool, fs::perms::owner_all, ec);
-  }
+  if (!fs::is_directory(spool, ec)) make_private_folder(spool, ec);
   fs::create_directory(folder, ec);
 }
 
@@ -578,6 +575,11 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   if (request.reply_inline) return reply(fd, response, output);
   response["output"] = output;
   return reply(fd, response);
+}
+
+void make_private_folder(const fs::path& folder, std::error_code& ec) {
+  fs::create_directory(folder, ec);
+  fs::permissions(folder, fs::perms::owner_all, ec);
 }
 
 }  // namespace ssdo

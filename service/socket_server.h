@@ -19,6 +19,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <filesystem>
 #include <functional>
 #include <mutex>
 #include <map>
@@ -108,5 +109,9 @@ class SocketServer {
   size_t header_bytes_ = 0, spool_bytes_ = 0;  // taken out of the shared budgets
   bool stopping_ = false;
 };
+
+// Creates `folder` (its parent must exist) readable and writable by the service's user
+// alone (mode 0700): the spool of inline frames.
+void make_private_folder(const std::filesystem::path& folder, std::error_code& ec);
 
 }  // namespace ssdo
