@@ -60,13 +60,21 @@ namespace {
 // ".NAME.tmp-<host>-<pid>-<random>" beside the final file: same file system, so rename()
 // is atomic, and hidden, so watchers of the folder skip it. The host name lets a task on a
 // render farm that shares the output folder tell its own host's abandoned temp files
-// (dead pid) from another host's files in progress (service/frame_list.h).
+// (dead pid) from another host's files in progress (service/frame_list.h). A NAME too long
+// for that within a file name's 255 bytes keeps its end (the extension the cleanup
+// recognises) behind a '~'.
 std::filesystem::path temp_path_for(const std::filesystem::path& final_path) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
-  std::ostringstream s;
-  s << "." << final_path.filename().string() << ".tmp-" << temp_file_host() << "-" << ::getpid()
-    << "-" << std::hex << rng();
-  return final_path.parent_path() / s.str();
+  constexpr size_t kMaxNameBytes = 255;  // NAME_MAX of Linux file systems
+  std::ostringstream tail;
+  tail << ".tmp-" << temp_file_host() << "-" << ::getpid() << "-" << std::hex << rng();
+  const std::string name = final_path.filename().string(), rest = tail.str();
+  // Bytes left for NAME: the leading '.' and the tail take the others.
+  const size_t room = kMaxNameBytes > rest.size() + 2 ? kMaxNameBytes - 1 - rest.size() : name.size();
+  std::string kept = ".";
+  if (name.size() > room) kept.append("~").append(name, name.size() - (room - 1), std::string::npos);
+  else kept.append(name);
+  return final_path.parent_path() / (kept + rest);
 }
 
 }  // namespace

@@ -224,6 +224,20 @@ TEST(WriteOutputs, EveryKindOfTermRoundTrips) {
     }
 }
 
+// An output name near a file name's 255 bytes: its temp file's name keeps the end of it
+// (the extension) and fits, so the write succeeds and leaves nothing else behind.
+TEST(WriteOutputs, ANameNearTheFileNameLimitIsWritten) {
+  ScratchDir dir;
+  const std::string name = std::string(246, 'n') + ".ssdo.exr";  // 255 bytes
+  const fs::path path = dir / name;
+  const cv::Mat ao = ramp(16, 8, 1, 0.01f, 0.0f);
+  ASSERT_EQ(write_outputs(path.string(), {{"ao", ao, SampleType::half}}, Camera::from_fov_x(16, 8, 60.0f)), "");
+  EXPECT_TRUE(fs::exists(path));
+  int files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path)) ++files;
+  EXPECT_EQ(files, 1);
+}
+
 TEST(WriteOutputs, NonContiguousImagesAreWrittenRowByRow) {
   ScratchDir dir;
   const cv::Mat big = ramp(64, 32, 1, 1.0f, 0.0f);

@@ -75,8 +75,11 @@ TEST(FrameList, OnlyThisHostsAbandonedTempFilesAreRemoved) {
   const std::string other = ".c.ssdo.exr.tmp-farm-node-17-999999999-3d";      // another host
   const std::string preview = ".d.ssdo.ao.png.tmp-" + host + "-999999998-4c";  // no such pid
   const std::string foreign = ".notes.tmp-" + host + "-999999997-5b";           // not ssdo's
-  for (const std::string& n : {dead, live, other, preview, foreign}) d.touch(n);
-  EXPECT_EQ(remove_stale_temp_files(d.path.string()), 2);
+  // A long output's temp file keeps the end of its name (formats/output_writer.cpp).
+  const std::string long_dead = ".~" + std::string(180, 'n') + ".ssdo.exr.tmp-" + host + "-999999996-6a";
+  for (const std::string& n : {dead, live, other, preview, foreign, long_dead}) d.touch(n);
+  EXPECT_EQ(remove_stale_temp_files(d.path.string()), 3);
+  EXPECT_FALSE(fs::exists(d.path / long_dead));
   EXPECT_FALSE(fs::exists(d.path / dead));
   EXPECT_FALSE(fs::exists(d.path / preview));
   EXPECT_TRUE(fs::exists(d.path / live));
