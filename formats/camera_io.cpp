@@ -78,15 +78,18 @@ std::string sidecar_path_for(const std::string& exr_path) {
 
 namespace {
 
-// Why a sidecar's world_to_camera is no camera pose: empty when it is one.
-std::string sidecar_pose_error(const glm::mat4& pose) {
+// Why a world-to-camera matrix (`name`, as its source calls it) is no rigid camera pose
+// with a uniform scale: empty when it is one. The sidecar's must also be affine (its last
+// row (0, 0, 0, 1)); a header's may carry any homogeneous scale.
+std::string pose_error(const glm::mat4& pose, const std::string& name, bool affine) {
   if (!(std::abs(glm::determinant(glm::dmat4(pose))) > 1e-12))
-    return "\"world_to_camera\" is singular (no camera pose maps the world onto view space)";
-  if (!(std::max({std::abs(pose[0][3]), std::abs(pose[1][3]), std::abs(pose[2][3]), std::abs(pose[3][3] - 1.0f)}) <=
+    return name + " is singular (no camera pose maps the world onto view space)";
+  if (affine &&
+      !(std::max({std::abs(pose[0][3]), std::abs(pose[1][3]), std::abs(pose[2][3]), std::abs(pose[3][3] - 1.0f)}) <=
         1e-6f))
-    return "\"world_to_camera\"'s last row is not (0, 0, 0, 1): not a camera pose (written column by column?)";
+    return name + "'s last row is not (0, 0, 0, 1): not a camera pose (written column by column?)";
   if (const std::string why = not_a_pose(pose); !why.empty())
-    return "\"world_to_camera\" is not a rotation with a uniform scale: " + why;
+    return name + " is not a rotation with a uniform scale: " + why;
   return {};
 }
 
@@ -150,7 +153,7 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
   if (!j.contains("world_to_camera") ||
       !matrix_from_json(j["world_to_camera"], s.camera.world_to_view))
     return fail("missing or malformed \"world_to_camera\" (row-major 4x4 numbers)");
-  if (const std::string e = sidecar_pose_error(s.camera.world_to_view); !e.empty()) return fail(e);
+  if (const std::string e = pose_error(s.camera.world_to_view, "\"world_to_camera\"", true); !e.empty()) return fail(e);
   if (j.contains("camera_to_world")) {
     if (!matrix_from_json(j["camera_to_world"], s.camera.view_to_world))
       return fail("malformed \"camera_to_world\" (row-major 4x4 numbers)");
@@ -232,9 +235,7 @@ namespace {
 // Why a header's worldToCamera and worldToNDC describe no camera: empty when they do.
 std::string header_matrices_error(const ExrCameraMatrices& m) {
   if (!all_finite(m.world_to_camera) || !all_finite(m.world_to_ndc)) return "matrices are not finite";
-  if (!(std::abs(glm::determinant(glm::dmat4(m.world_to_camera))) > 1e-12)) return "worldToCamera is singular";
-  if (const std::string why = not_a_pose(m.world_to_camera); !why.empty())
-    return "worldToCamera is not a rotation with a uniform scale: " + why;
+  if (const std::string e = pose_error(m.world_to_camera, "worldToCamera", false); !e.empty()) return e;
   const glm::dmat4 camera_to_ndc = glm::dmat4(m.world_to_ndc) * glm::inverse(glm::dmat4(m.world_to_camera));
   const glm::dvec4 w_row(camera_to_ndc[0][3], camera_to_ndc[1][3], camera_to_ndc[2][3], camera_to_ndc[3][3]);
   const double w_scale = std::max(std::abs(w_row.z), std::abs(w_row.w));

@@ -1131,9 +1131,8 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
   add_row_counts(row_counts, info);
   info.masked_pixels = int64_t(size.area()) - info.foreground_pixels;
   if (info.foreground_pixels == 0)
-    info.notes.push_back(std::string(kWarningNote) +
-                         "no foreground pixel: every depth sample is background (non-finite, below 1e-10 as in a "
-                         "negated depth pass, at least 1e9, or beyond the far clip); the terms are an empty frame's");
+    info.notes.push_back(std::string(kWarningNote) + "no foreground pixel: " + std::string(kNoForeground) +
+                         "; the terms are an empty frame's");
   if (has_normals) g.normal_view = img.normal;
   if (info.repaired_normal_pixels > 0) g.normal_missing = repair;
 }

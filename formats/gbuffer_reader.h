@@ -130,6 +130,10 @@ struct ChannelUse {
 
 // The start of a FrameInfo note that is a warning.
 inline constexpr std::string_view kWarningNote = "warning: ";
+// Why a frame has no foreground pixel (FrameInfo::foreground_pixels == 0).
+inline constexpr std::string_view kNoForeground =
+    "every depth sample is background (non-finite, below 1e-10 as in a negated depth pass, at least 1e9, or beyond "
+    "the far clip)";
 
 struct FrameInfo {
   std::string path;

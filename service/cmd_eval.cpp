@@ -179,12 +179,11 @@ int run_eval(const EvalArgs& args) {
     }
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
     // An error over no pixel is no measurement (an MAE of 0 would read as perfect).
-    const int64_t foreground = cv::countNonZero(frame.gbuffer.mask);
+    const int64_t foreground = frame.info.foreground_pixels;
     if (s.pixels == 0) {
       std::cerr << "ssdo eval: " << file << ": no pixel to compare: "
-                << (foreground == 0 ? "the frame has no foreground (every depth sample is background: non-finite, "
-                                      "below 1e-10 as in a negated depth pass, or at least 1e9)"
-                                    : "the reference is not finite on any foreground pixel")
+                << (foreground == 0 ? "the frame has no foreground: " + std::string(kNoForeground)
+                                    : std::string("the reference is not finite on any foreground pixel"))
                 << "\n";
       ++failed;
       continue;
