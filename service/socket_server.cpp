@@ -49,6 +49,11 @@ constexpr double kBusyReplySeconds = 0.5;
 // How long stop() waits for connections to finish their request, beyond the deadlines
 // they already have.
 constexpr double kStopMarginSeconds = 5;
+// How long, once the service stops, a reply may wait for its client to take it: a local
+// client that reads takes even a 1080p frame inline in well under a second.
+constexpr double kStopReplyGraceSeconds = 5;
+// How often stop() looks for replies past that grace.
+constexpr double kStopCheckSeconds = 0.25;
 // Request headers held at once (being read, or parsed and waiting for their frame), in
 // units of --max-request-bytes: a parsed JSON header takes several times its bytes, and
 // 16 at the 1 MiB default stay within a few hundred MiB.
@@ -208,8 +213,13 @@ void SocketServer::stop() {
   // Wake connections waiting for a request; one inside a request finishes it (its reply
   // can still be written) and then sees the end of its input.
   for (const auto& [fd, connection] : connections_) ::shutdown(fd, SHUT_RD);
-  all_closed_.wait_for(lock, std::chrono::duration<double>(options_.client_timeout_s + kStopMarginSeconds),
-                       [&] { return connections_.empty(); });
+  const Clock::time_point stop_time = Clock::now();
+  const auto until = stop_time + std::chrono::duration_cast<Clock::duration>(
+                                     std::chrono::duration<double>(options_.client_timeout_s + kStopMarginSeconds));
+  while (!connections_.empty() && Clock::now() < until) {
+    cut_stalled_replies(stop_time);
+    all_closed_.wait_for(lock, std::chrono::duration<double>(kStopCheckSeconds), [&] { return connections_.empty(); });
+  }
   lock.unlock();
   for (int* fd : {&stop_pipe_[0], &stop_pipe_[1]})
     if (*fd >= 0) {
@@ -289,6 +299,22 @@ bool SocketServer::set_idle(int fd, bool idle) {
   return !c.evicted;
 }
 
+void SocketServer::set_replying(int fd, bool replying) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  connections_[fd].replying_since = replying ? Clock::now() : Clock::time_point::max();
+}
+
+void SocketServer::cut_stalled_replies(Clock::time_point stop_time) {
+  const auto grace = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(kStopReplyGraceSeconds));
+  const Clock::time_point now = Clock::now();
+  for (auto& [fd, connection] : connections_) {
+    if (connection.cut || connection.replying_since == Clock::time_point::max()) continue;
+    if (now - std::max(stop_time, connection.replying_since) < grace) continue;
+    connection.cut = true;
+    ::shutdown(fd, SHUT_RDWR);  // its thread's write fails, and it closes the connection
+  }
+}
+
 bool SocketServer::take(size_t& used, size_t limit, size_t bytes) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (bytes > limit - std::min(used, limit)) return false;
@@ -352,6 +378,13 @@ void SocketServer::serve_connection(int fd) {
 }
 
 bool SocketServer::reply(int fd, const json& response, const std::string& inline_file) {
+  set_replying(fd, true);
+  const bool sent = send_reply(fd, response, inline_file);
+  set_replying(fd, false);
+  return sent;
+}
+
+bool SocketServer::send_reply(int fd, const json& response, const std::string& inline_file) {
   const Deadline deadline = deadline_in(options_.client_timeout_s);
   if (inline_file.empty()) return write_message(fd, to_wire(response), deadline) == IoStatus::ok;
   const int in = ::open(inline_file.c_str(), O_RDONLY | O_CLOEXEC);

@@ -64,7 +64,9 @@ class SocketServer {
   // open connections go on.
   void stop_accepting();
   // Stops accepting and removes the socket file; connections finish the request they are
-  // in (its frame included) and close. Idempotent.
+  // in (its frame included) and close. A reply not taken within kStopReplyGraceSeconds of
+  // the stop (or of its start, when later) is cut off: a client that never reads holds
+  // the exit back that long, not its whole --client-timeout. Idempotent.
   void stop();
   int clients() const { return clients_; }
 
@@ -77,7 +79,10 @@ class SocketServer {
   // Handles one request; false when the connection must close (the stream is out of step).
   bool handle_request(int fd, const std::string& header);
   bool handle_process(int fd, SocketRequest& request);
+  // Sends a reply (the response, then the inline file's bytes when one is named), marked
+  // as replying while it is sent (set_replying); false when it could not be sent whole.
   bool reply(int fd, const nlohmann::json& response, const std::string& inline_file = {});
+  bool send_reply(int fd, const nlohmann::json& response, const std::string& inline_file);
   void unlink_own_socket();
   // Reads one request header within the header budget; `over_budget` when it does not fit.
   IoStatus read_header(int fd, std::string& header, bool& over_budget);
@@ -86,6 +91,11 @@ class SocketServer {
   void give(size_t& used, size_t bytes);
   // Marks a connection idle (waiting for a request) or busy; false when it was evicted.
   bool set_idle(int fd, bool idle);
+  // Marks a connection as sending a reply, or done with it.
+  void set_replying(int fd, bool replying);
+  // While stopping: shuts down the connections whose reply has waited longer than the
+  // grace since `stop_time` or since it started (their writes then fail at once).
+  void cut_stalled_replies(Clock::time_point stop_time);  // under mutex_
   int open_slots() const;  // under mutex_
   // With every slot taken: closes the connection idle the longest. False when none is idle.
   bool evict_idle_connection();  // under mutex_
@@ -104,6 +114,8 @@ class SocketServer {
   struct Connection {
     Clock::time_point idle_since = Clock::time_point::max();  // max: inside a request
     bool evicted = false;  // its slot was given to a new client; it is closing
+    Clock::time_point replying_since = Clock::time_point::max();  // max: not sending a reply
+    bool cut = false;  // shut down by stop() (cut_stalled_replies)
   };
   std::map<int, Connection> connections_;
   size_t header_bytes_ = 0, spool_bytes_ = 0;  // taken out of the shared budgets

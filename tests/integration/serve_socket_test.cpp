@@ -254,6 +254,28 @@ TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   EXPECT_FALSE(fs::exists(dir.path / "out" / "gone.exr"));
 }
 
+// A client that never reads its inline reply holds the stop for a few seconds, not for its
+// whole --client-timeout; the reply it did not take is cut short, never passed off as whole.
+TEST(ServeSocket, AClientThatNeverReadsItsReplyDoesNotHoldTheStop) {
+  ScratchDir dir;
+  SocketService service(dir, "unread", {"--jobs", "1", "--client-timeout", "600"});
+  ASSERT_TRUE(service.ready) << service.log();
+  Client unread(service.socket);
+  // Every term of a 640x360 frame, uncompressed: megabytes, more than the socket's
+  // buffers hold, so the reply waits for a client that does not come.
+  const json request = {{"op", "process"},
+                        {"input", dir / "frames/cornell.exr"},
+                        {"reply", "inline"},
+                        {"options", {{"terms", "all"}, {"compression", "none"}}}};
+  ASSERT_EQ(write_message(unread.fd(), request.dump(), deadline_in(5)), IoStatus::ok);
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("frames_done", 0) == 1; }, 60)) << service.log();
+  const auto signalled = Clock::now();
+  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 120), 0) << service.log();
+  EXPECT_LT(std::chrono::duration<double>(Clock::now() - signalled).count(), 60.0) << "held back by the client";
+  EXPECT_EQ(unread.read_response(nullptr, 10).value("transport_error", ""), "inline");
+  EXPECT_FALSE(path_exists(service.socket));
+}
+
 TEST(ServeSocket, FullQueueAnswersBusy) {
   ScratchDir dir;
   SocketService service(dir, "busy", {"--jobs", "1", "--queue", "1"});
