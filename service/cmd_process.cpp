@@ -160,6 +160,16 @@ WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const Proc
   return job;
 }
 
+// Whether `output` is at least as new as every neighbour of `frame` in the shot and its
+// sidecar (a neighbour re-rendered since changes the frame's views and temporal terms).
+bool neighbours_older_than(const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
+                           const std::string& frame, const std::string& output) {
+  const auto it = neighbours.find(frame);
+  if (it == neighbours.end()) return true;
+  return std::all_of(it->second.begin(), it->second.end(),
+                     [&](const NeighbourFrame& n) { return output_up_to_date_with_sidecar(n.path, output); });
+}
+
 // Whether a frame's input or sidecar is no longer the version `found` (input, sidecar).
 bool changed_since(const std::string& frame, const std::pair<FileVersion, FileVersion>& found) {
   return !(version_of(frame) == found.first) || !(version_of(sidecar_path_for(frame)) == found.second);
@@ -196,14 +206,19 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: removed " << n << " temp files of an interrupted run in " << args.output_dir << "\n";
 
   const bool bar = ::isatty(STDERR_FILENO) == 1;
-  // An output newer than its frame and sidecar is up to date when it was made with this
-  // run's options too.
+  // With views or temporal filtering, a frame's neighbours are read (and their raw terms
+  // computed) once per worker: each worker takes a contiguous slice of the frames, in order.
+  const int places = neighbour_places(args.options.compute.views, args.options.compute.temporal);
+  const auto neighbours = neighbours_by_frame(all, places);
+  // An output newer than its frame, its neighbours and their sidecars is up to date when it
+  // was made with this run's options too.
   std::vector<std::string> todo, up_to_date;
   const std::string made_with = options_attribute(args.options);
   int other_options = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
-    const bool current = !args.force && output_up_to_date_with_sidecar(f, output);
+    const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
+                         neighbours_older_than(neighbours, f, output);
     const bool same_options = current && output_made_with(output, made_with);
     other_options += current && !same_options;
     (same_options ? up_to_date : todo).push_back(f);
@@ -221,10 +236,6 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: " << todo.size() << " frames, " << plan.workers << " worker processes x "
               << plan.threads_per_frame << " threads\n";
   const nlohmann::json options = to_json(args.options);
-  // With views or temporal filtering, a frame's neighbours are read (and their raw terms
-  // computed) once per worker: each worker takes a contiguous slice of the frames, in order.
-  const int places = neighbour_places(args.options.compute.views, args.options.compute.temporal);
-  const auto neighbours = neighbours_by_frame(all, places);
   std::map<std::string, size_t> todo_index;
   for (size_t i = 0; i < todo.size(); ++i) todo_index.emplace(todo[i], i);
 

@@ -180,6 +180,27 @@ TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
   EXPECT_TRUE(temp_files(out).empty());
 }
 
+// A re-rendered frame of a shot makes a rerun compute it and every frame that may take it
+// as a view (those within kCandidateFramesPerView = 3 places for --views 1); the frames out
+// of its reach stay up to date.
+TEST(Sequence, ARerunComputesTheFramesWhoseNeighbourChanged) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 7);
+  const std::string command = "process " + dir / "in" + " -o " + dir / "out" + " --views 1 --temporal 0 --terms ao --preset low";
+  const RunResult first = run_ssdo(command);
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  EXPECT_NE(first.output.find("done 7, skipped 0, failed 0"), std::string::npos) << first.output;
+  fs::last_write_time(dir.path / "in" / (numbered("orbit_f", 6) + ".exr"),
+                      fs::file_time_type::clock::now() + std::chrono::seconds(5));
+  const RunResult rerun = run_ssdo(command);
+  ASSERT_EQ(rerun.exit_code, 0) << rerun.output;
+  EXPECT_NE(rerun.output.find("done 4, skipped 3, failed 0"), std::string::npos) << rerun.output;
+  for (int i = 0; i < 7; ++i)
+    EXPECT_EQ(rerun.output.find(numbered("orbit_f", i) + ".exr: skipped") != std::string::npos, i < 3)
+        << i << "\n" << rerun.output;
+}
+
 // A socket request names its neighbours: they change the frame's AO, and each is confined
 // like the input (one outside --allow is refused).
 TEST(Sequence, SocketRequestViewsChangeTheFrameAndAreConfinedLikeItsInput) {
