@@ -238,6 +238,10 @@ bool parse_output(const nlohmann::json& j, SocketRequest& r, std::string& error)
       return false;
     }
     r.output = j["output"].get<std::string>();
+    if (r.output.find('\0') != std::string::npos) {
+      error = "\"output\" holds a NUL byte";
+      return false;
+    }
   }
   if (j.contains("reply")) {
     const nlohmann::json& reply = j["reply"];

@@ -25,6 +25,11 @@ bool get_text(const json& v, const FrameOption& o, std::string& out, std::string
     return false;
   }
   const std::string s = v.get<std::string>();
+  // A path with a NUL names another file to the system than the one checked and reported.
+  if (s.find('\0') != std::string::npos) {
+    error = quoted(o) + " holds a NUL byte";
+    return false;
+  }
   if (o.kind == OptionKind::choice) {
     if (std::string e = check_choice(o, s); !e.empty()) {
       error = quoted(o) + ": " + e;
@@ -61,14 +66,17 @@ bool get_flag(const json& v, const FrameOption& o, bool& out, std::string& error
 bool get_list(const json& v, const FrameOption& o, std::vector<std::string>& out, std::string& error) {
   if (v.is_string()) {
     out = {v.get<std::string>()};
-    return true;
-  }
-  if (v.is_array() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_string(); })) {
+  } else if (v.is_array() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_string(); })) {
     out = v.get<std::vector<std::string>>();
-    return true;
+  } else {
+    error = quoted(o) + " must be a list of strings" + (std::string(o.name) == "map" ? " INPUT=CHANNEL" : "");
+    return false;
   }
-  error = quoted(o) + " must be a list of strings" + (std::string(o.name) == "map" ? " INPUT=CHANNEL" : "");
-  return false;
+  if (std::any_of(out.begin(), out.end(), [](const std::string& e) { return e.find('\0') != std::string::npos; })) {
+    error = quoted(o) + " holds a NUL byte";
+    return false;
+  }
+  return true;
 }
 
 bool get_value(const json& v, const FrameOption& o, FrameOptionArgs& a, std::string& error) {

@@ -132,7 +132,10 @@ TEST(SocketRequest, MalformedRequestsNameTheProblem) {
   EXPECT_NE(parse_error(R"({"op":"process","input":"a","name":"x"})").find("inline"), std::string::npos);
   EXPECT_NE(parse_error(R"({"op":"process","inline_size":5,"name":"../x"})").find("name"), std::string::npos);
   EXPECT_NE(parse_error(R"({"op":"process","input":"a","output":"/o/x.exr","reply":"inline"})").find("exclude"),
-            std::string::npos);
+            std::string::npos);  // A NUL ends the path for the system: "/o/notes.txt\0.exr" would pass as an .exr name.
+  EXPECT_EQ(parse_error(R"({"op":"process","input":"a","output":"/o/notes.txt\u0000.exr"})"),
+            "\"output\" holds a NUL byte");
+  EXPECT_EQ(parse_error(R"({"op":"process","input":"a\u0000b"})"), "\"input\" holds a NUL byte");
 }
 
 TEST(SocketRequest, InlineSizeHasALimit) {

@@ -71,6 +71,23 @@ TEST(FrameOptions, UnknownKeysAndBadValuesNameTheKey) {
   EXPECT_EQ(a.read.maps, std::vector<std::string>{"depth=Z"});
 }
 
+// A NUL ends a path for the system: "/ok/cam.json\0/etc/x" would be checked as one file
+// and opened as another.
+TEST(FrameOptions, TextWithANulByteIsRefused) {
+  using namespace std::string_literals;
+  FrameOptionArgs a;
+  std::string error;
+  EXPECT_FALSE(apply_json(json{{"camera", "/ok/cam.json\0/etc/passwd"s}}, a, error));
+  EXPECT_EQ(error, "\"camera\" holds a NUL byte");
+  EXPECT_TRUE(a.read.camera_json.empty());
+  EXPECT_FALSE(apply_json(json{{"env", "/ok/sky.exr\0"s}}, a, error));
+  EXPECT_EQ(error, "\"env\" holds a NUL byte");
+  EXPECT_FALSE(apply_json(json{{"map", "depth=Z\0"s}}, a, error));
+  EXPECT_EQ(error, "\"map\" holds a NUL byte");
+  EXPECT_FALSE(apply_json(json{{"map", json::array({"depth=Z", "normal=N\0x"s})}}, a, error));
+  EXPECT_EQ(error, "\"map\" holds a NUL byte");
+}
+
 TEST(FrameOptions, FlagsGivenOnTheCommandLineWinOverTheConfig) {
   FrameOptionArgs a;
   a.compute.method = "hbao";  // as if given as --method hbao
