@@ -1,7 +1,7 @@
 // `ssdo process`: a batch over frames, each decoded and computed in a worker process
 // (service/worker_process.h). A bad frame is reported and the batch goes on; exit code 1
 // if any frame failed (or the batch was interrupted), 0 otherwise (2 for usage errors,
-// before any work). SIGINT / SIGTERM: no new frame starts, frames in flight finish.
+// before any work). SIGINT / SIGTERM / SIGHUP: no new frame starts, frames in flight finish.
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
@@ -239,14 +239,13 @@ int run_process(const ProcessArgs& args) {
   std::map<std::string, size_t> todo_index;
   for (size_t i = 0; i < todo.size(); ++i) todo_index.emplace(todo[i], i);
 
-  // SIGINT / SIGTERM are taken by this thread with sigtimedwait (blocked everywhere, so
+  // SIGINT / SIGTERM / SIGHUP are taken by this thread with sigtimedwait (blocked everywhere, so
   // no handler and no global flag); the worker threads check `stop` between frames. The
   // last worker thread to finish wakes this one with SIGUSR1 (the batch ends when its
   // last frame does, not at the next tick).
   sigset_t stop_signals;
   sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&stop_signals, s);
   sigset_t waited = stop_signals;
   sigaddset(&waited, SIGUSR1);
   ::pthread_sigmask(SIG_BLOCK, &waited, nullptr);
@@ -287,7 +286,7 @@ int run_process(const ProcessArgs& args) {
   const timespec tick{0, 100 * 1000 * 1000};
   while (running > 0) {
     const int sig = ::sigtimedwait(&waited, nullptr, &tick);
-    if ((sig == SIGINT || sig == SIGTERM) && !stop) {
+    if ((sig == SIGINT || sig == SIGTERM || sig == SIGHUP) && !stop) {
       stop = true;
       std::cerr << "\nssdo process: stopping: frames in flight finish, no new frame starts\n";
     }

@@ -1,6 +1,6 @@
 // `ssdo serve`: a long-running service. Frames dropped into --watch and frames asked for
-// on --socket are computed by worker processes (service/frame_service.h); SIGTERM or
-// SIGINT stop it gracefully (no new work, frames in flight finish, exit 0).
+// on --socket are computed by worker processes (service/frame_service.h); SIGTERM,
+// SIGINT or SIGHUP stop it gracefully (no new work, frames in flight finish, exit 0).
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/file.h>
@@ -101,12 +101,12 @@ int run_serve(const ServeArgs& args) {
   if (const int n = remove_stale_temp_files(out_dir); n > 0)
     std::cout << "removed " << n << " temp files of an interrupted run in " << out_dir << "\n";
 
-  // SIGINT / SIGTERM are taken by this thread with sigwait: blocked before any thread
-  // starts, so every thread inherits the mask; no handler, no global flag.
+  // SIGINT / SIGTERM / SIGHUP (the terminal or ssh session that started the service
+  // closed) are taken by this thread with sigwait: blocked before any thread starts, so
+  // every thread inherits the mask; no handler, no global flag.
   sigset_t stop_signals;
   sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&stop_signals, s);
   ::pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
   ::signal(SIGPIPE, SIG_IGN);
 
@@ -168,7 +168,7 @@ int run_serve(const ServeArgs& args) {
   int sig = 0;
   while (::sigwait(&stop_signals, &sig) != 0) {
   }
-  std::cout << "ssdo serve: " << (sig == SIGINT ? "SIGINT" : "SIGTERM")
+  std::cout << "ssdo serve: " << (sig == SIGINT ? "SIGINT" : sig == SIGHUP ? "SIGHUP" : "SIGTERM")
             << ": stopping (no new frames; frames in flight finish)\n"
             << std::flush;
   if (server) server->stop_accepting();
@@ -194,7 +194,7 @@ Command register_serve(CLI::App& app) {
   st->max_inline_mb = s.protocol.max_inline_bytes >> 20;
   CLI::App* cmd = app.add_subcommand(
       "serve", "Run as a service: compute every frame dropped into --watch (and those already there "
-               "without output) and answer requests on --socket; SIGTERM/SIGINT stop it gracefully");
+               "without output) and answer requests on --socket; SIGTERM/SIGINT/SIGHUP stop it gracefully");
   cmd->add_option("--watch", s.watch_dir, "Folder to watch for frames (*.exr)")->check(CLI::ExistingDirectory);
   cmd->add_option("-o,--out", s.out_dir, "Output folder: NAME.ssdo.exr, or NAME.error.json")->required();
   cmd->add_option("--poll", s.poll_s,

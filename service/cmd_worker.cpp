@@ -349,10 +349,11 @@ int run_worker(const WorkerArgs& args) {
   ::prctl(PR_SET_PDEATHSIG, SIGKILL);
   if (args.parent_pid > 0 && ::getppid() != pid_t(args.parent_pid)) return 0;
   // The parent decides when a worker ends (pipe closed, or SIGKILL); a terminal's Ctrl-C
-  // or a farm's SIGTERM to the process group goes to the parent, which finishes the
-  // frames in flight.
+  // a farm's SIGTERM or a closed terminal's SIGHUP to the process group goes to the
+  // parent, which finishes the frames in flight.
   ::signal(SIGINT, SIG_IGN);
   ::signal(SIGTERM, SIG_IGN);
+  ::signal(SIGHUP, SIG_IGN);
   ::signal(SIGPIPE, SIG_IGN);
   const rlimit no_core{0, 0};
   ::setrlimit(RLIMIT_CORE, &no_core);

@@ -140,8 +140,8 @@ bool WorkerProcess::spawn(std::string& error) {
   sigset_t none, defaults;
   sigemptyset(&none);
   sigemptyset(&defaults);
-  for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGCHLD}) sigaddset(&defaults, s);
-  posix_spawnattr_setsigmask(&attr, &none);        // the parent blocks SIGINT/SIGTERM for sigwait
+  for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGHUP, SIGCHLD}) sigaddset(&defaults, s);
+  posix_spawnattr_setsigmask(&attr, &none);        // the parent blocks SIGINT/SIGTERM/SIGHUP for sigwait
   posix_spawnattr_setsigdefault(&attr, &defaults);  // and ignores SIGPIPE
   posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
 

@@ -178,6 +178,35 @@ TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
   EXPECT_NE(again.output.find("done 0, skipped 8, failed 0"), std::string::npos) << again.output;
 }
 
+// SIGINT, SIGTERM and a closed terminal's SIGHUP stop a batch alike: the frame in flight
+// finishes and is written whole, no new frame starts, exit 1; the workers ignore them.
+TEST(Batch, ASignalStopsTheBatchAfterTheFrameInFlight) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  constexpr int kFrames = 4;
+  for (int i = 0; i < kFrames; ++i) copy_example("cornell", dir.path / "in", numbered("f", i));
+  for (const int sig : {SIGINT, SIGTERM, SIGHUP}) {
+    const fs::path out = dir.path / ("out" + std::to_string(sig));
+    // Seconds per frame: the signal comes while the first one is computed.
+    SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao", "--method",
+                       "raymarch", "--preset", "medium", "--temporal", "0"},
+                      dir.path / ("batch" + std::to_string(sig) + ".log"));
+    ASSERT_TRUE(wait_until([&] { return !workers_of(batch.pid()).empty(); }, 30)) << batch.log();
+    EXPECT_EQ(batch.signal_and_wait(sig, 600), 1) << sig << "\n" << batch.log();
+    EXPECT_NE(batch.log().find("ssdo process: stopping"), std::string::npos) << batch.log();
+    int written = 0;
+    for (int i = 0; i < kFrames; ++i) {
+      const fs::path output = out / (numbered("f", i) + ".ssdo.exr");
+      if (!path_exists(output)) continue;
+      ++written;
+      EXPECT_TRUE(exr_has_channel(output.string(), "ao")) << output;
+    }
+    EXPECT_GE(written, 1) << "the frame in flight finishes\n" << batch.log();
+    EXPECT_LT(written, kFrames) << "no new frame starts\n" << batch.log();
+    EXPECT_TRUE(temp_files(out).empty());
+  }
+}
+
 TEST(Batch, ConfigFileGivesOptionsFlagsOverrideIt) {
   ScratchDir dir;
   std::ofstream(dir / "config.json") << R"({"terms": "ao,ssdo", "preset": "low", "method": "hbao", "compression": "piz"})";

@@ -344,20 +344,25 @@ TEST(ServeSocket, PoisonFramesOverTheSocketEachGetAnError) {
   EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 0);
 }
 
+// SIGTERM, and SIGHUP (the terminal or ssh session that started it closed) alike.
 TEST(ServeSocket, GracefulStopFinishesTheFrameInFlight) {
-  ScratchDir dir;
-  SocketService service(dir, "graceful", {"--jobs", "1"});
-  ASSERT_TRUE(service.ready) << service.log();
-  json reply;
-  std::thread slow([&] {
-    reply = process_path(service.socket, dir / "frames/cornell.exr", {{"options", {{"preset", "ultra"}}}});
-  });
-  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
-  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 60), 0) << service.log();
-  slow.join();
-  EXPECT_EQ(reply.value("ok", false), true) << reply.dump();
-  EXPECT_TRUE(exr_has_channel(reply.value("output", ""), "ao"));
-  EXPECT_FALSE(path_exists(service.socket));
+  for (const int sig : {SIGTERM, SIGHUP}) {
+    ScratchDir dir;
+    SocketService service(dir, "graceful", {"--jobs", "1"});
+    ASSERT_TRUE(service.ready) << service.log();
+    json reply;
+    std::thread slow([&] {
+      reply = process_path(service.socket, dir / "frames/cornell.exr", {{"options", {{"preset", "ultra"}}}});
+    });
+    ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
+    EXPECT_EQ(service.process->signal_and_wait(sig, 60), 0) << service.log();
+    slow.join();
+    EXPECT_EQ(reply.value("ok", false), true) << reply.dump();
+    EXPECT_TRUE(exr_has_channel(reply.value("output", ""), "ao"));
+    EXPECT_FALSE(path_exists(service.socket));
+    EXPECT_NE(service.log().find(sig == SIGHUP ? "SIGHUP: stopping" : "SIGTERM: stopping"), std::string::npos)
+        << service.log();
+  }
 }
 
 TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
