@@ -170,22 +170,6 @@ bool neighbours_older_than(const std::map<std::string, std::vector<NeighbourFram
                      [&](const NeighbourFrame& n) { return output_up_to_date_with_sidecar(n.path, output); });
 }
 
-// Whether a frame's input or sidecar is no longer the version `found` (input, sidecar).
-bool changed_since(const std::string& frame, const std::pair<FileVersion, FileVersion>& found) {
-  return !(version_of(frame) == found.first) || !(version_of(sidecar_path_for(frame)) == found.second);
-}
-
-// Dates the output back to the last change of its input and sidecar as the batch found
-// them, so that the up-to-date test (output_up_to_date_with_sidecar) finds the changed
-// files newer. False when the time cannot be set.
-bool mark_out_of_date(const std::string& output, const std::pair<FileVersion, FileVersion>& found) {
-  timespec last{0, 0};
-  for (const FileVersion* v : {&found.first, &found.second})
-    if (v->exists && later_than(v->last_change(), last)) last = v->last_change();
-  const timespec times[2] = {{0, UTIME_OMIT}, last};
-  return ::utimensat(AT_FDCWD, output.c_str(), times, 0) == 0;
-}
-
 }  // namespace
 
 int run_process(const ProcessArgs& args) {
@@ -254,8 +238,8 @@ int run_process(const ProcessArgs& args) {
 
   // Each frame's input and sidecar as the batch found them: a frame changed while the batch
   // runs may have been read before or after the change (workers read ahead).
-  std::vector<std::pair<FileVersion, FileVersion>> found(todo.size());
-  for (size_t i = 0; i < todo.size(); ++i) found[i] = {version_of(todo[i]), version_of(sidecar_path_for(todo[i]))};
+  std::vector<FrameFiles> found(todo.size());
+  for (size_t i = 0; i < todo.size(); ++i) found[i] = frame_files(todo[i]);
   std::atomic<size_t> next{0};
   std::atomic<bool> stop{false};
   std::atomic<int> running{0};

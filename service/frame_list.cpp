@@ -1,5 +1,6 @@
 #include "service/frame_list.h"
 
+#include <fcntl.h>
 #include <signal.h>
 #include <sys/stat.h>
 
@@ -14,7 +15,6 @@
 #include "formats/output_writer.h"
 #include "service/file_version.h"
 #include "service/request_options.h"
-#include "formats/output_writer.h"
 
 namespace ssdo {
 
@@ -137,6 +137,30 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 
 bool output_made_with(const std::string& output, const std::string& options_attribute) {
   return read_string_attribute(output, kOptionsAttribute) == options_attribute;
+}
+
+FrameFiles frame_files(const std::string& frame) { return {version_of(frame), version_of(sidecar_path_for(frame))}; }
+
+bool changed_since(const std::string& frame, const FrameFiles& found) {
+  const FrameFiles now = frame_files(frame);
+  return !(now.input == found.input) || !(now.sidecar == found.sidecar);
+}
+
+bool mark_out_of_date(const std::string& output, const FrameFiles& found) {
+  timespec last{0, 0};
+  for (const FileVersion* v : {&found.input, &found.sidecar})
+    if (v->exists && later_than(v->last_change(), last)) last = v->last_change();
+  // A nanosecond before it: file times come from a coarse clock (a few ms), so a version
+  // written in the same tick as the one found has the same time, and the output must be
+  // older than that too. A file system with coarser times truncates this down, not up.
+  if (last.tv_nsec > 0) {
+    --last.tv_nsec;
+  } else if (last.tv_sec > 0) {
+    --last.tv_sec;
+    last.tv_nsec = 999999999;
+  }
+  const timespec times[2] = {{0, UTIME_OMIT}, last};
+  return ::utimensat(AT_FDCWD, output.c_str(), times, 0) == 0;
 }
 
 bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output) {

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "service/file_version.h"
+
 namespace ssdo {
 
 // Files are taken as given; a folder contributes its *.exr files (sorted by name),
@@ -38,6 +40,21 @@ bool output_up_to_date(const std::string& input, const std::string& output);
 // output_up_to_date for the frame and for its camera sidecar when it has one: a sidecar
 // that arrives or changes after the output makes the output stale too.
 bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output);
+
+// A frame's file and its camera sidecar as found at one moment.
+struct FrameFiles {
+  FileVersion input, sidecar;
+};
+FrameFiles frame_files(const std::string& frame);
+
+// Whether a frame's file or sidecar is no longer the version `found`.
+bool changed_since(const std::string& frame, const FrameFiles& found);
+
+// Dates `output` back to just before the last change of the frame's file and sidecar as `found`
+// (after a worker that may have read an older version wrote it), so that the up-to-date
+// test (output_up_to_date_with_sidecar) finds the changed files newer and a rerun or a
+// restarted service computes the frame again. False when the time cannot be set.
+bool mark_out_of_date(const std::string& output, const FrameFiles& found);
 
 // Whether `output`'s header says it was made with the options whose attribute is
 // `options_attribute` (request_options.h: kOptionsAttribute, options_attribute): false for

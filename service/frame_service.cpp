@@ -256,7 +256,8 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     ++skipped_;
     return false;
   }
-  const FileVersion before = version_of(input);
+  const FrameFiles found = frame_files(input);
+  const FileVersion& before = found.input;
   const std::string before_key = frame_version_key(input);
   WorkerResult r;
   if (std::string owner; !claim_output(output, input, owner)) {
@@ -274,9 +275,11 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
                                         options_.watch_options.value("temporal", kDefaultTemporalPerSide));
     r = run_with_retries(worker, {input, output, options_.watch_options, folder_neighbours(input, places),
                                   {{options_.watch_dir}, {}, options_.out_dir}});
-    const FileVersion after = version_of(input);
-    if (after.exists && !(after == before)) {
-      // Replaced or rewritten while computed: the result is of an old version.
+    if (version_of(input).exists && changed_since(input, found)) {
+      // Replaced or rewritten (or its sidecar) while computed: the result may be of the old
+      // version. It is dated back, so that a service stopped before the new version's turn
+      // computes it again when restarted instead of taking it as up to date.
+      if (std::error_code ec; r.ok() && !mark_out_of_date(output, found)) fs::remove(output, ec);
       log("changed while processing, queued again: " + input);
       std::lock_guard<std::mutex> lock(mutex_);
       if (r.worker_replaced) ++replaced_;

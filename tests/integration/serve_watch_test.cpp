@@ -295,6 +295,37 @@ TEST(ServeWatch, ARestartWithOtherOptionsComputesTheFramesAgain) {
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
+// A frame rewritten while it is computed: the output of the old version is dated back
+// behind the new one, so a service killed before the new version's turn computes the frame
+// again when restarted instead of keeping the old version's output as up to date.
+TEST(ServeWatch, AFrameRewrittenWhileComputedIsNotLeftUpToDateWithTheOldVersion) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  fs::copy_file(example_frame("cornell.camera.json"), dir.path / "in" / "a.camera.json");
+  const fs::path input = dir.path / "in" / "a.exr", output = dir.path / "out" / "a.ssdo.exr";
+  const std::string socket = socket_path_for("rewrite");
+  // Seconds per frame: the rewrite comes while the first version is computed.
+  const std::vector<std::string> slow = {"--jobs", "1", "--method", "raymarch", "--threads", "1"};
+  {
+    SsdoProcess service(serve_args(dir, socket, slow), dir.path / "serve1.log");
+    ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+    fs::copy_file(example_frame("cornell.exr"), input);
+    ASSERT_TRUE(wait_until([&] { return stats(socket).value("in_flight", 0) == 1; }, 30)) << service.log();
+    // Often within the clock tick of the first version: the same file times.
+    fs::copy_file(example_frame("cornell.exr"), dir.path / "in" / ".a.exr.part");
+    fs::rename(dir.path / "in" / ".a.exr.part", input);
+    ASSERT_TRUE(service.wait_for_log("changed while processing, queued again: " + input.string(), 600))
+        << service.log();
+    service.kill_now();  // before the new version's turn ends
+  }
+  ASSERT_TRUE(path_exists(output));
+  EXPECT_LT(fs::last_write_time(output), fs::last_write_time(input)) << read_text(dir.path / "serve1.log");
+  SsdoProcess service(serve_args(dir, socket, slow), dir.path / "serve2.log");
+  ASSERT_TRUE(service.wait_for_log("ok " + input.string() + " ->", 120)) << service.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+  EXPECT_GE(fs::last_write_time(output), fs::last_write_time(input));
+}
+
 TEST(ServeWatch, KillNineThenRestartProcessesEveryFrameExactlyOnce) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
