@@ -194,15 +194,17 @@ int run_process(const ProcessArgs& args) {
   // computed) once per worker: each worker takes a contiguous slice of the frames, in order.
   const int places = neighbour_places(args.options.compute.views, args.options.compute.temporal);
   const auto neighbours = neighbours_by_frame(all, places);
-  // An output newer than its frame, its neighbours and their sidecars is up to date when it
-  // was made with this run's options too.
+  // An output newer than its frame, its neighbours, their sidecars and the files the options
+  // name (--camera, --env) is up to date when it was made with this run's options too.
   std::vector<std::string> todo, up_to_date;
   const std::string made_with = options_attribute(args.options);
+  const std::vector<std::string> option_files = option_paths(args.options);
   int other_options = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
     const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
-                         neighbours_older_than(neighbours, f, output);
+                         neighbours_older_than(neighbours, f, output) &&
+                         output_up_to_date_with_all(option_files, output);
     const bool same_options = current && output_made_with(output, made_with);
     other_options += current && !same_options;
     (same_options ? up_to_date : todo).push_back(f);

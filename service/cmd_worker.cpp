@@ -256,6 +256,21 @@ FittedFrame process_frame_within_memory(const FrameRequest& request, int64_t pix
   return f;
 }
 
+// The frame request of a job's options, its environment opened confined. Its outputs
+// record the options as given: the environment's path, not the name of the descriptor it
+// is read through (a rerun compares them, and --config takes them back).
+bool resolve_request(const nlohmann::json& options_json, const Confinement& confine, JobFiles& files,
+                     FrameRequest& request, std::string& error) {
+  FrameOptionArgs options;
+  if (!apply_json(options_json, options, error)) return false;
+  const std::vector<std::pair<std::string, std::string>> attributes = output_attributes(options);
+  if (!files.open_environment(confine, options.compute.env_path, error) ||
+      !resolve_frame_options(options, request, error))
+    return false;
+  request.write.string_attributes = attributes;
+  return true;
+}
+
 // Resolves the request's options (cached per option set) and computes its frame, every
 // file opened confined by the worker (service/job_files.h).
 void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<std::string, FrameRequest>& resolved,
@@ -269,10 +284,8 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   auto it = resolved.find(options_key);
   std::string error;
   if (it == resolved.end()) {
-    FrameOptionArgs options;
     FrameRequest request;
-    if (apply_json(options_json, options, error) && files.open_environment(confine, options.compute.env_path, error) &&
-        resolve_frame_options(options, request, error)) {
+    if (resolve_request(options_json, confine, files, request, error)) {
       if (resolved.size() >= kMaxCachedOptionSets) resolved.clear();
       it = resolved.emplace(options_key, std::move(request)).first;
     }

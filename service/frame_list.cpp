@@ -139,6 +139,10 @@ bool output_made_with(const std::string& output, const std::string& options_attr
   return read_string_attribute(output, kOptionsAttribute) == options_attribute;
 }
 
+bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {
+  return std::all_of(files.begin(), files.end(), [&](const std::string& f) { return output_up_to_date(f, output); });
+}
+
 FrameFiles frame_files(const std::string& frame) { return {version_of(frame), version_of(sidecar_path_for(frame))}; }
 
 bool changed_since(const std::string& frame, const FrameFiles& found) {

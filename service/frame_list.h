@@ -41,6 +41,9 @@ bool output_up_to_date(const std::string& input, const std::string& output);
 // that arrives or changes after the output makes the output stale too.
 bool output_up_to_date_with_sidecar(const std::string& input, const std::string& output);
 
+// output_up_to_date for each of `files` (the files the options name: --camera, --env).
+bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output);
+
 // A frame's file and its camera sidecar as found at one moment.
 struct FrameFiles {
   FileVersion input, sidecar;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include "formats/camera_io.h"
 #include "formats/output_writer.h"
@@ -40,12 +41,12 @@ std::string timing(const WorkerResult& r) {
   return s;
 }
 
-// The options attribute of outputs made with `options` (JSON of FrameOptionArgs); empty
-// when they do not parse.
-std::string options_attribute_of(const nlohmann::json& options) {
+// The frame options of `options` (JSON of FrameOptionArgs), or none when they do not parse.
+std::optional<FrameOptionArgs> parsed_options(const nlohmann::json& options) {
   FrameOptionArgs args;
   std::string error;
-  return apply_json(options, args, error) ? options_attribute(args) : std::string();
+  if (!apply_json(options, args, error)) return std::nullopt;
+  return args;
 }
 
 }  // namespace
@@ -66,7 +67,12 @@ bool record_frame_failure(const std::string& output, const std::string& error_pa
 }
 
 FrameService::FrameService(FrameServiceOptions options)
-    : options_(std::move(options)), watch_made_with_(options_attribute_of(options_.watch_options)) {}
+    : options_(std::move(options)) {
+  if (const std::optional<FrameOptionArgs> watch = parsed_options(options_.watch_options)) {
+    watch_made_with_ = options_attribute(*watch);
+    watch_files_ = option_paths(*watch);
+  }
+}
 
 FrameService::~FrameService() { stop(); }
 
@@ -305,7 +311,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
 
 bool FrameService::watched_frame_done(const std::string& input, const std::string& output,
                                       const std::string& error_path) {
-  if (output_up_to_date_with_sidecar(input, output))
+  if (output_up_to_date_with_sidecar(input, output) && output_up_to_date_with_all(watch_files_, output))
     return watch_made_with_.empty() || output_made_with(output, watch_made_with_);
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   std::ifstream in(error_path);

@@ -109,7 +109,8 @@ class FrameService {
   const FrameServiceOptions options_;
   // The options attribute of watched frames' outputs (request_options.h): an output made
   // with other options is computed again. Empty when watch_options do not parse.
-  const std::string watch_made_with_;
+  std::string watch_made_with_;
+  std::vector<std::string> watch_files_;  // the files the watch options name (--camera, --env)
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::deque<FrameTask> tasks_;

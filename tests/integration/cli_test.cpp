@@ -154,6 +154,46 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
 }
 
+// The files the options name are part of what an output was made from: the header keeps
+// the environment map's path as given (so a rerun with the same options skips, and the
+// options work as a --config), and a changed map or --camera file makes the rerun compute.
+TEST(Cli, ARerunFollowsTheEnvironmentMapAndCameraFileItWasGiven) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  fs::copy_file(source_dir() / "examples" / "env_equirect.exr", dir.path / "sky.exr");
+  fs::rename(dir.path / "in" / "a.camera.json", dir.path / "cam.json");
+  const std::string env = dir / "sky.exr", camera = dir / "cam.json";
+  const std::string run = "process " + dir / "in" + " -o " + dir / "out" +
+                          " --terms ao,ssdo --preset low --env " + env + " --camera " + camera;
+  RunResult r = run_ssdo(run);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const fs::path output = dir.path / "out" / "a.ssdo.exr";
+  auto in = OIIO::ImageInput::open(output.string());
+  ASSERT_TRUE(in);
+  const nlohmann::json options = nlohmann::json::parse(in->spec().get_string_attribute("ssdo/options"), nullptr, false);
+  in.reset();
+  EXPECT_EQ(options.value("env", ""), env);
+  EXPECT_EQ(options.value("camera", ""), camera);
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+  // The recorded options as a config file give the same run.
+  std::ofstream(dir.path / "made_with.json") << options.dump();
+  r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + " --config " + dir / "made_with.json");
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+  // Each file dated ahead of the output in turn; the output, once computed again, ahead of
+  // that file (the next file goes further ahead).
+  int ahead_s = 0;
+  for (const std::string& changed : {env, camera}) {
+    fs::last_write_time(changed, fs::file_time_type::clock::now() + std::chrono::seconds(ahead_s += 10));
+    r = run_ssdo(run);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << changed << "\n" << r.output;
+    fs::last_write_time(output, fs::file_time_type::clock::now() + std::chrono::seconds(ahead_s += 10));
+  }
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+}
+
 TEST(Cli, BadFrameFailsItsFrameNotTheBatch) {
   ScratchDir dir;
   copy_frame(dir.path / "in", "a");
