@@ -79,10 +79,13 @@ std::vector<NeighbourFrame> folder_neighbours(const std::string& path, int windo
 std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std::vector<std::string>& views) {
   const auto place = sequence_place(path);
   std::vector<NeighbourFrame> out;
-  for (size_t i = 0; i < views.size(); ++i) {
-    const auto other = sequence_place(views[i]);
+  for (const std::string& view : views) {
+    // The frame itself, or a view named twice, would count as views that agree with it.
+    const bool named_before = std::any_of(out.begin(), out.end(), [&](const NeighbourFrame& n) { return n.path == view; });
+    if (view == path || named_before) continue;
+    const auto other = sequence_place(view);
     const bool same = place && other && other->sequence == place->sequence && other->number != place->number;
-    out.push_back({views[i], same ? int(other->number - place->number) : int(i + 1), false, {}, {}});
+    out.push_back({view, same ? int(other->number - place->number) : int(out.size() + 1), false, {}, {}});
   }
   return out;
 }

@@ -61,6 +61,7 @@ std::vector<NeighbourFrame> folder_neighbours(const std::string& path, int windo
 
 // The neighbours of a frame named explicitly (a socket request's "views"): offsets from
 // the frame numbers when they share the frame's sequence, else 1, 2, ... in the given order.
+// The frame itself and repeated names are left out (paths as resolved: one spelling each).
 std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std::vector<std::string>& views);
 
 }  // namespace ssdo

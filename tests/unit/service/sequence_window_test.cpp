@@ -38,6 +38,19 @@ TEST(SequenceWindow, ANeighboursDerivedListIsItsOwn) {
   }
 }
 
+// A request's "views" as a client may send them: the whole shot with the frame itself,
+// or a view twice. Each view counts once and the frame is not its own view.
+TEST(SequenceWindow, NamedViewsLeaveOutTheFrameAndRepeats) {
+  const std::vector<std::pair<std::string, int>> expected = {{"in/shot.1001.exr", 1}, {"in/shot.0999.exr", -1}};
+  EXPECT_EQ(names_and_offsets(named_neighbours("in/shot.1000.exr", {"in/shot.1001.exr", "in/shot.1000.exr",
+                                                                    "in/shot.1001.exr", "in/shot.0999.exr",
+                                                                    "in/shot.1001.exr"})),
+            expected);
+  // Outside a sequence: 1, 2, ... in the order given, repeats left out before counting.
+  const std::vector<std::pair<std::string, int>> loose = {{"b.exr", 1}, {"c.exr", 2}};
+  EXPECT_EQ(names_and_offsets(named_neighbours("a.exr", {"b.exr", "b.exr", "a.exr", "c.exr"})), loose);
+}
+
 TEST(SequenceWindow, Places) {
   EXPECT_EQ(view_candidate_places(2), 6);
   EXPECT_EQ(neighbour_places(2, 0), 6);
