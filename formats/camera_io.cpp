@@ -112,6 +112,30 @@ std::string sidecar_projection_error(const glm::mat4& p) {
   return {};
 }
 
+// Why the sidecar's distances or field of view describe no camera a frame was rendered
+// with: empty when they do. The field of view as --fov takes it ([0.1, 179.9] degrees);
+// clip distances 0 <= near < far; the AO distance and the background's depth positive.
+std::string sidecar_values_error(const SidecarCamera& s, bool has_far) {
+  const Camera& c = s.camera;
+  if (!std::isfinite(c.near_view) || !std::isfinite(c.far_view) || c.near_view < 0.0f)
+    return "\"clip_near\" and \"clip_far\" must be finite and not negative";
+  if (has_far && !(c.far_view > c.near_view))
+    return "\"clip_far\" (" + std::to_string(c.far_view) + ") must lie beyond \"clip_near\" (" +
+           std::to_string(c.near_view) + ")";
+  for (const auto& [key, value] : {std::pair{"ao_distance", s.ao_distance_world}, std::pair{"background_depth", s.background_depth}})
+    if (value && !(std::isfinite(*value) && *value > 0.0f))
+      return std::string("\"") + key + "\" must be a positive distance in scene units, not " + std::to_string(*value);
+  const glm::mat4& p = c.view_to_clip;
+  if (p[2][3] == 0.0f) return {};  // orthographic: no angle
+  for (const auto& [axis, scale] : {std::pair{"horizontal", p[0][0]}, std::pair{"vertical", p[1][1]}}) {
+    const double fov_deg = 2.0 * std::atan(1.0 / std::abs(double(scale))) * 180.0 / 3.14159265358979323846;
+    if (!(fov_deg >= 0.1 && fov_deg <= 179.9))
+      return std::string("\"projection\" gives a ") + axis + " field of view of " + std::to_string(fov_deg) +
+             " degrees; a pinhole camera's lies within [0.1, 179.9]";
+  }
+  return {};
+}
+
 // The sidecar's camera in our conventions. One homogeneous scale: w = -z (perspective) or
 // w = 1 (orthographic), as Camera's field of view and every reader of the matrix assume. A
 // projection whose NDC x grows to the left or y downwards (Vulkan's clip space, or a frame
@@ -138,8 +162,14 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
     *error = "cannot open camera sidecar " + path;
     return std::nullopt;
   }
-  nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded() || !j.is_object()) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {  // where the text stops being JSON
+    *error = "camera sidecar " + path + " is not valid JSON: " + e.what();
+    return std::nullopt;
+  }
+  if (!j.is_object()) {
     *error = "camera sidecar " + path + " is not a JSON object";
     return std::nullopt;
   }
@@ -193,6 +223,7 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
                   "\"");
   if (const std::string e = sidecar_projection_error(s.camera.view_to_clip); !e.empty()) return fail(e);
   normalise_sidecar_camera(s.camera);
+  if (const std::string e = sidecar_values_error(s, number("clip_far").has_value()); !e.empty()) return fail(e);
   return s;
 }
 

@@ -59,7 +59,13 @@ TEST(CameraSidecar, MalformedSidecarsNameTheField) {
   EXPECT_NE(error.find("none.json"), std::string::npos);
   std::ofstream(dir / "bad.json") << "{ not json";
   EXPECT_FALSE(read_camera_sidecar((dir / "bad.json").string(), &error));
-  EXPECT_NE(error.find("not a JSON object"), std::string::npos) << error;
+  // Where the text stops being JSON.
+  EXPECT_NE(error.find("bad.json is not valid JSON: [json.exception.parse_error.101] parse error at line 1, column 4"),
+            std::string::npos)
+      << error;
+  std::ofstream(dir / "list.json") << "[1, 2]";
+  EXPECT_FALSE(read_camera_sidecar((dir / "list.json").string(), &error));
+  EXPECT_NE(error.find("list.json is not a JSON object"), std::string::npos) << error;
   std::ofstream(dir / "noproj.json") << R"({"width": 4, "height": 4})";
   EXPECT_FALSE(read_camera_sidecar((dir / "noproj.json").string(), &error));
   EXPECT_NE(error.find("\"projection\""), std::string::npos) << error;
@@ -185,6 +191,43 @@ TEST(CameraSidecar, TransposedOrShearedMatricesAndUnknownSpacesAreRefused) {
         << error;
     j[key] = "camera";
     EXPECT_TRUE(read(j, error)) << error;
+  }
+}
+
+// Distances and angles no camera renders with: each refused naming its field (an all-white
+// frame or a silently ignored AO distance otherwise).
+TEST(CameraSidecar, ClipDistancesAoDistanceAndFieldOfViewOutsideACamerasAreRefused) {
+  ScratchDir dir;
+  const Camera cam = posed_camera(64, 48, 60.0f);
+  const nlohmann::json valid = sidecar_of(cam);
+  std::string error;
+  auto refused = [&](const nlohmann::json& j) {
+    return reads_sidecar(dir, j, error) ? std::string("accepted") : error.substr(error.find(": ") + 2);
+  };
+  nlohmann::json j = valid;
+  j["clip_near"] = 0.1, j["clip_far"] = 100.0, j["ao_distance"] = 0.5, j["background_depth"] = 1e10;
+  ASSERT_EQ(refused(j), "accepted");
+  j["clip_far"] = 0.1;
+  EXPECT_EQ(refused(j), "\"clip_far\" (0.100000) must lie beyond \"clip_near\" (0.100000)");
+  j["clip_near"] = 5.0, j["clip_far"] = 1.0;
+  EXPECT_EQ(refused(j), "\"clip_far\" (1.000000) must lie beyond \"clip_near\" (5.000000)");
+  j = valid;
+  j["clip_near"] = -1.0;
+  EXPECT_EQ(refused(j), "\"clip_near\" and \"clip_far\" must be finite and not negative");
+  for (const double bad : {0.0, -1.0}) {
+    j = valid;
+    j["ao_distance"] = bad;
+    EXPECT_NE(refused(j).find("\"ao_distance\" must be a positive distance in scene units"), std::string::npos);
+    j = valid;
+    j["background_depth"] = bad;
+    EXPECT_NE(refused(j).find("\"background_depth\" must be a positive distance"), std::string::npos);
+  }
+  for (const float scale : {1e-30f, 1e30f}) {  // 180 and 0 degrees
+    glm::mat4 p = cam.view_to_clip;
+    p[0][0] = scale;
+    j = valid;
+    j["projection"] = row_major(p);
+    EXPECT_NE(refused(j).find("\"projection\" gives a horizontal field of view of"), std::string::npos) << scale;
   }
 }
 
