@@ -13,6 +13,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <optional>
@@ -45,13 +46,34 @@
 
 namespace ssdo {
 
+namespace {
+
+// What tells this process's pids from another's that shares the host name: the kernel's
+// boot (its random boot id: another machine, or this one after a reboot) and the PID
+// namespace (another container on this kernel), as "_BOOT_NS" in hex; empty where /proc
+// does not say.
+std::string pid_space_tag() {
+  std::string boot;
+  std::ifstream("/proc/sys/kernel/random/boot_id") >> boot;
+  boot.erase(std::remove(boot.begin(), boot.end(), '-'), boot.end());
+  struct stat ns {};
+  if (boot.size() < 8 || ::stat("/proc/self/ns/pid", &ns) != 0) return {};
+  std::ostringstream tag;
+  tag << "_" << boot.substr(0, 8) << "_" << std::hex << uint64_t(ns.st_ino);
+  return tag.str();
+}
+
+}  // namespace
+
 std::string temp_file_host() {
-  char name[256] = {};
-  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0') return "localhost";
-  std::string host(name);
-  // Only characters that cannot be confused with the name's separators.
-  for (char& c : host)
-    if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_') c = '_';
+  static const std::string host = [] {
+    char name[256] = {};
+    std::string h = ::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0' ? "localhost" : name;
+    // Only characters that cannot be confused with the name's separators.
+    for (char& c : h)
+      if (!std::isalnum(static_cast<unsigned char>(c)) && c != '.' && c != '_') c = '_';
+    return h + pid_space_tag();
+  }();
   return host;
 }
 

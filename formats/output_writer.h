@@ -74,7 +74,10 @@ struct WriteOptions {
 };
 
 // This host's name as it appears in temp file names (".NAME.tmp-<host>-<pid>-<random>"):
-// letters, digits, '.' and '_' only.
+// letters, digits, '.' and '_' only, followed by its kernel's boot and PID namespace, so that
+// a pid is only ever tested where it means the same process (frame_list.h,
+// remove_stale_temp_files): not in another container, nor on another machine of the same
+// name.
 std::string temp_file_host();
 
 // A temp file ".NAME.tmp-<host>-<pid>-<random>" beside `final_path`, created with

@@ -77,8 +77,13 @@ TEST(FrameList, OnlyThisHostsAbandonedTempFilesAreRemoved) {
   const std::string foreign = ".notes.tmp-" + host + "-999999997-5b";           // not ssdo's
   // A long output's temp file keeps the end of its name (formats/output_writer.cpp).
   const std::string long_dead = ".~" + std::string(180, 'n') + ".ssdo.exr.tmp-" + host + "-999999996-6a";
-  for (const std::string& n : {dead, live, other, preview, foreign, long_dead}) d.touch(n);
+  // The same host name in another PID namespace (a container) or boot: its pids are not ours.
+  std::string elsewhere = host;
+  elsewhere.back() = elsewhere.back() == '0' ? '1' : '0';
+  const std::string other_space = ".e.ssdo.exr.tmp-" + elsewhere + "-999999995-7f";
+  for (const std::string& n : {dead, live, other, preview, foreign, long_dead, other_space}) d.touch(n);
   EXPECT_EQ(remove_stale_temp_files(d.path.string()), 3);
+  EXPECT_TRUE(fs::exists(d.path / other_space));
   EXPECT_FALSE(fs::exists(d.path / long_dead));
   EXPECT_FALSE(fs::exists(d.path / dead));
   EXPECT_FALSE(fs::exists(d.path / preview));
