@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <map>
 #include <memory>
 
 #include <CLI/CLI.hpp>
@@ -108,6 +109,18 @@ int run_eval(const EvalArgs& args) {
       std::cerr << "ssdo eval: --heatmap " << args.heatmap_dir << ": cannot create the folder"
                 << (ec ? ": " + ec.message() : std::string(" (a file of that name is in the way)")) << "\n";
       return 2;
+    }
+    // One heatmap per file name: two files of one name (in two folders) would replace each
+    // other's, silently.
+    std::map<std::string, std::string> file_of_stem;
+    for (const std::string& file : args.files) {
+      const auto [it, fresh] = file_of_stem.emplace(std::filesystem::path(file).stem().string(), file);
+      if (!fresh && it->second != file) {
+        std::cerr << "ssdo eval: " << it->second << " and " << file << " would both write the heatmap "
+                  << (std::filesystem::path(args.heatmap_dir) / (it->first + ".error.exr")).string()
+                  << " (the same file name): evaluate them with different --heatmap folders\n";
+        return 2;
+      }
     }
   }
 

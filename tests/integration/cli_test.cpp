@@ -289,6 +289,16 @@ TEST(Cli, EvalAndBenchFailWhenTheyCannotWrite) {
   r = run_ssdo("eval " + example("cornell.exr") + " --preset low --heatmap " + dir / "maps");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("cornell.error.exr"), std::string::npos) << r.output;
+  // Two files of one name would write one heatmap: refused before any work.
+  fs::create_directories(dir.path / "other");
+  fs::copy_file(example("cornell.exr"), dir.path / "other" / "cornell.exr");
+  fs::copy_file(example("cornell.camera.json"), dir.path / "other" / "cornell.camera.json");
+  r = run_ssdo("eval " + example("cornell.exr") + " " + dir / "other/cornell.exr" + " --preset low --heatmap " +
+               dir / "maps2");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("would both write the heatmap " + dir / "maps2/cornell.error.exr"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(dir.path / "maps2" / "cornell.error.exr"));
   fs::create_directories(dir.path / "bench" / "bench.csv");
   r = run_ssdo("bench " + example("cornell.exr") + " -o " + dir / "bench" +
                " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
