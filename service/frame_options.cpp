@@ -58,7 +58,9 @@ std::vector<FrameOption> compute_options() {
        .help = "Assumed thickness of surfaces in scene units", .unset = "the method's", .lo = 0, .hi = kInf,
        .field = +[](A& a) -> float& { return a.compute.thickness_world; }},
       {.name = "threads", .kind = OptionKind::integer, .set = OptionSet::compute, .group = "Compute",
-       .help = "Threads for the kernels (at most the cores)", .unset = "all cores", .lo = 0, .hi = 1024,
+       .help = "Threads per frame (at most the cores); without --jobs, process and serve then run cores / THREADS "
+               "frames at once over the cores the process may use (its CPU affinity)",
+       .unset = "all cores", .lo = 0, .hi = 1024,
        .field = +[](A& a) -> int& { return a.compute.threads; }},
       {.name = "terms", .kind = OptionKind::text, .set = OptionSet::compute, .group = "Compute",
        .help = "Terms to compute and write: ao (AO, bent normal), ssdo (SSDO direct and indirect, and the composite "
