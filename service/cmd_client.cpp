@@ -106,7 +106,7 @@ int run_client(const ClientArgs& args) {
     return 2;
   }
   std::string error;
-  const int fd = connect_to(args.socket_path, error);
+  int fd = connect_to(args.socket_path, error);
   if (fd < 0) {
     std::cerr << "ssdo client: " << error << "\n";
     return 2;
@@ -122,7 +122,7 @@ int run_client(const ClientArgs& args) {
     json r{{"op", "process"}, {"options", args.options}};
     if (args.inline_data) {
       const fs::path p(file);
-      r["name"] = p.stem().string();
+      r["name"] = safe_name_for(p.stem().string());  // the spool's name for it: a plain stem
       r["reply"] = "inline";
       const fs::path sidecar = p.parent_path() / (p.stem().string() + ".camera.json");
       std::ifstream in(sidecar);
@@ -141,10 +141,13 @@ int run_client(const ClientArgs& args) {
   for (size_t i = 0; i < requests.size(); ++i) {
     json response;
     std::string bytes;
-    if (!exchange(fd, requests[i], payloads[i], response, bytes, args.max_inline_mb, deadline_in(args.timeout_s),
-                  error)) {
+    if (fd < 0 || !exchange(fd, requests[i], payloads[i], response, bytes, args.max_inline_mb,
+                            deadline_in(args.timeout_s), error)) {
+      // The files not sent are named, each: a batch's log shows every frame's fate.
       std::cerr << "ssdo client: " << (i < args.files.size() ? args.files[i] + ": " : "") << error << "\n";
-      ::close(fd);
+      for (size_t k = i + 1; k < args.files.size(); ++k)
+        std::cerr << "ssdo client: " << args.files[k] << ": not sent (the connection failed)\n";
+      if (fd >= 0) ::close(fd);
       return 2;
     }
     if (!bytes.empty()) {
@@ -159,9 +162,14 @@ int run_client(const ClientArgs& args) {
     }
     if (!response.value("ok", false)) ++failed;
     std::cout << to_wire(response) << "\n" << std::flush;
-    if (!response.value("ok", false) && response.value("code", "") == "bad_request") break;  // closed by the service
+    // A refused request may leave the stream out of step (inline bytes the service did not
+    // read), and the service then closes it: the next file goes over a new connection.
+    if (!response.value("ok", false) && response.value("code", "") == "bad_request" && i + 1 < requests.size()) {
+      ::close(fd);
+      fd = connect_to(args.socket_path, error);
+    }
   }
-  ::close(fd);
+  if (fd >= 0) ::close(fd);
   return failed > 0 ? 1 : 0;
 }
 

@@ -126,6 +126,14 @@ bool is_safe_name(std::string_view name) {
   });
 }
 
+std::string safe_name_for(std::string_view stem) {
+  std::string name(stem.substr(0, 127));
+  for (char& c : name)
+    if (!is_safe_name(std::string("f") + c)) c = '_';
+  if (name.empty() || name[0] == '.') name.insert(0, "f");
+  return name;
+}
+
 namespace {
 
 // The request header as JSON. nlohmann::json copies and dumps values recursively: a deeply

@@ -89,6 +89,9 @@ bool parse_socket_request(std::string_view header, const ProtocolLimits& limits,
 
 // True for a name usable as a file stem: [A-Za-z0-9._-]{1,128}, not starting with '.'.
 bool is_safe_name(std::string_view name);
+// A safe name (is_safe_name) for a file stem: other characters become '_', a leading '.'
+// or an empty stem gets an 'f' before it, at most 128 characters.
+std::string safe_name_for(std::string_view stem);
 
 // The JSON text of a message. Strings from damaged files (channel names, attribute
 // values) may hold invalid UTF-8: such bytes become U+FFFD instead of failing.

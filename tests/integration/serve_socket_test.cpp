@@ -388,6 +388,19 @@ TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("forbidden"), std::string::npos) << r.output;
   EXPECT_EQ(run_ssdo("client --socket /nonexistent.sock ping").exit_code, 2);
+  // A refused file does not end the list: each file gets its line, the later ones computed.
+  r = run_ssdo("client" + s + "process " + dir / "frames" + " " + dir / "frames/greeble.exr" + " -o " + dir / "o2");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("not a regular file"), std::string::npos) << r.output;
+  EXPECT_EQ(count_occurrences(r.output, "\"ok\":true"), 1) << r.output;
+  // Inline frames whose names are no plain stems (a space, non-ASCII) are sent under one.
+  fs::copy_file(example_frame("cornell.exr"), dir.path / "frames" / "shot A \xc3\xbc.exr");
+  fs::copy_file(example_frame("cornell.camera.json"), dir.path / "frames" / "shot A \xc3\xbc.camera.json");
+  r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " '" + dir / "frames/shot A \xc3\xbc.exr" + "' " +
+               example_frame("greeble.exr"));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "inline/shot A \xc3\xbc.ssdo.exr", "ao")) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "inline/greeble.ssdo.exr", "ao")) << r.output;
 }
 
 }  // namespace

@@ -150,6 +150,13 @@ TEST(SocketRequest, SafeNamesArePlainStems) {
   EXPECT_TRUE(is_safe_name("a-b_c"));
   for (const char* bad : {"", ".hidden", "a/b", "..", "a b", "x\n"}) EXPECT_FALSE(is_safe_name(bad)) << bad;
   EXPECT_FALSE(is_safe_name(std::string(129, 'a')));
+  // What the client sends for a file stem that is none.
+  EXPECT_EQ(safe_name_for("shot.0001"), "shot.0001");
+  EXPECT_EQ(safe_name_for("shot A \xc3\xbc"), "shot_A___");
+  EXPECT_EQ(safe_name_for(".hidden"), "f.hidden");
+  EXPECT_EQ(safe_name_for(""), "f");
+  EXPECT_EQ(safe_name_for(std::string(300, 'a')), std::string(127, 'a'));
+  for (const char* stem : {"a/b", "..", "x\n", "-dash"}) EXPECT_TRUE(is_safe_name(safe_name_for(stem))) << stem;
 }
 
 TEST(SocketRequest, ErrorResponsesCarryCodeMessageAndId) {
