@@ -257,7 +257,11 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
 bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, bool force) {
   const std::string output = output_path_for(input, options_.out_dir);
   const std::string error_path = error_path_for(input, options_.out_dir);
-  if (!force && watched_frame_done(input, output, error_path)) {
+  // Claimed first, up to date or not: a socket request for another frame of the same name
+  // is then told of the conflict instead of replacing this frame's output.
+  std::string owner;
+  const bool claimed = claim_output(output, input, owner);
+  if (claimed && !force && watched_frame_done(input, output, error_path)) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++skipped_;
     return false;
@@ -266,7 +270,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   const FileVersion& before = found.input;
   const std::string before_key = frame_version_key(input);
   WorkerResult r;
-  if (std::string owner; !claim_output(output, input, owner)) {
+  if (!claimed) {
     r.error = input + ": its output " + output + " is already written for " + owner;
   } else if (!before.exists) {
     // Gone between its event and now: deleted, or renamed away.

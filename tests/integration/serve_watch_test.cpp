@@ -326,6 +326,32 @@ TEST(ServeWatch, AFrameRewrittenWhileComputedIsNotLeftUpToDateWithTheOldVersion)
   EXPECT_GE(fs::last_write_time(output), fs::last_write_time(input));
 }
 
+// A watched frame found up to date at start still owns its output: a socket request for
+// another frame of the same name is told of the conflict, and the output stays this one's.
+TEST(ServeWatch, AFrameUpToDateAtStartKeepsItsOutputFromSocketRequests) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  fs::create_directories(dir.path / "allow");
+  copy_example("cornell", dir.path / "in", "x");
+  copy_example("greeble", dir.path / "allow", "x");
+  const fs::path output = dir.path / "out" / "x.ssdo.exr";
+  const std::string socket = socket_path_for("owned");
+  const std::vector<std::string> allow = {"--allow", dir / "allow"};
+  {
+    SsdoProcess service(serve_args(dir, socket, allow), dir.path / "serve1.log");
+    ASSERT_TRUE(wait_until([&] { return path_exists(output); }, 60)) << service.log();
+    EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+  }
+  const std::string before = exr_content(output.string());
+  SsdoProcess service(serve_args(dir, socket, allow), dir.path / "serve2.log");
+  ASSERT_TRUE(wait_until([&] { return stats(socket).value("frames_skipped", 0) == 1; }, 60)) << service.log();
+  Client client(socket);
+  const json r = client.request({{"op", "process"}, {"input", dir / "allow/x.exr"}});
+  EXPECT_EQ(r.value("code", ""), "conflict") << r.dump();
+  EXPECT_EQ(exr_content(output.string()), before);
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
 TEST(ServeWatch, KillNineThenRestartProcessesEveryFrameExactlyOnce) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
