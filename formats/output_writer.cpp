@@ -753,4 +753,35 @@ std::optional<std::string> read_string_attribute(const std::string& path, const 
   return std::string(value, size_t(length));
 }
 
+bool scanline_chunks_complete(const std::string& path) {
+  if (!check_exr_headers(path).ok()) return false;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return false;
+  exr_core::Context file;
+  exr_context_initializer_t init = exr_core::quiet_initializer();
+  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) return false;
+  int parts = 0;
+  if (exr_get_count(file.get(), &parts) != EXR_ERR_SUCCESS) return false;
+  for (int part = 0; part < parts; ++part) {
+    exr_storage_t storage{};
+    exr_attr_box2i_t window{};
+    int32_t lines = 0;
+    if (exr_get_storage(file.get(), part, &storage) != EXR_ERR_SUCCESS) return false;
+    if (storage != EXR_STORAGE_SCANLINE) continue;  // not what write_outputs writes
+    if (exr_get_data_window(file.get(), part, &window) != EXR_ERR_SUCCESS ||
+        exr_get_scanlines_per_chunk(file.get(), part, &lines) != EXR_ERR_SUCCESS || lines <= 0)
+      return false;
+    // Every chunk's offset (the table) and its block within the file: a file cut short, or
+    // whose blocks were never written (zeros after a crash), has offsets that are not.
+    for (int64_t y = window.min.y; y <= window.max.y; y += lines) {
+      exr_chunk_info_t chunk{};
+      if (exr_read_scanline_chunk_info(file.get(), part, int(y), &chunk) != EXR_ERR_SUCCESS ||
+          chunk.data_offset + chunk.packed_size > uint64_t(st.st_size))
+        return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace ssdo

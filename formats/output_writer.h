@@ -116,6 +116,12 @@ std::string write_file_atomically(const std::filesystem::path& path, const std::
 // fail check_exr_headers, or it has no such string attribute.
 std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name);
 
+// Whether every scanline chunk of the EXR at `path` lies within the file (what write_outputs
+// writes is scanline): false for a file cut short (an interrupted copy, a crash after the
+// rename, before the data reached the disk) or that cannot be read. Reads the headers, the
+// offset tables and each chunk's leader, not the pixels.
+bool scanline_chunks_complete(const std::string& path);
+
 // Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<host>-<pid>-<rnd>"
 // in the same folder and renamed into place, so the file is complete or absent (on failure
 // the temp file is removed and an existing `path` is left as it was). All terms must share

@@ -19,6 +19,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "formats/output_writer.h"
 #include "service/batch_progress.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
@@ -199,19 +200,24 @@ int run_process(const ProcessArgs& args) {
   std::vector<std::string> todo, up_to_date;
   const std::string made_with = options_attribute(args.options);
   const std::vector<std::string> option_files = option_paths(args.options);
-  int other_options = 0;
+  int other_options = 0, cut_short = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
     const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
                          neighbours_older_than(neighbours, f, output) &&
                          output_up_to_date_with_all(option_files, output);
     const bool same_options = current && output_made_with(output, made_with);
+    const bool whole = same_options && scanline_chunks_complete(output);
     other_options += current && !same_options;
-    (same_options ? up_to_date : todo).push_back(f);
+    cut_short += same_options && !whole;
+    (whole ? up_to_date : todo).push_back(f);
   }
   if (other_options > 0)
     std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
               << " made with other options than this run's: computed again\n";
+  if (cut_short > 0)
+    std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
+              << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";
   BatchProgress progress(int(frames.size()), int(todo.size()), bar, args.verbose);
   for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
 

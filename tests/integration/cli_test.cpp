@@ -194,6 +194,25 @@ TEST(Cli, ARerunFollowsTheEnvironmentMapAndCameraFileItWasGiven) {
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
 }
 
+// An output cut short (an interrupted copy; a crash after the rename, before its data
+// reached the disk) is no up-to-date output, whatever its header and date say.
+TEST(Cli, AnOutputCutShortIsComputedAgain) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
+  ASSERT_EQ(run_ssdo(run).exit_code, 0);
+  const fs::path output = dir.path / "out" / "a.ssdo.exr";
+  const auto whole_size = fs::file_size(output);
+  fs::resize_file(output, whole_size - 1000);  // the header and most chunks are there
+  RunResult r = run_ssdo(run);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("1 output was cut short"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  EXPECT_EQ(fs::file_size(output), whole_size);
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+}
+
 TEST(Cli, BadFrameFailsItsFrameNotTheBatch) {
   ScratchDir dir;
   copy_frame(dir.path / "in", "a");
