@@ -52,13 +52,24 @@ std::optional<ResolvedInput> find_vector(const std::vector<PartChannels>& parts,
   return std::nullopt;
 }
 
-// Blender view layer prefix of the first "<Layer>.Depth.Z" channel of a part.
-std::optional<std::string> blender_layer(const PartChannels& p) {
+// Blender view layer prefixes of a part's "<Layer>.Depth.Z" channels, in channel order.
+std::vector<std::string> blender_layers(const PartChannels& p) {
   const std::string suffix = ".Depth.Z";
+  std::vector<std::string> layers;
   for (const auto& c : p.channels)
     if (c.size() > suffix.size() && c.compare(c.size() - suffix.size(), suffix.size(), suffix) == 0)
-      return c.substr(0, c.size() - suffix.size());
-  return std::nullopt;
+      layers.push_back(c.substr(0, c.size() - suffix.size()));
+  return layers;
+}
+
+// The view layer the inputs come from: the one whose depth the mapping names
+// ("<Layer>.Depth.Z" or "<Layer>.Depth"), else the first.
+std::optional<std::string> blender_layer(const PartChannels& p, const ChannelMapping& map = {}) {
+  const std::vector<std::string> layers = blender_layers(p);
+  for (const std::string& layer : layers)
+    if (map.depth == layer + ".Depth.Z" || map.depth == layer + ".Depth") return layer;
+  if (layers.empty()) return std::nullopt;
+  return layers.front();
 }
 
 std::optional<std::string> generic_depth(const PartChannels& p) {
@@ -111,17 +122,20 @@ std::optional<int> depth_part(const std::string& path, const std::vector<PartCha
 }
 
 // The inputs a profile finds from the depth part `part`: "blender" (a <Layer>.Depth.Z
-// channel) or "generic" (Z or depth.Z); neither leaves `res` empty. A back-face depth
+// channel; of several view layers, the one whose depth the mapping names, else the
+// first) or "generic" (Z or depth.Z); neither leaves `res` empty. A back-face depth
 // ("depth_back") is <Layer>.DepthBack (an AOV) or Z.back / depth_back.
-void detect_profile(const std::vector<PartChannels>& parts, int part, ChannelResolution& res) {
+void detect_profile(const std::vector<PartChannels>& parts, int part, const ChannelMapping& map,
+                    ChannelResolution& res) {
   const PartChannels& pc = parts[part];
   auto add = [&](std::optional<ResolvedInput> r) {
     if (r) res.inputs.push_back(*r);
     return r.has_value();
   };
-  if (auto layer = blender_layer(pc)) {
+  if (auto layer = blender_layer(pc, map)) {
     res.profile = "blender";
     res.layer = *layer;
+    res.layers = blender_layers(pc);
     const std::string L = *layer + ".";
     res.inputs.push_back({"depth", {L + "Depth.Z"}, part, Space::automatic});
     add(find_vector(parts, part, "normal", L + "Normal", Space::world));
@@ -262,7 +276,7 @@ std::optional<ChannelResolution> resolve_channels(const std::string& path,
   if (!part) return std::nullopt;
   ChannelResolution res;
   res.part = *part;
-  detect_profile(parts, *part, res);
+  detect_profile(parts, *part, options.mapping, res);
   if (!mapping_is_empty(options.mapping) &&
       !MappingApplier{path, parts, *part, res, error}.apply(options.mapping))
     return std::nullopt;

@@ -31,6 +31,7 @@ struct ResolvedInput {
 struct ChannelResolution {
   std::string profile;  // "blender" | "generic" | "mapping" ("" = no depth found)
   std::string layer;    // blender layer prefix
+  std::vector<std::string> layers;  // every blender view layer of the depth part (layer among them)
   int part = 0;         // the part depth comes from
   std::vector<ResolvedInput> inputs;  // depth first when found
   const ResolvedInput* find(const std::string& input) const;

@@ -200,6 +200,17 @@ bool resolve_grid(const std::string& path, const ReadOptions& options, ReadResul
   info.part = prep.parts[part].name;
   info.profile = prep.channels.profile;
   info.layer = prep.channels.layer;
+  if (const std::vector<std::string>& layers = prep.channels.layers; layers.size() > 1) {
+    std::string others;
+    for (const std::string& l : layers)
+      if (l != info.layer) others += (others.empty() ? "" : ", ") + l;
+    info.notes.push_back(options.mapping.depth.empty()
+                             ? std::string(kWarningNote) + "view layers " + info.layer + ", " + others +
+                                   ": the inputs are " + info.layer + "'s; --map depth=" + layers.back() +
+                                   ".Depth.Z reads another's"
+                             : "view layer " + info.layer + " (the mapped depth's; also in the file: " + others +
+                                   "): the inputs the mapping does not name are its own");
+  }
   for (auto it = header.channels().begin(); it != header.channels().end(); ++it)
     info.channels.push_back(std::string(it.name()) + " (" + type_name(it.channel().type) + ")");
   prep.data = box_of(header.dataWindow());

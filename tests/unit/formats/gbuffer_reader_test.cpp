@@ -965,6 +965,41 @@ TEST(ReadConversions, ExplicitMappingOverridesDetection) {
 }
 
 
+// A Blender file with two view layers: the inputs come from one layer, never mixed: the
+// first, with a warning naming the others, or the one whose depth the mapping names.
+TEST(ReadConversions, TwoViewLayersAreNeverMixed) {
+  ScratchDir dir;
+  TestExr t;
+  t.width = t.height = 8;
+  auto layer = [&](const std::string& l, float depth, float normal_z, float albedo) {
+    t.channels.push_back({l + ".Depth.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64, depth)});
+    for (const char* c : {".Normal.X", ".Normal.Y"}) t.channels.push_back({l + c, OIIO::TypeDesc::FLOAT, std::vector<float>(64, 0.0f)});
+    t.channels.push_back({l + ".Normal.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64, normal_z)});
+    for (const char* c : {".DiffCol.R", ".DiffCol.G", ".DiffCol.B"})
+      t.channels.push_back({l + c, OIIO::TypeDesc::HALF, std::vector<float>(64, albedo)});
+  };
+  layer("A", 3.0f, 1.0f, 0.25f);
+  layer("ViewLayer", 5.0f, 1.0f, 0.75f);
+  const fs::path path = dir / "layers.exr";
+  ASSERT_TRUE(t.write(path));
+  ReadOptions options;
+  options.fov_x_deg = 50.0f;
+  ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.layer, "A");
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(3, 3), 3.0f);
+  EXPECT_FLOAT_EQ(r.gbuffer.albedo.at<cv::Vec3f>(3, 3)[0], 0.25f);
+  const std::string warning = "warning: view layers A, ViewLayer: the inputs are A's; --map depth=ViewLayer.Depth.Z reads another's";
+  EXPECT_NE(std::find(r.info.notes.begin(), r.info.notes.end(), warning), r.info.notes.end());
+  options.mapping.depth = "ViewLayer.Depth.Z";
+  r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_EQ(r.info.layer, "ViewLayer");
+  EXPECT_FLOAT_EQ(r.gbuffer.depth_view.at<float>(3, 3), 5.0f);
+  EXPECT_FLOAT_EQ(r.gbuffer.albedo.at<cv::Vec3f>(3, 3)[0], 0.75f);  // not A's
+  for (const std::string& note : r.info.notes) EXPECT_NE(note.rfind("warning: ", 0), 0u) << note;
+}
+
 // ---------------------------------------------------------------------------------------
 // The ZIP decoders: libdeflate (the default) against OpenEXR's own, bit for bit, and on
 // damaged files.
