@@ -57,6 +57,31 @@ int lock_output_folder(const std::string& out_dir, std::string& error) {
   return fd;
 }
 
+// The output folder and its lock, made again when they were removed while the service
+// runs (a frame's output would fail, and a second instance could take the folder): false
+// when another instance holds the new lock by then (`note` says so). `note` also tells of
+// a folder made again.
+bool keep_output_folder(const std::string& out_dir, int& lock_fd, std::string& note) {
+  note.clear();
+  struct stat held {}, now {};
+  const std::string path = (fs::path(out_dir) / ".ssdo-serve.lock").string();
+  if (::fstat(lock_fd, &held) == 0 && ::lstat(path.c_str(), &now) == 0 && held.st_dev == now.st_dev &&
+      held.st_ino == now.st_ino)
+    return true;
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  std::string error;
+  const int fd = lock_output_folder(out_dir, error);
+  if (fd < 0) {
+    note = "the output folder " + out_dir + " was removed, and " + error;
+    return false;
+  }
+  ::close(lock_fd);
+  lock_fd = fd;
+  note = "the output folder " + out_dir + " (or its lock) was removed: made again and locked";
+  return true;
+}
+
 }  // namespace
 
 int run_serve(const ServeArgs& args) {
@@ -89,7 +114,7 @@ int run_serve(const ServeArgs& args) {
     return usage("--socket-mode " + args.socket_mode + ": expected octal permissions such as 0600");
   }
 
-  const int lock_fd = lock_output_folder(out_dir, error);
+  int lock_fd = lock_output_folder(out_dir, error);
   if (lock_fd < 0) {
     std::cerr << "ssdo serve: " << error << "\n";
     return 1;
@@ -165,22 +190,32 @@ int run_serve(const ServeArgs& args) {
             << plan.workers << " workers x " << plan.threads_per_frame << " threads\n"
             << std::flush;
 
+  // Until a stop signal; every second, the output folder is checked (keep_output_folder).
   int sig = 0;
-  while (::sigwait(&stop_signals, &sig) != 0) {
+  std::string reason;
+  bool folder_lost = false;
+  for (const timespec tick{1, 0}; reason.empty();) {
+    sig = ::sigtimedwait(&stop_signals, nullptr, &tick);
+    if (sig > 0) {
+      reason = sig == SIGINT ? "SIGINT" : sig == SIGHUP ? "SIGHUP" : "SIGTERM";
+      break;
+    }
+    std::string note;
+    folder_lost = !keep_output_folder(out_dir, lock_fd, note);
+    if (folder_lost) reason = note;
+    else if (!note.empty()) std::cout << "ssdo serve: " << note << "\n" << std::flush;
   }
-  std::cout << "ssdo serve: " << (sig == SIGINT ? "SIGINT" : sig == SIGHUP ? "SIGHUP" : "SIGTERM")
-            << ": stopping (no new frames; frames in flight finish)\n"
-            << std::flush;
+  std::cout << "ssdo serve: " << reason << ": stopping (no new frames; frames in flight finish)\n" << std::flush;
   if (server) server->stop_accepting();
   if (watcher) watcher->stop();
   frames.stop();
   if (server) server->stop();
-  fs::remove_all(spool, ec);
+  if (!folder_lost) fs::remove_all(spool, ec);  // else the spool is the other instance's now
   const ServiceStats s = frames.stats();
   std::cout << "ssdo serve: stopped; done " << s.frames_done << ", failed " << s.frames_failed << ", skipped "
             << s.frames_skipped << "\n"
             << std::flush;
-  return 0;
+  return folder_lost ? 1 : 0;
 }
 
 Command register_serve(CLI::App& app) {

@@ -204,6 +204,26 @@ TEST(ServeLifetimes, SecondInstanceOnTheSameOutputFolderIsRefused) {
   EXPECT_EQ(ping(socket_path_for("lock1")).value("ok", false), true);
 }
 
+// The output folder removed under a running service: made again and locked again, so its
+// frames are written and a second instance is still refused.
+TEST(ServeLifetimes, AnOutputFolderRemovedWhileRunningIsMadeAgainAndLocked) {
+  ScratchDir dir;
+  const fs::path in = dir.path / "in", out = dir.path / "out";
+  fs::create_directories(in);
+  const std::string socket = socket_path_for("gone");
+  SsdoProcess service(watch_args(in, out, socket), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  fs::remove_all(out);
+  ASSERT_TRUE(service.wait_for_log("(or its lock) was removed: made again and locked", 30)) << service.log();
+  copy_example("cornell", in, "f");
+  EXPECT_TRUE(wait_until([&] { return path_exists(out / "f.ssdo.exr"); }, 60)) << service.log();
+  SsdoProcess second({"serve", "--socket", socket_path_for("gone2"), "-o", out.string(), "--allow", in.string()},
+                     dir.path / "2.log");
+  EXPECT_TRUE(wait_until([&] { return !second.running(); }, 10)) << second.log();
+  EXPECT_NE(second.log().find("another ssdo serve"), std::string::npos) << second.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0) << service.log();
+}
+
 // --- 14: the client's inline reply ----------------------------------------------------
 
 TEST(ServeLifetimes, ClientRefusesAHugeInlineReply) {
