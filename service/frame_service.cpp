@@ -239,10 +239,26 @@ WorkerResult FrameService::run_with_retries(WorkerProcess& worker, const WorkerJ
   return r;
 }
 
+namespace {
+
+// `text` with every `from` replaced by `to`.
+std::string replace_all(std::string text, const std::string& from, const std::string& to) {
+  for (size_t at = text.find(from); !from.empty() && at != std::string::npos; at = text.find(from, at + to.size()))
+    text.replace(at, from.size(), to);
+  return text;
+}
+
+}  // namespace
+
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   const std::string before_key = task.error_path.empty() ? std::string() : frame_version_key(task.input);
-  const WorkerResult r =
+  WorkerResult r =
       run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine}, &task);
+  if (!task.inline_name.empty()) {
+    // The spool's paths mean nothing to the client (and are gone once it is answered).
+    r.error = replace_all(r.error, sidecar_path_for(task.input), "the request's \"sidecar\"");
+    r.error = replace_all(r.error, task.input, "inline frame " + task.inline_name);
+  }
   record(r);
   if (!task.error_path.empty()) {
     std::error_code ec;

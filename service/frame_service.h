@@ -52,6 +52,9 @@ struct FrameServiceOptions {
 struct FrameTask {
   std::string input, output;             // resolved paths
   std::string error_path;                // NAME.error.json to write on failure; empty = none
+  // For an inline upload: its name in messages ("inline frame NAME") instead of the private
+  // spool path the worker read it from, and of its sidecar there the request's "sidecar".
+  std::string inline_name;
   nlohmann::json options = nlohmann::json::object();
   std::vector<NeighbourFrame> neighbours;  // the request's "views" (resolved)
   Confinement confine;                   // where the worker may open the task's files

@@ -552,6 +552,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   task.input = input;
   task.output = output;
   task.error_path = error_path;
+  if (inline_input) task.inline_name = request.name;
   task.options = to_json(options);
   task.neighbours = named_neighbours(input, views);
   // The worker opens every file again itself, confined the same way (service/job_files.h):

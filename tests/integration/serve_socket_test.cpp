@@ -276,6 +276,22 @@ TEST(ServeSocket, AClientThatNeverReadsItsReplyDoesNotHoldTheStop) {
   EXPECT_FALSE(path_exists(service.socket));
 }
 
+// An inline frame's errors name it as the client knows it, not by the service's private
+// spool path (gone once the client is answered); its error file too.
+TEST(ServeSocket, AnInlineFramesErrorsNameTheFrameNotTheSpool) {
+  ScratchDir dir;
+  SocketService service(dir, "inlineerr");
+  ASSERT_TRUE(service.ready) << service.log();
+  Client client(service.socket);
+  const json r = client.request({{"op", "process"}, {"name", "shot7"}}, read_text(dir.path / "frames" / "cornell.exr"));
+  EXPECT_EQ(r.value("code", ""), "frame_failed") << r.dump();
+  const std::string error = r.value("error", "");
+  EXPECT_EQ(error.find(".ssdo-spool"), std::string::npos) << error;
+  EXPECT_EQ(error.rfind("inline frame shot7: no camera: give a JSON sidecar (the request's \"sidecar\"", 0), 0u) << error;
+  const json file = json::parse(read_text(dir.path / "out" / "shot7.error.json"), nullptr, false);
+  EXPECT_EQ(file.value("error", ""), error);
+}
+
 TEST(ServeSocket, FullQueueAnswersBusy) {
   ScratchDir dir;
   SocketService service(dir, "busy", {"--jobs", "1", "--queue", "1"});
