@@ -44,6 +44,13 @@ bool peer_closed(int fd) {
   return ::poll(&p, 1, 0) > 0 && (p.revents & (POLLHUP | POLLERR)) != 0;
 }
 
+// Seconds as a user wrote them: 30, 0.5 (not "0" for half a second).
+std::string seconds_text(double s) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", s);
+  return text;
+}
+
 // How long an over-limit client gets to read its "busy" answer before it is closed.
 constexpr double kBusyReplySeconds = 0.5;
 // How long stop() waits for connections to finish their request, beyond the deadlines
@@ -299,6 +306,11 @@ bool SocketServer::set_idle(int fd, bool idle) {
   return !c.evicted;
 }
 
+bool SocketServer::is_stopping() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return stopping_;
+}
+
 void SocketServer::set_replying(int fd, bool replying) {
   std::lock_guard<std::mutex> lock(mutex_);
   connections_[fd].replying_since = replying ? Clock::now() : Clock::time_point::max();
@@ -358,7 +370,7 @@ void SocketServer::serve_connection(int fd) {
     }
     if (s == IoStatus::timeout) {
       reply(fd, error_response("timeout", "no complete request within " +
-                                              std::to_string(int(options_.client_timeout_s)) + " s (--client-timeout)"));
+                                              seconds_text(options_.client_timeout_s) + " s (--client-timeout)"));
     } else if (s == IoStatus::too_large) {
       reply(fd, error_response("too_large", "the request header exceeds " +
                                                 std::to_string(options_.limits.max_header_bytes) +
@@ -494,7 +506,9 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     if (ec) return refuse("internal", "cannot create a spool folder: " + ec.message());
     input = (spool / (request.name + ".exr")).string();
     if (!stream_to_file(fd, input, request.inline_size, deadline_in(options_.client_timeout_s), error)) {
-      reply(fd, error_response("bad_request", error, id));
+      // A stop shuts the connections' reading side: the client did not cut its upload short.
+      if (is_stopping()) reply(fd, error_response("busy", "the service is stopping: the inline frame was not received whole", id));
+      else reply(fd, error_response("bad_request", error, id));
       return false;
     }
     request.inline_size = 0;  // consumed: the stream is in step again
@@ -595,7 +609,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   if (!r.ok()) {
     json response = error_response("frame_failed", r.error, id);
     response["times"] = times;
-    if (!error_path.empty()) response["error_file"] = error_path;
+    // Named only when written: a frame dropped from the queue at a stop has none.
+    if (std::error_code ec; !error_path.empty() && fs::exists(error_path, ec)) response["error_file"] = error_path;
     return reply(fd, response);
   }
   json response{{"ok", true},          {"terms", r.terms}, {"width", r.width_px},

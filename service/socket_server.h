@@ -91,6 +91,7 @@ class SocketServer {
   void give(size_t& used, size_t bytes);
   // Marks a connection idle (waiting for a request) or busy; false when it was evicted.
   bool set_idle(int fd, bool idle);
+  bool is_stopping();
   // Marks a connection as sending a reply, or done with it.
   void set_replying(int fd, bool replying);
   // While stopping: shuts down the connections whose reply has waited longer than the
