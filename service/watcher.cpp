@@ -25,10 +25,17 @@ DirectoryWatcher::~DirectoryWatcher() { stop(); }
 
 namespace {
 
-// IN_CREATE only for symbolic links (a link is complete when made: it has no close); a
-// file is reported when closed after writing or moved in.
+// IN_CREATE only for links, symbolic or hard (a link is complete when made: it has no
+// close; a hard link is a regular file with more than one name, one being written has
+// one); a file is reported when closed after writing or moved in.
 constexpr uint32_t kFolderEvents =
     IN_CLOSE_WRITE | IN_MOVED_TO | IN_CREATE | IN_DELETE_SELF | IN_MOVE_SELF | IN_ONLYDIR;
+bool is_link(const std::string& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) return false;
+  return S_ISLNK(st.st_mode) || (S_ISREG(st.st_mode) && st.st_nlink > 1);
+}
+
 // While the folder is gone, how often the watcher looks for it besides the parent's events
 // (the parent may be replaced too).
 constexpr int kLostRetryMs = 1000;
@@ -161,8 +168,7 @@ void DirectoryWatcher::handle_events(char* buffer, size_t size) {
       lose_watch(event->mask & IN_MOVE_SELF ? "was renamed away" : "was deleted or unmounted");
     } else if (event->len > 0 && !(event->mask & IN_ISDIR)) {
       const std::string path = (fs::path(dir_) / event->name).string();
-      std::error_code ec;
-      if ((event->mask & IN_CREATE) && !fs::is_symlink(fs::symlink_status(path, ec))) continue;
+      if ((event->mask & IN_CREATE) && !is_link(path)) continue;
       if (is_reported(path)) report_(path);
     }
   }

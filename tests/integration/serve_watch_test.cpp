@@ -222,7 +222,9 @@ TEST(ServeWatch, PollFindsFramesWithoutEvents) {
 
 // A symbolic link made in the watched folder is complete when made (no close to wait for):
 // its frame is computed without a rescan.
-TEST(ServeWatch, ASymbolicLinkMadeInTheFolderIsComputed) {
+// Links, symbolic or hard (an atomic publish: `ln stage/x.exr watch/x.exr`), are complete
+// when made: no close follows them.
+TEST(ServeWatch, ALinkMadeInTheFolderIsComputed) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
   const std::string socket = socket_path_for("symlink");
@@ -233,6 +235,8 @@ TEST(ServeWatch, ASymbolicLinkMadeInTheFolderIsComputed) {
   ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "real.ssdo.exr"); }, 60)) << service.log();
   fs::create_symlink("real.exr", dir.path / "in" / "alias.exr");
   EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "alias.ssdo.exr"); }, 60)) << service.log();
+  fs::create_hard_link(dir.path / "in" / "real.exr", dir.path / "in" / "hard.exr");
+  EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "hard.ssdo.exr"); }, 60)) << service.log();
 }
 
 TEST(ServeWatch, PoisonFramesEachGetAnErrorAndTheServiceStaysUp) {
