@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "formats/gbuffer_reader.h"
+#include "service/protocol.h"
 
 namespace ssdo {
 
@@ -48,7 +49,8 @@ void BatchProgress::skipped(const std::string& input, const std::string& output)
     draw_bar();
     return;
   }
-  std::cout << counter() << input << ": skipped (output up to date: " << output << ")\n" << std::flush;
+  std::cout << counter() << printable(input) << ": skipped (output up to date: " << printable(output) << ")\n"
+            << std::flush;
 }
 
 void BatchProgress::finished(const std::string& input, const std::string& output, const WorkerResult& r) {
@@ -66,8 +68,9 @@ void BatchProgress::finished(const std::string& input, const std::string& output
   const int computed = done_ + failed_;
   const double fps = computed / std::max(elapsed_s(), 1e-9);
   const double eta_s = (to_compute_ - computed) / std::max(fps, 1e-9);
-  std::string line = counter() + input;
-  line += r.ok() ? " -> " + output + ": ok" : ": FAILED: " + r.error;
+  // One line per frame, whatever the names hold (control characters escaped).
+  std::string line = counter() + printable(input);
+  line += r.ok() ? " -> " + printable(output) + ": ok" : ": FAILED: " + printable(r.error);
   char rate[96];
   std::snprintf(rate, sizeof rate, " (%.0f ms; %.2f frames/s, ETA %.0f s)", r.wall_ms, fps, eta_s);
   line += rate;
@@ -86,11 +89,11 @@ void BatchProgress::finished(const std::string& input, const std::string& output
   for (const std::string& note : r.notes) {
     const bool warning = note.rfind(kWarningNote, 0) == 0;
     warned |= warning;
-    if (verbose_ || warning) line += "\n  note: " + note;
+    if (verbose_ || warning) line += "\n  note: " + printable(note);
   }
   const bool changed_terms = r.ok() && r.window_reduced();
   if (changed_terms) line += "\n  note: " + r.window_note;
-  for (const std::string& warning : r.warnings) line += "\n  note: " + warning;
+  for (const std::string& warning : r.warnings) line += "\n  note: " + printable(warning);
   if (!bar_) {
     std::cout << line << "\n" << std::flush;
     return;

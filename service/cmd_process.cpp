@@ -63,7 +63,8 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
     return true;
   };
   for (const std::string& input : args.inputs) {
-    if (!has_frame_pattern(input)) {
+    // A file that exists is that file, whatever '#' or '@' its name holds.
+    if (std::error_code ec; !has_frame_pattern(input) || std::filesystem::exists(input, ec)) {
       plain.push_back(input);
       continue;
     }
@@ -86,9 +87,16 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
   // A frame listed twice (overlapping ranges, a file named twice) is computed once; two
   // frames that would write one output (the same file name in two folders) are refused
   // before anything is computed: one would silently replace the other.
+  // One file however it is spelled ("x.exr", "$PWD/x.exr", "a/../x.exr"; links stay
+  // distinct files: their outputs are named after them).
+  auto spelling = [](const std::string& f) {
+    std::error_code ec;
+    const std::filesystem::path absolute = std::filesystem::absolute(f, ec);
+    return ec ? f : absolute.lexically_normal().string();
+  };
   std::set<std::string> listed, in_sequence;
-  std::erase_if(frames, [&](const std::string& f) { return !listed.insert(f).second; });
-  std::erase_if(sequence, [&](const std::string& f) { return !in_sequence.insert(f).second; });
+  std::erase_if(frames, [&](const std::string& f) { return !listed.insert(spelling(f)).second; });
+  std::erase_if(sequence, [&](const std::string& f) { return !in_sequence.insert(spelling(f)).second; });
   std::map<std::string, std::string> writer_of;
   for (const std::string& f : frames) {
     const auto [it, fresh] = writer_of.emplace(output_path_for(f, args.output_dir), f);

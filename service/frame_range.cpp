@@ -155,7 +155,11 @@ bool parse_chunk(const std::string& spec, int& index, int& count, std::string& e
     error = "--chunk '" + spec + "': expected I/N, e.g. 2/8 for the second of 8 slices";
     return false;
   }
-  if (count < 1 || index < 1 || index > count) {
+  if (count < 1) {
+    error = "--chunk '" + spec + "': N, the number of chunks, must be at least 1";
+    return false;
+  }
+  if (index < 1 || index > count) {
     error = "--chunk '" + spec + "': I must be between 1 and N (chunks count from 1)";
     return false;
   }

@@ -207,6 +207,26 @@ TEST(Batch, ASignalStopsTheBatchAfterTheFrameInFlight) {
   }
 }
 
+// What a farm's file lists hold: one file under two spellings is one frame; a file whose
+// name holds '#' is that file, not a pattern; a name with a newline keeps one line per
+// frame in the log.
+TEST(Batch, FileNamesAreTakenAsTheFilesTheyName) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "a");
+  copy_example("cornell", dir.path / "in", "hash#1");
+  copy_example("cornell", dir.path / "in", "two\nlines");
+  const RunResult r = run_ssdo("process " + dir / "in/a.exr" + " " + dir / "in/../in/a.exr" + " '" +
+                               dir / "in/hash#1.exr" + "' '" + dir / "in/two\nlines.exr" + "' -o " + dir / "out" +
+                               " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("done 3, skipped 0, failed 0"), std::string::npos) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "out/hash#1.ssdo.exr", "ao"));
+  EXPECT_TRUE(exr_has_channel(dir / "out/two\nlines.ssdo.exr", "ao"));
+  EXPECT_NE(r.output.find("two\\nlines.exr -> "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("two\nlines"), std::string::npos) << r.output;
+}
+
 TEST(Batch, ConfigFileGivesOptionsFlagsOverrideIt) {
   ScratchDir dir;
   std::ofstream(dir / "config.json") << R"({"terms": "ao,ssdo", "preset": "low", "method": "hbao", "compression": "piz"})";

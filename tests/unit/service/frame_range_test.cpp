@@ -73,6 +73,8 @@ TEST(Chunk, ParseValidatesRange) {
   EXPECT_FALSE(parse_chunk("9/8", i, n, error));
   EXPECT_FALSE(parse_chunk("3", i, n, error));
   EXPECT_FALSE(parse_chunk("a/b", i, n, error));
+  EXPECT_FALSE(parse_chunk("1/0", i, n, error));
+  EXPECT_EQ(error, "--chunk '1/0': N, the number of chunks, must be at least 1");
 }
 
 }  // namespace
