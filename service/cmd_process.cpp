@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <filesystem>
 #include <algorithm>
 #include <iostream>
@@ -286,10 +287,16 @@ int run_process(const ProcessArgs& args) {
   const timespec tick{0, 100 * 1000 * 1000};
   while (running > 0) {
     const int sig = ::sigtimedwait(&waited, nullptr, &tick);
-    if ((sig == SIGINT || sig == SIGTERM || sig == SIGHUP) && !stop) {
-      stop = true;
-      std::cerr << "\nssdo process: stopping: frames in flight finish, no new frame starts\n";
+    if (sig != SIGINT && sig != SIGTERM && sig != SIGHUP) continue;
+    if (stop) {
+      // A second signal: the user will not wait. The workers die with this process
+      // (PR_SET_PDEATHSIG); the next run into the folder removes their temp files.
+      std::cerr << "\nssdo process: stopped at once (a second signal): frames in flight abandoned\n" << std::flush;
+      std::_Exit(128 + sig);
     }
+    stop = true;
+    std::cerr << "\nssdo process: stopping: frames in flight finish, no new frame starts (a second signal stops "
+                 "at once)\n";
   }
   for (std::thread& t : threads) t.join();
   const int failed = progress.summary(stop);

@@ -8,11 +8,12 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
-
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <thread>
 
 #include <CLI/CLI.hpp>
 
@@ -205,7 +206,18 @@ int run_serve(const ServeArgs& args) {
     if (folder_lost) reason = note;
     else if (!note.empty()) std::cout << "ssdo serve: " << note << "\n" << std::flush;
   }
-  std::cout << "ssdo serve: " << reason << ": stopping (no new frames; frames in flight finish)\n" << std::flush;
+  std::cout << "ssdo serve: " << reason
+            << ": stopping (no new frames; frames in flight finish; a second signal stops at once)\n"
+            << std::flush;
+  // A second signal: the user will not wait for the frames in flight. The workers die with
+  // this process (PR_SET_PDEATHSIG); the next start removes the socket, spool and temp files.
+  std::thread([stop_signals] {
+    int again = 0;
+    while (::sigwait(&stop_signals, &again) != 0) {
+    }
+    std::cout << "ssdo serve: stopped at once (a second signal): frames in flight abandoned\n" << std::flush;
+    std::_Exit(128 + again);
+  }).detach();
   if (server) server->stop_accepting();
   if (watcher) watcher->stop();
   frames.stop();

@@ -205,6 +205,18 @@ TEST(Batch, ASignalStopsTheBatchAfterTheFrameInFlight) {
     EXPECT_LT(written, kFrames) << "no new frame starts\n" << batch.log();
     EXPECT_TRUE(temp_files(out).empty());
   }
+  // A second signal stops at once: the frame in flight is abandoned, never half written.
+  const fs::path out = dir.path / "out_twice";
+  SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao", "--method",
+                     "raymarch", "--preset", "medium", "--temporal", "0"},
+                    dir.path / "twice.log");
+  ASSERT_TRUE(wait_until([&] { return !workers_of(batch.pid()).empty(); }, 30)) << batch.log();
+  ::kill(batch.pid(), SIGINT);
+  ASSERT_TRUE(wait_until([&] { return batch.log().find("a second signal stops at once") != std::string::npos; }, 30))
+      << batch.log();
+  EXPECT_EQ(batch.signal_and_wait(SIGINT, 30), 128 + SIGINT) << batch.log();
+  EXPECT_NE(batch.log().find("stopped at once (a second signal)"), std::string::npos) << batch.log();
+  EXPECT_FALSE(path_exists(out / (numbered("f", 0) + ".ssdo.exr"))) << batch.log();
 }
 
 // What a farm's file lists hold: one file under two spellings is one frame; a file whose

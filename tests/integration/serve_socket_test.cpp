@@ -362,6 +362,25 @@ TEST(ServeSocket, PoisonFramesOverTheSocketEachGetAnError) {
   EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 0);
 }
 
+// A second signal stops at once, the frame in flight abandoned (its client told so by the
+// connection's end).
+TEST(ServeSocket, ASecondSignalStopsAtOnce) {
+  ScratchDir dir;
+  SocketService service(dir, "twice", {"--jobs", "1"});
+  ASSERT_TRUE(service.ready) << service.log();
+  json reply;
+  std::thread slow([&] {
+    reply = process_path(service.socket, dir / "frames/cornell.exr",
+                         {{"options", {{"method", "raymarch"}, {"preset", "medium"}}}});
+  });
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
+  ::kill(service.process->pid(), SIGTERM);
+  ASSERT_TRUE(service.process->wait_for_log("a second signal stops at once", 30)) << service.log();
+  EXPECT_EQ(service.process->signal_and_wait(SIGTERM, 30), 128 + SIGTERM) << service.log();
+  slow.join();
+  EXPECT_TRUE(reply.contains("transport_error")) << reply.dump();
+}
+
 // SIGTERM, and SIGHUP (the terminal or ssh session that started it closed) alike.
 TEST(ServeSocket, GracefulStopFinishesTheFrameInFlight) {
   for (const int sig : {SIGTERM, SIGHUP}) {
