@@ -189,7 +189,13 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: " << error << "\n";
     return 2;
   }
-  if (frames.empty()) std::cerr << "ssdo process: no frames to process (an empty folder or chunk)\n";
+  // No frame anywhere in the inputs is an error (on a farm, a share not mounted); a chunk or
+  // range with none of them is not (the last tasks of a shot split finer than its frames).
+  if (all.empty()) {
+    std::cerr << "ssdo process: no frames (*.exr) in the inputs: an empty folder, or one not mounted?\n";
+    return 1;
+  }
+  if (frames.empty()) std::cerr << "ssdo process: no frames to process in this chunk or range\n";
   std::error_code ec;
   std::filesystem::create_directories(args.output_dir, ec);
   if (ec) {

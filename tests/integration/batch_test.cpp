@@ -239,6 +239,21 @@ TEST(Batch, FileNamesAreTakenAsTheFilesTheyName) {
   EXPECT_EQ(r.output.find("two\nlines"), std::string::npos) << r.output;
 }
 
+// An input folder without frames fails the task (a share not mounted on a farm node); a
+// chunk of a shot that gets none of its frames does not.
+TEST(Batch, NoFramesInTheInputsIsAnErrorAnEmptyChunkIsNot) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "empty");
+  RunResult r = run_ssdo("process " + dir / "empty" + " -o " + dir / "out");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("no frames (*.exr) in the inputs"), std::string::npos) << r.output;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "a");
+  r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + " --chunk 1/2 --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("no frames to process in this chunk or range"), std::string::npos) << r.output;
+}
+
 TEST(Batch, ConfigFileGivesOptionsFlagsOverrideIt) {
   ScratchDir dir;
   std::ofstream(dir / "config.json") << R"({"terms": "ao,ssdo", "preset": "low", "method": "hbao", "compression": "piz"})";
