@@ -289,8 +289,11 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   if (!claimed) {
     r.error = input + ": its output " + output + " is already written for " + owner;
   } else if (!before.exists) {
-    // Gone between its event and now: deleted, or renamed away.
-    r.error = input + ": the file was deleted or renamed while queued";
+    // Gone between its event and now: deleted, or renamed away; or a link to nothing.
+    std::error_code ec;
+    r.error = fs::is_symlink(fs::symlink_status(input, ec))
+                  ? input + ": a symbolic link to a missing file (" + fs::read_symlink(input, ec).string() + ")"
+                  : input + ": the file was deleted or renamed while queued";
   } else if (before.size == 0) {
     r.error = input + ": empty file (0 bytes)";
   } else {

@@ -237,6 +237,13 @@ TEST(ServeWatch, ALinkMadeInTheFolderIsComputed) {
   EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "alias.ssdo.exr"); }, 60)) << service.log();
   fs::create_hard_link(dir.path / "in" / "real.exr", dir.path / "in" / "hard.exr");
   EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "hard.ssdo.exr"); }, 60)) << service.log();
+  // A link to nothing is said to be one.
+  fs::create_symlink("missing.exr", dir.path / "in" / "dangling.exr");
+  ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "dangling.error.json"); }, 60)) << service.log();
+  const json error = json::parse(read_text(dir.path / "out" / "dangling.error.json"), nullptr, false);
+  EXPECT_NE(error.value("error", "").find("dangling.exr: a symbolic link to a missing file (missing.exr)"),
+            std::string::npos)
+      << error.dump();
 }
 
 TEST(ServeWatch, PoisonFramesEachGetAnErrorAndTheServiceStaysUp) {
