@@ -112,12 +112,20 @@ TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {
   EXPECT_NE(r.output.find("done 1, skipped 0, failed 0"), std::string::npos) << r.output;
 }
 
+// Frame "a" (cornell) in DIR/in processed into DIR/out with AO at low: the command, to run
+// again.
+std::string process_frame_a(const ScratchDir& dir) {
+  copy_frame(dir.path / "in", "a");
+  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
+  const RunResult r = run_ssdo(run);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  return run;
+}
+
 // A rerun recomputes a frame whose camera sidecar changed after its output was written.
 TEST(Cli, ARerunRecomputesAFrameWhoseSidecarChanged) {
   ScratchDir dir;
-  copy_frame(dir.path / "in", "a");
-  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
-  ASSERT_EQ(run_ssdo(run).exit_code, 0);
+  const std::string run = process_frame_a(dir);
   RunResult r = run_ssdo(run);
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
   fs::last_write_time(dir.path / "in" / "a.camera.json",
@@ -130,9 +138,7 @@ TEST(Cli, ARerunRecomputesAFrameWhoseSidecarChanged) {
 // which), or is not ssdo's; the thread count is not an option that changes an output.
 TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   ScratchDir dir;
-  copy_frame(dir.path / "in", "a");
-  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
-  ASSERT_EQ(run_ssdo(run).exit_code, 0);
+  const std::string run = process_frame_a(dir);
   RunResult r = run_ssdo(run + " --threads 1");
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
   r = run_ssdo(run + " --radius 0.25");
@@ -198,9 +204,7 @@ TEST(Cli, ARerunFollowsTheEnvironmentMapAndCameraFileItWasGiven) {
 // reached the disk) is no up-to-date output, whatever its header and date say.
 TEST(Cli, AnOutputCutShortIsComputedAgain) {
   ScratchDir dir;
-  copy_frame(dir.path / "in", "a");
-  const std::string run = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low";
-  ASSERT_EQ(run_ssdo(run).exit_code, 0);
+  const std::string run = process_frame_a(dir);
   const fs::path output = dir.path / "out" / "a.ssdo.exr";
   const auto whole_size = fs::file_size(output);
   fs::resize_file(output, whole_size - 1000);  // the header and most chunks are there

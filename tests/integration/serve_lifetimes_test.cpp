@@ -39,15 +39,28 @@ long status_kib(pid_t pid, const std::string& field) {
 
 long resident_kib(pid_t pid) { return status_kib(pid, "VmRSS"); }
 
+// A service watching DIR/in (made empty) into DIR/out, with its socket; `ready` once it said so.
+struct EmptyWatch {
+  fs::path in, out;
+  std::string socket;
+  std::unique_ptr<SsdoProcess> service;
+  bool ready = false;
+  EmptyWatch(const ScratchDir& dir, const std::string& tag)
+      : in(dir.path / "in"), out(dir.path / "out"), socket(socket_path_for(tag)) {
+    fs::create_directories(in);
+    service = std::make_unique<SsdoProcess>(watch_args(in, out, socket), dir.path / "serve.log");
+    ready = service->wait_for_log("ready", 30);
+  }
+};
+
 // --- 11: retries, late sidecars, error files ------------------------------------------
 
 TEST(ServeLifetimes, SidecarArrivingAfterTheFrameRequeuesIt) {
   ScratchDir dir;
-  const fs::path in = dir.path / "in", out = dir.path / "out";
-  fs::create_directories(in);
-  const std::string socket = socket_path_for("sidecar");
-  SsdoProcess service(watch_args(in, out, socket), dir.path / "serve.log");
-  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  EmptyWatch watch(dir, "sidecar");
+  const fs::path &in = watch.in, &out = watch.out;
+  SsdoProcess& service = *watch.service;
+  ASSERT_TRUE(watch.ready) << service.log();
   fs::copy_file(example_frame("cornell.exr"), in / "late.exr");
   ASSERT_TRUE(wait_until([&] { return path_exists(out / "late.error.json"); }, 30)) << service.log();
   // The sidecar counts as new even when the clock does not say so: files written within
@@ -144,11 +157,11 @@ TEST(ServeLifetimes, WorkerKilledMidFrameIsRetried) {
 
 TEST(ServeLifetimes, WatchFolderDeletedOrRenamedAndRecreatedIsWatchedAgain) {
   ScratchDir dir;
-  const fs::path in = dir.path / "in", out = dir.path / "out";
-  fs::create_directories(in);
-  const std::string socket = socket_path_for("rewatch");
-  SsdoProcess service(watch_args(in, out, socket), dir.path / "serve.log");
-  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  EmptyWatch watch(dir, "rewatch");
+  const fs::path &in = watch.in, &out = watch.out;
+  const std::string& socket = watch.socket;
+  SsdoProcess& service = *watch.service;
+  ASSERT_TRUE(watch.ready) << service.log();
   EXPECT_EQ(watch_stats(socket).value("state", ""), "watching");
 
   fs::remove_all(in);
@@ -208,11 +221,10 @@ TEST(ServeLifetimes, SecondInstanceOnTheSameOutputFolderIsRefused) {
 // frames are written and a second instance is still refused.
 TEST(ServeLifetimes, AnOutputFolderRemovedWhileRunningIsMadeAgainAndLocked) {
   ScratchDir dir;
-  const fs::path in = dir.path / "in", out = dir.path / "out";
-  fs::create_directories(in);
-  const std::string socket = socket_path_for("gone");
-  SsdoProcess service(watch_args(in, out, socket), dir.path / "serve.log");
-  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  EmptyWatch watch(dir, "gone");
+  const fs::path &in = watch.in, &out = watch.out;
+  SsdoProcess& service = *watch.service;
+  ASSERT_TRUE(watch.ready) << service.log();
   fs::remove_all(out);
   ASSERT_TRUE(service.wait_for_log("(or its lock) was removed: made again and locked", 30)) << service.log();
   copy_example("cornell", in, "f");
