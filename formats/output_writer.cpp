@@ -683,6 +683,14 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   if (!fs::is_directory(folder, ec)) return path + ": output folder does not exist";
 
   if (fs::is_directory(final_path, ec)) return path + ": is a folder; the output must be a file name";
+  // Every name before any byte: a preview whose name the file system refuses would fail the
+  // frame after the previews before it were written.
+  constexpr size_t kMaxNameBytes = 255;  // NAME_MAX of Linux file systems
+  for (const OutputTerm& t : terms)
+    if (const std::string name = final_path.stem().string() + "." + t.name + ".png";
+        options.png_previews && name.size() > kMaxNameBytes)
+      return path + ": the preview name " + name + " is " + std::to_string(name.size()) +
+             " bytes, over a file name's 255: shorten the frame's name, or leave out --png";
   TempFile temp;
   if (std::string error; !temp.create(final_path, error)) return error;
   try {

@@ -236,6 +236,20 @@ TEST(WriteOutputs, ANameNearTheFileNameLimitIsWritten) {
   int files = 0;
   for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path)) ++files;
   EXPECT_EQ(files, 1);
+  // Previews whose names would be longer than a file name may be: refused before any file
+  // is written (no previews without their EXR). "P.ssdo" + ".ao.png": 243 p's make 255 bytes.
+  WriteOptions previews;
+  previews.png_previews = true;
+  const fs::path fits = dir / (std::string(243, 'p') + ".ssdo.exr");
+  EXPECT_EQ(write_outputs(fits.string(), {{"ao", ao, SampleType::half}}, Camera::from_fov_x(16, 8, 60.0f), previews), "");
+  EXPECT_TRUE(fs::exists(dir / (std::string(243, 'p') + ".ssdo.ao.png")));
+  const fs::path longer = dir / (std::string(244, 'p') + ".ssdo.exr");
+  EXPECT_EQ(write_outputs(longer.string(), {{"ao", ao, SampleType::half}}, Camera::from_fov_x(16, 8, 60.0f), previews),
+            longer.string() + ": the preview name " + std::string(244, 'p') +
+                ".ssdo.ao.png is 256 bytes, over a file name's 255: shorten the frame's name, or leave out --png");
+  files = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path)) ++files;
+  EXPECT_EQ(files, 3);  // the first, and the one that fits with its preview
 }
 
 TEST(WriteOutputs, NonContiguousImagesAreWrittenRowByRow) {
