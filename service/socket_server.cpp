@@ -371,6 +371,9 @@ void SocketServer::serve_connection(int fd) {
     if (s == IoStatus::timeout) {
       reply(fd, error_response("timeout", "no complete request within " +
                                               seconds_text(options_.client_timeout_s) + " s (--client-timeout)"));
+    } else if (s == IoStatus::truncated) {  // a client that stopped sending may still read
+      reply(fd, error_response("bad_request", "the request header was cut short (the connection's sending side "
+                                              "closed in the middle of it)"));
     } else if (s == IoStatus::too_large) {
       reply(fd, error_response("too_large", "the request header exceeds " +
                                                 std::to_string(options_.limits.max_header_bytes) +

@@ -128,6 +128,17 @@ TEST(ServeSocket, MalformedOversizeAndEscapingRequestsAreRefusedServiceStaysHeal
     Client c(socket);
     EXPECT_EQ(c.request({{"op", "process"}}).value("code", ""), "bad_request");
   }
+  {  // A header cut short by the client's end of sending: told so, since it may still read.
+    Client c(socket);
+    unsigned char prefix[4];
+    encode_length(100, prefix);
+    ASSERT_EQ(write_all(c.fd(), prefix, 4, deadline_in(5)), IoStatus::ok);
+    ASSERT_EQ(write_all(c.fd(), "{\"op\": \"pi", 10, deadline_in(5)), IoStatus::ok);
+    ::shutdown(c.fd(), SHUT_WR);
+    const json r = c.read_response(nullptr, 10);
+    EXPECT_EQ(r.value("code", ""), "bad_request") << r.dump();
+    EXPECT_NE(r.value("error", "").find("the request header was cut short"), std::string::npos) << r.dump();
+  }
   {  // A header larger than --max-request-bytes: refused from its length alone.
     Client c(socket);
     unsigned char prefix[4];
