@@ -120,10 +120,11 @@ int run_serve(const ServeArgs& args) {
     std::cerr << "ssdo serve: " << error << "\n";
     return 1;
   }
-  // Inline frames are spooled here; leftovers of a killed run are removed.
+  // Inline frames are spooled here (with a socket only); leftovers of a killed run are
+  // removed.
   const std::string spool = (fs::path(out_dir) / ".ssdo-spool").string();
   fs::remove_all(spool, ec);
-  make_private_folder(spool, ec);
+  if (!args.socket_path.empty()) make_private_folder(spool, ec);
   if (const int n = remove_stale_temp_files(out_dir); n > 0)
     std::cout << "removed " << n << " temp files of an interrupted run in " << out_dir << "\n";
 

@@ -173,6 +173,19 @@ bool output_up_to_date_with_sidecar(const std::string& input, const std::string&
   return output_up_to_date(input, output) && (::stat(sidecar.c_str(), &st) != 0 || output_up_to_date(sidecar, output));
 }
 
+int remove_temp_files_of(const std::string& dir, long pid) {
+  const std::string host = temp_file_host();
+  int removed = 0;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    std::error_code entry_ec;
+    if (temp_file_pid(entry.path().filename().string(), host) == pid && entry.is_regular_file(entry_ec) &&
+        fs::remove(entry.path(), entry_ec))
+      ++removed;
+  }
+  return removed;
+}
+
 int remove_stale_temp_files(const std::string& dir, double wait_s) {
   // Only this host's files whose process is gone are abandoned: on a farm, another host's
   // temp file in the shared folder belongs to a task still writing it. Subfolders too

@@ -73,4 +73,8 @@ bool output_made_with(const std::string& output, const std::string& options_attr
 // frame's memory takes ~0.1 s). Returns how many.
 int remove_stale_temp_files(const std::string& dir, double wait_s = 2.0);
 
+// Removes the temp files this host's process `pid` left in `dir` (not its subfolders): a
+// worker that died or was killed while writing a frame's outputs. Returns how many.
+int remove_temp_files_of(const std::string& dir, long pid);
+
 }  // namespace ssdo

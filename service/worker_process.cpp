@@ -9,11 +9,13 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <thread>
 #include <vector>
 
+#include "service/frame_list.h"
 #include "service/protocol.h"
 
 extern char** environ;
@@ -300,6 +302,11 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   }
 
   const double cpu_at_send_s = process_cpu_s(pid_);
+  // A worker that dies or is killed while writing leaves its temp files beside the output.
+  const pid_t worker_pid = pid_;
+  auto remove_its_temp_files = [&] {
+    remove_temp_files_of(std::filesystem::path(job.output_path).parent_path().string(), worker_pid);
+  };
   std::string response;
   const IoStatus s = read_message(from_worker_, response, kMaxResponseBytes, deadline);
   result.wall_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
@@ -307,6 +314,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     const double cpu_now_s = process_cpu_s(pid_);
     ::kill(pid_, SIGKILL);
     reap_reason();
+    remove_its_temp_files();
     result.worker_replaced = result.transient = true;
     result.error = timeout_error(limits_.frame_timeout_s,
                                  cpu_at_send_s < 0 || cpu_now_s < 0 ? -1.0 : cpu_now_s - cpu_at_send_s);
@@ -314,6 +322,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   }
   if (s != IoStatus::ok) {
     result.error = reap_reason() + " while processing the frame";
+    remove_its_temp_files();
     result.worker_replaced = result.transient = true;
     return result;
   }
@@ -321,6 +330,7 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
   if (j.is_discarded() || !j.is_object()) {
     ::kill(pid_, SIGKILL);
     reap_reason();
+    remove_its_temp_files();
     result.worker_replaced = true;
     result.error = "the worker sent a malformed response (worker replaced)";
     return result;

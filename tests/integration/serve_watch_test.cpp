@@ -363,6 +363,19 @@ TEST(ServeWatch, AFrameUpToDateAtStartKeepsItsOutputFromSocketRequests) {
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
+// A watch without a socket: frames computed, and no spool for inline frames it cannot get.
+TEST(ServeWatch, AWatchAloneNeedsNoSocketAndMakesNoSpool) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  SsdoProcess service({"serve", "--watch", dir / "in", "-o", dir / "out", "--terms", "ao", "--preset", "low"},
+                      dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  copy_example("cornell", dir.path / "in", "a");
+  EXPECT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "a.ssdo.exr"); }, 60)) << service.log();
+  EXPECT_FALSE(path_exists(dir.path / "out" / ".ssdo-spool"));
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0) << service.log();
+}
+
 TEST(ServeWatch, KillNineThenRestartProcessesEveryFrameExactlyOnce) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");

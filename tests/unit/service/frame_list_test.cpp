@@ -92,5 +92,19 @@ TEST(FrameList, OnlyThisHostsAbandonedTempFilesAreRemoved) {
   EXPECT_TRUE(fs::exists(d.path / foreign));
 }
 
+// What a worker that died while writing left: its own temp files only, whatever the others.
+TEST(FrameList, ADeadWorkersTempFilesAreRemoved) {
+  TempDir d;
+  const std::string host = temp_file_host();
+  const std::string its = ".a.ssdo.exr.tmp-" + host + "-4242-1f", its_preview = ".a.ssdo.ao.png.tmp-" + host + "-4242-2e";
+  const std::string other_pid = ".b.ssdo.exr.tmp-" + host + "-4243-3d", other_host = ".c.ssdo.exr.tmp-farm-node-4242-4c";
+  for (const std::string& n : {its, its_preview, other_pid, other_host}) d.touch(n);
+  EXPECT_EQ(remove_temp_files_of(d.path.string(), 4242), 2);
+  EXPECT_FALSE(fs::exists(d.path / its));
+  EXPECT_FALSE(fs::exists(d.path / its_preview));
+  EXPECT_TRUE(fs::exists(d.path / other_pid));
+  EXPECT_TRUE(fs::exists(d.path / other_host));
+}
+
 }  // namespace
 }  // namespace ssdo
