@@ -204,7 +204,9 @@ bool resolve_grid(const std::string& path, const ReadOptions& options, ReadResul
     std::string others;
     for (const std::string& l : layers)
       if (l != info.layer) others += (others.empty() ? "" : ", ") + l;
-    info.notes.push_back(options.mapping.depth.empty()
+    const std::string& mapped = options.mapping.depth;
+    const bool chosen = mapped == info.layer + ".Depth.Z" || mapped == info.layer + ".Depth";
+    info.notes.push_back(!chosen
                              ? std::string(kWarningNote) + "view layers " + info.layer + ", " + others +
                                    ": the inputs are " + info.layer + "'s; --map depth=" + layers.back() +
                                    ".Depth.Z reads another's"
