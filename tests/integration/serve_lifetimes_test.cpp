@@ -30,14 +30,6 @@ json watch_stats(const std::string& socket) {
   return s.contains("watch") && s["watch"].is_object() ? s["watch"] : json::object();
 }
 
-// A field of /proc/PID/status in KiB (VmRSS, VmSize), 0 when absent.
-long status_kib(pid_t pid, const std::string& field) {
-  const std::string status = read_text("/proc/" + std::to_string(pid) + "/status");
-  const size_t at = status.find(field + ":");
-  return at == std::string::npos ? 0 : std::stol(status.substr(at + field.size() + 1));
-}
-
-long resident_kib(pid_t pid) { return status_kib(pid, "VmRSS"); }
 
 // A service watching DIR/in (made empty) into DIR/out, with its socket; `ready` once it said so.
 struct EmptyWatch {

@@ -316,7 +316,7 @@ TEST(ServeWatch, AFrameRewrittenWhileComputedIsNotLeftUpToDateWithTheOldVersion)
   const fs::path input = dir.path / "in" / "a.exr", output = dir.path / "out" / "a.ssdo.exr";
   const std::string socket = socket_path_for("rewrite");
   // Seconds per frame: the rewrite comes while the first version is computed.
-  const std::vector<std::string> slow = {"--jobs", "1", "--method", "raymarch", "--threads", "1"};
+  const std::vector<std::string> slow = {"--jobs", "1", "--method", "raymarch"};
   {
     SsdoProcess service(serve_args(dir, socket, slow), dir.path / "serve1.log");
     ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();

@@ -134,6 +134,15 @@ inline std::vector<std::string> temp_files(const fs::path& dir) {
   return found;
 }
 
+// A field of /proc/PID/status in KiB (VmRSS, VmSize), 0 when absent.
+inline long status_kib(pid_t pid, const std::string& field) {
+  const std::string status = read_text("/proc/" + std::to_string(pid) + "/status");
+  const size_t at = status.find(field + ":");
+  return at == std::string::npos ? 0 : std::stol(status.substr(at + field.size() + 1));
+}
+
+inline long resident_kib(pid_t pid) { return status_kib(pid, "VmRSS"); }
+
 // Processes whose command line says they are workers of `parent`.
 inline std::vector<pid_t> workers_of(pid_t parent) {
   std::vector<pid_t> pids;
