@@ -97,12 +97,7 @@ std::string quality_choice_note(const ComputeOptionArgs& a) {
 }
 
 CLI::Validator seconds_in(double lo, double hi) {
-  auto text = [](double v) {
-    std::ostringstream out;
-    out << v;
-    return out.str();
-  };
-  const std::string range = "[" + text(lo) + ", " + text(hi) + "]";
+  const std::string range = "[" + number_text(lo) + ", " + number_text(hi) + "]";
   return CLI::Validator(
       [lo, hi, range](std::string& value) -> std::string {
         try {

@@ -156,13 +156,6 @@ std::string join(const std::vector<std::string>& values) {
   return s;
 }
 
-std::string number_text(double v) {
-  if (std::isinf(v)) return "inf";
-  std::ostringstream s;
-  s << v;
-  return s.str();
-}
-
 const char* kind_text(OptionKind kind) {
   switch (kind) {
     case OptionKind::text: return "text";
@@ -243,6 +236,13 @@ std::string check_number(const FrameOption& o, double value) {
   if ((in_range || (o.zero_unset && value == 0)) && integral) return {};
   return std::string("must be ") + (o.zero_unset ? "0 (unset) or " : "") +
          (o.kind == OptionKind::integer ? "an integer" : "a number") + " in " + describe_range(o);
+}
+
+std::string number_text(double v) {
+  if (std::isinf(v)) return "inf";
+  std::ostringstream s;
+  s << v;
+  return s.str();
 }
 
 std::string frame_options_markdown() {

@@ -117,6 +117,9 @@ const FrameOption* find_frame_option(const std::string& name);
 std::string check_choice(const FrameOption& option, const std::string& value);
 std::string check_number(const FrameOption& option, double value);
 
+// A number as a user writes it: 30, 0.5, 1e+10, inf (six significant digits).
+std::string number_text(double v);
+
 // The range as written in messages and docs: "[0.1, 179.9]", "[0, inf)".
 std::string describe_range(const FrameOption& option);
 

@@ -14,6 +14,7 @@
 #include <system_error>
 
 #include "service/frame_list.h"
+#include "service/frame_options.h"
 #include "service/path_policy.h"
 #include "service/request_options.h"
 #include "service/sequence.h"
@@ -42,13 +43,6 @@ constexpr int kPeerCheckMs = 250;
 bool peer_closed(int fd) {
   pollfd p{fd, 0, 0};  // POLLHUP and POLLERR are reported whatever is asked
   return ::poll(&p, 1, 0) > 0 && (p.revents & (POLLHUP | POLLERR)) != 0;
-}
-
-// Seconds as a user wrote them: 30, 0.5 (not "0" for half a second).
-std::string seconds_text(double s) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", s);
-  return text;
 }
 
 // How long an over-limit client gets to read its "busy" answer before it is closed.
@@ -370,7 +364,7 @@ void SocketServer::serve_connection(int fd) {
     }
     if (s == IoStatus::timeout) {
       reply(fd, error_response("timeout", "no complete request within " +
-                                              seconds_text(options_.client_timeout_s) + " s (--client-timeout)"));
+                                              number_text(options_.client_timeout_s) + " s (--client-timeout)"));
     } else if (s == IoStatus::truncated) {  // a client that stopped sending may still read
       reply(fd, error_response("bad_request", "the request header was cut short (the connection's sending side "
                                               "closed in the middle of it)"));
