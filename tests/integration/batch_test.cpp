@@ -122,8 +122,9 @@ TEST(Batch, AFrameReplacedWhileTheBatchRunsIsComputedAgainByTheRerun) {
   fs::create_directories(dir.path / "in");
   for (int i = 0; i < 3; ++i) copy_example("cornell", dir.path / "in", numbered("f", i));
   const fs::path out = dir.path / "out";
-  const std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
-                                         "--method", "raymarch", "--preset", "low", "--views", "0", "--temporal", "0"};
+  std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
+                                   "--views", "0", "--temporal", "0"};
+  for (const std::string& a : kSecondFrame.args()) args.push_back(a);
   {
     SsdoProcess batch(args, dir.path / "batch1.log");
     ASSERT_TRUE(wait_until([&] { return path_exists(out / "f0.ssdo.exr"); }, 120)) << batch.log();
@@ -189,10 +190,10 @@ TEST(Batch, ASignalStopsTheBatchAfterTheFrameInFlight) {
   for (int i = 0; i < kFrames; ++i) copy_example("cornell", dir.path / "in", numbered("f", i));
   // A second per frame, so the signal comes while the first one is computed.
   auto batch_into = [&](const fs::path& out, const std::string& log) {
-    return std::make_unique<SsdoProcess>(
-        std::vector<std::string>{"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
-                                 "--method", "raymarch", "--preset", "low", "--temporal", "0"},
-        dir.path / log);
+    std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
+                                     "--temporal", "0"};
+    for (const std::string& a : kSecondFrame.args()) args.push_back(a);
+    return std::make_unique<SsdoProcess>(args, dir.path / log);
   };
   for (const int sig : {SIGHUP}) {
     const fs::path out = dir.path / ("out" + std::to_string(sig));

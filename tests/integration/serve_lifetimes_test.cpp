@@ -129,8 +129,9 @@ TEST(ServeLifetimes, WorkerKilledMidFrameIsRetried) {
   const fs::path in = dir.path / "in", out = dir.path / "out";
   fs::create_directories(in);
   const std::string socket = socket_path_for("retry");
-  // Seconds per frame: the kill lands while it is computed (GTAO high's 0.1 s could end first).
-  SsdoProcess service(watch_args(in, out, socket, {"--jobs", "1", "--method", "raymarch"}), dir.path / "serve.log");
+  // A second per frame: the kill lands while it is computed (GTAO high's 0.1 s could end first).
+  SsdoProcess service(watch_args(in, out, socket, {"--jobs", "1", "--method", kSecondFrame.method}, kSecondFrame.preset),
+                      dir.path / "serve.log");
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
   std::vector<pid_t> workers;
   ASSERT_TRUE(wait_until([&] { return (workers = workers_of(service.pid())).size() == 1; }, 10));

@@ -236,11 +236,10 @@ TEST(ServeSocket, BadOptionsAndForeignOutputNamesTouchNoOutput) {
 // computed or written for it.
 TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   ScratchDir dir;
-  // The slow frame takes seconds here and about a minute in the sanitizer build beside
-  // another test: the frame timeout (the last one given wins) leaves it room.
+  // The frame timeout (the last one given wins) leaves the slow frame room beside another test.
   SocketService service(dir, "leave", {"--jobs", "1", "--frame-timeout", "600"});
   ASSERT_TRUE(service.ready) << service.log();
-  const json slow = {{"method", "raymarch"}, {"preset", "medium"}};  // seconds per frame
+  const json slow = kSecondsFrame.options();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
   ASSERT_EQ(write_message(first.fd(), json{{"op", "process"}, {"input", input}, {"options", slow}}.dump(),

@@ -10,11 +10,11 @@ namespace ssdo::test {
 namespace {
 
 std::vector<std::string> serve_args(const ScratchDir& dir, const std::string& socket,
-                                    std::vector<std::string> extra = {}) {
+                                    std::vector<std::string> extra = {}, const std::string& preset = "low") {
   // Each frame alone in time: the watched sequences' temporal window is the Temporal tests'.
   std::vector<std::string> args = {"serve",    "--watch",          dir / "in",     "-o",     dir / "out",
                                    "--socket", socket,             "--terms",      "ao",     "--preset",
-                                   "low",      "--frame-timeout",  kServiceFrameTimeoutS, "--memory-limit",
+                                   preset,     "--frame-timeout",  kServiceFrameTimeoutS, "--memory-limit",
                                    "2048",     "--temporal",       "0"};
   args.insert(args.end(), extra.begin(), extra.end());
   return args;
@@ -315,10 +315,10 @@ TEST(ServeWatch, AFrameRewrittenWhileComputedIsNotLeftUpToDateWithTheOldVersion)
   fs::copy_file(example_frame("cornell.camera.json"), dir.path / "in" / "a.camera.json");
   const fs::path input = dir.path / "in" / "a.exr", output = dir.path / "out" / "a.ssdo.exr";
   const std::string socket = socket_path_for("rewrite");
-  // Seconds per frame: the rewrite comes while the first version is computed.
-  const std::vector<std::string> slow = {"--jobs", "1", "--method", "raymarch"};
+  // A second per frame: the rewrite comes while the first version is computed.
+  const std::vector<std::string> slow = {"--jobs", "1", "--method", kSecondFrame.method};
   {
-    SsdoProcess service(serve_args(dir, socket, slow), dir.path / "serve1.log");
+    SsdoProcess service(serve_args(dir, socket, slow, kSecondFrame.preset), dir.path / "serve1.log");
     ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
     fs::copy_file(example_frame("cornell.exr"), input);
     ASSERT_TRUE(wait_until([&] { return stats(socket).value("in_flight", 0) == 1; }, 30)) << service.log();
@@ -331,7 +331,7 @@ TEST(ServeWatch, AFrameRewrittenWhileComputedIsNotLeftUpToDateWithTheOldVersion)
   }
   ASSERT_TRUE(path_exists(output));
   EXPECT_LT(fs::last_write_time(output), fs::last_write_time(input)) << read_text(dir.path / "serve1.log");
-  SsdoProcess service(serve_args(dir, socket, slow), dir.path / "serve2.log");
+  SsdoProcess service(serve_args(dir, socket, slow, kSecondFrame.preset), dir.path / "serve2.log");
   ASSERT_TRUE(service.wait_for_log("ok " + input.string() + " ->", 120)) << service.log();
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
   EXPECT_GE(fs::last_write_time(output), fs::last_write_time(input));

@@ -27,6 +27,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "core/sanitizer_build.h"
 #include "run_binary.h"
 #include "service/protocol.h"
 
@@ -41,6 +42,23 @@ using json = nlohmann::json;
 // minute, and the slowest frame a test puts in flight has room (the ultra preset on the
 // 640 x 360 example: 0.3 s here, 15 s in the sanitizer build beside another test).
 inline const std::string kServiceFrameTimeoutS = "60";
+
+// Frames that compute for a while on a 640 x 360 example, so that a test can signal, rewrite
+// or leave while one runs. The sanitizer build runs the kernels 6-25x slower, the oracle most:
+// there the same wait is bought with a cheaper method.
+struct SlowFrame {
+  const char* method;
+  const char* preset;
+  std::vector<std::string> args() const { return {"--method", method, "--preset", preset}; }
+  json options() const { return {{"method", method}, {"preset", preset}}; }
+};
+#ifdef SSDO_SANITIZER_BUILD
+inline constexpr SlowFrame kSecondFrame{"gtao", "ultra"};     // 3 s (the oracle at low: 9 s)
+inline constexpr SlowFrame kSecondsFrame{"raymarch", "low"};  // 9 s (at medium: 31 s)
+#else
+inline constexpr SlowFrame kSecondFrame{"raymarch", "low"};      // 1.5 s
+inline constexpr SlowFrame kSecondsFrame{"raymarch", "medium"};  // 5 s
+#endif
 
 // Polls `condition` every 20 ms until it holds or `seconds` pass.
 inline bool wait_until(const std::function<bool()>& condition, double seconds) {
