@@ -239,9 +239,11 @@ int run_process(const ProcessArgs& args) {
   const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, false);
   WorkerLimits limits = args.limits;
   limits.threads = plan.threads_per_frame;
+  const int n_threads = int(std::min<size_t>(size_t(plan.workers), todo.size()));  // a worker per thread
   if (args.verbose)
-    std::cerr << "ssdo process: " << todo.size() << " frames, " << plan.workers << " worker processes x "
-              << plan.threads_per_frame << " threads\n";
+    std::cerr << "ssdo process: " << todo.size() << (todo.size() == 1 ? " frame, " : " frames, ") << n_threads
+              << (n_threads == 1 ? " worker process x " : " worker processes x ") << plan.threads_per_frame
+              << (plan.threads_per_frame == 1 ? " thread\n" : " threads\n");
   const nlohmann::json options = to_json(args.options);
   std::map<std::string, size_t> todo_index;
   for (size_t i = 0; i < todo.size(); ++i) todo_index.emplace(todo[i], i);
@@ -267,7 +269,6 @@ int run_process(const ProcessArgs& args) {
   std::atomic<bool> stop{false};
   std::atomic<int> running{0};
   std::vector<std::thread> threads;
-  const int n_threads = int(std::min<size_t>(size_t(plan.workers), todo.size()));
   for (int t = 0; t < n_threads; ++t) {
     ++running;
     threads.emplace_back([&, t]() {

@@ -37,14 +37,16 @@ TEST(Batch, PoisonFramesFailOneByOneBatchFinishesWithExitOne) {
   EXPECT_EQ(count_occurrences(mapped.output, ": FAILED: ") + count_occurrences(mapped.output, ": ok ("), 185);
 }
 
-// -v gives each frame's stages as the worker measured them, its peak memory and the page
-// faults it took (a lone frame touches all of its memory fresh: some faults, however large
-// the pages).
+// -v gives the batch's plan (a lone frame gets one worker, whatever --jobs asks), each
+// frame's stages as the worker measured them, its peak memory and the page faults it took
+// (a lone frame touches all of its memory fresh: some faults, however large the pages).
 TEST(Batch, VerboseLinesGiveStagesMemoryAndPageFaults) {
   ScratchDir dir;
   copy_example("cornell", dir.path, "a");
-  const RunResult r = run_ssdo("process " + dir / "a.exr" + " -o " + dir / "out" + " --terms ao --preset low -v");
+  const RunResult r =
+      run_ssdo("process " + dir / "a.exr" + " -o " + dir / "out" + " --terms ao --preset low --jobs 2 --threads 1 -v");
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("ssdo process: 1 frame, 1 worker process x 1 thread\n"), std::string::npos) << r.output;
   std::smatch m;
   const std::regex line(
       R"(read ([0-9.]+) ms, compute ([0-9.]+) ms, write ([0-9.]+) ms, worker ([0-9.]+) ms, isolation [0-9.]+ ms, )"
