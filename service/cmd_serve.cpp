@@ -83,6 +83,32 @@ bool keep_output_folder(const std::string& out_dir, int& lock_fd, std::string& n
   return true;
 }
 
+// The outermost folder create_directories(`path`) would make, or "" when `path` exists.
+fs::path first_missing_folder(const std::string& path) {
+  std::error_code ec;
+  fs::path missing;
+  for (fs::path p = fs::absolute(path, ec).lexically_normal(); !p.empty() && !fs::exists(p, ec);
+       p = p.parent_path()) {
+    if (p.filename().empty()) continue;  // "out/" is "out"
+    missing = p;
+    if (p == p.parent_path()) break;
+  }
+  return missing;
+}
+
+// A start that fails once it holds the output folder's lock leaves nothing it made: the
+// spool, and when the output folder was made for this start, its lock and the folders made
+// (those still empty).
+void undo_start(const std::string& out_dir, const fs::path& made_from, int lock_fd) {
+  std::error_code ec;
+  fs::remove_all(fs::path(out_dir) / ".ssdo-spool", ec);
+  if (made_from.empty()) return;
+  fs::remove(fs::path(out_dir) / ".ssdo-serve.lock", ec);
+  if (lock_fd >= 0) ::close(lock_fd);
+  for (fs::path p = out_dir; fs::remove(p, ec) && p != made_from && p.has_parent_path(); p = p.parent_path()) {
+  }
+}
+
 }  // namespace
 
 int run_serve(const ServeArgs& args) {
@@ -92,10 +118,7 @@ int run_serve(const ServeArgs& args) {
   };
   if (args.watch_dir.empty() && args.socket_path.empty()) return usage("give --watch DIR, --socket PATH or both");
   std::error_code ec;
-  fs::create_directories(args.out_dir, ec);
   std::string out_dir, error;
-  if (ec || !canonical_path(args.out_dir, out_dir, error))
-    return usage("cannot create the output folder " + args.out_dir + (ec ? ": " + ec.message() : ""));
   std::string watch_dir;
   if (!args.watch_dir.empty() && (!canonical_path(args.watch_dir, watch_dir, error) || !fs::is_directory(watch_dir)))
     return usage("--watch " + args.watch_dir + ": not a folder");
@@ -115,8 +138,14 @@ int run_serve(const ServeArgs& args) {
     return usage("--socket-mode " + args.socket_mode + ": expected octal permissions such as 0600");
   }
 
+  // The arguments checked, the output folder is made (undo_start removes it again when the
+  // start fails) and locked.
+  const fs::path made_from = first_missing_folder(args.out_dir);
+  fs::create_directories(args.out_dir, ec);
+  if (ec || !canonical_path(args.out_dir, out_dir, error))
+    return usage("cannot create the output folder " + args.out_dir + (ec ? ": " + ec.message() : ""));
   int lock_fd = lock_output_folder(out_dir, error);
-  if (lock_fd < 0) {
+  if (lock_fd < 0) {  // the folder is another instance's
     std::cerr << "ssdo serve: " << error << "\n";
     return 1;
   }
@@ -177,13 +206,17 @@ int run_serve(const ServeArgs& args) {
             {"dir", watch_dir}, {"state", st.watching ? "watching" : "lost"}, {"reestablished", st.reestablished}};
       };
     server = std::make_unique<SocketServer>(o, frames);
-    if (!server->bind(error)) return usage(error);
+    if (!server->bind(error)) {
+      undo_start(out_dir, made_from, lock_fd);
+      return usage(error);
+    }
   }
   frames.start();
   if (server) server->start();
   if (watcher && !watcher->start(error)) {
     if (server) server->stop();
     frames.stop();
+    undo_start(out_dir, made_from, lock_fd);
     std::cerr << "ssdo serve: " << error << "\n";
     return 1;
   }

@@ -212,6 +212,22 @@ TEST(ServeLifetimes, SecondInstanceOnTheSameOutputFolderIsRefused) {
   EXPECT_EQ(ping(socket_path_for("lock1")).value("ok", false), true);
 }
 
+// A start that fails (here: the socket's folder is missing) leaves no output folder it made,
+// and in a folder that was there, no spool.
+TEST(ServeLifetimes, AFailedStartLeavesNoFolderItMade) {
+  ScratchDir dir;
+  const std::string socket = dir / "missing/s.sock";
+  RunResult r = run_ssdo("serve --socket " + socket + " -o " + dir / "made/out");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--socket " + socket + ": No such file or directory"), std::string::npos) << r.output;
+  EXPECT_FALSE(path_exists(dir.path / "made"));
+  fs::create_directories(dir.path / "there");
+  r = run_ssdo("serve --socket " + socket + " -o " + dir / "there");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_FALSE(path_exists(dir.path / "there" / ".ssdo-spool"));
+  EXPECT_TRUE(path_exists(dir.path / "there"));
+}
+
 // The output folder removed under a running service: made again and locked again, so its
 // frames are written and a second instance is still refused.
 TEST(ServeLifetimes, AnOutputFolderRemovedWhileRunningIsMadeAgainAndLocked) {
