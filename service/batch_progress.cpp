@@ -9,11 +9,20 @@
 
 namespace ssdo {
 
-BatchProgress::BatchProgress(int total, int to_compute, bool bar, bool verbose)
-    : total_(total), to_compute_(to_compute), bar_(bar), verbose_(verbose) {}
+double batch_frames_per_s(int computed, double elapsed_s, int workers, double mean_frame_ms) {
+  const double measured = computed / std::max(elapsed_s, 1e-9);
+  return mean_frame_ms > 0 ? std::max(measured, 1000.0 * workers / mean_frame_ms) : measured;
+}
+
+BatchProgress::BatchProgress(int total, int to_compute, int workers, bool bar, bool verbose)
+    : total_(total), to_compute_(to_compute), workers_(std::max(workers, 1)), bar_(bar), verbose_(verbose) {}
 
 double BatchProgress::elapsed_s() const {
   return std::chrono::duration<double>(Clock::now() - start_).count();
+}
+
+double BatchProgress::frames_per_s() const {
+  return batch_frames_per_s(done_ + failed_, elapsed_s(), workers_, frames_ok_ ? frames_ok_ms_ / frames_ok_ : 0.0);
 }
 
 std::string BatchProgress::counter() {
@@ -25,7 +34,7 @@ std::string BatchProgress::counter() {
 void BatchProgress::draw_bar() {
   const int finished = done_ + skipped_ + failed_;
   const int computed = done_ + failed_;
-  const double fps = computed / std::max(elapsed_s(), 1e-9);
+  const double fps = frames_per_s();
   const int remaining = to_compute_ - computed;
   constexpr int kWidth = 30;
   const int filled = total_ > 0 ? kWidth * finished / total_ : kWidth;
@@ -56,6 +65,10 @@ void BatchProgress::skipped(const std::string& input, const std::string& output)
 void BatchProgress::finished(const std::string& input, const std::string& output, const WorkerResult& r) {
   std::lock_guard<std::mutex> lock(mutex_);
   (r.ok() ? done_ : failed_) += 1;
+  if (r.ok()) {  // a frame that fails may fail at once: not a frame's time
+    frames_ok_ms_ += r.wall_ms;
+    ++frames_ok_;
+  }
   // Isolation = what the parent waited beyond the worker's own handling of the request.
   const double isolation_ms = std::max(0.0, r.wall_ms - r.handled_ms);
   if (r.ok() && r.worker_started) {
@@ -66,7 +79,7 @@ void BatchProgress::finished(const std::string& input, const std::string& output
     ++warm_frames_;
   }
   const int computed = done_ + failed_;
-  const double fps = computed / std::max(elapsed_s(), 1e-9);
+  const double fps = frames_per_s();
   const double eta_s = (to_compute_ - computed) / std::max(fps, 1e-9);
   // One line per frame, whatever the names hold (control characters escaped).
   std::string line = counter() + printable(input);

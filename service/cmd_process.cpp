@@ -233,13 +233,13 @@ int run_process(const ProcessArgs& args) {
   if (cut_short > 0)
     std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
               << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";
-  BatchProgress progress(int(frames.size()), int(todo.size()), bar, args.verbose);
-  for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
 
   const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, false);
   WorkerLimits limits = args.limits;
   limits.threads = plan.threads_per_frame;
   const int n_threads = int(std::min<size_t>(size_t(plan.workers), todo.size()));  // a worker per thread
+  BatchProgress progress(int(frames.size()), int(todo.size()), n_threads, bar, args.verbose);
+  for (const std::string& f : up_to_date) progress.skipped(f, output_path_for(f, args.output_dir));
   if (args.verbose)
     std::cerr << "ssdo process: " << todo.size() << (todo.size() == 1 ? " frame, " : " frames, ") << n_threads
               << (n_threads == 1 ? " worker process x " : " worker processes x ") << plan.threads_per_frame
