@@ -252,7 +252,9 @@ int run_eval(const EvalArgs& args) {
     o["files"] = int(files.size());
     o["relative_mae"] = all.mean_reference > 0 ? all.mae / all.mean_reference : 0.0;
     o["confidence_deciles"] = deciles_json(overall_deciles);
-    std::cout << nlohmann::json{{"files", files}, {"overall", o}}.dump(2) << "\n";
+    // Names that are not UTF-8 (file names are bytes) come out with U+FFFD in their place.
+    const nlohmann::json all = {{"files", files}, {"overall", o}};
+    std::cout << all.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   } else if (args.files.size() > 1) {
     std::printf("overall: MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
                 all.mae, all.mean_reference > 0 ? 100.0 * all.mae / all.mean_reference : 0.0, all.rmse,

@@ -130,7 +130,8 @@ int run_info(const InfoArgs& args) {
     else if (r.ok())
       std::cout << info_text(r);
   }
-  if (args.json) std::cout << all.dump(2) << "\n";
+  // Names that are not UTF-8 (file and channel names are bytes) come out with U+FFFD.
+  if (args.json) std::cout << all.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   return status;
 }
 

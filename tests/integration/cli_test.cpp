@@ -65,6 +65,20 @@ TEST(Cli, InfoJsonIsParseable) {
   EXPECT_NE(r.output.find("\"blender\""), std::string::npos);
 }
 
+// File names are bytes: one that is not UTF-8 comes out of --json with U+FFFD in place of
+// the byte, and the command does not abort.
+TEST(Cli, JsonOfANameThatIsNotUtf8IsParseable) {
+  ScratchDir dir;
+  copy_frame(dir.path, "\xff");
+  for (const std::string command : {"info --json ", "eval --json --preset low --threads 1 "}) {
+    const RunResult r = run_ssdo(command + "'" + dir / "\xff.exr" + "' 2>/dev/null");
+    ASSERT_EQ(r.exit_code, 0) << command << r.output;
+    const auto j = nlohmann::json::parse(r.output, nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << r.output;
+    EXPECT_NE(r.output.find("\xef\xbf\xbd.exr"), std::string::npos) << r.output;
+  }
+}
+
 // A frame with a back-face depth channel: `ssdo info` says where the back layer comes from,
 // for a name the generic profile knows and for a mapped one.
 TEST(Cli, InfoShowsTheBackLayer) {
