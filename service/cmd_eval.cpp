@@ -122,6 +122,18 @@ int run_eval(const EvalArgs& args) {
         return 2;
       }
     }
+    // A heatmap is never written over a frame being evaluated ("a.exr" beside "a.error.exr").
+    for (const std::string& file : args.files) {
+      const std::filesystem::path map =
+          std::filesystem::path(args.heatmap_dir) / (std::filesystem::path(file).stem().string() + ".error.exr");
+      for (const std::string& input : args.files) {
+        std::error_code ec;
+        if (!std::filesystem::equivalent(map, input, ec) || ec) continue;
+        std::cerr << "ssdo eval: the heatmap of " << file << " would be written over the input " << input
+                  << ": choose another --heatmap folder\n";
+        return 2;
+      }
+    }
   }
 
   // With --views, the files of one shot are each other's extra views, read once each as

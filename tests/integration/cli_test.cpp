@@ -336,6 +336,18 @@ TEST(Cli, EvalAndBenchFailWhenTheyCannotWrite) {
   EXPECT_NE(r.output.find("would both write the heatmap " + dir / "maps2/cornell.error.exr"), std::string::npos)
       << r.output;
   EXPECT_FALSE(fs::exists(dir.path / "maps2" / "cornell.error.exr"));
+  // A heatmap over one of the inputs ("other/cornell.exr" beside "other/cornell.error.exr"):
+  // refused before any work, the input left as it was.
+  fs::copy_file(example("cornell.exr"), dir.path / "other" / "cornell.error.exr");
+  fs::copy_file(example("cornell.camera.json"), dir.path / "other" / "cornell.error.camera.json");
+  const auto before = fs::last_write_time(dir.path / "other" / "cornell.error.exr");
+  r = run_ssdo("eval " + dir / "other/cornell.exr" + " " + dir / "other/cornell.error.exr" +
+               " --preset low --heatmap " + dir / "other");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("would be written over the input " + dir / "other/cornell.error.exr"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(fs::last_write_time(dir.path / "other" / "cornell.error.exr"), before);
+  EXPECT_EQ(fs::file_size(dir.path / "other" / "cornell.error.exr"), fs::file_size(example("cornell.exr")));
   fs::create_directories(dir.path / "bench" / "bench.csv");
   r = run_ssdo("bench " + example("cornell.exr") + " -o " + dir / "bench" +
                " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
