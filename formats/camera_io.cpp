@@ -7,6 +7,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "formats/input_file.h"
+
 namespace ssdo {
 
 namespace {
@@ -157,6 +159,10 @@ void normalise_sidecar_camera(Camera& camera) {
 }  // namespace
 
 std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::string* error) {
+  if (std::string e = input_file_error(path, "camera sidecar", kMaxTextFileBytes); !e.empty()) {
+    *error = e;
+    return std::nullopt;
+  }
   std::ifstream in(path);
   if (!in) {
     *error = "cannot open camera sidecar " + path;

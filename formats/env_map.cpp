@@ -11,6 +11,7 @@
 
 #include "formats/exr_header_check.h"
 #include "formats/gbuffer_reader.h"
+#include "formats/input_file.h"
 #include "formats/oiio_module.h"
 
 namespace ssdo {
@@ -101,6 +102,7 @@ std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb
 
 EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
   EnvMapResult r;
+  if (r.error = input_file_error(path, "environment map"); !r.error.empty()) return r;
   try {
     if (is_exr(path)) {
       if (std::string e = read_exr(path, max_pixels, &r.radiance_rgb); !e.empty()) {
@@ -137,6 +139,7 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
 }
 
 std::string check_env_map(const std::string& path, long long max_pixels) {
+  if (std::string e = input_file_error(path, "environment map"); !e.empty()) return e;
   if (!is_exr(path)) return read_env_map(path, max_pixels).error;
   try {
     if (std::string e = read_exr(path, max_pixels, nullptr); !e.empty()) return "environment map " + e;

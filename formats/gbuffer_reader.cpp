@@ -40,6 +40,7 @@
 #include "core/half_samples.h"
 #include "formats/exr_zip.h"
 #include "formats/foreground_pass.h"
+#include "formats/input_file.h"
 #include "core/parallel.h"
 
 namespace ssdo {
@@ -157,10 +158,7 @@ bool open_file(const std::string& path, const ReadOptions& options, ReadResult& 
                Prepared& prep) {
   result.info.path = path;
   prep.path = path;
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) return fail(result, path + ": no such file");
-  if (!std::filesystem::is_regular_file(path, ec))
-    return fail(result, path + ": not a regular file");
+  if (std::string e = input_file_error(path, ""); !e.empty()) return fail(result, e);
   const ExrHeaderCheck check =
       check_exr_headers(path, {options.max_pixels, options.max_decoded_bytes});
   if (!check.ok()) return fail(result, check.error);

@@ -15,6 +15,7 @@
 
 #include "core/heap_policy.h"
 #include "formats/chart.h"
+#include "formats/input_file.h"
 #include "formats/output_writer.h"
 #include "kernels/metrics.h"
 #include "service/cli_options.h"
@@ -101,6 +102,7 @@ void write_csv_row(std::ostream& out, const Row& r) {
 
 // External reference costs: CSV "series,label,ms,mae" (header line optional).
 bool read_external(const std::string& path, std::vector<ChartSeries>& series, std::string& error) {
+  if (error = input_file_error(path, "external reference CSV", kMaxTextFileBytes); !error.empty()) return false;
   std::ifstream in(path);
   if (!in) {
     error = path + ": cannot open the external reference CSV";
