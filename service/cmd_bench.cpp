@@ -20,6 +20,7 @@
 #include "kernels/metrics.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
+#include "service/comparison.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
 #include "service/sequence.h"
@@ -250,6 +251,16 @@ int run_bench(const BenchArgs& args) {
     }
     cv::Mat ref = it->second;
     if (ref.channels() == 3) cv::transform(ref, ref, cv::Matx<float, 1, 3>(1.0f / 3, 1.0f / 3, 1.0f / 3));
+    // The pixels any estimate can be compared on: the foreground where the reference is
+    // finite. A frame without one is no measurement, as in `ssdo eval`.
+    const int64_t comparable = compare_images(ref, ref, r.gbuffer.mask).pixels;
+    if (const std::string reason = no_comparison_reason(comparable, r.info.foreground_pixels); !reason.empty()) {
+      std::cerr << "ssdo bench: " << file << ": " << reason << "\n";
+      ++failed;
+      continue;
+    }
+    if (const std::string note = left_out_note(comparable, r.info.foreground_pixels); !note.empty())
+      std::cerr << "ssdo bench: " << file << ": " << note << "\n";
     frames.push_back({file, std::move(r.gbuffer), ref, resolve_radius_world(args.request.radius_given_world, r.info)});
   }
   if (frames.empty()) {

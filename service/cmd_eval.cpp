@@ -13,6 +13,7 @@
 #include "kernels/metrics.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
+#include "service/comparison.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
 #include "service/sequence.h"
@@ -205,17 +206,13 @@ int run_eval(const EvalArgs& args) {
     const ErrorStats s = compare_images(estimate, reference, frame.gbuffer.mask);
     // An error over no pixel is no measurement (an MAE of 0 would read as perfect).
     const int64_t foreground = frame.info.foreground_pixels;
-    if (s.pixels == 0) {
-      std::cerr << "ssdo eval: " << file << ": no pixel to compare: "
-                << (foreground == 0 ? "the frame has no foreground: " + std::string(kNoForeground)
-                                    : std::string("the reference is not finite on any foreground pixel"))
-                << "\n";
+    if (const std::string reason = no_comparison_reason(s.pixels, foreground); !reason.empty()) {
+      std::cerr << "ssdo eval: " << file << ": " << reason << "\n";
       ++failed;
       continue;
     }
-    if (int64_t(s.pixels) < foreground)
-      std::cerr << "ssdo eval: " << file << ": " << foreground - int64_t(s.pixels)
-                << " foreground pixels left out: the reference or the estimate is not finite there\n";
+    if (const std::string note = left_out_note(s.pixels, foreground); !note.empty())
+      std::cerr << "ssdo eval: " << file << ": " << note << "\n";
     overall.add(estimate, reference, frame.gbuffer.mask);
     ConfidenceDeciles deciles;
     if (const cv::Mat* confidence = computed.find("confidence"))  // stored in half

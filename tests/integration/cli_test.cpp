@@ -474,7 +474,7 @@ TEST(Cli, ASkyBrighterThanHalfGivesFiniteOutputs) {
 }
 
 // A frame whose every depth sample is background (a negated depth pass): process warns
-// without -v, and eval refuses to report an error over no pixel.
+// without -v, and eval and bench refuse to report an error over no pixel.
 TEST(Cli, AFrameWithoutForegroundIsWarnedAboutAndNotScored) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
@@ -494,6 +494,19 @@ TEST(Cli, AFrameWithoutForegroundIsWarnedAboutAndNotScored) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("neg.exr: no pixel to compare: the frame has no foreground"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("MAE 0.0000"), std::string::npos) << r.output;
+  // bench measures the frames that have a pixel to compare and leaves this one out of
+  // every row (an MAE of 0 would be the chart's best point).
+  fs::copy_file(example("cornell.exr"), dir.path / "in" / "ok.exr");
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "ok.camera.json");
+  r = run_ssdo("bench " + dir / "in/neg.exr" + " " + dir / "in/ok.exr" + " -o " + dir / "bench" +
+               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("neg.exr: no pixel to compare: the frame has no foreground"), std::string::npos) << r.output;
+  const std::string csv = read_text(dir.path / "bench" / "bench.csv");
+  EXPECT_EQ(csv.find("neg.exr"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("ok.exr"), std::string::npos) << csv;
+  for (const std::string table : {"bench.csv", "calibration.csv"})
+    EXPECT_EQ(read_text(dir.path / "bench" / table).find(",0,0"), std::string::npos) << table;
 }
 
 // The composite's ambient terms are lit by the environment, as SSDO is: four times the
@@ -547,6 +560,10 @@ TEST(Cli, EvalLeavesOutAndSaysWhereTheReferenceIsNotFinite) {
     ASSERT_GE(c, 0) << channel;
     EXPECT_EQ(stats.nancount[size_t(c)], 0u) << channel;
   }
+  const RunResult b = run_ssdo("bench " + dir / "in/nan.exr" + " -o " + dir / "bench" +
+                               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+  EXPECT_EQ(b.exit_code, 0) << b.output;
+  EXPECT_NE(b.output.find("nan.exr: 1600 foreground pixels left out"), std::string::npos) << b.output;
 }
 
 // A farm task given its range and the shot's (--frames 3 --shot-frames 1-6) takes its

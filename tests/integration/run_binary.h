@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <optional>
 #include <string>
 
@@ -51,6 +53,12 @@ inline RunResult run_ssdo(const std::string& args) {
 }
 
 inline std::filesystem::path shared_dir() { return SSDO_SHARED_DIR; }
+
+// A file's bytes; empty when it cannot be read.
+inline std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
 inline std::filesystem::path source_dir() { return SSDO_SOURCE_DIR; }
 
 // A fresh empty folder per test, removed afterwards.
