@@ -95,8 +95,17 @@ struct Row {
   ErrorStats error;
 };
 
+// A CSV field (RFC 4180): quoted, with its quotes doubled, when it holds a comma, a quote
+// or a line break (a file name may hold any of them).
+std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (const char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
 void write_csv_row(std::ostream& out, const Row& r) {
-  out << r.file << ',' << r.method << ',' << r.preset << ',' << r.samples << ',' << r.resolution
+  out << csv_field(r.file) << ',' << r.method << ',' << r.preset << ',' << r.samples << ',' << r.resolution
       << ',' << r.ms << ',' << r.error.mae << ',' << r.error.rmse << ',' << r.error.bias << ','
       << r.error.p95 << '\n';
 }

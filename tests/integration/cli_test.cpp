@@ -529,6 +529,20 @@ TEST(Cli, TheCompositesAmbientTermsFollowTheEnvironment) {
   EXPECT_NEAR(foreground[1], 4.0f * foreground[0], 0.002f * foreground[1]);
 }
 
+// bench.csv is RFC 4180: a file name with a comma or a quote is one quoted field.
+TEST(Cli, BenchQuotesAFileNameThatHoldsACommaOrAQuote) {
+  ScratchDir dir;
+  const fs::path frame = dir.path / "take 1, \"final\".exr";
+  fs::copy_file(example("cornell.exr"), frame);
+  fs::copy_file(example("cornell.camera.json"), dir.path / "take 1, \"final\".camera.json");
+  const RunResult r = run_ssdo("bench '" + frame.string() + "' -o " + dir / "bench" +
+                               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string csv = read_text(dir.path / "bench" / "bench.csv");
+  const std::string field = "\"" + dir.path.string() + "/take 1, \"\"final\"\".exr\",hemisphere,";
+  EXPECT_NE(csv.find("\n" + field), std::string::npos) << csv;
+}
+
 // A reference with NaN on part of the foreground: eval says how many pixels it left out,
 // and its heatmap is black there, not NaN.
 TEST(Cli, EvalLeavesOutAndSaysWhereTheReferenceIsNotFinite) {
