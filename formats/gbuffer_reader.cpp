@@ -1152,11 +1152,19 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
 // where the stored value is background, never in front of the pixel's own depth (the far
 // side of a surface is behind it; a back pass rendered at another precision may differ by
 // a rounding).
+//
+// A deep part whose foreground pixels hold one surface each (a renderer that stores only
+// the first opaque hit, as most do for opaque scenes) says nothing about what lies behind
+// them: it gives no back layer, and the kernels assume their thickness as for a flat frame
+// (+inf everywhere would make every surface solid to infinity, worse than that guess).
 void back_layer_to_planar(const Prepared& prep, const ReadOptions& options, Images& img,
-                          GBuffer& g) {
+                          ReadResult& result) {
   if (img.depth_back.empty()) return;
+  GBuffer& g = result.gbuffer;
   const ForegroundPass pass = foreground_pass(prep);
+  std::atomic<bool> any_back_surface{false};
   parallel_rows(cv::Range(0, img.depth_back.rows), options.threads, [&](const cv::Range& rows) {
+    bool found = false;
     for (int y = rows.start; y < rows.end; ++y) {
       float* back = img.depth_back.ptr<float>(y);
       const float* front = g.depth_view.ptr<float>(y);
@@ -1166,9 +1174,18 @@ void back_layer_to_planar(const Prepared& prep, const ReadOptions& options, Imag
         const float b = mask[x] ? planar_depth(pass, eye_ray(pass, ray_row, x), back[x])
                                 : std::numeric_limits<float>::infinity();
         back[x] = std::max(b, front[x]);
+        found |= std::isfinite(back[x]);
       }
     }
+    if (found) any_back_surface = true;
   });
+  if (prep.deep_back && !any_back_surface) {
+    std::erase_if(result.info.uses, [](const ChannelUse& u) { return u.input == "depth_back"; });
+    result.info.notes.push_back("no back layer: the deep samples of " + prep.channels.find("depth")->channels[0] +
+                                " hold no second surface on any foreground pixel (--thickness is assumed)");
+    result.info.back_layer.clear();
+    return;
+  }
   g.depth_back_view = img.depth_back;
 }
 
@@ -1289,7 +1306,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
       return result;
     }
     classify_foreground(prep, options, img, result);
-    back_layer_to_planar(prep, options, img, result.gbuffer);
+    back_layer_to_planar(prep, options, img, result);
     if (options.read_positions) positions_to_view(prep, options, img, result);
     shading_inputs(options, img, result.gbuffer);
     return result;

@@ -19,7 +19,8 @@
 // Deep parts (DeepScanLine, DeepTile; OpenEXR "Interpreting OpenEXR Deep Pixels"): per
 // pixel the nearest sample (smallest Z) gives depth and every other channel; the nearest
 // sample whose Z lies beyond the nearest one's max(Z, ZBack) by more than
-// kDeepSurfaceGapRelative of it gives the back-face depth (unless one is mapped). The
+// kDeepSurfaceGapRelative of it gives the back-face depth (unless one is mapped); a part in
+// which no foreground pixel has such a sample gives no back layer (a note says so). The
 // samples of a pixel may be in any order. A pixel without samples is background.
 // In a multi-part file, depth comes from ReadOptions::part or the first part holding a
 // depth channel; other inputs from that part, else from another part of the same size.

@@ -165,6 +165,39 @@ TEST(DeepReader, WithoutBackLayerReadsOnlyTheNearestSample) {
   EXPECT_EQ(r.gbuffer.depth_view.at<float>(0, 0), 2.0f);
 }
 
+// A deep part holding one surface per foreground pixel (an opaque render that stores the
+// first hit) says nothing of what lies behind: no back layer (the kernels assume their
+// thickness, as for a flat frame), with a note; one pixel with a second surface is enough
+// for the layer.
+TEST(DeepReader, OneSurfacePerPixelGivesNoBackLayer) {
+  ScratchDir dir;
+  DeepExr e;
+  e.width = 2;
+  e.height = 2;
+  e.channels = {{"Z", Imf::FLOAT}};
+  e.pixels = {{{{"Z", 2.0f}}}, {{{"Z", 3.0f}}}, {}, {{{"Z", 1e10f}}}};
+  e.write(dir / "single.exr");
+  const ReadResult r = read_gbuffer((dir / "single.exr").string(), fov_options());
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.gbuffer.depth_back_view.empty());
+  EXPECT_EQ(r.info.back_layer, "");
+  for (const ChannelUse& u : r.info.uses) EXPECT_NE(u.input, "depth_back");
+  bool noted = false;
+  for (const std::string& n : r.info.notes)
+    noted |= n.find("no back layer: the deep samples of Z hold no second surface") != std::string::npos;
+  EXPECT_TRUE(noted);
+  EXPECT_EQ(r.gbuffer.depth_view.at<float>(0, 1), 3.0f);
+
+  e.pixels[1].push_back({{"Z", 4.0f}});
+  e.write(dir / "second.exr");
+  const ReadResult with = read_gbuffer((dir / "second.exr").string(), fov_options());
+  ASSERT_TRUE(with.ok()) << with.error;
+  ASSERT_FALSE(with.gbuffer.depth_back_view.empty());
+  EXPECT_EQ(with.gbuffer.depth_back_view.at<float>(0, 1), 4.0f);
+  EXPECT_EQ(with.gbuffer.depth_back_view.at<float>(0, 0), kInf);
+  EXPECT_EQ(with.info.back_layer, "deep samples of Z");
+}
+
 // Every damaged file of the conformance suite with a deep part is refused with an error
 // naming the file, in this process (no abort) and in bounded time (no hang), with the
 // default inputs and with mappings that reach more of them. One is decoded: its header
@@ -192,7 +225,12 @@ TEST(DeepReader, DamagedDeepConformanceFilesAreRefusedNeverAbortOrHang) {
       EXPECT_LT(seconds, 5.0) << path;
       if (entry.path().filename() == readable && std::string(depth) == "0") {
         EXPECT_TRUE(r.ok()) << r.error;
-        EXPECT_EQ(r.info.back_layer, "deep samples of 0");
+        // Its samples hold one surface per pixel: no back layer, said in a note.
+        EXPECT_EQ(r.info.back_layer, "");
+        EXPECT_TRUE(r.gbuffer.depth_back_view.empty());
+        bool noted = false;
+        for (const std::string& n : r.info.notes) noted |= n.rfind("no back layer: the deep samples of 0", 0) == 0;
+        EXPECT_TRUE(noted);
         continue;
       }
       EXPECT_FALSE(r.ok()) << path << " --map depth=" << depth;
