@@ -249,15 +249,32 @@ void choose_back_layer(const ReadOptions& options, Prepared& prep) {
   prep.deep_back = options.read_depth_back;
 }
 
+// The channel --map names for `input` ("normal", "reference:AO"); empty when a profile
+// found it.
+const std::string& mapped_channel(const std::string& input, const ChannelMapping& m) {
+  static const std::string none;
+  if (input == "depth") return m.depth;
+  if (input == "depth_back") return m.depth_back;
+  if (input == "normal") return m.normal;
+  if (input == "position") return m.position;
+  if (input == "albedo") return m.albedo;
+  if (input == "lighting") return m.lighting;
+  if (input.rfind("reference:", 0) == 0)
+    if (const auto it = m.references.find(input.substr(10)); it != m.references.end()) return it->second;
+  return none;
+}
+
 // Every part a used channel comes from must share the depth part's pixel grid, with
 // full-resolution channels (flat or deep).
 bool check_used_parts(const std::string& path, const ReadOptions& options, ReadResult& result,
                       Prepared& prep) {
   const int part = prep.channels.part;
-  // A reference pass (what eval compares with) in a part of another size is left out with
-  // a note: the frame's terms do not need it.
+  // An input a profile found (not --map) in a part of another size is left out with a note,
+  // as a frame without it is read (normals reconstructed from depth, no albedo, ...); so is
+  // a reference pass, which the frame's terms do not need.
   std::erase_if(prep.channels.inputs, [&](const ResolvedInput& r) {
-    if (r.input.rfind("reference:", 0) != 0 || !wanted(r, options, prep.lighting_from_passes)) return false;
+    if (r.input == "depth" || !wanted(r, options, prep.lighting_from_passes)) return false;
+    if (r.input.rfind("reference:", 0) != 0 && !mapped_channel(r.input, options.mapping).empty()) return false;
     const PixelBox box = box_of(prep.file->header(r.part).dataWindow());
     if (box == prep.data) return false;
     result.info.notes.push_back(r.input + " left out: its part \"" + prep.parts[r.part].name + "\" has data window " +
@@ -265,6 +282,7 @@ bool check_used_parts(const std::string& path, const ReadOptions& options, ReadR
                                 describe_box(prep.data));
     return true;
   });
+  prep.lighting_from_passes = prep.lighting_from_passes && prep.channels.find("albedo") && prep.channels.find("diffdir");
   for (const auto& r : prep.channels.inputs) {
     if (!wanted(r, options, prep.lighting_from_passes)) continue;
     const Imf::Header& h = prep.file->header(r.part);

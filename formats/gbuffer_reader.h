@@ -23,7 +23,8 @@
 // which no foreground pixel has such a sample gives no back layer (a note says so). The
 // samples of a pixel may be in any order. A pixel without samples is background.
 // In a multi-part file, depth comes from ReadOptions::part or the first part holding a
-// depth channel; other inputs from that part, else from another part of the same size.
+// depth channel; other inputs from that part, else from another part. One a profile found
+// in a part of another size is left out with a note; one mapped there is an error.
 //
 // Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an explicit
 // path), the OpenEXR header attributes worldToCamera + worldToNDC (either camera

@@ -63,8 +63,9 @@ struct TestExr {
   std::vector<std::pair<std::string, int>> int_attributes;
   std::vector<std::pair<std::string, float>> float_attributes;
   std::string compression = "zip";
+  std::string part_name;  // in a multi-part file (write_parts)
 
-  bool write(const fs::path& path, std::string* error = nullptr) const {
+  OIIO::ImageSpec spec() const {
     OIIO::ImageSpec spec(width, height, int(channels.size()), OIIO::TypeDesc::FLOAT);
     spec.x = data_x;
     spec.y = data_y;
@@ -83,19 +84,39 @@ struct TestExr {
       spec.attribute(name, OIIO::TypeDesc::TypeMatrix44, &m[0][0]);
     for (const auto& [name, v] : int_attributes) spec.attribute(name, v);
     for (const auto& [name, v] : float_attributes) spec.attribute(name, v);
-    std::vector<float> interleaved(size_t(width) * height * channels.size());
+    if (!part_name.empty()) spec.attribute("oiio:subimagename", part_name);
+    return spec;
+  }
+
+  std::vector<float> interleaved() const {
+    std::vector<float> pixels(size_t(width) * height * channels.size());
     for (size_t i = 0; i < size_t(width) * height; ++i)
-      for (size_t c = 0; c < channels.size(); ++c)
-        interleaved[i * channels.size() + c] = channels[c].values[i];
+      for (size_t c = 0; c < channels.size(); ++c) pixels[i * channels.size() + c] = channels[c].values[i];
+    return pixels;
+  }
+
+  bool write(const fs::path& path, std::string* error = nullptr) const {
     auto out = OIIO::ImageOutput::create(path.string());
-    if (!out || !out->open(path.string(), spec) ||
-        !out->write_image(OIIO::TypeDesc::FLOAT, interleaved.data())) {
+    if (!out || !out->open(path.string(), spec()) || !out->write_image(OIIO::TypeDesc::FLOAT, interleaved().data())) {
       if (error) *error = out ? out->geterror() : OIIO::geterror();
       return false;
     }
     return out->close();
   }
 };
+
+// A multi-part EXR of `parts`, in order (each named by its part_name).
+inline bool write_parts(const fs::path& path, const std::vector<TestExr>& parts, std::string* error = nullptr) {
+  std::vector<OIIO::ImageSpec> specs;
+  for (const TestExr& p : parts) specs.push_back(p.spec());
+  auto out = OIIO::ImageOutput::create(path.string());
+  bool ok = out && out->open(path.string(), int(specs.size()), specs.data());
+  for (size_t i = 0; ok && i < parts.size(); ++i)
+    ok = (i == 0 || out->open(path.string(), specs[i], OIIO::ImageOutput::AppendSubimage)) &&
+         out->write_image(OIIO::TypeDesc::FLOAT, parts[i].interleaved().data());
+  if (!ok && error) *error = out ? out->geterror() : OIIO::geterror();
+  return ok && out->close();
+}
 
 // Channels of one subimage, read as float with OpenImageIO (rows top to bottom).
 inline std::vector<float> read_channels_oiio(const fs::path& path, const std::vector<std::string>& names,

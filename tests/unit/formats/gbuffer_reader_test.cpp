@@ -520,6 +520,43 @@ TEST(ReadErrors, ChannelsFromPartsOfDifferentSizes) {
   EXPECT_TRUE(noted);
 }
 
+// Inputs a profile finds in a part of another size (a multi-part file whose normals and
+// albedo were rendered over a smaller region) are left out with a note, as a frame without
+// them is read; named with --map, they are an error.
+TEST(ReadErrors, FoundInputsInAPartOfAnotherSizeAreLeftOut) {
+  ScratchDir dir;
+  TestExr depth = generic_frame(8, 4, 3.0f);
+  depth.part_name = "depth";
+  TestExr shading = generic_frame(4, 4, 3.0f);
+  shading.channels.clear();
+  shading.part_name = "shading";
+  shading.display_width = 8;  // the parts of a file share one display window
+  shading.display_height = 4;
+  add_constant_normals(shading, glm::vec3(0, 0, 1));
+  for (const char* c : {"albedo.R", "albedo.G", "albedo.B"})
+    shading.channels.push_back({c, OIIO::TypeDesc::HALF, std::vector<float>(16, 0.5f)});
+  const fs::path path = dir / "parts.exr";
+  std::string error;
+  ASSERT_TRUE(write_parts(path, {depth, shading}, &error)) << error;
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  options.read_albedo = true;
+  const ReadResult r = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.info.normals_reconstructed);
+  EXPECT_TRUE(r.gbuffer.albedo.empty());
+  for (const char* input : {"normal", "albedo"}) {
+    bool noted = false;
+    for (const std::string& n : r.info.notes)
+      noted |= n.rfind(std::string(input) + " left out: its part \"shading\" has data window", 0) == 0;
+    EXPECT_TRUE(noted) << input;
+  }
+  options.mapping.normal = "N";
+  const ReadResult mapped = read_gbuffer(path.string(), options);
+  ASSERT_FALSE(mapped.ok());
+  EXPECT_TRUE(contains(mapped.error, "parts of different sizes: normal channels in part \"shading\"")) << mapped.error;
+}
+
 TEST(ReadConversions, NanAndInfInDepthAndNormalsAreMaskedAndCounted) {
   ScratchDir dir;
   const int w = 8, h = 4;
