@@ -69,6 +69,19 @@ cv::Mat oracle_term(const GBuffer& g, const FrameRequest& request, const std::st
   return *computed.find(term);  // raw: the oracle needs no denoising
 }
 
+// MAE over the reference's mean: a fraction, undefined (null, "n/a") for a reference whose
+// mean is not above 0 (a black pass), where 0% would read as perfect.
+nlohmann::json relative_mae_json(const ErrorStats& s) {
+  return s.mean_reference > 0 ? nlohmann::json(s.mae / s.mean_reference) : nlohmann::json(nullptr);
+}
+
+std::string relative_mae_text(const ErrorStats& s) {
+  if (!(s.mean_reference > 0)) return "relative n/a: the reference's mean is not above 0";
+  char text[48];
+  std::snprintf(text, sizeof text, "relative %.1f%%", 100.0 * s.mae / s.mean_reference);
+  return text;
+}
+
 nlohmann::json stats_json(const ErrorStats& s) {
   return {{"mae", s.mae}, {"rmse", s.rmse}, {"bias", s.bias}, {"p95", s.p95}, {"max", s.max_abs},
           {"pixels", s.pixels}};
@@ -224,7 +237,7 @@ int run_eval(const EvalArgs& args) {
     j["file"] = file;
     j["method"] = args.term == "ao" ? method : std::string(to_string(request.ssdo.method));
     j["term"] = args.term;
-    j["relative_mae"] = s.mean_reference > 0 ? s.mae / s.mean_reference : 0.0;
+    j["relative_mae"] = relative_mae_json(s);
     j["reference"] = args.oracle_preset.empty() ? args.reference : "oracle:" + args.oracle_preset;
     j["preset"] = args.preset;
     j["radius"] = request.ao.radius_world;
@@ -232,10 +245,10 @@ int run_eval(const EvalArgs& args) {
     j["confidence_deciles"] = deciles_json(deciles);
     files.push_back(j);
     if (!args.json) {
-      std::printf("%s: %s %s r=%.3g  MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
+      std::printf("%s: %s %s r=%.3g  MAE %.4f (%s)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
                   file.c_str(), args.term.c_str(), j["method"].get<std::string>().c_str(),
-                  request.ao.radius_world, s.mae, 100.0 * j["relative_mae"].get<double>(), s.rmse,
-                  s.bias, s.p95, int(s.pixels), ms);
+                  request.ao.radius_world, s.mae, relative_mae_text(s).c_str(), s.rmse, s.bias, s.p95,
+                  int(s.pixels), ms);
       print_deciles(deciles);
     }
     if (!args.heatmap_dir.empty()) {
@@ -259,15 +272,14 @@ int run_eval(const EvalArgs& args) {
     nlohmann::json o = stats_json(all);
     o["ms"] = overall_ms;
     o["files"] = int(files.size());
-    o["relative_mae"] = all.mean_reference > 0 ? all.mae / all.mean_reference : 0.0;
+    o["relative_mae"] = relative_mae_json(all);
     o["confidence_deciles"] = deciles_json(overall_deciles);
     // Names that are not UTF-8 (file names are bytes) come out with U+FFFD in their place.
     const nlohmann::json all = {{"files", files}, {"overall", o}};
     std::cout << all.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   } else if (args.files.size() > 1) {
-    std::printf("overall: MAE %.4f (relative %.1f%%)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
-                all.mae, all.mean_reference > 0 ? 100.0 * all.mae / all.mean_reference : 0.0, all.rmse,
-                all.bias, all.p95, int(all.pixels), overall_ms);
+    std::printf("overall: MAE %.4f (%s)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n", all.mae,
+                relative_mae_text(all).c_str(), all.rmse, all.bias, all.p95, int(all.pixels), overall_ms);
     print_deciles(overall_deciles);
   }
   return failed ? 1 : 0;

@@ -529,6 +529,30 @@ TEST(Cli, TheCompositesAmbientTermsFollowTheEnvironment) {
   EXPECT_NEAR(foreground[1], 4.0f * foreground[0], 0.002f * foreground[1]);
 }
 
+// A black reference pass (mean 0) has no relative error: "n/a" and null, never 0%.
+TEST(Cli, EvalOfABlackReferenceHasNoRelativeError) {
+  ScratchDir dir;
+  OIIO::ImageBuf full(example("cornell.exr"));
+  ASSERT_TRUE(full.read()) << full.geterror();
+  const int ao = full.spec().channelindex("ViewLayer.AO.R");
+  ASSERT_GE(ao, 0);
+  std::vector<float> factors(size_t(full.nchannels()), 1.0f);
+  factors[size_t(ao)] = 0.0f;
+  const OIIO::ImageBuf black = OIIO::ImageBufAlgo::mul(full, factors);
+  ASSERT_TRUE(black.write(dir / "black.exr")) << black.geterror();
+  fs::copy_file(example("cornell.camera.json"), dir.path / "black.camera.json");
+  RunResult r = run_ssdo("eval " + dir / "black.exr" + " --preset low");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("(relative n/a: the reference's mean is not above 0)"), std::string::npos) << r.output;
+  r = run_ssdo("eval " + dir / "black.exr" + " --preset low --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  EXPECT_TRUE(j["files"][0]["relative_mae"].is_null()) << r.output;
+  EXPECT_TRUE(j["overall"]["relative_mae"].is_null()) << r.output;
+  EXPECT_GT(j["overall"]["mae"].get<double>(), 0.1) << r.output;  // the estimate is not black
+}
+
 // bench.csv is RFC 4180: a file name with a comma or a quote is one quoted field.
 TEST(Cli, BenchQuotesAFileNameThatHoldsACommaOrAQuote) {
   ScratchDir dir;
