@@ -198,12 +198,18 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
   } else {
     s.camera.view_to_world = glm::inverse(s.camera.world_to_view);
   }
-  if (!j.contains("width") || !j["width"].is_number_integer() || !j.contains("height") ||
-      !j["height"].is_number_integer())
-    return fail("missing integer \"width\" / \"height\"");
-  s.width_px = j["width"].get<int>();
-  s.height_px = j["height"].get<int>();
-  if (s.width_px <= 0 || s.height_px <= 0) return fail("\"width\" and \"height\" must be > 0");
+  // A pixel count: a whole number (640 or 640.0, as some exporters write every number),
+  // 1 .. 2^30.
+  auto pixels = [&](const char* key) -> int {
+    if (!j.contains(key) || !j[key].is_number()) return 0;
+    const double v = j[key].get<double>();
+    return v >= 1 && v <= double(1 << 30) && v == std::floor(v) ? int(v) : -1;
+  };
+  s.width_px = pixels("width");
+  s.height_px = pixels("height");
+  if (s.width_px == 0 || s.height_px == 0) return fail("missing \"width\" / \"height\" (numbers of pixels)");
+  if (s.width_px < 0 || s.height_px < 0)
+    return fail("\"width\" and \"height\" must be whole numbers of pixels from 1 to 2^30");
   s.camera.width_px = s.width_px;
   s.camera.height_px = s.height_px;
   auto number = [&](const char* key) -> std::optional<float> {

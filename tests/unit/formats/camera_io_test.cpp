@@ -137,6 +137,27 @@ TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
   backwards["projection"] = row_major(p);
   EXPECT_FALSE(read(backwards, error));
   EXPECT_NE(error.find("looks down +Z"), std::string::npos) << error;
+
+  // A size written as a float (as some exporters write every number) is the same size;
+  // a fraction, 0 or more than 2^30 is not a size.
+  nlohmann::json floats = valid;
+  floats["width"] = 64.0;
+  floats["height"] = 48.0;
+  ASSERT_TRUE(read(floats, error)) << error;
+  EXPECT_EQ(read_camera_sidecar((dir / "cam.json").string(), &error)->width_px, 64);
+  for (const nlohmann::json& width : {nlohmann::json(64.5), nlohmann::json(0), nlohmann::json(1e12),
+                                      nlohmann::json(-64)}) {
+    nlohmann::json odd = valid;
+    odd["width"] = width;
+    EXPECT_FALSE(read(odd, error)) << width;
+    EXPECT_NE(error.find("\"width\" and \"height\" must be whole numbers of pixels from 1 to 2^30"),
+              std::string::npos)
+        << error;
+  }
+  nlohmann::json sizeless = valid;
+  sizeless.erase("height");
+  EXPECT_FALSE(read(sizeless, error));
+  EXPECT_NE(error.find("missing \"width\" / \"height\""), std::string::npos) << error;
 }
 
 // Matrices written column by column, unequal axis scales and unknown spaces are refused,
