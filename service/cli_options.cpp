@@ -37,7 +37,9 @@ CLI::Validator table_check(const FrameOption& o) {
 // One table entry as a CLI11 option bound to its field in `args`.
 void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args) {
   const std::string flag = "--" + std::string(o.name);
-  const std::string help = *o.unset ? std::string(o.help) + " (default: " + o.unset + ")" : std::string(o.help);
+  const std::string help = *o.unset ? std::string(o.help) + " (default" + (o.zero_unset ? ", also given as 0" : "") +
+                                          ": " + o.unset + ")"
+                                    : std::string(o.help);
   CLI::Option* opt = std::visit(
       [&](auto field) -> CLI::Option* {
         auto& value = field(args);

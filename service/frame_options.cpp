@@ -52,10 +52,12 @@ std::vector<FrameOption> compute_options() {
        .field = +[](A& a) -> std::string& { return a.compute.preset; }},
       {.name = "radius", .kind = OptionKind::number, .set = OptionSet::compute, .group = "Compute",
        .help = "AO and SSDO radius in scene units",
-       .unset = "the frame's AO distance when its sidecar gives one, else 1", .lo = 0, .hi = kInf,
+       .unset = "the frame's AO distance when its sidecar gives one, else 1", .lo = 1e-9, .hi = 1e12,
+       .zero_unset = true,
        .field = +[](A& a) -> float& { return a.compute.radius_world; }},
       {.name = "thickness", .kind = OptionKind::number, .set = OptionSet::compute, .group = "Compute",
-       .help = "Assumed thickness of surfaces in scene units", .unset = "the method's", .lo = 0, .hi = kInf,
+       .help = "Assumed thickness of surfaces in scene units", .unset = "the method's", .lo = 1e-9, .hi = kInf,
+       .zero_unset = true,
        .field = +[](A& a) -> float& { return a.compute.thickness_world; }},
       {.name = "threads", .kind = OptionKind::integer, .set = OptionSet::compute, .group = "Compute",
        .help = "Threads per frame (at most the cores); without --jobs, process and serve then run cores / THREADS "
@@ -120,7 +122,7 @@ std::vector<FrameOption> ssdo_options() {
       {.name = "env-constant", .kind = OptionKind::number, .set = OptionSet::compute, .group = "SSDO",
        .help = "Environment light: uniform radiance, at most the largest half float (the outputs store radiance "
                "in half)",
-       .unset = "1 unless --env or --sky", .lo = 0, .hi = kMaxRadiance,
+       .unset = "1 unless --env or --sky", .lo = 1e-9, .hi = kMaxRadiance, .zero_unset = true,
        .field = +[](A& a) -> float& { return a.compute.env_constant; }},
       {.name = "env-up", .kind = OptionKind::choice, .set = OptionSet::compute, .group = "SSDO",
        .help = "World up axis of the environment: z (Blender) or y", .choices = {"z", "y"},

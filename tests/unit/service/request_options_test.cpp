@@ -61,6 +61,11 @@ TEST(FrameOptions, UnknownKeysAndBadValuesNameTheKey) {
   EXPECT_NE(error.find("preset"), std::string::npos);
   EXPECT_FALSE(apply_json(json{{"radius", -1}}, a, error));
   EXPECT_FALSE(apply_json(json{{"radius", "big"}}, a, error));
+  // A radius whose square overflows a float is no radius; 0 is the default's other name.
+  EXPECT_FALSE(apply_json(json{{"radius", 1e20}}, a, error));
+  EXPECT_EQ(error, "\"radius\" must be 0 (unset) or a number in [1e-09, 1e+12]");
+  ASSERT_TRUE(apply_json(json{{"radius", 0}, {"thickness", 0}, {"env-constant", 0}}, a, error)) << error;
+  EXPECT_EQ(a.compute.radius_world, 0.0f);
   EXPECT_FALSE(apply_json(json{{"fov", 200}}, a, error));
   EXPECT_FALSE(apply_json(json{{"threads", 1.5}}, a, error));
   EXPECT_FALSE(apply_json(json{{"png", "yes"}}, a, error));
