@@ -1,7 +1,9 @@
 // `ssdo bench`: every method x preset (and a sweep of sample counts) on frames with a
 // reference pass: a CSV of time and error and a chart of error against time.
 #include <algorithm>
+#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -131,13 +133,23 @@ bool read_external(const std::string& path, std::vector<ChartSeries>& series, st
       error = path + ":" + std::to_string(line_no) + ": expected series,label,ms,mae";
       return false;
     }
+    // The whole field a number (no "12ms"), a time > 0 and an error >= 0, both finite: the
+    // chart's axes are logarithmic in time and linear in error.
+    auto number = [](const std::string& text, double& value) {
+      const size_t first = text.find_first_not_of(" \t"), last = text.find_last_not_of(" \t\r");
+      if (first == std::string::npos) return false;
+      const char* end = text.data() + last + 1;
+      const auto [stop, ec] = std::from_chars(text.data() + first, end, value);
+      return ec == std::errc() && stop == end && std::isfinite(value);
+    };
     double ms_v = 0, mae_v = 0;
-    try {
-      ms_v = std::stod(ms);
-      mae_v = std::stod(mae);
-    } catch (const std::exception&) {
+    if (!number(ms, ms_v) || !number(mae, mae_v)) {
       if (line_no == 1) continue;  // header
       error = path + ":" + std::to_string(line_no) + ": ms and mae must be numbers";
+      return false;
+    }
+    if (!(ms_v > 0) || !(mae_v >= 0)) {
+      error = path + ":" + std::to_string(line_no) + ": ms must be above 0 and mae at least 0";
       return false;
     }
     if (!index.count(name)) {
@@ -416,7 +428,9 @@ Command register_bench(CLI::App& app) {
             if (!resolve_read_options(st->options.read, bench.request.read, error)) return usage_error(error);
             if (!st->methods.empty()) {
               bench.methods.clear();
-              for (const std::string& m : st->methods) bench.methods.push_back(*parse_ao_method(m));
+              for (const std::string& m : st->methods)  // each method once, in the order first given
+                if (std::find(bench.methods.begin(), bench.methods.end(), *parse_ao_method(m)) == bench.methods.end())
+                  bench.methods.push_back(*parse_ao_method(m));
             }
             bench.sweep = !st->no_sweep;
             bench.request.threads = frame_threads(bench.request.threads);

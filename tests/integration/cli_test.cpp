@@ -553,6 +553,30 @@ TEST(Cli, EvalOfABlackReferenceHasNoRelativeError) {
   EXPECT_GT(j["overall"]["mae"].get<double>(), 0.1) << r.output;  // the estimate is not black
 }
 
+// An external cost that is no time or error (NaN, infinite, negative, "12ms") is refused by
+// line before any frame is computed; a method given twice is measured once.
+TEST(Cli, BenchRefusesExternalCostsThatAreNoNumbersAndRunsAMethodOnce) {
+  ScratchDir dir;
+  const std::string bench = "bench " + example("cornell.exr") + " --runs 1 --no-sweep --views 0 --temporal 0";
+  for (const char* row : {"cycles,8 spp,nan,0.05", "cycles,8 spp,inf,0.05", "cycles,8 spp,-3,0.05",
+                          "cycles,8 spp,3000,-0.1", "cycles,8 spp,12ms,0.05"}) {
+    std::ofstream(dir.path / "ext.csv") << "series,label,ms,mae\ncycles,16 spp, 5900 ,0.03\n" << row << "\n";
+    const RunResult r = run_ssdo(bench + " -o " + dir / "out" + " --methods hemisphere --external " + dir / "ext.csv");
+    EXPECT_EQ(r.exit_code, 2) << row << "\n" << r.output;
+    EXPECT_NE(r.output.find("ext.csv:3: "), std::string::npos) << row << "\n" << r.output;
+    EXPECT_FALSE(fs::exists(dir.path / "out" / "bench.csv")) << row;
+  }
+  std::ofstream(dir.path / "ext.csv") << "series,label,ms,mae\ncycles,16 spp, 5900 ,0.03\n";
+  const RunResult r = run_ssdo(bench + " -o " + dir / "out" + " --methods hemisphere hemisphere --external " +
+                               dir / "ext.csv");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string csv = read_text(dir.path / "out" / "bench.csv");
+  int rows = 0;
+  for (size_t at = csv.find("\nall,hemisphere,low,"); at != std::string::npos; at = csv.find("\nall,hemisphere,low,", at + 1))
+    ++rows;
+  EXPECT_EQ(rows, 1) << csv;
+}
+
 // bench.csv is RFC 4180: a file name with a comma or a quote is one quoted field.
 TEST(Cli, BenchQuotesAFileNameThatHoldsACommaOrAQuote) {
   ScratchDir dir;
