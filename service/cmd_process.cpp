@@ -229,7 +229,7 @@ int run_process(const ProcessArgs& args) {
   }
   if (other_options > 0)
     std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
-              << " made with other options than this run's: computed again\n";
+              << " made with other options or another ssdo version than this run's: computed again\n";
   if (cut_short > 0)
     std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
               << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";
@@ -346,7 +346,8 @@ Command register_process(CLI::App& app) {
   ProcessArgs& p = st->process;
   CLI::App* cmd = app.add_subcommand(
       "process", "Compute the selected terms for frames and write one EXR per frame "
-                 "(OUT/NAME.ssdo.exr). Frames whose output is newer than the input are skipped.");
+                 "(OUT/NAME.ssdo.exr). A frame whose output is newer than its input and was made with the same options "
+                 "by the same ssdo version is skipped (--force computes it again).");
   cmd->add_option("inputs", p.inputs,
                   "EXR frames, folders of frames, or frame patterns (shot.####.exr, shot.%04d.exr) with --frames")
       ->required();

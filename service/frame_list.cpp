@@ -15,6 +15,7 @@
 #include "formats/output_writer.h"
 #include "service/file_version.h"
 #include "service/request_options.h"
+#include "service/version.h"
 
 namespace ssdo {
 
@@ -136,7 +137,8 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 }  // namespace
 
 bool output_made_with(const std::string& output, const std::string& options_attribute) {
-  return read_string_attribute(output, kOptionsAttribute) == options_attribute;
+  return read_string_attribute(output, kOptionsAttribute) == options_attribute &&
+         read_string_attribute(output, kVersionAttribute) == version_string();
 }
 
 bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {

@@ -158,13 +158,28 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   r = run_ssdo(run + " --radius 0.25");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("1 output was made with other options than this run's: computed again"), std::string::npos)
+  EXPECT_NE(r.output.find("1 output was made with other options or another ssdo version than this run's: computed "
+                          "again"),
+            std::string::npos)
       << r.output;
   r = run_ssdo(run + " --radius 0.25");
   EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("other options"), std::string::npos) << r.output;
-  // Another program's file by the output's name, newer than the frame.
+  // The same options in an output of another ssdo version (whose arithmetic may differ).
   const fs::path output = dir.path / "out" / "a.ssdo.exr";
+  {
+    OIIO::ImageBuf made(output.string());
+    ASSERT_TRUE(made.read(0, 0, true)) << made.geterror();
+    EXPECT_FALSE(made.spec().get_string_attribute("ssdo/version").empty());
+    made.specmod().attribute("ssdo/version", "0.0.1");
+    ASSERT_TRUE(made.write((dir.path / "older.exr").string())) << made.geterror();
+  }
+  fs::rename(dir.path / "older.exr", output);
+  fs::last_write_time(output, fs::last_write_time(dir.path / "in" / "a.exr") + std::chrono::seconds(2));
+  r = run_ssdo(run + " --radius 0.25");
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("another ssdo version"), std::string::npos) << r.output;
+  // Another program's file by the output's name, newer than the frame.
   fs::remove(output);
   fs::copy_file(dir.path / "in" / "a.exr", output);
   fs::last_write_time(output, fs::last_write_time(dir.path / "in" / "a.exr") + std::chrono::seconds(2));
