@@ -245,6 +245,14 @@ int run_bench(const BenchArgs& args) {
     std::cerr << "ssdo bench: cannot create " << args.output_dir << ": " << ec.message() << "\n";
     return 2;
   }
+  // A folder where a table or the chart goes would fail the run after every frame was
+  // measured: refused before.
+  for (const char* name : {"bench.csv", "calibration.csv", "bench.png"})
+    if (std::filesystem::is_directory(std::filesystem::path(args.output_dir) / name, ec)) {
+      std::cerr << "ssdo bench: " << (std::filesystem::path(args.output_dir) / name).string()
+                << " is a folder: the run writes a file by that name\n";
+      return 2;
+    }
   std::vector<ChartSeries> external;
   std::string error;
   if (!args.external_csv.empty() && !read_external(args.external_csv, external, error)) {
