@@ -50,6 +50,17 @@ void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args
   opt->group(o.group);
   if (o.kind == OptionKind::choice || o.kind == OptionKind::number || o.kind == OptionKind::integer)
     opt->check(table_check(o));
+  // An empty value on the command line is a script's unset variable ("--env \"$SKY\""), not
+  // a choice: refused, where it would silently give the default (a JSON config's "" is the
+  // default, as the options a header records are written).
+  if (o.kind == OptionKind::text)
+    opt->check(CLI::Validator(
+        [&o](std::string& value) -> std::string {
+          return value.empty() ? std::string("an empty value; leave the option out for the default") +
+                                     (*o.unset ? std::string(" (") + o.unset + ")" : std::string())
+                               : std::string();
+        },
+        "", o.name));
   if (o.existing_file) opt->check(CLI::ExistingFile);
   if (o.kind != OptionKind::flag && o.kind != OptionKind::list && !*o.unset) opt->capture_default_str();
 }

@@ -71,6 +71,26 @@ TEST(OptionsCli, OutOfRangeValuesAreUsageErrorsOnTheCommandLineAndInAConfig) {
   EXPECT_NE(r.output.find("\"guard-band\" must be an integer in [0, 4096]"), std::string::npos) << r.output;
 }
 
+// An empty text value on the command line (a script's unset variable) is refused, naming
+// the default it would have silently given; in a config "" is the default, as the options
+// recorded in an output's header have it.
+TEST(OptionsCli, AnEmptyTextValueOnTheCommandLineIsRefused) {
+  ScratchDir out;
+  const std::string base = "process " + example("cornell.exr") + " -o " + out.path.string() + " --preset low";
+  for (const char* option : {"--camera", "--env", "--part", "--sky", "--composite"}) {
+    const RunResult r = run_ssdo(base + " " + option + " ''");
+    EXPECT_EQ(r.exit_code, 2) << option << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string(option) + ": an empty value; leave the option out for the default"),
+              std::string::npos)
+        << r.output;
+    EXPECT_FALSE(fs::exists(out.path / "cornell.ssdo.exr")) << option;
+  }
+  std::ofstream(out / "cfg.json") << R"({"camera": "", "env": "", "part": ""})";
+  const RunResult config = run_ssdo(base + " --config " + (out / "cfg.json"));
+  EXPECT_EQ(config.exit_code, 0) << config.output;
+  EXPECT_TRUE(fs::exists(out.path / "cornell.ssdo.exr"));
+}
+
 // --guard-band PX: every term is computed on the whole (overscan) frame, then cropped: the
 // output is the inner picture, pixel for pixel the inner pixels of the uncropped run.
 TEST(OptionsCli, GuardBandCropsEveryTermToTheInnerPicture) {
