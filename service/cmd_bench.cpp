@@ -203,6 +203,7 @@ Row bench_sequence(const std::vector<Loaded>& frames, const BenchArgs& args, con
       r.input_path = paths[i];
       r.neighbours = lists[i];
       for (NeighbourFrame& n : r.neighbours) n.computed_later = n.frame_offset > 0;
+      give_neighbours_camera(r.neighbours, r.read.camera_json);
       ReadResult f = sequence.read(r, read);
       std::string error;
       if (!f.ok() || !resolve_frame_radius(r, f.info, error)) continue;  // read and resolved once before

@@ -169,6 +169,7 @@ int run_eval(const EvalArgs& args) {
     sequence_request.input_path = file;
     sequence_request.neighbours = neighbours[index];
     for (NeighbourFrame& n : sequence_request.neighbours) n.computed_later = n.frame_offset > 0;
+    give_neighbours_camera(sequence_request.neighbours, sequence_request.read.camera_json);
     ReadResult frame = sequence.read(sequence_request, read);
     if (!frame.ok()) {
       std::cerr << "ssdo eval: " << frame.error << "\n";

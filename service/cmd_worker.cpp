@@ -301,6 +301,7 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   request.read.threads = args.threads;
   request.read.max_pixels = args.max_pixels;
   request.neighbours = neighbours_of(j);
+  const bool camera_for_all = !request.read.camera_json.empty();  // --camera, not a sidecar
   if (!files.open(confine, request, error)) {
     response["error"] = error;
     return;
@@ -312,6 +313,7 @@ void handle_request(const nlohmann::json& j, const WorkerArgs& args, std::map<st
   SequenceContext confined;
   const bool is_confined = !confine.input_roots.empty();
   if (is_confined) files.open_neighbours(confine, request.neighbours, view_notes);
+  if (camera_for_all) give_neighbours_camera(request.neighbours, request.read.camera_json);
   confined.share_raw_terms(&raw_store);
   // The headers, read once before decoding, for the memory estimate and a shot's fallback.
   ExrHeaderCheck headers;

@@ -147,4 +147,9 @@ std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, 
   return at < 0 ? std::vector<NeighbourFrame>{} : around(order, at, places);
 }
 
+void give_neighbours_camera(std::vector<NeighbourFrame>& neighbours, const std::string& camera_json) {
+  if (camera_json.empty()) return;
+  for (NeighbourFrame& n : neighbours) n.camera_json = camera_json;
+}
+
 }  // namespace ssdo

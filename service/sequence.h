@@ -59,6 +59,11 @@ std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, 
 // `window` places of it: the neighbours of a frame that arrives in a watched folder.
 std::vector<NeighbourFrame> folder_neighbours(const std::string& path, int window);
 
+// One camera file for every neighbour (a --camera given for the whole run: a locked-off shot's
+// one camera): each neighbour is read with `camera_json` instead of the sidecar beside it, as
+// the frame itself is. Nothing when `camera_json` is empty.
+void give_neighbours_camera(std::vector<NeighbourFrame>& neighbours, const std::string& camera_json);
+
 // The neighbours of a frame named explicitly (a socket request's "views"): offsets from
 // the frame numbers when they share the frame's sequence, else 1, 2, ... in the given order.
 // The frame itself and repeated names are left out (paths as resolved: one spelling each).

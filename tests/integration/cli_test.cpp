@@ -658,6 +658,26 @@ TEST(Cli, AFarmTaskTakesItsNeighboursFromTheWholeShot) {
   EXPECT_FALSE(fs::exists(dir.path / "out" / "shot.0002.ssdo.exr"));  // neighbours are not written
 }
 
+// A locked-off shot with one camera file (--camera, no sidecars): the neighbours are read
+// with that camera as the frame is, so each frame is still filtered over them (they were
+// read without it and skipped as frames without a camera).
+TEST(Cli, OneCameraFileForAShotReachesTheNeighbours) {
+  ScratchDir dir;
+  copy_shot(dir.path / "in", 3);
+  for (int f = 1; f <= 3; ++f) fs::remove(dir.path / "in" / ("shot.000" + std::to_string(f) + ".camera.json"));
+  fs::copy_file(example("cornell.camera.json"), dir.path / "cam.json");
+  const std::string shot = "'" + dir / "in/shot.####.exr" + "' --frames 1-3";
+  RunResult r = run_ssdo("process " + shot + " -o " + dir / "out" + " --camera " + dir / "cam.json" +
+                         " --terms ao --preset low --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("temporal: shot.0001.exr shot.0003.exr"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("no camera"), std::string::npos) << r.output;
+  r = run_ssdo("eval " + dir / "in/shot.0001.exr" + " " + dir / "in/shot.0002.exr" + " --camera " + dir / "cam.json" +
+               " --preset low --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("no camera"), std::string::npos) << r.output;
+}
+
 // eval's reference follows the term: ssdo_direct against DiffDir unless told otherwise.
 TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
   const RunResult r = run_ssdo("eval " + example("greeble.exr") + " --term ssdo_direct --preset low --json --env " +
