@@ -171,13 +171,17 @@ WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const Proc
 }
 
 // Whether `output` is at least as new as every neighbour of `frame` in the shot and its
-// sidecar (a neighbour re-rendered since changes the frame's views and temporal terms).
+// sidecar (a neighbour re-rendered since changes the frame's views and temporal terms). A
+// neighbour that does not exist (a frame not rendered yet, a --shot-frames range wider than
+// the render) changes nothing until it does, and is then newer than the output.
 bool neighbours_older_than(const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
                            const std::string& frame, const std::string& output) {
   const auto it = neighbours.find(frame);
   if (it == neighbours.end()) return true;
-  return std::all_of(it->second.begin(), it->second.end(),
-                     [&](const NeighbourFrame& n) { return output_up_to_date_with_sidecar(n.path, output); });
+  return std::all_of(it->second.begin(), it->second.end(), [&](const NeighbourFrame& n) {
+    std::error_code ec;
+    return !std::filesystem::exists(n.path, ec) || output_up_to_date_with_sidecar(n.path, output);
+  });
 }
 
 }  // namespace

@@ -658,6 +658,28 @@ TEST(Cli, AFarmTaskTakesItsNeighboursFromTheWholeShot) {
   EXPECT_FALSE(fs::exists(dir.path / "out" / "shot.0002.ssdo.exr"));  // neighbours are not written
 }
 
+// A frame of a shot not rendered (yet) does not make its neighbours' outputs stale: a rerun
+// skips them and fails only that frame again; once it is rendered, the frames around it are
+// computed again with it.
+TEST(Cli, AMissingFrameOfAShotDoesNotMakeTheOthersStale) {
+  ScratchDir dir;
+  copy_shot(dir.path / "in", 4);
+  fs::rename(dir.path / "in" / "shot.0003.exr", dir.path / "shot.0003.exr");
+  const std::string run = "process '" + dir / "in/shot.####.exr" + "' --frames 1-4 -o " + dir / "out" +
+                          " --terms ao --preset low --jobs 1";
+  RunResult r = run_ssdo(run);
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("done 3, skipped 0, failed 1"), std::string::npos) << r.output;
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 0, skipped 3, failed 1"), std::string::npos) << r.output;
+  fs::rename(dir.path / "shot.0003.exr", dir.path / "in" / "shot.0003.exr");
+  fs::last_write_time(dir.path / "in" / "shot.0003.exr",
+                      fs::last_write_time(dir.path / "out" / "shot.0004.ssdo.exr") + std::chrono::seconds(2));
+  r = run_ssdo(run);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("done 4, skipped 0, failed 0"), std::string::npos) << r.output;
+}
+
 // A locked-off shot with one camera file (--camera, no sidecars): the neighbours are read
 // with that camera as the frame is, so each frame is still filtered over them (they were
 // read without it and skipped as frames without a camera).
