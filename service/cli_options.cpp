@@ -67,6 +67,14 @@ void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args
 
 }  // namespace
 
+void refuse_empty_values(CLI::App& app) {
+  for (CLI::Option* opt : app.get_options())
+    if (opt->nonpositional() && opt->get_type_size_min() > 0)
+      opt->check(CLI::Validator(
+          [](std::string& value) { return value.empty() ? std::string("an empty value") : std::string(); }, ""));
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuse_empty_values(*sub);
+}
+
 void add_frame_options(CLI::App& app, FrameOptionArgs& args, int sets) {
   for (const FrameOption& o : frame_options())
     if ((sets & int(o.set)) != 0) add_frame_option(app, o, args);

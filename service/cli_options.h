@@ -38,6 +38,12 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
 // --quality auto. Printed once by the command (frame_options_over_config), not per frame.
 std::string quality_choice_note(const ComputeOptionArgs& args);
 
+// Every option of `app` and its subcommands that takes a value refuses an empty one: on the
+// command line "" is a script's unset variable (--chunk "$TASK" on a farm), never a choice,
+// and would otherwise select the default silently (every frame instead of a chunk). The
+// frame options name the default in their message (add_frame_options).
+void refuse_empty_values(CLI::App& app);
+
 // Limits of the worker processes (--jobs, --frame-timeout, --memory-limit, --max-pixels).
 void add_worker_limits(CLI::App& app, int& jobs, WorkerLimits& limits);
 

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/simd.h"
+#include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/version.h"
 
@@ -41,6 +42,7 @@ int main(int argc, char** argv) {
   const Command commands[] = {register_info(app),   register_process(app), register_serve(app),
                               register_client(app), register_worker(app),  register_eval(app),
                               register_bench(app),  register_options(app)};
+  refuse_empty_values(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -71,8 +71,8 @@ TEST(OptionsCli, OutOfRangeValuesAreUsageErrorsOnTheCommandLineAndInAConfig) {
   EXPECT_NE(r.output.find("\"guard-band\" must be an integer in [0, 4096]"), std::string::npos) << r.output;
 }
 
-// An empty text value on the command line (a script's unset variable) is refused, naming
-// the default it would have silently given; in a config "" is the default, as the options
+// An empty value on the command line (a script's unset variable) is refused, a frame
+// option's naming the default it would have silently given; in a config "" is the default, as the options
 // recorded in an output's header have it.
 TEST(OptionsCli, AnEmptyTextValueOnTheCommandLineIsRefused) {
   ScratchDir out;
@@ -83,6 +83,14 @@ TEST(OptionsCli, AnEmptyTextValueOnTheCommandLineIsRefused) {
     EXPECT_NE(r.output.find(std::string(option) + ": an empty value; leave the option out for the default"),
               std::string::npos)
         << r.output;
+    EXPECT_FALSE(fs::exists(out.path / "cornell.ssdo.exr")) << option;
+  }
+  // So is any other option's: a farm task's --chunk "$TASK" left empty would compute every
+  // frame of the range in every task.
+  for (const char* option : {"--chunk", "--shot-frames", "--frames", "--out"}) {
+    const RunResult r = run_ssdo(base + " " + option + " ''");
+    EXPECT_EQ(r.exit_code, 2) << option << "\n" << r.output;
+    EXPECT_NE(r.output.find(": an empty value"), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(out.path / "cornell.ssdo.exr")) << option;
   }
   std::ofstream(out / "cfg.json") << R"({"camera": "", "env": "", "part": ""})";
