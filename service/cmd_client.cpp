@@ -11,10 +11,12 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 
 #include <CLI/CLI.hpp>
 
+#include "formats/input_file.h"
 #include "formats/output_writer.h"
 #include "service/cli_options.h"
 #include "service/commands.h"
@@ -44,20 +46,22 @@ int connect_to(const std::string& path, std::string& error) {
   return fd;
 }
 
-// Sends `request` (+ the bytes of `payload_file`) and reads the response (+ its inline
+// The bytes of a file to send inline; empty with a message naming it when it is not a
+// regular file or cannot be read (nothing is sent then).
+std::string read_payload(const std::string& path, std::string& error) {
+  if (error = input_file_error(path, ""); !error.empty()) return {};
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes(std::istreambuf_iterator<char>(in), {});
+  if (!in.good() && !in.eof()) error = path + ": cannot read";
+  else if (bytes.empty()) error = path + ": an empty file";
+  return error.empty() ? bytes : std::string();
+}
+
+// Sends `request` (+ `payload`, its inline bytes) and reads the response (+ its inline
 // bytes into `inline_out`). False with a message on a transport failure.
-bool exchange(int fd, json request, const std::string& payload_file, json& response, std::string& inline_out,
+bool exchange(int fd, json request, const std::string& payload, json& response, std::string& inline_out,
               size_t max_inline_mb, Deadline deadline, std::string& error) {
-  std::string payload;
-  if (!payload_file.empty()) {
-    std::ifstream in(payload_file, std::ios::binary);
-    payload.assign(std::istreambuf_iterator<char>(in), {});
-    if (!in.good() && !in.eof()) {
-      error = payload_file + ": cannot read";
-      return false;
-    }
-    request["inline_size"] = payload.size();
-  }
+  if (!payload.empty()) request["inline_size"] = payload.size();
   IoStatus s = write_message(fd, to_wire(request), deadline);
   if (s == IoStatus::ok && !payload.empty()) s = write_all(fd, payload.data(), payload.size(), deadline);
   std::string header;
@@ -137,11 +141,39 @@ int run_client(const ClientArgs& args) {
     }
     requests.push_back(r);
   }
-  if (args.inline_data) fs::create_directories(args.out_dir);
+  if (args.inline_data) {
+    // Outputs are named after the files: two files of one name would write one output.
+    std::map<std::string, std::string> file_of_output;
+    for (const std::string& file : args.files)
+      if (const auto [it, fresh] = file_of_output.emplace(output_path_for(file, args.out_dir), file);
+          !fresh && it->second != file) {
+        std::cerr << "ssdo client: " << it->second << " and " << file << " would both be written to " << it->first
+                  << " (the same file name): send them with different -o folders\n";
+        ::close(fd);
+        return 2;
+      }
+    std::error_code ec;
+    fs::create_directories(args.out_dir, ec);
+    if (ec || !fs::is_directory(args.out_dir, ec)) {
+      std::cerr << "ssdo client: -o " << args.out_dir << ": cannot create the folder"
+                << (ec ? ": " + ec.message() : std::string(" (a file of that name is in the way)")) << "\n";
+      ::close(fd);
+      return 2;
+    }
+  }
   for (size_t i = 0; i < requests.size(); ++i) {
     json response;
-    std::string bytes;
-    if (fd < 0 || !exchange(fd, requests[i], payloads[i], response, bytes, args.max_inline_mb,
+    std::string bytes, payload;
+    if (!payloads[i].empty()) {
+      // A file that cannot be read is that file's failure, with its own line; nothing was
+      // sent, and the next file goes over the same connection.
+      if (payload = read_payload(payloads[i], error); !error.empty()) {
+        ++failed;
+        std::cout << to_wire(json{{"ok", false}, {"input", args.files[i]}, {"error", error}}) << "\n" << std::flush;
+        continue;
+      }
+    }
+    if (fd < 0 || !exchange(fd, requests[i], payload, response, bytes, args.max_inline_mb,
                             deadline_in(args.timeout_s), error)) {
       // The files not sent are named, each: a batch's log shows every frame's fate.
       std::cerr << "ssdo client: " << (i < args.files.size() ? args.files[i] + ": " : "") << error << "\n";
@@ -163,8 +195,9 @@ int run_client(const ClientArgs& args) {
     if (!response.value("ok", false)) ++failed;
     std::cout << to_wire(response) << "\n" << std::flush;
     // A refused request may leave the stream out of step (inline bytes the service did not
-    // read), and the service then closes it: the next file goes over a new connection.
-    if (!response.value("ok", false) && response.value("code", "") == "bad_request" && i + 1 < requests.size()) {
+    // read), and the service then closes it (bad_request, forbidden, ...): after any refusal
+    // the next file goes over a new connection.
+    if (!response.value("ok", false) && i + 1 < requests.size()) {
       ::close(fd);
       fd = connect_to(args.socket_path, error);
     }

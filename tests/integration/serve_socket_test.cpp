@@ -448,6 +448,32 @@ TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(exr_has_channel(dir / "inline/shot A \xc3\xbc.ssdo.exr", "ao")) << r.output;
   EXPECT_TRUE(exr_has_channel(dir / "inline/greeble.ssdo.exr", "ao")) << r.output;
+  // An inline file that cannot be read (a folder, a missing file) gets its own line and the
+  // next files are still sent; so are the files after a forbidden request (which closes
+  // the connection). No abort.
+  fs::remove(dir.path / "inline" / "greeble.ssdo.exr");
+  r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " " + dir / "frames" + " " + dir / "none.exr" +
+               " " + example_frame("greeble.exr"));
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("a folder, not a file"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("no such file"), std::string::npos) << r.output;
+  EXPECT_EQ(count_occurrences(r.output, "\"ok\":true"), 1) << r.output;
+  EXPECT_TRUE(exr_has_channel(dir / "inline/greeble.ssdo.exr", "ao")) << r.output;
+  r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " " + example_frame("cornell.exr") + " " +
+               example_frame("greeble.exr") + " --camera /etc/passwd");
+  EXPECT_EQ(count_occurrences(r.output, "forbidden"), 2) << r.output;
+  EXPECT_EQ(r.output.find("connection"), std::string::npos) << r.output;
+  // Two files of one name would write one output: refused before any is sent; an output
+  // folder that is a file: refused.
+  r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " " + example_frame("cornell.exr") + " " +
+               dir / "frames/cornell.exr");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("would both be written to " + dir / "inline/cornell.ssdo.exr"), std::string::npos)
+      << r.output;
+  std::ofstream(dir.path / "afile") << "x";
+  r = run_ssdo("client" + s + "process --inline -o " + dir / "afile" + " " + example_frame("cornell.exr"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("cannot create the folder"), std::string::npos) << r.output;
 }
 
 }  // namespace
