@@ -140,7 +140,13 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
 
 std::string check_env_map(const std::string& path, long long max_pixels) {
   if (std::string e = input_file_error(path, "environment map"); !e.empty()) return e;
-  if (!is_exr(path)) return read_env_map(path, max_pixels).error;
+  // Other formats: their header only (a service checks a client's map without decoding it:
+  // a small PNG can declare 8000 x 8000 pixels).
+  if (!is_exr(path)) {
+    cv::Mat unused;
+    const std::string e = oiio_module::read_image(path, 0, max_pixels, unused);
+    return e.empty() ? e : "environment map " + e;
+  }
   try {
     if (std::string e = read_exr(path, max_pixels, nullptr); !e.empty()) return "environment map " + e;
   } catch (const std::exception& e) {

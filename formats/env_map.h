@@ -30,8 +30,9 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels = kDefau
 
 // What read_env_map would refuse that is known without decoding the pixels: for EXR the
 // header (formats/exr_header_check.h), the size limit and the channels; any other format
-// is read whole (read_env_map). Empty on success, else the error read_env_map gives. For
-// a process that checks options before a worker reads the map.
+// its header's size through OpenImageIO, nothing decoded. Empty on success, else the
+// error. For a process that checks options before a worker reads the map (a service's
+// client names it: its pixels are decoded by the worker only).
 std::string check_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);
 
 }  // namespace ssdo

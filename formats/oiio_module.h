@@ -22,7 +22,8 @@ bool loaded();
 std::string load();
 
 // The first min(channels, max_channels) channels of any image OpenImageIO reads, as float.
-// "" on success, else the error (naming the file).
+// "" on success, else the error (naming the file). max_channels 0: only what the header
+// says is checked (a size over max_pixels, an empty image); nothing is decoded.
 std::string read_image(const std::string& path, int max_channels, long long max_pixels,
                        cv::Mat& pixels);
 

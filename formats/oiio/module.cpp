@@ -29,6 +29,7 @@ std::string read_image(const std::string& path, int max_channels, long long max_
     return path + ": image size " + std::to_string(spec.width) + " x " +
            std::to_string(spec.height) + " is empty or larger than the limit of " +
            std::to_string(max_pixels) + " pixels";
+  if (max_channels <= 0) return {};  // the header's checks only
   const int channels = std::min(spec.nchannels, max_channels);
   pixels.create(spec.height, spec.width, CV_32FC(channels));
   if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data))

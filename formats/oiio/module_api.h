@@ -12,14 +12,15 @@
 
 namespace ssdo::oiio_module {
 
-inline constexpr int kVersion = 3;
+inline constexpr int kVersion = 4;
 
 struct Api {
   int version = kVersion;
   // OpenImageIO's pool size and the OpenEXR pool size it sets when it opens an EXR.
   void (*set_threads)(int threads) = nullptr;
   // The first min(channels, max_channels) channels of subimage 0 as float; "" or the error.
-  // Sizes over max_pixels are refused before allocating.
+  // Sizes over max_pixels are refused before allocating. max_channels 0: the header's
+  // checks only (nothing decoded, `pixels` untouched).
   std::string (*read_image)(const std::string& path, int max_channels, long long max_pixels,
                             cv::Mat& pixels) = nullptr;
   std::string (*write_chart_png)(const std::string& path, const std::vector<ChartSeries>& series,

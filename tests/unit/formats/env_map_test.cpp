@@ -103,6 +103,17 @@ TEST(EnvMap, OtherFormatsGoThroughTheModuleWithTheSamePixels) {
   ASSERT_TRUE(env.ok()) << env.error;
   EXPECT_TRUE(oiio_module::loaded());
   EXPECT_EQ(cv::norm(env.radiance_rgb, pixels, cv::NORM_INF), 0.0);
+
+  // The check of another format reads its header only: a map whose pixels are cut off
+  // passes it (the reader fails on it), one whose header declares too many pixels does not.
+  const auto bytes = std::filesystem::file_size(dir / "env.hdr");
+  std::filesystem::copy_file(dir / "env.hdr", dir / "cut.hdr");
+  std::filesystem::resize_file(dir / "cut.hdr", bytes - 20);
+  EXPECT_EQ(check_env_map((dir / "cut.hdr").string()), "");
+  EXPECT_FALSE(read_env_map((dir / "cut.hdr").string()).ok());
+  const std::string over = check_env_map((dir / "env.hdr").string(), w * h - 1);
+  EXPECT_NE(over.find("environment map " + (dir / "env.hdr").string() + ": image size 6 x 3"), std::string::npos)
+      << over;
 }
 
 TEST(EnvMap, ErrorsNameTheFile) {
