@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
@@ -63,6 +64,20 @@ bool record_frame_failure(const std::string& output, const std::string& error_pa
                           const WorkerResult& result, const std::string& version) {
   std::error_code ec;
   fs::remove(output, ec);
+  // Its previews too (OUT/NAME.ssdo.<term>.png, formats/output_writer.h; term names are
+  // lower-case words joined by '_'): a failed frame leaves no picture of an earlier run
+  // beside its error file.
+  const fs::path out(output);
+  const std::string previews = out.stem().string() + ".";
+  const fs::path folder = out.parent_path().empty() ? fs::path(".") : out.parent_path();
+  for (const fs::directory_entry& e : fs::directory_iterator(folder, ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() <= previews.size() + 4 || !name.starts_with(previews) || !name.ends_with(".png")) continue;
+    const std::string term = name.substr(previews.size(), name.size() - previews.size() - 4);
+    if (std::all_of(term.begin(), term.end(), [](char c) { return (c >= 'a' && c <= 'z') || c == '_'; }) &&
+        e.is_regular_file(ec))
+      fs::remove(e.path(), ec);
+  }
   return write_error_file(error_path, input, result.error, result.transient, version);
 }
 
@@ -155,6 +170,16 @@ bool FrameService::claim_output(const std::string& output, const std::string& in
   const auto [it, added] = output_owner_.emplace(output, input);
   owner = it->second;
   return added || it->second == input;
+}
+
+bool FrameService::begin_output(const std::string& output) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return outputs_in_flight_.insert(output).second;
+}
+
+void FrameService::end_output(const std::string& output) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  outputs_in_flight_.erase(output);
 }
 
 void FrameService::log(const std::string& line) {
@@ -254,8 +279,9 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   const std::string before_key = task.error_path.empty() ? std::string() : frame_version_key(task.input);
   WorkerResult r =
       run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine}, &task);
+  // The spool's paths mean nothing to the client (and are gone once it is answered).
+  const std::string input_name = task.inline_name.empty() ? task.input : "inline frame " + task.inline_name;
   if (!task.inline_name.empty()) {
-    // The spool's paths mean nothing to the client (and are gone once it is answered).
     r.error = replace_all(r.error, sidecar_path_for(task.input), "the request's \"sidecar\"");
     r.error = replace_all(r.error, task.input, "inline frame " + task.inline_name);
   }
@@ -263,10 +289,10 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   if (!task.error_path.empty()) {
     std::error_code ec;
     if (r.ok()) fs::remove(task.error_path, ec);
-    else record_frame_failure(task.output, task.error_path, task.input, r, before_key);
+    else record_frame_failure(task.output, task.error_path, input_name, r, before_key);
   }
-  log(r.ok() ? "ok " + task.input + " -> " + task.output + " (" + timing(r) + ")"
-             : "FAILED " + task.input + ": " + r.error);
+  log(r.ok() ? "ok " + input_name + " -> " + task.output + " (" + timing(r) + ")"
+             : "FAILED " + input_name + ": " + r.error);
   if (task.done) task.done(r);
 }
 

@@ -94,6 +94,11 @@ class FrameService {
   // when another input already claimed it in this run: two inputs of one name in different
   // folders (a/x.exr, b/x.exr -> OUT/x.ssdo.exr) must not replace each other's result.
   bool claim_output(const std::string& output, const std::string& input, std::string& owner);
+  // Marks `output` as being computed for a socket request until end_output. False when
+  // another request's frame is computing it now (two uploads of one name at once would
+  // each be told "ok" while one replaces the other's result).
+  bool begin_output(const std::string& output);
+  void end_output(const std::string& output);
 
  private:
   void dispatch_loop();
@@ -122,6 +127,7 @@ class FrameService {
   std::set<std::string> watched_in_flight_;
   std::set<std::string> watched_again_;  // reported again while in flight
   std::map<std::string, std::string> output_owner_;  // output -> the input it is written for
+  std::set<std::string> outputs_in_flight_;           // begin_output .. end_output
   bool stopping_ = false, started_ = false;
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;

@@ -13,6 +13,7 @@
 #include <memory>
 #include <system_error>
 
+#include "formats/output_writer.h"
 #include "service/frame_list.h"
 #include "service/frame_options.h"
 #include "service/path_policy.h"
@@ -541,6 +542,18 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     // files or frames' sidecars: an output is an EXR.
     if (const std::string name = fs::path(output).filename().string(); name[0] == '.' || !has_exr_extension(name))
       return refuse("bad_request", request.output + ": an output is an .exr file name, and not a hidden one");
+    // Never over a frame: the input, one of its views, or any file that is not an output of
+    // ssdo (a watched frame in the output folder, another program's file); a failure would
+    // remove it too.
+    if (std::error_code ec; fs::exists(output, ec)) {
+      for (const std::string& frame : views)
+        if (fs::equivalent(output, frame, ec))
+          return refuse("bad_request", request.output + ": is one of the frame's views; an output never replaces a frame");
+      if (fs::equivalent(output, input, ec))
+        return refuse("bad_request", request.output + ": is the input frame; an output never replaces a frame");
+      if (!read_string_attribute(output, kVersionAttribute))
+        return refuse("conflict", request.output + ": exists and is not an output of ssdo; it is not replaced");
+    }
     error_path = (fs::path(output).parent_path() / (fs::path(output).stem().string() + ".error.json")).string();
   } else {
     output = output_path_for(input, options_.out_dir);
@@ -549,6 +562,9 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   // Refused rather than renamed: a client finds its result where it expects it, or is told.
   if (std::string owner; !request.reply_inline && !frames_.claim_output(output, inline_input ? "inline upload " + request.name : input, owner))
     return refuse("conflict", output + " is already the output of " + owner + "; give this frame another \"output\"");
+  if (!request.reply_inline && !frames_.begin_output(output))
+    return refuse("conflict", output + " is being computed for another request now; try again when it is done, or give "
+                              "this frame another " + std::string(inline_input ? "\"name\"" : "\"output\""));
 
   // Queue it and wait for the result (a dispatcher always calls back: with the frame's
   // result, or "stopping" for a queued frame when the service stops).
@@ -573,7 +589,10 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   task.confine.output_root = request.reply_inline ? spool.string() : options_.out_dir;
   auto abandoned = std::make_shared<std::atomic<bool>>(false);
   task.abandoned = abandoned;
-  task.done = [outcome](const WorkerResult& r) {
+  // The output stays in flight until its frame is done, also for a client that left.
+  const bool in_flight = !request.reply_inline;
+  task.done = [outcome, in_flight, output, this](const WorkerResult& r) {
+    if (in_flight) frames_.end_output(output);
     std::lock_guard<std::mutex> lock(outcome->mutex);
     outcome->result = r;
     outcome->done = true;
@@ -581,6 +600,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   };
   const auto t0 = Clock::now();
   if (!frames_.submit(std::move(task))) {
+    if (in_flight) frames_.end_output(output);
+    if (is_stopping()) return refuse("busy", "the service is stopping");
     const ServiceStats s = frames_.stats();
     return refuse("busy", "the queue is full (" + std::to_string(s.queue_capacity) + " frames); try again later");
   }

@@ -302,6 +302,72 @@ TEST(ServeSocket, AnInlineFramesErrorsNameTheFrameNotTheSpool) {
   EXPECT_EQ(error.rfind("inline frame shot7: no camera: give a JSON sidecar (the request's \"sidecar\"", 0), 0u) << error;
   const json file = json::parse(read_text(dir.path / "out" / "shot7.error.json"), nullptr, false);
   EXPECT_EQ(file.value("error", ""), error);
+  EXPECT_EQ(file.value("input", ""), "inline frame shot7");
+  EXPECT_TRUE(wait_until([&] { return service.log().find("FAILED inline frame shot7: ") != std::string::npos; }, 10))
+      << service.log();
+  EXPECT_EQ(service.log().find(".ssdo-spool"), std::string::npos) << service.log();
+}
+
+// An explicit "output" never replaces a frame (the input, a file that is not ssdo's): a
+// success would overwrite it and a failure remove it. One the service wrote is replaced.
+// A failed frame leaves none of its earlier previews either.
+TEST(ServeSocket, AnOutputNeverReplacesAFrameOrAnotherProgramsFile) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "out");
+  SocketService service(dir, "noreplace", {"--allow", dir / "out"});
+  ASSERT_TRUE(service.ready) << service.log();
+  fs::copy_file(dir.path / "frames" / "cornell.exr", dir.path / "out" / "frame.exr");
+  fs::copy_file(dir.path / "frames" / "cornell.camera.json", dir.path / "out" / "frame.camera.json");
+  fs::copy_file(dir.path / "frames" / "greeble.exr", dir.path / "out" / "theirs.exr");
+  const std::string frame_bytes = read_text(dir.path / "out" / "frame.exr");
+  json r = process_path(service.socket, dir / "out/frame.exr", {{"output", dir / "out/frame.exr"}});
+  EXPECT_EQ(r.value("code", ""), "bad_request") << r.dump();
+  EXPECT_NE(r.value("error", "").find("is the input frame"), std::string::npos) << r.dump();
+  r = process_path(service.socket, dir / "frames/cornell.exr", {{"output", dir / "out/theirs.exr"}});
+  EXPECT_EQ(r.value("code", ""), "conflict") << r.dump();
+  EXPECT_NE(r.value("error", "").find("is not an output of ssdo"), std::string::npos) << r.dump();
+  EXPECT_EQ(read_text(dir.path / "out" / "frame.exr"), frame_bytes);
+  EXPECT_EQ(read_text(dir.path / "out" / "theirs.exr"), read_text(dir.path / "frames" / "greeble.exr"));
+  for (int run = 0; run < 2; ++run) {  // written, then replaced: the service's own output
+    r = process_path(service.socket, dir / "frames/cornell.exr", {{"output", dir / "out/mine.exr"}});
+    EXPECT_EQ(r.value("ok", false), true) << r.dump();
+  }
+  // Previews of a frame that then fails are removed with its output.
+  r = process_path(service.socket, dir / "frames/greeble.exr", {{"options", {{"png", true}}}});
+  ASSERT_EQ(r.value("ok", false), true) << r.dump();
+  ASSERT_TRUE(fs::exists(dir.path / "out" / "greeble.ssdo.ao.png"));
+  std::ofstream(dir.path / "out" / "greeble.ssdo.notes.txt.png") << "not a preview";
+  r = process_path(service.socket, dir / "frames/greeble.exr", {{"options", {{"part", "nope"}}}});
+  EXPECT_EQ(r.value("code", ""), "frame_failed") << r.dump();
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "greeble.ssdo.exr"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "greeble.ssdo.ao.png"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "greeble.ssdo.confidence.png"));
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "greeble.ssdo.notes.txt.png"));
+}
+
+// Two uploads of one name at once: the second is told of the conflict instead of both
+// being told "ok" while one replaces the other's result.
+TEST(ServeSocket, TwoUploadsOfOneNameAtOnceConflict) {
+  ScratchDir dir;
+  SocketService service(dir, "samename", {"--jobs", "2", "--frame-timeout", "600"});
+  ASSERT_TRUE(service.ready) << service.log();
+  const std::string bytes = read_text(dir.path / "frames" / "cornell.exr");
+  const json sidecar = json::parse(read_text(dir.path / "frames" / "cornell.camera.json"));
+  Client first(service.socket);
+  json slow{{"op", "process"}, {"name", "same"}, {"sidecar", sidecar}, {"options", kSecondFrame.options()}};
+  slow["inline_size"] = bytes.size();
+  ASSERT_EQ(write_message(first.fd(), slow.dump(), deadline_in(5)), IoStatus::ok);
+  ASSERT_EQ(write_all(first.fd(), bytes.data(), bytes.size(), deadline_in(5)), IoStatus::ok);
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30)) << service.log();
+  Client second(service.socket);
+  const json r = second.request({{"op", "process"}, {"name", "same"}, {"sidecar", sidecar}}, bytes);
+  EXPECT_EQ(r.value("code", ""), "conflict") << r.dump();
+  EXPECT_NE(r.value("error", "").find("is being computed for another request now"), std::string::npos) << r.dump();
+  EXPECT_EQ(first.read_response().value("ok", false), true);
+  // Once it is done, the name is free again.
+  Client third(service.socket);
+  const json again = third.request({{"op", "process"}, {"name", "same"}, {"sidecar", sidecar}}, bytes);
+  EXPECT_EQ(again.value("ok", false), true) << again.dump();
 }
 
 TEST(ServeSocket, FullQueueAnswersBusy) {
