@@ -50,18 +50,25 @@ std::optional<FrameOptionArgs> parsed_options(const nlohmann::json& options) {
   return args;
 }
 
+// The options attribute (options_attribute) of a task's options; empty when they do not parse.
+std::string options_key(const nlohmann::json& options) {
+  const std::optional<FrameOptionArgs> args = parsed_options(options);
+  return args ? options_attribute(*args) : std::string();
+}
+
 }  // namespace
 
 
 bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry,
-                      const std::string& version) {
+                      const std::string& version, const std::string& options) {
   nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}, {"retry", retry}};
   if (!version.empty()) j["version"] = version;
+  if (!options.empty()) j["options"] = options;
   return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n").empty();
 }
 
 bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result, const std::string& version) {
+                          const WorkerResult& result, const std::string& version, const std::string& options) {
   std::error_code ec;
   fs::remove(output, ec);
   // Its previews too (OUT/NAME.ssdo.<term>.png, formats/output_writer.h; term names are
@@ -78,7 +85,7 @@ bool record_frame_failure(const std::string& output, const std::string& error_pa
         e.is_regular_file(ec))
       fs::remove(e.path(), ec);
   }
-  return write_error_file(error_path, input, result.error, result.transient, version);
+  return write_error_file(error_path, input, result.error, result.transient, version, options);
 }
 
 FrameService::FrameService(FrameServiceOptions options)
@@ -289,7 +296,7 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   if (!task.error_path.empty()) {
     std::error_code ec;
     if (r.ok()) fs::remove(task.error_path, ec);
-    else record_frame_failure(task.output, task.error_path, input_name, r, before_key);
+    else record_frame_failure(task.output, task.error_path, input_name, r, before_key, options_key(task.options));
   }
   log(r.ok() ? "ok " + input_name + " -> " + task.output + " (" + timing(r) + ")"
              : "FAILED " + input_name + ": " + r.error);
@@ -352,7 +359,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     fs::remove(error_path, ec);
     log("ok " + input + " -> " + output + " (" + timing(r) + ")");
   } else {
-    record_frame_failure(output, error_path, input, r, before_key);
+    record_frame_failure(output, error_path, input, r, before_key, watch_made_with_);
     log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
   }
   return false;
@@ -367,6 +374,8 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
   // The frame or its sidecar is not the version that failed (whatever the timestamps say).
   if (j.is_object() && j.contains("version") && j["version"] != frame_version_key(input)) return false;
+  // A socket request's other options failed it, not the watch's.
+  if (j.is_object() && j.contains("options") && j["options"] != watch_made_with_) return false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (given_up_.count(input)) return true;

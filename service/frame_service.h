@@ -138,15 +138,19 @@ class FrameService {
   std::mutex log_mutex_;
 };
 
-// Writes NAME.error.json ({"input", "error", "time", "retry", "version"}) through a temp file
-// and rename; "retry" is true for a transient failure (a restart tries the frame again);
-// "version" (left out when empty) is frame_version_key of the input the failure read.
+// Writes NAME.error.json ({"input", "error", "time", "retry", "version", "options"}) through
+// a temp file and rename; "retry" is true for a transient failure (a restart tries the frame
+// again); "version" (left out when empty) is frame_version_key of the input the failure
+// read; "options" (left out when empty) the options attribute it was computed with
+// (request_options.h: options_attribute), so that a watch folder's frame failed by a
+// request's other options is computed again with the watch's.
 bool write_error_file(const std::string& path, const std::string& input, const std::string& error,
-                      bool retry = false, const std::string& version = {});
+                      bool retry = false, const std::string& version = {}, const std::string& options = {});
 
 // Records a failed frame: removes its output (an older version's result, which would
-// otherwise sit beside the newer error) and writes its error file with the input's version.
+// otherwise sit beside the newer error) and its previews, and writes its error file with the
+// input's version and the options.
 bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result, const std::string& version);
+                          const WorkerResult& result, const std::string& version, const std::string& options);
 
 }  // namespace ssdo

@@ -306,6 +306,32 @@ TEST(ServeWatch, ARestartWithOtherOptionsComputesTheFramesAgain) {
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
+// A socket request with options no frame of the watch folder is computed with fails a
+// watched frame (its output removed, an error file written): the watch's next start
+// computes the frame again with its own options instead of taking that error as final.
+TEST(ServeWatch, AFrameFailedByARequestsOtherOptionsIsComputedAgainByTheWatch) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "a");
+  const fs::path input = dir.path / "in" / "a.exr", output = dir.path / "out" / "a.ssdo.exr";
+  const std::string socket = socket_path_for("reqfail");
+  const std::vector<std::string> allow = {"--allow", dir / "in"};
+  {
+    SsdoProcess service(serve_args(dir, socket, allow), dir.path / "serve1.log");
+    ASSERT_TRUE(wait_until([&] { return path_exists(output); }, 60)) << service.log();
+    Client c(socket);
+    const json r = c.request({{"op", "process"}, {"input", input.string()}, {"options", {{"part", "nope"}}}});
+    EXPECT_EQ(r.value("code", ""), "frame_failed") << r.dump();
+    EXPECT_FALSE(path_exists(output));
+    EXPECT_TRUE(path_exists(dir.path / "out" / "a.error.json"));
+    EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+  }
+  SsdoProcess service(serve_args(dir, socket, allow), dir.path / "serve2.log");
+  EXPECT_TRUE(wait_until([&] { return path_exists(output); }, 60)) << service.log();
+  EXPECT_TRUE(wait_until([&] { return !path_exists(dir.path / "out" / "a.error.json"); }, 10)) << service.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
 // A frame rewritten while it is computed: the output of the old version is dated back
 // behind the new one, so a service killed before the new version's turn computes the frame
 // again when restarted instead of keeping the old version's output as up to date.
