@@ -23,14 +23,33 @@ constexpr size_t kMaxFrameDigits = 9;
 std::optional<SequencePlace> sequence_place(const std::string& path) {
   const fs::path p(path);
   const std::string stem = p.stem().string();
-  size_t end = stem.size();
-  while (end > 0 && !std::isdigit(static_cast<unsigned char>(stem[end - 1]))) --end;
-  size_t begin = end;
-  while (begin > 0 && std::isdigit(static_cast<unsigned char>(stem[begin - 1]))) --begin;
+  auto digit = [&](size_t i) { return std::isdigit(static_cast<unsigned char>(stem[i])) != 0; };
+  auto word = [&](size_t i) { return std::isalnum(static_cast<unsigned char>(stem[i])) != 0; };
+  // The frame number: the last run of digits that stands alone between separators
+  // ("shot.0001.v2": 0001, not the 2 of a version tag "v2"; "take2_0001": 0001), else the
+  // last run of digits ("orbit_f3", "frame0001").
+  size_t begin = 0, end = 0, last_begin = 0, last_end = 0;
+  for (size_t i = 0; i < stem.size();) {
+    if (!digit(i)) {
+      ++i;
+      continue;
+    }
+    size_t j = i;
+    while (j < stem.size() && digit(j)) ++j;
+    last_begin = i, last_end = j;
+    if ((i == 0 || !word(i - 1)) && (j == stem.size() || !word(j))) begin = i, end = j;
+    i = j;
+  }
+  if (end == 0) begin = last_begin, end = last_end;
   if (begin == end || end - begin > kMaxFrameDigits) return std::nullopt;
-  // A minus sign before the digits is a separator ("shot-0001"), not a negative frame.
   SequencePlace place;
   place.number = std::strtol(stem.substr(begin, end - begin).c_str(), nullptr, 10);
+  // A minus sign right after a separator is the number's ("shot.-003", as a pattern writes
+  // frame -3); after a word it is a separator ("shot-0001").
+  if (begin > 0 && stem[begin - 1] == '-' && (begin == 1 || !word(begin - 2))) {
+    --begin;
+    place.number = -place.number;
+  }
   place.sequence = (p.parent_path() / (stem.substr(0, begin) + "#" + stem.substr(end) + p.extension().string()))
                        .lexically_normal()
                        .string();

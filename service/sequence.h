@@ -2,10 +2,12 @@
 // neighbours each frame may use as extra views (service/view_selection.h chooses among
 // them, service/sequence_context.h reads them).
 //
-// Files of one folder whose names differ only in the last run of digits before the
-// extension are frames of one sequence, ordered by that number: shot.0001.exr,
-// shot.0002.exr; orbit_f0.exr, orbit_f1.exr; a pattern's expansion (shot.####.exr with
-// --frames) is the same. A name without digits is a frame alone.
+// Files of one folder whose names differ only in their frame number are frames of one
+// sequence, ordered by that number: shot.0001.exr, shot.0002.exr; orbit_f0.exr,
+// orbit_f1.exr; shot.0001.v2.exr, shot.0002.v2.exr; a pattern's expansion (shot.####.exr
+// with --frames) is the same. The frame number is the last run of digits between
+// separators (not the "2" of "v2"), else the last run of digits; a '-' right after a
+// separator makes it negative ("shot.-003"). A name without digits is a frame alone.
 #pragma once
 
 #include <optional>

@@ -1,5 +1,7 @@
 // A neighbour's own neighbour list derived from a frame's (service/sequence.h): what lets a
 // worker compute a temporal neighbour's raw terms exactly as the neighbour's own job does.
+#include <tuple>
+
 #include <gtest/gtest.h>
 
 #include "service/sequence.h"
@@ -36,6 +38,30 @@ TEST(SequenceWindow, ANeighboursDerivedListIsItsOwn) {
       }
     }
   }
+}
+
+// The frame number of a name: the run of digits standing alone between separators, not a
+// version tag's; negative after a separator; the last run of digits otherwise.
+TEST(SequenceWindow, AFramesNumberIsTheOneBetweenSeparators) {
+  const std::vector<std::tuple<std::string, std::string, long>> cases = {
+      {"in/shot.0012.exr", "in/shot.#.exr", 12},      {"in/shot.0012.v2.exr", "in/shot.#.v2.exr", 12},
+      {"in/take2_0012.exr", "in/take2_#.exr", 12},    {"in/orbit_f3.exr", "in/orbit_f#.exr", 3},
+      {"in/frame0012.exr", "in/frame#.exr", 12},      {"in/shot.-003.exr", "in/shot.#.exr", -3},
+      {"in/shot-0003.exr", "in/shot-#.exr", 3},       {"in/render_2k.0004.exr", "in/render_2k.#.exr", 4},
+  };
+  for (const auto& [path, sequence, number] : cases) {
+    const auto place = sequence_place(path);
+    ASSERT_TRUE(place) << path;
+    EXPECT_EQ(place->sequence, sequence) << path;
+    EXPECT_EQ(place->number, number) << path;
+  }
+  EXPECT_FALSE(sequence_place("in/beauty.exr"));
+  // Frames -1 and 0 of one shot are neighbours, in frame order.
+  const auto lists = sequence_neighbours({"s/shot.-002.exr", "s/shot.-001.exr", "s/shot.0000.exr", "s/shot.0001.exr"}, 1);
+  EXPECT_EQ(names_and_offsets(lists[1]),
+            (std::vector<std::pair<std::string, int>>{{"s/shot.-002.exr", -1}, {"s/shot.0000.exr", 1}}));
+  EXPECT_EQ(names_and_offsets(lists[2]),
+            (std::vector<std::pair<std::string, int>>{{"s/shot.-001.exr", -1}, {"s/shot.0001.exr", 1}}));
 }
 
 // A request's "views" as a client may send them: the whole shot with the frame itself,
