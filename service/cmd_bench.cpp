@@ -25,6 +25,7 @@
 #include "service/comparison.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
+#include "service/frame_list.h"
 #include "service/sequence.h"
 #include "service/sequence_context.h"
 
@@ -202,7 +203,8 @@ Row bench_sequence(const std::vector<Loaded>& frames, const BenchArgs& args, con
       FrameRequest r = request;
       r.input_path = paths[i];
       r.neighbours = lists[i];
-      for (NeighbourFrame& n : r.neighbours) n.computed_later = n.frame_offset > 0;
+      for (NeighbourFrame& n : r.neighbours)  // later in the files, whatever its number
+        n.computed_later = size_t(std::find(paths.begin(), paths.end(), n.path) - paths.begin()) > i;
       give_neighbours_camera(r.neighbours, r.read.camera_json);
       ReadResult f = sequence.read(r, read);
       std::string error;
@@ -443,6 +445,7 @@ Command register_bench(CLI::App& app) {
             }
             bench.sweep = !st->no_sweep;
             bench.request.threads = frame_threads(bench.request.threads);
+            bench.files = each_file_once(bench.files);  // a file listed twice counts once
             return run_bench(bench);
           }};
 }

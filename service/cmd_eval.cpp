@@ -16,6 +16,7 @@
 #include "service/comparison.h"
 #include "service/parallelism.h"
 #include "service/frame_inputs.h"
+#include "service/frame_list.h"
 #include "service/sequence.h"
 #include "service/sequence_context.h"
 #include "service/view_selection.h"
@@ -161,6 +162,9 @@ int run_eval(const EvalArgs& args) {
               << " is lit by uniform radiance 1, the reference pass '" << args.reference
               << "' by whatever lit the render; give the render's environment to compare them\n";
   SequenceContext sequence;
+  // A neighbour is computed later when it comes later in the files, whatever its number.
+  std::map<std::string, size_t> position;
+  for (size_t i = 0; i < args.files.size(); ++i) position.emplace(args.files[i], i);
   for (size_t index = 0; index < args.files.size(); ++index) {
     const std::string& file = args.files[index];
     ReadOptions read = args.request.read;
@@ -168,7 +172,7 @@ int run_eval(const EvalArgs& args) {
     FrameRequest sequence_request = args.request;
     sequence_request.input_path = file;
     sequence_request.neighbours = neighbours[index];
-    for (NeighbourFrame& n : sequence_request.neighbours) n.computed_later = n.frame_offset > 0;
+    for (NeighbourFrame& n : sequence_request.neighbours) n.computed_later = position.at(n.path) > index;
     give_neighbours_camera(sequence_request.neighbours, sequence_request.read.camera_json);
     ReadResult frame = sequence.read(sequence_request, read);
     if (!frame.ok()) {
@@ -324,6 +328,7 @@ Command register_eval(CLI::App& app) {
             if (eval.reference.empty())
               eval.reference = eval.term == "ao" ? "AO" : eval.term == "ssdo_direct" ? "DiffDir" : "DiffInd";
             eval.preset = compute.preset;
+            eval.files = each_file_once(eval.files);  // a file listed twice counts once
             return run_eval(eval);
           }};
 }

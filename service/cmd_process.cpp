@@ -15,7 +15,6 @@
 #include <iostream>
 #include <map>
 #include <memory>
-#include <set>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -88,16 +87,8 @@ bool collect_frames(const ProcessArgs& args, std::vector<std::string>& frames, s
   // A frame listed twice (overlapping ranges, a file named twice) is computed once; two
   // frames that would write one output (the same file name in two folders) are refused
   // before anything is computed: one would silently replace the other.
-  // One file however it is spelled ("x.exr", "$PWD/x.exr", "a/../x.exr"; links stay
-  // distinct files: their outputs are named after them).
-  auto spelling = [](const std::string& f) {
-    std::error_code ec;
-    const std::filesystem::path absolute = std::filesystem::absolute(f, ec);
-    return ec ? f : absolute.lexically_normal().string();
-  };
-  std::set<std::string> listed, in_sequence;
-  std::erase_if(frames, [&](const std::string& f) { return !listed.insert(spelling(f)).second; });
-  std::erase_if(sequence, [&](const std::string& f) { return !in_sequence.insert(spelling(f)).second; });
+  frames = each_file_once(frames);
+  sequence = each_file_once(sequence);
   std::map<std::string, std::string> writer_of;
   for (const std::string& f : frames) {
     const auto [it, fresh] = writer_of.emplace(output_path_for(f, args.output_dir), f);

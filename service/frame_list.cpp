@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <chrono>
 #include <filesystem>
+#include <set>
 #include <thread>
 #include <vector>
 
@@ -219,6 +220,17 @@ int remove_stale_temp_files(const std::string& dir, double wait_s) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return removed;
+}
+
+std::vector<std::string> each_file_once(const std::vector<std::string>& files) {
+  std::set<std::string> seen;
+  std::vector<std::string> once;
+  for (const std::string& f : files) {
+    std::error_code ec;
+    const fs::path absolute = fs::absolute(f, ec);
+    if (seen.insert(ec ? f : absolute.lexically_normal().string()).second) once.push_back(f);
+  }
+  return once;
 }
 
 }  // namespace ssdo

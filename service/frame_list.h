@@ -29,6 +29,11 @@ std::string frame_for_sidecar(const std::string& path);
 // OUT_DIR/STEM.ssdo.exr for INPUT = .../STEM.exr.
 std::string output_path_for(const std::string& input, const std::string& output_dir);
 
+// `files` with each file once, in the order first given: one file however it is spelled
+// ("x.exr", "$PWD/x.exr", "a/../x.exr"); links stay distinct files (their outputs are
+// named after them).
+std::vector<std::string> each_file_once(const std::vector<std::string>& files);
+
 // OUT_DIR/STEM.error.json: where the service records why a frame failed.
 std::string error_path_for(const std::string& input, const std::string& output_dir);
 

@@ -545,6 +545,18 @@ TEST(Cli, TheCompositesAmbientTermsFollowTheEnvironment) {
   EXPECT_NEAR(foreground[1], 4.0f * foreground[0], 0.002f * foreground[1]);
 }
 
+// A file named twice (however spelled) is evaluated once: the overall error is the file's.
+TEST(Cli, EvalCountsAFileNamedTwiceOnce) {
+  const std::string frame = example("cornell.exr");
+  const std::string again = (fs::path(frame).parent_path() / ".." / "frames" / "cornell.exr").string();
+  const RunResult r = run_ssdo("eval " + frame + " " + again + " --preset low --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  EXPECT_EQ(j["files"].size(), 1u) << r.output;
+  EXPECT_EQ(j["overall"]["pixels"], j["files"][0]["pixels"]) << r.output;
+}
+
 // A black reference pass (mean 0) has no relative error: "n/a" and null, never 0%.
 TEST(Cli, EvalOfABlackReferenceHasNoRelativeError) {
   ScratchDir dir;
