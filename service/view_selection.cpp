@@ -54,14 +54,16 @@ std::vector<float> side_steps(const glm::mat4& frame, const std::vector<ViewCand
   return steps;
 }
 
-// Drops the candidates at and beyond the first step that is a cut.
-void cut_side(std::vector<size_t>& side, const std::vector<float>& steps, float cut_step,
+// Drops the candidates at and beyond the first step that is a cut (a step over `cut_step`;
+// `median_step`: the shot's, in the note).
+void cut_side(std::vector<size_t>& side, const std::vector<float>& steps, float cut_step, float median_step,
               const std::vector<ViewCandidate>& c, ViewChoice& choice) {
   for (size_t k = 0; k < side.size(); ++k) {
     if (steps[k] <= cut_step) continue;
     choice.notes.push_back(c[side[k]].name + ": skipped as a view with the frames beyond it (a cut: the camera " +
-                           "jumps " + std::to_string(steps[k]) + " rad, the shot's median step is less than " +
-                           std::to_string(cut_step) + " rad)");
+                           "jumps " + std::to_string(steps[k]) + " rad, over the cut threshold of " +
+                           std::to_string(cut_step) + " rad; the shot's median step is " +
+                           std::to_string(median_step) + " rad)");
     side.resize(k);
     return;
   }
@@ -107,9 +109,10 @@ ViewChoice select_views(const glm::mat4& frame, int width_px, int height_px, flo
   }
   // A cut is a step far beyond the shot's typical one; for a static camera (median 0) any
   // step that is more than a view's worth of motion.
-  const float cut_step = std::max(s.cut_step_factor * median(all_steps), s.min_parallax);
+  const float median_step = median(all_steps);
+  const float cut_step = std::max(s.cut_step_factor * median_step, s.min_parallax);
   for (int k = 0; k < 2; ++k) {
-    cut_side(sides[k], steps[k], cut_step, candidates, choice);
+    cut_side(sides[k], steps[k], cut_step, median_step, candidates, choice);
     choose_side(frame, candidates, sides[k], depth, s, choice);
   }
   return choice;

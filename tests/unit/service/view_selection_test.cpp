@@ -109,6 +109,14 @@ TEST(ViewSelection, ACutEndsTheSide) {
   ASSERT_EQ(choice.notes.size(), 1u);
   EXPECT_NE(choice.notes[0].find("f2: skipped as a view with the frames beyond it (a cut"), std::string::npos)
       << choice.notes[0];
+  // The note gives the threshold as the threshold and the median step as the median.
+  const std::string& note = choice.notes[0];
+  const size_t over = note.find("over the cut threshold of "), median = note.find("the shot's median step is ");
+  ASSERT_NE(over, std::string::npos) << note;
+  ASSERT_NE(median, std::string::npos) << note;
+  const float threshold = std::stof(note.substr(over + 26)), median_step = std::stof(note.substr(median + 26));
+  EXPECT_GT(median_step, 0.0f) << note;
+  EXPECT_FLOAT_EQ(threshold, std::max(8.0f * median_step, ViewSelectionSettings{}.min_parallax)) << note;
 }
 
 }  // namespace
