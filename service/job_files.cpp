@@ -67,7 +67,8 @@ void JobFiles::open_neighbours(const Confinement& confine, std::vector<Neighbour
   std::vector<NeighbourFrame> opened;
   for (NeighbourFrame n : neighbours) {
     std::string path = n.path, camera_json, error;
-    if (!open_file(path, confine.input_roots, error) || !open_sidecar(n.path, confine.input_roots, camera_json, error)) {
+    const std::vector<std::string>& roots = confine.view_roots.empty() ? confine.input_roots : confine.view_roots;
+    if (!open_file(path, roots, error) || !open_sidecar(n.path, roots, camera_json, error)) {
       notes.push_back(n.path + ": skipped as a view (" + error + ")");
       continue;
     }

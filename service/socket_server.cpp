@@ -586,6 +586,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   // the checks above give early, precise refusals; the worker's opens are the ones that hold.
   task.confine.input_roots = inline_input ? std::vector<std::string>{spool.string()} : options_.allow_roots;
   task.confine.option_roots = options_.allow_roots;
+  task.confine.view_roots = options_.allow_roots;  // named views: checked against --allow above
   task.confine.output_root = request.reply_inline ? spool.string() : options_.out_dir;
   auto abandoned = std::make_shared<std::atomic<bool>>(false);
   task.abandoned = abandoned;

@@ -77,7 +77,10 @@ std::string timeout_error(double timeout_s, double cpu_s) {
 }  // namespace
 
 nlohmann::json Confinement::to_json() const {
-  return nlohmann::json{{"input_roots", input_roots}, {"option_roots", option_roots}, {"output_root", output_root}};
+  return nlohmann::json{{"input_roots", input_roots},
+                        {"option_roots", option_roots},
+                        {"view_roots", view_roots},
+                        {"output_root", output_root}};
 }
 
 Confinement Confinement::from_json(const nlohmann::json& j) {
@@ -90,6 +93,7 @@ Confinement Confinement::from_json(const nlohmann::json& j) {
   };
   strings("input_roots", c.input_roots);
   strings("option_roots", c.option_roots);
+  strings("view_roots", c.view_roots);
   c.output_root = j.value("output_root", std::string());
   return c;
 }

@@ -40,6 +40,9 @@ struct Confinement {
   std::vector<std::string> input_roots;   // the input and its NAME.camera.json; empty = anywhere
   std::vector<std::string> option_roots;  // the options' camera and environment files; empty = anywhere
   std::string output_root;                // the output's folder; empty = the output path as given
+  // The frames it uses as views and their sidecars; empty = input_roots. An inline frame's
+  // input root is its spool folder, its views' the --allow folders.
+  std::vector<std::string> view_roots;
   nlohmann::json to_json() const;
   static Confinement from_json(const nlohmann::json& j);
 };

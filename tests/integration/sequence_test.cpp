@@ -226,6 +226,19 @@ TEST(Sequence, SocketRequestViewsChangeTheFrameAndAreConfinedLikeItsInput) {
   EXPECT_NE(ao_alone, ao_with);
   const json outside = c.request({{"op", "process"}, {"input", input}, {"views", {dir / "outside/orbit_f0.exr"}}});
   EXPECT_EQ(outside.value("code", ""), "forbidden") << outside.dump();
+  // The same frame sent inline with views under --allow: they are used (an inline frame's
+  // views were confined to its spool folder, and skipped). Its place in their shot is not
+  // known (offsets 1, 2), so the views chosen among them may differ from the path's.
+  std::string reply_bytes;
+  const json inline_with = c.request({{"op", "process"},
+                                      {"name", "orbit_f1"},
+                                      {"sidecar", json::parse(read_text(dir.path / "in" / "orbit_f1.camera.json"))},
+                                      {"views", {dir / "in/orbit_f0.exr", dir / "in/orbit_f2.exr"}},
+                                      {"output", dir / "out/inline_f1.exr"}},
+                                     read_text(input));
+  ASSERT_TRUE(inline_with.value("ok", false)) << inline_with.dump() << service.log();
+  EXPECT_EQ(inline_with.dump().find("skipped as a view"), std::string::npos) << inline_with.dump();
+  EXPECT_NE(exr_channel_pixels(dir / "out/inline_f1.exr", "ao"), ao_alone);
 }
 
 // What the watch tests compute, for `serve` and for `process` alike: AO only, cheap.
