@@ -131,20 +131,23 @@ class BusyQueueTest(unittest.TestCase):
         self.addCleanup(service.stop)
         errors: List[str] = []
 
-        def slow_frame() -> None:
+        def slow_frame(output: str) -> None:
             # The ray-marched oracle takes far longer than --frame-timeout: the worker is
-            # killed after 2 s and the frame fails; it holds the worker until then.
+            # killed after 2 s and the frame fails; it holds the worker until then. Each
+            # request its own output (one being computed is refused to another request).
             try:
-                Client(service.socket, timeout=30).process(service.frame, method="raymarch", preset="ultra")
+                Client(service.socket, timeout=30).process(
+                    service.frame, output=str(service.out_dir / output), method="raymarch", preset="ultra"
+                )
             except ServiceError as e:
                 errors.append(e.code)
 
         monitor = Client(service.socket, timeout=10)
         self.addCleanup(monitor.close)
-        first = threading.Thread(target=slow_frame)
+        first = threading.Thread(target=slow_frame, args=("first.exr",))
         first.start()
         self.assertTrue(wait_until(lambda: monitor.stats()["in_flight"] == 1, 10), service.log_text())
-        second = threading.Thread(target=slow_frame)
+        second = threading.Thread(target=slow_frame, args=("second.exr",))
         second.start()
         self.assertTrue(wait_until(lambda: monitor.stats()["queue_depth"] == 1, 10), service.log_text())
         with self.assertRaises(ServiceError) as caught:
