@@ -25,6 +25,11 @@ FileVersion version_of(const std::string& path) {
   v.size = st.st_size;
   v.mtime = st.st_mtim;
   v.ctime = st.st_ctim;
+  // The link's own time, except for the descriptor names of /proc (each process's own).
+  struct stat link {};
+  if (path.rfind("/proc/", 0) != 0 && ::lstat(path.c_str(), &link) == 0 && S_ISLNK(link.st_mode) &&
+      later_than(link.st_ctim, v.ctime))
+    v.ctime = link.st_ctim;
   return v;
 }
 

@@ -24,7 +24,9 @@ struct FileVersion {
 bool later_than(const timespec& a, const timespec& b);
 
 // stat(2) of `path` (following links: a "/proc/self/fd/N" name gives the file the descriptor
-// holds, not a name that may have been swapped since).
+// holds, not a name that may have been swapped since). When `path` itself is a symbolic
+// link (a frame published as a link to one version of a render), its own change time counts
+// too: pointing it at another, older file is a change of the frame.
 FileVersion version_of(const std::string& path);
 
 // One string for a version, to remember it: inode, size, modification and change times

@@ -592,8 +592,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   task.abandoned = abandoned;
   // The output stays in flight until its frame is done, also for a client that left.
   const bool in_flight = !request.reply_inline;
-  task.done = [outcome, in_flight, output, this](const WorkerResult& r) {
-    if (in_flight) frames_.end_output(output);
+  task.done = [outcome, in_flight, output, frames = &frames_](const WorkerResult& r) {
+    if (in_flight) frames->end_output(output);
     std::lock_guard<std::mutex> lock(outcome->mutex);
     outcome->result = r;
     outcome->done = true;

@@ -189,6 +189,34 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
 }
 
+// A frame published as a symbolic link to one version of a render: pointing the link at
+// another version, even an older file, makes a rerun compute the frame again.
+TEST(Cli, ARerunFollowsAFrameLinkPointedAtAnotherFile) {
+  ScratchDir dir;
+  copy_frame(dir.path / "v1", "a");
+  fs::create_directories(dir.path / "v2");
+  fs::copy_file(example("greeble.exr"), dir.path / "v2" / "a.exr");
+  fs::copy_file(example("greeble.camera.json"), dir.path / "v2" / "a.camera.json");
+  const auto old = fs::last_write_time(dir.path / "v1" / "a.exr") - std::chrono::hours(1);
+  for (const char* f : {"a.exr", "a.camera.json"}) fs::last_write_time(dir.path / "v2" / f, old);
+  fs::create_directories(dir.path / "pub");
+  auto publish = [&](const char* version) {
+    for (const char* f : {"a.exr", "a.camera.json"}) {
+      fs::remove(dir.path / "pub" / f);
+      fs::create_symlink(fs::path("..") / version / f, dir.path / "pub" / f);
+    }
+  };
+  publish("v1");
+  const std::string run = "process " + dir / "pub/a.exr" + " -o " + dir / "out" + " --terms ao --preset low";
+  RunResult r = run_ssdo(run);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+  publish("v2");
+  r = run_ssdo(run);
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+}
+
 // The files the options name are part of what an output was made from: the header keeps
 // the environment map's path as given (so a rerun with the same options skips, and the
 // options work as a --config), and a changed map or --camera file makes the rerun compute.
