@@ -535,7 +535,10 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     guard.used = true;
     output = (spool / (fs::path(input).stem().string() + ".ssdo.exr")).string();
   } else if (!request.output.empty()) {
-    if (!resolve_allowed_output(request.output, options_.out_dir, output, error)) return refuse("forbidden", error);
+    // A relative output is under --out (the service's working folder means nothing to a client).
+    const fs::path wanted = fs::path(request.output).is_relative() ? fs::path(options_.out_dir) / request.output
+                                                                    : fs::path(request.output);
+    if (!resolve_allowed_output(wanted.string(), options_.out_dir, output, error)) return refuse("forbidden", error);
     if (path_is_under(output, options_.spool_dir))
       return refuse("forbidden", request.output + ": inside the service's private spool folder");
     // Not the service's own files (its lock, spool and temp files start with '.') nor error

@@ -332,6 +332,9 @@ TEST(ServeSocket, AnOutputNeverReplacesAFrameOrAnotherProgramsFile) {
     r = process_path(service.socket, dir / "frames/cornell.exr", {{"output", dir / "out/mine.exr"}});
     EXPECT_EQ(r.value("ok", false), true) << r.dump();
   }
+  // A relative output is under --out, whatever the service's working folder.
+  r = process_path(service.socket, dir / "frames/cornell.exr", {{"output", "relative.exr"}});
+  EXPECT_EQ(r.value("output", ""), dir / "out/relative.exr") << r.dump();
   // Previews of a frame that then fails are removed with its output.
   r = process_path(service.socket, dir / "frames/greeble.exr", {{"options", {{"png", true}}}});
   ASSERT_EQ(r.value("ok", false), true) << r.dump();
