@@ -97,7 +97,8 @@ int open_under_roots(const std::string& path, const std::string& canonical, cons
                      int flags, std::string& error) {
   std::string root, relative;
   if (!split_under_roots(canonical, roots, root, relative)) {
-    error = path + ": outside the allowed folders (resolves to " + canonical + "; see --allow)";
+    error = path + ": outside the allowed folders (resolves to " + canonical +
+            "; a request's files lie under --allow, a watched frame's in the watch folder)";
     return -1;
   }
   const UniqueFd root_fd(::open(root.c_str(), O_PATH | O_DIRECTORY | O_CLOEXEC));

@@ -165,6 +165,8 @@ TEST(Confinement, WatchedSymlinksOutStaleTempsAndErrorFileTemps) {
       << serve.log();
   EXPECT_FALSE(path_exists(dir.path / "out/leak.ssdo.exr"));
   EXPECT_NE(read_text(dir.path / "out/leak.error.json").find("outside the allowed folders"), std::string::npos);
+  // A watched frame's folder is the watch folder, not --allow: the message says both.
+  EXPECT_NE(read_text(dir.path / "out/leak.error.json").find("a watched frame's in the watch folder"), std::string::npos);
   EXPECT_EQ(read_text(dir.path / "victim"), "untouched");
   EXPECT_FALSE(path_exists(stale1));
   EXPECT_FALSE(path_exists(stale2));
