@@ -156,6 +156,28 @@ void normalise_sidecar_camera(Camera& camera) {
   camera.view_to_world = camera.view_to_world * flip;
 }
 
+// A sidecar's pixel count `key`: a whole number (640 or 640.0, as some exporters write every
+// number) from 1 to 2^30; 0 when absent (or null), -1 for anything else.
+int sidecar_pixels(const nlohmann::json& j, const char* key) {
+  if (!j.contains(key) || j[key].is_null()) return 0;
+  if (!j[key].is_number()) return -1;
+  const double v = j[key].get<double>();
+  return v >= 1 && v <= double(1 << 30) && v == std::floor(v) ? int(v) : -1;
+}
+
+// A sidecar's optional field given with another type, by name; empty when none is. Such a
+// field is refused, never read as absent ("depth_kind": 1 would leave a radial depth taken
+// for planar); null is absent.
+std::string sidecar_field_type_error(const nlohmann::json& j) {
+  for (const char* key : {"clip_near", "clip_far", "ao_distance", "background_depth"})
+    if (j.contains(key) && !j[key].is_null() && !j[key].is_number())
+      return std::string("\"") + key + "\" must be a number, not " + j[key].dump();
+  for (const char* key : {"depth_kind", "normal_space", "position_space"})
+    if (j.contains(key) && !j[key].is_null() && !j[key].is_string())
+      return std::string("\"") + key + "\" must be a string, not " + j[key].dump();
+  return {};
+}
+
 }  // namespace
 
 std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::string* error) {
@@ -198,20 +220,14 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
   } else {
     s.camera.view_to_world = glm::inverse(s.camera.world_to_view);
   }
-  // A pixel count: a whole number (640 or 640.0, as some exporters write every number),
-  // 1 .. 2^30.
-  auto pixels = [&](const char* key) -> int {
-    if (!j.contains(key) || !j[key].is_number()) return 0;
-    const double v = j[key].get<double>();
-    return v >= 1 && v <= double(1 << 30) && v == std::floor(v) ? int(v) : -1;
-  };
-  s.width_px = pixels("width");
-  s.height_px = pixels("height");
+  s.width_px = sidecar_pixels(j, "width");
+  s.height_px = sidecar_pixels(j, "height");
   if (s.width_px == 0 || s.height_px == 0) return fail("missing \"width\" / \"height\" (numbers of pixels)");
   if (s.width_px < 0 || s.height_px < 0)
     return fail("\"width\" and \"height\" must be whole numbers of pixels from 1 to 2^30");
   s.camera.width_px = s.width_px;
   s.camera.height_px = s.height_px;
+  if (const std::string e = sidecar_field_type_error(j); !e.empty()) return fail(e);
   auto number = [&](const char* key) -> std::optional<float> {
     if (j.contains(key) && j[key].is_number()) return j[key].get<float>();
     return std::nullopt;

@@ -154,6 +154,19 @@ TEST(CameraSidecar, SidecarsThatDescribeNoCameraNameTheField) {
               std::string::npos)
         << error;
   }
+  // A field of another type is refused by name, never taken as absent; null is absent.
+  for (const auto& [key, value] : std::vector<std::pair<std::string, nlohmann::json>>{
+           {"depth_kind", 1}, {"depth_kind", {"radial"}}, {"ao_distance", "0.25"}, {"background_depth", "7.0"},
+           {"normal_space", true}, {"clip_far", "3.5"}, {"width", "64"}}) {
+    nlohmann::json typed = valid;
+    typed[key] = value;
+    EXPECT_FALSE(read(typed, error)) << key;
+    EXPECT_NE(error.find("\"" + key + "\""), std::string::npos) << error;
+  }
+  nlohmann::json nulls = valid;
+  nulls["ao_distance"] = nullptr;
+  nulls["depth_kind"] = nullptr;
+  EXPECT_TRUE(read(nulls, error)) << error;
   nlohmann::json sizeless = valid;
   sizeless.erase("height");
   EXPECT_FALSE(read(sizeless, error));
