@@ -747,18 +747,26 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
   return write_outputs(path, terms, camera, options, exhausted);
 }
 
-std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name) {
-  if (!check_exr_headers(path).ok()) return std::nullopt;
+std::vector<std::optional<std::string>> read_string_attributes(const std::string& path,
+                                                               const std::vector<std::string>& names) {
+  std::vector<std::optional<std::string>> values(names.size());
+  if (!check_exr_headers(path).ok()) return values;
   exr_core::Context file;
   exr_context_initializer_t init = exr_core::quiet_initializer();
   init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
-  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) return std::nullopt;
-  int32_t length = 0;
-  const char* value = nullptr;
-  if (exr_attr_get_string(file.get(), 0, name.c_str(), &length, &value) != EXR_ERR_SUCCESS || value == nullptr ||
-      length < 0)
-    return std::nullopt;
-  return std::string(value, size_t(length));
+  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) return values;
+  for (size_t i = 0; i < names.size(); ++i) {
+    int32_t length = 0;
+    const char* value = nullptr;
+    if (exr_attr_get_string(file.get(), 0, names[i].c_str(), &length, &value) == EXR_ERR_SUCCESS && value != nullptr &&
+        length >= 0)
+      values[i] = std::string(value, size_t(length));
+  }
+  return values;
+}
+
+std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name) {
+  return read_string_attributes(path, {name})[0];
 }
 
 bool scanline_chunks_complete(const std::string& path) {

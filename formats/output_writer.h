@@ -115,6 +115,9 @@ std::string write_file_atomically(const std::filesystem::path& path, const std::
 // wrote with options.string_attributes); nullopt when the file cannot be read, its headers
 // fail check_exr_headers, or it has no such string attribute.
 std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name);
+// The same for several names, from one read of the headers (in the order of `names`).
+std::vector<std::optional<std::string>> read_string_attributes(const std::string& path,
+                                                               const std::vector<std::string>& names);
 
 // Whether every scanline chunk of the EXR at `path` lies within the file (what write_outputs
 // writes is scanline): false for a file cut short (an interrupted copy, a crash after the

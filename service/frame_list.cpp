@@ -138,8 +138,8 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 }  // namespace
 
 bool output_made_with(const std::string& output, const std::string& options_attribute) {
-  return read_string_attribute(output, kOptionsAttribute) == options_attribute &&
-         read_string_attribute(output, kVersionAttribute) == version_string();
+  const auto made = read_string_attributes(output, {kOptionsAttribute, kVersionAttribute});  // one header read
+  return made[0] == options_attribute && made[1] == version_string();
 }
 
 bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {
