@@ -98,6 +98,15 @@ std::string error_path_for(const std::string& input, const std::string& output_d
   return out + ".error.json";
 }
 
+std::string error_path_for_output(const std::string& output) {
+  const std::string suffix = ".ssdo.exr";
+  std::string lower = output;
+  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (ends_with(lower, suffix) && lower.size() > suffix.size() && lower[lower.size() - suffix.size() - 1] != '/')
+    return output.substr(0, output.size() - suffix.size()) + ".error.json";
+  return output + ".error.json";
+}
+
 bool output_up_to_date(const std::string& input, const std::string& output) {
   const FileVersion in = version_of(input), out = version_of(output);
   if (!in.exists || !out.exists) return false;

@@ -37,6 +37,12 @@ std::vector<std::string> each_file_once(const std::vector<std::string>& files);
 // OUT_DIR/STEM.error.json: where the service records why a frame failed.
 std::string error_path_for(const std::string& input, const std::string& output_dir);
 
+// Where the failure of a frame with an explicit output is recorded, beside it: OUT/X.error.json
+// for OUT/X.ssdo.exr (the name error_path_for gives the frame X whose output that is), and
+// OUT/NAME.exr.error.json for any other OUT/NAME.exr, which never names a watched frame's
+// error file (theirs are named after outputs NAME.ssdo.exr).
+std::string error_path_for_output(const std::string& output);
+
 // True when `output` exists and is at least as new as `input`'s last change: the later
 // of its modification and status-change times, so a file renamed into place (whose
 // mtime may be old) still counts as new.

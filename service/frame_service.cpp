@@ -336,7 +336,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     const int places = neighbour_places(options_.watch_options.value("views", kDefaultViewsPerSide),
                                         options_.watch_options.value("temporal", kDefaultTemporalPerSide));
     r = run_with_retries(worker, {input, output, options_.watch_options, folder_neighbours(input, places),
-                                  {{options_.watch_dir}, {}, options_.out_dir}});
+                                  {{options_.watch_dir}, {}, options_.out_dir, {}}});
     if (version_of(input).exists && changed_since(input, found)) {
       // Replaced or rewritten (or its sidecar) while computed: the result may be of the old
       // version. It is dated back, so that a service stopped before the new version's turn

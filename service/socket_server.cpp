@@ -557,7 +557,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
       if (!read_string_attribute(output, kVersionAttribute))
         return refuse("conflict", request.output + ": exists and is not an output of ssdo; it is not replaced");
     }
-    error_path = (fs::path(output).parent_path() / (fs::path(output).stem().string() + ".error.json")).string();
+    error_path = error_path_for_output(output);
   } else {
     output = output_path_for(input, options_.out_dir);
     error_path = error_path_for(input, options_.out_dir);

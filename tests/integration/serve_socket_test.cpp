@@ -346,6 +346,16 @@ TEST(ServeSocket, AnOutputNeverReplacesAFrameOrAnotherProgramsFile) {
   EXPECT_FALSE(fs::exists(dir.path / "out" / "greeble.ssdo.ao.png"));
   EXPECT_FALSE(fs::exists(dir.path / "out" / "greeble.ssdo.confidence.png"));
   EXPECT_TRUE(fs::exists(dir.path / "out" / "greeble.ssdo.notes.txt.png"));
+  // An explicit output's error file is named after it: never a watched frame's (b.exr's is
+  // b.error.json) nor "x.ssdo.error.json".
+  for (const char* name : {"b.exr", "x.ssdo.exr"}) {
+    r = process_path(service.socket, dir / "frames/greeble.exr", {{"output", dir / ("out/" + std::string(name))}, {"options", {{"part", "nope"}}}});
+    EXPECT_EQ(r.value("code", ""), "frame_failed") << r.dump();
+  }
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "b.exr.error.json"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "b.error.json"));
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "x.error.json"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "x.ssdo.error.json"));
 }
 
 // Two uploads of one name at once: the second is told of the conflict instead of both
