@@ -256,42 +256,56 @@ bool SequenceContext::load_view(const NeighbourFrame& n, const ReadOptions& read
 }
 
 void SequenceContext::attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame) {
-  std::vector<ViewCandidate> candidates;
-  std::vector<const NeighbourFrame*> sources;
   FrameInfo& info = frame.info;
   const std::vector<NeighbourFrame> within = within_places(request.neighbours, view_candidate_places(request.views_per_side));
-  for (const NeighbourFrame& n : within) {
-    Entry& e = candidate(n, read);
-    if (!e.camera) {
-      info.notes.push_back(file_name(n.path) + ": skipped as a view (" + e.error + ")");
-      continue;
-    }
-    candidates.push_back({file_name(n.path), n.frame_offset, e.camera_has_world, e.camera->width_px,
-                          e.camera->height_px, e.camera->view_to_world});
-    sources.push_back(&n);
-  }
   const GBuffer& g = frame.gbuffer;
   ViewSelectionSettings settings;
   settings.views_per_side = request.views_per_side;
-  const ViewChoice choice = select_views(g.camera.view_to_world, g.width_px(), g.height_px(),
-                                         median_foreground_depth(g.depth_view, g.mask), candidates, settings);
-  info.notes.insert(info.notes.end(), choice.notes.begin(), choice.notes.end());
-  std::string names;
+  const float scene_depth_world = median_foreground_depth(g.depth_view, g.mask);
   const ReadOptions view_read = view_reads_for(request, read, !g.lighting.empty());
-  for (size_t i : choice.chosen) {
-    Entry& e = cache_[sources[i]->path];
-    if (!load_view(*sources[i], read, view_read, e)) {
-      info.notes.push_back(candidates[i].name + ": skipped as a view (" + e.error + ")");
-      continue;
+  // A chosen view whose header read but whose pixels do not is left out of the candidates
+  // and the choice made again, so that the next one on its side takes its place.
+  std::set<std::string> unreadable;
+  for (bool first = true;; first = false) {
+    std::vector<ViewCandidate> candidates;
+    std::vector<const NeighbourFrame*> sources;
+    for (const NeighbourFrame& n : within) {
+      if (unreadable.count(n.path)) continue;
+      Entry& e = candidate(n, read);
+      if (!e.camera) {
+        if (first) info.notes.push_back(file_name(n.path) + ": skipped as a view (" + e.error + ")");
+        continue;
+      }
+      candidates.push_back({file_name(n.path), n.frame_offset, e.camera_has_world, e.camera->width_px,
+                            e.camera->height_px, e.camera->view_to_world});
+      sources.push_back(&n);
     }
-    frame.gbuffer.views.push_back(*e.view);
-    names += " " + e.view->name;
+    const ViewChoice choice = select_views(g.camera.view_to_world, g.width_px(), g.height_px(), scene_depth_world,
+                                           candidates, settings);
+    std::vector<const DepthView*> views;
+    for (size_t i : choice.chosen) {
+      Entry& e = cache_[sources[i]->path];
+      if (load_view(*sources[i], read, view_read, e)) {
+        views.push_back(&*e.view);
+        continue;
+      }
+      info.notes.push_back(candidates[i].name + ": skipped as a view (" + e.error + ")");
+      unreadable.insert(sources[i]->path);
+    }
+    if (views.size() < choice.chosen.size()) continue;  // at most once per candidate
+    info.notes.insert(info.notes.end(), choice.notes.begin(), choice.notes.end());
+    std::string names;
+    for (const DepthView* v : views) {
+      frame.gbuffer.views.push_back(*v);
+      names += " " + v->name;
+    }
+    info.notes.push_back("views:" + (names.empty() ? std::string(" none") : names) + " (read " +
+                         std::to_string(reads_.whole + reads_.depth_only) + " files for " +
+                         std::to_string(reads_.frames) + " frames: " + std::to_string(reads_.whole) + " whole, " +
+                         std::to_string(reads_.depth_only) + " as views only; " + std::to_string(reads_.headers) +
+                         " headers)");
+    return;
   }
-  info.notes.push_back("views:" + (names.empty() ? std::string(" none") : names) + " (read " +
-                       std::to_string(reads_.whole + reads_.depth_only) + " files for " +
-                       std::to_string(reads_.frames) + " frames: " + std::to_string(reads_.whole) + " whole, " +
-                       std::to_string(reads_.depth_only) + " as views only; " + std::to_string(reads_.headers) +
-                       " headers)");
 }
 
 void SequenceContext::drop_raw_outside(const FrameRequest& request) {

@@ -148,6 +148,31 @@ TEST(Sequence, ANeighbourWithoutACameraIsSkippedWithANote) {
       << r.output;
 }
 
+// A neighbour whose header reads but whose pixels do not (a truncated file) is skipped as
+// a view and the next frame on its side takes its place.
+TEST(Sequence, AViewWhosePixelsDoNotReadIsReplacedByTheNextOne) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 4);
+  const RunResult whole = run_ssdo("process " + dir / "in" + " -o " + dir / "out0" +
+                                   " --views 1 --temporal 0 --terms ao --preset low --jobs 1 -v");
+  ASSERT_EQ(whole.exit_code, 0) << whole.output;
+  const std::vector<int> chosen = view_numbers(views_note(whole.output, dir / "in/orbit_f0.exr"), "orbit_f");
+  ASSERT_EQ(chosen.size(), 1u) << whole.output;
+  const std::string broken = numbered("orbit_f", chosen[0]) + ".exr";
+  fs::resize_file(dir.path / "in" / broken, fs::file_size(dir.path / "in" / broken) / 2);
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --views 1 --temporal 0 --terms ao --preset low --jobs 1 -v");
+  EXPECT_EQ(r.exit_code, 1) << r.output;  // the broken frame itself fails
+  EXPECT_TRUE(path_exists(dir.path / "out/orbit_f0.ssdo.exr")) << r.output;
+  EXPECT_NE(r.output.find(broken + ": skipped as a view (" + (dir / "in/") + broken + ": cannot read pixels"),
+            std::string::npos)
+      << r.output;
+  const std::vector<int> now = view_numbers(views_note(r.output, dir / "in/orbit_f0.exr"), "orbit_f");
+  ASSERT_EQ(now.size(), 1u) << r.output;
+  EXPECT_NE(now[0], chosen[0]) << r.output;
+}
+
 TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
