@@ -34,6 +34,16 @@ CLI::Validator table_check(const FrameOption& o) {
       "", o.name);
 }
 
+// An empty value on the command line is a script's unset variable ("--env \"$SKY\"",
+// "--chunk \"$TASK\""), not a choice: refused, where it would silently give the default (a
+// JSON config's "" is the default, as the options a header records are written). Checked
+// before any other check of the option, so that the message says what happened.
+constexpr const char* kEmptyValueCheck = "empty-value";
+CLI::Validator empty_value_check(const std::string& message) {
+  return CLI::Validator([message](std::string& value) { return value.empty() ? message : std::string(); }, "",
+                        kEmptyValueCheck);
+}
+
 // One table entry as a CLI11 option bound to its field in `args`.
 void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args) {
   const std::string flag = "--" + std::string(o.name);
@@ -48,19 +58,11 @@ void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args
       },
       o.field);
   opt->group(o.group);
+  if (o.kind != OptionKind::flag)
+    opt->check(empty_value_check(std::string("an empty value; leave the option out for the default") +
+                                 (*o.unset ? std::string(" (") + o.unset + ")" : std::string())));
   if (o.kind == OptionKind::choice || o.kind == OptionKind::number || o.kind == OptionKind::integer)
     opt->check(table_check(o));
-  // An empty value on the command line is a script's unset variable ("--env \"$SKY\""), not
-  // a choice: refused, where it would silently give the default (a JSON config's "" is the
-  // default, as the options a header records are written).
-  if (o.kind == OptionKind::text)
-    opt->check(CLI::Validator(
-        [&o](std::string& value) -> std::string {
-          return value.empty() ? std::string("an empty value; leave the option out for the default") +
-                                     (*o.unset ? std::string(" (") + o.unset + ")" : std::string())
-                               : std::string();
-        },
-        "", o.name));
   if (o.existing_file) opt->check(CLI::ExistingFile);
   if (o.kind != OptionKind::flag && o.kind != OptionKind::list && !*o.unset) opt->capture_default_str();
 }
@@ -68,10 +70,14 @@ void add_frame_option(CLI::App& app, const FrameOption& o, FrameOptionArgs& args
 }  // namespace
 
 void refuse_empty_values(CLI::App& app) {
-  for (CLI::Option* opt : app.get_options())
-    if (opt->nonpositional() && opt->get_type_size_min() > 0)
-      opt->check(CLI::Validator(
-          [](std::string& value) { return value.empty() ? std::string("an empty value") : std::string(); }, ""));
+  for (CLI::Option* opt : app.get_options()) {
+    if (!opt->nonpositional() || opt->get_type_size_min() <= 0) continue;
+    try {
+      opt->get_validator(kEmptyValueCheck);  // a frame option's own, naming its default (add_frame_option)
+    } catch (const CLI::OptionNotFound&) {
+      opt->check(empty_value_check("an empty value"));
+    }
+  }
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuse_empty_values(*sub);
 }
 
