@@ -15,6 +15,7 @@
 #include "formats/output_writer.h"
 #include "service/file_version.h"
 #include "service/frame_list.h"
+#include "service/pipeline.h"
 #include "service/frame_options.h"
 #include "service/request_options.h"
 #include "service/sequence.h"
@@ -71,20 +72,13 @@ bool record_frame_failure(const std::string& output, const std::string& error_pa
                           const WorkerResult& result, const std::string& version, const std::string& options) {
   std::error_code ec;
   fs::remove(output, ec);
-  // Its previews too (OUT/NAME.ssdo.<term>.png, formats/output_writer.h; term names are
-  // lower-case words joined by '_'): a failed frame leaves no picture of an earlier run
-  // beside its error file.
+  // Its previews too (OUT/NAME.ssdo.<term>.png, formats/output_writer.h): a failed frame
+  // leaves no picture of an earlier run beside its error file.
   const fs::path out(output);
-  const std::string previews = out.stem().string() + ".";
-  const fs::path folder = out.parent_path().empty() ? fs::path(".") : out.parent_path();
-  for (const fs::directory_entry& e : fs::directory_iterator(folder, ec)) {
-    const std::string name = e.path().filename().string();
-    if (name.size() <= previews.size() + 4 || !name.starts_with(previews) || !name.ends_with(".png")) continue;
-    const std::string term = name.substr(previews.size(), name.size() - previews.size() - 4);
-    if (std::all_of(term.begin(), term.end(), [](char c) { return (c >= 'a' && c <= 'z') || c == '_'; }) &&
-        e.is_regular_file(ec))
-      fs::remove(e.path(), ec);
-  }
+  for (const std::string& term : output_term_names())
+    if (const fs::path preview = out.parent_path() / (out.stem().string() + "." + term + ".png");
+        fs::is_regular_file(preview, ec))
+      fs::remove(preview, ec);
   return write_error_file(error_path, input, result.error, result.transient, version, options);
 }
 

@@ -464,6 +464,13 @@ ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read,
   return view;
 }
 
+const std::vector<std::string>& output_term_names() {
+  static const std::vector<std::string> names = {"ao",          "ao_denoised",          "bent_normal",
+                                                 "confidence",  "composite",            "ssdo_direct",
+                                                 "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"};
+  return names;
+}
+
 ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const TermSelection& terms = request.terms;

@@ -153,6 +153,10 @@ ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request)
 // lower.
 ComputedFrame compute_frame(GBuffer&& gbuffer, const FrameRequest& request);
 
+// The name of every term compute_frame may return (an output's channels and previews,
+// NAME.ssdo.<term>.png).
+const std::vector<std::string>& output_term_names();
+
 // The terms compute_frame would return (names, channels, sample types, same order) with
 // stand-in images: the frame's view-space normals (their z for one-channel terms). For
 // FrameRequest::io_only.

@@ -43,7 +43,7 @@ TEST(Confinement, WorkerRefusesASymlinkSwappedIntoTheCheckedInputPath) {
   fs::create_directory_symlink(dir.path / "secret", dir.path / "root" / "frames");  // swapped in
   WorkerProcess worker(WorkerLimits{}, SSDO_BINARY);
   WorkerJob job{dir / "root/frames/cornell.exr", dir / "out/cornell.ssdo.exr",
-                json{{"terms", "ao"}, {"preset", "low"}}, {}, {{dir / "root"}, {dir / "root"}, dir / "out"}};
+                json{{"terms", "ao"}, {"preset", "low"}}, {}, {{dir / "root"}, {dir / "root"}, dir / "out", {}}};
   const WorkerResult r = worker.run(job);
   EXPECT_FALSE(r.ok());
   EXPECT_TRUE(r.error.find("symbolic link") != std::string::npos || r.error.find("outside the allowed") != std::string::npos)
@@ -56,14 +56,14 @@ TEST(Confinement, WorkerRefusesASymlinkSwappedIntoTheCheckedInputPath) {
   copy_example("cornell", dir.path / "root2", "cornell");
   fs::create_directory_symlink(dir.path / "secret", dir.path / "out" / "sub");
   job = {dir / "root2/cornell.exr", dir / "out/sub/cornell.ssdo.exr", json{{"terms", "ao"}, {"preset", "low"}}, {},
-         {{dir / "root2"}, {}, dir / "out"}};
+         {{dir / "root2"}, {}, dir / "out", {}}};
   const WorkerResult w = worker.run(job);
   EXPECT_FALSE(w.ok());
   EXPECT_FALSE(path_exists(dir.path / "secret" / "cornell.ssdo.exr")) << w.error;
 
   // The same frames by their real paths are computed.
   job = {dir / "root2/cornell.exr", dir / "out/cornell.ssdo.exr", json{{"terms", "ao"}, {"preset", "low"}}, {},
-         {{dir / "root2"}, {}, dir / "out"}};
+         {{dir / "root2"}, {}, dir / "out", {}}};
   const WorkerResult ok = worker.run(job);
   EXPECT_TRUE(ok.ok()) << ok.error;
   EXPECT_TRUE(exr_has_channel(dir / "out/cornell.ssdo.exr", "ao"));

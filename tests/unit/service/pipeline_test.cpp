@@ -107,6 +107,9 @@ TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
       const ComputedFrame computed = compute_frame(g, r);
       const ComputedFrame standin = io_only_frame(g, r);
       ASSERT_EQ(standin.terms.size(), computed.terms.size()) << terms << " " << to_string(method);
+      for (const OutputTerm& c : computed.terms)  // the names a failed frame's previews are removed by
+        EXPECT_NE(std::find(output_term_names().begin(), output_term_names().end(), c.name), output_term_names().end())
+            << c.name;
       for (size_t i = 0; i < computed.terms.size(); ++i) {
         const OutputTerm &c = computed.terms[i], &s = standin.terms[i];
         EXPECT_EQ(s.name, c.name) << terms;
