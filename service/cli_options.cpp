@@ -397,7 +397,9 @@ bool resolve_compute_options(const ComputeOptionArgs& a, FrameRequest& request, 
     error = "--terms: " + error;
     return false;
   }
-  if (!resolve_environment(a, request, error, build_environment)) return false;
+  // AO alone never reads the light: the map is checked, not decoded.
+  const bool uses_environment = request.terms.ssdo || request.terms.composite;
+  if (!resolve_environment(a, request, error, build_environment && uses_environment)) return false;
   if (!a.composite.empty() && !parse_composite(a.composite, request.composite_terms, error)) return false;
   return true;
 }

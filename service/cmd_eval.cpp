@@ -317,14 +317,16 @@ Command register_eval(CLI::App& app) {
   add_frame_options(*cmd, st->options, int(OptionSet::read) | int(OptionSet::compute));
   return {cmd, [st] {
             EvalArgs& eval = st->args;
-            const ComputeOptionArgs& compute = st->options.compute;
+            // The terms are the compared one's (the environment is built only for SSDO's).
+            ComputeOptionArgs compute = st->options.compute;
+            compute.terms = eval.term == "ao" ? "ao" : "ssdo";
             std::string error;
             if (!resolve_read_options(st->options.read, eval.request.read, error) ||
                 !resolve_compute_options(compute, eval.request, error))
               return usage_error(error);
             if (const std::string note = quality_choice_note(compute); !note.empty())
               std::cerr << "ssdo eval: " << note << "\n";
-            eval.request.terms = {eval.term == "ao", eval.term != "ao", false};
+            eval.request.terms = {eval.term == "ao", eval.term != "ao", false};  // no composite
             if (eval.reference.empty())
               eval.reference = eval.term == "ao" ? "AO" : eval.term == "ssdo_direct" ? "DiffDir" : "DiffInd";
             eval.preset = compute.preset;

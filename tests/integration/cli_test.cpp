@@ -217,6 +217,23 @@ TEST(Cli, ARerunFollowsAFrameLinkPointedAtAnotherFile) {
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
 }
 
+// AO alone never reads the environment light: the map's header is checked, its pixels are
+// not decoded (a map whose pixels are damaged fails the frames that light with it only).
+TEST(Cli, TheEnvironmentMapIsDecodedOnlyForTheTermsThatUseIt) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  const fs::path sky = dir.path / "sky.exr";
+  fs::copy_file(source_dir() / "examples" / "env_equirect.exr", sky);
+  fs::resize_file(sky, fs::file_size(sky) / 2);  // the header and the first chunks
+  const std::string base = "process " + dir / "in" + " -o " + dir / "out" + " --preset low --force --env " + sky.string();
+  RunResult r = run_ssdo(base + " --terms ao");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "a.ssdo.exr"));
+  r = run_ssdo(base + " --terms ao,composite");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(sky.string()), std::string::npos) << r.output;
+}
+
 // The files the options name are part of what an output was made from: the header keeps
 // the environment map's path as given (so a rerun with the same options skips, and the
 // options work as a --config), and a changed map or --camera file makes the rerun compute.
