@@ -28,12 +28,13 @@ bool is_exr(const std::string& path) {
 // `names`, or the error.
 std::string check_exr(const std::string& path, long long max_pixels, const Imf::Header& header,
                       std::vector<std::string>& names) {
-  const Imath::Box2i data = header.dataWindow();
-  const long long w = (long long)data.max.x - data.min.x + 1;
-  const long long h = (long long)data.max.y - data.min.y + 1;
-  if (w <= 0 || h <= 0 || w * h > max_pixels)
-    return path + ": environment map size " + std::to_string(w) + " x " + std::to_string(h) +
-           " is empty or larger than the limit of " + std::to_string(max_pixels) + " pixels";
+  for (const Imath::Box2i& box : {header.dataWindow(), header.displayWindow()}) {
+    const long long w = (long long)box.max.x - box.min.x + 1;
+    const long long h = (long long)box.max.y - box.min.y + 1;
+    if (w <= 0 || h <= 0 || w * h > max_pixels)
+      return path + ": environment map size " + std::to_string(w) + " x " + std::to_string(h) +
+             " is empty or larger than the limit of " + std::to_string(max_pixels) + " pixels";
+  }
   const Imf::ChannelList& channels = header.channels();
   if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B"))
     names = {"R", "G", "B"};
@@ -54,6 +55,23 @@ void replicate_luminance(const std::vector<std::string>& names, cv::Mat& rgb) {
     float* p = rgb.ptr<float>(y);
     for (int x = 0; x < rgb.cols; ++x) p[3 * x + 1] = p[3 * x + 2] = p[3 * x];
   }
+}
+
+// The map is its display window (the whole sphere), whose pixels the data window may cover
+// only in part (a map cropped to its bright region, Nuke's bounding boxes): the data window
+// placed in it, black (no light) where it holds no pixels, and what lies outside the
+// display window dropped.
+void place_in_display_window(const Imf::Header& header, cv::Mat& rgb) {
+  const Imath::Box2i data = header.dataWindow(), display = header.displayWindow();
+  if (data == display) return;
+  const long long w = (long long)display.max.x - display.min.x + 1;
+  const long long h = (long long)display.max.y - display.min.y + 1;
+  cv::Mat full = cv::Mat::zeros(int(h), int(w), CV_32FC3);
+  const cv::Rect data_in_display(data.min.x - display.min.x, data.min.y - display.min.y, rgb.cols, rgb.rows);
+  const cv::Rect common = data_in_display & cv::Rect(0, 0, full.cols, full.rows);
+  if (common.area() > 0)
+    rgb(common - data_in_display.tl()).copyTo(full(common));
+  rgb = full;
 }
 
 // EXR through OpenEXR (the common case; no OpenImageIO to load): R, G, B, or a luminance
@@ -79,6 +97,7 @@ std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb
                       : std::vector<ChannelComponent>{{"R", 0}, {"G", 1}, {"B", 2}};
   if (read_scanline_channels(path, wanted, out)) {
     replicate_luminance(names, out);
+    place_in_display_window(in.header(), out);
     return {};
   }
   // Slices address pixel (x, y) of the data window at base + x * xStride + y * yStride.
@@ -95,7 +114,47 @@ std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb
   in.setFrameBuffer(fb);
   in.readPixels(data.min.y, data.max.y);
   replicate_luminance(names, out);
+  place_in_display_window(in.header(), out);
   return {};
+}
+
+
+// A map other than EXR: its channels as RGB (one luminance channel replicated), or why not.
+std::string channels_error(const std::string& path, int channels) {
+  if (channels == 1 || channels >= 3) return {};
+  return path + ": the environment map has " + std::to_string(channels) +
+         " channels; expected RGB or one luminance channel";
+}
+
+std::string read_other_format(const std::string& path, long long max_pixels, cv::Mat& rgb) {
+  cv::Mat pixels;
+  oiio_module::ImageHeader header;
+  if (std::string e = oiio_module::read_image(path, 0, max_pixels, pixels, header); !e.empty())
+    return "environment map " + e;
+  if (std::string e = channels_error(path, header.channels); !e.empty()) return e;
+  if (std::string e = oiio_module::read_image(path, 3, max_pixels, pixels, header); !e.empty())
+    return "environment map " + e;
+  if (pixels.channels() == 3) rgb = pixels;
+  else cv::merge(std::vector<cv::Mat>{pixels, pixels, pixels}, rgb);
+  return {};
+}
+
+// Radiance is finite and >= 0: anything else (NaN, Inf, negative from a bad filter) would
+// poison the SH projection and every pixel with it, and is read as 0. It is at most
+// kMaxEnvRadiance, so that sums of texels times solid angles stay finite. A map with no
+// valid texel at all is not a dark sky but a broken file: refused.
+std::string sanitise_radiance(const std::string& path, cv::Mat& rgb) {
+  size_t valid = 0;
+  for (int y = 0; y < rgb.rows; ++y) {
+    float* p = rgb.ptr<float>(y);
+    for (int i = 0; i < rgb.cols * 3; ++i) {
+      const bool ok = std::isfinite(p[i]) && p[i] >= 0.0f;
+      valid += ok;
+      p[i] = ok ? std::min(p[i], kMaxEnvRadiance) : 0.0f;
+    }
+  }
+  return valid > 0 ? std::string()
+                   : path + ": every value of the environment map is NaN, infinite or negative: it gives no light";
 }
 
 }  // namespace
@@ -105,36 +164,15 @@ EnvMapResult read_env_map(const std::string& path, long long max_pixels) {
   if (r.error = input_file_error(path, "environment map"); !r.error.empty()) return r;
   try {
     if (is_exr(path)) {
-      if (std::string e = read_exr(path, max_pixels, &r.radiance_rgb); !e.empty()) {
-        r.error = "environment map " + e;
-        return r;
-      }
+      if (std::string e = read_exr(path, max_pixels, &r.radiance_rgb); !e.empty()) r.error = "environment map " + e;
     } else {
-      cv::Mat pixels;
-      if (std::string e = oiio_module::read_image(path, 3, max_pixels, pixels); !e.empty()) {
-        r.error = "environment map " + e;
-        return r;
-      }
-      if (pixels.channels() == 3) {
-        r.radiance_rgb = pixels;
-      } else if (pixels.channels() == 1) {
-        cv::merge(std::vector<cv::Mat>{pixels, pixels, pixels}, r.radiance_rgb);
-      } else {
-        r.error = path + ": the environment map has 2 channels; expected RGB or one luminance channel";
-        return r;
-      }
+      r.error = read_other_format(path, max_pixels, r.radiance_rgb);
     }
-    // Radiance is finite and >= 0: anything else (NaN, Inf, negative from a bad filter)
-    // would poison the SH projection and every pixel with it. It is at most
-    // kMaxEnvRadiance, so that sums of texels times solid angles stay finite.
-    for (int y = 0; y < r.radiance_rgb.rows; ++y) {
-      float* p = r.radiance_rgb.ptr<float>(y);
-      for (int i = 0; i < r.radiance_rgb.cols * 3; ++i)
-        p[i] = !std::isfinite(p[i]) || p[i] < 0.0f ? 0.0f : std::min(p[i], kMaxEnvRadiance);
-    }
+    if (r.ok()) r.error = sanitise_radiance(path, r.radiance_rgb);
   } catch (const std::exception& e) {
     r.error = path + ": cannot read the environment map: " + e.what();
   }
+  if (!r.ok()) r.radiance_rgb.release();
   return r;
 }
 
@@ -144,8 +182,10 @@ std::string check_env_map(const std::string& path, long long max_pixels) {
   // a small PNG can declare 8000 x 8000 pixels).
   if (!is_exr(path)) {
     cv::Mat unused;
-    const std::string e = oiio_module::read_image(path, 0, max_pixels, unused);
-    return e.empty() ? e : "environment map " + e;
+    oiio_module::ImageHeader header;
+    if (const std::string e = oiio_module::read_image(path, 0, max_pixels, unused, header); !e.empty())
+      return "environment map " + e;
+    return channels_error(path, header.channels);
   }
   try {
     if (std::string e = read_exr(path, max_pixels, nullptr); !e.empty()) return "environment map " + e;

@@ -23,9 +23,11 @@ struct EnvMapResult {
 // sums of texels times solid angles stay finite in float (3.4e38).
 inline constexpr float kMaxEnvRadiance = 1e9f;
 
-// Reads the first three channels (R, G, B; a single channel is replicated). Refuses
-// images larger than max_pixels before allocating; non-finite or negative radiance is
-// clamped to 0, radiance above kMaxEnvRadiance to it.
+// Reads the first three channels (R, G, B; a single channel is replicated) as linear
+// radiance (an 8-bit sRGB or gamma-encoded image is decoded). The map is the display
+// window: an EXR data window covering part of it is placed in it, black elsewhere. Refuses
+// images larger than max_pixels before allocating; non-finite or negative radiance is read
+// as 0 (a map with no other value is refused), radiance above kMaxEnvRadiance as it.
 EnvMapResult read_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);
 
 // What read_env_map would refuse that is known without decoding the pixels: for EXR the

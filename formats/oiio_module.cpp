@@ -98,10 +98,10 @@ std::string load() {
 }
 
 std::string read_image(const std::string& path, int max_channels, long long max_pixels,
-                       cv::Mat& pixels) {
+                       cv::Mat& pixels, ImageHeader& header) {
   std::string error;
   const Api* a = api(&error);
-  return a ? a->read_image(path, max_channels, max_pixels, pixels) : path + ": " + error;
+  return a ? a->read_image(path, max_channels, max_pixels, pixels, header) : path + ": " + error;
 }
 
 }  // namespace oiio_module

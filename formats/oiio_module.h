@@ -10,6 +10,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "formats/oiio/module_api.h"
+
 namespace ssdo::oiio_module {
 
 // Threads OpenImageIO may use once loaded (applied at load, and at once if loaded).
@@ -21,10 +23,12 @@ bool loaded();
 // Loads the module now (e.g. before a memory limit); "" or why it cannot be loaded.
 std::string load();
 
-// The first min(channels, max_channels) channels of any image OpenImageIO reads, as float.
+// The first min(channels, max_channels) channels of any image OpenImageIO reads, as linear
+// float (8-bit sRGB or gamma-encoded images decoded, as their "oiio:ColorSpace" says).
 // "" on success, else the error (naming the file). max_channels 0: only what the header
-// says is checked (a size over max_pixels, an empty image); nothing is decoded.
+// says is checked (a size over max_pixels, an empty image); nothing is decoded. `header`
+// (formats/oiio/module_api.h) is filled whenever the header reads.
 std::string read_image(const std::string& path, int max_channels, long long max_pixels,
-                       cv::Mat& pixels);
+                       cv::Mat& pixels, ImageHeader& header);
 
 }  // namespace ssdo::oiio_module

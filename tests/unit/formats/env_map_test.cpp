@@ -3,6 +3,7 @@
 #include "formats/env_map.h"
 
 #include <fstream>
+#include <limits>
 
 #include <gtest/gtest.h>
 
@@ -114,6 +115,74 @@ TEST(EnvMap, OtherFormatsGoThroughTheModuleWithTheSamePixels) {
   const std::string over = check_env_map((dir / "env.hdr").string(), w * h - 1);
   EXPECT_NE(over.find("environment map " + (dir / "env.hdr").string() + ": image size 6 x 3"), std::string::npos)
       << over;
+}
+
+// The map is its display window, the whole sphere: a data window covering part of it (a
+// map cropped to its bright half) is placed in it, black elsewhere; one reaching past it
+// (overscan) is cut to it.
+TEST(EnvMap, TheDataWindowIsPlacedInTheDisplayWindow) {
+  ScratchDir dir;
+  TestExr exr;
+  exr.width = 4;
+  exr.height = 4;
+  exr.data_x = 4;  // the right half of an 8 x 4 sphere
+  exr.display_x = 0, exr.display_y = 0, exr.display_width = 8, exr.display_height = 4;
+  exr.channels = {{"Y", OIIO::TypeDesc::FLOAT, std::vector<float>(16, 2.0f)}};
+  ASSERT_TRUE(exr.write(dir / "half.exr"));
+  const EnvMapResult env = read_env_map((dir / "half.exr").string());
+  ASSERT_TRUE(env.ok()) << env.error;
+  ASSERT_EQ(env.radiance_rgb.size(), cv::Size(8, 4));
+  EXPECT_EQ(env.radiance_rgb.at<cv::Vec3f>(1, 3), cv::Vec3f(0, 0, 0));
+  EXPECT_EQ(env.radiance_rgb.at<cv::Vec3f>(1, 4), cv::Vec3f(2, 2, 2));
+  EXPECT_EQ(cv::sum(env.radiance_rgb)[0], 2.0 * 16);
+  exr.data_x = -2, exr.data_y = -1;  // overscan: 2 columns and 1 row outside
+  exr.display_width = 2, exr.display_height = 2;
+  std::vector<float>& v = exr.channels[0].values;
+  for (int i = 0; i < 16; ++i) v[size_t(i)] = float(i);
+  ASSERT_TRUE(exr.write(dir / "over.exr"));
+  const EnvMapResult over = read_env_map((dir / "over.exr").string());
+  ASSERT_TRUE(over.ok()) << over.error;
+  ASSERT_EQ(over.radiance_rgb.size(), cv::Size(2, 2));
+  EXPECT_EQ(over.radiance_rgb.at<cv::Vec3f>(0, 0)[0], 6.0f);  // data (2, 1) = value 1 * 4 + 2
+  EXPECT_EQ(over.radiance_rgb.at<cv::Vec3f>(1, 1)[0], 11.0f);
+}
+
+// An 8-bit PNG holds sRGB-encoded values: decoded to linear radiance (code 128 is 0.216,
+// not 0.502); a map whose every value is NaN, infinite or negative is refused, not read as
+// a black sky; a two-channel image is refused by its header check already.
+TEST(EnvMap, DisplayEncodedMapsAreDecodedAndMapsWithoutLightRefused) {
+  ScratchDir dir;
+  {
+    cv::Mat grey(2, 4, CV_8UC3, cv::Scalar::all(128));
+    auto out = OIIO::ImageOutput::create("png");
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open((dir / "grey.png").string(), OIIO::ImageSpec(4, 2, 3, OIIO::TypeDesc::UINT8)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, grey.data));
+    ASSERT_TRUE(out->close());
+    cv::Mat la(2, 4, CV_8UC2, cv::Scalar::all(200));
+    out = OIIO::ImageOutput::create("png");
+    ASSERT_TRUE(out->open((dir / "la.png").string(), OIIO::ImageSpec(4, 2, 2, OIIO::TypeDesc::UINT8)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, la.data));
+    ASSERT_TRUE(out->close());
+  }
+  const EnvMapResult grey = read_env_map((dir / "grey.png").string());
+  ASSERT_TRUE(grey.ok()) << grey.error;
+  EXPECT_NEAR(grey.radiance_rgb.at<cv::Vec3f>(1, 2)[1], 0.2158605, 1e-5);
+  const std::string la = check_env_map((dir / "la.png").string());
+  EXPECT_NE(la.find("la.png: the environment map has 2 channels"), std::string::npos) << la;
+  TestExr bad;
+  bad.width = 2;
+  bad.height = 1;
+  bad.channels = {{"Y", OIIO::TypeDesc::FLOAT, {std::numeric_limits<float>::quiet_NaN(), -1.0f}}};
+  ASSERT_TRUE(bad.write(dir / "nan.exr"));
+  const EnvMapResult nan = read_env_map((dir / "nan.exr").string());
+  EXPECT_FALSE(nan.ok());
+  EXPECT_NE(nan.error.find("nan.exr: every value of the environment map is NaN, infinite or negative"),
+            std::string::npos)
+      << nan.error;
+  bad.channels = {{"Y", OIIO::TypeDesc::FLOAT, {0.0f, 0.0f}}};  // a black sky is a sky
+  ASSERT_TRUE(bad.write(dir / "black.exr"));
+  EXPECT_TRUE(read_env_map((dir / "black.exr").string()).ok());
 }
 
 TEST(EnvMap, ErrorsNameTheFile) {
