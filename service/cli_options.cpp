@@ -106,9 +106,17 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   if (!resolve_frame_options(options, check, error, /*build_environment=*/false)) return false;
   if (const std::string note = quality_choice_note(options.compute); !note.empty())
     std::fprintf(stderr, "ssdo: %s%s\n", note.c_str(),
-                 given(app, "method") || given(app, "preset") ? " (--method and --preset give way to --quality auto)"
-                                                              : "");
+                 given(app, "method") || given(app, "preset")
+                     ? " (AO's --method and --preset give way to --quality auto; SSDO keeps --ssdo-preset, else --preset)"
+                     : "");
   return true;
+}
+
+std::string effective_preset(const ComputeOptionArgs& a, bool ssdo) {
+  if (ssdo) return a.ssdo_preset.empty() ? a.preset : a.ssdo_preset;
+  if (a.quality != "auto") return a.preset;
+  bool met = false;
+  return std::string(to_string(choose_quality(shipped_calibration(), a.max_error, met).preset));
 }
 
 std::string quality_choice_note(const ComputeOptionArgs& a) {

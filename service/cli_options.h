@@ -37,6 +37,9 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
 // What --quality auto chooses for these options, as one line for the user; empty without
 // --quality auto. Printed once by the command (frame_options_over_config), not per frame.
 std::string quality_choice_note(const ComputeOptionArgs& args);
+// The preset a request computes AO (ssdo false: --quality auto's choice, else --preset) or
+// SSDO (true: --ssdo-preset, else --preset) with.
+std::string effective_preset(const ComputeOptionArgs& args, bool ssdo);
 
 // Every option of `app` and its subcommands that takes a value refuses an empty one: on the
 // command line "" is a script's unset variable (--chunk "$TASK" on a farm), never a choice,

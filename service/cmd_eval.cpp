@@ -250,8 +250,8 @@ int run_eval(const EvalArgs& args) {
     j["confidence_deciles"] = deciles_json(deciles);
     files.push_back(j);
     if (!args.json) {
-      std::printf("%s: %s %s r=%.3g  MAE %.4f (%s)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
-                  file.c_str(), args.term.c_str(), j["method"].get<std::string>().c_str(),
+      std::printf("%s: %s %s %s r=%.3g  MAE %.4f (%s)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n",
+                  file.c_str(), args.term.c_str(), j["method"].get<std::string>().c_str(), args.preset.c_str(),
                   request.ao.radius_world, s.mae, relative_mae_text(s).c_str(), s.rmse, s.bias, s.p95,
                   int(s.pixels), ms);
       print_deciles(deciles);
@@ -329,7 +329,7 @@ Command register_eval(CLI::App& app) {
             eval.request.terms = {eval.term == "ao", eval.term != "ao", false};  // no composite
             if (eval.reference.empty())
               eval.reference = eval.term == "ao" ? "AO" : eval.term == "ssdo_direct" ? "DiffDir" : "DiffInd";
-            eval.preset = compute.preset;
+            eval.preset = effective_preset(compute, eval.term != "ao");
             eval.files = each_file_once(eval.files);  // a file listed twice counts once
             return run_eval(eval);
           }};

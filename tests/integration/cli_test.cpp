@@ -1,6 +1,7 @@
 // The real binary on real files: exit codes, messages, outputs.
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -765,6 +766,27 @@ TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
   const nlohmann::json j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
   EXPECT_EQ(j.at("files").at(0).at("reference"), "DiffDir");
   EXPECT_LT(j.at("overall").at("mae").get<double>(), 0.2);
+}
+
+// The preset eval reports is the one it computed with: SSDO's --ssdo-preset, --quality
+// auto's choice for AO (never the --preset default they replaced).
+TEST(Cli, EvalReportsThePresetItComputedWith) {
+  const std::string env = (source_dir() / "examples" / "env_equirect.exr").string();
+  RunResult r = run_ssdo("eval " + example("greeble.exr") + " --term ssdo_direct --ssdo-preset low --json --env " + env);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  nlohmann::json j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_EQ(j.at("files").at(0).at("preset"), "low") << r.output;
+  r = run_ssdo("eval " + example("greeble.exr") + " --quality auto --max-error 0 --preset low --json");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const size_t chosen = r.output.find("--quality auto --max-error 0: ");
+  ASSERT_NE(chosen, std::string::npos) << r.output;
+  std::istringstream words(r.output.substr(chosen + std::string("--quality auto --max-error 0: ").size()));
+  std::string method, preset;
+  words >> method >> preset;
+  j = nlohmann::json::parse(r.output.substr(r.output.find('{')));
+  EXPECT_EQ(j.at("files").at(0).at("method"), method) << r.output;
+  EXPECT_EQ(j.at("files").at(0).at("preset"), preset) << r.output;
+  EXPECT_NE(preset, "low");
 }
 
 }  // namespace
