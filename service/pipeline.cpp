@@ -554,6 +554,25 @@ void note_view_uses(const std::vector<ViewUse>& uses, std::vector<std::string>& 
 
 }  // namespace
 
+// What the environment light does on this frame that a user may not expect: a frame with
+// its own direct-light pass sends that light in the bounce (the light it was rendered
+// with), not the environment given; a directional environment needs the camera's world
+// orientation, which a camera from --fov does not have.
+void note_environment(const FrameRequest& request, const GBuffer& g, const FrameInfo& info,
+                      std::vector<std::string>& notes) {
+  const TermsComputed computed = terms_computed(request);
+  if (!request.environment || !(computed.ssdo || request.terms.composite)) return;
+  if (computed.ssdo && !g.lighting.empty()) {
+    const auto use = std::find_if(info.uses.begin(), info.uses.end(), [](const ChannelUse& u) { return u.input == "lighting"; });
+    notes.push_back("ssdo_indirect: its source light is the frame's own direct light" +
+                    (use != info.uses.end() ? " (" + use->channels + ")" : std::string()) +
+                    ", not the environment given, which lights ssdo_direct and the composite");
+  }
+  if (request.environment->kind() != EnvironmentKind::constant && info.camera_source.rfind("--fov", 0) == 0)
+    notes.push_back("the environment is oriented as if the view were the world (the camera from --fov has no "
+                    "world transform): give a camera sidecar or worldToCamera for a directional environment");
+}
+
 FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
   FrameResult result;
   result.input_path = given.input_path;
@@ -571,6 +590,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
       return result;
     }
     if (!resolve_frame_radius(request, frame.info, result.error)) return result;
+    note_environment(request, frame.gbuffer, frame.info, result.info.notes);
 
     // The G-buffer's images are not written: compute_frame releases each once it is read
     // no more, and their memory goes to the later terms and the writer's buffers (images a

@@ -235,6 +235,28 @@ TEST(Cli, TheEnvironmentMapIsDecodedOnlyForTheTermsThatUseIt) {
   EXPECT_NE(r.output.find(sky.string()), std::string::npos) << r.output;
 }
 
+// The environment's reach is said where a user may not expect it: the bounce of a frame
+// with its own direct-light pass keeps that light; a directional environment under a camera
+// from --fov (no world orientation) is turned with the view.
+TEST(Cli, WhatTheEnvironmentDoesNotLightIsSaid) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  const std::string env = (source_dir() / "examples" / "env_equirect.exr").string();
+  RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + " --terms ssdo --preset low -v --env " + env);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("note: ssdo_indirect: its source light is the frame's own direct light"), std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("oriented as if the view were the world"), std::string::npos) << r.output;
+  fs::remove(dir.path / "in" / "a.camera.json");
+  r = run_ssdo("process " + dir / "in" + " -o " + dir / "out2" + " --terms ao,composite --preset low -v --fov 60 --env " + env);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("note: the environment is oriented as if the view were the world"), std::string::npos)
+      << r.output;
+  r = run_ssdo("process " + dir / "in" + " -o " + dir / "out3" + " --terms ao,composite --preset low -v --fov 60 --env-constant 2");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output.find("oriented as if"), std::string::npos) << r.output;  // a constant has no direction
+}
+
 // The files the options name are part of what an output was made from: the header keeps
 // the environment map's path as given (so a rerun with the same options skips, and the
 // options work as a --config), and a changed map or --camera file makes the rerun compute.
