@@ -1,5 +1,7 @@
 #include "kernels/environment.h"
 
+#include "kernels/environment_irradiance.h"
+
 #include "core/parallel.h"
 
 #include <algorithm>
@@ -187,7 +189,7 @@ glm::vec3 Environment::radiance_filtered_env(const glm::vec3& d) const {
 
 glm::vec3 Environment::irradiance_over_pi_env(const glm::vec3& n) const {
   if (kind_ == EnvironmentKind::constant) return constant_irradiance_over_pi_;
-  return sh_irradiance_over_pi(n);
+  return bilinear_at(irradiance_, equirect_from_direction_fast(n, irradiance_.size()));
 }
 
 glm::vec3 Environment::sh_irradiance_over_pi(const glm::vec3& n) const {
@@ -471,8 +473,8 @@ cv::Mat cone_filtered(const cv::Mat& source, const EnvironmentSettings& s) {
 
 }  // namespace
 
-// The SH projection of the radiance (for irradiance_over_pi) and the cone-filtered map
-// (for radiance_filtered).
+// The SH projection of the radiance (for mean_radiance), the irradiance table (for
+// irradiance_over_pi) and the cone-filtered map (for radiance_filtered).
 void Environment::build() {
   if (kind_ == EnvironmentKind::constant) {
     // Exact: only L_00 = L * Y_00 * 4 pi is non-zero.
@@ -487,7 +489,9 @@ void Environment::build() {
   // The radiance on an equirect grid: the image itself, or the analytic sky at texel centres.
   const cv::Mat grid = kind_ == EnvironmentKind::sky ? tabulated_sky(*this) : image_;
   sh_ = sh_projection(grid);
-  filtered_ = cone_filtered(filter_source(grid), settings_);
+  const cv::Mat source = filter_source(grid);
+  irradiance_ = irradiance_table(source);
+  filtered_ = cone_filtered(source, settings_);
 }
 
 }  // namespace ssdo

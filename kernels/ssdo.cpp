@@ -694,7 +694,7 @@ inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, const 
                       : glm::vec3(0.0f);
   }
   if (c.control_variate) {
-    // E_SH(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
+    // E_tab(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
     // clamp removes negative values that noise can give where almost all is occluded.
     return glm::max(c.env->irradiance_over_pi_env(c.env_from_view * rcv.n) - sums.occluded * inv_n, glm::vec3(0.0f));
   }

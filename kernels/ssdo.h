@@ -28,10 +28,11 @@
 //     occluder under L = 1 gets exactly 1. L_env,filtered is Environment::radiance_filtered,
 //     whose cone should match the footprint 2 pi / N of a sample
 //     (filter_cone_half_angle_for_samples(N); the 15 deg default suits N ~ 30).
-//     Variant bent_normal: (visible / N) x E_SH(bent normal) / pi, bent normal = normalised
+//     Variant bent_normal: (visible / N) x E_tab(bent normal) / pi, bent normal = normalised
 //     sum of the visible w_i. Variant open_minus_occluded (default), a control variate:
-//       direct = max(0, E_SH(n) / pi - (1/N) sum_{i occluded} L_env,filtered(w_i))
-//     (same expectation up to the filter and SH errors, exact where nothing is occluded).
+//       direct = max(0, E_tab(n) / pi - (1/N) sum_{i occluded} L_env,filtered(w_i))
+//     (same expectation up to the filter and table errors, exact where nothing is occluded;
+//     E_tab: Environment::irradiance_over_pi, the tabulated cosine convolution).
 //   indirect, solid angle (default): the radiance arriving from an occluded direction is the
 //     occluder's, so with the same cosine-distributed directions
 //       indirect = (1/N) sum_{i occluded, n_q . (P - P_q) > 0} L_q
@@ -84,9 +85,9 @@ namespace ssdo {
 enum class SsdoMethod { ssdo, oracle };
 enum class SsdoDirectEstimator {
   per_sample,   // (1/N) sum over visible samples of the cone-filtered radiance (paper)
-  bent_normal,  // visible fraction x E_SH(bent normal) / pi: smooth, biased in corners
-  // E_SH(n) / pi - (1/N) sum over occluded samples of the cone-filtered radiance: the
-  // unoccluded integral exactly (SH), Monte Carlo only for what is occluded (a control
+  bent_normal,  // visible fraction x E_tab(bent normal) / pi: smooth, biased in corners
+  // E_tab(n) / pi - (1/N) sum over occluded samples of the cone-filtered radiance: the
+  // unoccluded integral from the irradiance table, Monte Carlo only for what is occluded (a control
   // variate); no filter bias and no noise on open surfaces.
   open_minus_occluded,
 };
