@@ -37,10 +37,11 @@
 //    Cycles DiffDir convention. Used by the SSDO direct estimators open_minus_occluded (the
 //    unoccluded integral) and bent_normal; exact for constant environments, within 0.2% for
 //    smooth skies (0.15% for the Cycles sky), and within 2% of a sun's irradiance at any
-//    angle from it (1.5% measured), 0 facing away. Built in ~10 ms of CPU per environment. The order-2
-//    spherical-harmonics form (Ramamoorthi and Hanrahan 2001) is exact to 1% for smooth
-//    skies only: under a small bright source it leaks ~10% of its light onto surfaces
-//    facing away (environment_test.cpp). The SH projection still gives mean_radiance.
+//    angle from it (1.5% measured), 0 facing away; built in ~10 ms of CPU per environment.
+//    The order-2 spherical-harmonics form (Ramamoorthi and Hanrahan 2001) is exact to 1% for
+//    smooth skies only: under a small bright source it leaks ~10% of its light onto
+//    surfaces facing away (environment_test.cpp). The SH projection still gives
+//    mean_radiance.
 #pragma once
 
 #include <array>
