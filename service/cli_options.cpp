@@ -96,7 +96,16 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   if (!config.empty()) {
     nlohmann::json j;
     if (!load_json_file(config, j, error)) return false;
-    if (!apply_json(j, options, error, [&](const std::string& key) { return given(app, key); })) {
+    // A flag on the command line wins over the config's key; the environment is one choice
+    // of three keys, so --env on the command line also replaces a config's "sky".
+    const auto environment_key = [](const std::string& key) {
+      return key == "env" || key == "sky" || key == "env-constant";
+    };
+    const bool environment_given = given(app, "env") || given(app, "sky") || given(app, "env-constant");
+    const auto keep = [&](const std::string& key) {
+      return given(app, key) || (environment_given && environment_key(key));
+    };
+    if (!apply_json(j, options, error, keep)) {
       error = config + ": " + error;
       return false;
     }

@@ -7,6 +7,7 @@
 
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "run_binary.h"
 
@@ -57,6 +58,27 @@ TEST(OptionsCli, ReferenceInDocsIsWhatTheBinaryPrints) {
   committed << in.rdbuf();
   EXPECT_EQ(r.output, committed.str())
       << "docs/options.md is out of date: regenerate it with `ssdo options --markdown > docs/options.md`";
+}
+
+// The command line wins over a config: for the environment, one choice of three keys, a
+// command-line --env-constant replaces the config's "sky" (it was refused as two
+// environments); two in the config itself stay an error.
+TEST(OptionsCli, AnEnvironmentOnTheCommandLineReplacesTheConfigs) {
+  ScratchDir out;
+  const std::string base = "process " + example("cornell.exr") + " -o " + out.path.string() + " --preset low --terms ao,composite";
+  std::ofstream(out / "cfg.json") << R"({"sky": "1,0"})";
+  RunResult r = run_ssdo(base + " --config " + (out / "cfg.json") + " --env-constant 2");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  auto in = OIIO::ImageInput::open((out / "cornell.ssdo.exr"));
+  ASSERT_TRUE(in);
+  const nlohmann::json made = nlohmann::json::parse(in->spec().get_string_attribute("ssdo/options"), nullptr, false);
+  in.reset();
+  EXPECT_EQ(made.value("sky", "?"), "") << made.dump();
+  EXPECT_EQ(made.value("env-constant", 0.0), 2.0) << made.dump();
+  std::ofstream(out / "two.json") << R"({"sky": "1,0", "env-constant": 2})";
+  r = run_ssdo(base + " --config " + (out / "two.json"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("give one environment"), std::string::npos) << r.output;
 }
 
 TEST(OptionsCli, OutOfRangeValuesAreUsageErrorsOnTheCommandLineAndInAConfig) {
