@@ -116,6 +116,9 @@ struct Prepared {
   bool depth_kind_stated = false;  // by the sidecar
   std::optional<float> background_depth;
   std::optional<std::string> sidecar_normal_space, sidecar_position_space;
+  // The normals' space was stated by nothing (profile, mapping or sidecar) and the camera
+  // has no world transform: they are taken as view space, to be checked against the data.
+  bool normal_space_assumed = false;
   // The back-face depth is the deep depth part's next surface (no back channel mapped).
   bool deep_back = false;
 };
@@ -462,8 +465,11 @@ bool resolve_camera(const std::string& path, const ReadOptions& options, ReadRes
 // What became what: the space of normals and positions, and each used input's channels.
 void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
   for (auto& r : prep.channels.inputs) {
-    if (r.input == "normal")
+    if (r.input == "normal") {
+      prep.normal_space_assumed =
+          r.space == Space::automatic && !prep.sidecar_normal_space && !prep.camera_has_world;
       r.space = decide_space(r.space, prep.sidecar_normal_space, prep.camera_has_world);
+    }
     if (r.input == "position")
       r.space = decide_space(r.space, prep.sidecar_position_space, prep.camera_has_world);
   }
@@ -1126,6 +1132,7 @@ void add_row_counts(const std::vector<RowCounts>& rows, FrameInfo& info) {
     info.foreground_pixels += r.foreground;
     info.nonfinite_pixels += r.nonfinite;
     info.repaired_normal_pixels += r.repaired;
+    info.normals_facing_away_pixels += r.facing_away;
     if (r.foreground) {
       info.depth_min_view = info.foreground_pixels == r.foreground
                                 ? r.depth_min
@@ -1135,8 +1142,31 @@ void add_row_counts(const std::vector<RowCounts>& rows, FrameInfo& info) {
   }
 }
 
+// Whether normals taken as view space only by assumption (Prepared::normal_space_assumed)
+// are not: more than kMaxFacingAwayOfViewNormals of the foreground normals face away from
+// the eye (n . direction to the eye < 0 along each pixel's eye ray). Then a note says so.
+bool assumed_view_normals_refuted(const Prepared& prep, FrameInfo& info) {
+  const int64_t with_normal = info.foreground_pixels - info.repaired_normal_pixels;
+  if (!prep.normal_space_assumed || with_normal <= 0) return false;
+  const double away = double(info.normals_facing_away_pixels) / double(with_normal);
+  if (!(away > kMaxFacingAwayOfViewNormals)) return false;
+  std::ostringstream note;
+  note.precision(3);
+  note << "normal channels " << prep.channels.find("normal")->describe()
+       << " are not view space: their space is not stated and the camera (" << info.camera_source
+       << ") has no world transform, but " << 100.0 * away << "% of the foreground normals face away from the eye ("
+       << info.normals_facing_away_pixels << " of " << with_normal
+       << " pixels; view-space normals face it): normals rebuilt from depth. World-space normals are used with "
+          "--map normal-space=world and a camera with a world transform (a sidecar, or worldToCamera/worldToNDC); "
+          "--map normal-space=view keeps them as view space";
+  info.notes.push_back(note.str());
+  return true;
+}
+
 // Depth, mask and normals in the internal conventions (foreground_row over every row), and
-// the counts. Foreground pixels with a zero normal are marked in normal_missing.
+// the counts. Foreground pixels with a zero normal are marked in normal_missing. Normals
+// that fail the view-space check (assumed_view_normals_refuted) are left out: normal_view
+// stays empty, to be rebuilt from depth.
 void classify_foreground(const Prepared& prep, const ReadOptions& options, Images& img,
                          ReadResult& result) {
   GBuffer& g = result.gbuffer;
@@ -1162,6 +1192,12 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
   if (info.foreground_pixels == 0)
     info.notes.push_back(std::string(kWarningNote) + "no foreground pixel: " + std::string(kNoForeground) +
                          "; the terms are an empty frame's");
+  if (has_normals && assumed_view_normals_refuted(prep, info)) {
+    std::erase_if(info.uses, [](const ChannelUse& u) { return u.input == "normal"; });
+    info.normals_reconstructed = true;
+    info.repaired_normal_pixels = 0;
+    return;
+  }
   if (has_normals) g.normal_view = img.normal;
   if (info.repaired_normal_pixels > 0) g.normal_missing = repair;
 }

@@ -61,6 +61,7 @@ nlohmann::json info_json(const ReadResult& r) {
   j["masked_pixels"] = i.masked_pixels;
   j["nonfinite_pixels"] = i.nonfinite_pixels;
   j["repaired_normal_pixels"] = i.repaired_normal_pixels;
+  j["normals_facing_away_pixels"] = i.normals_facing_away_pixels;
   j["notes"] = i.notes;
   return j;
 }

@@ -759,6 +759,91 @@ TEST(ReadConversions, WorldNormalsUnderABareFovAreRebuiltNotMisread) {
   EXPECT_FALSE(view.gbuffer.normal_view.empty());
 }
 
+// Generic N of no stated space under a camera without a world transform (Arnold's N AOV is
+// world space) is taken as view space only while its foreground normals face the eye: the
+// world normal +Y read as view space faces away on every pixel above the centre row (its
+// eye ray has y > 0), half the frame, so it is dropped and rebuilt from depth, with a note
+// naming the channels and the fraction. Normals facing the eye are kept, and so are the
+// same away-facing ones when the mapping says they are view space. The SIMD groups and
+// the per-pixel path count alike (a width that leaves a tail, 1 and 2 threads).
+TEST(ReadConversions, GenericNormalsFacingAwayUnderABareFovAreNotTakenAsView) {
+  ScratchDir dir;
+  const int w = 67, h = 36;
+  TestExr away = generic_frame(w, h, 4.0f);
+  add_constant_normals(away, {0.0f, 1.0f, 0.0f});
+  ASSERT_TRUE(away.write(dir / "away.exr"));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(threads);
+    options.threads = threads;
+    const ReadResult r = read_gbuffer((dir / "away.exr").string(), options);
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_EQ(r.info.normals_facing_away_pixels, int64_t(w) * (h / 2));
+    EXPECT_TRUE(r.gbuffer.normal_view.empty());
+    EXPECT_TRUE(r.info.normals_reconstructed);
+    for (const ChannelUse& u : r.info.uses) EXPECT_NE(u.input, "normal");
+    ASSERT_FALSE(r.info.notes.empty());
+    const std::string& note = r.info.notes.back();
+    EXPECT_TRUE(contains(note, "normal channels N.{X,Y,Z} are not view space")) << note;
+    EXPECT_TRUE(contains(note, "50% of the foreground normals face away")) << note;
+    EXPECT_TRUE(contains(note, "--map normal-space=world")) << note;
+  }
+  // Stated view space is obeyed: the normals are read, turned to face the eye.
+  options.mapping.normal_space = Space::view;
+  const ReadResult stated = read_gbuffer((dir / "away.exr").string(), options);
+  ASSERT_TRUE(stated.ok()) << stated.error;
+  ASSERT_FALSE(stated.gbuffer.normal_view.empty());
+  EXPECT_EQ(stated.gbuffer.normal_view.at<cv::Vec3f>(0, 0), cv::Vec3f(0, -1, 0));
+  EXPECT_EQ(stated.gbuffer.normal_view.at<cv::Vec3f>(h - 1, 0), cv::Vec3f(0, 1, 0));
+  // Normals facing the eye but on 2 of the 36 rows (5.6% > 5%) are refused; on one row
+  // (2.8%) they are taken as view space.
+  options.mapping.normal_space = Space::automatic;
+  for (const int rows_away : {1, 2}) {
+    SCOPED_TRACE(rows_away);
+    TestExr facing = generic_frame(w, h, 4.0f);
+    add_constant_normals(facing, {0.0f, 0.0f, 1.0f});
+    for (int i = 0; i < rows_away * w; ++i) facing.channels[3].values[i] = -1.0f;  // top rows: N = -Z
+    ASSERT_TRUE(facing.write(dir / "facing.exr"));
+    const ReadResult r = read_gbuffer((dir / "facing.exr").string(), options);
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_EQ(r.info.normals_facing_away_pixels, int64_t(rows_away) * w);
+    EXPECT_EQ(r.gbuffer.normal_view.empty(), rows_away == 2);
+    if (rows_away == 1) EXPECT_EQ(r.info.uses[1].space, "view");
+  }
+}
+
+// Blender's normals mapped by their own name (--map normal=ViewLayer.Normal) are still the
+// world-space normals the profile knows: under --fov they are rebuilt from depth, even
+// where, as here, they happen to face the eye as view normals would.
+TEST(ReadConversions, ProfileNormalsMappedByNameKeepTheirWorldSpace) {
+  ScratchDir dir;
+  TestExr t;
+  t.width = t.height = 8;
+  t.channels.push_back({"ViewLayer.Depth.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64, 3.0f)});
+  for (const char* c : {"ViewLayer.Normal.X", "ViewLayer.Normal.Y"})
+    t.channels.push_back({c, OIIO::TypeDesc::FLOAT, std::vector<float>(64, 0.0f)});
+  t.channels.push_back({"ViewLayer.Normal.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64, 1.0f)});
+  ASSERT_TRUE(t.write(dir / "blender.exr"));
+  ReadOptions options;
+  options.fov_x_deg = 50.0f;
+  options.mapping.normal = "ViewLayer.Normal";
+  const ReadResult r = read_gbuffer((dir / "blender.exr").string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.gbuffer.normal_view.empty());
+  EXPECT_TRUE(r.info.normals_reconstructed);
+  bool noted = false;
+  for (const std::string& n : r.info.notes)
+    noted |= contains(n, "ViewLayer.Normal.{X,Y,Z} are world space and the camera (--fov) has no pose");
+  EXPECT_TRUE(noted);
+  // A stated space still wins.
+  options.mapping.normal_space = Space::view;
+  const ReadResult stated = read_gbuffer((dir / "blender.exr").string(), options);
+  ASSERT_TRUE(stated.ok()) << stated.error;
+  ASSERT_FALSE(stated.gbuffer.normal_view.empty());
+  EXPECT_EQ(stated.gbuffer.normal_view.at<cv::Vec3f>(4, 4), cv::Vec3f(0, 0, 1));
+}
+
 // Under --fov, pixels wider than tall (pixelAspectRatio, anamorphic plates) narrow the
 // vertical field of view: the image is width x aspect / height as wide as tall.
 TEST(ReadConversions, FovFollowsThePixelAspectRatio) {
