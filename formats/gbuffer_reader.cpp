@@ -29,6 +29,7 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
@@ -343,16 +344,41 @@ bool camera_from_sidecar(const std::string& path, const std::string& sidecar,
   return true;
 }
 
+// A 4x4 matrix attribute of a header in glm's column-vector form, stored as M44f (the type
+// OpenEXR's standard attributes have) or M44d (as some writers store worldToCamera and
+// worldToNDC; OpenEXR's hasWorldToCamera sees only M44f); nullopt when absent or of another
+// type. Imath stores x[row][col] in the row-vector convention, so the same 16 values in
+// memory order are the column-vector form (formats/camera_io.h, ExrCameraMatrices).
+std::optional<glm::mat4> header_matrix(const Imf::Header& h, const char* name) {
+  glm::mat4 m;
+  if (const auto* a = h.findTypedAttribute<Imf::M44fAttribute>(name)) {
+    std::copy(&a->value().x[0][0], &a->value().x[0][0] + 16, &m[0][0]);
+    return m;
+  }
+  if (const auto* a = h.findTypedAttribute<Imf::M44dAttribute>(name)) {
+    std::transform(&a->value().x[0][0], &a->value().x[0][0] + 16, &m[0][0], [](double v) { return float(v); });
+    return m;
+  }
+  return std::nullopt;
+}
+
 // The part whose header holds worldToCamera and worldToNDC: the depth part first, then the
-// others in order; -1 when none does.
-int header_camera_part(const Prepared& prep) {
+// others in order; -1 when none does. `partial` then says what the headers hold of the pair
+// when they hold one of its attributes (the first such part's), else stays empty.
+int header_camera_part(const Prepared& prep, std::string* partial) {
   const int depth_part = prep.channels.part;
   std::vector<int> order{depth_part};
   for (int i = 0; i < prep.file->parts(); ++i)
     if (i != depth_part) order.push_back(i);
   for (int i : order) {
     const Imf::Header& h = prep.file->header(i);
-    if (Imf::hasWorldToCamera(h) && Imf::hasWorldToNDC(h)) return i;
+    const bool pose = header_matrix(h, "worldToCamera").has_value();
+    const bool projection = header_matrix(h, "worldToNDC").has_value();
+    if (pose && projection) return i;
+    if (partial->empty() && (pose || projection))
+      *partial = std::string("the header") + part_label(prep, i) + " has " +
+                 (pose ? "worldToCamera (the pose) but no worldToNDC (the projection)"
+                       : "worldToNDC (the projection) but no worldToCamera (the pose)");
   }
   return -1;
 }
@@ -362,11 +388,8 @@ int header_camera_part(const Prepared& prep) {
 bool camera_from_header(const std::string& path, int part, ReadResult& result, Prepared& prep) {
   const Imf::Header& h = prep.file->header(part);
   ExrCameraMatrices m;
-  const Imath::M44f& w2c = Imf::worldToCamera(h);
-  const Imath::M44f& w2n = Imf::worldToNDC(h);
-  // Same 16 floats in the same order: Imath row-vector == glm column-vector form.
-  std::copy(&w2c.x[0][0], &w2c.x[0][0] + 16, &m.world_to_camera[0][0]);
-  std::copy(&w2n.x[0][0], &w2n.x[0][0] + 16, &m.world_to_ndc[0][0]);
+  m.world_to_camera = *header_matrix(h, "worldToCamera");
+  m.world_to_ndc = *header_matrix(h, "worldToNDC");
   // A clip distance as float (OpenEXR's convention), double or int (as some tools write a
   // whole number, e.g. oiiotool's --attrib clipFar 1000); 0 when absent.
   auto clip_distance = [&](const char* name) -> float {
@@ -391,13 +414,19 @@ bool camera_from_header(const std::string& path, int part, ReadResult& result, P
 
 // A camera from the caller's horizontal field of view, which spans the display window (the
 // full image), like a sidecar's.
-bool camera_from_fov(const std::string& path, const std::string& sidecar,
+// `partial_header` says which half of the header camera the file holds, if one.
+bool camera_from_fov(const std::string& path, const std::string& sidecar, const std::string& partial_header,
                      const ReadOptions& options, ReadResult& result, Prepared& prep) {
+  if (!options.fov_x_deg && !partial_header.empty())
+    return fail(result, path + ": no camera: " + partial_header + ": store the missing attribute, give a JSON sidecar (" +
+                            sidecar + " or an explicit camera JSON path), or pass a horizontal field of view (--fov DEGREES)");
   if (!options.fov_x_deg)
     return fail(result, path + ": no camera: give a JSON sidecar (" + sidecar +
                             " or an explicit camera JSON path), store worldToCamera and "
                             "worldToNDC attributes in the EXR header, or pass a horizontal "
                             "field of view (--fov DEGREES)");
+  if (!partial_header.empty())
+    result.info.notes.push_back(partial_header + ": it is not used; --fov gives the camera");
   const float fov = *options.fov_x_deg;
   if (!(fov > 0.0f && fov < 180.0f))
     return fail(result, path + ": field of view " + std::to_string(fov) +
@@ -435,12 +464,13 @@ bool resolve_camera(const std::string& path, const ReadOptions& options, ReadRes
       options.camera_json.empty() ? sidecar_path_for(path) : options.camera_json;
   std::error_code ec;
   bool ok = false;
+  std::string partial_header;
   if (!options.camera_json.empty() || std::filesystem::exists(sidecar, ec))
     ok = camera_from_sidecar(path, sidecar, options, result, prep);
-  else if (const int part = header_camera_part(prep); part >= 0)
+  else if (const int part = header_camera_part(prep, &partial_header); part >= 0)
     ok = camera_from_header(path, part, result, prep);
   else
-    ok = camera_from_fov(path, sidecar, options, result, prep);
+    ok = camera_from_fov(path, sidecar, partial_header, options, result, prep);
   if (!ok) return false;
   if (options.fov_x_deg && prep.camera_has_world)
     info.notes.push_back("the given field of view is ignored: the frame's camera (" +

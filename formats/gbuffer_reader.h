@@ -30,8 +30,8 @@
 // in a part of another size is left out with a note; one mapped there is an error.
 //
 // Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an explicit
-// path), the OpenEXR header attributes worldToCamera + worldToNDC (either camera
-// convention, detected: see formats/camera_io.h; optional float attributes clipNear /
+// path), the OpenEXR header attributes worldToCamera + worldToNDC (M44f or M44d; either
+// camera convention, detected: see formats/camera_io.h; optional float attributes clipNear /
 // clipFar), or a horizontal field of view given by the caller. Sidecar and field of view
 // refer to the display window; the projection is re-targeted to the data window, which is
 // the pixel grid (row 0 = its top scanline).

@@ -9,9 +9,12 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/openexr.h>
+#include <glm/gtc/matrix_transform.hpp>
 
+#include "formats/camera_io.h"
 #include "formats_test_util.h"
 
 namespace ssdo::test {
@@ -325,6 +328,93 @@ void add_constant_normals(TestExr& t, const glm::vec3& n) {
   t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.x)});
   t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.y)});
   t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.z)});
+}
+
+// A frame of constant planar depth written with OpenEXR, with the given matrix attributes
+// stored as M44d (OpenImageIO writes worldToCamera and worldToNDC only as M44f).
+void write_frame_with_double_matrices(const fs::path& path, int width, int height, float depth,
+                                      const std::vector<std::pair<std::string, glm::dmat4>>& matrices) {
+  const Imath::Box2i window(Imath::V2i(0, 0), Imath::V2i(width - 1, height - 1));
+  Imf::Header header(window, window);
+  for (const auto& [name, m] : matrices) {
+    Imath::M44d value;
+    std::copy(&m[0][0], &m[0][0] + 16, &value.x[0][0]);  // column-vector glm = row-vector Imath
+    header.insert(name, Imf::M44dAttribute(value));
+  }
+  header.channels().insert("Z", Imf::Channel(Imf::FLOAT));
+  std::vector<float> z(size_t(width) * height, depth);
+  Imf::FrameBuffer fb;
+  fb.insert("Z", Imf::Slice::Make(Imf::FLOAT, z.data(), window, 4, 4 * size_t(width)));
+  Imf::OutputFile out(path.c_str(), header);
+  out.setFrameBuffer(fb);
+  out.writePixels(height);
+}
+
+// worldToCamera / worldToNDC stored as double matrices (M44d) are the same camera as
+// stored as float ones (M44f), which OpenEXR's hasWorldToCamera alone would see.
+TEST(HeaderCamera, DoubleMatricesAreRead) {
+  ScratchDir dir;
+  Camera cam = Camera::from_fov_x(16, 8, 60.0f, 0.1f, 100.0f);
+  cam.world_to_view = glm::translate(glm::mat4(1.0f), glm::vec3(0.5f, -1.0f, -2.0f)) *
+                      glm::rotate(glm::mat4(1.0f), 0.3f, glm::vec3(0.0f, 1.0f, 0.0f));
+  cam.view_to_world = glm::inverse(cam.world_to_view);
+  const ExrCameraMatrices m = exr_matrices_from_camera(cam);
+  TestExr as_float = generic_frame(16, 8, 3.0f);
+  as_float.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+  ASSERT_TRUE(as_float.write(dir / "m44f.exr"));
+  write_frame_with_double_matrices(dir / "m44d.exr", 16, 8, 3.0f,
+                                   {{"worldToCamera", glm::dmat4(m.world_to_camera)},
+                                    {"worldToNDC", glm::dmat4(m.world_to_ndc)}});
+  const ReadResult f = read_gbuffer((dir / "m44f.exr").string());
+  const ReadResult d = read_gbuffer((dir / "m44d.exr").string());
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_TRUE(d.ok()) << d.error;
+  EXPECT_EQ(d.info.camera_source, "header worldToCamera/worldToNDC");
+  EXPECT_NEAR(d.info.fov_x_deg, 60.0, 1e-3);
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) {
+      EXPECT_EQ(d.gbuffer.camera.world_to_view[c][r], f.gbuffer.camera.world_to_view[c][r]);
+      EXPECT_EQ(d.gbuffer.camera.view_to_clip[c][r], f.gbuffer.camera.view_to_clip[c][r]);
+      EXPECT_NEAR(d.gbuffer.camera.world_to_view[c][r], cam.world_to_view[c][r], 1e-5);
+    }
+}
+
+// A header with worldToCamera but no worldToNDC (float or double) has no camera: the
+// error says what is missing, not the generic request for the attributes it has. With
+// --fov the frame is read, with a note that the pose is not used.
+TEST(HeaderCamera, PoseWithoutProjectionSaysWhatIsMissing) {
+  ScratchDir dir;
+  const glm::mat4 pose = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 0.0f, -3.0f));
+  for (const bool as_double : {false, true}) {
+    SCOPED_TRACE(as_double);
+    const fs::path path = dir / "pose_only.exr";
+    if (as_double) {
+      write_frame_with_double_matrices(path, 16, 8, 3.0f, {{"worldToCamera", glm::dmat4(pose)}});
+    } else {
+      TestExr t = generic_frame(16, 8, 3.0f);
+      t.matrices = {{"worldToCamera", pose}};
+      ASSERT_TRUE(t.write(path));
+    }
+    const ReadResult r = read_gbuffer(path.string());
+    ASSERT_FALSE(r.ok());
+    EXPECT_TRUE(contains(r.error, "no camera: the header has worldToCamera (the pose) but no worldToNDC (the projection)"))
+        << r.error;
+    EXPECT_TRUE(contains(r.error, "pose_only.camera.json")) << r.error;
+    EXPECT_TRUE(contains(r.error, "--fov DEGREES")) << r.error;
+    EXPECT_FALSE(contains(r.error, "store worldToCamera and worldToNDC")) << r.error;
+    ReadOptions options;
+    options.fov_x_deg = 50.0f;
+    const ReadResult fov = read_gbuffer(path.string(), options);
+    ASSERT_TRUE(fov.ok()) << fov.error;
+    EXPECT_EQ(fov.info.camera_source, "--fov 50");
+    bool noted = false;
+    for (const std::string& n : fov.info.notes) noted |= contains(n, "no worldToNDC (the projection): it is not used");
+    EXPECT_TRUE(noted);
+  }
+  write_frame_with_double_matrices(dir / "ndc_only.exr", 16, 8, 3.0f, {{"worldToNDC", glm::dmat4(1.0)}});
+  const ReadResult r = read_gbuffer((dir / "ndc_only.exr").string());
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "the header has worldToNDC (the projection) but no worldToCamera (the pose)")) << r.error;
 }
 
 // Clip distances written as whole numbers (int attributes, as oiiotool's --attrib writes
