@@ -383,9 +383,14 @@ int header_camera_part(const Prepared& prep, std::string* partial) {
   return -1;
 }
 
+bool camera_from_fov(const std::string& path, const std::string& sidecar, const std::string& partial_header,
+                     const ReadOptions& options, ReadResult& result, Prepared& prep);
+
 // The camera of the OpenEXR header attributes worldToCamera + worldToNDC of `part` (and the
-// optional clipNear / clipFar), either camera convention (formats/camera_io.h).
-bool camera_from_header(const std::string& path, int part, ReadResult& result, Prepared& prep) {
+// optional clipNear / clipFar), either camera convention (formats/camera_io.h). Matrices
+// that describe no camera are an error, or with --fov a warning and the --fov camera.
+bool camera_from_header(const std::string& path, const std::string& sidecar, int part, const ReadOptions& options,
+                        ReadResult& result, Prepared& prep) {
   const Imf::Header& h = prep.file->header(part);
   ExrCameraMatrices m;
   m.world_to_camera = *header_matrix(h, "worldToCamera");
@@ -403,7 +408,13 @@ bool camera_from_header(const std::string& path, int part, ReadResult& result, P
   // The matrices refer to this part's display window; the grid is the depth part's.
   auto cam = camera_from_exr_matrices(m, box_of(h.displayWindow()), prep.data, near_view,
                                       far_view, &error, &note);
-  if (!cam) return fail(result, path + ": " + error);
+  if (!cam) {
+    const std::string refused = path + part_label(prep, part) + ": " + error;
+    if (!options.fov_x_deg)
+      return fail(result, refused + "; a camera sidecar (" + sidecar + ") or --fov DEGREES reads the frame");
+    result.info.notes.push_back(std::string(kWarningNote) + refused + "; --fov gives the camera instead");
+    return camera_from_fov(path, sidecar, "", options, result, prep);
+  }
   prep.camera = *cam;
   prep.camera_has_world = true;
   result.info.camera_source = "header worldToCamera/worldToNDC";
@@ -468,7 +479,7 @@ bool resolve_camera(const std::string& path, const ReadOptions& options, ReadRes
   if (!options.camera_json.empty() || std::filesystem::exists(sidecar, ec))
     ok = camera_from_sidecar(path, sidecar, options, result, prep);
   else if (const int part = header_camera_part(prep, &partial_header); part >= 0)
-    ok = camera_from_header(path, part, result, prep);
+    ok = camera_from_header(path, sidecar, part, options, result, prep);
   else
     ok = camera_from_fov(path, sidecar, partial_header, options, result, prep);
   if (!ok) return false;

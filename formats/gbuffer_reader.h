@@ -32,7 +32,9 @@
 // Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an explicit
 // path), the OpenEXR header attributes worldToCamera + worldToNDC (M44f or M44d; either
 // camera convention, detected: see formats/camera_io.h; optional float attributes clipNear /
-// clipFar), or a horizontal field of view given by the caller. Sidecar and field of view
+// clipFar; header matrices that describe no camera, such as an optical axis at or outside
+// the display window, are an error, or with a field of view a warning and that camera), or
+// a horizontal field of view given by the caller. Sidecar and field of view
 // refer to the display window; the projection is re-targeted to the data window, which is
 // the pixel grid (row 0 = its top scanline).
 //

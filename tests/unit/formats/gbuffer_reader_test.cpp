@@ -417,6 +417,46 @@ TEST(HeaderCamera, PoseWithoutProjectionSaysWhatIsMissing) {
   EXPECT_TRUE(contains(r.error, "the header has worldToNDC (the projection) but no worldToCamera (the pose)")) << r.error;
 }
 
+// A header worldToNDC in the [-1, 1] convention is read as the camera it means, with a
+// note; one whose optical axis lands elsewhere outside the picture is refused, naming the
+// attribute and what reads the frame instead, and with --fov that camera is used, with a
+// warning.
+TEST(HeaderCamera, NdcOfAnotherConventionIsConvertedOrRefused) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(32, 16, 60.0f, 0.1f, 100.0f);
+  TestExr gl = generic_frame(32, 16, 3.0f);
+  gl.matrices = {{"worldToCamera", glm::mat4(1.0f)}, {"worldToNDC", cam.view_to_clip}};
+  ASSERT_TRUE(gl.write(dir / "gl.exr"));
+  const ReadResult converted = read_gbuffer((dir / "gl.exr").string());
+  ASSERT_TRUE(converted.ok()) << converted.error;
+  EXPECT_NEAR(converted.info.fov_x_deg, 60.0, 1e-3);
+  EXPECT_NEAR(converted.gbuffer.camera.view_to_clip[2][0], 0.0f, 1e-6f);  // no lens shift
+  EXPECT_TRUE(contains(converted.info.notes.front(), "worldToNDC is in the [-1, 1] convention"))
+      << converted.info.notes.front();
+
+  glm::mat4 shifted = cam.view_to_clip;
+  shifted[2][1] = -0.5f;  // the axis at OpenGL NDC y = 0.5: outside OpenEXR's [0, 1]
+  gl.matrices = {{"worldToCamera", glm::mat4(1.0f)}, {"worldToNDC", shifted}};
+  const fs::path path = dir / "shifted.exr";
+  ASSERT_TRUE(gl.write(path));
+  const ReadResult refused = read_gbuffer(path.string());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_TRUE(contains(refused.error, "worldToNDC puts the optical axis at NDC (0, 0.5), pixel (0, 8)")) << refused.error;
+  EXPECT_TRUE(contains(refused.error, "a camera sidecar (" + (dir / "shifted.camera.json").string() +
+                                          ") or --fov DEGREES reads the frame"))
+      << refused.error;
+  ReadOptions options;
+  options.fov_x_deg = 45.0f;
+  const ReadResult fov = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(fov.ok()) << fov.error;
+  EXPECT_EQ(fov.info.camera_source, "--fov 45");
+  EXPECT_NEAR(fov.info.fov_x_deg, 45.0, 1e-3);
+  ASSERT_FALSE(fov.info.notes.empty());
+  EXPECT_EQ(fov.info.notes.front().rfind(kWarningNote, 0), 0u) << fov.info.notes.front();
+  EXPECT_TRUE(contains(fov.info.notes.front(), "optical axis at NDC (0, 0.5)")) << fov.info.notes.front();
+  EXPECT_TRUE(contains(fov.info.notes.front(), "--fov gives the camera instead")) << fov.info.notes.front();
+}
+
 // Clip distances written as whole numbers (int attributes, as oiiotool's --attrib writes
 // clipFar 5) are read as the float ones are, not dropped.
 TEST(HeaderCamera, IntegerClipDistancesAreRead) {
