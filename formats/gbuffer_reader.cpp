@@ -514,6 +514,15 @@ void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
     if (r.input == "position")
       r.space = decide_space(r.space, prep.sidecar_position_space, prep.camera_has_world);
   }
+  // A positions pass is read only when asked for (ReadOptions::read_positions): otherwise
+  // the terms take view-space positions from depth and the camera, and the channel is
+  // said to be unused rather than listed nowhere.
+  std::erase_if(prep.channels.inputs, [&](const ResolvedInput& r) {
+    if (r.input != "position" || options.read_positions) return false;
+    info.notes.push_back("position channels " + r.describe() +
+                         " are not used: view-space positions come from depth and the camera");
+    return true;
+  });
   // World-space normals or positions under a camera without a pose (a bare --fov) cannot be
   // brought into view space: they are not read (the normals are rebuilt from depth, the
   // positions computed from it), rather than taken as view space.
@@ -1243,6 +1252,36 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
   if (info.repaired_normal_pixels > 0) g.normal_missing = repair;
 }
 
+// The foreground depth range as the file holds it (FrameInfo::depth_min_stored): a radial
+// depth is the planar one times the length of the pixel's eye ray (planar_depth divided by
+// it; the product is the stored value to a rounding).
+void stored_depth_range(const Prepared& prep, const ReadOptions& options, const GBuffer& g, FrameInfo& info) {
+  info.depth_min_stored = info.depth_min_view;
+  info.depth_max_stored = info.depth_max_view;
+  const ForegroundPass pass = foreground_pass(prep);
+  if (!pass.radial || !pass.perspective || info.foreground_pixels == 0) return;
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<std::pair<float, float>> rows(g.depth_view.rows, {inf, -inf});
+  parallel_rows(cv::Range(0, g.depth_view.rows), options.threads, [&](const cv::Range& range) {
+    for (int y = range.start; y < range.end; ++y) {
+      const float* depth = g.depth_view.ptr<float>(y);
+      const uint8_t* mask = g.mask.ptr<uint8_t>(y);
+      const glm::vec3 ray_row = row_ray(pass, y);
+      for (int x = 0; x < g.depth_view.cols; ++x) {
+        if (!mask[x]) continue;
+        const float stored = depth[x] * glm::length(eye_ray(pass, ray_row, x));
+        rows[y] = {std::min(rows[y].first, stored), std::max(rows[y].second, stored)};
+      }
+    }
+  });
+  info.depth_min_stored = inf;
+  info.depth_max_stored = -inf;
+  for (const auto& [lo, hi] : rows) {
+    info.depth_min_stored = std::min(info.depth_min_stored, lo);
+    info.depth_max_stored = std::max(info.depth_max_stored, hi);
+  }
+}
+
 // The back-face depth in the depth's conventions (planar_depth), +inf off the foreground and
 // where the stored value is background, never in front of the pixel's own depth (the far
 // side of a surface is behind it; a back pass rendered at another precision may differ by
@@ -1401,6 +1440,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
       return result;
     }
     classify_foreground(prep, options, img, result);
+    stored_depth_range(prep, options, result.gbuffer, result.info);
     back_layer_to_planar(prep, options, img, result);
     if (options.read_positions) positions_to_view(prep, options, img, result);
     shading_inputs(options, img, result.gbuffer);

@@ -180,7 +180,10 @@ struct FrameInfo {
   // empty, to be computed from depth.
   bool positions_missing = false;
   std::optional<float> ao_distance_world;     // AO radius of the reference pass, if known
-  float depth_min_view = 0, depth_max_view = 0;  // foreground depth range
+  float depth_min_view = 0, depth_max_view = 0;  // foreground depth range, planar
+  // The same pixels' depth as the file holds it: the distance from the eye for a radial
+  // depth (depth_kind "radial"), else the planar range above.
+  float depth_min_stored = 0, depth_max_stored = 0;
   int64_t foreground_pixels = 0, masked_pixels = 0, nonfinite_pixels = 0;
   // Foreground pixels whose normal is (0, 0, 0) in the file (GBuffer::normal_missing), to
   // be replaced by the normal reconstructed from depth.
