@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
 #include <nlohmann/json.hpp>
 
@@ -314,6 +315,60 @@ std::string convention_note(bool perspective, double forward_z, double depth_slo
   return "header camera looks down -Z (right-handed, Blender/Arnold style)";
 }
 
+// OpenGL NDC (x right, y up, [-1, 1] over the display window) -> OpenEXR NDC (u right,
+// v down, [0, 1]): u = (x + 1) / 2, v = (1 - y) / 2, on homogeneous coordinates.
+glm::dmat4 uv_from_gl_ndc() {
+  glm::dmat4 m(1.0);
+  m[0][0] = 0.5;
+  m[3][0] = 0.5;
+  m[1][1] = -0.5;
+  m[3][1] = 0.5;
+  return m;
+}
+
+// The optical axis's image is within this of 0 in both NDC coordinates: the [-1, 1]
+// convention's centre (float matrices round NDC to ~1e-7; a lens shift of 1e-5 of the
+// frame is a 0.06 pixel shift of an 8K frame).
+constexpr double kAxisAtOrigin = 1e-5;
+// The optical axis's image within this of the display window's edge is "at" the edge: a
+// camera of a tile or corner of a larger render, not of a whole frame.
+constexpr double kAxisAtEdge = 1e-3;
+
+// Where worldToNDC puts the optical axis (the image of the camera's viewing direction,
+// forward_z along camera z), in OpenEXR NDC: (0, 0) and (1, 1) are the display window's
+// upper-left and lower-right corners (ImfStandardAttributes.h, after RenderMan). A camera
+// of a whole frame sees its axis inside the picture (a lens shift moves it, rarely far);
+// a matrix written in OpenGL's [-1, 1] convention, as some exporters do, puts it at NDC
+// (0, 0), a corner, and its y grows upwards. That case is converted to OpenEXR's (a note
+// says so); an axis at or outside the display window otherwise is an error naming it.
+std::string check_optical_axis(glm::dmat4& camera_to_ndc, double forward_z, const PixelBox& display,
+                               std::string& note) {
+  auto ndc_of = [&](glm::dvec3 p) {
+    const glm::dvec4 q = camera_to_ndc * glm::dvec4(p, 1.0);
+    return glm::dvec2(q.x, q.y) / q.w;
+  };
+  const glm::dvec2 axis = ndc_of({0.0, 0.0, forward_z});
+  const bool y_up = ndc_of({0.0, 0.1, forward_z}).y > axis.y;
+  if (std::abs(axis.x) <= kAxisAtOrigin && std::abs(axis.y) <= kAxisAtOrigin && y_up) {
+    camera_to_ndc = uv_from_gl_ndc() * camera_to_ndc;
+    note = "worldToNDC is in the [-1, 1] convention (its optical axis lands on NDC (0, 0), OpenEXR's upper-left "
+           "corner, and its y grows upwards): converted to OpenEXR's [0, 1], y down";
+    return {};
+  }
+  const auto inside = [](double t) { return t > kAxisAtEdge && t < 1.0 - kAxisAtEdge; };
+  if (inside(axis.x) && inside(axis.y)) return {};
+  // NDC to a thousandth, pixels to a tenth (and no "-0").
+  const auto rounded = [](double v, double step) { return std::round(v / step) * step + 0.0; };
+  std::ostringstream e;
+  e << "worldToNDC puts the optical axis at NDC (" << rounded(axis.x, 1e-3) << ", " << rounded(axis.y, 1e-3)
+    << "), pixel (" << rounded(display.min_x + axis.x * double(display.width()), 0.1) << ", "
+    << rounded(display.min_y + axis.y * double(display.height()), 0.1) << "): at or outside the display window (" << display.width() << " x " << display.height() << " at ("
+    << display.min_x << ", " << display.min_y
+    << "); OpenEXR's NDC spans it from (0, 0) to (1, 1)), which no camera of a whole frame does (a matrix of "
+       "another convention?)";
+  return e.str();
+}
+
 }  // namespace
 
 std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
@@ -325,8 +380,7 @@ std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
     return std::nullopt;
   };
   if (const std::string e = header_matrices_error(m); !e.empty()) return fail(e);
-  const glm::dmat4 camera_to_ndc =
-      glm::dmat4(m.world_to_ndc) * glm::inverse(glm::dmat4(m.world_to_camera));
+  glm::dmat4 camera_to_ndc = glm::dmat4(m.world_to_ndc) * glm::inverse(glm::dmat4(m.world_to_camera));
   // NDC w row, as a function of camera-space (x, y, z, 1).
   const glm::dvec4 w_row(camera_to_ndc[0][3], camera_to_ndc[1][3], camera_to_ndc[2][3],
                          camera_to_ndc[3][3]);
@@ -338,6 +392,10 @@ std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
   const double depth_slope = camera_to_ndc[2][2] * w_row.w;
   const double forward_z = perspective ? (w_row.z > 0.0 ? 1.0 : -1.0) : depth_slope < 0.0 ? -1.0 : 1.0;
   std::string assumed = convention_note(perspective, forward_z, depth_slope);
+  std::string converted;
+  if (const std::string e = check_optical_axis(camera_to_ndc, forward_z, display, converted); !e.empty())
+    return fail(e);
+  if (!converted.empty()) assumed += "; " + converted;
 
   auto ndc_of = [&](glm::dvec3 p) {
     const glm::dvec4 q = camera_to_ndc * glm::dvec4(p, 1.0);
@@ -359,14 +417,8 @@ std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
   d[1][1] = sign_y;
   d[2][2] = -forward_z;
 
-  // OpenEXR NDC (u right, v down, [0, 1] over the display window) -> OpenGL NDC of the
-  // display window: x = 2u - 1, y = 1 - 2v, applied to homogeneous coordinates.
-  glm::dmat4 gl_from_uv(1.0);
-  gl_from_uv[0][0] = 2.0;
-  gl_from_uv[3][0] = -1.0;
-  gl_from_uv[1][1] = -2.0;
-  gl_from_uv[3][1] = 1.0;
-  glm::dmat4 view_to_clip = gl_from_uv * camera_to_ndc * d;
+  // OpenEXR NDC -> OpenGL NDC of the display window: x = 2u - 1, y = 1 - 2v.
+  glm::dmat4 view_to_clip = glm::inverse(uv_from_gl_ndc()) * camera_to_ndc * d;
   // Normalise the projective scale: w = -z_view (perspective) or w = 1 (orthographic).
   const double scale = perspective ? -view_to_clip[2][3] : view_to_clip[3][3];
   if (!(scale > 0.0) && !(scale < 0.0)) return fail("degenerate worldToNDC");

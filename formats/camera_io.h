@@ -86,6 +86,9 @@ struct ExrCameraMatrices {
 // depth row (which NDC discards) is rebuilt OpenGL-style from near/far.
 // near_view / far_view: clip distances if known (0 = unknown: 0.05 / 1000 fill the
 // depth row, Camera::near_view/far_view stay 0).
+// The optical axis must land inside the display window (OpenEXR NDC (0, 1) x (0, 1)): a
+// worldToNDC in OpenGL's [-1, 1] convention (the axis at NDC (0, 0), y growing upwards) is
+// converted to OpenEXR's, with a note; any other axis at or outside the window is an error.
 // Returns nullopt with *error when the matrices are singular or not finite.
 std::optional<Camera> camera_from_exr_matrices(const ExrCameraMatrices& m,
                                                const PixelBox& display, const PixelBox& data,

@@ -191,6 +191,10 @@ struct MappingApplier {
   }
   bool vector(const std::string& input, const std::string& name, Space space) {
     auto r = find_vector(parts, part, input, name, space);
+    // Mapped to the very channels the profile found (--map normal=ViewLayer.Normal): the
+    // space the profile knows them in stays, unless the mapping states one.
+    const ResolvedInput* found = res.find(input);
+    if (r && found && space == Space::automatic && found->channels == r->channels) r->space = found->space;
     if (!r) {
       *error = path + part_label(parts, part) + ": mapped " + input + " layer \"" + name +
                "\" not found (tried " + name + ".{X,Y,Z}, .{R,G,B}, .{x,y,z}); channels present: " +

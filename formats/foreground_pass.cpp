@@ -70,7 +70,10 @@ void foreground_pixel(const ForegroundPass& pass, const glm::vec3& ray_row,
   // Face the camera: a normal pointing away from the eye (back face, or a renderer that
   // does not flip shading normals) is turned around, since the kernels integrate over the
   // visible side's hemisphere.
-  if (glm::dot(n, ray) > 0.0f) n = -n;
+  if (glm::dot(n, ray) > 0.0f) {
+    n = -n;
+    ++counts.facing_away;
+  }
   normal[x] = cv::Vec3f(n.x, n.y, n.z);
 }
 
@@ -144,7 +147,8 @@ HWY_INLINE Vec3s to_view(const ForegroundLanes& c, const Vec3s& v) {
 // in its order and without contraction (-ffp-contract=off; IEEE add, multiply, divide and
 // square root round the same in every lane width), so the bits are its.
 HWY_INLINE bool foreground_group(const ForegroundPass& pass, const ForegroundLanes& c,
-                                 const ForegroundRow& row, int x, VF& depth_min, VF& depth_max) {
+                                 const ForegroundRow& row, int x, VF& depth_min, VF& depth_max,
+                                 int64_t& facing_away) {
   const DF df;
   const VF stored = hn::LoadU(df, row.depth + x);
   float* n_at = &row.normal[x][0];
@@ -164,6 +168,7 @@ HWY_INLINE bool foreground_group(const ForegroundPass& pass, const ForegroundLan
   n = {hn::Div(n.x, len), hn::Div(n.y, len), hn::Div(n.z, len)};
   // Face the camera (foreground_pixel): -n is n with its sign bits flipped.
   const auto away = hn::Gt(dot(n, ray), c.zero);
+  facing_away += int64_t(hn::CountTrue(df, away));
   n = {hn::IfThenElse(away, hn::Neg(n.x), n.x), hn::IfThenElse(away, hn::Neg(n.y), n.y),
        hn::IfThenElse(away, hn::Neg(n.z), n.z)};
   hn::StoreU(d, df, row.depth + x);
@@ -185,7 +190,7 @@ HWY_INLINE int foreground_groups(const ForegroundPass& pass, const glm::vec3& ra
   VF depth_min = c.infinity, depth_max = hn::Neg(c.infinity);
   int x = 0;
   for (; x + lanes <= pass.width; x += lanes) {
-    if (foreground_group(pass, c, row, x, depth_min, depth_max)) {
+    if (foreground_group(pass, c, row, x, depth_min, depth_max, counts.facing_away)) {
       counts.foreground += lanes;
     } else {
       for (int i = 0; i < lanes; ++i) foreground_pixel(pass, ray_row, row, x + i, counts);

@@ -27,6 +27,9 @@ inline constexpr float kMinNormalLength = 1e-6f;
 // One row's share of what read_gbuffer reports.
 struct RowCounts {
   int64_t foreground = 0, nonfinite = 0, repaired = 0;
+  // Foreground pixels whose usable normal pointed away from the eye (in view space) and was
+  // turned around.
+  int64_t facing_away = 0;
   float depth_min = std::numeric_limits<float>::infinity();
   float depth_max = -std::numeric_limits<float>::infinity();
 };
@@ -81,8 +84,9 @@ struct ForegroundRow {
 // not, normals to view space, unit length and facing the camera. `ray_row` is the eye ray
 // through the row's first pixel centre. Background and unusable pixels get depth +inf,
 // mask 0 and normal (0, 0, 0); foreground pixels mask 255, and repair 1 where the normal
-// is (0, 0, 0). `pass` and `row` are taken by value: the mask's byte stores may alias
-// anything behind a reference, which would be reloaded per pixel.
+// is (0, 0, 0); normals turned around are counted (RowCounts::facing_away). `pass` and
+// `row` are taken by value: the mask's byte stores may alias anything behind a reference,
+// which would be reloaded per pixel.
 RowCounts foreground_row(ForegroundPass pass, glm::vec3 ray_row, ForegroundRow row);
 
 }  // namespace ssdo::foreground

@@ -29,6 +29,7 @@
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfDoubleAttribute.h>
 #include <OpenEXR/ImfIntAttribute.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/openexr.h>
@@ -116,6 +117,9 @@ struct Prepared {
   bool depth_kind_stated = false;  // by the sidecar
   std::optional<float> background_depth;
   std::optional<std::string> sidecar_normal_space, sidecar_position_space;
+  // The normals' space was stated by nothing (profile, mapping or sidecar) and the camera
+  // has no world transform: they are taken as view space, to be checked against the data.
+  bool normal_space_assumed = false;
   // The back-face depth is the deep depth part's next surface (no back channel mapped).
   bool deep_back = false;
 };
@@ -340,30 +344,57 @@ bool camera_from_sidecar(const std::string& path, const std::string& sidecar,
   return true;
 }
 
+// A 4x4 matrix attribute of a header in glm's column-vector form, stored as M44f (the type
+// OpenEXR's standard attributes have) or M44d (as some writers store worldToCamera and
+// worldToNDC; OpenEXR's hasWorldToCamera sees only M44f); nullopt when absent or of another
+// type. Imath stores x[row][col] in the row-vector convention, so the same 16 values in
+// memory order are the column-vector form (formats/camera_io.h, ExrCameraMatrices).
+std::optional<glm::mat4> header_matrix(const Imf::Header& h, const char* name) {
+  glm::mat4 m;
+  if (const auto* a = h.findTypedAttribute<Imf::M44fAttribute>(name)) {
+    std::copy(&a->value().x[0][0], &a->value().x[0][0] + 16, &m[0][0]);
+    return m;
+  }
+  if (const auto* a = h.findTypedAttribute<Imf::M44dAttribute>(name)) {
+    std::transform(&a->value().x[0][0], &a->value().x[0][0] + 16, &m[0][0], [](double v) { return float(v); });
+    return m;
+  }
+  return std::nullopt;
+}
+
 // The part whose header holds worldToCamera and worldToNDC: the depth part first, then the
-// others in order; -1 when none does.
-int header_camera_part(const Prepared& prep) {
+// others in order; -1 when none does. `partial` then says what the headers hold of the pair
+// when they hold one of its attributes (the first such part's), else stays empty.
+int header_camera_part(const Prepared& prep, std::string* partial) {
   const int depth_part = prep.channels.part;
   std::vector<int> order{depth_part};
   for (int i = 0; i < prep.file->parts(); ++i)
     if (i != depth_part) order.push_back(i);
   for (int i : order) {
     const Imf::Header& h = prep.file->header(i);
-    if (Imf::hasWorldToCamera(h) && Imf::hasWorldToNDC(h)) return i;
+    const bool pose = header_matrix(h, "worldToCamera").has_value();
+    const bool projection = header_matrix(h, "worldToNDC").has_value();
+    if (pose && projection) return i;
+    if (partial->empty() && (pose || projection))
+      *partial = std::string("the header") + part_label(prep, i) + " has " +
+                 (pose ? "worldToCamera (the pose) but no worldToNDC (the projection)"
+                       : "worldToNDC (the projection) but no worldToCamera (the pose)");
   }
   return -1;
 }
 
+bool camera_from_fov(const std::string& path, const std::string& sidecar, const std::string& partial_header,
+                     const ReadOptions& options, ReadResult& result, Prepared& prep);
+
 // The camera of the OpenEXR header attributes worldToCamera + worldToNDC of `part` (and the
-// optional clipNear / clipFar), either camera convention (formats/camera_io.h).
-bool camera_from_header(const std::string& path, int part, ReadResult& result, Prepared& prep) {
+// optional clipNear / clipFar), either camera convention (formats/camera_io.h). Matrices
+// that describe no camera are an error, or with --fov a warning and the --fov camera.
+bool camera_from_header(const std::string& path, const std::string& sidecar, int part, const ReadOptions& options,
+                        ReadResult& result, Prepared& prep) {
   const Imf::Header& h = prep.file->header(part);
   ExrCameraMatrices m;
-  const Imath::M44f& w2c = Imf::worldToCamera(h);
-  const Imath::M44f& w2n = Imf::worldToNDC(h);
-  // Same 16 floats in the same order: Imath row-vector == glm column-vector form.
-  std::copy(&w2c.x[0][0], &w2c.x[0][0] + 16, &m.world_to_camera[0][0]);
-  std::copy(&w2n.x[0][0], &w2n.x[0][0] + 16, &m.world_to_ndc[0][0]);
+  m.world_to_camera = *header_matrix(h, "worldToCamera");
+  m.world_to_ndc = *header_matrix(h, "worldToNDC");
   // A clip distance as float (OpenEXR's convention), double or int (as some tools write a
   // whole number, e.g. oiiotool's --attrib clipFar 1000); 0 when absent.
   auto clip_distance = [&](const char* name) -> float {
@@ -377,7 +408,13 @@ bool camera_from_header(const std::string& path, int part, ReadResult& result, P
   // The matrices refer to this part's display window; the grid is the depth part's.
   auto cam = camera_from_exr_matrices(m, box_of(h.displayWindow()), prep.data, near_view,
                                       far_view, &error, &note);
-  if (!cam) return fail(result, path + ": " + error);
+  if (!cam) {
+    const std::string refused = path + part_label(prep, part) + ": " + error;
+    if (!options.fov_x_deg)
+      return fail(result, refused + "; a camera sidecar (" + sidecar + ") or --fov DEGREES reads the frame");
+    result.info.notes.push_back(std::string(kWarningNote) + refused + "; --fov gives the camera instead");
+    return camera_from_fov(path, sidecar, "", options, result, prep);
+  }
   prep.camera = *cam;
   prep.camera_has_world = true;
   result.info.camera_source = "header worldToCamera/worldToNDC";
@@ -388,13 +425,19 @@ bool camera_from_header(const std::string& path, int part, ReadResult& result, P
 
 // A camera from the caller's horizontal field of view, which spans the display window (the
 // full image), like a sidecar's.
-bool camera_from_fov(const std::string& path, const std::string& sidecar,
+// `partial_header` says which half of the header camera the file holds, if one.
+bool camera_from_fov(const std::string& path, const std::string& sidecar, const std::string& partial_header,
                      const ReadOptions& options, ReadResult& result, Prepared& prep) {
+  if (!options.fov_x_deg && !partial_header.empty())
+    return fail(result, path + ": no camera: " + partial_header + ": store the missing attribute, give a JSON sidecar (" +
+                            sidecar + " or an explicit camera JSON path), or pass a horizontal field of view (--fov DEGREES)");
   if (!options.fov_x_deg)
     return fail(result, path + ": no camera: give a JSON sidecar (" + sidecar +
                             " or an explicit camera JSON path), store worldToCamera and "
                             "worldToNDC attributes in the EXR header, or pass a horizontal "
                             "field of view (--fov DEGREES)");
+  if (!partial_header.empty())
+    result.info.notes.push_back(partial_header + ": it is not used; --fov gives the camera");
   const float fov = *options.fov_x_deg;
   if (!(fov > 0.0f && fov < 180.0f))
     return fail(result, path + ": field of view " + std::to_string(fov) +
@@ -432,12 +475,13 @@ bool resolve_camera(const std::string& path, const ReadOptions& options, ReadRes
       options.camera_json.empty() ? sidecar_path_for(path) : options.camera_json;
   std::error_code ec;
   bool ok = false;
+  std::string partial_header;
   if (!options.camera_json.empty() || std::filesystem::exists(sidecar, ec))
     ok = camera_from_sidecar(path, sidecar, options, result, prep);
-  else if (const int part = header_camera_part(prep); part >= 0)
-    ok = camera_from_header(path, part, result, prep);
+  else if (const int part = header_camera_part(prep, &partial_header); part >= 0)
+    ok = camera_from_header(path, sidecar, part, options, result, prep);
   else
-    ok = camera_from_fov(path, sidecar, options, result, prep);
+    ok = camera_from_fov(path, sidecar, partial_header, options, result, prep);
   if (!ok) return false;
   if (options.fov_x_deg && prep.camera_has_world)
     info.notes.push_back("the given field of view is ignored: the frame's camera (" +
@@ -462,11 +506,23 @@ bool resolve_camera(const std::string& path, const ReadOptions& options, ReadRes
 // What became what: the space of normals and positions, and each used input's channels.
 void report_uses(const ReadOptions& options, Prepared& prep, FrameInfo& info) {
   for (auto& r : prep.channels.inputs) {
-    if (r.input == "normal")
+    if (r.input == "normal") {
+      prep.normal_space_assumed =
+          r.space == Space::automatic && !prep.sidecar_normal_space && !prep.camera_has_world;
       r.space = decide_space(r.space, prep.sidecar_normal_space, prep.camera_has_world);
+    }
     if (r.input == "position")
       r.space = decide_space(r.space, prep.sidecar_position_space, prep.camera_has_world);
   }
+  // A positions pass is read only when asked for (ReadOptions::read_positions): otherwise
+  // the terms take view-space positions from depth and the camera, and the channel is
+  // said to be unused rather than listed nowhere.
+  std::erase_if(prep.channels.inputs, [&](const ResolvedInput& r) {
+    if (r.input != "position" || options.read_positions) return false;
+    info.notes.push_back("position channels " + r.describe() +
+                         " are not used: view-space positions come from depth and the camera");
+    return true;
+  });
   // World-space normals or positions under a camera without a pose (a bare --fov) cannot be
   // brought into view space: they are not read (the normals are rebuilt from depth, the
   // positions computed from it), rather than taken as view space.
@@ -1126,6 +1182,7 @@ void add_row_counts(const std::vector<RowCounts>& rows, FrameInfo& info) {
     info.foreground_pixels += r.foreground;
     info.nonfinite_pixels += r.nonfinite;
     info.repaired_normal_pixels += r.repaired;
+    info.normals_facing_away_pixels += r.facing_away;
     if (r.foreground) {
       info.depth_min_view = info.foreground_pixels == r.foreground
                                 ? r.depth_min
@@ -1135,8 +1192,31 @@ void add_row_counts(const std::vector<RowCounts>& rows, FrameInfo& info) {
   }
 }
 
+// Whether normals taken as view space only by assumption (Prepared::normal_space_assumed)
+// are not: more than kMaxFacingAwayOfViewNormals of the foreground normals face away from
+// the eye (n . direction to the eye < 0 along each pixel's eye ray). Then a note says so.
+bool assumed_view_normals_refuted(const Prepared& prep, FrameInfo& info) {
+  const int64_t with_normal = info.foreground_pixels - info.repaired_normal_pixels;
+  if (!prep.normal_space_assumed || with_normal <= 0) return false;
+  const double away = double(info.normals_facing_away_pixels) / double(with_normal);
+  if (!(away > kMaxFacingAwayOfViewNormals)) return false;
+  std::ostringstream note;
+  note.precision(3);
+  note << "normal channels " << prep.channels.find("normal")->describe()
+       << " are not view space: their space is not stated and the camera (" << info.camera_source
+       << ") has no world transform, but " << 100.0 * away << "% of the foreground normals face away from the eye ("
+       << info.normals_facing_away_pixels << " of " << with_normal
+       << " pixels; view-space normals face it): normals rebuilt from depth. World-space normals are used with "
+          "--map normal-space=world and a camera with a world transform (a sidecar, or worldToCamera/worldToNDC); "
+          "--map normal-space=view keeps them as view space";
+  info.notes.push_back(note.str());
+  return true;
+}
+
 // Depth, mask and normals in the internal conventions (foreground_row over every row), and
-// the counts. Foreground pixels with a zero normal are marked in normal_missing.
+// the counts. Foreground pixels with a zero normal are marked in normal_missing. Normals
+// that fail the view-space check (assumed_view_normals_refuted) are left out: normal_view
+// stays empty, to be rebuilt from depth.
 void classify_foreground(const Prepared& prep, const ReadOptions& options, Images& img,
                          ReadResult& result) {
   GBuffer& g = result.gbuffer;
@@ -1162,8 +1242,44 @@ void classify_foreground(const Prepared& prep, const ReadOptions& options, Image
   if (info.foreground_pixels == 0)
     info.notes.push_back(std::string(kWarningNote) + "no foreground pixel: " + std::string(kNoForeground) +
                          "; the terms are an empty frame's");
+  if (has_normals && assumed_view_normals_refuted(prep, info)) {
+    std::erase_if(info.uses, [](const ChannelUse& u) { return u.input == "normal"; });
+    info.normals_reconstructed = true;
+    info.repaired_normal_pixels = 0;
+    return;
+  }
   if (has_normals) g.normal_view = img.normal;
   if (info.repaired_normal_pixels > 0) g.normal_missing = repair;
+}
+
+// The foreground depth range as the file holds it (FrameInfo::depth_min_stored): a radial
+// depth is the planar one times the length of the pixel's eye ray (planar_depth divided by
+// it; the product is the stored value to a rounding).
+void stored_depth_range(const Prepared& prep, const ReadOptions& options, const GBuffer& g, FrameInfo& info) {
+  info.depth_min_stored = info.depth_min_view;
+  info.depth_max_stored = info.depth_max_view;
+  const ForegroundPass pass = foreground_pass(prep);
+  if (!pass.radial || !pass.perspective || info.foreground_pixels == 0) return;
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<std::pair<float, float>> rows(g.depth_view.rows, {inf, -inf});
+  parallel_rows(cv::Range(0, g.depth_view.rows), options.threads, [&](const cv::Range& range) {
+    for (int y = range.start; y < range.end; ++y) {
+      const float* depth = g.depth_view.ptr<float>(y);
+      const uint8_t* mask = g.mask.ptr<uint8_t>(y);
+      const glm::vec3 ray_row = row_ray(pass, y);
+      for (int x = 0; x < g.depth_view.cols; ++x) {
+        if (!mask[x]) continue;
+        const float stored = depth[x] * glm::length(eye_ray(pass, ray_row, x));
+        rows[y] = {std::min(rows[y].first, stored), std::max(rows[y].second, stored)};
+      }
+    }
+  });
+  info.depth_min_stored = inf;
+  info.depth_max_stored = -inf;
+  for (const auto& [lo, hi] : rows) {
+    info.depth_min_stored = std::min(info.depth_min_stored, lo);
+    info.depth_max_stored = std::max(info.depth_max_stored, hi);
+  }
 }
 
 // The back-face depth in the depth's conventions (planar_depth), +inf off the foreground and
@@ -1324,6 +1440,7 @@ ReadResult read_gbuffer(const std::string& path, const ReadOptions& options) {
       return result;
     }
     classify_foreground(prep, options, img, result);
+    stored_depth_range(prep, options, result.gbuffer, result.info);
     back_layer_to_planar(prep, options, img, result);
     if (options.read_positions) positions_to_view(prep, options, img, result);
     shading_inputs(options, img, result.gbuffer);

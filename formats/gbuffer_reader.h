@@ -11,6 +11,9 @@
 //   albedo.RGB | diffuse_albedo.RGB (Arnold-style AOVs). N and P are taken as world space
 //   when the camera has a world transform (sidecar or header), as view space under a bare
 //   --fov camera; a sidecar's "normal_space" / "position_space" or the mapping overrides.
+//   Normals taken as view space only by that assumption are checked against the data: when
+//   more than kMaxFacingAwayOfViewNormals of the foreground normals face away from the eye
+//   they are not view space, and are dropped (rebuilt from depth) with a note.
 // - "mapping": channels named by the caller (ChannelMapping); inputs it leaves empty keep
 //   what the detected profile found.
 // - back-face depth (GBuffer::depth_back_view), any profile: a flat channel <Layer>.DepthBack
@@ -27,9 +30,11 @@
 // in a part of another size is left out with a note; one mapped there is an error.
 //
 // Camera, in this order: a JSON sidecar (NAME.camera.json beside NAME.exr, or an explicit
-// path), the OpenEXR header attributes worldToCamera + worldToNDC (either camera
-// convention, detected: see formats/camera_io.h; optional float attributes clipNear /
-// clipFar), or a horizontal field of view given by the caller. Sidecar and field of view
+// path), the OpenEXR header attributes worldToCamera + worldToNDC (M44f or M44d; either
+// camera convention, detected: see formats/camera_io.h; optional float attributes clipNear /
+// clipFar; header matrices that describe no camera, such as an optical axis at or outside
+// the display window, are an error, or with a field of view a warning and that camera), or
+// a horizontal field of view given by the caller. Sidecar and field of view
 // refer to the display window; the projection is re-targeted to the data window, which is
 // the pixel grid (row 0 = its top scanline).
 //
@@ -130,6 +135,18 @@ struct ChannelUse {
   std::string space;     // "world" | "view" | "" (not spatial)
 };
 
+// Normals of an unstated space under a camera without a world transform are taken as view
+// space only while at most this fraction of the foreground normals face away from the eye.
+// View-space normals of visible surfaces face it, but for back faces seen through open or
+// single-sided meshes and smooth shading normals bent past a silhouette; the shared Cycles
+// frames' normals, brought to view space with their cameras, face away on none of their
+// pixels. Their world-space normals read as view space face away on 15% (greeble, a camera
+// tilted down onto a floor whose world normal +Z happens to face the eye as a view normal)
+// to 30% (depthgap, cornell 25%), and AO errors against the renderer's AO of 0.20 to 0.39
+// (mean absolute) instead of 0.004 to 0.07, which normals rebuilt from depth match. Keeping
+// wrong normals costs far more than rebuilding right ones: the limit sits well below 15%.
+inline constexpr double kMaxFacingAwayOfViewNormals = 0.05;
+
 // The start of a FrameInfo note that is a warning.
 inline constexpr std::string_view kWarningNote = "warning: ";
 // Why a frame has no foreground pixel (FrameInfo::foreground_pixels == 0).
@@ -163,11 +180,17 @@ struct FrameInfo {
   // empty, to be computed from depth.
   bool positions_missing = false;
   std::optional<float> ao_distance_world;     // AO radius of the reference pass, if known
-  float depth_min_view = 0, depth_max_view = 0;  // foreground depth range
+  float depth_min_view = 0, depth_max_view = 0;  // foreground depth range, planar
+  // The same pixels' depth as the file holds it: the distance from the eye for a radial
+  // depth (depth_kind "radial"), else the planar range above.
+  float depth_min_stored = 0, depth_max_stored = 0;
   int64_t foreground_pixels = 0, masked_pixels = 0, nonfinite_pixels = 0;
   // Foreground pixels whose normal is (0, 0, 0) in the file (GBuffer::normal_missing), to
   // be replaced by the normal reconstructed from depth.
   int64_t repaired_normal_pixels = 0;
+  // Foreground pixels whose normal, in view space, pointed away from the eye and was turned
+  // around (back faces, unflipped shading normals, or normals of another space).
+  int64_t normals_facing_away_pixels = 0;
   // Assumptions made while converting; those that begin with kWarningNote say the terms
   // are likely not what the user meant (shown without -v too).
   std::vector<std::string> notes;

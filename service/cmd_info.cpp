@@ -55,12 +55,15 @@ nlohmann::json info_json(const ReadResult& r) {
   j["depth_kind"] = i.depth_kind;
   if (!i.back_layer.empty()) j["back_layer"] = i.back_layer;
   if (i.ao_distance_world) j["ao_distance"] = *i.ao_distance_world;
-  if (i.foreground_pixels > 0)
-    j["depth_range"] = {i.depth_min_view, i.depth_max_view};
+  if (i.foreground_pixels > 0) {
+    j["depth_range"] = {i.depth_min_view, i.depth_max_view};  // planar, as the terms use it
+    j["depth_range_stored"] = {i.depth_min_stored, i.depth_max_stored};  // as the file holds it
+  }
   j["foreground_pixels"] = i.foreground_pixels;
   j["masked_pixels"] = i.masked_pixels;
   j["nonfinite_pixels"] = i.nonfinite_pixels;
   j["repaired_normal_pixels"] = i.repaired_normal_pixels;
+  j["normals_facing_away_pixels"] = i.normals_facing_away_pixels;
   j["notes"] = i.notes;
   return j;
 }
@@ -102,7 +105,14 @@ std::string info_text(const ReadResult& r) {
   else
     s << "near/far unknown\n";
   s << "  depth          " << i.depth_kind;
-  if (i.foreground_pixels > 0) s << ", foreground range " << i.depth_min_view << " .. " << i.depth_max_view;
+  if (i.depth_kind == "radial") {
+    s << " (distance from the eye), converted to planar";
+    if (i.foreground_pixels > 0)
+      s << "; foreground range " << i.depth_min_stored << " .. " << i.depth_max_stored << " as stored (radial), "
+        << i.depth_min_view << " .. " << i.depth_max_view << " planar";
+  } else if (i.foreground_pixels > 0) {
+    s << ", foreground range " << i.depth_min_view << " .. " << i.depth_max_view;
+  }
   s << "\n";
   if (!i.back_layer.empty()) s << "  back layer     " << i.back_layer << "\n";
   if (i.ao_distance_world) s << "  AO distance    " << *i.ao_distance_world << "\n";

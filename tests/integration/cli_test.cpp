@@ -1,4 +1,5 @@
 // The real binary on real files: exit codes, messages, outputs.
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -102,6 +103,39 @@ TEST(Cli, InfoShowsTheBackLayer) {
   r = run_ssdo("info " + path + " --fov 60 --map depth-back=missing");
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("mapped depth_back channel \"missing\" not found"), std::string::npos) << r.output;
+}
+
+// `ssdo info` of a radial depth gives its range as the file holds it and as the planar depth
+// the terms use, each named; and a positions pass, found (P) or mapped, is said to be
+// unused rather than left out silently. 3 x 1 pixels under a 90 degree field of view: the
+// side pixels' eye rays are (+-2/3, 0, -1), so a radial 3 is a planar 3 / sqrt(13 / 9).
+TEST(Cli, InfoSaysWhatARadialDepthHoldsAndThatPositionsAreUnused) {
+  ScratchDir dir;
+  const std::string path = (dir / "radial.exr");
+  OIIO::ImageSpec spec(3, 1, 7, OIIO::TypeDesc::FLOAT);
+  spec.channelnames = {"P.X", "P.Y", "P.Z", "Z", "pos.X", "pos.Y", "pos.Z"};
+  std::vector<float> pixels;
+  for (int i = 0; i < 3; ++i) pixels.insert(pixels.end(), {1.0f, 2.0f, -3.0f, 3.0f, 1.0f, 2.0f, -3.0f});
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out && out->open(path, spec) && out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()) && out->close());
+  RunResult r = run_ssdo("info " + path + " --fov 90 --depth-kind radial");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("depth          radial (distance from the eye), converted to planar; foreground range 3 .. 3 "
+                          "as stored (radial), 2.49615 .. 3 planar"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("position channels P.{X,Y,Z} are not used: view-space positions come from depth"),
+            std::string::npos)
+      << r.output;
+  r = run_ssdo("info --json " + path + " --fov 90 --depth-kind radial --map position=pos 2>/dev/null");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const auto j = nlohmann::json::parse(r.output, nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.output;
+  EXPECT_EQ(j[0]["depth_range_stored"], nlohmann::json({3.0, 3.0}));
+  EXPECT_NEAR(j[0]["depth_range"][0].get<double>(), 3.0 / std::sqrt(13.0 / 9.0), 1e-5);
+  bool noted = false;
+  for (const auto& n : j[0]["notes"]) noted |= n.get<std::string>().find("position channels pos.{X,Y,Z} are not used") == 0;
+  EXPECT_TRUE(noted) << r.output;
 }
 
 TEST(Cli, ProcessWritesTermsThenSkipsUpToDateFrames) {

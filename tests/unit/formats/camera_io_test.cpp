@@ -361,6 +361,70 @@ TEST(HeaderMatrices, MinusZCameraAndMirroredAxesAreDetected) {
   }
 }
 
+// A worldToNDC written in OpenGL's [-1, 1] convention (clip = P view, y up: the optical
+// axis at NDC (0, 0), OpenEXR's upper-left corner) is recognised and converted, with a note;
+// read as OpenEXR's it was a camera of half the field of view looking at a corner.
+TEST(HeaderMatrices, MinusOneToOneNdcIsConverted) {
+  const Camera cam = posed_camera(64, 48, 50.0f);
+  const PixelBox box{0, 0, 63, 47};
+  ExrCameraMatrices m;
+  m.world_to_camera = cam.world_to_view;  // -Z camera, as Arnold- and Blender-style writers store it
+  m.world_to_ndc = cam.view_to_clip * cam.world_to_view;
+  std::string error, note;
+  const auto back = camera_from_exr_matrices(m, box, box, 0.0f, 0.0f, &error, &note);
+  ASSERT_TRUE(back) << error;
+  EXPECT_NE(note.find("worldToNDC is in the [-1, 1] convention"), std::string::npos) << note;
+  expect_mat_near(back->world_to_view, cam.world_to_view, 1e-5f);
+  for (int c = 0; c < 4; ++c)
+    for (int r : {0, 1, 3}) EXPECT_NEAR(back->view_to_clip[c][r], cam.view_to_clip[c][r], 1e-5f);
+  EXPECT_NEAR(back->fov_x_deg(), 50.0f, 1e-3f);
+}
+
+// Any other worldToNDC that puts the optical axis at or outside the display window is
+// refused, naming where the axis lands: a [-1, 1] matrix with a lens shift, or with y down
+// (the axis at a corner in either case); an OpenEXR matrix whose axis is at a corner (a
+// camera of a tile of a larger render). A lens shift keeping the axis inside is a camera.
+TEST(HeaderMatrices, OpticalAxisAtOrOutsideTheDisplayWindowIsRefused) {
+  const Camera cam = posed_camera(64, 48, 50.0f);
+  const PixelBox box{0, 0, 63, 47};
+  auto shifted = [&](float x_ndc, float y_ndc) {  // OpenGL NDC of the optical axis
+    glm::mat4 p = cam.view_to_clip;
+    p[2][0] = -x_ndc;  // x_clip gains -x_ndc z_view = x_ndc w
+    p[2][1] = -y_ndc;
+    return p;
+  };
+  glm::mat4 flip_y(1.0f);
+  flip_y[1][1] = -1.0f;
+  glm::mat4 uv_from_gl(1.0f);
+  uv_from_gl[0][0] = 0.5f, uv_from_gl[3][0] = 0.5f, uv_from_gl[1][1] = -0.5f, uv_from_gl[3][1] = 0.5f;
+  struct Case {
+    glm::mat4 camera_to_ndc;
+    const char* where;  // the axis's NDC as the error gives it; empty: a camera
+  };
+  const Case cases[] = {
+      {shifted(0.25f, 0.0f), "NDC (0.25, 0), pixel (16, 0)"},
+      {flip_y * cam.view_to_clip, "NDC (0, 0), pixel (0, 0)"},
+      {uv_from_gl * shifted(-1.0f, 1.0f), "NDC (0, 0), pixel (0, 0)"},
+      {uv_from_gl * shifted(0.5f, -0.4f), ""},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.where);
+    ExrCameraMatrices m;
+    m.world_to_camera = cam.world_to_view;
+    m.world_to_ndc = c.camera_to_ndc * cam.world_to_view;
+    std::string error, note;
+    const auto back = camera_from_exr_matrices(m, box, box, 0.0f, 0.0f, &error, &note);
+    if (*c.where == 0) {
+      ASSERT_TRUE(back) << error;
+      EXPECT_NEAR(back->view_to_clip[2][0], -0.5f, 1e-5f);
+      continue;
+    }
+    ASSERT_FALSE(back) << note;
+    EXPECT_NE(error.find(std::string("worldToNDC puts the optical axis at ") + c.where), std::string::npos) << error;
+    EXPECT_NE(error.find("at or outside the display window (64 x 48 at (0, 0)"), std::string::npos) << error;
+  }
+}
+
 TEST(HeaderMatrices, TransposedOrShearedMatricesAreErrors) {
   const Camera cam = posed_camera(64, 48, 50.0f);
   const ExrCameraMatrices exr = exr_matrices_from_camera(cam);

@@ -9,9 +9,12 @@
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/openexr.h>
+#include <glm/gtc/matrix_transform.hpp>
 
+#include "formats/camera_io.h"
 #include "formats_test_util.h"
 
 namespace ssdo::test {
@@ -325,6 +328,133 @@ void add_constant_normals(TestExr& t, const glm::vec3& n) {
   t.channels.push_back({"N.X", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.x)});
   t.channels.push_back({"N.Y", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.y)});
   t.channels.push_back({"N.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(pixels, n.z)});
+}
+
+// A frame of constant planar depth written with OpenEXR, with the given matrix attributes
+// stored as M44d (OpenImageIO writes worldToCamera and worldToNDC only as M44f).
+void write_frame_with_double_matrices(const fs::path& path, int width, int height, float depth,
+                                      const std::vector<std::pair<std::string, glm::dmat4>>& matrices) {
+  const Imath::Box2i window(Imath::V2i(0, 0), Imath::V2i(width - 1, height - 1));
+  Imf::Header header(window, window);
+  for (const auto& [name, m] : matrices) {
+    Imath::M44d value;
+    std::copy(&m[0][0], &m[0][0] + 16, &value.x[0][0]);  // column-vector glm = row-vector Imath
+    header.insert(name, Imf::M44dAttribute(value));
+  }
+  header.channels().insert("Z", Imf::Channel(Imf::FLOAT));
+  std::vector<float> z(size_t(width) * height, depth);
+  Imf::FrameBuffer fb;
+  fb.insert("Z", Imf::Slice::Make(Imf::FLOAT, z.data(), window, 4, 4 * size_t(width)));
+  Imf::OutputFile out(path.c_str(), header);
+  out.setFrameBuffer(fb);
+  out.writePixels(height);
+}
+
+// worldToCamera / worldToNDC stored as double matrices (M44d) are the same camera as
+// stored as float ones (M44f), which OpenEXR's hasWorldToCamera alone would see.
+TEST(HeaderCamera, DoubleMatricesAreRead) {
+  ScratchDir dir;
+  Camera cam = Camera::from_fov_x(16, 8, 60.0f, 0.1f, 100.0f);
+  cam.world_to_view = glm::translate(glm::mat4(1.0f), glm::vec3(0.5f, -1.0f, -2.0f)) *
+                      glm::rotate(glm::mat4(1.0f), 0.3f, glm::vec3(0.0f, 1.0f, 0.0f));
+  cam.view_to_world = glm::inverse(cam.world_to_view);
+  const ExrCameraMatrices m = exr_matrices_from_camera(cam);
+  TestExr as_float = generic_frame(16, 8, 3.0f);
+  as_float.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+  ASSERT_TRUE(as_float.write(dir / "m44f.exr"));
+  write_frame_with_double_matrices(dir / "m44d.exr", 16, 8, 3.0f,
+                                   {{"worldToCamera", glm::dmat4(m.world_to_camera)},
+                                    {"worldToNDC", glm::dmat4(m.world_to_ndc)}});
+  const ReadResult f = read_gbuffer((dir / "m44f.exr").string());
+  const ReadResult d = read_gbuffer((dir / "m44d.exr").string());
+  ASSERT_TRUE(f.ok()) << f.error;
+  ASSERT_TRUE(d.ok()) << d.error;
+  EXPECT_EQ(d.info.camera_source, "header worldToCamera/worldToNDC");
+  EXPECT_NEAR(d.info.fov_x_deg, 60.0, 1e-3);
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) {
+      EXPECT_EQ(d.gbuffer.camera.world_to_view[c][r], f.gbuffer.camera.world_to_view[c][r]);
+      EXPECT_EQ(d.gbuffer.camera.view_to_clip[c][r], f.gbuffer.camera.view_to_clip[c][r]);
+      EXPECT_NEAR(d.gbuffer.camera.world_to_view[c][r], cam.world_to_view[c][r], 1e-5);
+    }
+}
+
+// A header with worldToCamera but no worldToNDC (float or double) has no camera: the
+// error says what is missing, not the generic request for the attributes it has. With
+// --fov the frame is read, with a note that the pose is not used.
+TEST(HeaderCamera, PoseWithoutProjectionSaysWhatIsMissing) {
+  ScratchDir dir;
+  const glm::mat4 pose = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 0.0f, -3.0f));
+  for (const bool as_double : {false, true}) {
+    SCOPED_TRACE(as_double);
+    const fs::path path = dir / "pose_only.exr";
+    if (as_double) {
+      write_frame_with_double_matrices(path, 16, 8, 3.0f, {{"worldToCamera", glm::dmat4(pose)}});
+    } else {
+      TestExr t = generic_frame(16, 8, 3.0f);
+      t.matrices = {{"worldToCamera", pose}};
+      ASSERT_TRUE(t.write(path));
+    }
+    const ReadResult r = read_gbuffer(path.string());
+    ASSERT_FALSE(r.ok());
+    EXPECT_TRUE(contains(r.error, "no camera: the header has worldToCamera (the pose) but no worldToNDC (the projection)"))
+        << r.error;
+    EXPECT_TRUE(contains(r.error, "pose_only.camera.json")) << r.error;
+    EXPECT_TRUE(contains(r.error, "--fov DEGREES")) << r.error;
+    EXPECT_FALSE(contains(r.error, "store worldToCamera and worldToNDC")) << r.error;
+    ReadOptions options;
+    options.fov_x_deg = 50.0f;
+    const ReadResult fov = read_gbuffer(path.string(), options);
+    ASSERT_TRUE(fov.ok()) << fov.error;
+    EXPECT_EQ(fov.info.camera_source, "--fov 50");
+    bool noted = false;
+    for (const std::string& n : fov.info.notes) noted |= contains(n, "no worldToNDC (the projection): it is not used");
+    EXPECT_TRUE(noted);
+  }
+  write_frame_with_double_matrices(dir / "ndc_only.exr", 16, 8, 3.0f, {{"worldToNDC", glm::dmat4(1.0)}});
+  const ReadResult r = read_gbuffer((dir / "ndc_only.exr").string());
+  ASSERT_FALSE(r.ok());
+  EXPECT_TRUE(contains(r.error, "the header has worldToNDC (the projection) but no worldToCamera (the pose)")) << r.error;
+}
+
+// A header worldToNDC in the [-1, 1] convention is read as the camera it means, with a
+// note; one whose optical axis lands elsewhere outside the picture is refused, naming the
+// attribute and what reads the frame instead, and with --fov that camera is used, with a
+// warning.
+TEST(HeaderCamera, NdcOfAnotherConventionIsConvertedOrRefused) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(32, 16, 60.0f, 0.1f, 100.0f);
+  TestExr gl = generic_frame(32, 16, 3.0f);
+  gl.matrices = {{"worldToCamera", glm::mat4(1.0f)}, {"worldToNDC", cam.view_to_clip}};
+  ASSERT_TRUE(gl.write(dir / "gl.exr"));
+  const ReadResult converted = read_gbuffer((dir / "gl.exr").string());
+  ASSERT_TRUE(converted.ok()) << converted.error;
+  EXPECT_NEAR(converted.info.fov_x_deg, 60.0, 1e-3);
+  EXPECT_NEAR(converted.gbuffer.camera.view_to_clip[2][0], 0.0f, 1e-6f);  // no lens shift
+  EXPECT_TRUE(contains(converted.info.notes.front(), "worldToNDC is in the [-1, 1] convention"))
+      << converted.info.notes.front();
+
+  glm::mat4 shifted = cam.view_to_clip;
+  shifted[2][1] = -0.5f;  // the axis at OpenGL NDC y = 0.5: outside OpenEXR's [0, 1]
+  gl.matrices = {{"worldToCamera", glm::mat4(1.0f)}, {"worldToNDC", shifted}};
+  const fs::path path = dir / "shifted.exr";
+  ASSERT_TRUE(gl.write(path));
+  const ReadResult refused = read_gbuffer(path.string());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_TRUE(contains(refused.error, "worldToNDC puts the optical axis at NDC (0, 0.5), pixel (0, 8)")) << refused.error;
+  EXPECT_TRUE(contains(refused.error, "a camera sidecar (" + (dir / "shifted.camera.json").string() +
+                                          ") or --fov DEGREES reads the frame"))
+      << refused.error;
+  ReadOptions options;
+  options.fov_x_deg = 45.0f;
+  const ReadResult fov = read_gbuffer(path.string(), options);
+  ASSERT_TRUE(fov.ok()) << fov.error;
+  EXPECT_EQ(fov.info.camera_source, "--fov 45");
+  EXPECT_NEAR(fov.info.fov_x_deg, 45.0, 1e-3);
+  ASSERT_FALSE(fov.info.notes.empty());
+  EXPECT_EQ(fov.info.notes.front().rfind(kWarningNote, 0), 0u) << fov.info.notes.front();
+  EXPECT_TRUE(contains(fov.info.notes.front(), "optical axis at NDC (0, 0.5)")) << fov.info.notes.front();
+  EXPECT_TRUE(contains(fov.info.notes.front(), "--fov gives the camera instead")) << fov.info.notes.front();
 }
 
 // Clip distances written as whole numbers (int attributes, as oiiotool's --attrib writes
@@ -757,6 +887,91 @@ TEST(ReadConversions, WorldNormalsUnderABareFovAreRebuiltNotMisread) {
   const ReadResult view = read_gbuffer(path.string(), options);
   ASSERT_TRUE(view.ok()) << view.error;
   EXPECT_FALSE(view.gbuffer.normal_view.empty());
+}
+
+// Generic N of no stated space under a camera without a world transform (Arnold's N AOV is
+// world space) is taken as view space only while its foreground normals face the eye: the
+// world normal +Y read as view space faces away on every pixel above the centre row (its
+// eye ray has y > 0), half the frame, so it is dropped and rebuilt from depth, with a note
+// naming the channels and the fraction. Normals facing the eye are kept, and so are the
+// same away-facing ones when the mapping says they are view space. The SIMD groups and
+// the per-pixel path count alike (a width that leaves a tail, 1 and 2 threads).
+TEST(ReadConversions, GenericNormalsFacingAwayUnderABareFovAreNotTakenAsView) {
+  ScratchDir dir;
+  const int w = 67, h = 36;
+  TestExr away = generic_frame(w, h, 4.0f);
+  add_constant_normals(away, {0.0f, 1.0f, 0.0f});
+  ASSERT_TRUE(away.write(dir / "away.exr"));
+  ReadOptions options;
+  options.fov_x_deg = 60.0f;
+  for (const int threads : {1, 2}) {
+    SCOPED_TRACE(threads);
+    options.threads = threads;
+    const ReadResult r = read_gbuffer((dir / "away.exr").string(), options);
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_EQ(r.info.normals_facing_away_pixels, int64_t(w) * (h / 2));
+    EXPECT_TRUE(r.gbuffer.normal_view.empty());
+    EXPECT_TRUE(r.info.normals_reconstructed);
+    for (const ChannelUse& u : r.info.uses) EXPECT_NE(u.input, "normal");
+    ASSERT_FALSE(r.info.notes.empty());
+    const std::string& note = r.info.notes.back();
+    EXPECT_TRUE(contains(note, "normal channels N.{X,Y,Z} are not view space")) << note;
+    EXPECT_TRUE(contains(note, "50% of the foreground normals face away")) << note;
+    EXPECT_TRUE(contains(note, "--map normal-space=world")) << note;
+  }
+  // Stated view space is obeyed: the normals are read, turned to face the eye.
+  options.mapping.normal_space = Space::view;
+  const ReadResult stated = read_gbuffer((dir / "away.exr").string(), options);
+  ASSERT_TRUE(stated.ok()) << stated.error;
+  ASSERT_FALSE(stated.gbuffer.normal_view.empty());
+  EXPECT_EQ(stated.gbuffer.normal_view.at<cv::Vec3f>(0, 0), cv::Vec3f(0, -1, 0));
+  EXPECT_EQ(stated.gbuffer.normal_view.at<cv::Vec3f>(h - 1, 0), cv::Vec3f(0, 1, 0));
+  // Normals facing the eye but on 2 of the 36 rows (5.6% > 5%) are refused; on one row
+  // (2.8%) they are taken as view space.
+  options.mapping.normal_space = Space::automatic;
+  for (const int rows_away : {1, 2}) {
+    SCOPED_TRACE(rows_away);
+    TestExr facing = generic_frame(w, h, 4.0f);
+    add_constant_normals(facing, {0.0f, 0.0f, 1.0f});
+    for (int i = 0; i < rows_away * w; ++i) facing.channels[3].values[i] = -1.0f;  // top rows: N = -Z
+    ASSERT_TRUE(facing.write(dir / "facing.exr"));
+    const ReadResult r = read_gbuffer((dir / "facing.exr").string(), options);
+    ASSERT_TRUE(r.ok()) << r.error;
+    EXPECT_EQ(r.info.normals_facing_away_pixels, int64_t(rows_away) * w);
+    EXPECT_EQ(r.gbuffer.normal_view.empty(), rows_away == 2);
+    if (rows_away == 1) EXPECT_EQ(r.info.uses[1].space, "view");
+  }
+}
+
+// Blender's normals mapped by their own name (--map normal=ViewLayer.Normal) are still the
+// world-space normals the profile knows: under --fov they are rebuilt from depth, even
+// where, as here, they happen to face the eye as view normals would.
+TEST(ReadConversions, ProfileNormalsMappedByNameKeepTheirWorldSpace) {
+  ScratchDir dir;
+  TestExr t;
+  t.width = t.height = 8;
+  t.channels.push_back({"ViewLayer.Depth.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64, 3.0f)});
+  for (const char* c : {"ViewLayer.Normal.X", "ViewLayer.Normal.Y"})
+    t.channels.push_back({c, OIIO::TypeDesc::FLOAT, std::vector<float>(64, 0.0f)});
+  t.channels.push_back({"ViewLayer.Normal.Z", OIIO::TypeDesc::FLOAT, std::vector<float>(64, 1.0f)});
+  ASSERT_TRUE(t.write(dir / "blender.exr"));
+  ReadOptions options;
+  options.fov_x_deg = 50.0f;
+  options.mapping.normal = "ViewLayer.Normal";
+  const ReadResult r = read_gbuffer((dir / "blender.exr").string(), options);
+  ASSERT_TRUE(r.ok()) << r.error;
+  EXPECT_TRUE(r.gbuffer.normal_view.empty());
+  EXPECT_TRUE(r.info.normals_reconstructed);
+  bool noted = false;
+  for (const std::string& n : r.info.notes)
+    noted |= contains(n, "ViewLayer.Normal.{X,Y,Z} are world space and the camera (--fov) has no pose");
+  EXPECT_TRUE(noted);
+  // A stated space still wins.
+  options.mapping.normal_space = Space::view;
+  const ReadResult stated = read_gbuffer((dir / "blender.exr").string(), options);
+  ASSERT_TRUE(stated.ok()) << stated.error;
+  ASSERT_FALSE(stated.gbuffer.normal_view.empty());
+  EXPECT_EQ(stated.gbuffer.normal_view.at<cv::Vec3f>(4, 4), cv::Vec3f(0, 0, 1));
 }
 
 // Under --fov, pixels wider than tall (pixelAspectRatio, anamorphic plates) narrow the
