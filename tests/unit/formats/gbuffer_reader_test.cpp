@@ -939,7 +939,9 @@ TEST(ReadConversions, GenericNormalsFacingAwayUnderABareFovAreNotTakenAsView) {
     ASSERT_TRUE(r.ok()) << r.error;
     EXPECT_EQ(r.info.normals_facing_away_pixels, int64_t(rows_away) * w);
     EXPECT_EQ(r.gbuffer.normal_view.empty(), rows_away == 2);
-    if (rows_away == 1) EXPECT_EQ(r.info.uses[1].space, "view");
+    if (rows_away == 1) {
+      EXPECT_EQ(r.info.uses[1].space, "view");
+    }
   }
 }
 
