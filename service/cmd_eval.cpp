@@ -115,6 +115,13 @@ int run_eval(const EvalArgs& args) {
   ConfidenceDeciles overall_deciles;
   double overall_ms = 0;
   int failed = 0;
+  // A file that gives no measurement: said on stderr, and listed under "failed" in --json.
+  nlohmann::json failures = nlohmann::json::array();
+  auto fail = [&](const std::string& file, const std::string& message) {
+    std::cerr << "ssdo eval: " << message << "\n";
+    failures.push_back({{"path", file}, {"error", message}});
+    ++failed;
+  };
   nlohmann::json files = nlohmann::json::array();
   const std::string method(to_string(args.request.ao.method));
   if (!args.heatmap_dir.empty()) {
@@ -176,27 +183,24 @@ int run_eval(const EvalArgs& args) {
     give_neighbours_camera(sequence_request.neighbours, sequence_request.read.camera_json);
     ReadResult frame = sequence.read(sequence_request, read);
     if (!frame.ok()) {
-      std::cerr << "ssdo eval: " << frame.error << "\n";
-      ++failed;
+      fail(file, frame.error);
       continue;
     }
     const auto ref_it = frame.gbuffer.references.find(args.reference);
     if (args.oracle_preset.empty() && ref_it == frame.gbuffer.references.end()) {
       std::string present;
       for (const auto& [name, img] : frame.gbuffer.references) present += (present.empty() ? "" : ", ") + name;
-      std::cerr << "ssdo eval: " << file << ": no reference pass '" << args.reference
-                << "' (reference passes present: " << (present.empty() ? "none" : present) << ")\n";
+      fail(file, file + ": no reference pass '" + args.reference +
+                     "' (reference passes present: " + (present.empty() ? "none" : present) + ")");
       for (const std::string& note : frame.info.notes)
         if (note.rfind("reference:", 0) == 0) std::cerr << "  " << note << "\n";
-      ++failed;
       continue;
     }
     // The radius as process computes it: the frame's AO distance (the AO reference's
     // radius) unless --radius is given.
     FrameRequest request = sequence_request;
     if (std::string error; !resolve_frame_radius(request, frame.info, error)) {
-      std::cerr << "ssdo eval: " << error << "\n";
-      ++failed;
+      fail(file, error);
       continue;
     }
 
@@ -207,8 +211,7 @@ int run_eval(const EvalArgs& args) {
     const std::string name = args.term + (args.raw ? "" : "_denoised");
     const cv::Mat* found = computed.find(name);
     if (!found) {
-      std::cerr << "ssdo eval: " << file << ": term '" << name << "' was not computed\n";
-      ++failed;
+      fail(file, file + ": term '" + name + "' was not computed");
       continue;
     }
     // Scalar terms (AO) compare with a scalar reference (Cycles' AO is R = G = B);
@@ -225,8 +228,7 @@ int run_eval(const EvalArgs& args) {
     // An error over no pixel is no measurement (an MAE of 0 would read as perfect).
     const int64_t foreground = frame.info.foreground_pixels;
     if (const std::string reason = no_comparison_reason(s.pixels, foreground); !reason.empty()) {
-      std::cerr << "ssdo eval: " << file << ": " << reason << "\n";
-      ++failed;
+      fail(file, file + ": " + reason);
       continue;
     }
     if (const std::string note = left_out_note(s.pixels, foreground); !note.empty())
@@ -266,10 +268,7 @@ int run_eval(const EvalArgs& args) {
                 {args.term, estimate, SampleType::float32, false},
                 {"reference", reference, SampleType::float32, false}},
           frame.gbuffer.camera, w);
-      if (!err.empty()) {
-        std::cerr << "ssdo eval: " << err << "\n";
-        ++failed;
-      }
+      if (!err.empty()) fail(file, err);
     }
   }
   const ErrorStats all = overall.result();
@@ -280,7 +279,7 @@ int run_eval(const EvalArgs& args) {
     o["relative_mae"] = relative_mae_json(all);
     o["confidence_deciles"] = deciles_json(overall_deciles);
     // Names that are not UTF-8 (file names are bytes) come out with U+FFFD in their place.
-    const nlohmann::json all = {{"files", files}, {"overall", o}};
+    const nlohmann::json all = {{"files", files}, {"failed", failures}, {"overall", o}};
     std::cout << all.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
   } else if (args.files.size() > 1) {
     std::printf("overall: MAE %.4f (%s)  RMSE %.4f  bias %+.4f  p95 %.4f  (%d px, %.1f ms)\n", all.mae,
@@ -303,7 +302,8 @@ Command register_eval(CLI::App& app) {
                   "Reference pass name (default: the term's Cycles pass: AO, DiffDir or DiffInd)");
   cmd->add_option("--term", e.term,
                   "Term to compare: ao (with --reference AO), ssdo_direct (--reference DiffDir) "
-                  "or ssdo_indirect (--reference DiffInd)")
+                  "or ssdo_indirect (--reference DiffInd); a colour term is compared by the mean of its R, G "
+                  "and B per pixel (its grey level: an error of hue alone is not counted)")
       ->check(CLI::IsMember({"ao", "ssdo_direct", "ssdo_indirect"}))
       ->capture_default_str();
   cmd->add_flag("--raw", e.raw, "Compare the raw term instead of the denoised one");
@@ -312,7 +312,9 @@ Command register_eval(CLI::App& app) {
                   "SSDO oracle for light terms; same radius and thickness) instead of a pass: "
                   "the method's estimator error alone")
       ->check(CLI::IsMember({"low", "medium", "high", "ultra"}));
-  cmd->add_flag("--json", e.json, "Print JSON");
+  cmd->add_flag("--json", e.json,
+                "Print JSON: \"files\" (one entry per measured file), \"failed\" (path and error of each file "
+                "that gave no measurement) and \"overall\"");
   cmd->add_option("--heatmap", e.heatmap_dir, "Write an error image per file into DIR");
   add_frame_options(*cmd, st->options, int(OptionSet::read) | int(OptionSet::compute));
   return {cmd, [st] {

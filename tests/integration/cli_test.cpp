@@ -824,6 +824,22 @@ TEST(Cli, EvalComparesALightTermWithItsOwnPass) {
   EXPECT_LT(j.at("overall").at("mae").get<double>(), 0.2);
 }
 
+// eval --json lists the files that gave no measurement with their error (they were only on
+// stderr, and a script reading the JSON saw fewer files and no failure).
+TEST(Cli, EvalJsonListsTheFilesThatFailed) {
+  ScratchDir dir;
+  std::ofstream(dir / "broken.exr") << "not an image";
+  const RunResult r =
+      run_ssdo("eval " + example("greeble.exr") + " " + dir / "broken.exr" + " --preset low --json");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  const nlohmann::json j = nlohmann::json::parse(r.output.substr(r.output.find("{\n")), nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << r.output;
+  EXPECT_EQ(j.at("files").size(), 1u);
+  ASSERT_EQ(j.at("failed").size(), 1u) << r.output;
+  EXPECT_EQ(j.at("failed").at(0).at("path"), dir / "broken.exr");
+  EXPECT_NE(j.at("failed").at(0).at("error").get<std::string>().find("broken.exr"), std::string::npos);
+}
+
 // The preset eval reports is the one it computed with: SSDO's --ssdo-preset, --quality
 // auto's choice for AO (never the --preset default they replaced).
 TEST(Cli, EvalReportsThePresetItComputedWith) {
