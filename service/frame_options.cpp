@@ -70,7 +70,8 @@ std::vector<FrameOption> compute_options() {
        .field = +[](A& a) -> std::string& { return a.compute.terms; }},
       {.name = "multibounce", .kind = OptionKind::flag, .set = OptionSet::compute, .group = "Compute",
        .help = "Multi-bounce AO (Jimenez et al. 2016, eq. 10): brightens AO by the light that bounces between "
-               "surfaces of the frame's albedo (read when given; without albedo AO is single-bounce)",
+               "surfaces of the frame's albedo (its Rec. 709 luminance: AO is one channel; read when given; "
+               "without albedo AO is single-bounce)",
        .field = +[](A& a) -> bool& { return a.compute.multibounce; }},
       {.name = "composite", .kind = OptionKind::text, .set = OptionSet::compute, .group = "Compute",
        .help = "Composite terms: a mode (off, ssao, ssdo, ssao+ssdo) or a weighted list of ambient, ambient_ao, "
