@@ -113,6 +113,13 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   // The workers read and build what they compute with; here only the checks.
   FrameRequest check;
   if (!resolve_frame_options(options, check, error, /*build_environment=*/false)) return false;
+  // Options given that change nothing with the others: said once, not an error (a config
+  // shared by several commands may hold them).
+  const ComputeOptionArgs& c = options.compute;
+  if (c.quality != "auto" && given(app, "max-error"))
+    std::fprintf(stderr, "ssdo: note: --max-error has no effect without --quality auto\n");
+  if (TermSelection terms; !c.composite.empty() && parse_terms(c.terms, terms, error) && !terms.composite)
+    std::fprintf(stderr, "ssdo: note: --composite has no effect: --terms %s writes no composite\n", c.terms.c_str());
   if (const std::string note = quality_choice_note(options.compute); !note.empty())
     std::fprintf(stderr, "ssdo: %s%s\n", note.c_str(),
                  given(app, "method") || given(app, "preset")

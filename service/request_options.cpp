@@ -181,9 +181,15 @@ bool resolve_frame_options(const FrameOptionArgs& a, FrameRequest& request, std:
   return true;
 }
 
-std::string options_attribute(const FrameOptionArgs& a) {
+std::string options_attribute(const FrameOptionArgs& given) {
   // Every option but "threads": outputs are the same bytes for any thread count, and so
-  // are their headers.
+  // are their headers. Options that change nothing with the others are recorded as their
+  // defaults, so that such a value does not make outputs stale: --max-error without
+  // --quality auto, --composite when no composite is written.
+  FrameOptionArgs a = given;
+  if (a.compute.quality != "auto") a.compute.max_error = ComputeOptionArgs{}.max_error;
+  TermSelection terms;
+  if (std::string error; parse_terms(a.compute.terms, terms, error) && !terms.composite) a.compute.composite.clear();
   const json options = to_json(a, [](const std::string& key) { return key != "threads"; });
   return options.dump(-1, ' ', false, json::error_handler_t::replace);
 }

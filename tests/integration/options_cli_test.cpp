@@ -81,6 +81,21 @@ TEST(OptionsCli, AnEnvironmentOnTheCommandLineReplacesTheConfigs) {
   EXPECT_NE(r.output.find("give one environment"), std::string::npos) << r.output;
 }
 
+// Options that change nothing with the others are said, and --max-error without --quality
+// auto does not make outputs stale (it is recorded as its default).
+TEST(OptionsCli, OptionsWithoutEffectAreSaidAndDoNotMakeOutputsStale) {
+  ScratchDir out;
+  const std::string base = "process " + example("cornell.exr") + " -o " + out.path.string() + " --preset low --terms ao";
+  RunResult r = run_ssdo(base);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_ssdo(base + " --max-error 0.01 --composite ssao");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("note: --max-error has no effect without --quality auto"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("note: --composite has no effect: --terms ao writes no composite"), std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("done 0, skipped 1"), std::string::npos) << r.output;
+}
+
 TEST(OptionsCli, OutOfRangeValuesAreUsageErrorsOnTheCommandLineAndInAConfig) {
   ScratchDir out;
   const std::string base = "process " + example("cornell.exr") + " -o " + out.path.string();
