@@ -446,12 +446,7 @@ ExrCameraMatrices exr_matrices_from_camera(const Camera& camera) {
   // Our view space -> OpenEXR camera space: negate z (left-handed, +Z forward).
   glm::mat4 flip_z(1.0f);
   flip_z[2][2] = -1.0f;
-  // OpenGL NDC -> OpenEXR NDC over the same grid: u = (x + 1) / 2, v = (1 - y) / 2.
-  glm::mat4 uv_from_gl(1.0f);
-  uv_from_gl[0][0] = 0.5f;
-  uv_from_gl[3][0] = 0.5f;
-  uv_from_gl[1][1] = -0.5f;
-  uv_from_gl[3][1] = 0.5f;
+  const glm::mat4 uv_from_gl(uv_from_gl_ndc());  // OpenGL NDC -> OpenEXR NDC (exact in float)
   ExrCameraMatrices m;
   m.world_to_camera = flip_z * camera.world_to_view;
   m.world_to_ndc = uv_from_gl * camera.view_to_clip * camera.world_to_view;
