@@ -591,6 +591,13 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     }
     if (!resolve_frame_radius(request, frame.info, result.error)) return result;
     note_environment(request, frame.gbuffer, frame.info, result.info.notes);
+    // Before any compute: a composite that adds the frame's lighting needs a lighting pass.
+    if (composite_reads_lighting(request, terms_computed(request)) && frame.gbuffer.lighting.empty()) {
+      result.error = request.input_path +
+                     ": the composite's term lighting adds the frame's own direct light, and the frame has no "
+                     "lighting pass (Cycles' DiffCol x DiffDir, or --map lighting=CHANNEL): leave the term out";
+      return result;
+    }
 
     // The G-buffer's images are not written: compute_frame releases each once it is read
     // no more, and their memory goes to the later terms and the writer's buffers (images a

@@ -269,6 +269,29 @@ TEST(Cli, TheEnvironmentMapIsDecodedOnlyForTheTermsThatUseIt) {
   EXPECT_NE(r.output.find(sky.string()), std::string::npos) << r.output;
 }
 
+// A composite that adds the frame's lighting, on a frame without a lighting pass, fails
+// before any compute with a message that says what is missing and what to do.
+TEST(Cli, ACompositeOfTheLightingNeedsALightingPass) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  OIIO::ImageBuf full(example("cornell.exr"));
+  ASSERT_TRUE(full.read()) << full.geterror();
+  const std::vector<std::string> names = {"ViewLayer.Depth.Z", "ViewLayer.Normal.X", "ViewLayer.Normal.Y",
+                                          "ViewLayer.Normal.Z"};
+  std::vector<int> order;
+  for (const std::string& n : names) order.push_back(full.spec().channelindex(n));
+  const OIIO::ImageBuf depth_normals = OIIO::ImageBufAlgo::channels(full, 4, order, {}, names);
+  ASSERT_TRUE(depth_normals.write((dir.path / "in" / "bare.exr").string())) << depth_normals.geterror();
+  fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "bare.camera.json");
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --terms ao,composite --composite ambient_ao,lighting --preset low");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("the composite's term lighting adds the frame's own direct light, and the frame has no "
+                          "lighting pass"),
+            std::string::npos)
+      << r.output;
+}
+
 // The environment's reach is said where a user may not expect it: the bounce of a frame
 // with its own direct-light pass keeps that light; a directional environment under a camera
 // from --fov (no world orientation) is turned with the view.
