@@ -269,6 +269,19 @@ TEST(Cli, TheEnvironmentMapIsDecodedOnlyForTheTermsThatUseIt) {
   EXPECT_NE(r.output.find(sky.string()), std::string::npos) << r.output;
 }
 
+// A folder where a frame's output goes fails that frame by name, and is not reported as an
+// output made with other options first.
+TEST(Cli, AFolderInPlaceOfAnOutputFailsThatFrameByName) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  fs::create_directories(dir.path / "out" / "a.ssdo.exr");
+  fs::last_write_time(dir.path / "out" / "a.ssdo.exr", fs::file_time_type::clock::now() + std::chrono::hours(1));
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find(dir / "out/a.ssdo.exr" + ": is a folder"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("made with other options"), std::string::npos) << r.output;
+}
+
 // A composite that adds the frame's lighting, on a frame without a lighting pass, fails
 // before any compute with a message that says what is missing and what to do.
 TEST(Cli, ACompositeOfTheLightingNeedsALightingPass) {
