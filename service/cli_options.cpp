@@ -17,6 +17,12 @@ namespace ssdo {
 
 namespace {
 
+// A number as a person writes one: decimal digits, point, exponent and signs only (std::stod
+// also reads "0x10" as 16 and "inf", which no option means).
+bool decimal_text(const std::string& text) {
+  return !text.empty() && text.find_first_not_of("0123456789.eE+-") == std::string::npos;
+}
+
 // A CLI11 validator running the table's own check, so that the command line and JSON
 // accept the same values with the same message.
 CLI::Validator table_check(const FrameOption& o) {
@@ -25,8 +31,8 @@ CLI::Validator table_check(const FrameOption& o) {
         if (o.kind == OptionKind::choice) return check_choice(o, value);
         try {
           size_t used = 0;
-          const double v = std::stod(value, &used);
-          if (used == value.size()) return check_number(o, v);
+          const double v = decimal_text(value) ? std::stod(value, &used) : 0.0;
+          if (decimal_text(value) && used == value.size()) return check_number(o, v);
         } catch (const std::exception&) {
         }
         return check_number(o, std::numeric_limits<double>::quiet_NaN());
@@ -195,6 +201,7 @@ bool parse_sky(const std::string& spec, glm::vec3& top, glm::vec3& bottom, std::
     if (token.empty()) return true;
     try {
       size_t used = 0;
+      if (!decimal_text(token)) throw std::invalid_argument(token);
       const float v = std::stof(token, &used);
       if (used != token.size() || !(v >= 0.0f) || !std::isfinite(v)) throw std::invalid_argument(token);
       if (v > kMaxRadiance) {

@@ -102,6 +102,11 @@ TEST(OptionsCli, OutOfRangeValuesAreUsageErrorsOnTheCommandLineAndInAConfig) {
   RunResult r = run_ssdo(base + " --guard-band -1");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("must be an integer in [0, 4096]"), std::string::npos) << r.output;
+  // Numbers are decimal: "0x10" (16 to std::stod) is no radius and no sky.
+  for (const char* given : {" --radius 0x10", " --sky 0x10,1"}) {
+    r = run_ssdo(base + given);
+    EXPECT_EQ(r.exit_code, 2) << given << "\n" << r.output;
+  }
   std::ofstream(out / "cfg.json") << R"({"guard-band": 5000})";
   r = run_ssdo(base + " --config " + (out / "cfg.json"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
