@@ -79,12 +79,15 @@ void place_in_display_window(const Imf::Header& header, cv::Mat& rgb) {
 std::string read_exr(const std::string& path, long long max_pixels, cv::Mat* rgb) {
   ExrLimits limits;
   limits.max_pixels = max_pixels;
-  if (const ExrHeaderCheck check = check_exr_headers(path, limits); !check.ok())
-    return check.error;
+  const ExrHeaderCheck check = check_exr_headers(path, limits);
+  if (!check.ok()) return check.error;
   Imf::InputFile in(path.c_str());
   std::vector<std::string> names;
-  if (std::string e = check_exr(path, max_pixels, in.header(), names); !e.empty() || rgb == nullptr)
+  if (std::string e = check_exr(path, max_pixels, in.header(), names); !e.empty() || rgb == nullptr) {
+    if (!e.empty() && check.parts.size() > 1)  // InputFile reads the first part
+      e += " in its first part; the map is read from the first of its " + std::to_string(check.parts.size()) + " parts";
     return e;
+  }
   const Imath::Box2i data = in.header().dataWindow();
   const long long w = (long long)data.max.x - data.min.x + 1;
   const long long h = (long long)data.max.y - data.min.y + 1;

@@ -202,6 +202,17 @@ TEST(EnvMap, ErrorsNameTheFile) {
   const EnvMapResult depth = read_env_map((dir / "depth.exr").string());
   EXPECT_FALSE(depth.ok());
   EXPECT_NE(depth.error.find("needs channels R, G and B, or Y (it has Z)"), std::string::npos) << depth.error;
+  // A multi-part map is read from its first part, and the message says so.
+  TestExr first = exr, second = rgb_map(2, 1);
+  first.part_name = "depth";
+  second.part_name = "rgb";
+  second.data_x = second.data_y = 0;
+  ASSERT_TRUE(test::write_parts(dir / "parts.exr", {first, second}));
+  const EnvMapResult parts = read_env_map((dir / "parts.exr").string());
+  EXPECT_FALSE(parts.ok());
+  EXPECT_NE(parts.error.find("(it has Z) in its first part; the map is read from the first of its 2 parts"),
+            std::string::npos)
+      << parts.error;
   const TestExr big = rgb_map(8, 4);
   ASSERT_TRUE(big.write(dir / "big.exr"));
   const EnvMapResult over = read_env_map((dir / "big.exr").string(), 31);
