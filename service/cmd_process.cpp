@@ -213,9 +213,7 @@ int run_process(const ProcessArgs& args) {
   int other_options = 0, cut_short = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
-    // Only a file can be an output made before (a folder in its place fails the frame, by name).
-    const bool current = !args.force && std::filesystem::is_regular_file(output, ec) &&
-                         output_up_to_date_with_sidecar(f, output) &&
+    const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
                          neighbours_older_than(neighbours, f, output) &&
                          output_up_to_date_with_all(option_files, output);
     const bool same_options = current && output_made_with(output, made_with);

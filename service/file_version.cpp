@@ -20,6 +20,7 @@ FileVersion version_of(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return v;
   v.exists = true;
+  v.regular = S_ISREG(st.st_mode);
   v.dev = st.st_dev;
   v.ino = st.st_ino;
   v.size = st.st_size;

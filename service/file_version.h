@@ -10,6 +10,7 @@ namespace ssdo {
 
 struct FileVersion {
   bool exists = false;
+  bool regular = false;  // a regular file (after links), not a folder, FIFO or device
   dev_t dev = 0;
   ino_t ino = 0;
   off_t size = 0;

@@ -109,7 +109,8 @@ std::string error_path_for_output(const std::string& output) {
 
 bool output_up_to_date(const std::string& input, const std::string& output) {
   const FileVersion in = version_of(input), out = version_of(output);
-  if (!in.exists || !out.exists) return false;
+  // Only a file is an output made before (a folder in its place fails the frame, by name).
+  if (!in.exists || !out.regular) return false;
   return !later_than(in.last_change(), out.mtime);
 }
 

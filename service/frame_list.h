@@ -43,7 +43,7 @@ std::string error_path_for(const std::string& input, const std::string& output_d
 // error file (theirs are named after outputs NAME.ssdo.exr).
 std::string error_path_for_output(const std::string& output);
 
-// True when `output` exists and is at least as new as `input`'s last change: the later
+// True when `output` is a file (not a folder) at least as new as `input`'s last change: the later
 // of its modification and status-change times, so a file renamed into place (whose
 // mtime may be old) still counts as new.
 bool output_up_to_date(const std::string& input, const std::string& output);
