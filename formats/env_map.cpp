@@ -132,11 +132,10 @@ std::string channels_error(const std::string& path, int channels) {
 std::string read_other_format(const std::string& path, long long max_pixels, cv::Mat& rgb) {
   cv::Mat pixels;
   oiio_module::ImageHeader header;
-  if (std::string e = oiio_module::read_image(path, 0, max_pixels, pixels, header); !e.empty())
-    return "environment map " + e;
-  if (std::string e = channels_error(path, header.channels); !e.empty()) return e;
+  // One read: the size is refused before decoding; a two-channel image only after.
   if (std::string e = oiio_module::read_image(path, 3, max_pixels, pixels, header); !e.empty())
     return "environment map " + e;
+  if (std::string e = channels_error(path, header.channels); !e.empty()) return e;
   if (pixels.channels() == 3) rgb = pixels;
   else cv::merge(std::vector<cv::Mat>{pixels, pixels, pixels}, rgb);
   return {};
