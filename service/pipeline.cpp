@@ -558,9 +558,8 @@ void note_view_uses(const std::vector<ViewUse>& uses, std::vector<std::string>& 
 // its own direct-light pass sends that light in the bounce (the light it was rendered
 // with), not the environment given; a directional environment needs the camera's world
 // orientation, which a camera from --fov does not have.
-void note_environment(const FrameRequest& request, const GBuffer& g, const FrameInfo& info,
-                      std::vector<std::string>& notes) {
-  const TermsComputed computed = terms_computed(request);
+void note_environment(const FrameRequest& request, const TermsComputed& computed, const GBuffer& g,
+                      const FrameInfo& info, std::vector<std::string>& notes) {
   if (!request.environment || !(computed.ssdo || request.terms.composite)) return;
   if (computed.ssdo && !g.lighting.empty()) {
     const auto use = std::find_if(info.uses.begin(), info.uses.end(), [](const ChannelUse& u) { return u.input == "lighting"; });
@@ -590,9 +589,10 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
       return result;
     }
     if (!resolve_frame_radius(request, frame.info, result.error)) return result;
-    note_environment(request, frame.gbuffer, frame.info, result.info.notes);
+    const TermsComputed selected = terms_computed(request);
+    note_environment(request, selected, frame.gbuffer, frame.info, result.info.notes);
     // Before any compute: a composite that adds the frame's lighting needs a lighting pass.
-    if (composite_reads_lighting(request, terms_computed(request)) && frame.gbuffer.lighting.empty()) {
+    if (composite_reads_lighting(request, selected) && frame.gbuffer.lighting.empty()) {
       result.error = request.input_path +
                      ": the composite's term lighting adds the frame's own direct light, and the frame has no "
                      "lighting pass (Cycles' DiffCol x DiffDir, or --map lighting=CHANNEL): leave the term out";
