@@ -1,6 +1,8 @@
 #include "formats/env_map.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <exception>
 #include <fstream>
 
@@ -24,6 +26,18 @@ bool is_exr(const std::string& path) {
   return in && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01;
 }
 
+// An equirectangular map spans 360 x 180 degrees: its width is twice its height (within 5%
+// or a pixel, for exports rounded to odd sizes). Any other shape is another projection (a
+// square mirror ball or angular map, a 4:3 or 3:4 cube cross, a 6:1 or 1:6 strip of cube
+// faces) or a crop, which read as latitude-longitude would light every pixel from the
+// wrong direction.
+std::string aspect_error(const std::string& path, long long width, long long height) {
+  if (std::llabs(width - 2 * height) <= std::max(1LL, width / 20)) return {};
+  return path + ": the environment map is " + std::to_string(width) + " x " + std::to_string(height) +
+         ", not 2:1: an equirectangular (latitude-longitude) map spans 360 x 180 degrees; convert another "
+         "projection (mirror ball, angular map, cube cross or strip) to latitude-longitude first";
+}
+
 // The header checks of an EXR map: the channels read ({R, G, B} or {Y, Y, Y}) in
 // `names`, or the error.
 std::string check_exr(const std::string& path, long long max_pixels, const Imf::Header& header,
@@ -35,6 +49,11 @@ std::string check_exr(const std::string& path, long long max_pixels, const Imf::
       return path + ": environment map size " + std::to_string(w) + " x " + std::to_string(h) +
              " is empty or larger than the limit of " + std::to_string(max_pixels) + " pixels";
   }
+  const Imath::Box2i display = header.displayWindow();
+  if (std::string e = aspect_error(path, (long long)display.max.x - display.min.x + 1,
+                                   (long long)display.max.y - display.min.y + 1);
+      !e.empty())
+    return e;
   const Imf::ChannelList& channels = header.channels();
   if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B"))
     names = {"R", "G", "B"};
@@ -136,6 +155,7 @@ std::string read_other_format(const std::string& path, long long max_pixels, cv:
   if (std::string e = oiio_module::read_image(path, 3, max_pixels, pixels, header); !e.empty())
     return "environment map " + e;
   if (std::string e = channels_error(path, header.channels); !e.empty()) return e;
+  if (std::string e = aspect_error(path, header.width, header.height); !e.empty()) return e;
   if (pixels.channels() == 3) rgb = pixels;
   else cv::merge(std::vector<cv::Mat>{pixels, pixels, pixels}, rgb);
   return {};
@@ -187,7 +207,8 @@ std::string check_env_map(const std::string& path, long long max_pixels) {
     oiio_module::ImageHeader header;
     if (const std::string e = oiio_module::read_image(path, 0, max_pixels, unused, header); !e.empty())
       return "environment map " + e;
-    return channels_error(path, header.channels);
+    if (std::string e = channels_error(path, header.channels); !e.empty()) return e;
+    return aspect_error(path, header.width, header.height);
   }
   try {
     if (std::string e = read_exr(path, max_pixels, nullptr); !e.empty()) return "environment map " + e;

@@ -26,13 +26,14 @@ inline constexpr float kMaxEnvRadiance = 1e9f;
 // Reads the first three channels (R, G, B; a single channel is replicated) as linear
 // radiance (an 8-bit sRGB or gamma-encoded image is decoded). The map is the display
 // window: an EXR data window covering part of it is placed in it, black elsewhere. Refuses
-// images larger than max_pixels before allocating; non-finite or negative radiance is read
+// a map that is not 2:1 (within 5% or a pixel: another projection) and images larger than
+// max_pixels, both before allocating; non-finite or negative radiance is read
 // as 0 (a map with no other value is refused), radiance above kMaxEnvRadiance as it.
 EnvMapResult read_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);
 
 // What read_env_map would refuse that is known without decoding the pixels: for EXR the
-// header (formats/exr_header_check.h), the size limit and the channels; any other format
-// its header's size through OpenImageIO, nothing decoded. Empty on success, else the
+// header (formats/exr_header_check.h), the size limit, the 2:1 shape and the channels; any
+// other format its header's size, shape and channels through OpenImageIO, nothing decoded. Empty on success, else the
 // error. For a process that checks options before a worker reads the map (a service's
 // client names it: its pixels are decoded by the worker only).
 std::string check_env_map(const std::string& path, long long max_pixels = kDefaultMaxPixels);

@@ -59,7 +59,7 @@ TEST(EnvMap, ExrRgbIsReadInPlaceWithNegativesClamped) {
 // more than one chunk of lines).
 TEST(EnvMap, EveryCompressionGivesTheSameMap) {
   ScratchDir dir;
-  TestExr exr = rgb_map(37, 21);
+  TestExr exr = rgb_map(42, 21);
   cv::Mat reference;
   for (const char* compression : {"piz", "zip", "zips", "none", "rle"}) {
     exr.compression = compression;
@@ -69,7 +69,7 @@ TEST(EnvMap, EveryCompressionGivesTheSameMap) {
     ASSERT_TRUE(env.ok()) << compression << ": " << env.error;
     if (reference.empty()) {
       reference = env.radiance_rgb;
-      EXPECT_EQ(reference.at<cv::Vec3f>(2, 3), cv::Vec3f(float(77 % 17) * 0.5f, 77 * 0.25f, 2.0f));
+      EXPECT_EQ(reference.at<cv::Vec3f>(2, 3), cv::Vec3f(float(87 % 17) * 0.5f, 87 * 0.25f, 2.0f));
       continue;
     }
     EXPECT_EQ(cv::norm(env.radiance_rgb, reference, cv::NORM_INF), 0.0) << compression;
@@ -136,15 +136,60 @@ TEST(EnvMap, TheDataWindowIsPlacedInTheDisplayWindow) {
   EXPECT_EQ(env.radiance_rgb.at<cv::Vec3f>(1, 4), cv::Vec3f(2, 2, 2));
   EXPECT_EQ(cv::sum(env.radiance_rgb)[0], 2.0 * 16);
   exr.data_x = -2, exr.data_y = -1;  // overscan: 2 columns and 1 row outside
-  exr.display_width = 2, exr.display_height = 2;
+  exr.display_width = 4, exr.display_height = 2;
   std::vector<float>& v = exr.channels[0].values;
   for (int i = 0; i < 16; ++i) v[size_t(i)] = float(i);
   ASSERT_TRUE(exr.write(dir / "over.exr"));
   const EnvMapResult over = read_env_map((dir / "over.exr").string());
   ASSERT_TRUE(over.ok()) << over.error;
-  ASSERT_EQ(over.radiance_rgb.size(), cv::Size(2, 2));
+  ASSERT_EQ(over.radiance_rgb.size(), cv::Size(4, 2));
   EXPECT_EQ(over.radiance_rgb.at<cv::Vec3f>(0, 0)[0], 6.0f);  // data (2, 1) = value 1 * 4 + 2
   EXPECT_EQ(over.radiance_rgb.at<cv::Vec3f>(1, 1)[0], 11.0f);
+  EXPECT_EQ(over.radiance_rgb.at<cv::Vec3f>(1, 3)[0], 0.0f);  // right of the data window
+}
+
+// An equirectangular map is 2:1 (360 x 180 degrees); a square mirror ball or a 4:3 cube
+// cross read as one would light from the wrong directions: refused by name, before the
+// pixels are decoded, in EXR (its display window) and in other formats alike. A pixel or
+// 5% off 2:1 is an export's rounding: read.
+TEST(EnvMap, MapsThatAreNot2To1AreRefused) {
+  ScratchDir dir;
+  auto y_map = [&](int w, int h, const std::string& name) {
+    TestExr exr;
+    exr.width = w;
+    exr.height = h;
+    exr.channels = {{"Y", OIIO::TypeDesc::FLOAT, std::vector<float>(size_t(w * h), 1.0f)}};
+    EXPECT_TRUE(exr.write(dir / name));
+    return (dir / name).string();
+  };
+  for (const auto& [w, h] : {std::pair{16, 16}, {16, 12}, {12, 16}, {48, 8}, {44, 20}}) {
+    const std::string path = y_map(w, h, "map" + std::to_string(w) + "x" + std::to_string(h) + ".exr");
+    const EnvMapResult r = read_env_map(path);
+    EXPECT_FALSE(r.ok()) << w << " x " << h;
+    EXPECT_NE(r.error.find(path + ": the environment map is " + std::to_string(w) + " x " + std::to_string(h) +
+                           ", not 2:1"),
+              std::string::npos)
+        << r.error;
+    EXPECT_EQ(check_env_map(path), r.error);
+  }
+  for (const auto& [w, h] : {std::pair{41, 20}, {42, 20}, {39, 20}, {3, 1}, {2, 1}}) {
+    const EnvMapResult r = read_env_map(y_map(w, h, "ok" + std::to_string(w) + "x" + std::to_string(h) + ".exr"));
+    EXPECT_TRUE(r.ok()) << w << " x " << h << ": " << r.error;
+    EXPECT_EQ(r.radiance_rgb.size(), cv::Size(w, h));
+  }
+  // Another format: refused by its header alone, and after a decode.
+  {
+    auto out = OIIO::ImageOutput::create("png");
+    ASSERT_TRUE(out);
+    const std::string png = (dir / "ball.png").string();
+    ASSERT_TRUE(out->open(png, OIIO::ImageSpec(8, 8, 3, OIIO::TypeDesc::UINT8)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, cv::Mat(8, 8, CV_8UC3, cv::Scalar::all(100)).data));
+    out->close();
+    const EnvMapResult r = read_env_map(png);
+    EXPECT_FALSE(r.ok());
+    EXPECT_NE(r.error.find(png + ": the environment map is 8 x 8, not 2:1"), std::string::npos) << r.error;
+    EXPECT_EQ(check_env_map(png), r.error);
+  }
 }
 
 // An 8-bit PNG holds sRGB-encoded values: decoded to linear radiance (code 128 is 0.216,
