@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <numeric>
 
 #include "service/frame_list.h"
 #include "service/view_selection.h"
@@ -56,6 +57,20 @@ std::optional<SequencePlace> sequence_place(const std::string& path) {
   return place;
 }
 
+namespace {
+
+// A sequence's place step: the greatest common divisor of the differences between its
+// frame numbers (1 for a shot with every frame; 2 for one rendered on twos), so that a
+// place is a frame of the sequence whether or not its file is there: a missing frame in
+// the middle (a failed render) is a place, as it is in a pattern's list of frames.
+long place_step(const std::vector<std::pair<long, size_t>>& members) {
+  long step = 0;
+  for (size_t k = 1; k < members.size(); ++k) step = std::gcd(step, members[k].first - members[k - 1].first);
+  return step > 0 ? step : 1;
+}
+
+}  // namespace
+
 std::vector<std::vector<NeighbourFrame>> sequence_neighbours(const std::vector<std::string>& frames, int window) {
   std::vector<std::vector<NeighbourFrame>> out(frames.size());
   if (window <= 0) return out;
@@ -65,13 +80,19 @@ std::vector<std::vector<NeighbourFrame>> sequence_neighbours(const std::vector<s
     if (const auto place = sequence_place(frames[i])) sequences[place->sequence].push_back({place->number, i});
   for (auto& [name, members] : sequences) {
     std::stable_sort(members.begin(), members.end());
-    const long n = long(members.size());
-    for (long k = 0; k < n; ++k) {
-      std::vector<NeighbourFrame>& list = out[members[k].second];
+    const long step = place_step(members);
+    // Place p of the sequence: its first file of that frame number (a second file of the
+    // same number, "shot.1" beside "shot.0001", is no other frame).
+    std::map<long, size_t> by_place;
+    const long first = members.front().first;  // every number is first + a multiple of step
+    for (const auto& [number, index] : members) by_place.emplace((number - first) / step, index);
+    for (const auto& [number, index] : members) {
+      std::vector<NeighbourFrame>& list = out[index];
+      const long place = (number - first) / step;
       for (long d = 1; d <= window; ++d)
-        for (const long j : {k - d, k + d})
-          if (j >= 0 && j < n && members[j].first != members[k].first)
-            list.push_back({frames[members[j].second], int(members[j].first - members[k].first), false, {}, {}});
+        for (const long p : {place - d, place + d})
+          if (const auto it = by_place.find(p); it != by_place.end())
+            list.push_back({frames[it->second], int(p - place), false, {}, {}});
     }
   }
   return out;
@@ -115,55 +136,34 @@ int neighbour_places(int views_per_side, int temporal_per_side) {
   return view_candidate_places(views_per_side) + std::max(0, temporal_per_side);
 }
 
-namespace {
-
-// The frame and its neighbours in place order (by frame offset; the frame's offset is 0).
-std::vector<const NeighbourFrame*> in_place_order(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours) {
-  std::vector<const NeighbourFrame*> order{&self};
-  for (const NeighbourFrame& n : neighbours) order.push_back(&n);
-  std::stable_sort(order.begin(), order.end(),
-                   [](const NeighbourFrame* a, const NeighbourFrame* b) { return a->frame_offset < b->frame_offset; });
-  return order;
-}
-
-// The entries of `order` within `places` of entry `at`, nearest first per side (the order
-// of sequence_neighbours), with offsets relative to it.
-std::vector<NeighbourFrame> around(const std::vector<const NeighbourFrame*>& order, long at, int places) {
-  std::vector<NeighbourFrame> out;
-  const long n = long(order.size());
-  for (long d = 1; d <= places; ++d)
-    for (const long j : {at - d, at + d})
-      if (j >= 0 && j < n) {
-        NeighbourFrame f = *order[size_t(j)];
-        f.frame_offset = order[size_t(j)]->frame_offset - order[size_t(at)]->frame_offset;
-        out.push_back(f);
-      }
-  return out;
-}
-
-long place_of(const std::vector<const NeighbourFrame*>& order, const NeighbourFrame& f) {
-  for (size_t i = 0; i < order.size(); ++i)
-    if (order[i]->frame_offset == f.frame_offset) return long(i);
-  return -1;
-}
-
-}  // namespace
-
 std::vector<NeighbourFrame> within_places(const std::vector<NeighbourFrame>& neighbours, int places) {
-  const NeighbourFrame self{};
-  const std::vector<const NeighbourFrame*> order = in_place_order(self, neighbours);
-  const long at = place_of(order, self);
   std::vector<NeighbourFrame> out;
   for (const NeighbourFrame& n : neighbours)
-    if (std::abs(place_of(order, n) - at) <= places) out.push_back(n);
+    if (std::abs(n.frame_offset) <= places) out.push_back(n);
   return out;
 }
 
 std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours,
                                                     const NeighbourFrame& of, int places) {
-  const std::vector<const NeighbourFrame*> order = in_place_order(self, neighbours);
-  const long at = place_of(order, of);
-  return at < 0 ? std::vector<NeighbourFrame>{} : around(order, at, places);
+  std::vector<const NeighbourFrame*> all{&self};
+  bool found = false;
+  for (const NeighbourFrame& n : neighbours) {
+    all.push_back(&n);
+    found |= n.frame_offset == of.frame_offset;
+  }
+  if (!found) return {};
+  // Nearest first per side, as sequence_neighbours orders a list.
+  std::vector<NeighbourFrame> out;
+  for (long d = 1; d <= places; ++d)
+    for (const long p : {of.frame_offset - d, of.frame_offset + d})
+      for (const NeighbourFrame* n : all)
+        if (n->frame_offset == p) {
+          NeighbourFrame f = *n;
+          f.frame_offset = int(p - of.frame_offset);
+          out.push_back(f);
+          break;
+        }
+  return out;
 }
 
 void give_neighbours_camera(std::vector<NeighbourFrame>& neighbours, const std::string& camera_json) {

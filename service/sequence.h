@@ -19,7 +19,7 @@ namespace ssdo {
 // A frame another frame may use as an extra view.
 struct NeighbourFrame {
   std::string path;             // its name: its identity in the sequence
-  int frame_offset = 0;         // its frame number minus the frame's (never 0)
+  int frame_offset = 0;         // its place minus the frame's (never 0): frame numbers over the sequence's step
   bool computed_later = false;  // the same worker computes it later: read it whole, once
   std::string open_path;        // what to read: an opened descriptor's name, or empty = path
   std::string camera_json;      // its camera file when opened for it, else empty = beside it
@@ -34,8 +34,12 @@ struct SequencePlace {
 std::optional<SequencePlace> sequence_place(const std::string& path);
 
 // For each of `frames`, the other frames of its sequence among `frames` within
-// `window` places before and after it (in frame-number order), nearest first per side.
-// Frames that are not part of a sequence get none; window 0 gives none.
+// `window` places before and after it, nearest first per side. A place is a frame number
+// over the sequence's step (the greatest common divisor of its numbers' differences: 2 for
+// a shot rendered on twos), so a frame missing from `frames` still counts as one: a
+// folder with a failed frame gives each frame the neighbours a pattern over the whole
+// range gives it. Of two files with one frame number the first in `frames` order is the
+// frame. Frames that are not part of a sequence get none; window 0 gives none.
 std::vector<std::vector<NeighbourFrame>> sequence_neighbours(const std::vector<std::string>& frames, int window);
 
 // How many places on each side of a frame its neighbour list spans: the candidates of its
@@ -46,7 +50,7 @@ int neighbour_places(int views_per_side, int temporal_per_side);
 int view_candidate_places(int views_per_side);
 
 // The entries of `neighbours` (one frame's list, as sequence_neighbours gives it) within
-// `places` places of the frame, in the list's order (nearest first per side).
+// `places` places of the frame (|frame_offset| <= places), in the list's order.
 std::vector<NeighbourFrame> within_places(const std::vector<NeighbourFrame>& neighbours, int places);
 
 // The neighbour list neighbour `of` of a frame would get from sequence_neighbours with

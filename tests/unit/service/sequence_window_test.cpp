@@ -1,5 +1,6 @@
 // A neighbour's own neighbour list derived from a frame's (service/sequence.h): what lets a
 // worker compute a temporal neighbour's raw terms exactly as the neighbour's own job does.
+#include <algorithm>
 #include <tuple>
 
 #include <gtest/gtest.h>
@@ -22,8 +23,9 @@ std::vector<std::pair<std::string, int>> names_and_offsets(const std::vector<Nei
 }
 
 TEST(SequenceWindow, ANeighboursDerivedListIsItsOwn) {
-  for (const int step : {1, 2}) {
-    const std::vector<std::string> frames = shot(12, step);
+  for (const int step : {1, 2, -2}) {
+    std::vector<std::string> frames = shot(12, std::abs(step));
+    if (step < 0) frames.erase(frames.begin() + 5);  // a failed frame in the middle
     const int views_places = 6, temporal = 2;
     const auto wide = sequence_neighbours(frames, neighbour_places(2, temporal));
     const auto own = sequence_neighbours(frames, views_places);
@@ -75,6 +77,41 @@ TEST(SequenceWindow, NamedViewsLeaveOutTheFrameAndRepeats) {
   // Outside a sequence: 1, 2, ... in the order given, repeats left out before counting.
   const std::vector<std::pair<std::string, int>> loose = {{"b.exr", 1}, {"c.exr", 2}};
   EXPECT_EQ(names_and_offsets(named_neighbours("a.exr", {"b.exr", "b.exr", "a.exr", "c.exr"})), loose);
+}
+
+// A place is a frame of the sequence whether or not its file is there: a folder missing a
+// frame gives the frames around the gap the neighbours a pattern over the whole range
+// gives them (less the missing file), not frames from beyond the gap; a shot rendered on
+// twos counts every second frame as the next place; a second file of one frame number
+// ("s.1" beside "s.0001") is no other frame.
+TEST(SequenceWindow, AMissingFrameIsAPlace) {
+  using Offsets = std::vector<std::pair<std::string, int>>;
+  const std::vector<std::string> whole = {"h/o_f0.exr", "h/o_f1.exr", "h/o_f2.exr", "h/o_f3.exr",
+                                          "h/o_f4.exr", "h/o_f5.exr", "h/o_f6.exr"};
+  std::vector<std::string> folder = whole;
+  folder.erase(folder.begin() + 3);
+  const auto from_pattern = sequence_neighbours(whole, 2);
+  const auto from_folder = sequence_neighbours(folder, 2);
+  EXPECT_EQ(names_and_offsets(from_folder[4]), (Offsets{{"h/o_f4.exr", -1}, {"h/o_f6.exr", 1}}));  // frame 5
+  EXPECT_EQ(names_and_offsets(from_folder[2]), (Offsets{{"h/o_f1.exr", -1}, {"h/o_f0.exr", -2}, {"h/o_f4.exr", 2}}));
+  for (size_t i = 0; i < folder.size(); ++i) {
+    const size_t w = size_t(std::find(whole.begin(), whole.end(), folder[i]) - whole.begin());
+    Offsets expected;
+    for (const NeighbourFrame& n : from_pattern[w])
+      if (n.path != "h/o_f3.exr") expected.push_back({n.path, n.frame_offset});
+    EXPECT_EQ(names_and_offsets(from_folder[i]), expected) << folder[i];
+  }
+  // On twos, with frame 6 missing: 8 is two places after 4.
+  const auto twos = sequence_neighbours({"t/s.0000.exr", "t/s.0002.exr", "t/s.0004.exr", "t/s.0008.exr"}, 2);
+  EXPECT_EQ(names_and_offsets(twos[3]), (Offsets{{"t/s.0004.exr", -2}}));
+  EXPECT_EQ(names_and_offsets(twos[1]), (Offsets{{"t/s.0000.exr", -1}, {"t/s.0004.exr", 1}}));
+  // Negative frame numbers on twos keep their places apart.
+  const auto negative = sequence_neighbours({"n/s.-003.exr", "n/s.-001.exr", "n/s.0001.exr"}, 1);
+  EXPECT_EQ(names_and_offsets(negative[1]), (Offsets{{"n/s.-003.exr", -1}, {"n/s.0001.exr", 1}}));
+  // Two files of frame 1: the first is the frame; frame 3 keeps frame 1 as its second place.
+  const auto twice = sequence_neighbours({"d/s.0.exr", "d/s.1.exr", "d/s.2.exr", "d/s.3.exr", "d/s.0001.exr"}, 2);
+  EXPECT_EQ(names_and_offsets(twice[0]), (Offsets{{"d/s.1.exr", 1}, {"d/s.2.exr", 2}}));
+  EXPECT_EQ(names_and_offsets(twice[3]), (Offsets{{"d/s.2.exr", -1}, {"d/s.1.exr", -2}}));
 }
 
 TEST(SequenceWindow, Places) {
