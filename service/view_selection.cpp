@@ -55,18 +55,32 @@ std::vector<float> side_steps(const glm::mat4& frame, const std::vector<ViewCand
 }
 
 // Drops the candidates at and beyond the first step that is a cut (a step over `cut_step`;
-// `median_step`: the shot's, in the note).
+// `median_step`: the shot's, in the note). A candidate whose camera jumps away while the
+// next one is within `cut_step` of the pose before it is no cut but one frame with a wrong
+// camera: only that frame is dropped.
 void cut_side(std::vector<size_t>& side, const std::vector<float>& steps, float cut_step, float median_step,
-              const std::vector<ViewCandidate>& c, ViewChoice& choice) {
+              const glm::mat4& frame, float depth, const std::vector<ViewCandidate>& c, ViewChoice& choice) {
+  std::vector<size_t> kept;
+  const glm::mat4* previous = &frame;
   for (size_t k = 0; k < side.size(); ++k) {
-    if (steps[k] <= cut_step) continue;
+    const float step = kept.size() == k ? steps[k] : pose_parallax(*previous, c[side[k]].view_to_world, depth);
+    if (step <= cut_step) {
+      kept.push_back(side[k]);
+      previous = &c[side[k]].view_to_world;
+      continue;
+    }
+    if (k + 1 < side.size() && pose_parallax(*previous, c[side[k + 1]].view_to_world, depth) <= cut_step) {
+      choice.notes.push_back(c[side[k]].name + ": skipped as a view (its camera jumps " + std::to_string(step) +
+                             " rad away and the next frame's is back: a wrong camera for this frame?)");
+      continue;
+    }
     choice.notes.push_back(c[side[k]].name + ": skipped as a view with the frames beyond it (a cut: the camera " +
-                           "jumps " + std::to_string(steps[k]) + " rad, over the cut threshold of " +
+                           "jumps " + std::to_string(step) + " rad, over the cut threshold of " +
                            std::to_string(cut_step) + " rad; the shot's median step is " +
                            std::to_string(median_step) + " rad)");
-    side.resize(k);
-    return;
+    break;
   }
+  side = kept;
 }
 
 // The walk outward described in the header, on one side.
@@ -112,7 +126,7 @@ ViewChoice select_views(const glm::mat4& frame, int width_px, int height_px, flo
   const float median_step = median(all_steps);
   const float cut_step = std::max(s.cut_step_factor * median_step, s.min_parallax);
   for (int k = 0; k < 2; ++k) {
-    cut_side(sides[k], steps[k], cut_step, median_step, candidates, choice);
+    cut_side(sides[k], steps[k], cut_step, median_step, frame, depth, candidates, choice);
     choose_side(frame, candidates, sides[k], depth, s, choice);
   }
   return choice;

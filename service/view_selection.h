@@ -14,7 +14,9 @@
 // Candidates that cannot be used are skipped with a note, never an error: no camera of
 // its own (a bare --fov camera has no world), another resolution, or beyond a cut (a
 // step between consecutive frames of more than cut_step_factor x the sequence's median
-// step: the frames past it are another shot).
+// step: the frames past it are another shot). A frame whose camera jumps away while the
+// next frame continues the one before it has a wrong camera, not a cut: it alone is
+// skipped.
 #pragma once
 
 #include <string>

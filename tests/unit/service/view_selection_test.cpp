@@ -119,5 +119,19 @@ TEST(ViewSelection, ACutEndsTheSide) {
   EXPECT_FLOAT_EQ(threshold, std::max(8.0f * median_step, ViewSelectionSettings{}.min_parallax)) << note;
 }
 
+// One frame with a wrong camera (another shot's) between frames that continue each other
+// is no cut: only that frame is skipped, and the frames beyond it stay views.
+TEST(ViewSelection, OneFrameWithAWrongCameraIsNoCut) {
+  const auto c = sequence(4, [](int o) { return truck_pose(o == 2 ? 50.0f : 0.8f * float(o)); });
+  const ViewChoice choice = select_views(truck_pose(0), kWidth, kHeight, 2.0f, c, views(4));
+  EXPECT_EQ(offsets(c, choice), (std::vector<int>{-4, -3, -2, -1, 1, 3, 4}));
+  ASSERT_EQ(choice.notes.size(), 1u);
+  EXPECT_NE(choice.notes[0].find("f2: skipped as a view (its camera jumps"), std::string::npos) << choice.notes[0];
+  // The wrong camera on the nearest frame: the same.
+  const auto near = sequence(3, [](int o) { return truck_pose(o == 1 ? 50.0f : 0.8f * float(o)); });
+  EXPECT_EQ(offsets(near, select_views(truck_pose(0), kWidth, kHeight, 2.0f, near, views(3))),
+            (std::vector<int>{-3, -2, -1, 2, 3}));
+}
+
 }  // namespace
 }  // namespace ssdo
