@@ -21,6 +21,7 @@
 #include "service/cli_options.h"
 #include "service/commands.h"
 #include "service/frame_list.h"
+#include "service/frame_options.h"
 
 namespace ssdo {
 
@@ -98,6 +99,31 @@ bool exchange(int fd, json request, const std::string& payload, json& response, 
   return true;
 }
 
+// The options as the service must read them: a file an option names (--camera, --env) is
+// the one the client's working directory gives, so its path goes absolute (the service
+// resolves relative paths against its own). With --inline the service reads no file of
+// the client's: a --camera file goes as the request's sidecar instead.
+bool options_for_service(const ClientArgs& args, json& options, json& sidecar, std::string& error) {
+  options = args.options;
+  for (const FrameOption& o : frame_options()) {
+    if (!o.file || !options.contains(o.name) || !options[o.name].is_string()) continue;
+    const std::string path = options[o.name].get<std::string>();
+    if (path.empty()) continue;
+    if (args.inline_data && std::string(o.name) == "camera") {
+      std::ifstream in(path);
+      sidecar = json::parse(in, nullptr, false);
+      if (!in || !sidecar.is_object()) {
+        error = path + ": --camera: not a JSON object (read as the requests' sidecar with --inline)";
+        return false;
+      }
+      options.erase(o.name);
+      continue;
+    }
+    options[o.name] = fs::absolute(path).string();
+  }
+  return true;
+}
+
 }  // namespace
 
 int run_client(const ClientArgs& args) {
@@ -115,6 +141,12 @@ int run_client(const ClientArgs& args) {
     std::cerr << "ssdo client: " << error << "\n";
     return 2;
   }
+  json options, camera_sidecar;
+  if (!options_for_service(args, options, camera_sidecar, error)) {
+    std::cerr << "ssdo client: " << error << "\n";
+    ::close(fd);
+    return 2;
+  }
   int failed = 0;
   std::vector<json> requests;
   std::vector<std::string> payloads;
@@ -123,14 +155,16 @@ int run_client(const ClientArgs& args) {
     payloads.emplace_back();
   }
   for (const std::string& file : args.files) {
-    json r{{"op", "process"}, {"options", args.options}};
+    json r{{"op", "process"}, {"options", options}};
     if (args.inline_data) {
       const fs::path p(file);
       r["name"] = safe_name_for(p.stem().string());  // the spool's name for it: a plain stem
       r["reply"] = "inline";
       const fs::path sidecar = p.parent_path() / (p.stem().string() + ".camera.json");
       std::ifstream in(sidecar);
-      if (in) {
+      if (!camera_sidecar.is_null()) {
+        r["sidecar"] = camera_sidecar;
+      } else if (in) {
         const json s = json::parse(in, nullptr, false);
         if (s.is_object()) r["sidecar"] = s;
       }

@@ -25,7 +25,7 @@ std::vector<FrameOption> read_options() {
                "(world|view), or ref:NAME. A CHANNEL may be a layer (N -> N.X N.Y N.Z). Repeatable.",
        .field = +[](A& a) -> std::vector<std::string>& { return a.read.maps; }},
       {.name = "camera", .kind = OptionKind::text, .set = OptionSet::read, .group = "Input",
-       .help = "Camera JSON sidecar", .unset = "NAME.camera.json beside NAME.exr",
+       .help = "Camera JSON sidecar", .unset = "NAME.camera.json beside NAME.exr", .file = true,
        .field = +[](A& a) -> std::string& { return a.read.camera_json; }},
       {.name = "fov", .kind = OptionKind::number, .set = OptionSet::read, .group = "Input",
        .help = "Horizontal field of view in degrees, for frames with neither a sidecar nor worldToCamera/worldToNDC "
@@ -114,7 +114,7 @@ std::vector<FrameOption> ssdo_options() {
       {.name = "env", .kind = OptionKind::text, .set = OptionSet::compute, .group = "SSDO",
        .help = "Environment light: an equirectangular radiance map (EXR; row 0 = straight up, centre column = +Y "
                "world as Blender/Cycles writes it)",
-       .unset = "constant radiance 1", .existing_file = true,
+       .unset = "constant radiance 1", .file = true, .existing_file = true,
        .field = +[](A& a) -> std::string& { return a.compute.env_path; }},
       {.name = "sky", .kind = OptionKind::text, .set = OptionSet::compute, .group = "SSDO",
        .help = "Environment light: a two-colour sky TOP,BOTTOM, each a grey level or R:G:B, e.g. --sky "

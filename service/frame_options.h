@@ -102,6 +102,7 @@ struct FrameOption {
   std::vector<std::string> choices = {};  // choice; "" among them = may be left unset
   double lo = 0, hi = 0;   // number, integer: inclusive range
   bool zero_unset = false;  // number: 0 = unset, accepted besides [lo, hi]
+  bool file = false;           // text: names a file (a client sends it as its own path)
   bool existing_file = false;  // the command line checks that the file exists
   OptionFieldRef field = {};
 };

@@ -26,6 +26,9 @@ MAX_REPLY_HEADER_BYTES = 1 << 20
 
 _LENGTH = struct.Struct(">I")
 
+# The frame options whose values are file paths (docs/options.md: --camera, --env).
+_FILE_OPTIONS = ("camera", "env")
+
 JsonObject = Dict[str, Any]
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -203,6 +206,21 @@ class Client:
         request["reply"] = reply or ("inline" if payload else "path")
         merged = dict(options or {})
         merged.update({option_key(k): v for k, v in frame_options.items()})
+        # Files the options name are this process's: absolute paths (the service resolves
+        # relative ones against its own folder); with inline bytes the service reads no
+        # file of ours, so a camera file goes as the sidecar.
+        for key in _FILE_OPTIONS:
+            value = merged.get(key)
+            if not value:
+                continue
+            path = os.path.abspath(os.fspath(value))
+            if payload and key == "camera":
+                if "sidecar" not in request:
+                    with open(path, "r", encoding="utf-8") as f:
+                        request["sidecar"] = json.load(f)
+                del merged[key]
+            else:
+                merged[key] = path
         if merged:
             request["options"] = merged
         header, data = self.request(request, payload)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import socket
 import sys
 import threading
@@ -101,6 +102,20 @@ class ClientTest(unittest.TestCase):
         self.assertEqual((r.width, r.height), (640, 360))
         self.assertFalse((self.service.out_dir / "sent.ssdo.exr").exists())  # nothing kept
         self.assertIn("ssdo/options", exr_string_attributes(r.data))
+
+    def test_files_the_options_name_are_the_clients(self) -> None:
+        # A relative --camera is this process's file: sent as an absolute path by path, and
+        # read here and sent as the sidecar with inline bytes.
+        frame = Path(self.service.frame)
+        camera = frame.with_name(FRAME + ".camera.json")
+        cwd = os.getcwd()
+        os.chdir(frame.parent)
+        self.addCleanup(os.chdir, cwd)
+        r = self.client().process(frame.name, camera=camera.name)
+        options = json.loads(exr_string_attributes(Path(r.output).read_bytes()[:65536])["ssdo/options"])
+        self.assertEqual(options["camera"], str(camera))
+        sent = self.client().process(frame.read_bytes(), name="sent_camera", camera=camera.name)
+        self.assertEqual((sent.width, sent.height), (640, 360))
 
     def test_damaged_inline_frame_fails_with_its_reason(self) -> None:
         with self.assertRaises(ServiceError) as caught:

@@ -538,10 +538,14 @@ TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
   EXPECT_NE(r.output.find("no such file"), std::string::npos) << r.output;
   EXPECT_EQ(count_occurrences(r.output, "\"ok\":true"), 1) << r.output;
   EXPECT_TRUE(exr_has_channel(dir / "inline/greeble.ssdo.exr", "ao")) << r.output;
+  // With --inline the service reads no file of the client's: a --camera file is read by
+  // the client and sent as the sidecar; one that is no camera JSON is refused before any
+  // request.
   r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " " + example_frame("cornell.exr") + " " +
                example_frame("greeble.exr") + " --camera /etc/passwd");
-  EXPECT_EQ(count_occurrences(r.output, "forbidden"), 2) << r.output;
-  EXPECT_EQ(r.output.find("connection"), std::string::npos) << r.output;
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("/etc/passwd: --camera: not a JSON object"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("\"ok\""), std::string::npos) << r.output;
   // Two files of one name would write one output: refused before any is sent; an output
   // folder that is a file: refused.
   r = run_ssdo("client" + s + "process --inline -o " + dir / "inline" + " " + example_frame("cornell.exr") + " " +
@@ -553,6 +557,33 @@ TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
   r = run_ssdo("client" + s + "process --inline -o " + dir / "afile" + " " + example_frame("cornell.exr"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("cannot create the folder"), std::string::npos) << r.output;
+}
+
+// The files a client's options name (--camera, --env) are the ones its own working
+// directory gives, not the service's: sent as absolute paths (by path), or the camera as
+// the request's sidecar (--inline). A relative --camera was read from the service's folder.
+TEST(ServeSocket, ClientOptionsNameFilesFromTheClientsFolder) {
+  ScratchDir dir;
+  SocketService service(dir, "client-paths");
+  ASSERT_TRUE(service.ready) << service.log();
+  fs::create_directories(dir.path / "frames/sub");
+  fs::copy_file(example_frame("cornell.exr"), dir.path / "frames/sub/f.exr");
+  fs::copy_file(example_frame("cornell.camera.json"), dir.path / "frames/sub/cam.json");
+  const fs::path before = fs::current_path();
+  fs::current_path(dir.path / "frames/sub");
+  const RunResult by_path = run_ssdo("client --socket " + service.socket + " process f.exr --camera cam.json");
+  const RunResult inline_camera = run_ssdo("client --socket " + service.socket + " process --inline -o " +
+                                           dir / "inline" + " f.exr --camera cam.json");
+  fs::current_path(before);
+  ASSERT_EQ(by_path.exit_code, 0) << by_path.output;
+  auto in = OIIO::ImageInput::open((dir.path / "out/f.ssdo.exr").string());
+  ASSERT_TRUE(in);
+  const json options = json::parse(in->spec().get_string_attribute("ssdo/options"), nullptr, false);
+  in.reset();
+  EXPECT_EQ(options.value("camera", ""), (dir.path / "frames/sub/cam.json").string());
+  // The inline frame has no NAME.camera.json beside it: its camera came from --camera.
+  EXPECT_EQ(inline_camera.exit_code, 0) << inline_camera.output;
+  EXPECT_TRUE(exr_has_channel(dir / "inline/f.ssdo.exr", "ao")) << inline_camera.output;
 }
 
 }  // namespace
