@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <vector>
 
 namespace ssdo {
@@ -30,6 +31,24 @@ IoStatus wait_ready(int fd, short events, Deadline deadline) {
 }
 
 }  // namespace
+
+IoStatus wait_readable_running(int fd, double seconds) {
+  using std::chrono::duration;
+  constexpr int kWakeMs = 1000;
+  double counted_s = 0.0;
+  for (;;) {
+    const double left_s = seconds - counted_s;
+    if (left_s <= 0.0) return IoStatus::timeout;
+    pollfd p{fd, POLLIN, 0};
+    const int wake_ms = int(std::min(double(kWakeMs), std::ceil(left_s * 1000.0)));
+    const Clock::time_point before = Clock::now();
+    const int n = ::poll(&p, 1, wake_ms);
+    // At most the wake's own time: more is time the process was stopped.
+    counted_s += std::min(duration<double>(Clock::now() - before).count(), 1e-3 * wake_ms);
+    if (n > 0) return IoStatus::ok;  // bytes, or a hang-up the read reports
+    if (n < 0 && errno != EINTR) return IoStatus::error;
+  }
+}
 
 const char* to_string(IoStatus status) {
   switch (status) {

@@ -40,6 +40,13 @@ const char* to_string(IoStatus status);
 IoStatus read_exact(int fd, void* data, size_t size, Deadline deadline);
 IoStatus write_all(int fd, const void* data, size_t size, Deadline deadline);
 
+// Waits until `fd` has bytes to read (or is closed) for at most `seconds` of the time this
+// process runs: it wakes every second, and a wake that returns later than asked counts
+// only the time asked: the rest is time the process was stopped (SIGSTOP, a farm's
+// suspension of the job), so a suspended batch does not time out the frames in flight
+// when it resumes.
+IoStatus wait_readable_running(int fd, double seconds);
+
 // One length-prefixed message of at most `max_bytes` bytes.
 IoStatus read_message(int fd, std::string& message, size_t max_bytes, Deadline deadline);
 IoStatus write_message(int fd, std::string_view message, Deadline deadline);

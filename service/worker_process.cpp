@@ -26,6 +26,9 @@ namespace {
 
 // Responses are small JSON objects; anything larger is a broken worker.
 constexpr size_t kMaxResponseBytes = size_t(1) << 20;
+// How long a reply may take once its first byte is there: it is written at once, after the
+// frame (its time is the frame timeout's).
+constexpr double kReplySeconds = 30.0;
 // Time a worker gets to write its request's response once it is past its deadline
 // (none) and to exit after its request pipe closes, before it is killed.
 constexpr double kExitGraceSeconds = 2.0;
@@ -312,7 +315,10 @@ WorkerResult WorkerProcess::run(const WorkerJob& job) {
     remove_temp_files_of(std::filesystem::path(job.output_path).parent_path().string(), worker_pid);
   };
   std::string response;
-  const IoStatus s = read_message(from_worker_, response, kMaxResponseBytes, deadline);
+  // The frame's time is counted while this process runs (a suspended job resumes its
+  // frames); the reply itself, once it starts, has what is left.
+  IoStatus s = wait_readable_running(from_worker_, std::chrono::duration<double>(deadline - Clock::now()).count());
+  if (s == IoStatus::ok) s = read_message(from_worker_, response, kMaxResponseBytes, deadline_in(kReplySeconds));
   result.wall_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   if (s == IoStatus::timeout) {
     const double cpu_now_s = process_cpu_s(pid_);

@@ -1,6 +1,10 @@
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/socket.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -64,6 +68,37 @@ TEST(Framing, SilencePartialAndClosedPeersAreTold) {
   ::close(s.a);
   s.a = -1;
   EXPECT_EQ(read_message(s.b, m, 1000, deadline_in(1)), IoStatus::closed);
+}
+
+// The time a process is stopped (SIGSTOP: a farm suspending the job) is not a wait's: a
+// child waiting 3 s for a reply, stopped for 4 s, still takes the reply sent after it
+// resumes; one that is not stopped times out in about its 3 s.
+TEST(Framing, AWaitDoesNotCountTheTimeItsProcessWasStopped) {
+  auto child_waits = [](int fd) {
+    const pid_t pid = ::fork();
+    if (pid == 0) _exit(wait_readable_running(fd, 3.0) == IoStatus::ok ? 0 : 1);
+    return pid;
+  };
+  auto exit_code = [](pid_t pid) {
+    int status = 0;
+    ::waitpid(pid, &status, 0);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  };
+  SocketPair s;
+  const pid_t stopped = child_waits(s.b);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  ::kill(stopped, SIGSTOP);
+  std::this_thread::sleep_for(std::chrono::seconds(4));
+  ::kill(stopped, SIGCONT);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ASSERT_EQ(::write(s.a, "x", 1), 1);
+  EXPECT_EQ(exit_code(stopped), 0);
+  SocketPair quiet;
+  const auto t0 = Clock::now();
+  EXPECT_EQ(exit_code(child_waits(quiet.b)), 1);
+  const double waited_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  EXPECT_GT(waited_s, 2.9);
+  EXPECT_LT(waited_s, 8.0);
 }
 
 TEST(Framing, TruncatedMessageIsNotAClean_end) {
