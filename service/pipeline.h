@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
 #include "kernels/temporal.h"
+#include "service/quality.h"
 #include "service/sequence.h"
 
 namespace ssdo {
@@ -47,6 +49,8 @@ struct FrameRequest {
   ReadOptions read;
   TermSelection terms;
   AoSettings ao;
+  // --quality auto's choice of ao's method and preset; nullopt = --method and --preset.
+  std::optional<QualityChoice> quality;
   SsdoSettings ssdo;
   DenoiseSettings denoise;
   // The environment light of the SSDO terms and the composite's background (world space,
