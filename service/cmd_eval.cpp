@@ -235,7 +235,7 @@ int run_eval(const EvalArgs& args) {
       std::cerr << "ssdo eval: " << file << ": " << note << "\n";
     overall.add(estimate, reference, frame.gbuffer.mask);
     ConfidenceDeciles deciles;
-    if (const cv::Mat* confidence = computed.find("confidence"))  // stored in half
+    if (const cv::Mat* confidence = computed.find(output_term_name(OutputTermId::confidence)))  // stored in half
       deciles.add(estimate, reference, to_single_channel(*confidence), frame.gbuffer.mask);
     overall_deciles.add(deciles);
     overall_ms += ms;
