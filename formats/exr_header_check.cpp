@@ -523,24 +523,27 @@ class Walker {
 }  // namespace
 
 ExrHeaderCheck check_exr_headers(const std::string& path, const ExrLimits& limits) {
-  ExrHeaderCheck out;
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
+    ExrHeaderCheck out;
     out.error = path + ": cannot open: " + std::strerror(errno);
     return out;
   }
+  ExrHeaderCheck out = check_exr_headers(fd, path, limits);
+  ::close(fd);
+  return out;
+}
+
+ExrHeaderCheck check_exr_headers(int fd, const std::string& path, const ExrLimits& limits) {
+  ExrHeaderCheck out;
   struct stat st {};
   if (::fstat(fd, &st) != 0) {
     out.error = path + ": cannot stat: " + std::strerror(errno);
-    ::close(fd);
     return out;
   }
   out.file_bytes = int64_t(st.st_size);
-  {
-    auto src = std::make_unique<Source>(fd, out.file_bytes);
-    Walker(*src, path, limits).run(out);
-  }
-  ::close(fd);
+  auto src = std::make_unique<Source>(fd, out.file_bytes);
+  Walker(*src, path, limits).run(out);
   return out;
 }
 

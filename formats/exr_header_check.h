@@ -72,5 +72,8 @@ struct ExrHeaderCheck {
 };
 
 ExrHeaderCheck check_exr_headers(const std::string& path, const ExrLimits& limits = {});
+// The same of the file already open as `fd` (read with pread: its offset is left as it was);
+// `path` names it in the messages.
+ExrHeaderCheck check_exr_headers(int fd, const std::string& path, const ExrLimits& limits = {});
 
 }  // namespace ssdo

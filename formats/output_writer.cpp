@@ -747,57 +747,116 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
   return write_outputs(path, terms, camera, options, exhausted);
 }
 
-std::vector<std::optional<std::string>> read_string_attributes(const std::string& path,
-                                                               const std::vector<std::string>& names) {
+namespace {
+
+// OpenEXRCore's reads of a file already open (pread: the descriptor's offset is not used), so
+// the context does not open it again by name.
+int64_t read_open_file(exr_const_context_t context, void* fd, void* buffer, uint64_t size, uint64_t offset,
+                       exr_stream_error_func_ptr_t error_cb) {
+  auto* out = static_cast<char*>(buffer);
+  uint64_t got = 0;
+  while (got < size) {
+    const ssize_t n = ::pread(*static_cast<const int*>(fd), out + got, size_t(size - got), off_t(offset + got));
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      if (error_cb) error_cb(context, EXR_ERR_READ_IO, "cannot read: %s", std::strerror(errno));
+      return -1;
+    }
+    if (n == 0) break;  // the end of the file: OpenEXRCore reports the short read
+    got += uint64_t(n);
+  }
+  return int64_t(got);
+}
+
+int64_t size_of_open_file(exr_const_context_t, void* fd) {
+  struct stat st {};
+  return ::fstat(*static_cast<const int*>(fd), &st) == 0 ? int64_t(st.st_size) : -1;
+}
+
+// An EXR opened once for reading its headers: the descriptor, its size, and an OpenEXRCore
+// context reading through it, after its headers passed check_exr_headers.
+class OpenedExr {
+ public:
+  explicit OpenedExr(const std::string& path) : fd_(::open(path.c_str(), O_RDONLY | O_CLOEXEC)) {
+    if (fd_ < 0) return;
+    const ExrHeaderCheck check = check_exr_headers(fd_, path);
+    if (!check.ok()) return;
+    bytes_ = check.file_bytes;
+    exr_context_initializer_t init = exr_core::quiet_initializer();
+    init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
+    init.user_data = &fd_;
+    init.read_fn = &read_open_file;
+    init.size_fn = &size_of_open_file;
+    if (exr_start_read(file_.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) file_.finish();
+  }
+  OpenedExr(const OpenedExr&) = delete;
+  OpenedExr& operator=(const OpenedExr&) = delete;
+  ~OpenedExr() {
+    file_.finish();  // before the descriptor it reads through
+    if (fd_ >= 0) ::close(fd_);
+  }
+  // Null when the file cannot be opened or read, or its headers are refused.
+  exr_const_context_t context() const { return file_.get(); }
+  int64_t bytes() const { return bytes_; }
+
+ private:
+  int fd_;
+  int64_t bytes_ = 0;
+  exr_core::Context file_;
+};
+
+std::vector<std::optional<std::string>> string_attributes(const OpenedExr& file, const std::vector<std::string>& names) {
   std::vector<std::optional<std::string>> values(names.size());
-  if (!check_exr_headers(path).ok()) return values;
-  exr_core::Context file;
-  exr_context_initializer_t init = exr_core::quiet_initializer();
-  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
-  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) return values;
+  if (!file.context()) return values;
   for (size_t i = 0; i < names.size(); ++i) {
     int32_t length = 0;
     const char* value = nullptr;
-    if (exr_attr_get_string(file.get(), 0, names[i].c_str(), &length, &value) == EXR_ERR_SUCCESS && value != nullptr &&
-        length >= 0)
+    if (exr_attr_get_string(file.context(), 0, names[i].c_str(), &length, &value) == EXR_ERR_SUCCESS &&
+        value != nullptr && length >= 0)
       values[i] = std::string(value, size_t(length));
   }
   return values;
+}
+
+bool scanline_chunks_complete(const OpenedExr& file) {
+  if (!file.context()) return false;
+  int parts = 0;
+  if (exr_get_count(file.context(), &parts) != EXR_ERR_SUCCESS) return false;
+  for (int part = 0; part < parts; ++part) {
+    exr_storage_t storage{};
+    exr_attr_box2i_t window{};
+    int32_t lines = 0;
+    if (exr_get_storage(file.context(), part, &storage) != EXR_ERR_SUCCESS) return false;
+    if (storage != EXR_STORAGE_SCANLINE) continue;  // not what write_outputs writes
+    if (exr_get_data_window(file.context(), part, &window) != EXR_ERR_SUCCESS ||
+        exr_get_scanlines_per_chunk(file.context(), part, &lines) != EXR_ERR_SUCCESS || lines <= 0)
+      return false;
+    // Every chunk's offset (the table) and its block within the file: a file cut short, or
+    // whose blocks were never written (zeros after a crash), has offsets that are not.
+    for (int64_t y = window.min.y; y <= window.max.y; y += lines) {
+      exr_chunk_info_t chunk{};
+      if (exr_read_scanline_chunk_info(file.context(), part, int(y), &chunk) != EXR_ERR_SUCCESS ||
+          chunk.data_offset + chunk.packed_size > uint64_t(file.bytes()))
+        return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::optional<std::string>> read_string_attributes(const std::string& path,
+                                                               const std::vector<std::string>& names) {
+  return string_attributes(OpenedExr(path), names);
 }
 
 std::optional<std::string> read_string_attribute(const std::string& path, const std::string& name) {
   return read_string_attributes(path, {name})[0];
 }
 
-bool scanline_chunks_complete(const std::string& path) {
-  if (!check_exr_headers(path).ok()) return false;
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return false;
-  exr_core::Context file;
-  exr_context_initializer_t init = exr_core::quiet_initializer();
-  init.flags = EXR_CONTEXT_FLAG_SILENT_HEADER_PARSE;
-  if (exr_start_read(file.out(), path.c_str(), &init) != EXR_ERR_SUCCESS) return false;
-  int parts = 0;
-  if (exr_get_count(file.get(), &parts) != EXR_ERR_SUCCESS) return false;
-  for (int part = 0; part < parts; ++part) {
-    exr_storage_t storage{};
-    exr_attr_box2i_t window{};
-    int32_t lines = 0;
-    if (exr_get_storage(file.get(), part, &storage) != EXR_ERR_SUCCESS) return false;
-    if (storage != EXR_STORAGE_SCANLINE) continue;  // not what write_outputs writes
-    if (exr_get_data_window(file.get(), part, &window) != EXR_ERR_SUCCESS ||
-        exr_get_scanlines_per_chunk(file.get(), part, &lines) != EXR_ERR_SUCCESS || lines <= 0)
-      return false;
-    // Every chunk's offset (the table) and its block within the file: a file cut short, or
-    // whose blocks were never written (zeros after a crash), has offsets that are not.
-    for (int64_t y = window.min.y; y <= window.max.y; y += lines) {
-      exr_chunk_info_t chunk{};
-      if (exr_read_scanline_chunk_info(file.get(), part, int(y), &chunk) != EXR_ERR_SUCCESS ||
-          chunk.data_offset + chunk.packed_size > uint64_t(st.st_size))
-        return false;
-    }
-  }
-  return true;
+ExistingOutput read_existing_output(const std::string& path, const std::vector<std::string>& names) {
+  const OpenedExr file(path);
+  return {string_attributes(file, names), scanline_chunks_complete(file)};
 }
 
 }  // namespace ssdo

@@ -119,11 +119,17 @@ std::optional<std::string> read_string_attribute(const std::string& path, const 
 std::vector<std::optional<std::string>> read_string_attributes(const std::string& path,
                                                                const std::vector<std::string>& names);
 
-// Whether every scanline chunk of the EXR at `path` lies within the file (what write_outputs
-// writes is scanline): false for a file cut short (an interrupted copy, a crash after the
-// rename, before the data reached the disk) or that cannot be read. Reads the headers, the
-// offset tables and each chunk's leader, not the pixels.
-bool scanline_chunks_complete(const std::string& path);
+// What an existing output says of itself, from one open of the EXR at `path`.
+struct ExistingOutput {
+  // The string attributes asked for, as read_string_attributes gives them.
+  std::vector<std::optional<std::string>> attributes;
+  // Whether every scanline chunk lies within the file (what write_outputs writes is
+  // scanline): false for a file cut short (an interrupted copy, a crash after the rename,
+  // before the data reached the disk) or that cannot be read. Read from the headers, the
+  // offset tables and each chunk's leader, not the pixels.
+  bool chunks_complete = false;
+};
+ExistingOutput read_existing_output(const std::string& path, const std::vector<std::string>& names);
 
 // Writes all terms into one scanline EXR at `path`: written as ".NAME.tmp-<host>-<pid>-<rnd>"
 // in the same folder and renamed into place, so the file is complete or absent (on failure

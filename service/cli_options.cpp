@@ -126,7 +126,7 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
     std::fprintf(stderr, "ssdo: note: --max-error has no effect without --quality auto\n");
   if (TermSelection terms; !c.composite.empty() && parse_terms(c.terms, terms, error) && !terms.composite)
     std::fprintf(stderr, "ssdo: note: --composite has no effect: --terms %s writes no composite\n", c.terms.c_str());
-  if (const std::string note = quality_choice_note(options.compute); !note.empty())
+  if (const std::string note = quality_choice_note(check); !note.empty())
     std::fprintf(stderr, "ssdo: %s%s\n", note.c_str(),
                  given(app, "method") || given(app, "preset")
                      ? " (AO's --method and --preset give way to --quality auto; SSDO keeps --ssdo-preset, else --preset)"
@@ -134,22 +134,20 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   return true;
 }
 
-std::string effective_preset(const ComputeOptionArgs& a, bool ssdo) {
+std::string effective_preset(const ComputeOptionArgs& a, const FrameRequest& request, bool ssdo) {
   if (ssdo) return a.ssdo_preset.empty() ? a.preset : a.ssdo_preset;
-  if (a.quality != "auto") return a.preset;
-  bool met = false;
-  return std::string(to_string(choose_quality(shipped_calibration(), a.max_error, met).preset));
+  if (!request.quality) return a.preset;
+  return std::string(to_string(request.quality->entry.preset));
 }
 
-std::string quality_choice_note(const ComputeOptionArgs& a) {
-  if (a.quality != "auto") return {};
-  bool met = false;
-  const CalibrationEntry choice = choose_quality(shipped_calibration(), a.max_error, met);
+std::string quality_choice_note(const FrameRequest& request) {
+  if (!request.quality) return {};
+  const QualityChoice& q = *request.quality;
   char text[256];
   std::snprintf(text, sizeof text, "--quality auto --max-error %.3g: %s %s (calibrated MAE %.3f, %.0f ms at 640x360)%s",
-                a.max_error, std::string(to_string(choice.method)).c_str(),
-                std::string(to_string(choice.preset)).c_str(), choice.mae, choice.ms,
-                met ? "" : "; no method reaches that error, this is the most accurate");
+                q.max_error, std::string(to_string(q.entry.method)).c_str(),
+                std::string(to_string(q.entry.preset)).c_str(), q.entry.mae, q.entry.ms,
+                q.met ? "" : "; no method reaches that error, this is the most accurate");
   return text;
 }
 
@@ -344,11 +342,14 @@ namespace {
 bool resolve_settings(const ComputeOptionArgs& a, FrameRequest& request, std::string& error) {
   auto method = parse_ao_method(a.method);
   auto preset = parse_preset(a.preset);
+  request.quality.reset();
   if (a.quality == "auto") {  // quality_choice_note says what was chosen, once per command
-    bool met = false;
-    const CalibrationEntry choice = choose_quality(shipped_calibration(), a.max_error, met);
-    method = choice.method;
-    preset = choice.preset;
+    QualityChoice q;
+    q.max_error = a.max_error;
+    q.entry = choose_quality(shipped_calibration(), a.max_error, q.met);
+    method = q.entry.method;
+    preset = q.entry.preset;
+    request.quality = q;
   }
   if (!method || !preset) {
     error = "unknown method or preset: " + a.method + " / " + a.preset;

@@ -34,12 +34,13 @@ bool given(const CLI::App& app, const std::string& key);
 bool frame_options_over_config(const CLI::App& app, const std::string& config, FrameOptionArgs& options,
                                std::string& error);
 
-// What --quality auto chooses for these options, as one line for the user; empty without
-// --quality auto. Printed once by the command (frame_options_over_config), not per frame.
-std::string quality_choice_note(const ComputeOptionArgs& args);
-// The preset a request computes AO (ssdo false: --quality auto's choice, else --preset) or
-// SSDO (true: --ssdo-preset, else --preset) with.
-std::string effective_preset(const ComputeOptionArgs& args, bool ssdo);
+// What --quality auto chose for a resolved request (request.quality), as one line for the
+// user; empty without --quality auto. Printed once by the command (frame_options_over_config),
+// not per frame.
+std::string quality_choice_note(const FrameRequest& request);
+// The preset `request`, resolved from `args`, computes AO (ssdo false: --quality auto's
+// choice, else --preset) or SSDO (true: --ssdo-preset, else --preset) with.
+std::string effective_preset(const ComputeOptionArgs& args, const FrameRequest& request, bool ssdo);
 
 // Every option of `app` and its subcommands that takes a value refuses an empty one: on the
 // command line "" is a script's unset variable (--chunk "$TASK" on a farm), never a choice,

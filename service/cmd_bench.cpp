@@ -213,7 +213,7 @@ Row bench_sequence(const std::vector<Loaded>& frames, const BenchArgs& args, con
       const auto t0 = std::chrono::steady_clock::now();
       const ComputedFrame computed = sequence.compute(r, read, std::move(f.gbuffer), notes);
       times[i].push_back(ms_since(t0));
-      estimates[i] = *computed.find("ao_denoised");
+      estimates[i] = *computed.find(output_term_name(OutputTermId::ao_denoised));
     }
   }
   Row all{"all", std::string(to_string(config.settings.method)), sequence_variant(config.preset, args), "",
@@ -328,7 +328,7 @@ int run_bench(const BenchArgs& args) {
         computed = compute_frame(f.g, request);
         times.push_back(ms_since(t0));
       }
-      const cv::Mat& ao = *computed.find("ao_denoised");
+      const cv::Mat& ao = *computed.find(output_term_name(OutputTermId::ao_denoised));
       Row r = row;
       r.file = f.path;
       r.resolution = std::to_string(f.g.width_px()) + "x" + std::to_string(f.g.height_px());

@@ -235,7 +235,7 @@ int run_eval(const EvalArgs& args) {
       std::cerr << "ssdo eval: " << file << ": " << note << "\n";
     overall.add(estimate, reference, frame.gbuffer.mask);
     ConfidenceDeciles deciles;
-    if (const cv::Mat* confidence = computed.find("confidence"))  // stored in half
+    if (const cv::Mat* confidence = computed.find(output_term_name(OutputTermId::confidence)))  // stored in half
       deciles.add(estimate, reference, to_single_channel(*confidence), frame.gbuffer.mask);
     overall_deciles.add(deciles);
     overall_ms += ms;
@@ -326,12 +326,12 @@ Command register_eval(CLI::App& app) {
             if (!resolve_read_options(st->options.read, eval.request.read, error) ||
                 !resolve_compute_options(compute, eval.request, error))
               return usage_error(error);
-            if (const std::string note = quality_choice_note(compute); !note.empty())
+            if (const std::string note = quality_choice_note(eval.request); !note.empty())
               std::cerr << "ssdo eval: " << note << "\n";
             eval.request.terms = {eval.term == "ao", eval.term != "ao", false};  // no composite
             if (eval.reference.empty())
               eval.reference = eval.term == "ao" ? "AO" : eval.term == "ssdo_direct" ? "DiffDir" : "DiffInd";
-            eval.preset = effective_preset(compute, eval.term != "ao");
+            eval.preset = effective_preset(compute, eval.request, eval.term != "ao");
             eval.files = each_file_once(eval.files);  // a file listed twice counts once
             return run_eval(eval);
           }};

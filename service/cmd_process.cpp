@@ -216,8 +216,9 @@ int run_process(const ProcessArgs& args) {
     const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
                          neighbours_older_than(neighbours, f, output) &&
                          output_up_to_date_with_all(option_files, output);
-    const bool same_options = current && output_made_with(output, made_with);
-    const bool whole = same_options && scanline_chunks_complete(output);
+    const OutputMadeWith made = current ? output_made_with(output, made_with) : OutputMadeWith{};
+    const bool same_options = made.same_options;
+    const bool whole = same_options && made.whole;
     other_options += current && !same_options;
     cut_short += same_options && !whole;
     (whole ? up_to_date : todo).push_back(f);

@@ -147,9 +147,9 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 
 }  // namespace
 
-bool output_made_with(const std::string& output, const std::string& options_attribute) {
-  const auto made = read_string_attributes(output, {kOptionsAttribute, kVersionAttribute});  // one header read
-  return made[0] == options_attribute && made[1] == version_string();
+OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute) {
+  const ExistingOutput made = read_existing_output(output, {kOptionsAttribute, kVersionAttribute});
+  return {made.attributes[0] == options_attribute && made.attributes[1] == version_string(), made.chunks_complete};
 }
 
 bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {

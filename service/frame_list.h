@@ -70,11 +70,18 @@ bool changed_since(const std::string& frame, const FrameFiles& found);
 // restarted service computes the frame again. False when the time cannot be set.
 bool mark_out_of_date(const std::string& output, const FrameFiles& found);
 
-// Whether `output`'s header says it was made by this version of ssdo with the options whose
-// attribute is `options_attribute` (request_options.h: kVersionAttribute, kOptionsAttribute,
-// options_attribute): false for another version (whose arithmetic may differ) or other
-// options, and for a file without them (unreadable, or not ssdo's).
-bool output_made_with(const std::string& output, const std::string& options_attribute);
+// What an existing `output` says of how it was made, from one open of the file.
+struct OutputMadeWith {
+  // Its header says it was made by this version of ssdo with the options whose attribute is
+  // `options_attribute` (request_options.h: kVersionAttribute, kOptionsAttribute,
+  // options_attribute): false for another version (whose arithmetic may differ) or other
+  // options, and for a file without them (unreadable, or not ssdo's).
+  bool same_options = false;
+  // Every scanline chunk lies within the file (ExistingOutput::chunks_complete): false for
+  // an output cut short.
+  bool whole = false;
+};
+OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute);
 
 // Removes the temp files of this host's output writers that no longer run
 // (".NAME.tmp-HOST-PID-*", and the older ".NAME.tmp-PID-err" / "-client", in `dir` and its

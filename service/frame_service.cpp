@@ -361,8 +361,10 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
 
 bool FrameService::watched_frame_done(const std::string& input, const std::string& output,
                                       const std::string& error_path) {
-  if (output_up_to_date_with_sidecar(input, output) && output_up_to_date_with_all(watch_files_, output))
-    return (watch_made_with_.empty() || output_made_with(output, watch_made_with_)) && scanline_chunks_complete(output);
+  if (output_up_to_date_with_sidecar(input, output) && output_up_to_date_with_all(watch_files_, output)) {
+    const OutputMadeWith made = output_made_with(output, watch_made_with_);
+    return (watch_made_with_.empty() || made.same_options) && made.whole;
+  }
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   std::ifstream in(error_path);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);

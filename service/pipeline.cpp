@@ -268,19 +268,21 @@ DenoisedTerms denoise_terms(const GBuffer& g, const FrameRequest& request, const
 void add_output_terms(const FrameRequest& request, const TermsComputed& computed, const TermOutputs& raw,
                       const DenoisedTerms& d, ComputedFrame& frame) {
   const TermSelection& terms = request.terms;
+  const auto add = [&](OutputTermId term, const cv::Mat& image, bool vector = false) {
+    frame.terms.push_back({output_term_name(term), image, SampleType::half, vector});
+  };
   if (computed.ao && terms.ao) {
-    frame.terms.push_back({"ao", raw.ao.ao, SampleType::half, false});
-    frame.terms.push_back({"ao_denoised", d.ao, SampleType::half, false});
-    if (!raw.ao.bent_normal_view.empty())
-      frame.terms.push_back({"bent_normal", raw.ao.bent_normal_view, SampleType::half, true});
+    add(OutputTermId::ao, raw.ao.ao);
+    add(OutputTermId::ao_denoised, d.ao);
+    if (!raw.ao.bent_normal_view.empty()) add(OutputTermId::bent_normal, raw.ao.bent_normal_view, true);
   }
   if (computed.ssdo && terms.ssdo) {
-    frame.terms.push_back({"ssdo_direct", raw.ssdo.direct, SampleType::half, false});
-    frame.terms.push_back({"ssdo_direct_denoised", d.direct, SampleType::half, false});
-    frame.terms.push_back({"ssdo_indirect", raw.ssdo.indirect, SampleType::half, false});
-    frame.terms.push_back({"ssdo_indirect_denoised", d.indirect, SampleType::half, false});
+    add(OutputTermId::ssdo_direct, raw.ssdo.direct);
+    add(OutputTermId::ssdo_direct_denoised, d.direct);
+    add(OutputTermId::ssdo_indirect, raw.ssdo.indirect);
+    add(OutputTermId::ssdo_indirect_denoised, d.indirect);
   }
-  if (terms.ao || terms.ssdo) frame.terms.push_back({"confidence", raw.confidence, SampleType::half, false});
+  if (terms.ao || terms.ssdo) add(OutputTermId::confidence, raw.confidence);
 }
 
 // The composite of the selected terms (kernels/composite.h), over the frame's Env pass as
@@ -391,7 +393,8 @@ ComputedFrame finish_in_place(GBuffer& g, TermOutputs& raw, std::span<const RawF
   frame.views = std::move(raw.views);
   add_output_terms(request, computed, raw, denoised, frame);
   if (request.terms.composite)
-    frame.terms.push_back({"composite", composite_frame(g, request, computed, denoised), SampleType::half, false});
+    frame.terms.push_back({output_term_name(OutputTermId::composite), composite_frame(g, request, computed, denoised),
+                           SampleType::half, false});
   return frame;
 }
 
@@ -464,10 +467,27 @@ ReadOptions view_reads_for(const FrameRequest& request, const ReadOptions& read,
   return view;
 }
 
+const char* output_term_name(OutputTermId term) {
+  switch (term) {
+    case OutputTermId::ao: return "ao";
+    case OutputTermId::ao_denoised: return "ao_denoised";
+    case OutputTermId::bent_normal: return "bent_normal";
+    case OutputTermId::confidence: return "confidence";
+    case OutputTermId::composite: return "composite";
+    case OutputTermId::ssdo_direct: return "ssdo_direct";
+    case OutputTermId::ssdo_direct_denoised: return "ssdo_direct_denoised";
+    case OutputTermId::ssdo_indirect: return "ssdo_indirect";
+    case OutputTermId::ssdo_indirect_denoised: return "ssdo_indirect_denoised";
+  }
+  return "";
+}
+
 const std::vector<std::string>& output_term_names() {
-  static const std::vector<std::string> names = {"ao",          "ao_denoised",          "bent_normal",
-                                                 "confidence",  "composite",            "ssdo_direct",
-                                                 "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> all;
+    for (int i = 0; i < kOutputTermCount; ++i) all.emplace_back(output_term_name(OutputTermId(i)));
+    return all;
+  }();
   return names;
 }
 
@@ -495,26 +515,27 @@ ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
     }
   };
   StandInSource normal_z_source{normal_z, request.threads}, normal_source{g.normal_view, request.threads};
-  auto add = [&](const std::string& name, const cv::Mat& image, bool vector = false) {
-    frame.terms.push_back({name, image, SampleType::half, vector});
+  auto add = [&](OutputTermId term, const cv::Mat& image, bool vector = false) {
+    frame.terms.push_back({output_term_name(term), image, SampleType::half, vector});
   };
   if (c.ao && terms.ao) {
-    add("ao", normal_z_source.stand_in(in_half.ao && runs_on_half_grid(request.ao)));
-    add("ao_denoised", normal_z);
-    if (has_bent_normal(request.ao)) add("bent_normal", normal_source.stand_in(in_half.bent_normal), true);
+    add(OutputTermId::ao, normal_z_source.stand_in(in_half.ao && runs_on_half_grid(request.ao)));
+    add(OutputTermId::ao_denoised, normal_z);
+    if (has_bent_normal(request.ao))
+      add(OutputTermId::bent_normal, normal_source.stand_in(in_half.bent_normal), true);
   }
   if (c.ssdo && terms.ssdo) {
     const cv::Mat raw = normal_source.stand_in(in_half.ssdo && runs_on_half_grid(request.ssdo));
-    for (const std::string name : {"ssdo_direct", "ssdo_indirect"}) {
-      add(name, raw);
-      add(name + "_denoised", g.normal_view);
-    }
+    add(OutputTermId::ssdo_direct, raw);
+    add(OutputTermId::ssdo_direct_denoised, g.normal_view);
+    add(OutputTermId::ssdo_indirect, raw);
+    add(OutputTermId::ssdo_indirect_denoised, g.normal_view);
   }
   if (terms.ao || terms.ssdo) {
     const bool confidence_in_half = in_half.confidence && runs_on_half_grid(confidence_settings(request));
-    add("confidence", normal_z_source.stand_in(confidence_in_half));
+    add(OutputTermId::confidence, normal_z_source.stand_in(confidence_in_half));
   }
-  if (terms.composite) add("composite", g.normal_view);
+  if (terms.composite) add(OutputTermId::composite, g.normal_view);
   return frame;
 }
 

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -19,6 +20,7 @@
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
 #include "kernels/temporal.h"
+#include "service/quality.h"
 #include "service/sequence.h"
 
 namespace ssdo {
@@ -47,6 +49,8 @@ struct FrameRequest {
   ReadOptions read;
   TermSelection terms;
   AoSettings ao;
+  // --quality auto's choice of ao's method and preset; nullopt = --method and --preset.
+  std::optional<QualityChoice> quality;
   SsdoSettings ssdo;
   DenoiseSettings denoise;
   // The environment light of the SSDO terms and the composite's background (world space,
@@ -153,8 +157,23 @@ ComputedFrame compute_frame(const GBuffer& gbuffer, const FrameRequest& request)
 // lower.
 ComputedFrame compute_frame(GBuffer&& gbuffer, const FrameRequest& request);
 
-// The name of every term compute_frame may return (an output's channels and previews,
-// NAME.ssdo.<term>.png).
+// Every term compute_frame may return. Its name (output_term_name) is the output's
+// channel (layer) and the preview's, NAME.ssdo.<term>.png.
+enum class OutputTermId {
+  ao,
+  ao_denoised,
+  bent_normal,
+  confidence,
+  composite,
+  ssdo_direct,
+  ssdo_direct_denoised,
+  ssdo_indirect,
+  ssdo_indirect_denoised,
+};
+inline constexpr int kOutputTermCount = int(OutputTermId::ssdo_indirect_denoised) + 1;
+const char* output_term_name(OutputTermId term);
+
+// The name of every term compute_frame may return, in OutputTermId's order.
 const std::vector<std::string>& output_term_names();
 
 // The terms compute_frame would return (names, channels, sample types, same order) with

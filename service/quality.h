@@ -28,4 +28,13 @@ const std::vector<CalibrationEntry>& shipped_calibration();
 // `met` = false.
 CalibrationEntry choose_quality(const std::vector<CalibrationEntry>& entries, double max_error, bool& met);
 
+// What --quality auto chose for a request, once, where its options are resolved
+// (resolve_compute_options): the AO method and preset it computes with, for the --max-error
+// asked.
+struct QualityChoice {
+  CalibrationEntry entry;
+  double max_error = 0;
+  bool met = false;  // entry.mae <= max_error; false: no entry does, this is the most accurate
+};
+
 }  // namespace ssdo

@@ -4,6 +4,7 @@
 #include "service/pipeline.h"
 #include "tests/support/image_difference.h"
 
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -97,8 +98,17 @@ GBuffer small_frame() {
   return g;
 }
 
+// The names of the outputs' channels and previews (NAME.ssdo.<term>.png): part of the
+// output format, the same whatever names the code gives them.
+TEST(OutputTermNames, AreTheOutputsChannelNames) {
+  EXPECT_EQ(output_term_names(),
+            (std::vector<std::string>{"ao", "ao_denoised", "bent_normal", "confidence", "composite", "ssdo_direct",
+                                      "ssdo_direct_denoised", "ssdo_indirect", "ssdo_indirect_denoised"}));
+}
+
 TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
   const GBuffer g = small_frame();
+  std::set<std::string> written;  // every name compute_frame wrote, over all the requests
   for (const char* terms : {"ao", "ssdo", "composite", "ao,ssdo", "all"})
     for (AoMethod method : {AoMethod::gtao, AoMethod::hbao, AoMethod::hemisphere}) {
       FrameRequest r = request_for(terms);
@@ -107,9 +117,11 @@ TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
       const ComputedFrame computed = compute_frame(g, r);
       const ComputedFrame standin = io_only_frame(g, r);
       ASSERT_EQ(standin.terms.size(), computed.terms.size()) << terms << " " << to_string(method);
-      for (const OutputTerm& c : computed.terms)  // the names a failed frame's previews are removed by
+      for (const OutputTerm& c : computed.terms) {  // the names a failed frame's previews are removed by
         EXPECT_NE(std::find(output_term_names().begin(), output_term_names().end(), c.name), output_term_names().end())
             << c.name;
+        written.insert(c.name);
+      }
       for (size_t i = 0; i < computed.terms.size(); ++i) {
         const OutputTerm &c = computed.terms[i], &s = standin.terms[i];
         EXPECT_EQ(s.name, c.name) << terms;
@@ -119,6 +131,8 @@ TEST(IoOnlyFrame, SameTermsAsComputeFrame) {
         EXPECT_EQ(s.image.size(), c.image.size()) << c.name;
       }
     }
+  // ... and each name of the list is one compute_frame writes.
+  EXPECT_EQ(written, std::set<std::string>(output_term_names().begin(), output_term_names().end()));
 }
 
 // The consuming compute_frame returns the bits of the one that leaves the G-buffer alone,
