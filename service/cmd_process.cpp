@@ -161,18 +161,12 @@ WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const Proc
   return job;
 }
 
-// Whether `output` is at least as new as every neighbour of `frame` in the shot and its
-// sidecar (a neighbour re-rendered since changes the frame's views and temporal terms). A
-// neighbour that does not exist (a frame not rendered yet, a --shot-frames range wider than
-// the render) changes nothing until it does, and is then newer than the output.
-bool neighbours_older_than(const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
-                           const std::string& frame, const std::string& output) {
+// The neighbour list of `frame` (none outside a sequence).
+const std::vector<NeighbourFrame>& neighbours_of(const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
+                                                 const std::string& frame) {
+  static const std::vector<NeighbourFrame> none;
   const auto it = neighbours.find(frame);
-  if (it == neighbours.end()) return true;
-  return std::all_of(it->second.begin(), it->second.end(), [&](const NeighbourFrame& n) {
-    std::error_code ec;
-    return !std::filesystem::exists(n.path, ec) || output_up_to_date_with_sidecar(n.path, output);
-  });
+  return it == neighbours.end() ? none : it->second;
 }
 
 }  // namespace
@@ -214,9 +208,11 @@ int run_process(const ProcessArgs& args) {
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
     const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
-                         neighbours_older_than(neighbours, f, output) &&
+                         neighbours_older_than(neighbours_of(neighbours, f), output) &&
                          output_up_to_date_with_all(option_files, output);
-    const OutputMadeWith made = current ? output_made_with(output, made_with) : OutputMadeWith{};
+    const std::string window =
+        window_attribute(neighbours_of(neighbours, f), args.options.compute.views, args.options.compute.temporal);
+    const OutputMadeWith made = current ? output_made_with(output, made_with, window) : OutputMadeWith{};
     const bool same_options = made.same_options;
     const bool whole = same_options && made.whole;
     other_options += current && !same_options;
@@ -225,7 +221,8 @@ int run_process(const ProcessArgs& args) {
   }
   if (other_options > 0)
     std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
-              << " made with other options or another ssdo version than this run's: computed again\n";
+              << " made with other options, other neighbouring frames or another ssdo version than this run's: computed "
+                 "again\n";
   if (cut_short > 0)
     std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
               << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";

@@ -223,6 +223,15 @@ struct FittedFrame {
   std::string window_note;  // empty when the window is the one asked for
 };
 
+// process_frame of `used`, its output's header saying which neighbours its window held
+// (kWindowAttribute).
+FrameResult process_with_window(FrameRequest& used, SequenceContext& context) {
+  std::vector<std::pair<std::string, std::string>>& attributes = used.write.string_attributes;
+  std::erase_if(attributes, [](const auto& a) { return a.first == kWindowAttribute; });
+  attributes.push_back({kWindowAttribute, window_attribute(used.neighbours, used.views_per_side, used.temporal_per_side)});
+  return process_frame(used, &context);
+}
+
 // process_frame with the request's shot context, its window halved while the frame runs out
 // of memory with it (ShotMemory); `pixels`: the frame's (frame_pixels). The context is
 // emptied before each smaller window: its frames are what filled the memory.
@@ -234,7 +243,7 @@ FittedFrame process_frame_within_memory(const FrameRequest& request, int64_t pix
     used.temporal_per_side = std::min(used.temporal_per_side, shot_memory.temporal_per_side);
   }
   FittedFrame f;
-  f.result = process_frame(used, &context);
+  f.result = process_with_window(used, context);
   // A thread that cannot start ran out of the same address space (its stack, under
   // RLIMIT_AS) as an allocation that fails: either may fit once the context is emptied.
   while (!f.result.ok() && in_shot(used) && f.result.exhausted != ResourceFailure::none) {
@@ -247,7 +256,7 @@ FittedFrame process_frame_within_memory(const FrameRequest& request, int64_t pix
     shot_memory.from_pixels = std::min(shot_memory.from_pixels, pixels);
     shot_memory.views_per_side = std::min(shot_memory.views_per_side, used.views_per_side);
     shot_memory.temporal_per_side = std::min(shot_memory.temporal_per_side, used.temporal_per_side);
-    f.result = process_frame(used, &context);
+    f.result = process_with_window(used, context);
   }
   f.views_per_side = used.views_per_side;
   f.temporal_per_side = used.temporal_per_side;

@@ -147,9 +147,12 @@ long temp_file_pid(const std::string& name, const std::string& host) {
 
 }  // namespace
 
-OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute) {
-  const ExistingOutput made = read_existing_output(output, {kOptionsAttribute, kVersionAttribute});
-  return {made.attributes[0] == options_attribute && made.attributes[1] == version_string(), made.chunks_complete};
+OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute,
+                                const std::string& window_attribute) {
+  const ExistingOutput made = read_existing_output(output, {kOptionsAttribute, kVersionAttribute, kWindowAttribute});
+  const bool same_window = window_attribute.empty() || made.attributes[2] == window_attribute;
+  return {made.attributes[0] == options_attribute && made.attributes[1] == version_string() && same_window,
+          made.chunks_complete};
 }
 
 bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {

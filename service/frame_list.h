@@ -74,14 +74,17 @@ bool mark_out_of_date(const std::string& output, const FrameFiles& found);
 struct OutputMadeWith {
   // Its header says it was made by this version of ssdo with the options whose attribute is
   // `options_attribute` (request_options.h: kVersionAttribute, kOptionsAttribute,
-  // options_attribute): false for another version (whose arithmetic may differ) or other
-  // options, and for a file without them (unreadable, or not ssdo's).
+  // options_attribute) and the neighbouring frames of `window_attribute`
+  // (kWindowAttribute, sequence.h's window_attribute; empty: not compared): false for
+  // another version (whose arithmetic may differ), other options or another window, and
+  // for a file without them (unreadable, or not ssdo's).
   bool same_options = false;
   // Every scanline chunk lies within the file (ExistingOutput::chunks_complete): false for
   // an output cut short.
   bool whole = false;
 };
-OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute);
+OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute,
+                                const std::string& window_attribute = {});
 
 // Removes the temp files of this host's output writers that no longer run
 // (".NAME.tmp-HOST-PID-*", and the older ".NAME.tmp-PID-err" / "-client", in `dir` and its

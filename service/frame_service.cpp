@@ -327,9 +327,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     // The frames of its sequence already in the folder are its neighbours; the watch
     // folder's own rules: the input, its sidecar and the neighbours inside it (a symbolic
     // link pointing out of it is refused); the service's options are the administrator's.
-    const int places = neighbour_places(options_.watch_options.value("views", kDefaultViewsPerSide),
-                                        options_.watch_options.value("temporal", kDefaultTemporalPerSide));
-    r = run_with_retries(worker, {input, output, options_.watch_options, folder_neighbours(input, places),
+    r = run_with_retries(worker, {input, output, options_.watch_options, watch_neighbours(input),
                                   {{options_.watch_dir}, {}, options_.out_dir, {}}});
     if (version_of(input).exists && changed_since(input, found)) {
       // Replaced or rewritten (or its sidecar) while computed: the result may be of the old
@@ -359,10 +357,20 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   return false;
 }
 
+int FrameService::watch_views() const { return options_.watch_options.value("views", kDefaultViewsPerSide); }
+int FrameService::watch_temporal() const { return options_.watch_options.value("temporal", kDefaultTemporalPerSide); }
+
+std::vector<NeighbourFrame> FrameService::watch_neighbours(const std::string& input) const {
+  return folder_neighbours(input, neighbour_places(watch_views(), watch_temporal()));
+}
+
 bool FrameService::watched_frame_done(const std::string& input, const std::string& output,
                                       const std::string& error_path) {
-  if (output_up_to_date_with_sidecar(input, output) && output_up_to_date_with_all(watch_files_, output)) {
-    const OutputMadeWith made = output_made_with(output, watch_made_with_);
+  const std::vector<NeighbourFrame> neighbours = watch_neighbours(input);
+  if (output_up_to_date_with_sidecar(input, output) && output_up_to_date_with_all(watch_files_, output) &&
+      neighbours_older_than(neighbours, output)) {
+    const OutputMadeWith made = output_made_with(
+        output, watch_made_with_, window_attribute(neighbours, watch_views(), watch_temporal()));
     return (watch_made_with_.empty() || made.same_options) && made.whole;
   }
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;

@@ -111,6 +111,11 @@ class FrameService {
   // True when a watched input needs no computing: its output, or an error file that is
   // final (not a transient failure, or one this run already gave up on), is up to date.
   bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);
+  // The watch's window (its options' --views and --temporal) and a watched frame's
+  // neighbours: the frames of its sequence in the folder now.
+  int watch_views() const;
+  int watch_temporal() const;
+  std::vector<NeighbourFrame> watch_neighbours(const std::string& input) const;
   void record(const WorkerResult& r);
   void log(const std::string& line);
 

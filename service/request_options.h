@@ -46,6 +46,10 @@ bool resolve_frame_options(const FrameOptionArgs& args, FrameRequest& request, s
 // (to_json's keys and values, all but "threads"). docs/usage.md, "What a file says about itself".
 inline constexpr const char* kVersionAttribute = "ssdo/version";
 inline constexpr const char* kOptionsAttribute = "ssdo/options";
+// The neighbouring frames an output of a shot was made with (sequence.h, window_attribute):
+// a rerun whose window holds other frames (one deleted, one rendered since, a wider
+// --shot-frames, a window the memory limit narrowed) computes the frame again.
+inline constexpr const char* kWindowAttribute = "ssdo/window";
 std::vector<std::pair<std::string, std::string>> output_attributes(const FrameOptionArgs& args);
 // The kOptionsAttribute value of outputs made with `args`.
 std::string options_attribute(const FrameOptionArgs& args);

@@ -7,6 +7,8 @@
 #include <map>
 #include <numeric>
 
+#include <nlohmann/json.hpp>
+
 #include "service/frame_list.h"
 #include "service/view_selection.h"
 
@@ -164,6 +166,22 @@ std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, 
           break;
         }
   return out;
+}
+
+bool neighbours_older_than(const std::vector<NeighbourFrame>& neighbours, const std::string& output) {
+  return std::all_of(neighbours.begin(), neighbours.end(), [&](const NeighbourFrame& n) {
+    std::error_code ec;
+    return !fs::exists(n.path, ec) || output_up_to_date_with_sidecar(n.path, output);
+  });
+}
+
+std::string window_attribute(const std::vector<NeighbourFrame>& neighbours, int views, int temporal) {
+  std::vector<std::string> names;
+  std::error_code ec;
+  for (const NeighbourFrame& n : within_places(neighbours, neighbour_places(views, temporal)))
+    if (fs::exists(n.path, ec)) names.push_back(fs::path(n.path).filename().string());
+  std::sort(names.begin(), names.end());
+  return nlohmann::json{{"views", views}, {"temporal", temporal}, {"frames", names}}.dump();
 }
 
 void give_neighbours_camera(std::vector<NeighbourFrame>& neighbours, const std::string& camera_json) {

@@ -65,6 +65,17 @@ std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, 
 // `window` places of it: the neighbours of a frame that arrives in a watched folder.
 std::vector<NeighbourFrame> folder_neighbours(const std::string& path, int window);
 
+// Whether `output` is at least as new as every neighbour in `neighbours` and its sidecar (a
+// neighbour re-rendered since changes the frame's views and temporal terms). A neighbour
+// that does not exist changes nothing (window_attribute tells when one appears or goes).
+bool neighbours_older_than(const std::vector<NeighbourFrame>& neighbours, const std::string& output);
+
+// The kWindowAttribute value (request_options.h) of an output computed with `views` and
+// `temporal` neighbours per side from `neighbours` (its frame's list): the window and the
+// file names of the frames in it that exist, sorted; one JSON object. The worker writes it
+// with the window it used, process and the watch compare it with the window they would use.
+std::string window_attribute(const std::vector<NeighbourFrame>& neighbours, int views, int temporal);
+
 // One camera file for every neighbour (a --camera given for the whole run: a locked-off shot's
 // one camera): each neighbour is read with `camera_json` instead of the sidecar beside it, as
 // the frame itself is. Nothing when `camera_json` is empty.

@@ -193,7 +193,8 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   r = run_ssdo(run + " --radius 0.25");
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("1 output was made with other options or another ssdo version than this run's: computed "
+  EXPECT_NE(r.output.find("1 output was made with other options, other neighbouring frames or another ssdo version than "
+                          "this run's: computed "
                           "again"),
             std::string::npos)
       << r.output;

@@ -226,6 +226,30 @@ TEST(Sequence, ARerunComputesTheFramesWhoseNeighbourChanged) {
         << i << "\n" << rerun.output;
 }
 
+// The output says which neighbours its window held (ssdo/window): a rerun after a neighbour
+// was deleted computes again the frames whose window held it (the mtimes alone cannot
+// tell), and a chunk computed without its shot (--shot-frames) is computed again with it.
+TEST(Sequence, ARerunComputesTheFramesWhoseWindowLostOrGainedAFrame) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 5);
+  const std::string flags = " --views 1 --temporal 0 --terms ao --preset low";  // 3 places a side
+  const std::string command = "process " + dir / "in" + " -o " + dir / "out" + flags;
+  ASSERT_NE(run_ssdo(command).output.find("done 5, skipped 0, failed 0"), std::string::npos);
+  fs::remove(dir.path / "in" / (numbered("orbit_f", 4) + ".exr"));
+  fs::remove(dir.path / "in" / (numbered("orbit_f", 4) + ".camera.json"));
+  const RunResult rerun = run_ssdo(command);
+  EXPECT_NE(rerun.output.find("done 3, skipped 1, failed 0"), std::string::npos) << rerun.output;
+  EXPECT_NE(rerun.output.find(numbered("orbit_f", 0) + ".exr: skipped"), std::string::npos) << rerun.output;
+  EXPECT_NE(run_ssdo(command).output.find("done 0, skipped 4"), std::string::npos);
+  // Frames 2-3 of a pattern alone, then as a chunk of the shot 0-3: computed again.
+  const std::string pattern = " " + dir / "in/orbit_f@.exr" + " -o " + dir / "chunk" + flags + " --frames 2-3";
+  ASSERT_NE(run_ssdo("process" + pattern).output.find("done 2, skipped 0"), std::string::npos);
+  const RunResult chunk = run_ssdo("process" + pattern + " --shot-frames 0-3");
+  EXPECT_NE(chunk.output.find("done 2, skipped 0"), std::string::npos) << chunk.output;
+  EXPECT_NE(run_ssdo("process" + pattern + " --shot-frames 0-3").output.find("done 0, skipped 2"), std::string::npos);
+}
+
 // A socket request names its neighbours: they change the frame's AO, and each is confined
 // like the input (one outside --allow is refused).
 TEST(Sequence, SocketRequestViewsChangeTheFrameAndAreConfinedLikeItsInput) {
@@ -380,6 +404,31 @@ TEST(SequenceWatch, AFrameComputedBeforeItsNeighboursArriveIsNotComputedAgain) {
   const std::vector<float> served = exr_channel_pixels(first.string(), "ao");
   ASSERT_FALSE(served.empty());
   EXPECT_EQ(served, exr_channel_pixels(dir / "alone/orbit_f0.ssdo.exr", "ao"));
+}
+
+// A frame computed before its neighbours arrived is computed again by a restarted service
+// (its window changed), as a batch over the folder would: after the restart both agree
+// that every output is up to date.
+TEST(SequenceWatch, ARestartComputesAgainTheFramesWhoseNeighboursArrivedSince) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("restartviews");
+  {
+    SsdoProcess service(watch_args(dir, socket), dir.path / "serve.log");
+    ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+    copy_orbit_frame(dir.path / "in", "orbit_f0", 0);
+    ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", 1)) << service.log();
+  }
+  for (int i = 1; i < 3; ++i) copy_orbit_frame(dir.path / "in", numbered("orbit_f", i), i);
+  {
+    SsdoProcess service(watch_args(dir, socket), dir.path / "serve2.log");
+    ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+    ASSERT_TRUE(wait_for_outputs(socket, dir.path / "served", "orbit_f", 3)) << service.log();
+    EXPECT_TRUE(service.wait_for_log("ok " + dir / "in/orbit_f0.exr" + " ->", 60)) << service.log();
+  }
+  const RunResult batch = run_ssdo("process " + dir / "in" + " -o " + dir / "served" + process_compute());
+  EXPECT_NE(batch.output.find("done 0, skipped 3"), std::string::npos) << batch.output;
 }
 
 // A frame whose sidecar says its AO pass used ao_distance `distance`, as DIR/STEM.exr.
