@@ -15,6 +15,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <set>
 #include <thread>
 
 #include <CLI/CLI.hpp>
@@ -202,12 +203,16 @@ int run_process(const ProcessArgs& args) {
   // An output newer than its frame, its neighbours, their sidecars and the files the options
   // name (--camera, --env) is up to date when it was made with this run's options too.
   std::vector<std::string> todo, up_to_date;
+  // Frames whose existing output is of another version of the frame, its neighbours or the
+  // options: a frame that fails now does not leave it in place (it would pass for the
+  // result of the frame that failed).
+  std::set<std::string> stale;
   const std::string made_with = options_attribute(args.options);
   const std::vector<std::string> option_files = option_paths(args.options);
   int other_options = 0, cut_short = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
-    const bool current = !args.force && output_up_to_date_with_sidecar(f, output) &&
+    const bool current = output_up_to_date_with_sidecar(f, output) &&
                          neighbours_older_than(neighbours_of(neighbours, f), output) &&
                          output_up_to_date_with_all(option_files, output);
     const std::string window =
@@ -215,9 +220,10 @@ int run_process(const ProcessArgs& args) {
     const OutputMadeWith made = current ? output_made_with(output, made_with, window) : OutputMadeWith{};
     const bool same_options = made.same_options;
     const bool whole = same_options && made.whole;
-    other_options += current && !same_options;
-    cut_short += same_options && !whole;
-    (whole ? up_to_date : todo).push_back(f);
+    if (std::error_code ec; !whole && std::filesystem::exists(output, ec)) stale.insert(f);
+    other_options += !args.force && current && !same_options;
+    cut_short += !args.force && same_options && !whole;
+    (whole && !args.force ? up_to_date : todo).push_back(f);
   }
   if (other_options > 0)
     std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
@@ -276,6 +282,11 @@ int run_process(const ProcessArgs& args) {
                                   ? "the input or its sidecar changed while the batch ran: its output is marked out "
                                     "of date, and a rerun computes it again"
                                   : "the input or its sidecar changed while the batch ran: rerun with --force");
+          if (!r.ok() && stale.count(todo[i])) {
+            remove_output_and_previews(job.output_path);
+            r.warnings.push_back("its output of an earlier version of the frame, its neighbours or the options was "
+                                 "removed");
+          }
           progress.finished(job.input_path, job.output_path, r);
         }
         // Every output is in place: the batch need not wait for the worker to exit.

@@ -15,6 +15,7 @@
 #include "formats/camera_io.h"
 #include "formats/output_writer.h"
 #include "service/file_version.h"
+#include "service/pipeline.h"
 #include "service/request_options.h"
 #include "service/version.h"
 
@@ -153,6 +154,16 @@ OutputMadeWith output_made_with(const std::string& output, const std::string& op
   const bool same_window = window_attribute.empty() || made.attributes[2] == window_attribute;
   return {made.attributes[0] == options_attribute && made.attributes[1] == version_string() && same_window,
           made.chunks_complete};
+}
+
+void remove_output_and_previews(const std::string& output) {
+  std::error_code ec;
+  fs::remove(output, ec);
+  const fs::path out(output);
+  for (const std::string& term : output_term_names())
+    if (const fs::path preview = out.parent_path() / (out.stem().string() + "." + term + ".png");
+        fs::is_regular_file(preview, ec))
+      fs::remove(preview, ec);
 }
 
 bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {

@@ -70,6 +70,10 @@ bool changed_since(const std::string& frame, const FrameFiles& found);
 // restarted service computes the frame again. False when the time cannot be set.
 bool mark_out_of_date(const std::string& output, const FrameFiles& found);
 
+// Removes `output` and its previews (OUT/NAME.ssdo.<term>.png, formats/output_writer.h):
+// a frame that failed leaves no picture of an earlier version of itself.
+void remove_output_and_previews(const std::string& output);
+
 // What an existing `output` says of how it was made, from one open of the file.
 struct OutputMadeWith {
   // Its header says it was made by this version of ssdo with the options whose attribute is

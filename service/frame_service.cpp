@@ -70,15 +70,7 @@ bool write_error_file(const std::string& path, const std::string& input, const s
 
 bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
                           const WorkerResult& result, const std::string& version, const std::string& options) {
-  std::error_code ec;
-  fs::remove(output, ec);
-  // Its previews too (OUT/NAME.ssdo.<term>.png, formats/output_writer.h): a failed frame
-  // leaves no picture of an earlier run beside its error file.
-  const fs::path out(output);
-  for (const std::string& term : output_term_names())
-    if (const fs::path preview = out.parent_path() / (out.stem().string() + "." + term + ".png");
-        fs::is_regular_file(preview, ec))
-      fs::remove(preview, ec);
+  remove_output_and_previews(output);
   return write_error_file(error_path, input, result.error, result.transient, version, options);
 }
 

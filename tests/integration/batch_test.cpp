@@ -141,6 +141,30 @@ TEST(Batch, AFrameReplacedWhileTheBatchRunsIsComputedAgainByTheRerun) {
   EXPECT_NE(rerun.log().find("done 1, skipped 2"), std::string::npos) << rerun.log();
 }
 
+// A new version of a frame that fails does not leave the output of the old one beside its
+// failure (it would pass for the frame's result), nor its previews; an output that is up to
+// date stays when a forced recompute fails (a timeout: the output is still the frame's).
+TEST(Batch, AFailedNewVersionOfAFrameRemovesTheOldOutputAForcedRecomputeKeepsACurrentOne) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "f");
+  const std::string command = "process " + dir / "in" + " -o " + dir / "out" + " --terms ao --preset low --png";
+  ASSERT_EQ(run_ssdo(command).exit_code, 0);
+  ASSERT_TRUE(path_exists(dir.path / "out/f.ssdo.exr"));
+  ASSERT_TRUE(path_exists(dir.path / "out/f.ssdo.ao.png"));
+  const RunResult forced = run_ssdo(command + " --force --frame-timeout 0.001");
+  EXPECT_EQ(forced.exit_code, 1) << forced.output;
+  EXPECT_NE(forced.output.find("timed out"), std::string::npos) << forced.output;
+  EXPECT_TRUE(path_exists(dir.path / "out/f.ssdo.exr")) << forced.output;
+  const std::string good = read_text(dir.path / "in/f.exr");
+  std::ofstream(dir.path / "in/f.exr", std::ios::binary | std::ios::trunc) << good.substr(0, good.size() / 2);
+  const RunResult cut = run_ssdo(command);
+  EXPECT_EQ(cut.exit_code, 1) << cut.output;
+  EXPECT_NE(cut.output.find("its output of an earlier version of the frame"), std::string::npos) << cut.output;
+  EXPECT_FALSE(path_exists(dir.path / "out/f.ssdo.exr")) << cut.output;
+  EXPECT_FALSE(path_exists(dir.path / "out/f.ssdo.ao.png")) << cut.output;
+}
+
 TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
   // The frames alone in time (f0..f7 are a sequence): the temporal window's resume is the
   // Temporal and Sequence tests'.
