@@ -17,6 +17,7 @@
 #include <memory>
 #include <set>
 #include <thread>
+#include <tuple>
 
 #include <CLI/CLI.hpp>
 
@@ -162,6 +163,18 @@ WorkerJob job_for(const std::vector<std::string>& todo, size_t index, const Proc
   return job;
 }
 
+// `frames` in the order of their shots: by sequence, then frame number (names without a
+// number by name). Each worker takes a consecutive run of the list and reads a neighbour
+// once for the frames around it, so frames given out of order (a shell's list, mixed
+// padding: "s.0003" sorts before "s.1" by name) would read and compute neighbours again.
+void in_shot_order(std::vector<std::string>& frames) {
+  auto key = [](const std::string& f) {
+    const std::optional<SequencePlace> place = sequence_place(f);
+    return place ? std::make_tuple(place->sequence, place->number, f) : std::make_tuple(f, 0L, f);
+  };
+  std::stable_sort(frames.begin(), frames.end(), [&](const std::string& a, const std::string& b) { return key(a) < key(b); });
+}
+
 // The neighbour list of `frame` (none outside a sequence).
 const std::vector<NeighbourFrame>& neighbours_of(const std::map<std::string, std::vector<NeighbourFrame>>& neighbours,
                                                  const std::string& frame) {
@@ -225,6 +238,7 @@ int run_process(const ProcessArgs& args) {
     cut_short += !args.force && same_options && !whole;
     (whole && !args.force ? up_to_date : todo).push_back(f);
   }
+  if (places > 0) in_shot_order(todo);
   if (other_options > 0)
     std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
               << " made with other options, other neighbouring frames or another ssdo version than this run's: computed "

@@ -65,6 +65,20 @@ TEST(Temporal, DenoisedTermsChangeRawTermsDoNotAndRawTermsAreComputedOnce) {
   EXPECT_NE(r.output.find("temporal: shot.0000.exr shot.0002.exr"), std::string::npos) << r.output;
 }
 
+// Frames named out of order (a shell's list) are computed in the order of their shot: each
+// frame's raw terms once, as for the folder.
+TEST(Temporal, FramesGivenOutOfOrderAreComputedInShotOrder) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_temporal_shot(dir.path / "in", 4);
+  std::string files;
+  for (const int i : {2, 0, 3, 1}) files += " " + dir / ("in/" + numbered("shot.000", i) + ".exr");
+  const RunResult r = run_ssdo("process" + files + " -o " + dir / "out" + kTemporalShotArgs + " --jobs 1 -v");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("(raw terms computed 4 times for 4 frames)"), std::string::npos) << r.output;
+  EXPECT_LT(r.output.find("shot.0000.exr ->"), r.output.find("shot.0001.exr ->")) << r.output;
+}
+
 // A shot of perf1080 (1080p) under --memory-limit `limit_mb`, where its window of
 // neighbours does not fit and its frames alone do: every frame is written; those that did
 // not fit are computed with the window halved (exactly the terms of that window's run) or
