@@ -129,6 +129,12 @@ std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std:
     const bool same = place && other && other->sequence == place->sequence && other->number != place->number;
     out.push_back({view, same ? int(other->number - place->number) : int(out.size() + 1), false, {}, {}});
   }
+  // In sequence_neighbours' order (nearest first, the earlier frame first), whatever order
+  // the request named them in: the temporal filter sums the neighbours in list order, so a
+  // request and the batch give the same bits.
+  std::stable_sort(out.begin(), out.end(), [](const NeighbourFrame& a, const NeighbourFrame& b) {
+    return std::make_pair(std::abs(a.frame_offset), a.frame_offset) < std::make_pair(std::abs(b.frame_offset), b.frame_offset);
+  });
   return out;
 }
 

@@ -67,13 +67,20 @@ TEST(SequenceWindow, AFramesNumberIsTheOneBetweenSeparators) {
 }
 
 // A request's "views" as a client may send them: the whole shot with the frame itself,
-// or a view twice. Each view counts once and the frame is not its own view.
+// or a view twice. Each view counts once and the frame is not its own view; the list is in
+// sequence_neighbours' order (nearest first, earlier first), whatever order they came in.
 TEST(SequenceWindow, NamedViewsLeaveOutTheFrameAndRepeats) {
-  const std::vector<std::pair<std::string, int>> expected = {{"in/shot.1001.exr", 1}, {"in/shot.0999.exr", -1}};
+  const std::vector<std::pair<std::string, int>> expected = {{"in/shot.0999.exr", -1}, {"in/shot.1001.exr", 1}};
   EXPECT_EQ(names_and_offsets(named_neighbours("in/shot.1000.exr", {"in/shot.1001.exr", "in/shot.1000.exr",
                                                                     "in/shot.1001.exr", "in/shot.0999.exr",
                                                                     "in/shot.1001.exr"})),
             expected);
+  // The order of a batch's list, from any order given.
+  const std::vector<std::string> shot = {"in/shot.0998.exr", "in/shot.0999.exr", "in/shot.1000.exr",
+                                         "in/shot.1001.exr", "in/shot.1002.exr"};
+  EXPECT_EQ(names_and_offsets(named_neighbours("in/shot.1000.exr", {"in/shot.1002.exr", "in/shot.1001.exr",
+                                                                    "in/shot.0998.exr", "in/shot.0999.exr"})),
+            names_and_offsets(sequence_neighbours(shot, 2)[2]));
   // Outside a sequence: 1, 2, ... in the order given, repeats left out before counting.
   const std::vector<std::pair<std::string, int>> loose = {{"b.exr", 1}, {"c.exr", 2}};
   EXPECT_EQ(names_and_offsets(named_neighbours("a.exr", {"b.exr", "b.exr", "a.exr", "c.exr"})), loose);
