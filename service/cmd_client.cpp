@@ -131,6 +131,11 @@ int run_client(const ClientArgs& args) {
     std::cerr << "ssdo client: " << args.action << " takes no files\n";
     return 2;
   }
+  if (args.action != "process" && !args.options.empty()) {
+    std::cerr << "ssdo client: " << args.action << " takes no frame options (" << args.options.begin().key()
+              << " given): they are a process request's\n";
+    return 2;
+  }
   if (args.action == "process" && args.files.empty()) {
     std::cerr << "ssdo client: process needs at least one FILE\n";
     return 2;

@@ -222,7 +222,7 @@ int run_process(const ProcessArgs& args) {
   std::set<std::string> stale;
   const std::string made_with = options_attribute(args.options);
   const std::vector<std::string> option_files = option_paths(args.options);
-  int other_options = 0, cut_short = 0;
+  int other_options = 0, cut_short = 0, not_ssdo = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
     const bool current = output_up_to_date_with_sidecar(f, output) &&
@@ -234,7 +234,8 @@ int run_process(const ProcessArgs& args) {
     const bool same_options = made.same_options;
     const bool whole = same_options && made.whole;
     if (std::error_code ec; !whole && std::filesystem::exists(output, ec)) stale.insert(f);
-    other_options += !args.force && current && !same_options;
+    other_options += !args.force && current && made.from_ssdo && !same_options;
+    not_ssdo += !args.force && current && !made.from_ssdo;
     cut_short += !args.force && same_options && !whole;
     (whole && !args.force ? up_to_date : todo).push_back(f);
   }
@@ -243,6 +244,9 @@ int run_process(const ProcessArgs& args) {
     std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
               << " made with other options, other neighbouring frames or another ssdo version than this run's: computed "
                  "again\n";
+  if (not_ssdo > 0)
+    std::cerr << "ssdo process: " << not_ssdo << (not_ssdo == 1 ? " output was" : " outputs were")
+              << " not readable as ssdo's (a damaged file, or another program's in its place): computed again\n";
   if (cut_short > 0)
     std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
               << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";

@@ -153,7 +153,7 @@ OutputMadeWith output_made_with(const std::string& output, const std::string& op
   const ExistingOutput made = read_existing_output(output, {kOptionsAttribute, kVersionAttribute, kWindowAttribute});
   const bool same_window = window_attribute.empty() || made.attributes[2] == window_attribute;
   return {made.attributes[0] == options_attribute && made.attributes[1] == version_string() && same_window,
-          made.chunks_complete};
+          made.attributes[0].has_value() && made.attributes[1].has_value(), made.chunks_complete};
 }
 
 void remove_output_and_previews(const std::string& output) {

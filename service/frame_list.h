@@ -83,6 +83,8 @@ struct OutputMadeWith {
   // another version (whose arithmetic may differ), other options or another window, and
   // for a file without them (unreadable, or not ssdo's).
   bool same_options = false;
+  // Its header has ssdo's attributes: false for a damaged file or another program's.
+  bool from_ssdo = false;
   // Every scanline chunk lies within the file (ExistingOutput::chunks_complete): false for
   // an output cut short.
   bool whole = false;

@@ -221,6 +221,10 @@ TEST(Cli, ARerunWithOtherOptionsRecomputes) {
   fs::last_write_time(output, fs::last_write_time(dir.path / "in" / "a.exr") + std::chrono::seconds(2));
   r = run_ssdo(run + " --radius 0.25");
   EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("1 output was not readable as ssdo's (a damaged file, or another program's in its place)"),
+            std::string::npos)
+      << r.output;
+  EXPECT_EQ(r.output.find("other options"), std::string::npos) << r.output;
   const std::vector<std::string> names = channel_names(output.string());
   EXPECT_NE(std::find(names.begin(), names.end(), "ao"), names.end());
 }

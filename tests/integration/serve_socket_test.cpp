@@ -514,6 +514,10 @@ TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("forbidden"), std::string::npos) << r.output;
   EXPECT_EQ(run_ssdo("client --socket /nonexistent.sock ping").exit_code, 2);
+  // Frame options belong to process requests: refused with stats, not silently dropped.
+  r = run_ssdo("client" + s + "stats --method hbao");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("stats takes no frame options (method given)"), std::string::npos) << r.output;
   // A refused file does not end the list: each file gets its line, the later ones computed.
   r = run_ssdo("client" + s + "process " + dir / "frames" + " " + dir / "frames/greeble.exr" + " -o " + dir / "o2");
   EXPECT_EQ(r.exit_code, 1) << r.output;
