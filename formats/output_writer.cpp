@@ -856,7 +856,12 @@ std::optional<std::string> read_string_attribute(const std::string& path, const 
 
 ExistingOutput read_existing_output(const std::string& path, const std::vector<std::string>& names) {
   const OpenedExr file(path);
-  return {string_attributes(file, names), scanline_chunks_complete(file)};
+  ExistingOutput out{string_attributes(file, names), scanline_chunks_complete(file), {}};
+  const exr_attr_chlist_t* list = nullptr;
+  if (file.context() && exr_get_channels(file.context(), 0, &list) == EXR_ERR_SUCCESS && list)
+    for (int c = 0; c < list->num_channels; ++c)
+      out.channels.emplace_back(list->entries[c].name.str, size_t(list->entries[c].name.length));
+  return out;
 }
 
 }  // namespace ssdo

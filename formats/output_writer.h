@@ -128,6 +128,8 @@ struct ExistingOutput {
   // before the data reached the disk) or that cannot be read. Read from the headers, the
   // offset tables and each chunk's leader, not the pixels.
   bool chunks_complete = false;
+  // The channel names of its first part (empty when it cannot be read).
+  std::vector<std::string> channels;
 };
 ExistingOutput read_existing_output(const std::string& path, const std::vector<std::string>& names);
 

@@ -222,7 +222,7 @@ int run_process(const ProcessArgs& args) {
   std::set<std::string> stale;
   const std::string made_with = options_attribute(args.options);
   const std::vector<std::string> option_files = option_paths(args.options);
-  int other_options = 0, cut_short = 0, not_ssdo = 0;
+  int other_options = 0, cut_short = 0, not_ssdo = 0, no_previews = 0;
   for (const std::string& f : frames) {
     const std::string output = output_path_for(f, args.output_dir);
     const bool current = output_up_to_date_with_sidecar(f, output) &&
@@ -232,11 +232,12 @@ int run_process(const ProcessArgs& args) {
         window_attribute(neighbours_of(neighbours, f), args.options.compute.views, args.options.compute.temporal);
     const OutputMadeWith made = current ? output_made_with(output, made_with, window) : OutputMadeWith{};
     const bool same_options = made.same_options;
-    const bool whole = same_options && made.whole;
+    const bool whole = same_options && made.whole && (!args.options.png || made.previews);
     if (std::error_code ec; !whole && std::filesystem::exists(output, ec)) stale.insert(f);
     other_options += !args.force && current && made.from_ssdo && !same_options;
     not_ssdo += !args.force && current && !made.from_ssdo;
-    cut_short += !args.force && same_options && !whole;
+    cut_short += !args.force && same_options && !made.whole;
+    no_previews += !args.force && same_options && made.whole && !whole;
     (whole && !args.force ? up_to_date : todo).push_back(f);
   }
   if (places > 0) in_shot_order(todo);
@@ -247,6 +248,9 @@ int run_process(const ProcessArgs& args) {
   if (not_ssdo > 0)
     std::cerr << "ssdo process: " << not_ssdo << (not_ssdo == 1 ? " output was" : " outputs were")
               << " not readable as ssdo's (a damaged file, or another program's in its place): computed again\n";
+  if (no_previews > 0)
+    std::cerr << "ssdo process: " << no_previews << (no_previews == 1 ? " output was" : " outputs were")
+              << " missing some of their --png previews: computed again\n";
   if (cut_short > 0)
     std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
               << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";

@@ -152,18 +152,19 @@ OutputMadeWith output_made_with(const std::string& output, const std::string& op
                                 const std::string& window_attribute) {
   const ExistingOutput made = read_existing_output(output, {kOptionsAttribute, kVersionAttribute, kWindowAttribute});
   const bool same_window = window_attribute.empty() || made.attributes[2] == window_attribute;
+  const fs::path out(output);
+  std::error_code ec;
+  const bool previews = !made.channels.empty() && std::all_of(made.channels.begin(), made.channels.end(), [&](const std::string& c) {
+    return fs::is_regular_file(out.parent_path() / (out.stem().string() + "." + c.substr(0, c.find('.')) + ".png"), ec);
+  });
   return {made.attributes[0] == options_attribute && made.attributes[1] == version_string() && same_window,
-          made.attributes[0].has_value() && made.attributes[1].has_value(), made.chunks_complete};
+          made.attributes[0].has_value() && made.attributes[1].has_value(), made.chunks_complete, previews};
 }
 
 void remove_output_and_previews(const std::string& output) {
   std::error_code ec;
   fs::remove(output, ec);
-  const fs::path out(output);
-  for (const std::string& term : output_term_names())
-    if (const fs::path preview = out.parent_path() / (out.stem().string() + "." + term + ".png");
-        fs::is_regular_file(preview, ec))
-      fs::remove(preview, ec);
+  remove_previews_except(output, {});
 }
 
 bool output_up_to_date_with_all(const std::vector<std::string>& files, const std::string& output) {

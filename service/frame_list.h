@@ -88,6 +88,9 @@ struct OutputMadeWith {
   // Every scanline chunk lies within the file (ExistingOutput::chunks_complete): false for
   // an output cut short.
   bool whole = false;
+  // Each of its terms (channel name up to the first '.') has its preview beside it
+  // (OUT/NAME.ssdo.<term>.png): what a run with --png needs of an output to skip it.
+  bool previews = false;
 };
 OutputMadeWith output_made_with(const std::string& output, const std::string& options_attribute,
                                 const std::string& window_attribute = {});

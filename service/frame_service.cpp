@@ -363,7 +363,8 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
       neighbours_older_than(neighbours, output)) {
     const OutputMadeWith made = output_made_with(
         output, watch_made_with_, window_attribute(neighbours, watch_views(), watch_temporal()));
-    return (watch_made_with_.empty() || made.same_options) && made.whole;
+    return (watch_made_with_.empty() || made.same_options) && made.whole &&
+           (!options_.watch_options.value("png", false) || made.previews);
   }
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   std::ifstream in(error_path);

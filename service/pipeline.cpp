@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <functional>
 #include <stdexcept>
 #include <sstream>
@@ -491,6 +492,16 @@ const std::vector<std::string>& output_term_names() {
   return names;
 }
 
+void remove_previews_except(const std::string& output, const std::vector<std::string>& kept) {
+  const std::filesystem::path out(output);
+  std::error_code ec;
+  for (const std::string& term : output_term_names())
+    if (std::find(kept.begin(), kept.end(), term) == kept.end())
+      if (const std::filesystem::path preview = out.parent_path() / (out.stem().string() + "." + term + ".png");
+          std::filesystem::is_regular_file(preview, ec))
+        std::filesystem::remove(preview, ec);
+}
+
 ComputedFrame io_only_frame(const GBuffer& g, const FrameRequest& request) {
   ComputedFrame frame;
   const TermSelection& terms = request.terms;
@@ -655,6 +666,7 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
         return result;
       }
       for (const OutputTerm& t : computed.terms) result.terms_written.push_back(t.name);
+      remove_previews_except(request.output_path, write.png_previews ? result.terms_written : std::vector<std::string>{});
     }
   } catch (const std::exception& e) {
     result.error = request.input_path + ": " + e.what();

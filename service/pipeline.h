@@ -176,6 +176,11 @@ const char* output_term_name(OutputTermId term);
 // The name of every term compute_frame may return, in OutputTermId's order.
 const std::vector<std::string>& output_term_names();
 
+// Removes the previews of `output` (OUT/NAME.ssdo.<term>.png, formats/output_writer.h) of
+// every term but `kept`: after an output written without previews, or with those of other
+// terms, the pictures of an earlier version of it would pass for its own.
+void remove_previews_except(const std::string& output, const std::vector<std::string>& kept);
+
 // The terms compute_frame would return (names, channels, sample types, same order) with
 // stand-in images: the frame's view-space normals (their z for one-channel terms). For
 // FrameRequest::io_only.

@@ -165,6 +165,29 @@ TEST(Batch, AFailedNewVersionOfAFrameRemovesTheOldOutputAForcedRecomputeKeepsACu
   EXPECT_FALSE(path_exists(dir.path / "out/f.ssdo.ao.png")) << cut.output;
 }
 
+// --png previews belong to their output: a rerun with --png computes a frame whose
+// previews are not all there, and an output written without previews (or with other
+// terms) removes the previews of an earlier run, which would pass for its pictures.
+TEST(Batch, PreviewsMissingAreMadeAgainAndOldOnesDoNotOutliveTheirOutput) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "f");
+  const std::string command = "process " + dir / "in" + " -o " + dir / "out" + " --preset low";
+  ASSERT_EQ(run_ssdo(command + " --terms ao --png").exit_code, 0);
+  const fs::path preview = dir.path / "out/f.ssdo.bent_normal.png";
+  ASSERT_TRUE(path_exists(preview));
+  fs::remove(preview);
+  RunResult r = run_ssdo(command + " --terms ao --png");
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("1 output was missing some of their --png previews"), std::string::npos) << r.output;
+  EXPECT_TRUE(path_exists(preview)) << r.output;
+  EXPECT_NE(run_ssdo(command + " --terms ao --png").output.find("done 0, skipped 1"), std::string::npos);
+  r = run_ssdo(command + " --terms ao");
+  EXPECT_NE(r.output.find("done 1, skipped 0"), std::string::npos) << r.output;
+  EXPECT_FALSE(path_exists(preview)) << r.output;
+  EXPECT_FALSE(path_exists(dir.path / "out/f.ssdo.ao.png")) << r.output;
+}
+
 TEST(Batch, KillNineMidBatchThenRerunSkipsFinishedFramesLeavesNoPartialFile) {
   // The frames alone in time (f0..f7 are a sequence): the temporal window's resume is the
   // Temporal and Sequence tests'.
