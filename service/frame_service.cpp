@@ -287,6 +287,21 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   log(r.ok() ? "ok " + input_name + " -> " + task.output + " (" + timing(r) + ")"
              : "FAILED " + input_name + ": " + r.error);
   if (task.done) task.done(r);
+  // A watched frame's output replaced, or failed, by a request (with other options than the
+  // watch's, most often): the watch looks at the frame again, and its up-to-date test
+  // (watched_frame_done) has it computed again with its own options.
+  if (const std::string watched = watched_frame_of(task.output); !watched.empty()) enqueue_watched(watched);
+}
+
+std::string FrameService::watched_frame_of(const std::string& output) const {
+  if (options_.watch_dir.empty()) return {};
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = output_owner_.find(output);
+  if (it == output_owner_.end()) return {};
+  const std::string& input = it->second;  // an inline upload's owner is no path: no folder
+  const bool watched = fs::path(input).parent_path() == options_.watch_dir && is_frame_file(input) &&
+                       output_path_for(input, options_.out_dir) == output;
+  return watched ? input : std::string();
 }
 
 bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, bool force) {

@@ -10,7 +10,9 @@
 //   error file is at least as new as its last change, checked when a dispatcher takes it,
 //   so rescans and events never compute a frame twice, and restarts skip finished frames.
 //   A camera sidecar (NAME.camera.json) counts as part of its frame: its arrival or change
-//   queues the frame again, and an output or error file older than it is stale.
+//   queues the frame again, and an output or error file older than it is stale. A socket
+//   request that wrote or failed a watched frame's output queues the frame again too: an
+//   output or error file of other options than the watch's is computed again.
 // Socket tasks go first (someone is waiting for them). A transient failure (the worker
 // killed, timed out or out of memory: WorkerResult::transient) is tried again on a new
 // worker, `retries` times at most. Failed frames get OUT/NAME.error.json (written through
@@ -105,6 +107,9 @@ class FrameService {
   // True when the input changed while it was computed (to be computed again).
   bool run_watched(WorkerProcess& worker, const std::string& input, bool force);
   void run_task(WorkerProcess& worker, FrameTask& task);
+  // The frame of the watch folder whose output `output` is (the input that claimed it);
+  // empty when none.
+  std::string watched_frame_of(const std::string& output) const;
   // Runs the job, again on a new worker after a transient failure (options_.retries times),
   // unless `task` (when given) is abandoned by then.
   WorkerResult run_with_retries(WorkerProcess& worker, const WorkerJob& job, const FrameTask* task = nullptr);
