@@ -266,12 +266,30 @@ std::string replace_all(std::string text, const std::string& from, const std::st
   return text;
 }
 
+// A request's frame whose file or sidecar was replaced or rewritten while it was computed (not
+// the version `found` before): its result may be of the old version. The output is dated back
+// behind the new one, as the batch and the watch do, so that a watch or `ssdo process` over
+// the folder computes it again; the reply says so.
+void warn_if_changed(const std::string& input, const std::string& output, const FrameFiles& found,
+                     WorkerResult& r) {
+  if (!r.ok() || !changed_since(input, found)) return;
+  r.warnings.push_back(mark_out_of_date(output, found)
+                           ? "the input or its sidecar changed while it was computed: the result may be of the old "
+                             "version; its output is marked out of date"
+                           : "the input or its sidecar changed while it was computed: the result may be of the old "
+                             "version; ask for it again");
+}
+
 }  // namespace
 
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   const std::string before_key = task.error_path.empty() ? std::string() : frame_version_key(task.input);
+  // An inline frame sits in the request's private spool folder: nobody replaces it.
+  const std::optional<FrameFiles> found =
+      task.inline_name.empty() ? std::optional<FrameFiles>(frame_files(task.input)) : std::nullopt;
   WorkerResult r =
       run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine}, &task);
+  if (found) warn_if_changed(task.input, task.output, *found, r);
   // The spool's paths mean nothing to the client (and are gone once it is answered).
   const std::string input_name = task.inline_name.empty() ? task.input : "inline frame " + task.inline_name;
   if (!task.inline_name.empty()) {
@@ -286,6 +304,7 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   }
   log(r.ok() ? "ok " + input_name + " -> " + task.output + " (" + timing(r) + ")"
              : "FAILED " + input_name + ": " + r.error);
+  for (const std::string& warning : r.warnings) log("  note: " + input_name + ": " + warning);
   if (task.done) task.done(r);
   // A watched frame's output replaced, or failed, by a request (with other options than the
   // watch's, most often): the watch looks at the frame again, and its up-to-date test
