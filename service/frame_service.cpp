@@ -331,8 +331,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   std::string owner;
   const bool claimed = claim_output(output, input, owner);
   if (claimed && !force && watched_frame_done(input, output, error_path)) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++skipped_;
+    count_skipped(input);
     return false;
   }
   const FrameFiles found = frame_files(input);
@@ -371,6 +370,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     std::lock_guard<std::mutex> lock(mutex_);
     if (r.ok()) given_up_.erase(input);
     else given_up_.insert(input);
+    accounted_[input] = before_key;
   }
   std::error_code ec;
   if (r.ok()) {
@@ -381,6 +381,14 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
   }
   return false;
+}
+
+void FrameService::count_skipped(const std::string& input) {
+  const std::string version = frame_version_key(input);
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::string& accounted = accounted_[input];
+  if (accounted != version) ++skipped_;
+  accounted = version;
 }
 
 int FrameService::watch_views() const { return options_.watch_options.value("views", kDefaultViewsPerSide); }

@@ -116,6 +116,9 @@ class FrameService {
   // True when a watched input needs no computing: its output, or an error file that is
   // final (not a transient failure, or one this run already gave up on), is up to date.
   bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);
+  // Counts a watched frame found up to date as skipped, once per version of it: --poll's
+  // rescans and repeated events find the same frame again and again.
+  void count_skipped(const std::string& input);
   // The watch's window (its options' --views and --temporal) and a watched frame's
   // neighbours: the frames of its sequence in the folder now.
   int watch_views() const;
@@ -142,6 +145,9 @@ class FrameService {
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;
   std::set<std::string> given_up_;       // inputs whose transient failure this run gave up on
+  // Watched input -> the version (frame_version_key) this run computed, failed or counted as
+  // skipped: finding that version up to date again is not another skipped frame.
+  std::map<std::string, std::string> accounted_;
   long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0, retried_ = 0;
   double done_ms_ = 0;
   Clock::time_point started_at_ = Clock::now();
