@@ -60,16 +60,16 @@ std::string options_key(const nlohmann::json& options) {
 }  // namespace
 
 
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry,
-                      const std::string& version, const std::string& options) {
+std::string write_error_file(const std::string& path, const std::string& input, const std::string& error,
+                             bool retry, const std::string& version, const std::string& options) {
   nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}, {"retry", retry}};
   if (!version.empty()) j["version"] = version;
   if (!options.empty()) j["options"] = options;
-  return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n").empty();
+  return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
-bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result, const std::string& version, const std::string& options) {
+std::string record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
+                                 const WorkerResult& result, const std::string& version, const std::string& options) {
   remove_output_and_previews(output);
   return write_error_file(error_path, input, result.error, result.transient, version, options);
 }
@@ -366,21 +366,27 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     }
   }
   record(r);
+  finish_watched(input, output, error_path, r, before_key);
+  return false;
+}
+
+void FrameService::finish_watched(const std::string& input, const std::string& output,
+                                  const std::string& error_path, const WorkerResult& r, const std::string& version) {
+  std::error_code ec;
+  std::string unwritten;  // why the error file could not be written
+  if (r.ok()) fs::remove(error_path, ec);
+  else unwritten = record_frame_failure(output, error_path, input, r, version, watch_made_with_);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (r.ok()) given_up_.erase(input);
     else given_up_.insert(input);
-    accounted_[input] = before_key;
+    accounted_[input] = version;
+    if (unwritten.empty()) unwritten_failures_.erase(input);
+    else unwritten_failures_[input] = version;
   }
-  std::error_code ec;
-  if (r.ok()) {
-    fs::remove(error_path, ec);
-    log("ok " + input + " -> " + output + " (" + timing(r) + ")");
-  } else {
-    record_frame_failure(output, error_path, input, r, before_key, watch_made_with_);
-    log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
-  }
-  return false;
+  if (r.ok()) log("ok " + input + " -> " + output + " (" + timing(r) + ")");
+  else if (unwritten.empty()) log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
+  else log("FAILED " + input + ": " + r.error + " (the error file could not be written: " + unwritten + ")");
 }
 
 void FrameService::count_skipped(const std::string& input) {
@@ -407,6 +413,7 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
         output, watch_made_with_, window_attribute(neighbours, watch_views(), watch_temporal()));
     return (watch_made_with_.empty() || made.same_options) && made.whole;
   }
+  if (failed_without_error_file(input)) return true;
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   std::ifstream in(error_path);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
@@ -419,6 +426,13 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
     if (given_up_.count(input)) return true;
   }
   return !(j.is_object() && j.value("retry", false));
+}
+
+bool FrameService::failed_without_error_file(const std::string& input) const {
+  const std::string version = frame_version_key(input);
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = unwritten_failures_.find(input);
+  return it != unwritten_failures_.end() && it->second == version;
 }
 
 }  // namespace ssdo

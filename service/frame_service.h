@@ -116,6 +116,12 @@ class FrameService {
   // True when a watched input needs no computing: its output, or an error file that is
   // final (not a transient failure, or one this run already gave up on), is up to date.
   bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);
+  // Records a watched frame's result (its error file, or none; what this run remembers of
+  // it) and logs it; `version` is frame_version_key of the input it read.
+  void finish_watched(const std::string& input, const std::string& output, const std::string& error_path,
+                      const WorkerResult& r, const std::string& version);
+  // Whether this version of a watched input failed and its error file could not be written.
+  bool failed_without_error_file(const std::string& input) const;
   // Counts a watched frame found up to date as skipped, once per version of it: --poll's
   // rescans and repeated events find the same frame again and again.
   void count_skipped(const std::string& input);
@@ -148,6 +154,10 @@ class FrameService {
   // Watched input -> the version (frame_version_key) this run computed, failed or counted as
   // skipped: finding that version up to date again is not another skipped frame.
   std::map<std::string, std::string> accounted_;
+  // Watched input -> the version that failed when its error file could not be written (a
+  // name too long, a full disk): no file records the failure, so this run remembers it, and
+  // rescans and events do not compute the frame again and again (a restart does, once).
+  std::map<std::string, std::string> unwritten_failures_;
   long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0, retried_ = 0;
   double done_ms_ = 0;
   Clock::time_point started_at_ = Clock::now();
@@ -159,14 +169,15 @@ class FrameService {
 // again); "version" (left out when empty) is frame_version_key of the input the failure
 // read; "options" (left out when empty) the options attribute it was computed with
 // (request_options.h: options_attribute), so that a watch folder's frame failed by a
-// request's other options is computed again with the watch's.
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error,
-                      bool retry = false, const std::string& version = {}, const std::string& options = {});
+// request's other options is computed again with the watch's. Returns why it could not be
+// written (a name longer than the file system allows, a full disk); empty when written.
+std::string write_error_file(const std::string& path, const std::string& input, const std::string& error,
+                             bool retry = false, const std::string& version = {}, const std::string& options = {});
 
 // Records a failed frame: removes its output (an older version's result, which would
 // otherwise sit beside the newer error) and its previews, and writes its error file with the
-// input's version and the options.
-bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result, const std::string& version, const std::string& options);
+// input's version and the options. Returns write_error_file's answer.
+std::string record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
+                                 const WorkerResult& result, const std::string& version, const std::string& options);
 
 }  // namespace ssdo
