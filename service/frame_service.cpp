@@ -60,16 +60,16 @@ std::string options_key(const nlohmann::json& options) {
 }  // namespace
 
 
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error, bool retry,
-                      const std::string& version, const std::string& options) {
+std::string write_error_file(const std::string& path, const std::string& input, const std::string& error,
+                             bool retry, const std::string& version, const std::string& options) {
   nlohmann::json j{{"input", input}, {"error", error}, {"time", utc_now()}, {"retry", retry}};
   if (!version.empty()) j["version"] = version;
   if (!options.empty()) j["options"] = options;
-  return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n").empty();
+  return write_file_atomically(path, j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
 }
 
-bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result, const std::string& version, const std::string& options) {
+std::string record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
+                                 const WorkerResult& result, const std::string& version, const std::string& options) {
   remove_output_and_previews(output);
   return write_error_file(error_path, input, result.error, result.transient, version, options);
 }
@@ -266,12 +266,30 @@ std::string replace_all(std::string text, const std::string& from, const std::st
   return text;
 }
 
+// A request's frame whose file or sidecar was replaced or rewritten while it was computed (not
+// the version `found` before): its result may be of the old version. The output is dated back
+// behind the new one, as the batch and the watch do, so that a watch or `ssdo process` over
+// the folder computes it again; the reply says so.
+void warn_if_changed(const std::string& input, const std::string& output, const FrameFiles& found,
+                     WorkerResult& r) {
+  if (!r.ok() || !changed_since(input, found)) return;
+  r.warnings.push_back(mark_out_of_date(output, found)
+                           ? "the input or its sidecar changed while it was computed: the result may be of the old "
+                             "version; its output is marked out of date"
+                           : "the input or its sidecar changed while it was computed: the result may be of the old "
+                             "version; ask for it again");
+}
+
 }  // namespace
 
 void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   const std::string before_key = task.error_path.empty() ? std::string() : frame_version_key(task.input);
+  // An inline frame sits in the request's private spool folder: nobody replaces it.
+  const std::optional<FrameFiles> found =
+      task.inline_name.empty() ? std::optional<FrameFiles>(frame_files(task.input)) : std::nullopt;
   WorkerResult r =
       run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine}, &task);
+  if (found) warn_if_changed(task.input, task.output, *found, r);
   // The spool's paths mean nothing to the client (and are gone once it is answered).
   const std::string input_name = task.inline_name.empty() ? task.input : "inline frame " + task.inline_name;
   if (!task.inline_name.empty()) {
@@ -286,7 +304,23 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   }
   log(r.ok() ? "ok " + input_name + " -> " + task.output + " (" + timing(r) + ")"
              : "FAILED " + input_name + ": " + r.error);
+  for (const std::string& warning : r.warnings) log("  note: " + input_name + ": " + warning);
   if (task.done) task.done(r);
+  // A watched frame's output replaced, or failed, by a request (with other options than the
+  // watch's, most often): the watch looks at the frame again, and its up-to-date test
+  // (watched_frame_done) has it computed again with its own options.
+  if (const std::string watched = watched_frame_of(task.output); !watched.empty()) enqueue_watched(watched);
+}
+
+std::string FrameService::watched_frame_of(const std::string& output) const {
+  if (options_.watch_dir.empty()) return {};
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = output_owner_.find(output);
+  if (it == output_owner_.end()) return {};
+  const std::string& input = it->second;  // an inline upload's owner is no path: no folder
+  const bool watched = fs::path(input).parent_path() == options_.watch_dir && is_frame_file(input) &&
+                       output_path_for(input, options_.out_dir) == output;
+  return watched ? input : std::string();
 }
 
 bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, bool force) {
@@ -297,8 +331,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   std::string owner;
   const bool claimed = claim_output(output, input, owner);
   if (claimed && !force && watched_frame_done(input, output, error_path)) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++skipped_;
+    count_skipped(input);
     return false;
   }
   const FrameFiles found = frame_files(input);
@@ -333,20 +366,35 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     }
   }
   record(r);
+  finish_watched(input, output, error_path, r, before_key);
+  return false;
+}
+
+void FrameService::finish_watched(const std::string& input, const std::string& output,
+                                  const std::string& error_path, const WorkerResult& r, const std::string& version) {
+  std::error_code ec;
+  std::string unwritten;  // why the error file could not be written
+  if (r.ok()) fs::remove(error_path, ec);
+  else unwritten = record_frame_failure(output, error_path, input, r, version, watch_made_with_);
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (r.ok()) given_up_.erase(input);
     else given_up_.insert(input);
+    accounted_[input] = version;
+    if (unwritten.empty()) unwritten_failures_.erase(input);
+    else unwritten_failures_[input] = version;
   }
-  std::error_code ec;
-  if (r.ok()) {
-    fs::remove(error_path, ec);
-    log("ok " + input + " -> " + output + " (" + timing(r) + ")");
-  } else {
-    record_frame_failure(output, error_path, input, r, before_key, watch_made_with_);
-    log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
-  }
-  return false;
+  if (r.ok()) log("ok " + input + " -> " + output + " (" + timing(r) + ")");
+  else if (unwritten.empty()) log("FAILED " + input + ": " + r.error + " (" + error_path + ")");
+  else log("FAILED " + input + ": " + r.error + " (the error file could not be written: " + unwritten + ")");
+}
+
+void FrameService::count_skipped(const std::string& input) {
+  const std::string version = frame_version_key(input);
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::string& accounted = accounted_[input];
+  if (accounted != version) ++skipped_;
+  accounted = version;
 }
 
 int FrameService::watch_views() const { return options_.watch_options.value("views", kDefaultViewsPerSide); }
@@ -366,6 +414,7 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
     return (watch_made_with_.empty() || made.same_options) && made.whole &&
            (!options_.watch_options.value("png", false) || made.previews);
   }
+  if (failed_without_error_file(input)) return true;
   if (!output_up_to_date_with_sidecar(input, error_path)) return false;
   std::ifstream in(error_path);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
@@ -378,6 +427,13 @@ bool FrameService::watched_frame_done(const std::string& input, const std::strin
     if (given_up_.count(input)) return true;
   }
   return !(j.is_object() && j.value("retry", false));
+}
+
+bool FrameService::failed_without_error_file(const std::string& input) const {
+  const std::string version = frame_version_key(input);
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = unwritten_failures_.find(input);
+  return it != unwritten_failures_.end() && it->second == version;
 }
 
 }  // namespace ssdo

@@ -10,7 +10,9 @@
 //   error file is at least as new as its last change, checked when a dispatcher takes it,
 //   so rescans and events never compute a frame twice, and restarts skip finished frames.
 //   A camera sidecar (NAME.camera.json) counts as part of its frame: its arrival or change
-//   queues the frame again, and an output or error file older than it is stale.
+//   queues the frame again, and an output or error file older than it is stale. A socket
+//   request that wrote or failed a watched frame's output queues the frame again too: an
+//   output or error file of other options than the watch's is computed again.
 // Socket tasks go first (someone is waiting for them). A transient failure (the worker
 // killed, timed out or out of memory: WorkerResult::transient) is tried again on a new
 // worker, `retries` times at most. Failed frames get OUT/NAME.error.json (written through
@@ -105,12 +107,24 @@ class FrameService {
   // True when the input changed while it was computed (to be computed again).
   bool run_watched(WorkerProcess& worker, const std::string& input, bool force);
   void run_task(WorkerProcess& worker, FrameTask& task);
+  // The frame of the watch folder whose output `output` is (the input that claimed it);
+  // empty when none.
+  std::string watched_frame_of(const std::string& output) const;
   // Runs the job, again on a new worker after a transient failure (options_.retries times),
   // unless `task` (when given) is abandoned by then.
   WorkerResult run_with_retries(WorkerProcess& worker, const WorkerJob& job, const FrameTask* task = nullptr);
   // True when a watched input needs no computing: its output, or an error file that is
   // final (not a transient failure, or one this run already gave up on), is up to date.
   bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);
+  // Records a watched frame's result (its error file, or none; what this run remembers of
+  // it) and logs it; `version` is frame_version_key of the input it read.
+  void finish_watched(const std::string& input, const std::string& output, const std::string& error_path,
+                      const WorkerResult& r, const std::string& version);
+  // Whether this version of a watched input failed and its error file could not be written.
+  bool failed_without_error_file(const std::string& input) const;
+  // Counts a watched frame found up to date as skipped, once per version of it: --poll's
+  // rescans and repeated events find the same frame again and again.
+  void count_skipped(const std::string& input);
   // The watch's window (its options' --views and --temporal) and a watched frame's
   // neighbours: the frames of its sequence in the folder now.
   int watch_views() const;
@@ -137,6 +151,13 @@ class FrameService {
   std::vector<std::thread> dispatchers_;
   size_t in_flight_ = 0;
   std::set<std::string> given_up_;       // inputs whose transient failure this run gave up on
+  // Watched input -> the version (frame_version_key) this run computed, failed or counted as
+  // skipped: finding that version up to date again is not another skipped frame.
+  std::map<std::string, std::string> accounted_;
+  // Watched input -> the version that failed when its error file could not be written (a
+  // name too long, a full disk): no file records the failure, so this run remembers it, and
+  // rescans and events do not compute the frame again and again (a restart does, once).
+  std::map<std::string, std::string> unwritten_failures_;
   long done_ = 0, failed_ = 0, skipped_ = 0, replaced_ = 0, retried_ = 0;
   double done_ms_ = 0;
   Clock::time_point started_at_ = Clock::now();
@@ -148,14 +169,15 @@ class FrameService {
 // again); "version" (left out when empty) is frame_version_key of the input the failure
 // read; "options" (left out when empty) the options attribute it was computed with
 // (request_options.h: options_attribute), so that a watch folder's frame failed by a
-// request's other options is computed again with the watch's.
-bool write_error_file(const std::string& path, const std::string& input, const std::string& error,
-                      bool retry = false, const std::string& version = {}, const std::string& options = {});
+// request's other options is computed again with the watch's. Returns why it could not be
+// written (a name longer than the file system allows, a full disk); empty when written.
+std::string write_error_file(const std::string& path, const std::string& input, const std::string& error,
+                             bool retry = false, const std::string& version = {}, const std::string& options = {});
 
 // Records a failed frame: removes its output (an older version's result, which would
 // otherwise sit beside the newer error) and its previews, and writes its error file with the
-// input's version and the options.
-bool record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
-                          const WorkerResult& result, const std::string& version, const std::string& options);
+// input's version and the options. Returns write_error_file's answer.
+std::string record_frame_failure(const std::string& output, const std::string& error_path, const std::string& input,
+                                 const WorkerResult& result, const std::string& version, const std::string& options);
 
 }  // namespace ssdo

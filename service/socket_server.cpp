@@ -642,6 +642,7 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
                         {"temporal", r.temporal_per_side},
                         {"reduced", r.window_reduced()}};
   if (r.window_reduced()) response["window"]["note"] = r.window_note;
+  if (!r.warnings.empty()) response["warnings"] = r.warnings;  // the input changed while computed
   if (!id.is_null()) response["id"] = id;
   if (request.reply_inline) return reply(fd, response, output);
   response["output"] = output;

@@ -491,6 +491,32 @@ TEST(ServeSocket, GracefulStopFinishesTheFrameInFlight) {
   }
 }
 
+// A frame replaced while a request computes it: the reply says its result may be of the old
+// version, and the output is dated back behind the new one (a watch or a batch over the
+// folder then computes it again), as `ssdo process` and the watch do.
+TEST(ServeSocket, AFrameReplacedWhileComputedIsSaidAndItsOutputLeftOutOfDate) {
+  ScratchDir dir;
+  SocketService service(dir, "replaced", {"--jobs", "1"});
+  ASSERT_TRUE(service.ready) << service.log();
+  const fs::path input = dir.path / "frames" / "cornell.exr";
+  json reply;
+  std::thread request([&] { reply = process_path(service.socket, input.string(), {{"options", kSecondsFrame.options()}}); });
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the worker has read the first version
+  fs::copy_file(example_frame("greeble.exr"), dir.path / "frames" / ".cornell.exr.part");
+  fs::rename(dir.path / "frames" / ".cornell.exr.part", input);
+  request.join();
+  ASSERT_EQ(reply.value("ok", false), true) << reply.dump();
+  const json warnings = reply.value("warnings", json::array());
+  ASSERT_EQ(warnings.size(), 1u) << reply.dump();
+  EXPECT_NE(warnings[0].get<std::string>().find("changed while it was computed"), std::string::npos) << reply.dump();
+  EXPECT_LT(fs::last_write_time(reply.value("output", "")), fs::last_write_time(input));
+  // A frame left alone gets no warning.
+  const json calm = process_path(service.socket, (dir.path / "frames" / "greeble.exr").string());
+  EXPECT_EQ(calm.value("ok", false), true) << calm.dump();
+  EXPECT_FALSE(calm.contains("warnings")) << calm.dump();
+}
+
 TEST(ServeSocket, ClientCommandSpeaksTheProtocol) {
   ScratchDir dir;
   SocketService service(dir, "client");

@@ -309,6 +309,7 @@ TEST(ServeWatch, ARestartWithOtherOptionsComputesTheFramesAgain) {
 // A socket request with options no frame of the watch folder is computed with fails a
 // watched frame (its output removed, an error file written): the watch's next start
 // computes the frame again with its own options instead of taking that error as final.
+// (A service without the watch fails it: a watching one would compute it again at once.)
 TEST(ServeWatch, AFrameFailedByARequestsOtherOptionsIsComputedAgainByTheWatch) {
   ScratchDir dir;
   fs::create_directories(dir.path / "in");
@@ -317,9 +318,13 @@ TEST(ServeWatch, AFrameFailedByARequestsOtherOptionsIsComputedAgainByTheWatch) {
   const std::string socket = socket_path_for("reqfail");
   const std::vector<std::string> allow = {"--allow", dir / "in"};
   {
-    SsdoProcess service(serve_args(dir, socket, allow), dir.path / "serve1.log");
-    ASSERT_TRUE(wait_until([&] { return path_exists(output); }, 60)) << service.log();
+    std::vector<std::string> args = serve_args(dir, socket, allow);
+    args.erase(args.begin() + 1, args.begin() + 3);  // "--watch", DIR
+    SsdoProcess service(args, dir.path / "serve1.log");
+    ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
     Client c(socket);
+    EXPECT_EQ(c.request({{"op", "process"}, {"input", input.string()}}).value("ok", false), true);
+    EXPECT_TRUE(path_exists(output));
     const json r = c.request({{"op", "process"}, {"input", input.string()}, {"options", {{"part", "nope"}}}});
     EXPECT_EQ(r.value("code", ""), "frame_failed") << r.dump();
     EXPECT_FALSE(path_exists(output));
@@ -329,6 +334,34 @@ TEST(ServeWatch, AFrameFailedByARequestsOtherOptionsIsComputedAgainByTheWatch) {
   SsdoProcess service(serve_args(dir, socket, allow), dir.path / "serve2.log");
   EXPECT_TRUE(wait_until([&] { return path_exists(output); }, 60)) << service.log();
   EXPECT_TRUE(wait_until([&] { return !path_exists(dir.path / "out" / "a.error.json"); }, 10)) << service.log();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
+// The same while the service runs: a socket request that replaces a watched frame's output
+// with other options' (stand-in data), or fails it (the output removed, an error file
+// written), queues the frame again, and the watch computes it with its own options.
+TEST(ServeWatch, AWatchedFrameARequestReplacedOrFailedIsComputedAgainWhileTheServiceRuns) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "a");
+  const fs::path input = dir.path / "in" / "a.exr", output = dir.path / "out" / "a.ssdo.exr";
+  const fs::path error_file = dir.path / "out" / "a.error.json";
+  const std::string socket = socket_path_for("reqredo");
+  SsdoProcess service(serve_args(dir, socket, {"--allow", dir / "in", "--jobs", "1"}), dir.path / "serve.log");
+  auto made_with = [&] {
+    auto in = OIIO::ImageInput::open(output.string());
+    return in ? std::string(in->spec().get_string_attribute("ssdo/options")) : std::string();
+  };
+  ASSERT_TRUE(wait_until([&] { return !made_with().empty(); }, 60)) << service.log();
+  const std::string watch_options = made_with();
+  Client c(socket);
+  const json stand_in = c.request({{"op", "process"}, {"input", input.string()}, {"options", {{"io-only", true}}}});
+  ASSERT_EQ(stand_in.value("ok", false), true) << stand_in.dump();
+  EXPECT_TRUE(wait_until([&] { return made_with() == watch_options; }, 60)) << service.log();
+  const json failed = c.request({{"op", "process"}, {"input", input.string()}, {"options", {{"part", "nope"}}}});
+  ASSERT_EQ(failed.value("code", ""), "frame_failed") << failed.dump();
+  EXPECT_TRUE(wait_until([&] { return made_with() == watch_options && !path_exists(error_file); }, 60))
+      << service.log();
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
@@ -386,6 +419,51 @@ TEST(ServeWatch, AFrameUpToDateAtStartKeepsItsOutputFromSocketRequests) {
   const json r = client.request({{"op", "process"}, {"input", dir / "allow/x.exr"}});
   EXPECT_EQ(r.value("code", ""), "conflict") << r.dump();
   EXPECT_EQ(exr_content(output.string()), before);
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
+// frames_skipped counts a frame found up to date once (per version of it), not at every
+// rescan, and not at all when this run computed it.
+TEST(ServeWatch, ARescanDoesNotCountAnUpToDateFrameAgain) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "before");
+  const std::string socket = socket_path_for("skipcount");
+  {
+    SsdoProcess service(serve_args(dir, socket), dir.path / "serve1.log");
+    ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "before.ssdo.exr"); }, 60)) << service.log();
+    EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+  }
+  SsdoProcess service(serve_args(dir, socket, {"--poll", "0.2"}), dir.path / "serve2.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  copy_example("greeble", dir.path / "in", "during");
+  ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "out" / "during.ssdo.exr"); }, 60)) << service.log();
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // ten rescans
+  const json s = stats(socket);
+  EXPECT_EQ(s.value("frames_skipped", -1), 1) << s.dump();
+  EXPECT_EQ(s.value("frames_done", -1), 1) << s.dump();
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
+// A frame whose error file cannot be written (its name is longer than a file name may be):
+// the log says so instead of naming a file that is not there, and rescans do not compute
+// the frame again (its failure is remembered while the service runs).
+TEST(ServeWatch, AFailureWhoseErrorFileCannotBeWrittenIsSaidAndNotRetried) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  const std::string socket = socket_path_for("longname");
+  SsdoProcess service(serve_args(dir, socket, {"--poll", "0.2"}), dir.path / "serve.log");
+  ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
+  const fs::path input = dir.path / "in" / (std::string(246, 'b') + ".exr");  // NAME.error.json: 257 bytes
+  std::ofstream(input) << "this is not an EXR file";
+  const std::string failed = "FAILED " + input.string() + ": ";
+  ASSERT_TRUE(service.wait_for_log(failed, 60)) << service.log();
+  std::this_thread::sleep_for(std::chrono::seconds(2));  // ten rescans
+  const std::string log = service.log();
+  EXPECT_EQ(count_occurrences(log, failed), 1) << log;
+  EXPECT_EQ(log.find(".error.json)"), std::string::npos) << log;
+  EXPECT_NE(log.find("the error file could not be written"), std::string::npos) << log;
+  EXPECT_EQ(stats(socket).value("frames_failed", -1), 1);
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
