@@ -228,12 +228,14 @@ int run_process(const ProcessArgs& args) {
     const bool current = output_up_to_date_with_sidecar(f, output) &&
                          neighbours_older_than(neighbours_of(neighbours, f), output) &&
                          output_up_to_date_with_all(option_files, output);
-    const std::string window =
-        window_attribute(neighbours_of(neighbours, f), args.options.compute.views, args.options.compute.temporal);
-    const OutputMadeWith made = current ? output_made_with(output, made_with, window) : OutputMadeWith{};
+    const OutputMadeWith made =
+        current ? output_made_with(output, made_with,
+                                   window_attribute(neighbours_of(neighbours, f), args.options.compute.views,
+                                                    args.options.compute.temporal))
+                : OutputMadeWith{};
     const bool same_options = made.same_options;
     const bool whole = same_options && made.whole && (!args.options.png || made.previews);
-    if (std::error_code ec; !whole && std::filesystem::exists(output, ec)) stale.insert(f);
+    if (std::error_code ec; !(same_options && made.whole) && std::filesystem::exists(output, ec)) stale.insert(f);
     other_options += !args.force && current && made.from_ssdo && !same_options;
     not_ssdo += !args.force && current && !made.from_ssdo;
     cut_short += !args.force && same_options && !made.whole;
@@ -241,19 +243,16 @@ int run_process(const ProcessArgs& args) {
     (whole && !args.force ? up_to_date : todo).push_back(f);
   }
   if (places > 0) in_shot_order(todo);
-  if (other_options > 0)
-    std::cerr << "ssdo process: " << other_options << (other_options == 1 ? " output was" : " outputs were")
-              << " made with other options, other neighbouring frames or another ssdo version than this run's: computed "
-                 "again\n";
-  if (not_ssdo > 0)
-    std::cerr << "ssdo process: " << not_ssdo << (not_ssdo == 1 ? " output was" : " outputs were")
-              << " not readable as ssdo's (a damaged file, or another program's in its place): computed again\n";
-  if (no_previews > 0)
-    std::cerr << "ssdo process: " << no_previews << (no_previews == 1 ? " output was" : " outputs were")
-              << " missing some of their --png previews: computed again\n";
-  if (cut_short > 0)
-    std::cerr << "ssdo process: " << cut_short << (cut_short == 1 ? " output was" : " outputs were")
-              << " cut short (an interrupted copy, or a crash before the data reached the disk): computed again\n";
+  // Why outputs found are computed again, one line per reason.
+  auto say = [](int count, const char* why) {
+    if (count > 0)
+      std::cerr << "ssdo process: " << count << (count == 1 ? " output was " : " outputs were ") << why
+                << ": computed again\n";
+  };
+  say(other_options, "made with other options, other neighbouring frames or another ssdo version than this run's");
+  say(not_ssdo, "not readable as ssdo's (a damaged file, or another program's in its place)");
+  say(no_previews, "missing some of their --png previews");
+  say(cut_short, "cut short (an interrupted copy, or a crash before the data reached the disk)");
 
   const Parallelism plan = plan_parallelism(args.jobs, args.options.compute.threads, false);
   WorkerLimits limits = args.limits;
