@@ -174,7 +174,8 @@ void add_worker_limits(CLI::App& cmd, int& jobs, WorkerLimits& limits) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)
       ->group("Workers");
   cmd.add_option("--frame-timeout", limits.frame_timeout_s,
-                 "Seconds a frame may take (read + compute + write) before its worker is killed; time the job is suspended (SIGSTOP) does not count")
+                 "Seconds a frame may take (read + compute + write) before its worker is killed; time the job is "
+                 "suspended (SIGSTOP) does not count")
       ->check(seconds_in(0.001, 604800.0))
       ->capture_default_str()
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeLast)

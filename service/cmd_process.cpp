@@ -172,7 +172,8 @@ void in_shot_order(std::vector<std::string>& frames) {
     const std::optional<SequencePlace> place = sequence_place(f);
     return place ? std::make_tuple(place->sequence, place->number, f) : std::make_tuple(f, 0L, f);
   };
-  std::stable_sort(frames.begin(), frames.end(), [&](const std::string& a, const std::string& b) { return key(a) < key(b); });
+  std::stable_sort(frames.begin(), frames.end(),
+                   [&](const std::string& a, const std::string& b) { return key(a) < key(b); });
 }
 
 // The neighbour list of `frame` (none outside a sequence).

@@ -154,9 +154,11 @@ OutputMadeWith output_made_with(const std::string& output, const std::string& op
   const bool same_window = window_attribute.empty() || made.attributes[2] == window_attribute;
   const fs::path out(output);
   std::error_code ec;
-  const bool previews = !made.channels.empty() && std::all_of(made.channels.begin(), made.channels.end(), [&](const std::string& c) {
-    return fs::is_regular_file(out.parent_path() / (out.stem().string() + "." + c.substr(0, c.find('.')) + ".png"), ec);
-  });
+  auto has_preview = [&](const std::string& channel) {
+    const std::string term = channel.substr(0, channel.find('.'));
+    return fs::is_regular_file(out.parent_path() / (out.stem().string() + "." + term + ".png"), ec);
+  };
+  const bool previews = !made.channels.empty() && std::all_of(made.channels.begin(), made.channels.end(), has_preview);
   return {made.attributes[0] == options_attribute && made.attributes[1] == version_string() && same_window,
           made.attributes[0].has_value() && made.attributes[1].has_value(), made.chunks_complete, previews};
 }
