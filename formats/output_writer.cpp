@@ -687,7 +687,7 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   // frame after the previews before it were written.
   constexpr size_t kMaxNameBytes = 255;  // NAME_MAX of Linux file systems
   for (const OutputTerm& t : terms)
-    if (const std::string name = final_path.stem().string() + "." + t.name + ".png";
+    if (const std::string name = fs::path(preview_path(path, t.name)).filename().string();
         options.png_previews && name.size() > kMaxNameBytes)
       return path + ": the preview name " + name + " is " + std::to_string(name.size()) +
              " bytes, over a file name's 255: shorten the frame's name, or leave out --png";
@@ -710,12 +710,11 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
     // that skips up-to-date EXRs never leaves previews missing (the EXR is the frame's
     // completion mark). The first term's error in the terms' order is the one reported;
     // the EXR's temp file is then removed.
-    const fs::path stem = final_path.parent_path() / final_path.stem();
     std::vector<std::string> errors(terms.size());
     parallel_rows(cv::Range(0, int(terms.size())), options.threads, [&](const cv::Range& r) {
       for (int i = r.start; i < r.end; ++i) {
         const OutputTerm& t = terms[size_t(i)];
-        errors[size_t(i)] = write_png(fs::path(stem.string() + "." + t.name + ".png"), t);
+        errors[size_t(i)] = write_png(fs::path(preview_path(path, t.name)), t);
       }
     }, 1);
     for (const std::string& error : errors)
@@ -745,6 +744,11 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
                           const Camera& camera, const WriteOptions& options) {
   ResourceFailure exhausted;
   return write_outputs(path, terms, camera, options, exhausted);
+}
+
+std::string preview_path(const std::string& output, const std::string& term) {
+  const fs::path out(output);
+  return (out.parent_path() / (out.stem().string() + "." + term + ".png")).string();
 }
 
 namespace {

@@ -119,6 +119,10 @@ std::optional<std::string> read_string_attribute(const std::string& path, const 
 std::vector<std::optional<std::string>> read_string_attributes(const std::string& path,
                                                                const std::vector<std::string>& names);
 
+// The PNG preview of term `term` of the output EXR at `output` (WriteOptions::png_previews):
+// OUT/NAME.ssdo.<term>.png beside OUT/NAME.ssdo.exr.
+std::string preview_path(const std::string& output, const std::string& term);
+
 // What an existing output says of itself, from one open of the EXR at `path`.
 struct ExistingOutput {
   // The string attributes asked for, as read_string_attributes gives them.

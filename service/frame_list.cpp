@@ -152,11 +152,9 @@ OutputMadeWith output_made_with(const std::string& output, const std::string& op
                                 const std::string& window_attribute) {
   const ExistingOutput made = read_existing_output(output, {kOptionsAttribute, kVersionAttribute, kWindowAttribute});
   const bool same_window = window_attribute.empty() || made.attributes[2] == window_attribute;
-  const fs::path out(output);
   std::error_code ec;
   auto has_preview = [&](const std::string& channel) {
-    const std::string term = channel.substr(0, channel.find('.'));
-    return fs::is_regular_file(out.parent_path() / (out.stem().string() + "." + term + ".png"), ec);
+    return fs::is_regular_file(preview_path(output, channel.substr(0, channel.find('.'))), ec);
   };
   const bool previews = !made.channels.empty() && std::all_of(made.channels.begin(), made.channels.end(), has_preview);
   return {made.attributes[0] == options_attribute && made.attributes[1] == version_string() && same_window,

@@ -330,7 +330,10 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
   // is then told of the conflict instead of replacing this frame's output.
   std::string owner;
   const bool claimed = claim_output(output, input, owner);
-  if (claimed && !force && watched_frame_done(input, output, error_path)) {
+  // The frames of its sequence in the folder now: one scan of the folder for the up-to-date
+  // test and the job.
+  const std::vector<NeighbourFrame> neighbours = watch_neighbours(input);
+  if (claimed && !force && watched_frame_done(input, output, error_path, neighbours)) {
     count_skipped(input);
     return false;
   }
@@ -352,7 +355,7 @@ bool FrameService::run_watched(WorkerProcess& worker, const std::string& input, 
     // The frames of its sequence already in the folder are its neighbours; the watch
     // folder's own rules: the input, its sidecar and the neighbours inside it (a symbolic
     // link pointing out of it is refused); the service's options are the administrator's.
-    r = run_with_retries(worker, {input, output, options_.watch_options, watch_neighbours(input),
+    r = run_with_retries(worker, {input, output, options_.watch_options, neighbours,
                                   {{options_.watch_dir}, {}, options_.out_dir, {}}});
     if (version_of(input).exists && changed_since(input, found)) {
       // Replaced or rewritten (or its sidecar) while computed: the result may be of the old
@@ -405,8 +408,7 @@ std::vector<NeighbourFrame> FrameService::watch_neighbours(const std::string& in
 }
 
 bool FrameService::watched_frame_done(const std::string& input, const std::string& output,
-                                      const std::string& error_path) {
-  const std::vector<NeighbourFrame> neighbours = watch_neighbours(input);
+                                      const std::string& error_path, const std::vector<NeighbourFrame>& neighbours) {
   if (output_up_to_date_with_sidecar(input, output) && output_up_to_date_with_all(watch_files_, output) &&
       neighbours_older_than(neighbours, output)) {
     const OutputMadeWith made = output_made_with(

@@ -115,7 +115,8 @@ class FrameService {
   WorkerResult run_with_retries(WorkerProcess& worker, const WorkerJob& job, const FrameTask* task = nullptr);
   // True when a watched input needs no computing: its output, or an error file that is
   // final (not a transient failure, or one this run already gave up on), is up to date.
-  bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path);
+  bool watched_frame_done(const std::string& input, const std::string& output, const std::string& error_path,
+                          const std::vector<NeighbourFrame>& neighbours);
   // Records a watched frame's result (its error file, or none; what this run remembers of
   // it) and logs it; `version` is frame_version_key of the input it read.
   void finish_watched(const std::string& input, const std::string& output, const std::string& error_path,

@@ -493,12 +493,10 @@ const std::vector<std::string>& output_term_names() {
 }
 
 void remove_previews_except(const std::string& output, const std::vector<std::string>& kept) {
-  const std::filesystem::path out(output);
   std::error_code ec;
   for (const std::string& term : output_term_names())
     if (std::find(kept.begin(), kept.end(), term) == kept.end())
-      if (const std::filesystem::path preview = out.parent_path() / (out.stem().string() + "." + term + ".png");
-          std::filesystem::is_regular_file(preview, ec))
+      if (const std::string preview = preview_path(output, term); std::filesystem::is_regular_file(preview, ec))
         std::filesystem::remove(preview, ec);
 }
 
