@@ -721,6 +721,61 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& __r
   }
 }
 
+// The ordered pass's update of a side from its step, per lane: the occluded range
+// [h0, h1] the step adds to the mask (the tap's interval, joined with the side's last one
+// where they connect; (1, 0) without one), the side's horizon (the taps within the
+// radius), and its last tap. In explicit vectors: written per lane, GCC turns the updates
+// that keep a lane's value into masked stores, which AMD's cores run as microcode.
+// std::min and std::max as selects (their operand order on ties and zeros).
+inline void update_side(const Constants& k, const StepLanes& __restrict t, int side, const int32_t* interval,
+                        const int32_t* connect, SideLanes& __restrict st, float* h0, float* h1) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const auto zero = hn::Zero(d);
+  const auto zero_i = hn::Zero(di);
+  // A tap on or below the tangent plane connects at the tangent limit: u = 1 on the
+  // positive side, 0 on the other.
+  const auto u_lim = hn::Set(d, side == 0 ? 1.0f : 0.0f);
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
+    const auto index = hn::Load(di, t.index + l);
+    const auto depth = hn::Load(d, t.depth_view + l);
+    const auto foreground = hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(depth, zero));
+    // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
+    // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
+    // first matters: rounding taps to pixel centres moves them off the slice, and their
+    // slice angle alone would put tilted planes above their own tangent line.
+    const auto up = hn::Gt(hn::Load(d, t.height + l), zero);
+    const auto above = hn::And(foreground, up);
+    const auto below = hn::AndNot(up, foreground);
+    const auto centre = hn::AndNot(hn::Gt(hn::Load(d, t.dist_slice2 + l), zero), above);  // on the centre line
+    const auto in_radius = hn::And(hn::RebindMask(d, hn::Ne(hn::Load(di, t.occluder + l), zero_i)),
+                                   hn::Le(hn::Load(d, t.dist2 + l), hn::Set(d, k.r2)));
+    const auto horizon = hn::Load(d, st.horizon_cos + l), tap_cos = hn::Load(d, t.tap_cos + l);
+    hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap_cos)), tap_cos, horizon), d, st.horizon_cos + l);
+    const auto has = hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i));
+    const auto joined = hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i));
+    const auto tu0 = hn::Load(d, t.u0 + l), tu1 = hn::Load(d, t.u1 + l);
+    const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
+    // The occluded range, as an empty one (1, 0) without an interval.
+    const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
+    const auto hi = hn::IfThenElse(hn::And(joined, hn::Lt(tu1, su1)), su1, tu1);  // std::max(tu1, su1)
+    hn::Store(hn::IfThenElse(has, lo, hn::Set(d, 1.0f)), d, h0 + l);
+    hn::Store(hn::IfThenElseZero(has, hi), d, h1 + l);
+    // The side's last tap: unchanged without a tap or on the centre line; else this one,
+    // with nothing to connect to off screen, on background and beyond the radius.
+    const auto keep = hn::Or(hn::RebindMask(d, hn::Eq(index, hn::Set(di, kNoTap))), centre);
+    const auto last_depth = hn::IfThenElse(hn::Or(has, below), depth, hn::Set(d, -1.0f));
+    hn::Store(hn::IfThenElse(keep, hn::Load(d, st.depth_view + l), last_depth), d, st.depth_view + l);
+    hn::Store(hn::IfThenElse(keep, su0, hn::IfThenElse(has, tu0, u_lim)), d, st.u0 + l);
+    hn::Store(hn::IfThenElse(keep, su1, hn::IfThenElse(has, tu1, u_lim)), d, st.u1 + l);
+    const auto keep_i = hn::RebindMask(di, keep);
+    hn::Store(hn::IfThenElse(keep_i, hn::Load(di, st.texel + l), hn::Max(index, zero_i)), di, st.texel + l);
+    const auto below_i = hn::IfThenElseZero(hn::RebindMask(di, below), hn::Set(di, 1));
+    hn::Store(hn::IfThenElse(keep_i, hn::Load(di, st.below + l), below_i), di, st.below + l);
+  }
+}
+
 // One step of side `side` of the visibility mask (Therrien et al. 2023; finite
 // thickness_world) of each lane: the sectors the tap's segment occludes, with the side's
 // last tap's when they connect, into `occupied`; the side's last tap and its horizon (the
@@ -730,34 +785,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& __r
   alignas(64) int32_t interval[kLanes], connect[kLanes];
   connections(k, f, t, st, interval, connect);
   alignas(64) float h0[kLanes], h1[kLanes];
-  // A tap on or below the tangent plane connects at the tangent limit: u = 1 on the
-  // positive side, 0 on the other.
-  const float u_lim = side == 0 ? 1.0f : 0.0f;
-  for (int l = 0; l < kLanes; ++l) {
-    const int32_t index = t.index[l];
-    const bool foreground = (index >= 0) & (t.depth_view[l] >= 0.0f);
-    // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
-    // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
-    // first matters: rounding taps to pixel centres moves them off the slice, and their
-    // slice angle alone would put tilted planes above their own tangent line.
-    const bool above = foreground & (t.height[l] > 0.0f);
-    const bool below = foreground & !(t.height[l] > 0.0f);
-    const bool centre = above & !(t.dist_slice2[l] > 0.0f);  // on the slice's centre line
-    const bool in_radius = occluder(t, l) & (t.dist2[l] <= k.r2);
-    st.horizon_cos[l] = in_radius ? std::max(st.horizon_cos[l], t.tap_cos[l]) : st.horizon_cos[l];
-    const bool has = interval[l] != 0, joined = connect[l] != 0;
-    // The occluded range, as an empty one (1, 0) without an interval.
-    h0[l] = !has ? 1.0f : joined ? std::min(t.u0[l], st.u0[l]) : t.u0[l];
-    h1[l] = !has ? 0.0f : joined ? std::max(t.u1[l], st.u1[l]) : t.u1[l];
-    // The side's last tap: unchanged without a tap or on the centre line; else this one,
-    // with nothing to connect to off screen, on background and beyond the radius.
-    const bool keep = (index == kNoTap) | centre;
-    st.depth_view[l] = keep ? st.depth_view[l] : (has | below) ? t.depth_view[l] : -1.0f;
-    st.u0[l] = keep ? st.u0[l] : has ? t.u0[l] : u_lim;
-    st.u1[l] = keep ? st.u1[l] : has ? t.u1[l] : u_lim;
-    st.texel[l] = keep ? st.texel[l] : std::max(index, 0);
-    st.below[l] = keep ? st.below[l] : int32_t(below);
-  }
+  update_side(k, t, side, interval, connect, st, h0, h1);
   alignas(64) int32_t k0[kLanes], count[kLanes];
   for (int l = 0; l < kLanes; ++l) sector_range(h0[l], h1[l], k0[l], count[l]);
   add_sector_runs(k0, count, occupied, kLanes);
