@@ -616,6 +616,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   while (!outcome->cv.wait_for(lock, std::chrono::milliseconds(kPeerCheckMs), [&] { return outcome->done; })) {
     if (peer_closed(fd)) {
       abandoned->store(true);
+      lock.unlock();  // a task dropped now is answered through `outcome`
+      frames_.drop_abandoned();
       return false;
     }
   }
