@@ -263,6 +263,7 @@ int run_eval(const EvalArgs& args) {
       const std::string out = (std::filesystem::path(args.heatmap_dir) / (stem + ".error.exr")).string();
       WriteOptions w;
       w.png_previews = true;
+      w.preview_named_as_file = "error";  // NAME.error.png: the heatmap's own picture
       const std::string err = write_outputs(
           out, {{"error", error_heatmap(estimate, reference, frame.gbuffer.mask), SampleType::half, false},
                 {args.term, estimate, SampleType::float32, false},
@@ -315,7 +316,9 @@ Command register_eval(CLI::App& app) {
   cmd->add_flag("--json", e.json,
                 "Print JSON: \"files\" (one entry per measured file), \"failed\" (path and error of each file "
                 "that gave no measurement) and \"overall\"");
-  cmd->add_option("--heatmap", e.heatmap_dir, "Write an error image per file into DIR");
+  cmd->add_option("--heatmap", e.heatmap_dir,
+                  "Write an error image per file into DIR: NAME.error.exr (channels error, the term, reference) "
+                  "and its pictures NAME.error.png (the error), NAME.error.<term>.png, NAME.error.reference.png");
   add_frame_options(*cmd, st->options, int(OptionSet::read) | int(OptionSet::compute));
   return {cmd, [st] {
             EvalArgs& eval = st->args;

@@ -193,6 +193,7 @@ int run_serve(const ServeArgs& args) {
     o.allow_roots = allow;
     o.out_dir = out_dir;
     o.spool_dir = spool;
+    o.watch_dir = watch_dir;
     o.limits = args.protocol;
     o.client_timeout_s = args.client_timeout_s;
     o.frame_timeout_s = args.limits.frame_timeout_s;

@@ -103,6 +103,29 @@ bool FrameService::submit(FrameTask task) {
   return true;
 }
 
+void FrameService::drop_abandoned() {
+  std::vector<FrameTask> gone;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (auto it = tasks_.begin(); it != tasks_.end();) {
+      if (!it->is_abandoned()) {
+        ++it;
+        continue;
+      }
+      gone.push_back(std::move(*it));
+      it = tasks_.erase(it);
+    }
+  }
+  for (FrameTask& task : gone) drop(task);  // outside the lock: done takes it (end_output)
+}
+
+void FrameService::drop(FrameTask& task) {
+  log("dropped " + task.input + ": its client closed the connection while it was queued");
+  WorkerResult r;
+  r.error = "the client closed the connection";
+  if (task.done) task.done(r);
+}
+
 void FrameService::enqueue_watched(const std::string& reported) {
   // A sidecar stands for its frame (when the frame is there: it may come later).
   std::string input = reported;
@@ -201,12 +224,9 @@ void FrameService::dispatch_loop() {
     if (!tasks_.empty()) {
       FrameTask task = std::move(tasks_.front());
       tasks_.pop_front();
-      if (task.is_abandoned()) {  // its client is gone: nobody waits for it
+      if (task.is_abandoned()) {  // its client went just before drop_abandoned could take it
         lock.unlock();
-        log("dropped " + task.input + ": its client closed the connection while it was queued");
-        WorkerResult r;
-        r.error = "the client closed the connection";
-        if (task.done) task.done(r);
+        drop(task);
         continue;
       }
       ++in_flight_;

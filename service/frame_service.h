@@ -63,7 +63,8 @@ struct FrameTask {
   std::function<void(const WorkerResult&)> done;  // called once, from a dispatcher thread
   Clock::time_point queued_at = Clock::now();
   // Set when the client has gone (closed its connection): a queued task is dropped (done
-  // gets an error, nothing is written), a failed one is not tried again. Null: never.
+  // gets an error, nothing is written; FrameService::drop_abandoned), a failed one is not
+  // tried again. Null: never.
   std::shared_ptr<const std::atomic<bool>> abandoned;
   bool is_abandoned() const { return abandoned && abandoned->load(); }
 };
@@ -86,6 +87,11 @@ class FrameService {
   void start();
   // False when the queue is full or the service is stopping (the task is not run).
   bool submit(FrameTask task);
+  // Takes the queued socket tasks whose client has gone out of the queue (their `done` gets
+  // an error; nothing is written): nobody waits for them, so they neither count in the
+  // queue's depth nor hold a place another client could have. A task already computing
+  // finishes.
+  void drop_abandoned();
   // Considers a watched input (see above).
   void enqueue_watched(const std::string& input);
   // No new task starts; queued socket tasks are answered "service stopping"; frames in
@@ -104,6 +110,8 @@ class FrameService {
 
  private:
   void dispatch_loop();
+  // Answers a task whose client has gone, and logs it.
+  void drop(FrameTask& task);
   // True when the input changed while it was computed (to be computed again).
   bool run_watched(WorkerProcess& worker, const std::string& input, bool force);
   void run_task(WorkerProcess& worker, FrameTask& task);

@@ -204,10 +204,18 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
     ++reads_.raw_kept;
     return (cache_[n.path].raw_part = std::move(kept)).get();
   }
+  if (Entry& e = cache_[n.path]; e.unreadable) {  // not read again
+    e.raw_error = e.error;
+    return nullptr;
+  }
   ReadResult f = read_in_window(r, neighbour_read(n, read));
   Entry& e = cache_[n.path];  // std::map: references stay valid
-  if (!f.ok()) e.raw_error = f.error;
-  else if (!has_world(f.info)) e.raw_error = "no camera with a world transform";
+  if (!f.ok()) {
+    e.raw_error = f.error;
+    remember_failed_read(n, std::move(f), e);
+    return nullptr;
+  }
+  if (!has_world(f.info)) e.raw_error = "no camera with a world transform";
   if (!e.raw_error.empty() || !resolve_frame_radius(r, f.info, e.raw_error)) return nullptr;
   RawFrame raw = compute_raw_frame(std::move(f.gbuffer), r);
   ++reads_.raw_terms;
@@ -228,6 +236,7 @@ SequenceContext::Entry& SequenceContext::candidate(const NeighbourFrame& n, cons
   ++reads_.headers;
   if (!header.ok()) {
     e.error = header.error;
+    e.unreadable = header.exhausted == ResourceFailure::none;
     return e;
   }
   e.camera = header.gbuffer.camera;
@@ -240,11 +249,13 @@ bool SequenceContext::load_view(const NeighbourFrame& n, const ReadOptions& read
   // A view read for its depth only is read again for a request that also needs its light.
   const ReadOptions as_view = neighbour_read(n, view_read);
   if (e.view && e.view_read == read_key(as_view)) return true;
+  if (e.unreadable) return false;  // not read again
   const std::string& path = n.open_path.empty() ? n.path : n.open_path;
   ReadResult r = n.computed_later ? read_frame(path, neighbour_read(n, read)) : read_gbuffer(path, as_view);
   ++(n.computed_later ? reads_.whole : reads_.depth_only);
   if (!r.ok()) {
     e.error = r.error;
+    remember_failed_read(n, std::move(r), e);
     return false;
   }
   e.view = DepthView{r.gbuffer.camera, r.gbuffer.depth_view, file_name(n.path)};
@@ -253,6 +264,15 @@ bool SequenceContext::load_view(const NeighbourFrame& n, const ReadOptions& read
   e.view_read = read_key(as_view);
   if (n.computed_later) e.whole = std::move(r);
   return true;
+}
+
+void SequenceContext::remember_failed_read(const NeighbourFrame& n, ReadResult&& failed, Entry& e) {
+  // Memory or threads running out say nothing of the file: it may read another time.
+  if (failed.exhausted != ResourceFailure::none) return;
+  e.unreadable = true;
+  e.error = failed.error;
+  // Its own turn in this worker fails with this read's error instead of reading it again.
+  if (n.computed_later) e.whole = std::move(failed);
 }
 
 void SequenceContext::attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame) {

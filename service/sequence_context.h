@@ -103,6 +103,9 @@ class SequenceContext : public FrameSource {
     std::optional<Camera> camera;      // from its header
     bool camera_has_world = false;
     std::string error;                 // why it cannot be a view
+    // A read of the file (its header, or its pixels) failed, not for want of memory: it is
+    // not read again in this batch, as a view or a temporal neighbour.
+    bool unreadable = false;
     // Temporal filtering: the raw frame whole (a frame this worker computes later) and what
     // the filter reads of it; raw_error: why its raw terms could not be computed.
     std::shared_ptr<RawFrame> raw_whole;
@@ -112,6 +115,10 @@ class SequenceContext : public FrameSource {
   };
   Entry& candidate(const NeighbourFrame& n, const ReadOptions& read);
   bool load_view(const NeighbourFrame& n, const ReadOptions& read, const ReadOptions& view_read, Entry& e);
+  // A neighbour's whole read that failed: the file is not read again in this batch, as a
+  // view or a temporal neighbour (Entry::error), nor for its own turn when this worker
+  // computes it later (Entry::whole keeps the failure).
+  void remember_failed_read(const NeighbourFrame& n, ReadResult&& failed, Entry& e);
   void attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame);
   ReadResult read_in_window(const FrameRequest& request, const ReadOptions& read);
   const RawFrame* neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);

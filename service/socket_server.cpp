@@ -545,6 +545,13 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     // files or frames' sidecars: an output is an EXR.
     if (const std::string name = fs::path(output).filename().string(); name[0] == '.' || !has_exr_extension(name))
       return refuse("bad_request", request.output + ": an output is an .exr file name, and not a hidden one");
+    // The watch takes every EXR of its folder but outputs (NAME.ssdo.exr) for a frame: an
+    // output of another name there would be computed as a frame in turn (and fail, leaving
+    // an error file), claim NAME.ssdo.exr, and join the neighbours of its sequence's frames.
+    if (!options_.watch_dir.empty() && fs::path(output).parent_path() == options_.watch_dir && is_frame_file(output))
+      return refuse("bad_request", request.output + ": in the watched folder an output is named NAME.ssdo.exr (" +
+                                       fs::path(output).stem().string() +
+                                       ".ssdo.exr); the watch takes any other .exr there for a frame");
     // Never over a frame: the input, one of its views, or any file that is not an output of
     // ssdo (a watched frame in the output folder, another program's file); a failure would
     // remove it too.
@@ -616,6 +623,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
   while (!outcome->cv.wait_for(lock, std::chrono::milliseconds(kPeerCheckMs), [&] { return outcome->done; })) {
     if (peer_closed(fd)) {
       abandoned->store(true);
+      lock.unlock();  // a task dropped now is answered through `outcome`
+      frames_.drop_abandoned();
       return false;
     }
   }

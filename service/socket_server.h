@@ -40,6 +40,7 @@ struct SocketServerOptions {
   std::vector<std::string> allow_roots; // canonical folders inputs may come from
   std::string out_dir;                  // canonical output folder
   std::string spool_dir;                // canonical folder for inline frames (private)
+  std::string watch_dir;                // canonical watched folder; empty = none
   ProtocolLimits limits;
   double client_timeout_s = 30;         // to receive a whole request, and to send a reply
   double frame_timeout_s = 300;         // the workers' limit; replies wait at most this + margin

@@ -762,6 +762,34 @@ TEST(Cli, BenchQuotesAFileNameThatHoldsACommaOrAQuote) {
   EXPECT_NE(csv.find("\n" + field), std::string::npos) << csv;
 }
 
+// A heatmap NAME.error.exr comes with its picture NAME.error.png (its "error" channel: the
+// suffix once) and the estimate's and reference's NAME.error.<term>.png. A frame whose own
+// name ends in ".error" keeps it: its maps differ from those of the frame named without it.
+TEST(Cli, EvalHeatmapsSayErrorOnceAndNeverShareANameWithAnotherFrames) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  copy_frame(dir.path / "in", "a.error");
+  const RunResult r = run_ssdo("eval " + dir / "in/a.exr" + " " + dir / "in/a.error.exr" + " --preset low --heatmap " +
+                               dir / "heat");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir.path / "heat")) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  EXPECT_EQ(names, (std::vector<std::string>{"a.error.ao.png", "a.error.error.ao.png", "a.error.error.exr",
+                                             "a.error.error.png", "a.error.error.reference.png", "a.error.exr",
+                                             "a.error.png", "a.error.reference.png"}));
+  // The picture of the heatmap is its "error" channel: 8-bit RGB, the frame's size, not the
+  // estimate's picture.
+  OIIO::ImageBuf heat((dir.path / "heat" / "a.error.png").string());
+  OIIO::ImageBuf estimate((dir.path / "heat" / "a.error.ao.png").string());
+  ASSERT_TRUE(heat.read()) << heat.geterror();
+  ASSERT_TRUE(estimate.read()) << estimate.geterror();
+  EXPECT_EQ(heat.spec().nchannels, 3);
+  EXPECT_EQ(heat.spec().width, 640);
+  EXPECT_EQ(heat.spec().height, 360);
+  EXPECT_GT(OIIO::ImageBufAlgo::compare(heat, estimate, 0, 0).nfail, 0u);
+}
+
 // A reference with NaN on part of the foreground: eval says how many pixels it left out,
 // and its heatmap is black there, not NaN.
 TEST(Cli, EvalLeavesOutAndSaysWhereTheReferenceIsNotFinite) {

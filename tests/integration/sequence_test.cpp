@@ -173,6 +173,38 @@ TEST(Sequence, AViewWhosePixelsDoNotReadIsReplacedByTheNextOne) {
   EXPECT_NE(now[0], chosen[0]) << r.output;
 }
 
+// A neighbour that cannot be read, in a shot computed with views and temporal neighbours by
+// one worker: its file is read once in the batch (not again for each frame that would use
+// it, nor for its own turn), so the reads count each of the shot's files once; its own
+// turn fails with the reason, and a frame that chose it as a view says so once.
+TEST(Sequence, AnUnreadableNeighbourIsReadAndCountedOnce) {
+  SSDO_REQUIRE_SHARED();
+  ScratchDir dir;
+  copy_orbit(dir.path / "in", "orbit_f", 7);
+  const fs::path broken = dir.path / "in/orbit_f3.exr";
+  fs::resize_file(broken, fs::file_size(broken) / 2);
+  const RunResult r = run_ssdo("process " + dir / "in" + " -o " + dir / "out" +
+                               " --views 2 --temporal 2 --terms ao --preset low --jobs 1 -v");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  const std::string reason = broken.string() + ": cannot read pixels";
+  EXPECT_EQ(count_occurrences(r.output, "[4/7] " + dir / "in/orbit_f3.exr: FAILED: " + reason), 1) << r.output;
+  const Reads reads = last_reads(r.output);
+  EXPECT_EQ(reads.files, 7) << r.output;
+  EXPECT_EQ(reads.whole, 7) << r.output;
+  int skipped_as_view = 0;
+  for (int i : {0, 1, 2, 4, 5, 6}) {
+    const std::string frame = dir / ("in/" + numbered("orbit_f", i) + ".exr");
+    const size_t at = r.output.find(frame + " -> ");
+    ASSERT_NE(at, std::string::npos) << frame << "\n" << r.output;
+    const std::string block = r.output.substr(at, r.output.find("\n[", at) - at);
+    const int notes = count_occurrences(block, "orbit_f3.exr: skipped as a view (" + reason);
+    EXPECT_LE(notes, 1) << block;
+    skipped_as_view += notes;
+    EXPECT_EQ(view_numbers(views_note(r.output, frame), "orbit_f").size() > 0, true) << block;
+  }
+  EXPECT_GE(skipped_as_view, 1) << r.output;
+}
+
 TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;

@@ -266,6 +266,46 @@ TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   EXPECT_FALSE(fs::exists(dir.path / "out" / "gone.exr"));
 }
 
+// A request whose client has gone is waited for by nobody: it leaves the queue when its client
+// does, so it is no longer counted in queue_depth and its place goes to the next client, while
+// the frame ahead of it is still computing.
+TEST(ServeSocket, AQueuedRequestLeavesTheQueueWithItsClient) {
+  ScratchDir dir;
+  SocketService service(dir, "leaveq", {"--jobs", "1", "--queue", "1", "--frame-timeout", "600"});
+  ASSERT_TRUE(service.ready) << service.log();
+  const json slow = kSecondsFrame.options();
+  const std::string input = dir / "frames/cornell.exr";
+  Client first(service.socket);
+  ASSERT_EQ(write_message(first.fd(), json{{"op", "process"}, {"input", input}, {"options", slow}}.dump(),
+                          deadline_in(5)),
+            IoStatus::ok);
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30)) << service.log();
+  {
+    Client gone(service.socket);
+    const json queued = {{"op", "process"}, {"input", input}, {"output", "gone.ssdo.exr"}, {"options", slow}};
+    ASSERT_EQ(write_message(gone.fd(), queued.dump(), deadline_in(5)), IoStatus::ok);
+    ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30));
+  }
+  // Its slot back (first's and the stats request's own only), while the first frame computes.
+  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 2; }, 10));
+  const json after = stats(service.socket);
+  EXPECT_EQ(after.value("queue_depth", -1), 0) << after.dump();
+  EXPECT_EQ(after.value("in_flight", -1), 1) << after.dump();
+  // The one place of the queue is free again: the next request waits in it, not "busy".
+  Client next(service.socket);
+  ASSERT_EQ(write_message(next.fd(), json{{"op", "process"}, {"input", input}, {"output", "next.ssdo.exr"}}.dump(),
+                          deadline_in(5)),
+            IoStatus::ok);
+  EXPECT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 10));
+  EXPECT_EQ(first.read_response().value("ok", false), true);
+  const json reply = next.read_response();
+  EXPECT_EQ(reply.value("ok", false), true) << reply.dump();
+  EXPECT_TRUE(fs::exists(dir.path / "out" / "next.ssdo.exr"));
+  EXPECT_FALSE(fs::exists(dir.path / "out" / "gone.ssdo.exr"));
+  EXPECT_EQ(count_occurrences(service.log(), "its client closed the connection while it was queued"), 1)
+      << service.log();
+}
+
 // A client that never reads its inline reply holds the stop for a few seconds, not for its
 // whole --client-timeout; the reply it did not take is cut short, never passed off as whole.
 TEST(ServeSocket, AClientThatNeverReadsItsReplyDoesNotHoldTheStop) {

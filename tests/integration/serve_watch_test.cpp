@@ -365,6 +365,48 @@ TEST(ServeWatch, AWatchedFrameARequestReplacedOrFailedIsComputedAgainWhileTheSer
   EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
 }
 
+// The output folder is the watched folder: what the socket's requests write there (outputs,
+// error files) is never taken for a frame. An output named as a frame would be (the watch
+// reads every EXR but NAME.ssdo.exr), so such a name is refused before any work.
+TEST(ServeWatch, OutputsWrittenIntoTheWatchedFolderAreNeverTakenForFrames) {
+  ScratchDir dir;
+  fs::create_directories(dir.path / "in");
+  copy_example("cornell", dir.path / "in", "a");
+  const std::string socket = socket_path_for("outinwatch");
+  std::vector<std::string> args = serve_args(dir, socket, {"--jobs", "1"});
+  args[4] = dir / "in";  // -o: the watched folder
+  SsdoProcess service(args, dir.path / "serve.log");
+  ASSERT_TRUE(wait_until([&] { return path_exists(dir.path / "in" / "a.ssdo.exr"); }, 60)) << service.log();
+  const std::string input = dir / "in/a.exr";
+  Client c(socket);
+  const json as_frame = c.request({{"op", "process"}, {"input", input}, {"output", "result.exr"}});
+  EXPECT_EQ(as_frame.value("code", ""), "bad_request") << as_frame.dump();
+  EXPECT_NE(as_frame.value("error", "").find("result.ssdo.exr"), std::string::npos) << as_frame.dump();
+  const json as_output = c.request({{"op", "process"}, {"input", input}, {"output", "result.ssdo.exr"}});
+  EXPECT_EQ(as_output.value("ok", false), true) << as_output.dump();
+  // A request that fails writes its error file beside the output.
+  const json failed = c.request({{"op", "process"}, {"input", input}, {"output", "broken.ssdo.exr"},
+                                 {"options", {{"part", "nope"}}}});
+  EXPECT_EQ(failed.value("code", ""), "frame_failed") << failed.dump();
+  ASSERT_TRUE(path_exists(dir.path / "in" / "broken.error.json"));
+  ASSERT_TRUE(wait_until([&] {
+    const json s = stats(socket);
+    return s.value("queue_depth", 1) == 0 && s.value("in_flight", 1) == 0;
+  }, 60));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // room for any late event
+  EXPECT_FALSE(path_exists(dir.path / "in" / "result.exr"));
+  const json s = stats(socket);
+  EXPECT_EQ(s.value("frames_failed", -1), 1) << s.dump() << service.log();  // the broken request only
+  EXPECT_EQ(count_occurrences(service.log(), "FAILED"), 1) << service.log();
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir.path / "in")) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  const std::vector<std::string> expected = {".ssdo-serve.lock", ".ssdo-spool",     "a.camera.json",   "a.exr",
+                                             "a.ssdo.exr",       "broken.error.json", "result.ssdo.exr"};
+  EXPECT_EQ(names, expected);
+  EXPECT_EQ(service.signal_and_wait(SIGTERM, 30), 0);
+}
+
 // A frame rewritten while it is computed: the output of the old version is dated back
 // behind the new one, so a service killed before the new version's turn computes the frame
 // again when restarted instead of keeping the old version's output as up to date.

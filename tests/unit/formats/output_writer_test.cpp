@@ -640,6 +640,28 @@ TEST(WriteOutputs, PngPreviewsAreSrgbClampedEightBit) {
   EXPECT_EQ(npx[2], 255);  // 0.5 * 1 + 0.5
 }
 
+// A file named after one of its terms (eval's heatmap NAME.error.exr) names that term's
+// preview NAME.error.png, not NAME.error.error.png; the other terms keep NAME.error.<term>.png.
+TEST(WriteOutputs, ThePreviewOfTheTermAFileIsNamedAfterTakesTheFilesName) {
+  ScratchDir dir;
+  const Camera cam = Camera::from_fov_x(4, 2, 60.0f);
+  const cv::Mat error(2, 4, CV_32FC3, cv::Scalar(1.0f, 0.0f, 0.0f)), ao(2, 4, CV_32FC1, cv::Scalar(0.5f));
+  WriteOptions o;
+  o.png_previews = true;
+  o.preview_named_as_file = "error";
+  ASSERT_EQ(write_outputs((dir / "a.error.exr").string(), {{"error", error}, {"ao", ao}}, cam, o), "");
+  EXPECT_EQ(files_in(dir.path), 3u);
+  EXPECT_FALSE(fs::exists(dir / "a.error.error.png"));
+  EXPECT_TRUE(fs::exists(dir / "a.error.ao.png"));
+  auto in = OIIO::ImageInput::open((dir / "a.error.png").string());
+  ASSERT_TRUE(in);
+  EXPECT_EQ(in->spec().nchannels, 3);
+  std::vector<uint8_t> px(24);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data()));
+  EXPECT_EQ(px[0], 255);  // the error term's red
+  EXPECT_EQ(px[1], 0);
+}
+
 // The sRGB encoding of previews equals the transfer function rounded to 8 bits (in float,
 // as IEC 61966-2-1 writes it) on both sides of every step between two bytes and across
 // [0, 1], and maps what is not a number to 0.
