@@ -231,6 +231,14 @@ TEST(ServeSocket, BadOptionsAndForeignOutputNamesTouchNoOutput) {
   EXPECT_FALSE(reply_bytes.empty());
 }
 
+// Sends a slow frame of `input` on `client` (the service's only worker busy for seconds):
+// true once a worker computes it.
+bool computing_slow_frame(const Client& client, const SocketService& service, const std::string& input) {
+  const json request = {{"op", "process"}, {"input", input}, {"options", kSecondsFrame.options()}};
+  return write_message(client.fd(), request.dump(), deadline_in(5)) == IoStatus::ok &&
+         wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30);
+}
+
 // A client that closes its connection while its frame waits gives its slot back at once
 // (while the frame before it still computes), and its queued frame is dropped: nothing is
 // computed or written for it.
@@ -242,10 +250,7 @@ TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   const json slow = kSecondsFrame.options();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
-  ASSERT_EQ(write_message(first.fd(), json{{"op", "process"}, {"input", input}, {"options", slow}}.dump(),
-                          deadline_in(5)),
-            IoStatus::ok);
-  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30)) << service.log();
+  ASSERT_TRUE(computing_slow_frame(first, service, input)) << service.log();
   {
     Client gone(service.socket);
     const json queued = {{"op", "process"}, {"input", input}, {"output", (dir.path / "out" / "gone.exr").string()},
@@ -276,10 +281,7 @@ TEST(ServeSocket, AQueuedRequestLeavesTheQueueWithItsClient) {
   const json slow = kSecondsFrame.options();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
-  ASSERT_EQ(write_message(first.fd(), json{{"op", "process"}, {"input", input}, {"options", slow}}.dump(),
-                          deadline_in(5)),
-            IoStatus::ok);
-  ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30)) << service.log();
+  ASSERT_TRUE(computing_slow_frame(first, service, input)) << service.log();
   {
     Client gone(service.socket);
     const json queued = {{"op", "process"}, {"input", input}, {"output", "gone.ssdo.exr"}, {"options", slow}};
