@@ -120,7 +120,7 @@ void FrameService::drop_abandoned() {
 }
 
 void FrameService::drop(FrameTask& task) {
-  log("dropped " + task.input + ": its client closed the connection while it was queued");
+  log("dropped " + task.input_name() + ": its client closed the connection while it was queued");
   WorkerResult r;
   r.error = "the client closed the connection";
   if (task.done) task.done(r);
@@ -310,11 +310,10 @@ void FrameService::run_task(WorkerProcess& worker, FrameTask& task) {
   WorkerResult r =
       run_with_retries(worker, {task.input, task.output, task.options, task.neighbours, task.confine}, &task);
   if (found) warn_if_changed(task.input, task.output, *found, r);
-  // The spool's paths mean nothing to the client (and are gone once it is answered).
-  const std::string input_name = task.inline_name.empty() ? task.input : "inline frame " + task.inline_name;
+  const std::string input_name = task.input_name();
   if (!task.inline_name.empty()) {
     r.error = replace_all(r.error, sidecar_path_for(task.input), "the request's \"sidecar\"");
-    r.error = replace_all(r.error, task.input, "inline frame " + task.inline_name);
+    r.error = replace_all(r.error, task.input, input_name);
   }
   record(r);
   if (!task.error_path.empty()) {

@@ -67,6 +67,9 @@ struct FrameTask {
   // tried again. Null: never.
   std::shared_ptr<const std::atomic<bool>> abandoned;
   bool is_abandoned() const { return abandoned && abandoned->load(); }
+  // The input as messages name it: its path, or "inline frame NAME" for an upload (the
+  // spool's paths mean nothing to the client, and are gone once it is answered).
+  std::string input_name() const { return inline_name.empty() ? input : "inline frame " + inline_name; }
 };
 
 struct ServiceStats {

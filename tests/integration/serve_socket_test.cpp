@@ -332,6 +332,29 @@ TEST(ServeSocket, AClientThatNeverReadsItsReplyDoesNotHoldTheStop) {
 
 // An inline frame's errors name it as the client knows it, not by the service's private
 // spool path (gone once the client is answered); its error file too.
+// An inline frame dropped from the queue because its client left is logged under its name,
+// not under the spool path the client never saw.
+TEST(ServeSocket, AnInlineFrameDroppedFromTheQueueIsLoggedUnderItsName) {
+  ScratchDir dir;
+  SocketService service(dir, "inlinedrop", {"--jobs", "1", "--frame-timeout", "600"});
+  ASSERT_TRUE(service.ready) << service.log();
+  Client first(service.socket);
+  ASSERT_TRUE(computing_slow_frame(first, service, dir / "frames/cornell.exr")) << service.log();
+  {
+    Client gone(service.socket);
+    const std::string bytes = read_text(dir.path / "frames" / "cornell.exr");
+    const json header = {{"op", "process"}, {"name", "shot9"}, {"inline_size", bytes.size()}};
+    ASSERT_EQ(write_message(gone.fd(), header.dump(), deadline_in(5)), IoStatus::ok);
+    ASSERT_EQ(write_all(gone.fd(), bytes.data(), bytes.size(), deadline_in(30)), IoStatus::ok);
+    ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30)) << service.log();
+  }
+  ASSERT_TRUE(wait_until([&] { return service.log().find("dropped") != std::string::npos; }, 30)) << service.log();
+  EXPECT_NE(service.log().find("dropped inline frame shot9: its client closed the connection"), std::string::npos)
+      << service.log();
+  EXPECT_EQ(service.log().find(".ssdo-spool"), std::string::npos) << service.log();
+  EXPECT_EQ(first.read_response().value("ok", false), true);
+}
+
 TEST(ServeSocket, AnInlineFramesErrorsNameTheFrameNotTheSpool) {
   ScratchDir dir;
   SocketService service(dir, "inlineerr");
