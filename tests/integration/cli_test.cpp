@@ -790,6 +790,21 @@ TEST(Cli, EvalHeatmapsSayErrorOnceAndNeverShareANameWithAnotherFrames) {
   EXPECT_GT(OIIO::ImageBufAlgo::compare(heat, estimate, 0, 0).nfail, 0u);
 }
 
+// One file named twice under two spellings is not "two files of one name": its heatmap is
+// written, while two files of one name in two folders are still refused.
+TEST(Cli, EvalHeatmapOfOneFileNamedTwiceIsWritten) {
+  ScratchDir dir;
+  copy_frame(dir.path / "in", "a");
+  copy_frame(dir.path / "other", "a");
+  RunResult r = run_ssdo("eval " + dir / "in/a.exr" + " " + dir / "in/./a.exr" + " --preset low --heatmap " +
+                         dir / "heat");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(dir.path / "heat" / "a.error.exr"));
+  r = run_ssdo("eval " + dir / "in/a.exr" + " " + dir / "other/a.exr" + " --preset low --heatmap " + dir / "heat2");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("would both write the heatmap"), std::string::npos) << r.output;
+}
+
 // A reference with NaN on part of the foreground: eval says how many pixels it left out,
 // and its heatmap is black there, not NaN.
 TEST(Cli, EvalLeavesOutAndSaysWhereTheReferenceIsNotFinite) {
