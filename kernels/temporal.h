@@ -33,8 +33,10 @@
 //
 // Still unseen: a change of the term with no change of the geometry that both frames see (a
 // light switched on or moved, an environment that changed), an object that moved where one
-// of the frames does not look (off screen, or hidden behind another surface in both), and a
-// feature narrower than a pixel: there a surface keeps the mean over the window.
+// of the frames does not look (off screen, or hidden behind another surface in both), and an
+// object or a move narrower than two steps of the lattice the change is sought on (2 pixels
+// up to 480 wide, 8 at 1920; kernels/temporal_change.h): there a surface keeps the mean
+// over the window.
 #pragma once
 
 #include <cstdint>

@@ -17,6 +17,10 @@
 //   marks_u: points of u that t sees through (what was in u and is gone from t: the object
 //            at its old place), on u's pixels.
 //
+// Marks are sought on a lattice of every k-th pixel of every k-th row, k = 1 up to 480
+// pixels wide and more above (4 at 1920): the search costs that of a frame 480 wide at any
+// size, and finds moved objects of 2k pixels or more.
+//
 // Only marks in a 2x2 block of marks count (an opening by a 2x2 square): a surface about a
 // texel wide is sampled by one frame's grid and missed by the other's (a thin pole at the
 // half grid, a silhouette's aliasing), which leaves lines of single marks in a still scene,
@@ -25,7 +29,8 @@
 // A pixel p of t refuses u's terms when a mark lies within R of its point, in pixels: a
 // mark of marks_t within r_t(p) of p, or a mark of marks_u within r_u(p) of p's
 // projection into u, where r(p) bounds the pixels the sphere of radius R around p's point
-// covers in that camera (changed_radius_px). The marks' squared distances are exact
+// covers in that camera (changed_radius_px), widened by a pixel and a lattice step. The
+// marks' squared distances are exact
 // Euclidean distance transforms (Felzenszwalb and Huttenlocher 2012, "Distance Transforms
 // of Sampled Functions": the lower envelope of parabolas, row then column), so the test
 // costs O(1) per pixel whatever R.
