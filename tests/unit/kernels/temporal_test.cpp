@@ -349,8 +349,8 @@ raycast::Scene floor_with_box(float box_x) {
   return s;
 }
 // A fixed camera looking down at the floor from the front, the box's three places in view.
-Camera floor_camera() {
-  return raycast::look_at({0.0f, -3.5f, 3.0f}, {0.0f, 0.0f, 0.0f}, {0, 0, 1}, 128, 72, 70.0f);
+Camera floor_camera(int width_px = 128, int height_px = 72) {
+  return raycast::look_at({0.0f, -3.5f, 3.0f}, {0.0f, 0.0f, 0.0f}, {0, 0, 1}, width_px, height_px, 70.0f);
 }
 
 constexpr float kShadowRadiusWorld = 0.5f;  // the AO radius of the shot's terms
@@ -443,6 +443,43 @@ TEST(Temporal, MovedObjectLeavesNoContactShadow) {
   EXPECT_LT(filtered_error, 0.45 * raw_error) << far_px << " px";
   std::printf("ghost %.4f over %d px, filtered error along it %.4f; far floor %d px (%d averaged), MSE %.5f -> %.5f\n",
               ghost_size, ghost_px, along, far_px, far_averaged, raw_error / far_px, filtered_error / far_px);
+}
+
+
+TEST(Temporal, ChangedSurroundingsAtAnySize) {
+  // The box moves by 1.0 between the frames; the frame's terms are 0.2, the neighbour's 0.9.
+  // At any size (the search's lattice is coarser on wider frames), the floor near the box's
+  // place in either frame keeps the frame's own value, bit for bit, and the floor far from
+  // both takes the neighbour's.
+  const float box_xs[] = {0.0f, 1.0f};
+  for (const int width : {128, 1000}) {
+    const int height = width * 9 / 16;
+    Frame f, u;
+    f.g = raycast::render_gbuffer(floor_with_box(box_xs[0]), floor_camera(width, height), 2);
+    u.g = raycast::render_gbuffer(floor_with_box(box_xs[1]), floor_camera(width, height), 2);
+    for (Frame* frame : {&f, &u}) {
+      const float v = frame == &f ? 0.2f : 0.9f;
+      frame->ao = cv::Mat(frame->g.depth_view.size(), CV_32FC1, cv::Scalar::all(v));
+      frame->light = cv::Mat(frame->g.depth_view.size(), CV_32FC3, cv::Scalar::all(v));
+    }
+    TemporalSettings s;
+    s.radius_world = kShadowRadiusWorld;
+    const Filtered out = filter(f, {u}, 2, {}, s);
+    ASSERT_TRUE(out.uses[0].used);
+    int near_px = 0, near_kept = 0, far_px = 0, far_averaged = 0;
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        if (!floor_farther_than(f, x, y, box_xs, 0.0f) || !floor_farther_than(u, x, y, box_xs, 0.0f)) continue;
+        const float v = out.ao.at<float>(y, x);
+        if (!floor_farther_than(f, x, y, box_xs, kShadowRadiusWorld)) near_px++, near_kept += v == 0.2f;
+        if (floor_farther_than(f, x, y, box_xs, 3.0f * kShadowRadiusWorld)) far_px++, far_averaged += v > 0.4f;
+      }
+    ASSERT_GT(near_px, 100) << width;
+    EXPECT_EQ(near_kept, near_px) << width;
+    EXPECT_GT(far_averaged, 0.95 * far_px) << width;
+    std::printf("%d px wide: %lld changed, near %d/%d kept, far %d/%d averaged\n", width,
+                static_cast<long long>(out.uses[0].changed_px), near_kept, near_px, far_averaged, far_px);
+  }
 }
 
 }  // namespace
