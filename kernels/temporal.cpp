@@ -16,6 +16,7 @@
 #include "kernels/record_lanes.h"
 #include "kernels/reprojection.h"
 #include "kernels/settings_check.h"
+#include "kernels/temporal_change.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
@@ -30,6 +31,9 @@ constexpr int kMeasureStridePx = 4;
 struct Neighbour {
   const TemporalFrame* frame;
   Reprojection reprojection;
+  // CV_8UC1 at the frame's size: 255 where the surroundings changed (no taps), or empty
+  // when none did.
+  cv::Mat changed;
 };
 
 namespace hn = hwy::HWY_NAMESPACE;
@@ -239,12 +243,28 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
   }
 }
 
+// Whether the surroundings of pixels x0 + i of row y (i: the lanes) stayed the same in
+// neighbour n: true in every lane when it has no changed pixel.
+MF unchanged_lanes(const Neighbour& n, int y, int x0) {
+  const DF d;
+  if (n.changed.empty()) return hn::FirstN(d, hn::Lanes(d));
+  const uint8_t* row = n.changed.ptr<uint8_t>(y);
+  HWY_ALIGN float changed[kMaxLanes];
+  for (size_t i = 0; i < hn::Lanes(d); ++i) {
+    const int x = x0 + int(i);
+    changed[i] = x < n.changed.cols && row[x] ? 1.0f : 0.0f;
+  }
+  return hn::Eq(hn::Load(d, changed), hn::Zero(d));
+}
+
 // The neighbours' bilinear taps around each one's projection of the lanes' pixels (px, py:
-// pixel centres; foreground ones only), summed into sums.
-void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const NeighbourPlanes> planes, VF px,
-                          VF py, VF depth, const Vec3L& normal, MF foreground, const TemporalSettings& s,
+// the centres of pixels x0 + i of row y; foreground ones only, and those whose surroundings
+// stayed the same in the neighbour), summed into sums.
+void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const NeighbourPlanes> planes, int y,
+                          int x0, VF depth, const Vec3L& normal, MF foreground, const TemporalSettings& s,
                           GroupSums& sums) {
   const DF d;
+  const VF px = hn::Add(hn::ConvertTo(d, hn::Iota(DI(), x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
   const VF inverse_tolerance = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, s.depth_tolerance_relative), depth));
   for (size_t i = 0; i < neighbours.size(); ++i) {
     const Neighbour& n = neighbours[i];
@@ -253,7 +273,7 @@ void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const
     const VF gx = hn::Sub(c.pixel_x, hn::Set(d, 0.5f)), gy = hn::Sub(c.pixel_y, hn::Set(d, 0.5f));
     const VF fx = hn::Floor(gx), fy = hn::Floor(gy);
     const int cols = n.frame->depth_view.cols, rows = n.frame->depth_view.rows;
-    MF inside = hn::And(foreground, c.valid);
+    MF inside = hn::And(hn::And(foreground, unchanged_lanes(n, y, x0)), c.valid);
     inside = hn::And(inside, hn::And(hn::Ge(fx, hn::Set(d, -1.0f)), hn::Ge(fy, hn::Set(d, -1.0f))));
     inside = hn::And(inside, hn::And(hn::Lt(fx, hn::Set(d, float(cols))), hn::Lt(fy, hn::Set(d, float(rows)))));
     const VF ax = hn::IfThenElseZero(inside, hn::Sub(gx, fx)), ay = hn::IfThenElseZero(inside, hn::Sub(gy, fy));
@@ -306,9 +326,7 @@ void filter_row(const TemporalFrame& f, std::span<const Neighbour> neighbours,
     const FrameLanes pixels = frame_lanes(f, y, x0, 1, x_end);
     GroupSums sums(hn::Zero(d));
     for (auto& channel : sums.channel) hn::Store(hn::Zero(d), d, channel);
-    const VF px = hn::Add(hn::ConvertTo(d, hn::Iota(DI(), x0)), hn::Set(d, 0.5f));
-    neighbour_taps_lanes(neighbours, planes, px, hn::Set(d, float(y) + 0.5f), pixels.depth, pixels.normal,
-                         pixels.foreground, s, sums);
+    neighbour_taps_lanes(neighbours, planes, y, x0, pixels.depth, pixels.normal, pixels.foreground, s, sums);
     HWY_ALIGN float total[kMaxLanes];
     hn::Store(sums.total, d, total);
     int k = 0;
@@ -408,11 +426,15 @@ std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<c
   std::vector<NeighbourPlanes> planes;
   for (size_t i = 0; i < neighbours.size(); ++i) {
     CV_Assert(same_layout(frame, neighbours[i]));
-    const Neighbour n{&neighbours[i], Reprojection(frame.camera, neighbours[i].camera)};
+    Neighbour n{&neighbours[i], Reprojection(frame.camera, neighbours[i].camera), {}};
     NeighbourPlanes p = planes_of(neighbours[i], nthreads);
     measure_neighbour(frame, n, p, settings, uses[i], nthreads);
     if (!uses[i].used) continue;
-    used.push_back(n);
+    if (settings.reject_changed_surroundings) {
+      n.changed = changed_surroundings(frame, neighbours[i], settings, uses[i].changed_px, nthreads);
+      if (uses[i].changed_px == 0) n.changed.release();
+    }
+    used.push_back(std::move(n));
     planes.push_back(std::move(p));
   }
   const cv::Rect r = resolve_roi(roi, frame.depth_view.size());
@@ -436,7 +458,7 @@ std::string validate(const TemporalSettings& s) {
     return detail::out_of_range("normal_power", s.normal_power, "[0, 256]");
   if (!(s.max_disagreement >= 0.0f && s.max_disagreement <= 1.0f))
     return detail::out_of_range("max_disagreement", s.max_disagreement, "[0, 1]");
-  return {};
+  return detail::check_radius(s.radius_world, s.max_radius_px);
 }
 
 

@@ -21,10 +21,25 @@
 // A neighbour whose surfaces disagree with more than max_disagreement of this frame's
 // surface points it sees (a camera cut, a wrong camera, another scene) is not used at all.
 //
-// A geometric test cannot see a change of the term on an unchanged surface (the shadow of an
-// object that moved, a light switched on): such a surface keeps the mean over the window.
+// The tests above compare the pixel's own surface, but AO and SSDO at a point depend on the
+// geometry within their radius of it: the floor beside an object that moved is the same
+// surface, and its term (the object's contact shadow) changed. Per pixel and neighbour, the
+// filter also looks for a change of the geometry around the point (kernels/temporal_change.h):
+// points of one frame that the other sees free space in front of, in either direction (the
+// object at its new place, the object at its old place). A pixel with such a point within
+// radius_world of its own (in pixels of either camera, a bound) does not take that
+// neighbour's taps. An occluded point is no change (a camera's disocclusion), so a static
+// scene keeps every neighbour.
+//
+// Still unseen: a change of the term with no change of the geometry that both frames see (a
+// light switched on or moved, an environment that changed), an object that moved where one
+// of the frames does not look (off screen, or hidden behind another surface in both), and an
+// object or a move narrower than two steps of the lattice the change is sought on (2 pixels
+// up to 480 wide, 8 at 1920; kernels/temporal_change.h): there a surface keeps the mean
+// over the window.
 #pragma once
 
+#include <cstdint>
 #include <span>
 #include <string>
 #include <vector>
@@ -50,6 +65,17 @@ struct TemporalSettings {
   // nearest texel, or background), [0, 1]. A moving camera disoccludes a few percent per
   // frame; a cut disagrees almost everywhere.
   float max_disagreement = 0.5f;
+  // Whether a pixel refuses a neighbour where the geometry within radius_world of its point
+  // changed between the two frames (above; kernels/temporal_change.h). false: only the
+  // pixel's own surface is compared, and a moving object's contact shadow is averaged over
+  // the window.
+  bool reject_changed_surroundings = true;
+  // The terms' reach, scene units, (0, inf): the largest radius_world of the terms filtered
+  // (AoSettings, SsdoSettings; the pipeline passes the frame's). 1 is theirs by default.
+  float radius_world = 1.0f;
+  // The most pixels the terms' reach covers, [2, 4096]: the estimators' max_radius_px (their
+  // taps go no farther from the pixel), 256 as theirs by default.
+  float max_radius_px = 256.0f;
 };
 
 // Returns an empty string when valid, else the field, value and range.
@@ -71,6 +97,9 @@ struct TemporalUse {
   bool used = false;          // false: disagreement above the limit, or no overlap
   float overlap = 0.0f;       // fraction of this frame's foreground points that project into it
   float disagreement = 0.0f;  // fraction of those that find another surface there
+  // Foreground pixels of the whole frame (whatever the roi) whose surroundings changed in it
+  // (reject_changed_surroundings): they take none of its taps. 0 when not used.
+  int64_t changed_px = 0;
 };
 
 // Writes dsts[i] (allocated like frame.terms[i]; only roi, empty = all, is written; none may

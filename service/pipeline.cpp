@@ -118,6 +118,16 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
   return cs;
 }
 
+// The temporal filter's settings: the request's, with the reach of the terms it filters
+// (TemporalSettings::radius_world): the larger of the AO and SSDO radii and pixel bounds
+// (one radius for both, resolve_frame_radius, unless set apart).
+TemporalSettings temporal_settings(const FrameRequest& request) {
+  TemporalSettings s = request.temporal;
+  s.radius_world = std::max(request.ao.radius_world, request.ssdo.radius_world);
+  s.max_radius_px = std::max(request.ao.max_radius_px, request.ssdo.max_radius_px);
+  return s;
+}
+
 // The terms a frame keeps in half float as the kernels' upsample writes them, because
 // nothing but the half-float output reads them: the bent normal, the confidence, and the
 // raw AO and SSDO terms of the half grid (the denoise and a shot's filter over time read
@@ -198,8 +208,8 @@ void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const 
                       neighbour_terms.back()});
   }
   const std::vector<cv::Mat*> results = on_full_grid(term_slots(filtered, computed), request, computed);
-  uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, request.temporal, results, {},
-                         request.threads);
+  uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, temporal_settings(request),
+                         results, {}, request.threads);
 }
 
 // The terms of a grid (HalfGridTerms), AO then SSDO direct and indirect, those present.
@@ -234,8 +244,8 @@ HalfGridTerms filter_grid_over_time(const HalfGridTerms& own, std::span<const Ra
   if (!own.ao.empty()) results.push_back(&filtered.ao);
   if (!own.direct.empty()) results.push_back(&filtered.direct), results.push_back(&filtered.indirect);
   const HalfGrid& h = own.grid;
-  uses = filter_temporal({h.camera, h.depth_view, h.normal_view, h.mask, terms}, frames, request.temporal, results, {},
-                         request.threads);
+  uses = filter_temporal({h.camera, h.depth_view, h.normal_view, h.mask, terms}, frames, temporal_settings(request),
+                         results, {}, request.threads);
   return filtered;
 }
 

@@ -180,6 +180,9 @@ void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::ve
                   kept + ")");
   for (size_t i = 0; i < out.temporal.size(); ++i) {
     const TemporalUse& u = out.temporal[i];
+    if (u.used && u.changed_px > 0)
+      notes.push_back(names[i] + ": the surroundings of " + std::to_string(u.changed_px) +
+                      " pixels changed in it (something moved): they do not take its terms");
     if (u.used) continue;
     const std::string why = u.overlap <= 0.0f ? std::string("it sees none of this frame's surfaces")
                                               : "another surface at " + std::to_string(int(100.0f * u.disagreement)) +

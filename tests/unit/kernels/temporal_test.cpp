@@ -2,7 +2,9 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <span>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -158,6 +160,7 @@ TEST(Temporal, MatchesTheFilterWrittenOut) {
   for (const float power : {16.0f, 2.5f}) {
     TemporalSettings s;
     s.normal_power = power;
+    s.reject_changed_surroundings = false;  // the pixel's own surface only (written out here)
     const Filtered out = filter(f, neighbours, 0, {}, s);
     // The AO-like term and each channel of the RGB one (read per texel as one record),
     // whose values are the AO-like term's times 1, 0.5 and 2 (render), and so are the
@@ -195,6 +198,7 @@ TEST(Temporal, StaticCameraNoiseFalls) {
     EXPECT_TRUE(u.used);
     EXPECT_GT(u.overlap, 0.99f);
     EXPECT_LT(u.disagreement, 0.01f);
+    EXPECT_EQ(u.changed_px, 0);  // nothing moved
   }
   const double before = mse_against_truth(f, f.ao), after = mse_against_truth(f, out.ao);
   EXPECT_NEAR(before, 0.01, 0.001);
@@ -213,7 +217,12 @@ TEST(Temporal, MovingCameraNoiseFallsAndTruthStays) {
   std::vector<Frame> neighbours;
   for (int u : {-2, -1, 1, 2}) neighbours.push_back(render(scene, room_camera(0.1f * u), 0.1f, uint64_t(10 + u)));
   const Filtered out = filter(f, neighbours);
-  for (const TemporalUse& u : out.uses) EXPECT_TRUE(u.used);
+  // Nothing moved: the camera's disocclusions are no change of the surroundings.
+  const int foreground = cv::countNonZero(f.g.mask);
+  for (const TemporalUse& u : out.uses) {
+    EXPECT_TRUE(u.used);
+    EXPECT_LT(double(u.changed_px), 0.005 * foreground);
+  }
   EXPECT_LT(mse_against_truth(f, out.ao), 0.35 * mse_against_truth(f, f.ao));
   // Without noise the filter keeps the truth (bilinear taps of a smooth function).
   const Frame clean = render(scene, room_camera(0.0f), 0.0f, 1);
@@ -226,8 +235,11 @@ TEST(Temporal, SameBitsForAnyThreadCountAndRoi) {
   const raycast::Scene scene = room(0.0f);
   const Frame f = render(scene, room_camera(0.0f), 0.1f, 1);
   const std::vector<Frame> neighbours = {render(scene, room_camera(-0.2f), 0.1f, 2),
-                                         render(scene, room_camera(0.15f), 0.1f, 3)};
+                                         render(room(0.6f), room_camera(0.15f), 0.1f, 3)};  // the box moved
   const Filtered one = filter(f, neighbours, 1), many = filter(f, neighbours, 4);
+  EXPECT_EQ(one.uses[0].changed_px, 0);
+  EXPECT_GT(one.uses[1].changed_px, 0);
+  EXPECT_EQ(one.uses[1].changed_px, many.uses[1].changed_px);
   EXPECT_TRUE(same_bits(one.ao, many.ao));
   EXPECT_TRUE(same_bits(one.light, many.light));
   const cv::Rect roi(10, 7, 40, 20);
@@ -279,7 +291,9 @@ TEST(Temporal, MovedObjectLeavesNoTrace) {
   Frame u = render(room(0.6f), camera_u, 0.0f, 1);
   f.ao.setTo(0.2f), f.light.setTo(cv::Scalar::all(0.2f));
   u.ao.setTo(0.9f), u.light.setTo(cv::Scalar::all(0.9f));
-  const Filtered out = filter(f, {u});
+  TemporalSettings s;
+  s.reject_changed_surroundings = false;  // the pixel's own surface only
+  const Filtered out = filter(f, {u}, 0, {}, s);
   ASSERT_TRUE(out.uses[0].used);
   const cv::Mat disagree = disagreement_truth(f, room(0.6f), camera_u);
   // Two pixels in from the edge of the disagreement (the bilinear taps reach one texel).
@@ -316,6 +330,159 @@ TEST(Temporal, ValidateNamesTheField) {
   s = {};
   s.max_disagreement = 2.0f;
   EXPECT_NE(validate(s).find("max_disagreement"), std::string::npos);
+  s = {};
+  s.radius_world = 0.0f;
+  EXPECT_NE(validate(s).find("radius_world"), std::string::npos);
+  s = {};
+  s.max_radius_px = 1.0f;
+  EXPECT_NE(validate(s).find("max_radius_px"), std::string::npos);
+}
+
+
+// ---- A moving object's contact shadow: the surroundings of a pixel changed ----
+
+// A floor and a 0.6 cube standing on it at x = box_x.
+raycast::Scene floor_with_box(float box_x) {
+  raycast::Scene s;
+  s.planes.push_back({glm::vec3(0.0f), glm::vec3(0, 0, 1), glm::vec3(0.8f)});
+  s.boxes.push_back({glm::vec3(box_x, 0.0f, 0.3f), glm::vec3(0.3f), glm::mat3(1.0f), glm::vec3(0.8f)});
+  return s;
+}
+// A fixed camera looking down at the floor from the front, the box's three places in view.
+Camera floor_camera(int width_px = 128, int height_px = 72) {
+  return raycast::look_at({0.0f, -3.5f, 3.0f}, {0.0f, 0.0f, 0.0f}, {0, 0, 1}, width_px, height_px, 70.0f);
+}
+
+constexpr float kShadowRadiusWorld = 0.5f;  // the AO radius of the shot's terms
+
+// A frame of the shot with the box at box_x: its exact AO within kShadowRadiusWorld (the
+// ray caster's, 256 directions, the same pattern in every frame) and its raw term, that AO
+// plus Gaussian noise of sigma_noise (the frame's own seed). light: 1 (unused).
+struct ShadowFrame {
+  Frame frame;
+  cv::Mat exact;
+};
+ShadowFrame shadow_frame(float box_x, float sigma_noise, uint64_t seed) {
+  ShadowFrame f;
+  const raycast::Scene scene = floor_with_box(box_x);
+  f.frame.g = raycast::render_gbuffer(scene, floor_camera(), 1);
+  f.exact = raycast::reference_ao(scene, f.frame.g, kShadowRadiusWorld, 256, 7, 1);
+  f.frame.ao = f.exact.clone();
+  cv::RNG rng(seed);
+  for (int y = 0; y < f.exact.rows; ++y)
+    for (int x = 0; x < f.exact.cols; ++x)
+      if (f.frame.g.mask.at<uint8_t>(y, x)) f.frame.ao.at<float>(y, x) += float(rng.gaussian(sigma_noise));
+  f.frame.light = cv::Mat(f.exact.size(), CV_32FC3, cv::Scalar::all(1.0f));
+  return f;
+}
+
+// Whether pixel (x, y) of frame f sees the floor (not the box) at a world point farther than
+// `distance` from every box footprint of `box_xs` (the footprint: |x - box_x| <= 0.3, |y| <= 0.3).
+bool floor_farther_than(const Frame& f, int x, int y, std::span<const float> box_xs, float distance) {
+  if (!f.g.mask.at<uint8_t>(y, x)) return false;
+  const Camera& c = f.g.camera;
+  const glm::vec3 p = glm::vec3(c.view_to_world * glm::vec4(c.view_from_pixel_depth({x + 0.5f, y + 0.5f},
+                                                                                     f.g.depth_view.at<float>(y, x)), 1.0f));
+  if (p.z > 1e-3f) return false;  // on the box
+  for (const float bx : box_xs) {
+    const float dx = std::max(std::abs(p.x - bx) - 0.3f, 0.0f), dy = std::max(std::abs(p.y) - 0.3f, 0.0f);
+    if (dx * dx + dy * dy <= distance * distance) return false;
+  }
+  return true;
+}
+
+TEST(Temporal, MovedObjectLeavesNoContactShadow) {
+  // The box moves 1.0 (more than its size) per frame under a fixed camera. Frame t's floor
+  // where a neighbour's box darkened it (or t's box darkens it and the neighbours' did not)
+  // is the same surface in both frames, so the tangent-plane test takes the neighbours'
+  // values: averaged, a ghost of the contact shadow trails the box. The filter must keep
+  // t's own term there, and still average the floor far from every position of the box.
+  const float box_xs[] = {-1.0f, 0.0f, 1.0f};
+  const float sigma = 0.03f;
+  const ShadowFrame t = shadow_frame(box_xs[1], sigma, 1);
+  const std::vector<ShadowFrame> around = {shadow_frame(box_xs[0], sigma, 2), shadow_frame(box_xs[2], sigma, 3)};
+  TemporalSettings s;
+  s.radius_world = kShadowRadiusWorld;
+  const Filtered out = filter(t.frame, {around[0].frame, around[1].frame}, 0, {}, s);
+  ASSERT_TRUE(out.uses[0].used && out.uses[1].used);
+  // The ghost: what a mean over the frames that see the same floor there would add to t's
+  // exact AO. Its size, and the filtered error along it (positive: the ghost is there).
+  double ghost_sum = 0, along_sum = 0;
+  int ghost_px = 0;
+  // Far floor: the noise falls as it does for an average of three.
+  double raw_error = 0, filtered_error = 0;
+  int far_px = 0, far_averaged = 0;
+  for (int y = 0; y < t.exact.rows; ++y)
+    for (int x = 0; x < t.exact.cols; ++x) {
+      if (floor_farther_than(t.frame, x, y, box_xs, 2.0f * kShadowRadiusWorld)) {
+        const double e0 = t.frame.ao.at<float>(y, x) - t.exact.at<float>(y, x);
+        const double e1 = out.ao.at<float>(y, x) - t.exact.at<float>(y, x);
+        raw_error += e0 * e0, filtered_error += e1 * e1, ++far_px;
+        far_averaged += out.ao.at<float>(y, x) != t.frame.ao.at<float>(y, x);
+      }
+      if (!floor_farther_than(t.frame, x, y, box_xs, 0.0f)) continue;  // t's floor only
+      double sum = t.exact.at<float>(y, x);
+      int n = 1;
+      for (const ShadowFrame& u : around)
+        if (floor_farther_than(u.frame, x, y, box_xs, 0.0f)) sum += u.exact.at<float>(y, x), ++n;
+      const double ghost = sum / n - t.exact.at<float>(y, x);
+      if (std::abs(ghost) < 0.02) continue;
+      ghost_sum += std::abs(ghost);
+      along_sum += (out.ao.at<float>(y, x) - t.exact.at<float>(y, x)) * (ghost > 0 ? 1.0 : -1.0);
+      ++ghost_px;
+    }
+  ASSERT_GT(ghost_px, 100);
+  const double ghost_size = ghost_sum / ghost_px, along = along_sum / ghost_px;
+  EXPECT_GT(ghost_size, 0.04);
+  EXPECT_LT(std::abs(along), 0.1 * ghost_size) << "ghost " << ghost_size << ", " << ghost_px << " px";
+  // The test of the surroundings bounds them in pixels (kernels/temporal_change.h): the
+  // floor behind a box, farther from the eye, lies within a few pixels of the box's top,
+  // and a few percent of the far floor keep their own term.
+  ASSERT_GT(far_px, 1000);
+  EXPECT_GT(far_averaged, 0.95 * far_px);
+  EXPECT_LT(filtered_error, 0.45 * raw_error) << far_px << " px";
+  std::printf("ghost %.4f over %d px, filtered error along it %.4f; far floor %d px (%d averaged), MSE %.5f -> %.5f\n",
+              ghost_size, ghost_px, along, far_px, far_averaged, raw_error / far_px, filtered_error / far_px);
+}
+
+
+TEST(Temporal, ChangedSurroundingsAtAnySize) {
+  // The box moves by 1.0 between the frames; the frame's terms are 0.2, the neighbour's 0.9.
+  // At any size (the search's lattice is coarser on wider frames), the floor near the box's
+  // place in either frame keeps the frame's own value, bit for bit, and the floor far from
+  // both takes the neighbour's. The same bits for 1 and 4 threads.
+  const float box_xs[] = {0.0f, 1.0f};
+  for (const int width : {128, 1000}) {
+    const int height = width * 9 / 16;
+    Frame f, u;
+    f.g = raycast::render_gbuffer(floor_with_box(box_xs[0]), floor_camera(width, height), 2);
+    u.g = raycast::render_gbuffer(floor_with_box(box_xs[1]), floor_camera(width, height), 2);
+    for (Frame* frame : {&f, &u}) {
+      const float v = frame == &f ? 0.2f : 0.9f;
+      frame->ao = cv::Mat(frame->g.depth_view.size(), CV_32FC1, cv::Scalar::all(v));
+      frame->light = cv::Mat(frame->g.depth_view.size(), CV_32FC3, cv::Scalar::all(v));
+    }
+    TemporalSettings s;
+    s.radius_world = kShadowRadiusWorld;
+    const Filtered out = filter(f, {u}, 4, {}, s);
+    ASSERT_TRUE(out.uses[0].used);
+    const Filtered serial = filter(f, {u}, 1, {}, s);
+    EXPECT_TRUE(same_bits(serial.ao, out.ao)) << width;
+    EXPECT_EQ(serial.uses[0].changed_px, out.uses[0].changed_px) << width;
+    int near_px = 0, near_kept = 0, far_px = 0, far_averaged = 0;
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        if (!floor_farther_than(f, x, y, box_xs, 0.0f) || !floor_farther_than(u, x, y, box_xs, 0.0f)) continue;
+        const float v = out.ao.at<float>(y, x);
+        if (!floor_farther_than(f, x, y, box_xs, kShadowRadiusWorld)) near_px++, near_kept += v == 0.2f;
+        if (floor_farther_than(f, x, y, box_xs, 3.0f * kShadowRadiusWorld)) far_px++, far_averaged += v > 0.4f;
+      }
+    ASSERT_GT(near_px, 100) << width;
+    EXPECT_EQ(near_kept, near_px) << width;
+    EXPECT_GT(far_averaged, 0.95 * far_px) << width;
+    std::printf("%d px wide: %lld changed, near %d/%d kept, far %d/%d averaged\n", width,
+                static_cast<long long>(out.uses[0].changed_px), near_kept, near_px, far_averaged, far_px);
+  }
 }
 
 }  // namespace

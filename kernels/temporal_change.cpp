@@ -1,0 +1,226 @@
+#include "kernels/temporal_change.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "core/parallel.h"
+#include "kernels/reprojection.h"
+
+namespace ssdo {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// The filter's bilinear taps reach up to a texel past the projected point: the radius in
+// pixels is widened by one (and by the lattice's step, mark_stride_px).
+constexpr float kMarkMarginPx = 1.0f;
+
+// Marks are sought on a lattice of pixels at most this many points wide (mark_stride_px):
+// a point's test (a reprojection and four texels, scalar) costs about half of what the
+// filter spends on a pixel per neighbour, so at every pixel of a 1080p frame the two passes
+// would cost as much as the filter; on the lattice they cost those of a 480 x 270 frame at
+// any size, and a moved object is still found when it spans 2 x 2 of the lattice's points
+// (the opening, keep_blocks), 8 pixels of a 1080p frame.
+constexpr int kMarkLatticeWidth = 480;
+
+// The lattice's step for a frame `width_px` wide: pixel (x, y) with x, y multiples of it.
+int mark_stride_px(int width_px) { return std::max(1, (width_px + kMarkLatticeWidth - 1) / kMarkLatticeWidth); }
+
+// The pixels of `camera` around a point's projection within which the sphere of radius
+// s.radius_world around the point (planar depth d) lies: the sphere is nowhere nearer than
+// d - R, where a length R covers R x pixels_per_unit(d - R) pixels (for a pinhole
+// f R / (d - R), at least the sphere's projected radius f R / sqrt(d^2 - R^2)); at most
+// s.max_radius_px (the estimators reach no farther), and that when the eye is within about
+// R of the point. Widened by kMarkMarginPx.
+float changed_radius_px(const Camera& camera, float depth_view, const TemporalSettings& s) {
+  const float nearest = depth_view - s.radius_world;
+  if (!(nearest > 0.01f * depth_view)) return s.max_radius_px + kMarkMarginPx;
+  const glm::vec2 ppu = camera.pixels_per_unit(nearest);
+  return std::min(s.radius_world * std::max(ppu.x, ppu.y), s.max_radius_px) + kMarkMarginPx;
+}
+
+// Whether a frame (its planar depth and mask) sees through a point of planar depth
+// point_depth (in that frame's view) projected to `pixel`: the smallest depth of the 2x2
+// texel centres around the projection that lie in the image (background: +inf) is farther
+// than the point by more than tolerance_relative x its depth (the tolerance of the
+// tangent-plane test, TemporalSettings::depth_tolerance_relative). False when the point is
+// behind the eye or no texel of the 2x2 is in the image: nothing is seen there.
+bool sees_through(const TemporalFrame& f, glm::vec2 pixel, float point_depth, float tolerance_relative) {
+  if (!(point_depth > 0.0f)) return false;
+  const float gx = pixel.x - 0.5f, gy = pixel.y - 0.5f;  // NaN fails the tests below
+  if (!(gx > -1.0f && gy > -1.0f && gx < float(f.depth_view.cols) && gy < float(f.depth_view.rows))) return false;
+  const int x0 = int(std::floor(gx)), y0 = int(std::floor(gy));
+  float nearest = kInf;
+  for (int ty = std::max(y0, 0); ty <= std::min(y0 + 1, f.depth_view.rows - 1); ++ty)
+    for (int tx = std::max(x0, 0); tx <= std::min(x0 + 1, f.depth_view.cols - 1); ++tx)
+      if (f.mask.at<uint8_t>(ty, tx)) nearest = std::min(nearest, f.depth_view.at<float>(ty, tx));
+  return nearest > point_depth * (1.0f + tolerance_relative);
+}
+
+// The marks that belong to a 2x2 block of marks (a morphological opening by a 2x2 square):
+// a surface one texel wide that the grids sample in one frame and miss in the other (a thin
+// pole, a silhouette's aliasing) leaves a line of single marks, a moved object a region.
+// Returns how many are kept.
+int64_t keep_blocks(cv::Mat& marks) {
+  const cv::Mat m = marks.clone();
+  auto block = [&](int x, int y) {  // the 2x2 block with (x, y) top left is all marks
+    return x >= 0 && y >= 0 && x + 1 < m.cols && y + 1 < m.rows && m.at<uint8_t>(y, x) && m.at<uint8_t>(y, x + 1) &&
+           m.at<uint8_t>(y + 1, x) && m.at<uint8_t>(y + 1, x + 1);
+  };
+  int64_t kept = 0;
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x) {
+      if (!m.at<uint8_t>(y, x)) continue;
+      const bool keep = block(x, y) || block(x - 1, y) || block(x, y - 1) || block(x - 1, y - 1);
+      marks.at<uint8_t>(y, x) = keep ? 255 : 0;
+      kept += keep;
+    }
+  return kept;
+}
+
+// On the lattice of `from` (point (i, j): pixel (i, j) x mark_stride_px), 255 at the
+// foreground pixels whose point `to` sees through (sees_through), then only those in 2x2
+// blocks (keep_blocks); 0 elsewhere. CV_8UC1; marks_px: how many.
+cv::Mat seen_through(const TemporalFrame& from, const TemporalFrame& to, float tolerance_relative, int64_t& marks_px,
+                     int nthreads) {
+  const Reprojection r(from.camera, to.camera);
+  const PixelRays& rays = r.from_rays_in_to();
+  const int step = mark_stride_px(from.depth_view.cols);
+  cv::Mat marks = cv::Mat::zeros((from.depth_view.rows + step - 1) / step, (from.depth_view.cols + step - 1) / step,
+                                 CV_8UC1);
+  std::atomic<int64_t> count{0};
+  parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
+    int64_t strip = 0;
+    for (int j = rows.start; j < rows.end; ++j)
+      for (int i = 0; i < marks.cols; ++i) {
+        const int x = i * step, y = j * step;
+        if (!from.mask.at<uint8_t>(y, x)) continue;
+        const glm::vec3 p = rays.point(float(x) + 0.5f, float(y) + 0.5f, from.depth_view.at<float>(y, x));
+        if (!sees_through(to, to.camera.pixel_from_view(p), -p.z, tolerance_relative)) continue;
+        marks.at<uint8_t>(j, i) = 255;
+        ++strip;
+      }
+    count += strip;
+  }, 16);
+  marks_px = count > 0 ? keep_blocks(marks) : 0;
+  return marks;
+}
+
+// d[q] = min over p with finite f[p] of f[p] + (q - p)^2, q in [0, n) (+inf when no f[p] is
+// finite): the lower envelope of the parabolas rooted at (p, f[p]) (Felzenszwalb and
+// Huttenlocher 2012, algorithm DT(f)). v (n), z (n + 1): scratch.
+void lower_envelope(const float* f, int n, float* d, std::vector<int>& v, std::vector<double>& z) {
+  int k = -1;
+  auto rooted = [&](int p) { return double(f[p]) + double(p) * double(p); };
+  for (int q = 0; q < n; ++q) {
+    if (!(f[q] < kInf)) continue;
+    if (k < 0) {
+      k = 0, v[0] = q, z[0] = -std::numeric_limits<double>::infinity(), z[1] = std::numeric_limits<double>::infinity();
+      continue;
+    }
+    // Where q's parabola meets the envelope's last one; those it passes under are dropped.
+    double s = (rooted(q) - rooted(v[k])) / (2.0 * double(q - v[k]));
+    while (s <= z[k]) --k, s = (rooted(q) - rooted(v[k])) / (2.0 * double(q - v[k]));
+    ++k, v[k] = q, z[k] = s, z[k + 1] = std::numeric_limits<double>::infinity();
+  }
+  if (k < 0) {
+    std::fill(d, d + n, kInf);
+    return;
+  }
+  k = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[k + 1] < double(q)) ++k;
+    d[q] = float(double(q - v[k]) * double(q - v[k]) + double(f[v[k]]));
+  }
+}
+
+// A frame's marks as the changed pass reads them: the squared distances on its lattice
+// (squared_distance_to_marks of seen_through's marks) and the lattice's step.
+struct MarkDistances {
+  cv::Mat squared;  // lattice points^2
+  int step;
+  // Whether a mark lies within radius_px of the continuous pixel coordinates `pixel`: the
+  // distance of the nearest lattice point (at most step / sqrt(2) away, so within radius_px
+  // + step of it). False where the coordinates are not numbers (behind the eye).
+  bool within(glm::vec2 pixel, float radius_px) const {
+    if (!std::isfinite(pixel.x) || !std::isfinite(pixel.y)) return false;
+    const float u = std::clamp((pixel.x - 0.5f) / float(step), 0.0f, float(squared.cols - 1));
+    const float v = std::clamp((pixel.y - 0.5f) / float(step), 0.0f, float(squared.rows - 1));
+    const int i = int(std::lround(u)), j = int(std::lround(v));
+    const float reach = (radius_px + float(step)) / float(step);
+    return squared.at<float>(j, i) <= reach * reach;
+  }
+};
+
+}  // namespace
+
+cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads) {
+  CV_Assert(marks.type() == CV_8UC1);
+  cv::Mat d(marks.size(), CV_32FC1, cv::Scalar::all(kInf));
+  if (cv::countNonZero(marks) == 0) return d;
+  // Columns first (0 on a mark, +inf elsewhere), then rows over the columns' results: the
+  // squared Euclidean distance is separable.
+  parallel_rows(cv::Range(0, marks.cols), nthreads, [&](const cv::Range& cols) {
+    std::vector<float> f(size_t(marks.rows)), out(size_t(marks.rows));
+    std::vector<int> v(size_t(marks.rows));
+    std::vector<double> z(size_t(marks.rows) + 1);
+    for (int x = cols.start; x < cols.end; ++x) {
+      for (int y = 0; y < marks.rows; ++y) f[size_t(y)] = marks.at<uint8_t>(y, x) ? 0.0f : kInf;
+      lower_envelope(f.data(), marks.rows, out.data(), v, z);
+      for (int y = 0; y < marks.rows; ++y) d.at<float>(y, x) = out[size_t(y)];
+    }
+  }, 16);
+  parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
+    std::vector<float> f(size_t(marks.cols));
+    std::vector<int> v(size_t(marks.cols));
+    std::vector<double> z(size_t(marks.cols) + 1);
+    for (int y = rows.start; y < rows.end; ++y) {
+      float* row = d.ptr<float>(y);
+      std::copy(row, row + marks.cols, f.begin());
+      lower_envelope(f.data(), marks.cols, row, v, z);
+    }
+  }, 16);
+  return d;
+}
+
+cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& neighbour, const TemporalSettings& s,
+                             int64_t& changed_px, int nthreads) {
+  int64_t in_frame_px = 0, in_neighbour_px = 0;
+  const float tolerance = s.depth_tolerance_relative;
+  const cv::Mat frame_marks = seen_through(frame, neighbour, tolerance, in_frame_px, nthreads);
+  const cv::Mat neighbour_marks = seen_through(neighbour, frame, tolerance, in_neighbour_px, nthreads);
+  cv::Mat changed = cv::Mat::zeros(frame.depth_view.size(), CV_8UC1);
+  changed_px = 0;
+  if (in_frame_px == 0 && in_neighbour_px == 0) return changed;
+  const MarkDistances to_frame_marks{squared_distance_to_marks(frame_marks, nthreads),
+                                     mark_stride_px(frame.depth_view.cols)};
+  const MarkDistances to_neighbour_marks{squared_distance_to_marks(neighbour_marks, nthreads),
+                                         mark_stride_px(neighbour.depth_view.cols)};
+  const Reprojection r(frame.camera, neighbour.camera);
+  const PixelRays& rays = r.from_rays_in_to();
+  std::atomic<int64_t> count{0};
+  parallel_rows(cv::Range(0, changed.rows), nthreads, [&](const cv::Range& rows) {
+    int64_t strip = 0;
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < changed.cols; ++x) {
+        if (!frame.mask.at<uint8_t>(y, x)) continue;
+        const float depth = frame.depth_view.at<float>(y, x);
+        const glm::vec2 centre(float(x) + 0.5f, float(y) + 0.5f);
+        bool near = in_frame_px > 0 && to_frame_marks.within(centre, changed_radius_px(frame.camera, depth, s));
+        // The neighbour's marks around the point's projection.
+        const glm::vec3 p = rays.point(centre.x, centre.y, depth);
+        if (!near && in_neighbour_px > 0 && -p.z > 0.0f)
+          near = to_neighbour_marks.within(neighbour.camera.pixel_from_view(p),
+                                           changed_radius_px(neighbour.camera, -p.z, s));
+        if (near) changed.at<uint8_t>(y, x) = 255, ++strip;
+      }
+    count += strip;
+  }, 16);
+  changed_px = count;
+  return changed;
+}
+
+}  // namespace ssdo
