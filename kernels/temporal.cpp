@@ -5,6 +5,7 @@
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
 #include <hwy/highway.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cmath>
@@ -13,6 +14,7 @@
 
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
+#include "kernels/mask_lanes.h"
 #include "kernels/record_lanes.h"
 #include "kernels/reprojection.h"
 #include "kernels/settings_check.h"
@@ -248,13 +250,12 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
 MF unchanged_lanes(const Neighbour& n, int y, int x0) {
   const DF d;
   if (n.changed.empty()) return hn::FirstN(d, hn::Lanes(d));
-  const uint8_t* row = n.changed.ptr<uint8_t>(y);
-  HWY_ALIGN float changed[kMaxLanes];
-  for (size_t i = 0; i < hn::Lanes(d); ++i) {
-    const int x = x0 + int(i);
-    changed[i] = x < n.changed.cols && row[x] ? 1.0f : 0.0f;
-  }
-  return hn::Eq(hn::Load(d, changed), hn::Zero(d));
+  const uint8_t* row = n.changed.ptr<uint8_t>(y) + x0;
+  const size_t left = size_t(n.changed.cols - x0);
+  if (left >= hn::Lanes(d)) return hn::Not(foreground_lanes(row));
+  HWY_ALIGN uint8_t tail[kMaxLanes] = {};  // the row's last pixels; lanes past it unchanged
+  std::copy(row, row + left, tail);
+  return hn::Not(foreground_lanes(tail));
 }
 
 // The neighbours' bilinear taps around each one's projection of the lanes' pixels (px, py:
@@ -432,7 +433,6 @@ std::vector<TemporalUse> filter_temporal(const TemporalFrame& frame, std::span<c
     if (!uses[i].used) continue;
     if (settings.reject_changed_surroundings) {
       n.changed = changed_surroundings(frame, neighbours[i], settings, uses[i].changed_px, nthreads);
-      if (uses[i].changed_px == 0) n.changed.release();
     }
     used.push_back(std::move(n));
     planes.push_back(std::move(p));

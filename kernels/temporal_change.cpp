@@ -192,20 +192,21 @@ cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& ne
   const float tolerance = s.depth_tolerance_relative;
   const cv::Mat frame_marks = seen_through(frame, neighbour, tolerance, in_frame_px, nthreads);
   const cv::Mat neighbour_marks = seen_through(neighbour, frame, tolerance, in_neighbour_px, nthreads);
-  cv::Mat changed = cv::Mat::zeros(frame.depth_view.size(), CV_8UC1);
   changed_px = 0;
-  if (in_frame_px == 0 && in_neighbour_px == 0) return changed;
+  if (in_frame_px == 0 && in_neighbour_px == 0) return {};
   const MarkDistances to_frame_marks{squared_distance_to_marks(frame_marks, nthreads),
                                      mark_stride_px(frame.depth_view.cols)};
   const MarkDistances to_neighbour_marks{squared_distance_to_marks(neighbour_marks, nthreads),
                                          mark_stride_px(neighbour.depth_view.cols)};
   const Reprojection r(frame.camera, neighbour.camera);
   const PixelRays& rays = r.from_rays_in_to();
+  cv::Mat changed(frame.depth_view.size(), CV_8UC1);
   std::atomic<int64_t> count{0};
   parallel_rows(cv::Range(0, changed.rows), nthreads, [&](const cv::Range& rows) {
     int64_t strip = 0;
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < changed.cols; ++x) {
+        changed.at<uint8_t>(y, x) = 0;
         if (!frame.mask.at<uint8_t>(y, x)) continue;
         const float depth = frame.depth_view.at<float>(y, x);
         const glm::vec2 centre(float(x) + 0.5f, float(y) + 0.5f);
@@ -220,6 +221,7 @@ cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& ne
     count += strip;
   }, 16);
   changed_px = count;
+  if (changed_px == 0) return {};
   return changed;
 }
 

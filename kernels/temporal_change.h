@@ -53,8 +53,9 @@
 namespace ssdo {
 
 // CV_8UC1 at the frame's size: 255 at the foreground pixels of `frame` whose surroundings
-// changed in `neighbour` (above), 0 elsewhere; changed_px: how many. Both frames whole,
-// whatever a caller's roi. Deterministic and independent of nthreads.
+// changed in `neighbour` (above), 0 elsewhere; changed_px: how many. Empty when there is
+// none (a still scene: nothing allocated). Both frames whole, whatever a caller's roi.
+// Deterministic and independent of nthreads.
 cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& neighbour, const TemporalSettings& s,
                              int64_t& changed_px, int nthreads = 0);
 

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "kernels/reprojection.h"
+#include "kernels/temporal_change.h"
 #include "tests/support/raycast.h"
 
 namespace ssdo {
@@ -485,5 +486,30 @@ TEST(Temporal, ChangedSurroundingsAtAnySize) {
   }
 }
 
+
+// The changed pixels as a mask at the frame's size where the box moved, and nothing at all
+// (no image) where the scene stood still.
+TEST(Temporal, ChangedSurroundingsAreAMaskOnlyWhereSomethingChanged) {
+  auto frame = [](float box_x) {
+    Frame f;
+    f.g = raycast::render_gbuffer(floor_with_box(box_x), floor_camera(), 1);
+    f.ao = cv::Mat(f.g.depth_view.size(), CV_32FC1, cv::Scalar::all(0.5f));
+    f.light = cv::Mat(f.g.depth_view.size(), CV_32FC3, cv::Scalar::all(0.5f));
+    return f;
+  };
+  const Frame f = frame(0.0f), still = frame(0.0f), moved = frame(1.0f);
+  TemporalSettings s;
+  s.radius_world = kShadowRadiusWorld;
+  int64_t changed_px = -1;
+  const cv::Mat none = changed_surroundings(f.view(), still.view(), s, changed_px);
+  EXPECT_TRUE(none.empty());
+  EXPECT_EQ(changed_px, 0);
+  const cv::Mat some = changed_surroundings(f.view(), moved.view(), s, changed_px);
+  ASSERT_EQ(some.size(), f.g.depth_view.size());
+  ASSERT_EQ(some.type(), CV_8UC1);
+  EXPECT_GT(changed_px, 100);
+  EXPECT_EQ(cv::countNonZero(some), changed_px);
+  EXPECT_EQ(cv::countNonZero(some & ~f.g.mask), 0);  // foreground pixels only
+}
 }  // namespace
 }  // namespace ssdo
