@@ -193,7 +193,8 @@ void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::ve
 
 const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, const ReadOptions& read,
                                                const NeighbourFrame& n) {
-  if (const Entry& e = cache_[n.path]; e.raw_part || !e.raw_error.empty()) return e.raw_part.get();
+  Entry& e = cache_[n.path];  // std::map: the reference stays valid
+  if (e.raw_part || !e.raw_error.empty()) return e.raw_part.get();
   // The neighbour as its own job computes it: its own views among its own candidates.
   FrameRequest r = request;
   r.input_path = n.open_path.empty() ? n.path : n.open_path;
@@ -205,14 +206,13 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
   const std::string key = store_ ? raw_terms_key(r, r.input_path, n.camera_json) : "";
   if (std::shared_ptr<const RawFrame> kept = store_ ? store_->part(key) : nullptr) {
     ++reads_.raw_kept;
-    return (cache_[n.path].raw_part = std::move(kept)).get();
+    return (e.raw_part = std::move(kept)).get();
   }
-  if (Entry& e = cache_[n.path]; e.unreadable) {  // not read again
+  if (e.unreadable) {  // not read again
     e.raw_error = e.error;
     return nullptr;
   }
   ReadResult f = read_in_window(r, neighbour_read(n, read));
-  Entry& e = cache_[n.path];  // std::map: references stay valid
   if (!f.ok()) {
     e.raw_error = f.error;
     remember_failed_read(n, std::move(f), e);
