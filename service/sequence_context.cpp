@@ -193,7 +193,9 @@ void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::ve
 
 const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, const ReadOptions& read,
                                                const NeighbourFrame& n) {
-  Entry& e = cache_[n.path];  // std::map: the reference stays valid
+  // std::map: the reference stays valid; read_in_window below keeps the cache, as the
+  // neighbour's read differs from the frame's only in its sidecar, which is not in read_key.
+  Entry& e = cache_[n.path];
   if (e.raw_part || !e.raw_error.empty()) return e.raw_part.get();
   // The neighbour as its own job computes it: its own views among its own candidates.
   FrameRequest r = request;
