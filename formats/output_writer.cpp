@@ -241,12 +241,6 @@ uint8_t vector8(float v) {
   return uint8_t(std::lround(std::clamp(0.5f * v + 0.5f, 0.0f, 1.0f) * 255.0f));
 }
 
-// The preview of `term` of the EXR at `path` as `options` name it.
-std::string term_preview_path(const std::string& path, const std::string& term, const WriteOptions& options) {
-  if (options.preview_named_as_file.empty() || term != options.preview_named_as_file) return preview_path(path, term);
-  return fs::path(path).replace_extension(".png").string();
-}
-
 std::string write_png(const fs::path& final_path, const OutputTerm& t) {
   const int w = t.image.cols, h = t.image.rows, nc = t.image.channels();
   cv::Mat pixels(h, w, CV_8UC(nc));
@@ -693,7 +687,7 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
   // frame after the previews before it were written.
   constexpr size_t kMaxNameBytes = 255;  // NAME_MAX of Linux file systems
   for (const OutputTerm& t : terms)
-    if (const std::string name = fs::path(term_preview_path(path, t.name, options)).filename().string();
+    if (const std::string name = fs::path(preview_path(path, t.name)).filename().string();
         options.png_previews && name.size() > kMaxNameBytes)
       return path + ": the preview name " + name + " is " + std::to_string(name.size()) +
              " bytes, over a file name's 255: shorten the frame's name, or leave out --png";
@@ -720,7 +714,7 @@ std::string write_outputs_unguarded(const std::string& path, const std::vector<O
     parallel_rows(cv::Range(0, int(terms.size())), options.threads, [&](const cv::Range& r) {
       for (int i = r.start; i < r.end; ++i) {
         const OutputTerm& t = terms[size_t(i)];
-        errors[size_t(i)] = write_png(fs::path(term_preview_path(path, t.name, options)), t);
+        errors[size_t(i)] = write_png(fs::path(preview_path(path, t.name)), t);
       }
     }, 1);
     for (const std::string& error : errors)
@@ -754,7 +748,9 @@ std::string write_outputs(const std::string& path, const std::vector<OutputTerm>
 
 std::string preview_path(const std::string& output, const std::string& term) {
   const fs::path out(output);
-  return (out.parent_path() / (out.stem().string() + "." + term + ".png")).string();
+  const std::string stem = out.stem().string(), suffix = "." + term;
+  const bool named_after = stem.size() > suffix.size() && stem.ends_with(suffix);
+  return (out.parent_path() / (stem + (named_after ? "" : suffix) + ".png")).string();
 }
 
 namespace {

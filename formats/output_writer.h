@@ -56,9 +56,6 @@ struct WriteOptions {
   int zip_level = kFastZipLevel;    // deflate level of zip / zips, [1, 9]
   ChunkEncoder chunk_encoder = ChunkEncoder::own;  // zip, zips and none only
   bool png_previews = false;        // NAME.<term>.png beside the EXR
-  // The term whose preview is NAME.png instead, for a file named after that term (eval's
-  // heatmap NAME.error.exr: NAME.error.png, not NAME.error.error.png); empty: none.
-  std::string preview_named_as_file;
   // Further string attributes of the header, (name, UTF-8 value), e.g. the producing
   // program's version and options ("ssdo/version", "ssdo/options"), so a file found later
   // says how it was made. Names must not be those the writer sets itself (the required
@@ -123,7 +120,9 @@ std::vector<std::optional<std::string>> read_string_attributes(const std::string
                                                                const std::vector<std::string>& names);
 
 // The PNG preview of term `term` of the output EXR at `output` (WriteOptions::png_previews):
-// OUT/NAME.ssdo.<term>.png beside OUT/NAME.ssdo.exr.
+// OUT/NAME.ssdo.<term>.png beside OUT/NAME.ssdo.exr; the term a file is named after gives
+// the file's own name (OUT/NAME.error.png for the term "error" of OUT/NAME.error.exr, not
+// NAME.error.error.png).
 std::string preview_path(const std::string& output, const std::string& term);
 
 // What an existing output says of itself, from one open of the EXR at `path`.
@@ -149,8 +148,7 @@ ExistingOutput read_existing_output(const std::string& path, const std::vector<s
 // i.e. our view space with z negated) and worldToNDC (display window = the terms' grid),
 // plus float attributes clipNear / clipFar when known: read_gbuffer reads them back; then
 // options.string_attributes, in their order.
-// png_previews: "DIR/STEM.<term>.png" beside "DIR/STEM.exr" ("DIR/STEM.png" for the term
-// options.preview_named_as_file), 8-bit, clamped to [0, 1]
+// png_previews: preview_path's files beside the EXR, 8-bit, clamped to [0, 1]
 // and sRGB-encoded; vector terms are shown as 0.5 v + 0.5 without sRGB encoding (the usual
 // normal-map colours). Previews are written through temp files too.
 // Returns an empty string on success, else the error (naming the file).

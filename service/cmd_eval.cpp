@@ -263,7 +263,6 @@ int run_eval(const EvalArgs& args) {
       const std::string out = (std::filesystem::path(args.heatmap_dir) / (stem + ".error.exr")).string();
       WriteOptions w;
       w.png_previews = true;
-      w.preview_named_as_file = "error";  // NAME.error.png: the heatmap's own picture
       const std::string err = write_outputs(
           out, {{"error", error_heatmap(estimate, reference, frame.gbuffer.mask), SampleType::half, false},
                 {args.term, estimate, SampleType::float32, false},

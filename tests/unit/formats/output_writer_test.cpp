@@ -648,7 +648,6 @@ TEST(WriteOutputs, ThePreviewOfTheTermAFileIsNamedAfterTakesTheFilesName) {
   const cv::Mat error(2, 4, CV_32FC3, cv::Scalar(1.0f, 0.0f, 0.0f)), ao(2, 4, CV_32FC1, cv::Scalar(0.5f));
   WriteOptions o;
   o.png_previews = true;
-  o.preview_named_as_file = "error";
   ASSERT_EQ(write_outputs((dir / "a.error.exr").string(), {{"error", error}, {"ao", ao}}, cam, o), "");
   EXPECT_EQ(files_in(dir.path), 3u);
   EXPECT_FALSE(fs::exists(dir / "a.error.error.png"));
@@ -660,6 +659,16 @@ TEST(WriteOutputs, ThePreviewOfTheTermAFileIsNamedAfterTakesTheFilesName) {
   ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px.data()));
   EXPECT_EQ(px[0], 255);  // the error term's red
   EXPECT_EQ(px[1], 0);
+}
+
+// Every user of the previews' names (the writer, the rerun check, the clean-up) names them
+// through preview_path.
+TEST(WriteOutputs, PreviewPathsAreNamedAfterTheTermUnlessTheFileIs) {
+  EXPECT_EQ(preview_path("out/a.ssdo.exr", "ao"), "out/a.ssdo.ao.png");
+  EXPECT_EQ(preview_path("out/a.error.exr", "error"), "out/a.error.png");
+  EXPECT_EQ(preview_path("out/a.error.exr", "ao"), "out/a.error.ao.png");
+  EXPECT_EQ(preview_path("out/ao.exr", "ao"), "out/ao.ao.png");  // a stem that is only the term
+  EXPECT_EQ(preview_path("out/a.bent_normal.exr", "normal"), "out/a.bent_normal.normal.png");
 }
 
 // The sRGB encoding of previews equals the transfer function rounded to 8 bits (in float,
