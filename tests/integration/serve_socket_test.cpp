@@ -239,6 +239,15 @@ bool computing_slow_frame(const Client& client, const SocketService& service, co
          wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30);
 }
 
+// Sends a slow frame of `input` to `output` on `client` behind one computing: true once it
+// waits in the queue.
+bool queued_slow_frame(const Client& client, const SocketService& service, const std::string& input,
+                       const std::string& output) {
+  const json request = {{"op", "process"}, {"input", input}, {"output", output}, {"options", kSecondsFrame.options()}};
+  return write_message(client.fd(), request.dump(), deadline_in(5)) == IoStatus::ok &&
+         wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30);
+}
+
 // A client that closes its connection while its frame waits gives its slot back at once
 // (while the frame before it still computes), and its queued frame is dropped: nothing is
 // computed or written for it.
@@ -247,16 +256,12 @@ TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   // The frame timeout (the last one given wins) leaves the slow frame room beside another test.
   SocketService service(dir, "leave", {"--jobs", "1", "--frame-timeout", "600"});
   ASSERT_TRUE(service.ready) << service.log();
-  const json slow = kSecondsFrame.options();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
   ASSERT_TRUE(computing_slow_frame(first, service, input)) << service.log();
   {
     Client gone(service.socket);
-    const json queued = {{"op", "process"}, {"input", input}, {"output", (dir.path / "out" / "gone.exr").string()},
-                         {"options", slow}};
-    ASSERT_EQ(write_message(gone.fd(), queued.dump(), deadline_in(5)), IoStatus::ok);
-    ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30));
+    ASSERT_TRUE(queued_slow_frame(gone, service, input, (dir.path / "out" / "gone.exr").string())) << service.log();
     // first, gone and this request's own (once earlier stats requests' connections closed)
     EXPECT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 3; }, 10));
   }
@@ -278,15 +283,12 @@ TEST(ServeSocket, AQueuedRequestLeavesTheQueueWithItsClient) {
   ScratchDir dir;
   SocketService service(dir, "leaveq", {"--jobs", "1", "--queue", "1", "--frame-timeout", "600"});
   ASSERT_TRUE(service.ready) << service.log();
-  const json slow = kSecondsFrame.options();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
   ASSERT_TRUE(computing_slow_frame(first, service, input)) << service.log();
   {
     Client gone(service.socket);
-    const json queued = {{"op", "process"}, {"input", input}, {"output", "gone.ssdo.exr"}, {"options", slow}};
-    ASSERT_EQ(write_message(gone.fd(), queued.dump(), deadline_in(5)), IoStatus::ok);
-    ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30));
+    ASSERT_TRUE(queued_slow_frame(gone, service, input, "gone.ssdo.exr")) << service.log();
   }
   // Its slot back (first's and the stats request's own only), while the first frame computes.
   ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 2; }, 10));
