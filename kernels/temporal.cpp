@@ -17,6 +17,7 @@
 #include "kernels/mask_lanes.h"
 #include "kernels/record_lanes.h"
 #include "kernels/reprojection.h"
+#include "kernels/reprojection_lanes.h"
 #include "kernels/settings_check.h"
 #include "kernels/temporal_change.h"
 
@@ -56,26 +57,11 @@ struct Plane {
 };
 Plane plane_of(const cv::Mat& m) { return {m.ptr<float>(0), int32_t(m.step[0] / sizeof(float)), m.channels()}; }
 
-// Three lanes' worth of vectors: points, normals, rows of a matrix.
-struct Vec3L {
-  VF x, y, z;
-};
-Vec3L broadcast(const glm::vec3& v) {
-  const DF d;
-  return {hn::Set(d, v.x), hn::Set(d, v.y), hn::Set(d, v.z)};
-}
-VF dot(const Vec3L& a, const Vec3L& b) { return hn::Add(hn::Add(hn::Mul(a.x, b.x), hn::Mul(a.y, b.y)), hn::Mul(a.z, b.z)); }
-// a + s b, per component.
-Vec3L add_scaled(const Vec3L& a, VF s, const Vec3L& b) {
-  return {hn::Add(a.x, hn::Mul(s, b.x)), hn::Add(a.y, hn::Mul(s, b.y)), hn::Add(a.z, hn::Mul(s, b.z))};
-}
-Vec3L sub(const Vec3L& a, const Vec3L& b) { return {hn::Sub(a.x, b.x), hn::Sub(a.y, b.y), hn::Sub(a.z, b.z)}; }
-// The point at pixel coordinates (px, py) and planar depth d of pixel rays (core/camera.h).
-Vec3L ray_point(const PixelRays& r, VF px, VF py, VF d) {
-  const Vec3L origin = add_scaled(add_scaled(broadcast(r.o0), px, broadcast(r.ox)), py, broadcast(r.oy));
-  const Vec3L direction = add_scaled(add_scaled(broadcast(r.u0), px, broadcast(r.ux)), py, broadcast(r.uy));
-  return add_scaled(origin, d, direction);
-}
+using reprojection_lanes::broadcast;
+using reprojection_lanes::dot;
+using reprojection_lanes::ray_point;
+using reprojection_lanes::sub;
+using reprojection_lanes::Vec3L;
 
 // A neighbour's parts as the lanes read them. Its depth is NaN on background texels (the
 // mask folded in), so that the texel's one depth gather also rejects them: every test of a
@@ -139,22 +125,11 @@ CarriedLanes carry_lanes(const Reprojection& r, VF px, VF py, VF depth, const Ve
   const Vec3L n{dot({hn::Set(d, rot[0][0]), hn::Set(d, rot[1][0]), hn::Set(d, rot[2][0])}, normal),
                 dot({hn::Set(d, rot[0][1]), hn::Set(d, rot[1][1]), hn::Set(d, rot[2][1])}, normal),
                 dot({hn::Set(d, rot[0][2]), hn::Set(d, rot[1][2]), hn::Set(d, rot[2][2])}, normal)};
-  // Camera::pixel_from_view: clip = view_to_clip (p, 1), NaN-free only for clip.w > 0.
-  const Camera& to = r.to();
-  const glm::mat4& m = to.view_to_clip;
-  auto clip_row = [&](int row) {
-    return hn::Add(dot({hn::Set(d, m[0][row]), hn::Set(d, m[1][row]), hn::Set(d, m[2][row])}, p), hn::Set(d, m[3][row]));
-  };
-  const VF clip_w = clip_row(3);
-  const MF valid = hn::Gt(clip_w, hn::Zero(d));
-  const VF w = hn::IfThenElse(valid, clip_w, hn::Set(d, 1.0f));
-  const VF half = hn::Set(d, 0.5f), one = hn::Set(d, 1.0f);
-  const VF pixel_x = hn::Mul(hn::Mul(half, hn::Add(hn::Div(clip_row(0), w), one)), hn::Set(d, float(to.width_px)));
-  const VF pixel_y = hn::Mul(hn::Mul(half, hn::Sub(one, hn::Div(clip_row(1), w))), hn::Set(d, float(to.height_px)));
+  const reprojection_lanes::ProjectedLanes pixel = reprojection_lanes::project(r.to(), p);
   const PixelRays& t = r.to_rays();
-  return {pixel_x,
-          pixel_y,
-          valid,
+  return {pixel.pixel_x,
+          pixel.pixel_y,
+          pixel.valid,
           n,
           dot(n, sub(broadcast(t.o0), p)),
           dot(n, broadcast(t.ox)),

@@ -1,5 +1,10 @@
 #include "kernels/temporal_change.h"
 
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "kernels/temporal_change.cpp"
+#include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/highway.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -7,16 +12,158 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "kernels/mask_lanes.h"
 #include "kernels/reprojection.h"
+#include "kernels/reprojection_lanes.h"
 
-namespace ssdo {
+// The pass over the frame's pixels (whether a mark lies within the radius of each one's
+// point), a vector of pixels at a time: it reads every pixel of the frame, where the search
+// for marks reads only the lattice's points.
+HWY_BEFORE_NAMESPACE();
+namespace ssdo::HWY_NAMESPACE {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
+namespace hn = hwy::HWY_NAMESPACE;
+using reprojection_lanes::DF;
+using reprojection_lanes::MF;
+using reprojection_lanes::VF;
+using DI = hn::RebindToSigned<DF>;
+
+// The most float lanes of any target: the size of per-lane scratch arrays.
+constexpr size_t kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
 // The filter's bilinear taps reach up to a texel past the projected point: the radius in
 // pixels is widened by one (and by the lattice's step, mark_stride_px).
 constexpr float kMarkMarginPx = 1.0f;
+
+// The pixels of `camera` around a point's projection within which the sphere of radius
+// s.radius_world around the point (planar depth d) lies: the sphere is nowhere nearer than
+// d - R, where a length R covers R x pixels_per_unit(d - R) pixels (for a pinhole
+// f R / (d - R), at least the sphere's projected radius f R / sqrt(d^2 - R^2)); at most
+// s.max_radius_px (the estimators reach no farther), and that when the eye is within about
+// R of the point. Widened by kMarkMarginPx.
+// Per lane: changed_radius_px of the planar depths depth_view (> 0).
+VF changed_radius_lanes(const Camera& camera, VF depth_view, const TemporalSettings& s) {
+  const DF d;
+  const VF nearest = hn::Sub(depth_view, hn::Set(d, s.radius_world));
+  const MF ok = hn::Gt(nearest, hn::Mul(hn::Set(d, 0.01f), depth_view));
+  // Camera::pixels_per_unit(nearest): clip.w on the axis, w = m[2][3] (-nearest) + m[3][3]
+  // (> 0 in front of the eye); max(a / w, b / w) = max(a, b) / w.
+  const glm::mat4& m = camera.view_to_clip;
+  const VF w = hn::Add(hn::Mul(hn::Set(d, m[2][3]), hn::Neg(nearest)), hn::Set(d, m[3][3]));
+  const float per_unit = std::max(0.5f * float(camera.width_px) * std::abs(m[0][0]),
+                                  0.5f * float(camera.height_px) * std::abs(m[1][1]));
+  const VF pixels_per_unit = hn::Div(hn::Set(d, per_unit), hn::IfThenElse(ok, w, hn::Set(d, 1.0f)));
+  const VF r = hn::Min(hn::Mul(hn::Set(d, s.radius_world), pixels_per_unit), hn::Set(d, s.max_radius_px));
+  return hn::IfThenElse(ok, hn::Add(r, hn::Set(d, kMarkMarginPx)), hn::Set(d, s.max_radius_px + kMarkMarginPx));
+}
+
+// A frame's marks as the pass reads them: the squared distances on its lattice
+// (squared_distance_to_marks of the search's marks; empty when there is none) and the
+// lattice's step.
+struct MarkDistances {
+  const cv::Mat& squared;  // lattice points^2
+  int step;
+
+  // The lanes `valid` in which a mark lies within radius_px of the continuous pixel
+  // coordinates (px, py): the distance of the nearest lattice point (at most step / sqrt(2)
+  // away, so within radius_px + step of it). Coordinates of lanes not `valid` are not read.
+  MF within(VF px, VF py, VF radius_px, MF valid) const {
+    const DF d;
+    const DI di;
+    const VF step_px = hn::Set(d, float(step)), half = hn::Set(d, 0.5f), zero = hn::Zero(d);
+    auto nearest_point = [&](VF pixel, int points) {  // round(clamp((pixel - 0.5) / step))
+      const VF u = hn::Div(hn::Sub(hn::IfThenElseZero(valid, pixel), half), step_px);
+      const VF clamped = hn::Min(hn::Max(u, zero), hn::Set(d, float(points - 1)));
+      return hn::ConvertTo(di, hn::Floor(hn::Add(clamped, half)));
+    };
+    const auto i = nearest_point(px, squared.cols), j = nearest_point(py, squared.rows);
+    const auto at = hn::Add(hn::Mul(j, hn::Set(di, int32_t(squared.step[0] / sizeof(float)))), i);
+    const VF squared_points = hn::GatherIndex(d, squared.ptr<float>(0), at);
+    const VF reach = hn::Div(hn::Add(radius_px, step_px), step_px);
+    return hn::And(valid, hn::Le(squared_points, hn::Mul(reach, reach)));
+  }
+};
+
+// What the pass reads of the two frames.
+struct ChangedPass {
+  const TemporalFrame& frame;
+  const TemporalFrame& neighbour;
+  const TemporalSettings& s;
+  const PixelRays& rays;  // frame's pixel points in the neighbour's view
+  const MarkDistances& to_frame_marks;
+  const MarkDistances& to_neighbour_marks;
+
+  // Pixels x0 .. x0 + N - 1 of row y (N: the lanes; those at or past the row's end are
+  // not): 255 where a foreground pixel's surroundings changed, else 0, into out; returns how
+  // many changed.
+  int64_t lanes(int y, int x0, uint8_t* out) const {
+    const DF d;
+    const size_t n = hn::Lanes(d), count = std::min(n, size_t(frame.depth_view.cols - x0));
+    const float* depth_row = frame.depth_view.ptr<float>(y) + x0;
+    const uint8_t* mask_row = frame.mask.ptr<uint8_t>(y) + x0;
+    HWY_ALIGN float depth_tail[kMaxLanes];
+    HWY_ALIGN uint8_t mask_tail[kMaxLanes] = {};
+    if (count < n) {  // the row's last pixels; lanes past them background
+      std::fill(std::copy(depth_row, depth_row + count, depth_tail), depth_tail + n, 1.0f);
+      std::copy(mask_row, mask_row + count, mask_tail);
+      depth_row = depth_tail, mask_row = mask_tail;
+    }
+    const MF fg = foreground_lanes(mask_row);
+    const VF depth = hn::IfThenElse(fg, hn::LoadU(d, depth_row), hn::Set(d, 1.0f));
+    const VF px = hn::Add(hn::Iota(d, float(x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
+    MF near = hn::FirstN(d, 0);
+    if (!to_frame_marks.squared.empty())
+      near = to_frame_marks.within(px, py, changed_radius_lanes(frame.camera, depth, s), fg);
+    if (!to_neighbour_marks.squared.empty()) {  // the neighbour's marks around the point's projection
+      const reprojection_lanes::Vec3L p = reprojection_lanes::ray_point(rays, px, py, depth);
+      const VF depth_there = hn::Neg(p.z);
+      const reprojection_lanes::ProjectedLanes there = reprojection_lanes::project(neighbour.camera, p);
+      const MF seen = hn::And(hn::And(fg, there.valid), hn::Gt(depth_there, hn::Zero(d)));
+      const VF radius = changed_radius_lanes(neighbour.camera, hn::IfThenElse(seen, depth_there, hn::Set(d, 1.0f)), s);
+      near = hn::Or(near, to_neighbour_marks.within(there.pixel_x, there.pixel_y, radius, seen));
+    }
+    const DI di;
+    const hn::Rebind<uint8_t, DF> d8;
+    const auto bytes = hn::DemoteTo(d8, hn::IfThenElseZero(hn::RebindMask(di, near), hn::Set(di, 255)));
+    HWY_ALIGN uint8_t stored[kMaxLanes];
+    hn::Store(bytes, d8, stored);
+    std::copy(stored, stored + count, out + x0);
+    return int64_t(hn::CountTrue(d, near));
+  }
+};
+
+}  // namespace
+
+// changed_surroundings' pass over the frame's pixels, given the squared distances to each
+// frame's marks on its lattice (empty: no mark) and the lattices' steps: the changed image,
+// and how many pixels changed.
+int64_t mark_changed_pixels(const TemporalFrame& frame, const TemporalFrame& neighbour, const TemporalSettings& s,
+                            const cv::Mat& to_frame_marks, int frame_step, const cv::Mat& to_neighbour_marks,
+                            int neighbour_step, cv::Mat& changed, int nthreads) {
+  const Reprojection r(frame.camera, neighbour.camera);
+  const MarkDistances frame_marks{to_frame_marks, frame_step}, neighbour_marks{to_neighbour_marks, neighbour_step};
+  const ChangedPass pass{frame, neighbour, s, r.from_rays_in_to(), frame_marks, neighbour_marks};
+  changed.create(frame.depth_view.size(), CV_8UC1);
+  std::atomic<int64_t> count{0};
+  parallel_rows(cv::Range(0, changed.rows), nthreads, [&](const cv::Range& rows) {
+    int64_t strip = 0;
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x0 = 0; x0 < changed.cols; x0 += int(hn::Lanes(DF())))
+        strip += pass.lanes(y, x0, changed.ptr<uint8_t>(y));
+    count += strip;
+  }, 16);
+  return count;
+}
+
+}  // namespace ssdo::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+namespace ssdo {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // Marks are sought on a lattice of pixels at most this many points wide (mark_stride_px):
 // a point's test (a reprojection and four texels, scalar) costs about half of what the
@@ -28,19 +175,6 @@ constexpr int kMarkLatticeWidth = 480;
 
 // The lattice's step for a frame `width_px` wide: pixel (x, y) with x, y multiples of it.
 int mark_stride_px(int width_px) { return std::max(1, (width_px + kMarkLatticeWidth - 1) / kMarkLatticeWidth); }
-
-// The pixels of `camera` around a point's projection within which the sphere of radius
-// s.radius_world around the point (planar depth d) lies: the sphere is nowhere nearer than
-// d - R, where a length R covers R x pixels_per_unit(d - R) pixels (for a pinhole
-// f R / (d - R), at least the sphere's projected radius f R / sqrt(d^2 - R^2)); at most
-// s.max_radius_px (the estimators reach no farther), and that when the eye is within about
-// R of the point. Widened by kMarkMarginPx.
-float changed_radius_px(const Camera& camera, float depth_view, const TemporalSettings& s) {
-  const float nearest = depth_view - s.radius_world;
-  if (!(nearest > 0.01f * depth_view)) return s.max_radius_px + kMarkMarginPx;
-  const glm::vec2 ppu = camera.pixels_per_unit(nearest);
-  return std::min(s.radius_world * std::max(ppu.x, ppu.y), s.max_radius_px) + kMarkMarginPx;
-}
 
 // Whether a frame (its planar depth and mask) sees through a point of planar depth
 // point_depth (in that frame's view) projected to `pixel`: the smallest depth of the 2x2
@@ -137,25 +271,9 @@ void lower_envelope(const float* f, int n, float* d, std::vector<int>& v, std::v
   }
 }
 
-// A frame's marks as the changed pass reads them: the squared distances on its lattice
-// (squared_distance_to_marks of seen_through's marks) and the lattice's step.
-struct MarkDistances {
-  cv::Mat squared;  // lattice points^2
-  int step;
-  // Whether a mark lies within radius_px of the continuous pixel coordinates `pixel`: the
-  // distance of the nearest lattice point (at most step / sqrt(2) away, so within radius_px
-  // + step of it). False where the coordinates are not numbers (behind the eye).
-  bool within(glm::vec2 pixel, float radius_px) const {
-    if (!std::isfinite(pixel.x) || !std::isfinite(pixel.y)) return false;
-    const float u = std::clamp((pixel.x - 0.5f) / float(step), 0.0f, float(squared.cols - 1));
-    const float v = std::clamp((pixel.y - 0.5f) / float(step), 0.0f, float(squared.rows - 1));
-    const int i = int(std::lround(u)), j = int(std::lround(v));
-    const float reach = (radius_px + float(step)) / float(step);
-    return squared.at<float>(j, i) <= reach * reach;
-  }
-};
-
 }  // namespace
+
+HWY_EXPORT(mark_changed_pixels);
 
 cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads) {
   CV_Assert(marks.type() == CV_8UC1);
@@ -194,35 +312,16 @@ cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& ne
   const cv::Mat neighbour_marks = seen_through(neighbour, frame, tolerance, in_neighbour_px, nthreads);
   changed_px = 0;
   if (in_frame_px == 0 && in_neighbour_px == 0) return {};
-  const MarkDistances to_frame_marks{squared_distance_to_marks(frame_marks, nthreads),
-                                     mark_stride_px(frame.depth_view.cols)};
-  const MarkDistances to_neighbour_marks{squared_distance_to_marks(neighbour_marks, nthreads),
-                                         mark_stride_px(neighbour.depth_view.cols)};
-  const Reprojection r(frame.camera, neighbour.camera);
-  const PixelRays& rays = r.from_rays_in_to();
-  cv::Mat changed(frame.depth_view.size(), CV_8UC1);
-  std::atomic<int64_t> count{0};
-  parallel_rows(cv::Range(0, changed.rows), nthreads, [&](const cv::Range& rows) {
-    int64_t strip = 0;
-    for (int y = rows.start; y < rows.end; ++y)
-      for (int x = 0; x < changed.cols; ++x) {
-        changed.at<uint8_t>(y, x) = 0;
-        if (!frame.mask.at<uint8_t>(y, x)) continue;
-        const float depth = frame.depth_view.at<float>(y, x);
-        const glm::vec2 centre(float(x) + 0.5f, float(y) + 0.5f);
-        bool near = in_frame_px > 0 && to_frame_marks.within(centre, changed_radius_px(frame.camera, depth, s));
-        // The neighbour's marks around the point's projection.
-        const glm::vec3 p = rays.point(centre.x, centre.y, depth);
-        if (!near && in_neighbour_px > 0 && -p.z > 0.0f)
-          near = to_neighbour_marks.within(neighbour.camera.pixel_from_view(p),
-                                           changed_radius_px(neighbour.camera, -p.z, s));
-        if (near) changed.at<uint8_t>(y, x) = 255, ++strip;
-      }
-    count += strip;
-  }, 16);
-  changed_px = count;
+  const cv::Mat to_frame_marks = in_frame_px > 0 ? squared_distance_to_marks(frame_marks, nthreads) : cv::Mat();
+  const cv::Mat to_neighbour_marks =
+      in_neighbour_px > 0 ? squared_distance_to_marks(neighbour_marks, nthreads) : cv::Mat();
+  cv::Mat changed;
+  changed_px = HWY_DYNAMIC_DISPATCH(mark_changed_pixels)(frame, neighbour, s, to_frame_marks,
+                                                         mark_stride_px(frame.depth_view.cols), to_neighbour_marks,
+                                                         mark_stride_px(neighbour.depth_view.cols), changed, nthreads);
   if (changed_px == 0) return {};
   return changed;
 }
 
 }  // namespace ssdo
+#endif  // HWY_ONCE

@@ -126,13 +126,21 @@ void BM_FrameViews(benchmark::State& state) {
 // (raycast::truck_shot_scene: occluders enter and leave the picture, hide behind others)
 // at width x 9/16, with the frames t-K..t+K as views (neighbours that see past the edges
 // and behind the occluders, as in a real shot), against K = 0.
-const std::vector<ssdo::GBuffer>& truck_shot(int width) {
-  static std::map<int, std::vector<ssdo::GBuffer>> shots;
-  std::vector<ssdo::GBuffer>& shot = shots[width];
+// moving: two boxes in the middle of the picture also slide along +X by kMovingBoxStepWorld
+// per frame (things that move in the shot: what the temporal filter's search for changed
+// surroundings finds).
+constexpr float kMovingBoxStepWorld = 0.1f;
+const std::vector<ssdo::GBuffer>& truck_shot(int width, bool moving = false) {
+  static std::map<std::pair<int, bool>, std::vector<ssdo::GBuffer>> shots;
+  std::vector<ssdo::GBuffer>& shot = shots[{width, moving}];
   if (shot.empty()) {
-    const ssdo::raycast::Scene scene = ssdo::raycast::truck_shot_scene();
-    for (int t = 0; t < ssdo::raycast::kTruckShotFrames; ++t)
+    for (int t = 0; t < ssdo::raycast::kTruckShotFrames; ++t) {
+      ssdo::raycast::Scene scene = ssdo::raycast::truck_shot_scene();
+      if (moving)
+        for (const size_t i : {1, 6})  // the low box at x = -0.6 and the cube at x = 0.8: on screen
+          scene.boxes[i].centre_world.x += kMovingBoxStepWorld * float(t);
       shot.push_back(ssdo::raycast::render_gbuffer(scene, ssdo::raycast::truck_shot_camera(t, width, width * 9 / 16), 2));
+    }
   }
   return shot;
 }
@@ -159,8 +167,9 @@ void BM_ShotChosenViews(benchmark::State& state) {
 // The temporal filter (kernels/temporal.h) of the truck shot's middle frame over the K frames
 // on each side, of raw terms of the given channel counts (random values: the cost does not
 // depend on them): what --temporal K adds to a frame's finish.
-void time_temporal(benchmark::State& state, std::initializer_list<int> term_channels, const std::string& terms_label) {
-  const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)));
+void time_temporal(benchmark::State& state, std::initializer_list<int> term_channels, const std::string& terms_label,
+                   bool moving = false) {
+  const std::vector<ssdo::GBuffer>& shot = truck_shot(int(state.range(0)), moving);
   const int k = int(state.range(1)), threads = int(state.range(2)), middle = ssdo::raycast::kTruckShotFrames / 2;
   std::vector<std::vector<cv::Mat>> raw(shot.size());
   std::vector<std::vector<const cv::Mat*>> terms(shot.size());
@@ -181,13 +190,21 @@ void time_temporal(benchmark::State& state, std::initializer_list<int> term_chan
   std::vector<cv::Mat> filtered(term_channels.size());
   std::vector<cv::Mat*> dsts;
   for (cv::Mat& m : filtered) dsts.push_back(&m);
-  for (auto _ : state) ssdo::filter_temporal(temporal_frame(middle), neighbours, {}, dsts, {}, threads);
-  state.SetLabel("truck shot, --temporal " + std::to_string(k) + ", " + terms_label + ", " + std::to_string(threads) +
-                 "t");
+  int64_t changed_px = 0;
+  for (auto _ : state) {
+    changed_px = 0;
+    for (const ssdo::TemporalUse& u : ssdo::filter_temporal(temporal_frame(middle), neighbours, {}, dsts, {}, threads))
+      changed_px += u.changed_px;
+  }
+  state.SetLabel(std::string(moving ? "truck shot with moving boxes" : "truck shot") + ", --temporal " +
+                 std::to_string(k) + ", " + terms_label + ", " + std::to_string(threads) + "t, " +
+                 std::to_string(changed_px) + " changed px");
 }
 
 // AO alone (--terms ao).
 void BM_Temporal(benchmark::State& state) { time_temporal(state, {1}, "ao"); }
+// The same where the boxes move: every pixel's surroundings are searched for changes.
+void BM_TemporalMoving(benchmark::State& state) { time_temporal(state, {1}, "ao", true); }
 // AO and the two SSDO terms (--terms ao,ssdo): 7 channels.
 void BM_TemporalSsdo(benchmark::State& state) { time_temporal(state, {1, 3, 3}, "ao,ssdo"); }
 
@@ -274,6 +291,7 @@ BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(be
 BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_ShotChosenViews)->ArgsProduct({{1920}, {2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_Temporal)->ArgsProduct({{1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_TemporalMoving)->ArgsProduct({{1920}, {2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
