@@ -6,7 +6,7 @@
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
 // width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
-// width, K, threads (BM_Temporal, BM_TemporalSsdo); width, K, with SSDO, threads
+// width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
 
