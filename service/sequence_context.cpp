@@ -24,6 +24,11 @@ bool has_world(const FrameInfo& info) { return info.camera_source.rfind("--fov",
 
 std::string file_name(const std::string& path) { return std::filesystem::path(path).filename().string(); }
 
+// "1 frame", "3 frames".
+std::string counted(int64_t n, const std::string& noun) {
+  return std::to_string(n) + " " + noun + (n == 1 ? "" : "s");
+}
+
 // What identifies the read options whole frames were read with (a request with other
 // options reads its frame again).
 std::string read_key(const ReadOptions& r) {
@@ -176,8 +181,7 @@ void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::ve
   const std::string kept = reads_.raw_kept > 0 ? ", " + std::to_string(reads_.raw_kept) + " kept from earlier frames"
                                                 : std::string();
   notes.push_back("temporal:" + (used.empty() ? std::string(" none") : used) + " (raw terms computed " +
-                  std::to_string(reads_.raw_terms) + " times for " + std::to_string(reads_.frames) + " frames" +
-                  kept + ")");
+                  counted(reads_.raw_terms, "time") + " for " + counted(reads_.frames, "frame") + kept + ")");
   for (size_t i = 0; i < out.temporal.size(); ++i) {
     const TemporalUse& u = out.temporal[i];
     if (u.used && u.changed_px > 0)
@@ -325,10 +329,9 @@ void SequenceContext::attach_views(const FrameRequest& request, const ReadOption
       names += " " + v->name;
     }
     info.notes.push_back("views:" + (names.empty() ? std::string(" none") : names) + " (read " +
-                         std::to_string(reads_.whole + reads_.depth_only) + " files for " +
-                         std::to_string(reads_.frames) + " frames: " + std::to_string(reads_.whole) + " whole, " +
-                         std::to_string(reads_.depth_only) + " as views only; " + std::to_string(reads_.headers) +
-                         " headers)");
+                         counted(reads_.whole + reads_.depth_only, "file") + " for " + counted(reads_.frames, "frame") +
+                         ": " + std::to_string(reads_.whole) + " whole, " + std::to_string(reads_.depth_only) +
+                         " as views only; " + counted(reads_.headers, "header") + ")");
     return;
   }
 }

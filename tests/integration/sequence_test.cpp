@@ -53,7 +53,7 @@ struct Reads {
   int files = -1, whole = -1;
 };
 Reads last_reads(const std::string& log) {
-  const std::regex re("\\(read (\\d+) files for \\d+ frames: (\\d+) whole");
+  const std::regex re("\\(read (\\d+) files? for \\d+ frames?: (\\d+) whole");
   Reads r;
   for (std::sregex_iterator it(log.begin(), log.end(), re), end; it != end; ++it)
     r = {std::stoi((*it)[1]), std::stoi((*it)[2])};

@@ -258,10 +258,10 @@ TEST(Temporal, SocketRequestsOfAShotComputeEachFrameOnceUntilAFileChanges) {
   };
   // Frame 0 computes itself and frame 1; each later one only the frame after it (frame 3
   // none); the frame before and its own raw terms are kept from the requests before.
-  const char* expected[kFrames] = {"(raw terms computed 2 times for 1 frames)",
-                                   "(raw terms computed 1 times for 1 frames, 2 kept from earlier frames)",
-                                   "(raw terms computed 1 times for 1 frames, 2 kept from earlier frames)",
-                                   "(raw terms computed 0 times for 1 frames, 2 kept from earlier frames)"};
+  const char* expected[kFrames] = {"(raw terms computed 2 times for 1 frame)",
+                                   "(raw terms computed 1 time for 1 frame, 2 kept from earlier frames)",
+                                   "(raw terms computed 1 time for 1 frame, 2 kept from earlier frames)",
+                                   "(raw terms computed 0 times for 1 frame, 2 kept from earlier frames)"};
   for (int i = 0; i < kFrames; ++i) {
     const std::string note = request(i);
     EXPECT_NE(note.find(expected[i]), std::string::npos) << "frame " << i << ": " << note;
@@ -276,7 +276,7 @@ TEST(Temporal, SocketRequestsOfAShotComputeEachFrameOnceUntilAFileChanges) {
   fs::remove(frame(2));
   std::ofstream(frame(2), std::ios::binary) << bytes;
   const std::string note = request(1);
-  EXPECT_NE(note.find("(raw terms computed 3 times for 1 frames)"), std::string::npos) << note;
+  EXPECT_NE(note.find("(raw terms computed 3 times for 1 frame)"), std::string::npos) << note;
 }
 
 }  // namespace
