@@ -36,13 +36,12 @@ constexpr size_t kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 // pixels is widened by one (and by the lattice's step, mark_stride_px).
 constexpr float kMarkMarginPx = 1.0f;
 
-// The pixels of `camera` around a point's projection within which the sphere of radius
-// s.radius_world around the point (planar depth d) lies: the sphere is nowhere nearer than
-// d - R, where a length R covers R x pixels_per_unit(d - R) pixels (for a pinhole
-// f R / (d - R), at least the sphere's projected radius f R / sqrt(d^2 - R^2)); at most
-// s.max_radius_px (the estimators reach no farther), and that when the eye is within about
-// R of the point. Widened by kMarkMarginPx.
-// Per lane: changed_radius_px of the planar depths depth_view (> 0).
+// Per lane, the pixels of `camera` around a point's projection within which the sphere of
+// radius s.radius_world around the point (planar depth d, > 0) lies: the sphere is nowhere
+// nearer than d - R, where a length R covers R x pixels_per_unit(d - R) pixels (for a
+// pinhole f R / (d - R), at least the sphere's projected radius f R / sqrt(d^2 - R^2)); at
+// most s.max_radius_px (the estimators reach no farther), and that when the eye is within
+// about R of the point. Widened by kMarkMarginPx.
 VF changed_radius_lanes(const Camera& camera, VF depth_view, const TemporalSettings& s) {
   const DF d;
   const VF nearest = hn::Sub(depth_view, hn::Set(d, s.radius_world));
