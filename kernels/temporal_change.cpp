@@ -28,6 +28,7 @@ using reprojection_lanes::DF;
 using reprojection_lanes::MF;
 using reprojection_lanes::VF;
 using DI = hn::RebindToSigned<DF>;
+using VI = hn::Vec<DI>;
 
 // The most float lanes of any target: the size of per-lane scratch arrays.
 constexpr size_t kMaxLanes = HWY_MAX_BYTES / sizeof(float);
@@ -55,6 +56,15 @@ VF changed_radius_lanes(const Camera& camera, VF depth_view, const TemporalSetti
   const VF pixels_per_unit = hn::Div(hn::Set(d, per_unit), hn::IfThenElse(ok, w, hn::Set(d, 1.0f)));
   const VF r = hn::Min(hn::Mul(hn::Set(d, s.radius_world), pixels_per_unit), hn::Set(d, s.max_radius_px));
   return hn::IfThenElse(ok, hn::Add(r, hn::Set(d, kMarkMarginPx)), hn::Set(d, s.max_radius_px + kMarkMarginPx));
+}
+
+// 255 in the lanes of `on`, else 0, as bytes into out[0 .. count).
+void store_bytes(MF on, size_t count, uint8_t* out) {
+  const DI di;
+  const hn::Rebind<uint8_t, DF> d8;
+  HWY_ALIGN uint8_t bytes[kMaxLanes];
+  hn::Store(hn::DemoteTo(d8, hn::IfThenElseZero(hn::RebindMask(di, on), hn::Set(di, 255))), d8, bytes);
+  std::copy(bytes, bytes + count, out);
 }
 
 // A frame's marks as the pass reads them: the squared distances on its lattice
@@ -122,14 +132,87 @@ struct ChangedPass {
       const VF radius = changed_radius_lanes(neighbour.camera, hn::IfThenElse(seen, depth_there, hn::Set(d, 1.0f)), s);
       near = hn::Or(near, to_neighbour_marks.within(there.pixel_x, there.pixel_y, radius, seen));
     }
-    const DI di;
-    const hn::Rebind<uint8_t, DF> d8;
-    const auto bytes = hn::DemoteTo(d8, hn::IfThenElseZero(hn::RebindMask(di, near), hn::Set(di, 255)));
-    HWY_ALIGN uint8_t stored[kMaxLanes];
-    hn::Store(bytes, d8, stored);
-    std::copy(stored, stored + count, out + x0);
+    store_bytes(near, count, out + x0);
     return int64_t(hn::CountTrue(d, near));
   }
+};
+
+// Whether `to` sees through the points of `from` on lattice row j, i = i0 .. i0 + N - 1 (N:
+// the lanes; those at or past the row's last point are not): the smallest depth of the 2x2
+// texel centres of `to` around a point's projection that lie in the image and are
+// foreground is farther than the point by more than tolerance_relative x its depth (the
+// tolerance of the tangent-plane test, TemporalSettings::depth_tolerance_relative). No
+// point behind `to`'s eye or without a texel of the 2x2 in the image is: nothing is seen
+// there. 255 where seen through, else 0, into out; returns how many.
+struct SeenThroughPass {
+  const TemporalFrame& from;
+  const TemporalFrame& to;
+  const PixelRays& rays;  // from's pixel points in to's view
+  float tolerance_relative;
+  int step;  // the lattice's, pixels
+
+  // Foreground lanes of to's 2x2 texel t (t & 1: the next column, t >> 1: the next row)
+  // around texel (x0, y0) of each lane in `inside`, and their depths.
+  MF texel(VI x0, VI y0, int t, MF inside, VF& depth) const {
+    const DF d;
+    const DI di;
+    const VI tx = hn::Add(x0, hn::Set(di, t & 1)), ty = hn::Add(y0, hn::Set(di, t >> 1));
+    const auto in_image = hn::And(hn::And(hn::Gt(tx, hn::Set(di, -1)), hn::Lt(tx, hn::Set(di, to.depth_view.cols))),
+                                  hn::And(hn::Gt(ty, hn::Set(di, -1)), hn::Lt(ty, hn::Set(di, to.depth_view.rows))));
+    const MF in = hn::And(inside, hn::RebindMask(d, in_image));
+    const auto in_i = hn::RebindMask(di, in);
+    const VI depth_at = hn::IfThenElseZero(
+        in_i, hn::Add(hn::Mul(ty, hn::Set(di, int32_t(to.depth_view.step[0] / sizeof(float)))), tx));
+    depth = hn::GatherIndex(d, to.depth_view.ptr<float>(0), depth_at);
+    HWY_ALIGN int32_t mask_at[kMaxLanes];
+    hn::Store(hn::IfThenElseZero(in_i, hn::Add(hn::Mul(ty, hn::Set(di, int32_t(to.mask.step[0]))), tx)), di, mask_at);
+    HWY_ALIGN uint8_t mask[kMaxLanes];
+    for (size_t l = 0; l < hn::Lanes(d); ++l) mask[l] = to.mask.data[mask_at[l]];
+    return hn::And(in, foreground_lanes(mask));
+  }
+
+  int64_t lanes(int j, int i0, int points, uint8_t* out) const {
+    const DF d;
+    const DI di;
+    const size_t n = hn::Lanes(d), count = std::min(n, size_t(points - i0));
+    const int y = j * step;
+    HWY_ALIGN float depth_at_points[kMaxLanes];
+    HWY_ALIGN uint8_t mask_at_points[kMaxLanes] = {};
+    for (size_t l = 0; l < count; ++l) {
+      const int x = (i0 + int(l)) * step;
+      depth_at_points[l] = from.depth_view.ptr<float>(y)[x];
+      mask_at_points[l] = from.mask.ptr<uint8_t>(y)[x];
+    }
+    std::fill(depth_at_points + count, depth_at_points + n, 1.0f);
+    const MF fg = foreground_lanes(mask_at_points);
+    const VF depth = hn::IfThenElse(fg, hn::Load(d, depth_at_points), hn::Set(d, 1.0f));
+    const VF px = hn::Add(hn::ConvertTo(d, hn::Mul(hn::Iota(di, i0), hn::Set(di, step))), hn::Set(d, 0.5f));
+    const reprojection_lanes::Vec3L p = reprojection_lanes::ray_point(rays, px, py(y), depth);
+    const VF point_depth = hn::Neg(p.z);
+    const reprojection_lanes::ProjectedLanes there = reprojection_lanes::project(to.camera, p);
+    MF inside = hn::And(hn::And(fg, there.valid), hn::Gt(point_depth, hn::Zero(d)));
+    // The texel centres around the projection: floor(pixel - 0.5) and the next ones.
+    const VF outside = hn::Set(d, -2.0f);
+    const VF gx = hn::IfThenElse(inside, hn::Sub(there.pixel_x, hn::Set(d, 0.5f)), outside);
+    const VF gy = hn::IfThenElse(inside, hn::Sub(there.pixel_y, hn::Set(d, 0.5f)), outside);
+    inside = hn::And(inside, hn::And(hn::Gt(gx, hn::Set(d, -1.0f)), hn::Gt(gy, hn::Set(d, -1.0f))));
+    inside = hn::And(inside, hn::And(hn::Lt(gx, hn::Set(d, float(to.depth_view.cols))),
+                                     hn::Lt(gy, hn::Set(d, float(to.depth_view.rows)))));
+    const VI x0 = hn::ConvertTo(di, hn::Floor(hn::IfThenElseZero(inside, gx)));
+    const VI y0 = hn::ConvertTo(di, hn::Floor(hn::IfThenElseZero(inside, gy)));
+    VF nearest = hn::Set(d, std::numeric_limits<float>::infinity());
+    for (int t = 0; t < 4; ++t) {
+      VF texel_depth;
+      const MF seen = texel(x0, y0, t, inside, texel_depth);
+      nearest = hn::IfThenElse(seen, hn::Min(nearest, texel_depth), nearest);
+    }
+    const MF marked =
+        hn::And(inside, hn::Gt(nearest, hn::Mul(point_depth, hn::Set(d, 1.0f + tolerance_relative))));
+    store_bytes(marked, count, out + i0);
+    return int64_t(hn::CountTrue(d, marked));
+  }
+
+  static VF py(int y) { return hn::Set(DF(), float(y) + 0.5f); }
 };
 
 }  // namespace
@@ -155,11 +238,33 @@ int64_t mark_changed_pixels(const TemporalFrame& frame, const TemporalFrame& nei
   return count;
 }
 
+// seen_through's test of every point of `from`'s lattice (step: its spacing in pixels) into
+// marks (CV_8UC1, the lattice's size): 255 where `to` sees through the point, else 0;
+// returns how many.
+int64_t mark_seen_through(const TemporalFrame& from, const TemporalFrame& to, float tolerance_relative, int step,
+                          cv::Mat& marks, int nthreads) {
+  const Reprojection r(from.camera, to.camera);
+  const SeenThroughPass pass{from, to, r.from_rays_in_to(), tolerance_relative, step};
+  std::atomic<int64_t> count{0};
+  parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
+    int64_t strip = 0;
+    for (int j = rows.start; j < rows.end; ++j)
+      for (int i0 = 0; i0 < marks.cols; i0 += int(hn::Lanes(DF())))
+        strip += pass.lanes(j, i0, marks.cols, marks.ptr<uint8_t>(j));
+    count += strip;
+  }, 16);
+  return count;
+}
+
 }  // namespace ssdo::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
 namespace ssdo {
+
+HWY_EXPORT(mark_seen_through);
+HWY_EXPORT(mark_changed_pixels);
+
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -174,24 +279,6 @@ constexpr int kMarkLatticeWidth = 480;
 
 // The lattice's step for a frame `width_px` wide: pixel (x, y) with x, y multiples of it.
 int mark_stride_px(int width_px) { return std::max(1, (width_px + kMarkLatticeWidth - 1) / kMarkLatticeWidth); }
-
-// Whether a frame (its planar depth and mask) sees through a point of planar depth
-// point_depth (in that frame's view) projected to `pixel`: the smallest depth of the 2x2
-// texel centres around the projection that lie in the image (background: +inf) is farther
-// than the point by more than tolerance_relative x its depth (the tolerance of the
-// tangent-plane test, TemporalSettings::depth_tolerance_relative). False when the point is
-// behind the eye or no texel of the 2x2 is in the image: nothing is seen there.
-bool sees_through(const TemporalFrame& f, glm::vec2 pixel, float point_depth, float tolerance_relative) {
-  if (!(point_depth > 0.0f)) return false;
-  const float gx = pixel.x - 0.5f, gy = pixel.y - 0.5f;  // NaN fails the tests below
-  if (!(gx > -1.0f && gy > -1.0f && gx < float(f.depth_view.cols) && gy < float(f.depth_view.rows))) return false;
-  const int x0 = int(std::floor(gx)), y0 = int(std::floor(gy));
-  float nearest = kInf;
-  for (int ty = std::max(y0, 0); ty <= std::min(y0 + 1, f.depth_view.rows - 1); ++ty)
-    for (int tx = std::max(x0, 0); tx <= std::min(x0 + 1, f.depth_view.cols - 1); ++tx)
-      if (f.mask.at<uint8_t>(ty, tx)) nearest = std::min(nearest, f.depth_view.at<float>(ty, tx));
-  return nearest > point_depth * (1.0f + tolerance_relative);
-}
 
 // The marks that belong to a 2x2 block of marks (a morphological opening by a 2x2 square):
 // a surface one texel wide that the grids sample in one frame and miss in the other (a thin
@@ -215,29 +302,13 @@ int64_t keep_blocks(cv::Mat& marks) {
 }
 
 // On the lattice of `from` (point (i, j): pixel (i, j) x mark_stride_px), 255 at the
-// foreground pixels whose point `to` sees through (sees_through), then only those in 2x2
-// blocks (keep_blocks); 0 elsewhere. CV_8UC1; marks_px: how many.
+// foreground pixels whose point `to` sees through (mark_seen_through), then only those in
+// 2x2 blocks (keep_blocks); 0 elsewhere. CV_8UC1; marks_px: how many.
 cv::Mat seen_through(const TemporalFrame& from, const TemporalFrame& to, float tolerance_relative, int64_t& marks_px,
                      int nthreads) {
-  const Reprojection r(from.camera, to.camera);
-  const PixelRays& rays = r.from_rays_in_to();
   const int step = mark_stride_px(from.depth_view.cols);
-  cv::Mat marks = cv::Mat::zeros((from.depth_view.rows + step - 1) / step, (from.depth_view.cols + step - 1) / step,
-                                 CV_8UC1);
-  std::atomic<int64_t> count{0};
-  parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
-    int64_t strip = 0;
-    for (int j = rows.start; j < rows.end; ++j)
-      for (int i = 0; i < marks.cols; ++i) {
-        const int x = i * step, y = j * step;
-        if (!from.mask.at<uint8_t>(y, x)) continue;
-        const glm::vec3 p = rays.point(float(x) + 0.5f, float(y) + 0.5f, from.depth_view.at<float>(y, x));
-        if (!sees_through(to, to.camera.pixel_from_view(p), -p.z, tolerance_relative)) continue;
-        marks.at<uint8_t>(j, i) = 255;
-        ++strip;
-      }
-    count += strip;
-  }, 16);
+  cv::Mat marks((from.depth_view.rows + step - 1) / step, (from.depth_view.cols + step - 1) / step, CV_8UC1);
+  const int64_t count = HWY_DYNAMIC_DISPATCH(mark_seen_through)(from, to, tolerance_relative, step, marks, nthreads);
   marks_px = count > 0 ? keep_blocks(marks) : 0;
   return marks;
 }
@@ -271,8 +342,6 @@ void lower_envelope(const float* f, int n, float* d, std::vector<int>& v, std::v
 }
 
 }  // namespace
-
-HWY_EXPORT(mark_changed_pixels);
 
 cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads) {
   CV_Assert(marks.type() == CV_8UC1);
