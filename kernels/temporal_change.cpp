@@ -270,11 +270,11 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 // Marks are sought on a lattice of pixels at most this many points wide (mark_stride_px):
-// a point's test (a reprojection and four texels, scalar) costs about half of what the
-// filter spends on a pixel per neighbour, so at every pixel of a 1080p frame the two passes
-// would cost as much as the filter; on the lattice they cost those of a 480 x 270 frame at
-// any size, and a moved object is still found when it spans 2 x 2 of the lattice's points
-// (the opening, keep_blocks), 8 pixels of a 1080p frame.
+// a point's test (a reprojection and four texels) costs about what the filter spends on a
+// texel per neighbour, so at every pixel of a 1080p frame the two passes would cost about
+// as much as the filter; on the lattice they cost those of a 480 x 270 frame at any size,
+// and a moved object is still found when it spans 2 x 2 of the lattice's points (the
+// opening, keep_blocks), 8 pixels of a 1080p frame.
 constexpr int kMarkLatticeWidth = 480;
 
 // The lattice's step for a frame `width_px` wide: pixel (x, y) with x, y multiples of it.
