@@ -149,7 +149,8 @@ struct SeenThroughPass {
   const TemporalFrame& to;
   const PixelRays& rays;  // from's pixel points in to's view
   float tolerance_relative;
-  int step;  // the lattice's, pixels
+  int step;    // the lattice's, pixels
+  int points;  // per lattice row
 
   // Foreground lanes of to's 2x2 texel t (t & 1: the next column, t >> 1: the next row)
   // around texel (x0, y0) of each lane in `inside`, and their depths.
@@ -171,7 +172,7 @@ struct SeenThroughPass {
     return hn::And(in, foreground_lanes(mask));
   }
 
-  int64_t lanes(int j, int i0, int points, uint8_t* out) const {
+  int64_t lanes(int j, int i0, uint8_t* out) const {
     const DF d;
     const DI di;
     const size_t n = hn::Lanes(d), count = std::min(n, size_t(points - i0));
@@ -215,6 +216,20 @@ struct SeenThroughPass {
   static VF py(int y) { return hn::Set(DF(), float(y) + 0.5f); }
 };
 
+// pass.lanes(row, first, out's row) over every vector of each row of `out` (CV_8UC1), rows
+// in parallel: the sum of what it returns.
+template <class Pass>
+int64_t run_rows(const Pass& pass, cv::Mat& out, int nthreads) {
+  std::atomic<int64_t> count{0};
+  parallel_rows(cv::Range(0, out.rows), nthreads, [&](const cv::Range& rows) {
+    int64_t strip = 0;
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x0 = 0; x0 < out.cols; x0 += int(hn::Lanes(DF()))) strip += pass.lanes(y, x0, out.ptr<uint8_t>(y));
+    count += strip;
+  }, 16);
+  return count;
+}
+
 }  // namespace
 
 // changed_surroundings' pass over the frame's pixels, given the squared distances to each
@@ -227,15 +242,7 @@ int64_t mark_changed_pixels(const TemporalFrame& frame, const TemporalFrame& nei
   const MarkDistances frame_marks{to_frame_marks, frame_step}, neighbour_marks{to_neighbour_marks, neighbour_step};
   const ChangedPass pass{frame, neighbour, s, r.from_rays_in_to(), frame_marks, neighbour_marks};
   changed.create(frame.depth_view.size(), CV_8UC1);
-  std::atomic<int64_t> count{0};
-  parallel_rows(cv::Range(0, changed.rows), nthreads, [&](const cv::Range& rows) {
-    int64_t strip = 0;
-    for (int y = rows.start; y < rows.end; ++y)
-      for (int x0 = 0; x0 < changed.cols; x0 += int(hn::Lanes(DF())))
-        strip += pass.lanes(y, x0, changed.ptr<uint8_t>(y));
-    count += strip;
-  }, 16);
-  return count;
+  return run_rows(pass, changed, nthreads);
 }
 
 // seen_through's test of every point of `from`'s lattice (step: its spacing in pixels) into
@@ -244,16 +251,8 @@ int64_t mark_changed_pixels(const TemporalFrame& frame, const TemporalFrame& nei
 int64_t mark_seen_through(const TemporalFrame& from, const TemporalFrame& to, float tolerance_relative, int step,
                           cv::Mat& marks, int nthreads) {
   const Reprojection r(from.camera, to.camera);
-  const SeenThroughPass pass{from, to, r.from_rays_in_to(), tolerance_relative, step};
-  std::atomic<int64_t> count{0};
-  parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
-    int64_t strip = 0;
-    for (int j = rows.start; j < rows.end; ++j)
-      for (int i0 = 0; i0 < marks.cols; i0 += int(hn::Lanes(DF())))
-        strip += pass.lanes(j, i0, marks.cols, marks.ptr<uint8_t>(j));
-    count += strip;
-  }, 16);
-  return count;
+  const SeenThroughPass pass{from, to, r.from_rays_in_to(), tolerance_relative, step, marks.cols};
+  return run_rows(pass, marks, nthreads);
 }
 
 }  // namespace ssdo::HWY_NAMESPACE
