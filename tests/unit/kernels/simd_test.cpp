@@ -19,6 +19,8 @@
 #include "kernels/half_resolution.h"
 #include "kernels/normals.h"
 #include "kernels/ssdo.h"
+#include "kernels/temporal.h"
+#include "kernels/temporal_change.h"
 #include "tests/support/raycast.h"
 
 namespace ssdo {
@@ -105,6 +107,50 @@ TEST(Simd, EveryInstructionSetGivesTheSameBits) {
   EXPECT_GT(differing(alone.terms.ao.ao, on[0][1].terms.ao.ao), 0.0);
   EXPECT_GT(differing(alone.terms.ssdo.indirect, on[0][1].terms.ssdo.indirect), 0.0);
   EXPECT_GT(differing(alone.terms.confidence, on[0][1].terms.confidence), 0.0);
+}
+
+// The temporal filter over a neighbour in which two boxes moved (so that every pass of the
+// search for changed surroundings runs, kernels/temporal_change.h): the changed pixels and
+// the filtered terms are the same bits on every instruction set.
+TEST(Simd, TheTemporalFilterGivesTheSameBitsOnEveryInstructionSet) {
+  raycast::Scene moved = raycast::truck_shot_scene();
+  for (const size_t i : {1, 6}) moved.boxes[i].centre_world.x += 0.3f;  // two boxes in the picture
+  const GBuffer g = shot_frame(raycast::truck_shot_scene(), 3), u = shot_frame(moved, 4);
+  cv::Mat ao_g(g.depth_view.size(), CV_32FC1), ao_u(u.depth_view.size(), CV_32FC1);
+  cv::Mat light_g(g.depth_view.size(), CV_32FC3), light_u(u.depth_view.size(), CV_32FC3);
+  cv::RNG rng(7);
+  for (cv::Mat* m : {&ao_g, &ao_u, &light_g, &light_u}) rng.fill(*m, cv::RNG::UNIFORM, 0.0f, 1.0f);
+  const std::vector<const cv::Mat*> terms_g{&ao_g, &light_g}, terms_u{&ao_u, &light_u};
+  const TemporalFrame frame{g.camera, g.depth_view, g.normal_view, g.mask, terms_g};
+  const std::vector<TemporalFrame> neighbours{{u.camera, u.depth_view, u.normal_view, u.mask, terms_u}};
+  const std::string chosen = simd_target();
+  const std::vector<std::string> targets = simd_targets_runnable();
+  TemporalSettings settings;
+  settings.radius_world = 0.3f;  // the terms' reach: a part of the picture changes, not all
+  struct Filtered {
+    cv::Mat changed, ao, light;
+    int64_t changed_px = -1;
+  };
+  std::vector<Filtered> on(targets.size());
+  for (size_t t = 0; t < targets.size(); ++t) {
+    ASSERT_TRUE(use_simd_target(targets[t])) << targets[t];
+    Filtered& f = on[t];
+    f.changed = changed_surroundings(frame, neighbours[0], settings, f.changed_px, 2);
+    std::array<cv::Mat*, 2> dsts{&f.ao, &f.light};
+    const std::vector<TemporalUse> uses = filter_temporal(frame, neighbours, settings, dsts, {}, 2);
+    ASSERT_TRUE(uses[0].used) << targets[t];
+    EXPECT_EQ(uses[0].changed_px, f.changed_px) << targets[t];
+  }
+  ASSERT_TRUE(use_simd_target(chosen));
+  const Filtered& baseline = on.back();
+  EXPECT_GT(baseline.changed_px, 100);
+  EXPECT_LT(baseline.changed_px, g.depth_view.total() / 2);
+  for (size_t t = 0; t + 1 < targets.size(); ++t) {
+    EXPECT_EQ(on[t].changed_px, baseline.changed_px) << targets[t];
+    EXPECT_EQ(differing(on[t].changed, baseline.changed), 0.0) << targets[t];
+    EXPECT_EQ(differing(on[t].ao, baseline.ao), 0.0) << targets[t];
+    EXPECT_EQ(differing(on[t].light, baseline.light), 0.0) << targets[t];
+  }
 }
 
 TEST(Simd, TheEnvironmentNamesAnInstructionSetInAnyCase) {
