@@ -172,6 +172,7 @@ struct SeenThroughPass {
     return hn::And(in, foreground_lanes(mask));
   }
 
+  // Lattice points i0 .. i0 + N - 1 of row j, as above, into out[i0 ..].
   int64_t lanes(int j, int i0, uint8_t* out) const {
     const DF d;
     const DI di;
@@ -188,7 +189,8 @@ struct SeenThroughPass {
     const MF fg = foreground_lanes(mask_at_points);
     const VF depth = hn::IfThenElse(fg, hn::Load(d, depth_at_points), hn::Set(d, 1.0f));
     const VF px = hn::Add(hn::ConvertTo(d, hn::Mul(hn::Iota(di, i0), hn::Set(di, step))), hn::Set(d, 0.5f));
-    const reprojection_lanes::Vec3L p = reprojection_lanes::ray_point(rays, px, py(y), depth);
+    const VF py = hn::Set(d, float(y) + 0.5f);
+    const reprojection_lanes::Vec3L p = reprojection_lanes::ray_point(rays, px, py, depth);
     const VF point_depth = hn::Neg(p.z);
     const reprojection_lanes::ProjectedLanes there = reprojection_lanes::project(to.camera, p);
     MF inside = hn::And(hn::And(fg, there.valid), hn::Gt(point_depth, hn::Zero(d)));
@@ -212,8 +214,6 @@ struct SeenThroughPass {
     store_bytes(marked, count, out + i0);
     return int64_t(hn::CountTrue(d, marked));
   }
-
-  static VF py(int y) { return hn::Set(DF(), float(y) + 0.5f); }
 };
 
 // pass.lanes(row, first, out's row) over every vector of each row of `out` (CV_8UC1), rows
