@@ -159,11 +159,12 @@ ComputedFrame SequenceContext::compute(const FrameRequest& request, const ReadOp
   std::vector<const RawFrame*> neighbours;
   std::vector<std::string> names;
   for (const NeighbourFrame& n : within_places(request.neighbours, request.temporal_per_side)) {
-    if (const RawFrame* r = neighbour_raw(request, read, n)) {
-      neighbours.push_back(r);
+    const Entry& e = neighbour_raw(request, read, n);
+    if (e.raw_part) {
+      neighbours.push_back(e.raw_part.get());
       names.push_back(file_name(n.path));
     } else {
-      notes.push_back(file_name(n.path) + ": not used for temporal filtering (" + cache_[n.path].raw_error + ")");
+      notes.push_back(file_name(n.path) + ": not used for temporal filtering (" + e.raw_error + ")");
     }
   }
   ComputedFrame out = finish_frame(std::move(raw), neighbours, request);
@@ -195,12 +196,12 @@ void SequenceContext::add_temporal_notes(const ComputedFrame& out, const std::ve
   }
 }
 
-const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, const ReadOptions& read,
-                                               const NeighbourFrame& n) {
+const SequenceContext::Entry& SequenceContext::neighbour_raw(const FrameRequest& request, const ReadOptions& read,
+                                                             const NeighbourFrame& n) {
   // std::map: the reference stays valid; read_in_window below keeps the cache, as the
   // neighbour's read differs from the frame's only in its sidecar, which is not in read_key.
   Entry& e = cache_[n.path];
-  if (e.raw_part || !e.raw_error.empty()) return e.raw_part.get();
+  if (e.raw_part || !e.raw_error.empty()) return e;
   // The neighbour as its own job computes it: its own views among its own candidates.
   FrameRequest r = request;
   r.input_path = n.open_path.empty() ? n.path : n.open_path;
@@ -212,20 +213,21 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
   const std::string key = store_ ? raw_terms_key(r, r.input_path, n.camera_json) : "";
   if (std::shared_ptr<const RawFrame> kept = store_ ? store_->part(key) : nullptr) {
     ++reads_.raw_kept;
-    return (e.raw_part = std::move(kept)).get();
+    e.raw_part = std::move(kept);
+    return e;
   }
   if (e.unreadable) {  // not read again
     e.raw_error = e.error;
-    return nullptr;
+    return e;
   }
   ReadResult f = read_in_window(r, neighbour_read(n, read));
   if (!f.ok()) {
     e.raw_error = f.error;
     remember_failed_read(n, std::move(f), e);
-    return nullptr;
+    return e;
   }
   if (!has_world(f.info)) e.raw_error = "no camera with a world transform";
-  if (!e.raw_error.empty() || !resolve_frame_radius(r, f.info, e.raw_error)) return nullptr;
+  if (!e.raw_error.empty() || !resolve_frame_radius(r, f.info, e.raw_error)) return e;
   RawFrame raw = compute_raw_frame(std::move(f.gbuffer), r);
   ++reads_.raw_terms;
   e.raw_part = std::make_shared<const RawFrame>(temporal_part(raw));
@@ -235,7 +237,7 @@ const RawFrame* SequenceContext::neighbour_raw(const FrameRequest& request, cons
     e.raw_whole = std::make_shared<RawFrame>(std::move(raw));
     e.raw_info = std::move(f.info);
   }
-  return e.raw_part.get();
+  return e;
 }
 
 SequenceContext::Entry& SequenceContext::candidate(const NeighbourFrame& n, const ReadOptions& read) {

@@ -121,7 +121,9 @@ class SequenceContext : public FrameSource {
   void remember_failed_read(const NeighbourFrame& n, ReadResult&& failed, Entry& e);
   void attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame);
   ReadResult read_in_window(const FrameRequest& request, const ReadOptions& read);
-  const RawFrame* neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);
+  // A temporal neighbour's cache entry with its raw terms (raw_part), computed or kept, or
+  // why there are none (raw_error).
+  const Entry& neighbour_raw(const FrameRequest& request, const ReadOptions& read, const NeighbourFrame& n);
   void keep_window(const FrameRequest& request);
   // The -v notes of a temporally filtered frame: the neighbours used, the raw-term count,
   // and why each unused one was left out.
