@@ -4,14 +4,16 @@
 // frame (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
-// Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_Frame);
+// Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_SsdoEnv, BM_Frame);
 // width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
 // width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
 
 #include <map>
+#include <stdexcept>
 
+#include "formats/env_map.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/denoise.h"
@@ -75,17 +77,32 @@ void BM_DenoiseHalfGridTerms(benchmark::State& state) {
   state.SetLabel("radius " + std::to_string(s.radius_px) + ", spacing " + std::to_string(s.tap_spacing_px));
 }
 
-void BM_Ssdo(benchmark::State& state) {
+void time_ssdo(benchmark::State& state, const ssdo::Environment& env, const std::string& what) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   const auto preset = ssdo::Preset(state.range(1));
   const int threads = int(state.range(2));
   const ssdo::SsdoSettings s = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, preset);
-  static const ssdo::Environment white;  // constant radiance 1, as the pipeline's default
-  const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, white,
+  const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, env,
                             g.has_albedo() ? &g.albedo : nullptr, nullptr};
   ssdo::SsdoOutput out;
   for (auto _ : state) ssdo::compute_ssdo_at_resolution(in, s, out, {}, threads);
-  state.SetLabel("ssdo " + std::string(ssdo::to_string(preset)) + " " + std::to_string(threads) + "t");
+  state.SetLabel("ssdo " + std::string(ssdo::to_string(preset)) + what + " " + std::to_string(threads) + "t");
+}
+
+void BM_Ssdo(benchmark::State& state) {
+  static const ssdo::Environment white;  // constant radiance 1, as the pipeline's default
+  time_ssdo(state, white, "");
+}
+
+// SSDO lit by the example's environment map (`--env examples/env_equirect.exr`): the
+// filtered radiance of the samples and the irradiance table at each pixel are looked up.
+void BM_SsdoEnv(benchmark::State& state) {
+  static const ssdo::Environment map = [] {
+    const ssdo::EnvMapResult env = ssdo::read_env_map(std::string(SSDO_SOURCE_DIR) + "/examples/env_equirect.exr");
+    if (!env.ok()) throw std::runtime_error(env.error);
+    return ssdo::Environment::equirect(env.radiance_rgb, {});
+  }();
+  time_ssdo(state, map, " --env");
 }
 
 // The compute step of `ssdo process --terms ao,ssdo` (no I/O): the default AO method and
@@ -286,6 +303,7 @@ BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseReal
 BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_DenoiseHalfGridTerms)->ArgsProduct({{640, 1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ssdo)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsdoEnv)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Frame)->Apply(preset_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_FrameViews)->ArgsProduct({{640, 1920}, {0, 1, 2, 3}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
 BENCHMARK(BM_ShotViews)->ArgsProduct({{1920}, {0, 1, 2}, {2}})->Unit(benchmark::kMillisecond)->UseRealTime()->MeasureProcessCPUTime();
