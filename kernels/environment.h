@@ -129,6 +129,9 @@ class Environment {
   // The pre-blurred lat-long (CV_32FC3, same layout as the equirect input): what
   // radiance_filtered_env reads (for a sky too; a constant has none).
   const cv::Mat& filtered_map() const { return filtered_; }
+  // The table irradiance_over_pi_env looks up (CV_32FC3 equirect of normals; not for a
+  // constant).
+  const cv::Mat& irradiance_map() const { return irradiance_; }
 
   // The odd polynomial of radiance_filtered_env's arctangent, a(t) = t (c0 + t^2 (c1 + ...)),
   // highest power first (the Cg reference atan2's coefficients, within 4e-6 rad on

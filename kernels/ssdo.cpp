@@ -128,6 +128,9 @@ struct Constants {
   // The estimators the settings select, and d_min^2 of the form factor.
   bool bent_normal;
   bool control_variate;  // open_minus_occluded
+  // E_tab(n) / pi at each pixel's normal n (CV_32FC3; irradiance_at_normals) for
+  // open_minus_occluded lit by a map or a sky, else null: looked up per pixel then.
+  const cv::Mat* irradiance_at_normal;
   bool form_factor;
   float sender_distance_min2_world;
   // (cos, sin) of 2 pi a2 i for the samples i of the R2 sequence (a2 its second
@@ -575,22 +578,19 @@ struct SampleSums {
   int visible = 0;
 };
 
-// Environment::radiance_filtered_env of the batch's kSampleBatch directions w (view space)
-// at once, one per lane, into (red, green, blue): env_from_view * w in glm's order, then
-// equirect_from_direction_fast (fast_atan2 twice) and the bilinear lookup with its wrap in
-// azimuth and clamp in elevation, the same operations in the same order as the scalar code
-// of kernels/environment.cpp, so the same bits. A filtered map or a sky (not a constant).
-// Lanes of visible samples are computed too (for nobody when the estimator reads only the
-// occluded ones): a vector of lanes costs about what one scalar lookup does.
-void filtered_radiance_lanes(const Constants& c, const SampleBatch& b, float* red, float* green, float* blue) {
-  const hn::CappedTag<float, kSampleBatch> d;
-  const hn::RebindToSigned<decltype(d)> di;
-  using V = hn::Vec<decltype(d)>;
-  const cv::Mat& map = c.env->filtered_map();
+// bilinear_at(map, equirect_from_direction_fast(m * w, map.size())) (kernels/environment.cpp)
+// of view-space directions w, one per lane, into (red, green, blue): m * w in glm's order,
+// fast_atan2 twice and the bilinear lookup with its wrap in azimuth and clamp in elevation,
+// the same operations in the same order as the scalar code, so the same bits. map: an
+// environment's equirect table (CV_32FC3).
+template <class D>
+HWY_INLINE void equirect_lanes(D d, const cv::Mat& map, const glm::mat3& m, hn::Vec<D> wx, hn::Vec<D> wy,
+                               hn::Vec<D> wz, hn::Vec<D>& red, hn::Vec<D>& green, hn::Vec<D>& blue) {
+  const hn::RebindToSigned<D> di;
+  using V = hn::Vec<D>;
   const int width = map.cols, height = map.rows;
   const int32_t row_floats = int32_t(map.step1());
   const float* texels = map.ptr<float>(0);
-  const glm::mat3& m = c.env_from_view;
   constexpr float pi = std::numbers::pi_v<float>;
   const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
   // fast_atan2 (kernels/environment.cpp) in lanes.
@@ -607,48 +607,61 @@ void filtered_radiance_lanes(const Constants& c, const SampleBatch& b, float* re
     a = hn::IfThenElse(hn::Lt(x, zero), hn::Sub(hn::Set(d, pi), a), a);
     return hn::IfThenElse(hn::Lt(y, zero), hn::Neg(a), a);
   };
+  auto row = [&](int r) {  // glm's mat3 * vec3: m[0][r] x + m[1][r] y + m[2][r] z
+    return hn::Add(hn::Add(hn::Mul(hn::Set(d, m[0][r]), wx), hn::Mul(hn::Set(d, m[1][r]), wy)),
+                   hn::Mul(hn::Set(d, m[2][r]), wz));
+  };
+  const V dx = row(0), dy = row(1), dz = row(2);
+  const V theta = atan2_lanes(dz, hn::Sqrt(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy))));
+  const V phi = atan2_lanes(hn::Neg(dx), dy);
+  const V px = hn::Mul(hn::Set(d, 0.5f * float(width)), hn::Sub(one, hn::Div(phi, hn::Set(d, pi))));
+  const V py = hn::Mul(hn::Set(d, float(height)), hn::Sub(half, hn::Div(theta, hn::Set(d, pi))));
+  // bilinear_at: texel centres at + 0.5.
+  const V x = hn::Sub(px, half), y = hn::Sub(py, half);
+  const V x0f = hn::Floor(x), y0f = hn::Floor(y);
+  const V fx = hn::Sub(x, x0f), fy = hn::Sub(y, y0f);
+  // A direction gives x in [-0.5, W - 0.5] (atan2 is bounded), so one add or subtract
+  // wraps x0 and x0 + 1; the clamp only keeps a NaN direction's texels in the map.
+  const auto width_v = hn::Set(di, width);
+  auto wrap = [&](hn::Vec<decltype(di)> xi) {
+    xi = hn::Min(hn::Max(xi, hn::Neg(width_v)), hn::Set(di, 2 * width - 1));
+    xi = hn::IfThenElse(hn::Lt(xi, hn::Zero(di)), hn::Add(xi, width_v), xi);
+    return hn::IfThenElse(hn::Gt(xi, hn::Set(di, width - 1)), hn::Sub(xi, width_v), xi);
+  };
+  auto clamp_row = [&](hn::Vec<decltype(di)> yi) {
+    return hn::Min(hn::Max(yi, hn::Zero(di)), hn::Set(di, height - 1));
+  };
+  const auto x0 = hn::ConvertTo(di, x0f), y0 = hn::ConvertTo(di, y0f);
+  const auto one_i = hn::Set(di, 1);
+  const auto three = hn::Set(di, 3), row_step = hn::Set(di, row_floats);
+  const auto xa = hn::Mul(wrap(x0), three), xb = hn::Mul(wrap(hn::Add(x0, one_i)), three);
+  const auto ya = hn::Mul(clamp_row(y0), row_step), yb = hn::Mul(clamp_row(hn::Add(y0, one_i)), row_step);
+  const V wx0 = hn::Sub(one, fx), wy0 = hn::Sub(one, fy);
+  V* out[3] = {&red, &green, &blue};
+  for (int ch = 0; ch < 3; ++ch) {
+    const auto c_i = hn::Set(di, ch);
+    auto texel = [&](hn::Vec<decltype(di)> yo, hn::Vec<decltype(di)> xo) {
+      return hn::GatherIndex(d, texels, hn::Add(hn::Add(yo, xo), c_i));
+    };
+    const V top = hn::Add(hn::Mul(texel(ya, xa), wx0), hn::Mul(texel(ya, xb), fx));
+    const V bottom = hn::Add(hn::Mul(texel(yb, xa), wx0), hn::Mul(texel(yb, xb), fx));
+    *out[ch] = hn::Add(hn::Mul(top, wy0), hn::Mul(bottom, fy));
+  }
+}
+
+// Environment::radiance_filtered_env of the batch's kSampleBatch directions w (view space)
+// at once, into (red, green, blue). A filtered map or a sky (not a constant). Lanes of
+// visible samples are computed too (for nobody when the estimator reads only the occluded
+// ones): a vector of lanes costs about what one scalar lookup does.
+void filtered_radiance_lanes(const Constants& c, const SampleBatch& b, float* red, float* green, float* blue) {
+  const hn::CappedTag<float, kSampleBatch> d;
   for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
-    const V wx = hn::LoadU(d, b.wx + s0), wy = hn::LoadU(d, b.wy + s0), wz = hn::LoadU(d, b.wz + s0);
-    auto row = [&](int r) {  // glm's mat3 * vec3: m[0][r] x + m[1][r] y + m[2][r] z
-      return hn::Add(hn::Add(hn::Mul(hn::Set(d, m[0][r]), wx), hn::Mul(hn::Set(d, m[1][r]), wy)),
-                     hn::Mul(hn::Set(d, m[2][r]), wz));
-    };
-    const V dx = row(0), dy = row(1), dz = row(2);
-    const V theta = atan2_lanes(dz, hn::Sqrt(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy))));
-    const V phi = atan2_lanes(hn::Neg(dx), dy);
-    const V px = hn::Mul(hn::Set(d, 0.5f * float(width)), hn::Sub(one, hn::Div(phi, hn::Set(d, pi))));
-    const V py = hn::Mul(hn::Set(d, float(height)), hn::Sub(half, hn::Div(theta, hn::Set(d, pi))));
-    // bilinear_at: texel centres at + 0.5.
-    const V x = hn::Sub(px, half), y = hn::Sub(py, half);
-    const V x0f = hn::Floor(x), y0f = hn::Floor(y);
-    const V fx = hn::Sub(x, x0f), fy = hn::Sub(y, y0f);
-    // A direction gives x in [-0.5, W - 0.5] (atan2 is bounded), so one add or subtract
-    // wraps x0 and x0 + 1; the clamp only keeps a NaN direction's texels in the map.
-    const auto width_v = hn::Set(di, width);
-    auto wrap = [&](hn::Vec<decltype(di)> xi) {
-      xi = hn::Min(hn::Max(xi, hn::Neg(width_v)), hn::Set(di, 2 * width - 1));
-      xi = hn::IfThenElse(hn::Lt(xi, hn::Zero(di)), hn::Add(xi, width_v), xi);
-      return hn::IfThenElse(hn::Gt(xi, hn::Set(di, width - 1)), hn::Sub(xi, width_v), xi);
-    };
-    auto clamp_row = [&](hn::Vec<decltype(di)> yi) {
-      return hn::Min(hn::Max(yi, hn::Zero(di)), hn::Set(di, height - 1));
-    };
-    const auto x0 = hn::ConvertTo(di, x0f), y0 = hn::ConvertTo(di, y0f);
-    const auto one_i = hn::Set(di, 1);
-    const auto three = hn::Set(di, 3), row_step = hn::Set(di, row_floats);
-    const auto xa = hn::Mul(wrap(x0), three), xb = hn::Mul(wrap(hn::Add(x0, one_i)), three);
-    const auto ya = hn::Mul(clamp_row(y0), row_step), yb = hn::Mul(clamp_row(hn::Add(y0, one_i)), row_step);
-    const V wx0 = hn::Sub(one, fx), wy0 = hn::Sub(one, fy);
-    float* out[3] = {red, green, blue};
-    for (int ch = 0; ch < 3; ++ch) {
-      const auto c_i = hn::Set(di, ch);
-      auto texel = [&](hn::Vec<decltype(di)> yo, hn::Vec<decltype(di)> xo) {
-        return hn::GatherIndex(d, texels, hn::Add(hn::Add(yo, xo), c_i));
-      };
-      const V top = hn::Add(hn::Mul(texel(ya, xa), wx0), hn::Mul(texel(ya, xb), fx));
-      const V bottom = hn::Add(hn::Mul(texel(yb, xa), wx0), hn::Mul(texel(yb, xb), fx));
-      hn::StoreU(hn::Add(hn::Mul(top, wy0), hn::Mul(bottom, fy)), d, out[ch] + s0);
-    }
+    hn::Vec<decltype(d)> r, g, bl;
+    equirect_lanes(d, c.env->filtered_map(), c.env_from_view, hn::LoadU(d, b.wx + s0), hn::LoadU(d, b.wy + s0),
+                   hn::LoadU(d, b.wz + s0), r, g, bl);
+    hn::StoreU(r, d, red + s0);
+    hn::StoreU(g, d, green + s0);
+    hn::StoreU(bl, d, blue + s0);
   }
 }
 
@@ -686,7 +699,8 @@ inline void add_sample(const Constants& c, const Receiver& rcv, const cv::Mat& s
 }
 
 // direct = E / pi by the selected estimator (see ssdo.h) from a pixel's sums over N samples.
-inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, const SampleSums& sums, float inv_n) {
+inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, int x, int y, const SampleSums& sums,
+                                 float inv_n) {
   if (c.bent_normal) {
     const float len = glm::length(sums.bent);
     return len > 0.0f ? c.env->irradiance_over_pi_env(c.env_from_view * (sums.bent / len)) *
@@ -696,7 +710,9 @@ inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, const 
   if (c.control_variate) {
     // E_tab(n) / pi - (1/N) sum_{occluded} L_f(w_i): exact when nothing is occluded; the
     // clamp removes negative values that noise can give where almost all is occluded.
-    return glm::max(c.env->irradiance_over_pi_env(c.env_from_view * rcv.n) - sums.occluded * inv_n, glm::vec3(0.0f));
+    const glm::vec3 open = c.irradiance_at_normal ? to_glm(c.irradiance_at_normal->at<cv::Vec3f>(y, x))
+                                                  : c.env->irradiance_over_pi_env(c.env_from_view * rcv.n);
+    return glm::max(open - sums.occluded * inv_n, glm::vec3(0.0f));
   }
   return sums.direct * inv_n;
 }
@@ -738,7 +754,7 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     }
   }
   const float inv_n = 1.0f / float(n_samples);
-  if (want_direct) direct = direct_estimate(c, rcv, sums, inv_n);
+  if (want_direct) direct = direct_estimate(c, rcv, x, y, sums, inv_n);
   if (want_indirect) {
     // form factor: (A_s / pi) sum = (r^2 / N) sum; solid angle: (1 / N) sum.
     const float scale = c.form_factor ? rcv.r * rcv.r * inv_n : inv_n;
@@ -1063,6 +1079,43 @@ void receiver_pass(const Constants& c, const cv::Mat& sender_direct, const Sende
   }, kStripRows);
 }
 
+// E_tab(n) / pi (Environment::irradiance_over_pi_env) at the view-space normal n of every
+// pixel of rows r, a vector of pixels at a time (equirect_lanes on the irradiance table:
+// the bits of the scalar lookup), into a CV_32FC3 image of the frame's size. Background
+// pixels get the value of their normal too (0: a direction the lookup tolerates), read by
+// nobody.
+cv::Mat irradiance_at_normals(const Constants& c, const cv::Rect& r, int nthreads) {
+  cv::Mat out(c.normal->size(), CV_32FC3);
+  const cv::Mat& table = c.env->irradiance_map();
+  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    const hn::ScalableTag<float> d;
+    const int lanes = int(hn::Lanes(d));
+    HWY_ALIGN float tail[3 * hn::MaxLanes(d)];
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* normal = c.normal->ptr<float>(y);
+      float* row = out.ptr<float>(y);
+      for (int x = r.x; x < r.x + r.width; x += lanes) {
+        const int count = std::min(lanes, r.x + r.width - x);
+        const float* in = normal + 3 * x;
+        if (count < lanes) {  // the row's last pixels; the lanes past them normal 0
+          std::fill(std::copy_n(in, 3 * count, tail), tail + 3 * lanes, 0.0f);
+          in = tail;
+        }
+        hn::Vec<decltype(d)> nx, ny, nz, red, green, blue;
+        hn::LoadInterleaved3(d, in, nx, ny, nz);
+        equirect_lanes(d, table, c.env_from_view, nx, ny, nz, red, green, blue);
+        if (count == lanes) {
+          hn::StoreInterleaved3(red, green, blue, d, row + 3 * x);
+        } else {
+          hn::StoreInterleaved3(red, green, blue, d, tail);
+          std::copy_n(tail, 3 * count, row + 3 * x);
+        }
+      }
+    }
+  }, kStripRows);
+  return out;
+}
+
 }  // namespace
 
 // compute_ssdo() for this instruction set; the inputs are checked.
@@ -1076,12 +1129,21 @@ void compute_ssdo_checked(const SsdoInputs& in, const SsdoSettings& settings, Ss
   // receivers' direct and indirect light.
   const TapPyramid pyramid = build_tap_pyramid(in, settings, nthreads);
   const SampleAzimuths azimuths = sample_azimuths(settings.samples);
-  const Constants c = frame_constants(in, settings, pyramid, azimuths);
+  Constants c = frame_constants(in, settings, pyramid, azimuths);
   const bool want_indirect = settings.indirect_strength > 0.0f;
+  const bool sender_pass_runs = want_indirect && !c.lighting;
+  const cv::Rect r = resolve_roi(roi, size);
+  // The control variate's E_tab(n) / pi of every pixel the passes light, in vector lanes
+  // (a constant light has one value: looked up as is).
+  cv::Mat irradiance;
+  if (c.control_variate && settings.method == SsdoMethod::ssdo && in.environment.kind() != EnvironmentKind::constant) {
+    irradiance = irradiance_at_normals(c, sender_pass_runs ? cv::Rect({0, 0}, size) : r, nthreads);
+    c.irradiance_at_normal = &irradiance;
+  }
   SenderRecord record = sender_record(c, size, want_indirect);
   cv::Mat sender_direct;
-  if (want_indirect && !c.lighting) sender_pass(c, record, nthreads, sender_direct);
-  receiver_pass(c, sender_direct, record, want_indirect, resolve_roi(roi, size), nthreads, out);
+  if (sender_pass_runs) sender_pass(c, record, nthreads, sender_direct);
+  receiver_pass(c, sender_direct, record, want_indirect, r, nthreads, out);
 }
 
 }  // namespace ssdo::HWY_NAMESPACE

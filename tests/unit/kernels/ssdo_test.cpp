@@ -154,6 +154,43 @@ TEST(Ssdo, OpenPlanesSeeTheirSideOfTheSky) {
   EXPECT_NEAR(blue, sky.irradiance_over_pi(glm::vec3(0, 0, 1)).z, 0.02);
 }
 
+// The control variate's open term E_tab(n) / pi, looked up for a whole image of normals in
+// vector lanes, gives the bits of the scalar lookup (Environment::irradiance_over_pi_env of
+// env_from_world x world_from_view x n): where none of a pixel's samples is occluded its
+// direct light is exactly that, elsewhere less (the occluded radiance is subtracted). A
+// sphere over a plane, so that the normals cover the table, lit by a map with colour in
+// azimuth and elevation.
+TEST(Ssdo, ControlVariateOpenTermIsTheTableLookupBitForBit) {
+  cv::Mat radiance(32, 64, CV_32FC3);
+  for (int y = 0; y < radiance.rows; ++y)
+    for (int x = 0; x < radiance.cols; ++x)
+      radiance.at<cv::Vec3f>(y, x) = cv::Vec3f(0.2f + 2.0f * float(x) / 64.0f, 0.1f + 3.0f * float(y) / 32.0f,
+                                               1.0f + std::sin(0.3f * float(x + y)));
+  const Environment map = Environment::equirect(radiance);
+  const Frame f = make_frame(raycast::sphere_over_plane(1.0f, 1.5f), raycast::sphere_over_plane_camera(1.0f, 1.5f), map);
+  SsdoSettings s = ssdo_preset(SsdoMethod::ssdo, Preset::medium);
+  ASSERT_EQ(s.direct_estimator, SsdoDirectEstimator::open_minus_occluded);
+  s.indirect_strength = 0.0f;
+  const SsdoInputs in{f.g.depth_view, f.g.normal_view, f.g.position_view, f.g.mask, f.g.camera, f.env, &f.g.albedo,
+                      nullptr};
+  SsdoOutput out;
+  compute_ssdo(in, s, out, {}, 2);  // full resolution: each pixel its own estimate
+  const glm::mat3 env_from_view = map.env_from_world_matrix() * glm::mat3(f.g.camera.view_to_world);
+  int foreground = 0, exact = 0, above = 0;
+  for (int y = 0; y < f.g.mask.rows; ++y)
+    for (int x = 0; x < f.g.mask.cols; ++x) {
+      if (!f.g.mask.at<uint8_t>(y, x)) continue;
+      ++foreground;
+      const glm::vec3 open = map.irradiance_over_pi_env(env_from_view * at(f.g.normal_view, x, y));
+      const glm::vec3 direct = at(out.direct, x, y);
+      exact += direct == open;
+      above += direct.x > open.x || direct.y > open.y || direct.z > open.z;
+    }
+  std::printf("[ info ] %d foreground pixels, %d exactly the table's open term\n", foreground, exact);
+  EXPECT_EQ(above, 0);
+  EXPECT_GT(exact, foreground / 2);
+}
+
 // A 90-degree corner under uniform radiance 1 (raycast.h corner_scene()). In the
 // projected-disk picture of cosine-weighted directions (uniform on the unit disk, u = the
 // component towards the wall), a floor point at distance d from the wall, a = d / r, has
