@@ -11,9 +11,7 @@
 #include <benchmark/benchmark.h>
 
 #include <map>
-#include <stdexcept>
 
-#include "formats/env_map.h"
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
 #include "kernels/denoise.h"
@@ -94,16 +92,9 @@ void BM_Ssdo(benchmark::State& state) {
   time_ssdo(state, white, "");
 }
 
-// SSDO lit by the example's environment map (`--env examples/env_equirect.exr`): the
+// SSDO lit by the frames' world as a map (`--env examples/env_equirect.exr`): the
 // filtered radiance of the samples and the irradiance table at each pixel are looked up.
-void BM_SsdoEnv(benchmark::State& state) {
-  static const ssdo::Environment map = [] {
-    const ssdo::EnvMapResult env = ssdo::read_env_map(std::string(SSDO_SOURCE_DIR) + "/examples/env_equirect.exr");
-    if (!env.ok()) throw std::runtime_error(env.error);
-    return ssdo::Environment::equirect(env.radiance_rgb, {});
-  }();
-  time_ssdo(state, map, " --env");
-}
+void BM_SsdoEnv(benchmark::State& state) { time_ssdo(state, ssdo::bench::sky_environment(), " --env"); }
 
 // The compute step of `ssdo process --terms ao,ssdo` (no I/O): the default AO method and
 // the SSDO method at one preset, each denoised.

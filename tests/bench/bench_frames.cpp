@@ -1,5 +1,6 @@
 #include "tests/bench/bench_frames.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include "formats/gbuffer_reader.h"
@@ -33,6 +34,25 @@ const GBuffer& frame(int width) {
   static const GBuffer small = load(640);
   static const GBuffer large = load(1920);
   return width == 640 ? small : large;
+}
+
+cv::Mat sky_equirect() {
+  const cv::Size size(512, 256);
+  const SkyGradient sky;
+  cv::Mat img(size, CV_32FC3);
+  for (int j = 0; j < size.height; ++j)
+    for (int i = 0; i < size.width; ++i) {
+      const glm::vec3 d = Environment::direction_from_equirect({i + 0.5f, j + 0.5f}, size);
+      const float t = std::clamp((d.z - sky.up_begin) / (sky.up_end - sky.up_begin), 0.0f, 1.0f);
+      const glm::vec3 l = (1.0f - t) * sky.bottom + t * sky.top;
+      img.at<cv::Vec3f>(j, i) = cv::Vec3f(l.x, l.y, l.z);
+    }
+  return img;
+}
+
+const Environment& sky_environment() {
+  static const Environment env = Environment::equirect(sky_equirect());
+  return env;
 }
 
 }  // namespace ssdo::bench

@@ -1,13 +1,11 @@
 // Timings of SSDO (direct + indirect) per preset, of building an environment, and of the
 // composite, at 640x360 (the shared cornell dump) and 1920x1080 (the shared perf1080 dump),
 // with 1 and 2 threads. The environment is the shared env_equirect.exr's procedural sky as
-// a 512x256 equirect built in memory (same layout), so no environment file is read. Without
+// a 512x256 equirect built in memory (bench_frames.h, sky_environment). Without
 // ../shared the Cornell-like scene of the reference ray caster is rendered instead.
 // Args: width, preset, threads, sender light (0 = first pass of the kernel, 1 = the frame's
 // lighting pass when it has one).
 #include <benchmark/benchmark.h>
-
-#include <algorithm>
 
 #include "kernels/half_resolution.h"
 #include "kernels/composite.h"
@@ -18,26 +16,7 @@
 namespace {
 
 using ssdo::bench::frame;
-
-// The shared frames' world (docs/usage.md, "Environment light"): t = clamp((d.z + 0.4) / 0.8, 0, 1), L = (1 - t) bottom + t top.
-cv::Mat sky_equirect() {
-  const cv::Size size(512, 256);
-  const ssdo::SkyGradient sky;
-  cv::Mat img(size, CV_32FC3);
-  for (int j = 0; j < size.height; ++j)
-    for (int i = 0; i < size.width; ++i) {
-      const glm::vec3 d = ssdo::Environment::direction_from_equirect({i + 0.5f, j + 0.5f}, size);
-      const float t = std::clamp((d.z - sky.up_begin) / (sky.up_end - sky.up_begin), 0.0f, 1.0f);
-      const glm::vec3 l = (1.0f - t) * sky.bottom + t * sky.top;
-      img.at<cv::Vec3f>(j, i) = cv::Vec3f(l.x, l.y, l.z);
-    }
-  return img;
-}
-
-const ssdo::Environment& environment() {
-  static const ssdo::Environment env = ssdo::Environment::equirect(sky_equirect());
-  return env;
-}
+using ssdo::bench::sky_environment;
 
 void BM_Ssdo(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
@@ -46,7 +25,7 @@ void BM_Ssdo(benchmark::State& state) {
   const bool with_lighting = state.range(3) != 0 && !g.lighting.empty();
   const ssdo::SsdoSettings s = ssdo::ssdo_preset(ssdo::SsdoMethod::ssdo, preset);
   const ssdo::SsdoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera,
-                            environment(), &g.albedo, with_lighting ? &g.lighting : nullptr};
+                            sky_environment(), &g.albedo, with_lighting ? &g.lighting : nullptr};
   ssdo::SsdoOutput out;
   for (auto _ : state) ssdo::compute_ssdo_at_resolution(in, s, out, {}, threads);
   state.SetLabel(std::string(ssdo::to_string(preset)) + " N=" + std::to_string(s.samples) +
@@ -55,7 +34,7 @@ void BM_Ssdo(benchmark::State& state) {
 }
 
 void BM_EnvironmentBuild(benchmark::State& state) {
-  const cv::Mat img = sky_equirect();
+  const cv::Mat img = ssdo::bench::sky_equirect();
   for (auto _ : state) benchmark::DoNotOptimize(ssdo::Environment::equirect(img));
 }
 
@@ -72,7 +51,7 @@ void BM_Composite(benchmark::State& state) {
 void BM_CompositeEnvironmentBackground(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   const cv::Mat light(g.depth_view.size(), CV_32FC3, cv::Scalar(0.5, 0.5, 0.5));
-  const ssdo::CompositeInputs in{g.mask, &g.albedo, nullptr, &light, &light, nullptr, nullptr, &environment(),
+  const ssdo::CompositeInputs in{g.mask, &g.albedo, nullptr, &light, &light, nullptr, nullptr, &sky_environment(),
                                  &g.camera};
   cv::Mat out;
   for (auto _ : state) ssdo::compute_composite(in, {}, out, {}, int(state.range(1)));
