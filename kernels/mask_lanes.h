@@ -9,6 +9,8 @@
 #define SSDO_KERNELS_MASK_LANES_H_
 #endif
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 
 #include <hwy/highway.h>
@@ -25,6 +27,18 @@ inline hwy::HWY_NAMESPACE::Mask<hwy::HWY_NAMESPACE::ScalableTag<float>> foregrou
   const hn::Rebind<uint8_t, decltype(d)> d8;
   const auto m = hn::BitCast(di, hn::PromoteTo(hn::RebindToUnsigned<decltype(d)>(), hn::LoadU(d8, mask)));
   return hn::RebindMask(d, hn::Gt(m, hn::Zero(di)));
+}
+
+// The same for the pixels left in a row from `mask` on (left >= 1): the lanes at or past
+// the row's end are not foreground (nothing past it is read).
+inline hwy::HWY_NAMESPACE::Mask<hwy::HWY_NAMESPACE::ScalableTag<float>> foreground_lanes(const uint8_t* mask,
+                                                                                         size_t left) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::ScalableTag<float> d;
+  if (left >= hn::Lanes(d)) return foreground_lanes(mask);
+  HWY_ALIGN uint8_t tail[HWY_MAX_BYTES / sizeof(float)] = {};  // the widest target's lanes
+  std::copy(mask, mask + left, tail);
+  return foreground_lanes(tail);
 }
 
 }  // namespace ssdo::HWY_NAMESPACE

@@ -225,12 +225,8 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
 MF unchanged_lanes(const Neighbour& n, int y, int x0) {
   const DF d;
   if (n.changed.empty()) return hn::FirstN(d, hn::Lanes(d));
-  const uint8_t* row = n.changed.ptr<uint8_t>(y) + x0;
-  const size_t left = size_t(n.changed.cols - x0);
-  if (left >= hn::Lanes(d)) return hn::Not(foreground_lanes(row));
-  HWY_ALIGN uint8_t tail[kMaxLanes] = {};  // the row's last pixels; lanes past it unchanged
-  std::copy(row, row + left, tail);
-  return hn::Not(foreground_lanes(tail));
+  // Lanes past the row's end: unchanged.
+  return hn::Not(foreground_lanes(n.changed.ptr<uint8_t>(y) + x0, size_t(n.changed.cols - x0)));
 }
 
 // The neighbours' bilinear taps around each one's projection of the lanes' pixels (px, py:

@@ -110,15 +110,12 @@ struct ChangedPass {
     const DF d;
     const size_t n = hn::Lanes(d), count = std::min(n, size_t(frame.depth_view.cols - x0));
     const float* depth_row = frame.depth_view.ptr<float>(y) + x0;
-    const uint8_t* mask_row = frame.mask.ptr<uint8_t>(y) + x0;
     HWY_ALIGN float depth_tail[kMaxLanes];
-    HWY_ALIGN uint8_t mask_tail[kMaxLanes] = {};
     if (count < n) {  // the row's last pixels; lanes past them background
       std::fill(std::copy(depth_row, depth_row + count, depth_tail), depth_tail + n, 1.0f);
-      std::copy(mask_row, mask_row + count, mask_tail);
-      depth_row = depth_tail, mask_row = mask_tail;
+      depth_row = depth_tail;
     }
-    const MF fg = foreground_lanes(mask_row);
+    const MF fg = foreground_lanes(frame.mask.ptr<uint8_t>(y) + x0, count);
     const VF depth = hn::IfThenElse(fg, hn::LoadU(d, depth_row), hn::Set(d, 1.0f));
     const VF px = hn::Add(hn::Iota(d, float(x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
     MF near = hn::FirstN(d, 0);
