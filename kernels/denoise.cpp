@@ -93,6 +93,34 @@ struct PowerLobe {
   }
 };
 
+// The taps per side T of a pass, as the tap loops read it: a compile-time constant for the
+// default footprint (radius 4 at spacing 1, and its half-grid scaling, radius 8 at spacing
+// 2), so that the loops unroll with no branch per tap and constant plane offsets; the
+// settings' value otherwise (a loop, not unrolled: one copy of the code for every other
+// footprint). The same taps in the same order either way: the same bits.
+template <int kT>
+struct FixedTaps {
+  static constexpr int count() { return kT; }
+};
+struct AnyTaps {
+  int t;
+  int count() const { return t; }
+};
+constexpr int kDefaultTaps = 4;
+static_assert(DenoiseSettings{}.radius_px / DenoiseSettings{}.tap_spacing_px == kDefaultTaps);
+
+// f(k) for k = from .. T in order. (GCC unrolls the fixed loop only with the bound a
+// constant expression in the condition, not a call.)
+template <int kT, class F>
+inline void for_each_tap(FixedTaps<kT>, int from, const F& f) {
+  HWY_UNROLL(2 * kMaxRadiusPx + 1)
+  for (int k = from; k <= kT; ++k) f(k);
+}
+template <class F>
+inline void for_each_tap(AnyTaps taps, int from, const F& f) {
+  for (int k = from; k <= taps.count(); ++k) f(k);
+}
+
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
 // columns either side, every plane of a tile (depth, normal x/y/z, C values, C horizontal
 // results, R lobes) is (32 + 2R) x (256 + 2R + kMaxLanes) floats, 45 KB at the default
@@ -315,19 +343,19 @@ struct PairLobes {
 
 // The pair lobes at taps k = 1 .. T (step apart) of guide offsets [from, to) (extended to
 // whole vectors), into lobes.data.
-template <class Lobe>
-void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, int T, const PairLobes& lobes,
+template <class Lobe, class Taps>
+void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Taps taps, const PairLobes& lobes,
                 const Lobe& lobe) {
   const FloatLanes d;
   const size_t n = size_t(lane_count());
   for (size_t pos = from; pos < to; pos += n) {
     const Lanes nx = hn::LoadU(d, p.nx + pos), ny = hn::LoadU(d, p.ny + pos), nz = hn::LoadU(d, p.nz + pos);
-    for (int k = 1; k <= T; ++k) {
+    for_each_tap(taps, 1, [&](int k) {
       const size_t tap = size_t(ptrdiff_t(pos) + k * step);
       const Lanes l = normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
                                   hn::LoadU(d, p.nz + tap), lobe);
       hn::StoreU(l, d, lobes.at(k, pos));
-    }
+    });
   }
 }
 
@@ -336,11 +364,11 @@ void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, int
 // k * step from it (step: a tap's spacing along the pass); tap k of channel c at values +
 // c * plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). The centre tap
 // weighs g(0) > 0 (its depth and normal match), so the weight sum is never 0.
-template <int C, class Lobe>
-void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre,
-                ptrdiff_t step, const float* values, float* const* out, const Lobe& lobe, const PairLobes& lobes) {
+template <int C, class Lobe, class Taps>
+void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step,
+                const float* values, float* const* out, const Lobe& lobe, Taps taps, const PairLobes& lobes) {
   const FloatLanes d;
-  const int T = k.taps, width = t.lane_width(), n = lane_count();
+  const int T = taps.count(), width = t.lane_width(), n = lane_count();
   const Lanes inv_tol = broadcast(k.inv_tol);
   const size_t plane = k.plane;
   for (int i = 0; i < width; i += n) {
@@ -348,7 +376,7 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
     const Lanes depth_scale = hn::Div(inv_tol, c0.depth);
     Lanes sum[C], wsum = hn::Zero(d);
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
-    for (int tap = -T; tap <= T; ++tap) {
+    for_each_tap(taps, -T, [&](int tap) {
       const ptrdiff_t off = tap * step + i;
       const size_t at = size_t(ptrdiff_t(centre) + off);
       // Tap -k pairs with the pixel k before: the lobe of (at, at + k step).
@@ -358,7 +386,7 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
       const Lanes w = tap_weight(k.g[tap + T], c0.depth, depth_scale, hn::LoadU(d, p.depth + at), tap_lobe);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * plane + off)));
       wsum = hn::Add(wsum, w);
-    }
+    });
     const Lanes inv = hn::Div(broadcast(1.0f), wsum);
     for (int c = 0; c < C; ++c) hn::StoreU(hn::Mul(sum[c], inv), d, out[c] + i);
   }
@@ -367,8 +395,8 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
 // Pass 1 (horizontal) on every plane row of the tile: guides and taps in the same planes.
 // Masked pixels and rows outside the image get 0 (their normal is 0, so pass 2 weighs them
 // 0 anyway; no NaN is read).
-template <int C, class Lobe>
-void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& t, const Lobe& lobe) {
+template <int C, class Lobe, class Taps>
+void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& t, const Lobe& lobe, Taps taps) {
   const int R = k.radius;
   for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
     const int y = t.ya - R + j;
@@ -383,8 +411,8 @@ void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& 
     // Pairs (x, x + j spacing) of the row: centres from column R, taps -j from column
     // R - j spacing.
     const PairLobes lobes{p.lobe, size_t(k.plane_stride), row};
-    pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, k.taps, lobes, lobe);
-    filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + row + R, out, lobe, lobes);
+    pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
+    filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + row + R, out, lobe, taps, lobes);
     const uint8_t* m = k.mask.ptr<uint8_t>(y);
     for (int c = 0; c < C; ++c)
       for (int i = 0; i < t.width(); ++i) out[c][i] = m[t.xa + i] ? out[c][i] : 0.0f;
@@ -432,9 +460,9 @@ void write_row(const Channel* ch, const uint8_t* m, const Tile& t, int y, const 
 
 // Pass 2 (vertical) over the horizontal results, on the tile's rows, into the outputs;
 // masked pixels copy the source.
-template <int C, class Lobe>
+template <int C, class Lobe, class Taps>
 void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
-                   const Lobe& lobe) {
+                   const Lobe& lobe, Taps taps) {
   const int R = k.radius;
   const size_t stride = size_t(k.plane_stride);
   // Pairs (y, y + j spacing) of the tile's columns: centres from plane row R, taps -j from
@@ -443,21 +471,21 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
   const PairLobes lobes{p.lobe, k.plane, 0};
   for (int j = 0; j < (t.yb - t.ya) + R; ++j)
     pair_lobes(p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
-               k.taps, lobes, lobe);
+               taps, lobes, lobe);
   for (int y = t.ya; y < t.yb; ++y) {
     const size_t row = size_t(y - t.ya + R) * stride;
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
-    filter_row<C>(k, p, t, row + size_t(R), tap_step, p.horizontal + row, to, lobe, lobes);
+    filter_row<C>(k, p, t, row + size_t(R), tap_step, p.horizontal + row, to, lobe, taps, lobes);
     write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
 
 // The filter of C channels with one set of weights, over the roi r, tile by tile.
-template <int C, class Lobe>
+template <int C, class Lobe, class Taps>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
-                     const Lobe& lobe) {
+                     const Lobe& lobe, Taps taps) {
   // The guide and value planes, and the horizontal results.
   const size_t scratch_floats = tile_floats(k.plane, C, k.taps);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
@@ -468,8 +496,8 @@ void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect
       for (int xa = r.x; xa < r.x + r.width; xa += kTileCols) {
         const Tile t{ya, yb, xa, std::min(xa + kTileCols, r.x + r.width)};
         fill_planes<C>(k, ch, t, planes);
-        horizontal_pass<C>(k, planes, t, lobe);
-        vertical_pass<C>(k, ch, planes, t, lobe);
+        horizontal_pass<C>(k, planes, t, lobe, taps);
+        vertical_pass<C>(k, ch, planes, t, lobe, taps);
       }
     }
   }, kTileRows);
@@ -477,22 +505,22 @@ void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect
 
 // filter_channels with the channel count as a compile-time constant (the sums stay in
 // registers): n in [1, C].
-template <int C, class Lobe>
+template <int C, class Lobe, class Taps>
 void filter_pass(const FilterConstants& k, const Channel* ch, int n, const cv::Rect& r, int nthreads,
-                 const Lobe& lobe) {
+                 const Lobe& lobe, Taps taps) {
   if constexpr (C > 1) {
-    if (n < C) return filter_pass<C - 1>(k, ch, n, r, nthreads, lobe);
+    if (n < C) return filter_pass<C - 1>(k, ch, n, r, nthreads, lobe, taps);
   }
-  filter_channels<C>(k, ch, r, nthreads, lobe);
+  filter_channels<C>(k, ch, r, nthreads, lobe, taps);
 }
 
-template <class Lobe>
+template <class Lobe, class Taps>
 void filter_all(const FilterConstants& k, const std::vector<Channel>& channels, const cv::Rect& r,
-                int nthreads, const Lobe& lobe) {
+                int nthreads, const Lobe& lobe, Taps taps) {
   const int n = int(channels.size());
   for (int first = 0; first < n; first += kMaxPassChannels)
     filter_pass<kMaxPassChannels>(k, channels.data() + first, std::min(kMaxPassChannels, n - first), r,
-                                  nthreads, lobe);
+                                  nthreads, lobe, taps);
 }
 
 template <int C>
@@ -539,10 +567,12 @@ void denoise_channels(std::span<const cv::Mat* const> srcs, const cv::Mat& depth
   const cv::Rect r = resolve_roi(roi, depth_view.size());
   if (r.empty()) return;
   const FilterConstants k(depth_view, normal_view, mask, settings);
-  if (settings.normal_power == float(DefaultLobe::kPower))
-    filter_all(k, channels, r, nthreads, DefaultLobe{});
+  if (settings.normal_power != float(DefaultLobe::kPower))
+    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power), AnyTaps{k.taps});
+  else if (k.taps == kDefaultTaps)
+    filter_all(k, channels, r, nthreads, DefaultLobe{}, FixedTaps<kDefaultTaps>{});
   else
-    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power));
+    filter_all(k, channels, r, nthreads, DefaultLobe{}, AnyTaps{k.taps});
 }
 
 void box_blur_channels(const cv::Mat& src, cv::Mat& dst, cv::Rect roi, int nthreads) {
