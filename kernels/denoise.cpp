@@ -27,6 +27,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "core/parallel.h"
@@ -102,31 +103,23 @@ struct PowerLobe {
 };
 
 // The taps per side T of a pass, as the tap loops read it: a compile-time constant for the
-// default footprint (radius 4 at spacing 1, and its half-grid scaling, radius 8 at spacing
-// 2), so that the loops unroll with no branch per tap and constant plane offsets; the
-// settings' value otherwise (a loop, not unrolled: one copy of the code for every other
-// footprint). The same taps in the same order either way: the same bits.
-template <int kT>
-struct FixedTaps {
-  static constexpr int count() { return kT; }
-};
-struct AnyTaps {
-  int t;
-  int count() const { return t; }
-};
-constexpr int kDefaultTaps = 4;
-static_assert(DenoiseSettings{}.radius_px / DenoiseSettings{}.tap_spacing_px == kDefaultTaps);
+// default footprint (DefaultTaps: radius 4 at spacing 1, and its half-grid scaling, radius 8
+// at spacing 2), so that the loops unroll with no branch per tap and constant plane offsets;
+// the settings' value, an int, otherwise (a loop, not unrolled: one copy of the code for
+// every other footprint). The same taps in the same order either way: the same bits.
+using DefaultTaps = std::integral_constant<int, 4>;
+static_assert(DenoiseSettings{}.radius_px / DenoiseSettings{}.tap_spacing_px == DefaultTaps::value);
 
 // f(k) for k = from .. T in order. (GCC unrolls the fixed loop only with the bound a
 // constant expression in the condition, not a call.)
 template <int kT, class F>
-inline void for_each_tap(FixedTaps<kT>, int from, const F& f) {
+inline void for_each_tap(std::integral_constant<int, kT>, int from, const F& f) {
   HWY_UNROLL(2 * kMaxRadiusPx + 1)
   for (int k = from; k <= kT; ++k) f(k);
 }
 template <class F>
-inline void for_each_tap(AnyTaps taps, int from, const F& f) {
-  for (int k = from; k <= taps.count(); ++k) f(k);
+inline void for_each_tap(int taps, int from, const F& f) {
+  for (int k = from; k <= taps; ++k) f(k);
 }
 
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
@@ -376,7 +369,7 @@ template <int C, class Lobe, class Taps>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step,
                 const float* values, float* const* out, const Lobe& lobe, Taps taps, const PairLobes& lobes) {
   const FloatLanes d;
-  const int T = taps.count(), width = t.lane_width(), n = lane_count();
+  const int T = taps, width = t.lane_width(), n = lane_count();
   const Lanes inv_tol = broadcast(k.inv_tol);
   const size_t plane = k.plane;
   for (int i = 0; i < width; i += n) {
@@ -576,11 +569,11 @@ void denoise_channels(std::span<const cv::Mat* const> srcs, const cv::Mat& depth
   if (r.empty()) return;
   const FilterConstants k(depth_view, normal_view, mask, settings);
   if (settings.normal_power != float(DefaultLobe::kPower))
-    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power), AnyTaps{k.taps});
-  else if (k.taps == kDefaultTaps)
-    filter_all(k, channels, r, nthreads, DefaultLobe{}, FixedTaps<kDefaultTaps>{});
+    filter_all(k, channels, r, nthreads, PowerLobe(settings.normal_power), k.taps);
+  else if (k.taps == DefaultTaps::value)
+    filter_all(k, channels, r, nthreads, DefaultLobe{}, DefaultTaps{});
   else
-    filter_all(k, channels, r, nthreads, DefaultLobe{}, AnyTaps{k.taps});
+    filter_all(k, channels, r, nthreads, DefaultLobe{}, k.taps);
 }
 
 void box_blur_channels(const cv::Mat& src, cv::Mat& dst, cv::Rect roi, int nthreads) {
