@@ -1,4 +1,5 @@
 // What every start of the executable runs before its command (service/highway_timer.cpp).
+#include <sstream>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -17,13 +18,14 @@ TEST(Startup, HighwayTimerCalibrationBindsToTheExecutable) {
   const RunResult r = run_ssdo("--version");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string symbol = "`_ZN3hwy8platform15TimerResolutionEv'";
-  std::string binding;  // the dynamic linker's line for the symbol
-  for (size_t at = r.output.find(symbol); at != std::string::npos; at = r.output.find(symbol, at + 1)) {
-    const size_t begin = r.output.rfind('\n', at) + 1;
-    binding = r.output.substr(begin, r.output.find('\n', at) - begin);
-    if (binding.find("libhwy") != std::string::npos) break;
-  }
-  if (binding.find("libhwy") == std::string::npos)  // a Highway that calibrates nothing at start
+  std::string binding;  // the dynamic linker's line for Highway's call of the symbol
+  std::istringstream lines(r.output);
+  for (std::string line; std::getline(lines, line);)
+    if (line.find(symbol) != std::string::npos && line.find("libhwy") != std::string::npos) {
+      binding = line;
+      break;
+    }
+  if (binding.empty())  // a Highway that calibrates nothing at start
     GTEST_SKIP() << "Highway's library does not call TimerResolution when it is loaded";
   const size_t to = binding.find(" to ");
   ASSERT_NE(to, std::string::npos) << binding;
