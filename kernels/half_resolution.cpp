@@ -19,6 +19,7 @@
 #include "kernels/normals.h"
 #include "kernels/positions.h"
 #include "kernels/mask_lanes.h"
+#include "kernels/position_lanes.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
@@ -78,6 +79,58 @@ inline Lanes depth_falloff_lanes(Lanes x) {
   return hn::Mul(e, hn::BitCast(d, bits));
 }
 
+// A half-grid row's view-space positions, as view_positions_from_depth at each texel's
+// source pixel (sx, sy) (source: the row's (sx, sy) pairs, sx < 0 where the texel has none,
+// whose position is 0; depth: the sources' planar depths), a vector of texels at a time.
+void positions_at_sources(const PixelDepthSolve& solve, const Camera& camera, const int32_t* source,
+                          const float* depth, int n, float* out) {
+  const FloatLanes d;
+  const hn::RebindToSigned<FloatLanes> di;
+  const int lanes = int(hn::Lanes(d));
+  const Lanes centre = hn::Set(d, 0.5f);
+  int i = 0;
+  for (; i + lanes <= n; i += lanes) {
+    hn::Vec<decltype(di)> sx, sy;
+    hn::LoadInterleaved2(di, source + size_t(2) * size_t(i), sx, sy);
+    Lanes x, y, z;
+    solve(hn::Add(hn::ConvertTo(d, sx), centre), hn::Add(hn::ConvertTo(d, sy), centre), hn::LoadU(d, depth + i), x,
+          y, z);
+    const auto has_source = hn::RebindMask(d, hn::Gt(sx, hn::Set(di, -1)));
+    hn::StoreInterleaved3(hn::IfThenElseZero(has_source, x), hn::IfThenElseZero(has_source, y),
+                          hn::IfThenElseZero(has_source, z), d, out + size_t(3) * size_t(i));
+  }
+  for (; i < n; ++i) {
+    const int32_t sx = source[2 * i], sy = source[2 * i + 1];
+    const glm::vec3 p = sx < 0 ? glm::vec3(0.0f) : camera.view_from_pixel_depth({sx + 0.5f, sy + 0.5f}, depth[i]);
+    std::copy_n(&p.x, 3, out + size_t(3) * size_t(i));
+  }
+}
+
+// Half-grid row j: each texel's source, the first foreground pixel of its 2x2 block (in
+// row-major order), and the source's mask, depth and normal (and position, when
+// copy_position: the frame has positions); texels without one are masked, at infinite
+// depth, with zero vectors.
+void half_grid_row(const FullGrid& full, HalfGrid& h, int j, bool copy_position) {
+  const cv::Size size = full.depth_view.size();
+  cv::Vec2i* source = h.source.ptr<cv::Vec2i>(j);
+  uint8_t* mask = h.mask.ptr<uint8_t>(j);
+  float* depth = h.depth_view.ptr<float>(j);
+  cv::Vec3f* normal = h.normal_view.ptr<cv::Vec3f>(j);
+  cv::Vec3f* position = copy_position ? h.position_view.ptr<cv::Vec3f>(j) : nullptr;
+  for (int i = 0; i < h.source.cols; ++i) {
+    int sx = -1, sy = -1;
+    for (int k = 0; k < 4 && sx < 0; ++k) {
+      const int x = 2 * i + (k & 1), y = 2 * j + (k >> 1);
+      if (x < size.width && y < size.height && full.mask.ptr<uint8_t>(y)[x]) sx = x, sy = y;
+    }
+    source[i] = cv::Vec2i(sx, sy);
+    mask[i] = sx < 0 ? 0 : 255;
+    depth[i] = sx < 0 ? std::numeric_limits<float>::infinity() : full.depth_view.ptr<float>(sy)[sx];
+    normal[i] = sx < 0 ? cv::Vec3f(0, 0, 0) : full.normal_view.ptr<cv::Vec3f>(sy)[sx];
+    if (position) position[i] = sx < 0 ? cv::Vec3f(0, 0, 0) : full.position_view.ptr<cv::Vec3f>(sy)[sx];
+  }
+}
+
 void write_scalar(float* dst, const cv::Scalar& v, int channels) {
   for (int ch = 0; ch < channels; ++ch) dst[ch] = float(v[ch]);
 }
@@ -99,33 +152,14 @@ void build_half_grid(const FullGrid& full, HalfGrid& h, int nthreads, bool with_
   h.camera = full.camera;
   h.camera.width_px = half.width;
   h.camera.height_px = half.height;
+  const PixelDepthSolve solve(full.camera);
   parallel_rows(cv::Range(0, half.height), nthreads, [&](const cv::Range& rows) {
-    for (int j = rows.start; j < rows.end; ++j)
-      for (int i = 0; i < half.width; ++i) {
-        int sx = -1, sy = -1;
-        for (int k = 0; k < 4 && sx < 0; ++k) {
-          const int x = 2 * i + (k & 1), y = 2 * j + (k >> 1);
-          if (x < size.width && y < size.height && full.mask.ptr<uint8_t>(y)[x]) sx = x, sy = y;
-        }
-        h.source.ptr<cv::Vec2i>(j)[i] = cv::Vec2i(sx, sy);
-        h.mask.ptr<uint8_t>(j)[i] = sx < 0 ? 0 : 255;
-        if (sx < 0) {
-          h.depth_view.ptr<float>(j)[i] = std::numeric_limits<float>::infinity();
-          h.normal_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(0, 0, 0);
-          if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(0, 0, 0);
-        } else {
-          h.depth_view.ptr<float>(j)[i] = full.depth_view.ptr<float>(sy)[sx];
-          h.normal_view.ptr<cv::Vec3f>(j)[i] = full.normal_view.ptr<cv::Vec3f>(sy)[sx];
-          if (positions_given) {
-            if (has_position) h.position_view.ptr<cv::Vec3f>(j)[i] = full.position_view.ptr<cv::Vec3f>(sy)[sx];
-          } else if (has_position) {
-            // As view_positions_from_depth at pixel (sx, sy).
-            const glm::vec3 p = full.camera.view_from_pixel_depth({sx + 0.5f, sy + 0.5f},
-                                                                  full.depth_view.ptr<float>(sy)[sx]);
-            h.position_view.ptr<cv::Vec3f>(j)[i] = cv::Vec3f(p.x, p.y, p.z);
-          }
-        }
-      }
+    for (int j = rows.start; j < rows.end; ++j) {
+      half_grid_row(full, h, j, has_position && positions_given);
+      if (has_position && !positions_given)
+        positions_at_sources(solve, full.camera, h.source.ptr<int32_t>(j), h.depth_view.ptr<float>(j), half.width,
+                             h.position_view.ptr<float>(j));
+    }
   });
 }
 

@@ -5,7 +5,11 @@
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
 #include <hwy/highway.h>
 
+#include <algorithm>
+
 #include "core/parallel.h"
+#include "kernels/mask_lanes.h"
+#include "kernels/position_lanes.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
@@ -20,19 +24,29 @@ cv::Rect prepare_view_vectors(const cv::Mat& depth_view, const cv::Mat& mask, cv
 void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
                                const Camera& camera, cv::Mat& position_view, cv::Rect roi,
                                int nthreads) {
+  namespace hn = hwy::HWY_NAMESPACE;
   const cv::Rect r = prepare_view_vectors(depth_view, mask, position_view, roi);
+  const PixelDepthSolve solve(camera);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+    const hn::ScalableTag<float> d;
+    const int lanes = int(hn::Lanes(d));
     for (int y = rows.start; y < rows.end; ++y) {
       const float* depth = depth_view.ptr<float>(y);
       const uint8_t* m = mask.ptr<uint8_t>(y);
-      cv::Vec3f* out = position_view.ptr<cv::Vec3f>(y);
-      for (int x = r.x; x < r.x + r.width; ++x) {
-        if (!m[x]) {
-          out[x] = cv::Vec3f(0, 0, 0);
-          continue;
-        }
-        const glm::vec3 p = camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, depth[x]);
-        out[x] = cv::Vec3f(p.x, p.y, p.z);
+      float* out = position_view.ptr<float>(y);
+      const auto py = hn::Set(d, float(y) + 0.5f);
+      int x = r.x;
+      for (; x + lanes <= r.x + r.width; x += lanes) {
+        const auto px = hn::Add(hn::ConvertTo(d, hn::Iota(hn::RebindToSigned<decltype(d)>(), x)), hn::Set(d, 0.5f));
+        hn::Vec<decltype(d)> px_view, py_view, pz_view;
+        solve(px, py, hn::LoadU(d, depth + x), px_view, py_view, pz_view);
+        const auto fg = foreground_lanes(m + x);
+        hn::StoreInterleaved3(hn::IfThenElseZero(fg, px_view), hn::IfThenElseZero(fg, py_view),
+                              hn::IfThenElseZero(fg, pz_view), d, out + size_t(3) * size_t(x));
+      }
+      for (; x < r.x + r.width; ++x) {
+        const glm::vec3 p = m[x] ? camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, depth[x]) : glm::vec3(0.0f);
+        std::copy_n(&p.x, 3, out + size_t(3) * size_t(x));
       }
     }
   });

@@ -5,7 +5,7 @@
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_SsdoEnv, BM_Frame);
-// width, threads (denoisers, BM_Confidence); width, spacing, threads (BM_DenoiseHalfGridTerms);
+// width, threads (denoisers, BM_Confidence, BM_HalfGrid); width, spacing, threads (BM_DenoiseHalfGridTerms);
 // width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
@@ -262,6 +262,17 @@ void BM_Confidence(benchmark::State& state) {
   state.SetLabel(std::to_string(threads) + "t");
 }
 
+// The half-resolution grid of a frame without positions: each texel's source pixel, depth,
+// normal and the view-space position from the depth (what a --terms ao frame builds first).
+void BM_HalfGrid(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const int threads = int(state.range(1));
+  const ssdo::FullGrid full{g.depth_view, g.normal_view, cv::Mat(), g.mask, g.camera};
+  ssdo::HalfGrid half;
+  for (auto _ : state) ssdo::build_half_grid(full, half, threads, /*with_positions=*/true);
+  state.SetLabel(std::to_string(threads) + "t");
+}
+
 void BM_BoxBlur(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   cv::Mat src(g.depth_view.size(), CV_32FC1), dst;
@@ -304,4 +315,5 @@ BENCHMARK(BM_TemporalMoving)->ArgsProduct({{1920}, {2}, {1, 2}})->Unit(benchmark
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_HalfGrid)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
