@@ -46,17 +46,9 @@ glm::vec2 Camera::pixel_from_view(const glm::vec3& p_view) const {
 }
 
 glm::vec3 Camera::view_from_pixel_depth(glm::vec2 pixel, float depth_view) const {
-  const glm::vec2 ndc = ndc_from_pixel(pixel);
-  const glm::mat4& m = view_to_clip;  // m[col][row]
-  const float z = -depth_view;
-  // Row r of the projection: clip_r = m[0][r] x + m[1][r] y + m[2][r] z + m[3][r].
-  // ndc_r * clip_w = clip_r for r = 0, 1  ->  A [x y]^T = b.
-  const float a00 = m[0][0] - ndc.x * m[0][3], a01 = m[1][0] - ndc.x * m[1][3];
-  const float a10 = m[0][1] - ndc.y * m[0][3], a11 = m[1][1] - ndc.y * m[1][3];
-  const float b0 = ndc.x * (m[2][3] * z + m[3][3]) - (m[2][0] * z + m[3][0]);
-  const float b1 = ndc.y * (m[2][3] * z + m[3][3]) - (m[2][1] * z + m[3][1]);
-  const float det = a00 * a11 - a01 * a10;
-  return {(b0 * a11 - a01 * b1) / det, (a00 * b1 - b0 * a10) / det, z};
+  glm::vec3 p;
+  PixelDepthSolve<ScalarOps>(*this)(pixel.x, pixel.y, depth_view, p.x, p.y, p.z);
+  return p;
 }
 
 glm::vec3 Camera::view_ray_direction(glm::vec2 pixel) const {

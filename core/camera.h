@@ -76,6 +76,21 @@ struct Camera {
   }
 };
 
+// Camera::view_from_pixel_depth's solve over float (ScalarOps); the kernels include the same
+// file into each SIMD target's namespace for vectors of pixels (kernels/position_lanes.h).
+#include "core/pixel_depth_solve-inl.h"
+
+// The operations of float for PixelDepthSolve.
+struct ScalarOps {
+  using T = float;
+  static float Set(float v) { return v; }
+  static float Add(float a, float b) { return a + b; }
+  static float Sub(float a, float b) { return a - b; }
+  static float Mul(float a, float b) { return a * b; }
+  static float Div(float a, float b) { return a / b; }
+  static float Neg(float a) { return -a; }
+};
+
 // A camera's pixel rays parametrised by planar depth s: the view-space point through pixel
 // coordinates (px, py) at depth s is o(px, py) + s u(px, py), u.z = -1 (perspective: o = 0
 // exactly and u the point at depth 1; orthographic: o the point at depth 0, u = (0, 0, -1)).

@@ -82,7 +82,7 @@ inline Lanes depth_falloff_lanes(Lanes x) {
 // A half-grid row's view-space positions, as view_positions_from_depth at each texel's
 // source pixel (sx, sy) (source: the row's (sx, sy) pairs, sx < 0 where the texel has none,
 // whose position is 0; depth: the sources' planar depths), a vector of texels at a time.
-void positions_at_sources(const PixelDepthSolve& solve, const Camera& camera, const int32_t* source,
+void positions_at_sources(const PixelDepthLanes& solve, const Camera& camera, const int32_t* source,
                           const float* depth, int n, float* out) {
   const FloatLanes d;
   const hn::RebindToSigned<FloatLanes> di;
@@ -101,8 +101,7 @@ void positions_at_sources(const PixelDepthSolve& solve, const Camera& camera, co
   }
   for (; i < n; ++i) {
     const int32_t sx = source[2 * i], sy = source[2 * i + 1];
-    const glm::vec3 p = sx < 0 ? glm::vec3(0.0f) : camera.view_from_pixel_depth({sx + 0.5f, sy + 0.5f}, depth[i]);
-    std::copy_n(&p.x, 3, out + size_t(3) * size_t(i));
+    store_position_or_zero(camera, sx >= 0, sx + 0.5f, sy + 0.5f, depth[i], out + size_t(3) * size_t(i));
   }
 }
 
@@ -117,11 +116,15 @@ void half_grid_row(const FullGrid& full, HalfGrid& h, int j, bool copy_position)
   float* depth = h.depth_view.ptr<float>(j);
   cv::Vec3f* normal = h.normal_view.ptr<cv::Vec3f>(j);
   cv::Vec3f* position = copy_position ? h.position_view.ptr<cv::Vec3f>(j) : nullptr;
+  // The block's two full-resolution mask rows (the second is the first's on a last odd row,
+  // where it is not looked at).
+  const int y0 = 2 * j, y1 = std::min(2 * j + 1, size.height - 1);
+  const uint8_t* mask_rows[2] = {full.mask.ptr<uint8_t>(y0), full.mask.ptr<uint8_t>(y1)};
   for (int i = 0; i < h.source.cols; ++i) {
     int sx = -1, sy = -1;
     for (int k = 0; k < 4 && sx < 0; ++k) {
-      const int x = 2 * i + (k & 1), y = 2 * j + (k >> 1);
-      if (x < size.width && y < size.height && full.mask.ptr<uint8_t>(y)[x]) sx = x, sy = y;
+      const int x = 2 * i + (k & 1), y = y0 + (k >> 1);
+      if (x < size.width && y < size.height && mask_rows[k >> 1][x]) sx = x, sy = y;
     }
     source[i] = cv::Vec2i(sx, sy);
     mask[i] = sx < 0 ? 0 : 255;
@@ -152,7 +155,7 @@ void build_half_grid(const FullGrid& full, HalfGrid& h, int nthreads, bool with_
   h.camera = full.camera;
   h.camera.width_px = half.width;
   h.camera.height_px = half.height;
-  const PixelDepthSolve solve(full.camera);
+  const PixelDepthLanes solve(full.camera);
   parallel_rows(cv::Range(0, half.height), nthreads, [&](const cv::Range& rows) {
     for (int j = rows.start; j < rows.end; ++j) {
       half_grid_row(full, h, j, has_position && positions_given);

@@ -1,5 +1,6 @@
-// Camera::view_from_pixel_depth for a vector of pixels (Highway), for the loops that turn a
-// grid's depths into view-space positions.
+// Camera::view_from_pixel_depth for a vector of pixels (Highway): its one solve
+// (core/camera.h, PixelDepthSolve) over vectors, for the loops that turn a grid's depths
+// into view-space positions.
 //
 // Included once per instruction set (by the kernels' foreach_target files, after
 // hwy/highway.h), into that target's namespace, as kernels/mask_lanes.h.
@@ -17,45 +18,31 @@
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
 
-// The camera's terms of the solve, each in every lane.
-struct PixelDepthSolve {
+// The camera's solve, compiled for this target (core/pixel_depth_solve-inl.h).
+#include "core/pixel_depth_solve-inl.h"
+
+// The operations of this target's float vectors, for PixelDepthSolve: one pixel per lane.
+struct LaneOps {
   using D = hwy::HWY_NAMESPACE::ScalableTag<float>;
-  using V = hwy::HWY_NAMESPACE::Vec<D>;
-  V width_px, height_px;
-  V m00, m01, m03, m10, m11, m13, m20, m21, m23, m30, m31, m33;  // m[col][row]
-
-  explicit PixelDepthSolve(const Camera& camera) {
-    namespace hn = hwy::HWY_NAMESPACE;
-    const D d;
-    const glm::mat4& m = camera.view_to_clip;
-    width_px = hn::Set(d, float(camera.width_px));
-    height_px = hn::Set(d, float(camera.height_px));
-    m00 = hn::Set(d, m[0][0]), m01 = hn::Set(d, m[0][1]), m03 = hn::Set(d, m[0][3]);
-    m10 = hn::Set(d, m[1][0]), m11 = hn::Set(d, m[1][1]), m13 = hn::Set(d, m[1][3]);
-    m20 = hn::Set(d, m[2][0]), m21 = hn::Set(d, m[2][1]), m23 = hn::Set(d, m[2][3]);
-    m30 = hn::Set(d, m[3][0]), m31 = hn::Set(d, m[3][1]), m33 = hn::Set(d, m[3][3]);
-  }
-
-  // The view-space point (x, y, z) seen at pixel coordinates (px, py) at planar depth
-  // depth_view, lane by lane: Camera::view_from_pixel_depth's operations in its order (no
-  // fused multiply-adds), so the same bits as the scalar solve.
-  void operator()(V px, V py, V depth_view, V& x, V& y, V& z) const {
-    namespace hn = hwy::HWY_NAMESPACE;
-    const D d;
-    const V one = hn::Set(d, 1.0f), two = hn::Set(d, 2.0f);
-    const V ndc_x = hn::Sub(hn::Div(hn::Mul(two, px), width_px), one);
-    const V ndc_y = hn::Sub(one, hn::Div(hn::Mul(two, py), height_px));
-    z = hn::Neg(depth_view);
-    const V a00 = hn::Sub(m00, hn::Mul(ndc_x, m03)), a01 = hn::Sub(m10, hn::Mul(ndc_x, m13));
-    const V a10 = hn::Sub(m01, hn::Mul(ndc_y, m03)), a11 = hn::Sub(m11, hn::Mul(ndc_y, m13));
-    const V w = hn::Add(hn::Mul(m23, z), m33);  // clip.w over the planar depth
-    const V b0 = hn::Sub(hn::Mul(ndc_x, w), hn::Add(hn::Mul(m20, z), m30));
-    const V b1 = hn::Sub(hn::Mul(ndc_y, w), hn::Add(hn::Mul(m21, z), m31));
-    const V det = hn::Sub(hn::Mul(a00, a11), hn::Mul(a01, a10));
-    x = hn::Div(hn::Sub(hn::Mul(b0, a11), hn::Mul(a01, b1)), det);
-    y = hn::Div(hn::Sub(hn::Mul(a00, b1), hn::Mul(b0, a10)), det);
-  }
+  using T = hwy::HWY_NAMESPACE::Vec<D>;
+  static T Set(float v) { return hwy::HWY_NAMESPACE::Set(D(), v); }
+  static T Add(T a, T b) { return hwy::HWY_NAMESPACE::Add(a, b); }
+  static T Sub(T a, T b) { return hwy::HWY_NAMESPACE::Sub(a, b); }
+  static T Mul(T a, T b) { return hwy::HWY_NAMESPACE::Mul(a, b); }
+  static T Div(T a, T b) { return hwy::HWY_NAMESPACE::Div(a, b); }
+  static T Neg(T a) { return hwy::HWY_NAMESPACE::Neg(a); }
 };
+
+// Camera::view_from_pixel_depth for a vector of pixels, with the bits of the scalar solve.
+using PixelDepthLanes = PixelDepthSolve<LaneOps>;
+
+// The loops' scalar tail: the view-space position at pixel coordinates (px, py) and planar
+// depth depth_view where `foreground`, else 0, stored as three floats at out.
+inline void store_position_or_zero(const Camera& camera, bool foreground, float px, float py, float depth_view,
+                                   float* out) {
+  const glm::vec3 p = foreground ? camera.view_from_pixel_depth({px, py}, depth_view) : glm::vec3(0.0f);
+  out[0] = p.x, out[1] = p.y, out[2] = p.z;
+}
 
 }  // namespace ssdo::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();

@@ -26,7 +26,7 @@ void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
                                int nthreads) {
   namespace hn = hwy::HWY_NAMESPACE;
   const cv::Rect r = prepare_view_vectors(depth_view, mask, position_view, roi);
-  const PixelDepthSolve solve(camera);
+  const PixelDepthLanes solve(camera);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     const hn::ScalableTag<float> d;
     const int lanes = int(hn::Lanes(d));
@@ -44,10 +44,8 @@ void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
         hn::StoreInterleaved3(hn::IfThenElseZero(fg, px_view), hn::IfThenElseZero(fg, py_view),
                               hn::IfThenElseZero(fg, pz_view), d, out + size_t(3) * size_t(x));
       }
-      for (; x < r.x + r.width; ++x) {
-        const glm::vec3 p = m[x] ? camera.view_from_pixel_depth({x + 0.5f, y + 0.5f}, depth[x]) : glm::vec3(0.0f);
-        std::copy_n(&p.x, 3, out + size_t(3) * size_t(x));
-      }
+      for (; x < r.x + r.width; ++x)
+        store_position_or_zero(camera, m[x] != 0, x + 0.5f, y + 0.5f, depth[x], out + size_t(3) * size_t(x));
     }
   });
 }
