@@ -20,15 +20,18 @@ target_compile_options(ssdo_compute_flags INTERFACE -O3 -ffp-contract=off -fno-m
 # kernels/half_resolution.cpp). Files without a hot loop (presets, the environment's
 # one-off tables, metrics) are compiled once, for the baseline.
 #   SSDO_SIMD_TARGETS  all (default): the dispatched set above; baseline: only the
-#                      baseline (the sanitizer build: a third of the kernels' compile
-#                      time, and its test run covers the fallback every CPU can take).
-#                      The formats library's loops dispatch either way
+#                      baseline (a third of the kernels' compile time); host: only one,
+#                      AVX2 (x86-64-v3) as the baseline where the build host runs it, else
+#                      the baseline: a binary for the build host (the sanitizer build: one
+#                      compilation of the kernels, whose frames then run 3-5x faster than
+#                      on the emulated baseline; the baseline's bits are the main build's
+#                      simd_test). The formats library's loops dispatch in all three
 #                      (core/simd_targets.h).
 #   SSDO_ARCH          none (default) or a -march value raising the baseline itself
 #                      (e.g. native: a binary for this machine only)
 find_package(hwy REQUIRED)
-set(SSDO_SIMD_TARGETS "all" CACHE STRING "Instruction sets the kernels are compiled for: all or baseline")
-set_property(CACHE SSDO_SIMD_TARGETS PROPERTY STRINGS all baseline)
+set(SSDO_SIMD_TARGETS "all" CACHE STRING "Instruction sets the kernels are compiled for: all, baseline or host")
+set_property(CACHE SSDO_SIMD_TARGETS PROPERTY STRINGS all baseline host)
 set(SSDO_ARCH "none" CACHE STRING "Baseline -march of the compute layers: none or a -march value")
 if(SSDO_ARCH STREQUAL "auto")  # the former default, still in older build folders' caches
   set_property(CACHE SSDO_ARCH PROPERTY VALUE none)
@@ -38,12 +41,27 @@ target_link_libraries(ssdo_compute_flags INTERFACE hwy::hwy)
 # NEON on Arm. SSSE3/SSE4 and the newer AVX-512 and SVE variants would each add a
 # compilation of every dispatched file for little: the loops are memory-bound and
 # 8 lanes wide.
-target_compile_definitions(ssdo_compute_flags INTERFACE
+# HWY_DISABLE_PCLMUL_AES: the kernels use no carry-less multiply or AES instruction, so a
+# baseline raised by SSDO_ARCH (x86-64-v3 has neither) makes AVX2 the static target;
+# without it Highway requires both and keeps the emulated baseline.
+target_compile_definitions(ssdo_compute_flags INTERFACE HWY_DISABLE_PCLMUL_AES
   "HWY_DISABLED_TARGETS=(HWY_SSSE3|HWY_SSE4|HWY_AVX3_DL|HWY_SVE|HWY_SVE2|HWY_SVE_256|HWY_SVE2_128)")
-if(SSDO_SIMD_TARGETS STREQUAL "baseline")
+if(SSDO_SIMD_TARGETS STREQUAL "baseline" OR SSDO_SIMD_TARGETS STREQUAL "host")
   target_compile_definitions(ssdo_compute_flags INTERFACE HWY_COMPILE_ONLY_STATIC=1)
 elseif(NOT SSDO_SIMD_TARGETS STREQUAL "all")
-  message(FATAL_ERROR "SSDO_SIMD_TARGETS must be all or baseline, not '${SSDO_SIMD_TARGETS}'")
+  message(FATAL_ERROR "SSDO_SIMD_TARGETS must be all, baseline or host, not '${SSDO_SIMD_TARGETS}'")
+endif()
+if(SSDO_SIMD_TARGETS STREQUAL "host" AND SSDO_ARCH STREQUAL "none" AND CMAKE_SYSTEM_PROCESSOR MATCHES "x86_64|AMD64")
+  # Highway's own test, the one its run-time dispatch makes.
+  include(CheckCXXSourceRuns)
+  set(CMAKE_REQUIRED_LIBRARIES hwy::hwy)
+  check_cxx_source_runs([[
+#include <hwy/targets.h>
+int main() { return (hwy::SupportedTargets() & HWY_AVX2) ? 0 : 1; }]] SSDO_HOST_RUNS_X86_64_V3)
+  unset(CMAKE_REQUIRED_LIBRARIES)
+  if(SSDO_HOST_RUNS_X86_64_V3)
+    set(SSDO_ARCH x86-64-v3)  # this configuration only; the cache keeps none
+  endif()
 endif()
 if(NOT SSDO_ARCH STREQUAL "none")
   set(SSDO_ARCH_FLAG "-march=${SSDO_ARCH}")

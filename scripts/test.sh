@@ -28,9 +28,10 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 # in its own tests here), and `ssdo bench` through the binary (every preset up to ultra, two
 # minutes under ASan; the sequence context it runs is the Temporal and Sequence tests').
 # docs/fuzzing.md.
-# The sanitizer build compiles the kernels for the baseline instruction set only
-# (CMakePresets.json), so this stage also runs the suite on the fallback of CPUs without
-# AVX2. The four stages' times, measured: docs/fuzzing.md.
+# The sanitizer build compiles the kernels for one instruction set, the build host's (AVX2
+# where it runs it: CMakePresets.json, SSDO_SIMD_TARGETS host); the main build's simd_test
+# holds the fallback of CPUs without AVX2 to the same bits. The four stages' times,
+# measured: docs/fuzzing.md.
 if [ "${SSDO_SANITIZE:-1}" != 0 ]; then
   cmake --preset asan >/dev/null
   cmake --build build-asan -j "${JOBS:-$(nproc)}"
