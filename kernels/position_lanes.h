@@ -1,6 +1,6 @@
 // Camera::view_from_pixel_depth for a vector of pixels (Highway): its one solve
-// (core/camera.h, PixelDepthSolve) over vectors, for the loops that turn a grid's depths
-// into view-space positions.
+// (PixelDepthSolve, core/pixel_depth_solve-inl.h) over vectors, for the loops that turn a
+// grid's depths into view-space positions.
 //
 // Included once per instruction set (by the kernels' foreach_target files, after
 // hwy/highway.h), into that target's namespace, as kernels/mask_lanes.h.
