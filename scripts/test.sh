@@ -29,9 +29,9 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 # minutes under ASan; the sequence context it runs is the Temporal and Sequence tests').
 # docs/fuzzing.md.
 # The sanitizer build compiles the kernels for one instruction set, the build host's (AVX2
-# where it runs it: CMakePresets.json, SSDO_SIMD_TARGETS host); the main build's simd_test
-# holds the fallback of CPUs without AVX2 to the same bits. The four stages' times,
-# measured: docs/fuzzing.md.
+# where it runs it: CMakePresets.json, SSDO_SIMD_TARGETS host); the main stage runs the
+# fallback of CPUs without AVX2 (KernelsOnTheBaselineInstructionSet, and simd_test holds it
+# to the same bits). The four stages' times, measured: docs/fuzzing.md.
 if [ "${SSDO_SANITIZE:-1}" != 0 ]; then
   cmake --preset asan >/dev/null
   cmake --build build-asan -j "${JOBS:-$(nproc)}"
