@@ -62,6 +62,10 @@ int main() { return (hwy::SupportedTargets() & HWY_AVX2) ? 0 : 1; }]] SSDO_HOST_
   if(SSDO_HOST_RUNS_X86_64_V3)
     set(SSDO_ARCH x86-64-v3)  # this configuration only; the cache keeps none
   endif()
+  # CMake keeps the check's answer in the build folder's cache: a folder configured on one
+  # machine and built on another keeps the first answer. `cmake -U SSDO_HOST_RUNS_X86_64_V3`
+  # asks again.
+  message(STATUS "ssdo host SIMD check (cached): AVX2 runs here: ${SSDO_HOST_RUNS_X86_64_V3}")
 endif()
 if(NOT SSDO_ARCH STREQUAL "none")
   set(SSDO_ARCH_FLAG "-march=${SSDO_ARCH}")

@@ -29,7 +29,9 @@ float Camera::fov_x_deg() const { return glm::degrees(2.0f * std::atan(1.0f / vi
 float Camera::fov_y_deg() const { return glm::degrees(2.0f * std::atan(1.0f / view_to_clip[1][1])); }
 
 glm::vec2 Camera::ndc_from_pixel(glm::vec2 pixel) const {
-  return {2.0f * pixel.x / float(width_px) - 1.0f, 1.0f - 2.0f * pixel.y / float(height_px)};
+  glm::vec2 ndc;
+  NdcFromPixel<ScalarOps>(pixel.x, pixel.y, float(width_px), float(height_px), ndc.x, ndc.y);
+  return ndc;
 }
 
 glm::vec2 Camera::pixel_from_ndc(glm::vec2 ndc) const {

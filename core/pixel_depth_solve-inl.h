@@ -1,13 +1,26 @@
-// Camera::view_from_pixel_depth's solve, written once for any arithmetic, included into the
-// namespace that uses it (no include guard, no includes: Camera and glm come from the
-// includer): once in core/camera.h for float, and once per SIMD target inside that
-// target's namespace (kernels/position_lanes.h), so that its vector code is compiled with
-// the target's instruction set (a template takes the attributes of where it is defined).
+// Camera::view_from_pixel_depth's solve, and the pixel-to-NDC step it starts with, written
+// once for any arithmetic, included into the namespace that uses it (no include guard, no
+// includes: Camera and glm come from the includer): once in core/camera.h for float, and once
+// per SIMD target inside that target's namespace (kernels/position_lanes.h), so that its
+// vector code is compiled with the target's instruction set (a template takes the attributes
+// of where it is defined).
 //
 // Ops names the number type (Ops::T: float, or a vector of floats with one pixel per lane)
 // and its operations (Set, Add, Sub, Mul, Div, Neg). Every instance runs the same operations
 // in the same order, and the build fuses no multiply-adds (-ffp-contract=off), so a vector of
 // pixels gets the bits of the scalar solve pixel by pixel.
+
+// Continuous pixel coordinates to NDC (core/camera.h's convention): ndc_x = 2 px / W - 1,
+// ndc_y = 1 - 2 py / H. Camera::ndc_from_pixel is its float instance.
+template <class Ops>
+void NdcFromPixel(typename Ops::T px, typename Ops::T py, typename Ops::T width_px,
+                  typename Ops::T height_px, typename Ops::T& ndc_x, typename Ops::T& ndc_y) {
+  using T = typename Ops::T;
+  const T one = Ops::Set(1.0f), two = Ops::Set(2.0f);
+  ndc_x = Ops::Sub(Ops::Div(Ops::Mul(two, px), width_px), one);
+  ndc_y = Ops::Sub(one, Ops::Div(Ops::Mul(two, py), height_px));
+}
+
 template <class Ops>
 struct PixelDepthSolve {
   using T = typename Ops::T;
@@ -27,9 +40,8 @@ struct PixelDepthSolve {
   // depth_view. Row r of the projection: clip_r = m[0][r] x + m[1][r] y + m[2][r] z + m[3][r];
   // ndc_r clip_w = clip_r for r = 0, 1 is the 2x2 system A [x y]^T = b, solved by Cramer's rule.
   void operator()(T px, T py, T depth_view, T& x, T& y, T& z) const {
-    const T one = Ops::Set(1.0f), two = Ops::Set(2.0f);
-    const T ndc_x = Ops::Sub(Ops::Div(Ops::Mul(two, px), width_px), one);
-    const T ndc_y = Ops::Sub(one, Ops::Div(Ops::Mul(two, py), height_px));
+    T ndc_x, ndc_y;
+    NdcFromPixel<Ops>(px, py, width_px, height_px, ndc_x, ndc_y);
     z = Ops::Neg(depth_view);
     const T a00 = Ops::Sub(m00, Ops::Mul(ndc_x, m03)), a01 = Ops::Sub(m10, Ops::Mul(ndc_x, m13));
     const T a10 = Ops::Sub(m01, Ops::Mul(ndc_y, m03)), a11 = Ops::Sub(m11, Ops::Mul(ndc_y, m13));
