@@ -35,6 +35,21 @@ TEST(Camera, PixelDepthViewRoundTrip) {
   }
 }
 
+// The NDC convention (core/camera.h): the image's top-left corner is (-1, +1), its
+// bottom-right (+1, -1); pixel_from_ndc undoes ndc_from_pixel.
+TEST(Camera, NdcOfThePixelGrid) {
+  const Camera cam = Camera::from_fov_x(640, 360, 65.0f);
+  EXPECT_EQ(cam.ndc_from_pixel({0.0f, 0.0f}), glm::vec2(-1.0f, 1.0f));
+  EXPECT_EQ(cam.ndc_from_pixel({640.0f, 360.0f}), glm::vec2(1.0f, -1.0f));
+  EXPECT_EQ(cam.ndc_from_pixel({320.0f, 180.0f}), glm::vec2(0.0f, 0.0f));
+  EXPECT_EQ(cam.ndc_from_pixel({480.0f, 90.0f}), glm::vec2(0.5f, 0.5f));
+  for (const glm::vec2 px : {glm::vec2(0.5f, 0.5f), glm::vec2(17.25f, 300.75f), glm::vec2(639.5f, 359.5f)}) {
+    const glm::vec2 back = cam.pixel_from_ndc(cam.ndc_from_pixel(px));
+    EXPECT_NEAR(back.x, px.x, 1e-4f);
+    EXPECT_NEAR(back.y, px.y, 1e-4f);
+  }
+}
+
 TEST(Camera, PointsBehindTheEyeDoNotProject) {
   const Camera cam = Camera::from_fov_x(64, 64, 90.0f);
   EXPECT_TRUE(std::isnan(cam.pixel_from_view({0.0f, 0.0f, 1.0f}).x));
