@@ -59,7 +59,10 @@ struct SlowFrame {
   }
   json options() const {
     json o = {{"method", method}, {"preset", preset}};
-    if (ssdo_method) o["terms"] = "ao,ssdo", o["ssdo-method"] = ssdo_method;
+    if (ssdo_method) {
+      o["terms"] = "ao,ssdo";
+      o["ssdo-method"] = ssdo_method;
+    }
     return o;
   }
 };
