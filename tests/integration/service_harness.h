@@ -40,7 +40,7 @@ using json = nlohmann::json;
 
 // The --frame-timeout of the services the tests start: a stalled frame fails its test in a
 // minute, and the slowest frame a test puts in flight has room (the ultra preset on the
-// 640 x 360 example: 0.3 s here, 15 s in the sanitizer build beside another test).
+// 640 x 360 example: 0.3 s here, 1.6 s in the sanitizer build, 3 s there beside a build).
 inline const std::string kServiceFrameTimeoutS = "60";
 
 // Frames that compute for a while on a 640 x 360 example, so that a test can signal, rewrite
