@@ -3,10 +3,11 @@
 // image: a tap's weight is the spatial Gaussian times edge-stopping weights on depth and
 // normal (denoise.h). Separable: a horizontal pass, then a vertical pass over its result.
 //
-// Layout. The frame is cut into tiles; per tile the guides and the source channels are
-// copied into planes over the tile and its halo, with the normal zeroed where the mask is
-// 0 or outside the image (the normal lobe then weighs those taps 0 and the terms they add
-// are exact zeros) and the source zeroed there (no masked value is read into a sum). Each
+// Layout. The frame is cut into tiles; per tile the guides are copied into planes over the
+// tile and its halo, and the source channels into a row buffer, a row at a time just before
+// the horizontal pass filters it, with the normal zeroed where the mask is 0 or outside the
+// image (the normal lobe then weighs those taps 0 and the terms they add are exact zeros)
+// and the source zeroed there (no masked value is read into a sum). Each
 // pass is, per tile row, a weight computation and an accumulation over the taps k for a
 // vector of pixels at once (Highway: the same source for every instruction set).
 //
@@ -192,23 +193,27 @@ struct TilePlanes {
   float* nx;
   float* ny;
   float* nz;
-  float* value;       // C planes: the source channels
+  float* value;       // C rows, plane_stride floats apart: the source channels of the plane row
+                      // the horizontal pass filters (fill_row writes it just before)
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
   float* lobe;        // T planes: the pass's pair lobes at taps 1 .. T (pair_lobes)
 };
 
-// Floats of a tile's planes of C channels: 4 guides, C values, C horizontal results, T lobes.
-size_t tile_floats(size_t plane, int channels, int taps) { return plane * size_t(4 + 2 * channels + taps); }
+// Floats of a tile's scratch for C channels: 4 guide planes, C value rows, C planes of
+// horizontal results, T lobe planes.
+size_t tile_floats(const FilterConstants& k, int channels) {
+  return k.plane * size_t(4 + channels + k.taps) + size_t(k.plane_stride) * size_t(channels);
+}
 
-TilePlanes tile_planes(float* scratch, size_t plane, int channels) {
+TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels) {
   TilePlanes p;
   p.depth = scratch;
-  p.nx = p.depth + plane;
-  p.ny = p.nx + plane;
-  p.nz = p.ny + plane;
-  p.value = p.nz + plane;
-  p.horizontal = p.value + size_t(channels) * plane;
-  p.lobe = p.horizontal + size_t(channels) * plane;
+  p.nx = p.depth + k.plane;
+  p.ny = p.nx + k.plane;
+  p.nz = p.ny + k.plane;
+  p.value = p.nz + k.plane;
+  p.horizontal = p.value + size_t(channels) * size_t(k.plane_stride);
+  p.lobe = p.horizontal + size_t(channels) * k.plane;
   return p;
 }
 
@@ -222,7 +227,7 @@ struct TileScratch {
 };
 
 
-// What fill_planes reads of one image row: the mask, the guides and the C channels'
+// What fill_row reads of one image row: the mask, the guides and the C channels'
 // values (channel c of pixel x at value[c][x * stride[c]]; stride 1 or 3).
 template <int C>
 struct SourceRow {
@@ -241,39 +246,56 @@ struct SourceRow {
   }
 };
 
-// Plane columns [from, to) of plane row `at` (plane offset of column 0): 0 in every plane.
+// Where fill_row writes plane row j: the guides' rows in their planes (column 0 of each),
+// the channels' values in the row buffer.
 template <int C>
-void zero_columns(const TilePlanes& p, size_t plane, size_t at, int from, int to) {
-  float* planes[4 + C] = {p.depth, p.nx, p.ny, p.nz};
-  for (int c = 0; c < C; ++c) planes[4 + c] = p.value + c * plane;
-  for (float* q : planes) std::fill(q + at + from, q + at + to, 0.0f);
+struct PlaneRow {
+  float* depth;
+  float* nx;
+  float* ny;
+  float* nz;
+  float* value[C];
+
+  PlaneRow(const FilterConstants& k, const TilePlanes& p, int j) {
+    const size_t row = size_t(j) * size_t(k.plane_stride);
+    depth = p.depth + row, nx = p.nx + row, ny = p.ny + row, nz = p.nz + row;
+    for (int c = 0; c < C; ++c) value[c] = p.value + size_t(c) * size_t(k.plane_stride);
+  }
+};
+
+// Columns [from, to) of a plane row: 0 in every plane and value row.
+template <int C>
+void zero_columns(const PlaneRow<C>& r, int from, int to) {
+  float* rows[4 + C] = {r.depth, r.nx, r.ny, r.nz};
+  for (int c = 0; c < C; ++c) rows[4 + c] = r.value[c];
+  for (float* q : rows) std::fill(q + from, q + to, 0.0f);
 }
 
-// Pixel x of a source row into plane offset `at`; 0 where the mask is 0.
+// Pixel x of a source row into column i of the plane row; 0 where the mask is 0.
 template <int C>
-inline void fill_pixel(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
+inline void fill_pixel(const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i) {
   const bool on = s.mask[x] != 0;
-  p.depth[at] = on ? s.depth[x] : 0.0f;
-  p.nx[at] = on ? s.normal[3 * x] : 0.0f;
-  p.ny[at] = on ? s.normal[3 * x + 1] : 0.0f;
-  p.nz[at] = on ? s.normal[3 * x + 2] : 0.0f;
-  for (int c = 0; c < C; ++c) p.value[c * plane + at] = on ? s.value[c][x * s.stride[c]] : 0.0f;
+  r.depth[i] = on ? s.depth[x] : 0.0f;
+  r.nx[i] = on ? s.normal[3 * x] : 0.0f;
+  r.ny[i] = on ? s.normal[3 * x + 1] : 0.0f;
+  r.nz[i] = on ? s.normal[3 * x + 2] : 0.0f;
+  for (int c = 0; c < C; ++c) r.value[c][i] = on ? s.value[c][x * s.stride[c]] : 0.0f;
 }
 
 // The vector of pixels from x, as fill_pixel.
 template <int C>
-inline void fill_vector(const SourceRow<C>& s, int x, const TilePlanes& p, size_t plane, size_t at) {
+inline void fill_vector(const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i) {
   const FloatLanes d;
   const hn::Mask<FloatLanes> on = foreground_lanes(s.mask + x);
-  hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.depth + x)), d, p.depth + at);
+  hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.depth + x)), d, r.depth + i);
   Lanes v[3];
   hn::LoadInterleaved3(d, s.normal + 3 * size_t(x), v[0], v[1], v[2]);
-  hn::StoreU(hn::IfThenElseZero(on, v[0]), d, p.nx + at);
-  hn::StoreU(hn::IfThenElseZero(on, v[1]), d, p.ny + at);
-  hn::StoreU(hn::IfThenElseZero(on, v[2]), d, p.nz + at);
+  hn::StoreU(hn::IfThenElseZero(on, v[0]), d, r.nx + i);
+  hn::StoreU(hn::IfThenElseZero(on, v[1]), d, r.ny + i);
+  hn::StoreU(hn::IfThenElseZero(on, v[2]), d, r.nz + i);
   for (int c = 0; c < C;) {
     if (s.stride[c] == 1) {
-      hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.value[c] + x)), d, p.value + c * plane + at);
+      hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.value[c] + x)), d, r.value[c] + i);
       ++c;
       continue;
     }
@@ -282,35 +304,33 @@ inline void fill_vector(const SourceRow<C>& s, int x, const TilePlanes& p, size_
     hn::LoadInterleaved3(d, s.value[c] + 3 * size_t(x), v[0], v[1], v[2]);
     const bool whole = c + 2 < C && s.stride[c + 1] == 3 && s.stride[c + 2] == 3 && s.value[c + 1] == s.value[c] + 1 &&
                        s.value[c + 2] == s.value[c] + 2;
-    for (int j = 0; j < (whole ? 3 : 1); ++j)
-      hn::StoreU(hn::IfThenElseZero(on, v[j]), d, p.value + (c + j) * plane + at);
+    for (int j = 0; j < (whole ? 3 : 1); ++j) hn::StoreU(hn::IfThenElseZero(on, v[j]), d, r.value[c + j] + i);
     c += whole ? 3 : 1;
   }
 }
 
-// Copies the guides and the source channels of the tile and its halo into the planes;
-// zeros outside the image and where the mask is 0.
+// Plane row j of the tile (image row ya - R + j) from the frame: the guides into their
+// planes, the source channels into the row buffer; zeros outside the image and where the
+// mask is 0.
 template <int C>
-void fill_planes(const FilterConstants& k, const Channel* ch, const Tile& t, const TilePlanes& p) {
+void fill_row(const FilterConstants& k, const Channel* ch, const Tile& t, const TilePlanes& p, int j) {
   const int R = k.radius, columns = t.lane_width() + 2 * R, n = lane_count();
   // Plane column i is image column x0 + i; [first, end) are inside the image.
   const int x0 = t.xa - R, first = std::max(0, -x0), end = std::min(columns, k.width - x0);
-  for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
-    const int y = t.ya - R + j;
-    const size_t row = size_t(j) * size_t(k.plane_stride);
-    if (y < 0 || y >= k.height) {
-      zero_columns<C>(p, k.plane, row, 0, columns);
-      continue;
-    }
-    const SourceRow<C> s(k, ch, y);
-    zero_columns<C>(p, k.plane, row, 0, first);
-    // Vectors stop a pixel before the image's right edge: a 3-channel source's channel
-    // c > 0 is loaded as whole pixels from that channel on, c floats past the last pixel.
-    int i = first;
-    for (; i + n < end; i += n) fill_vector(s, x0 + i, p, k.plane, row + size_t(i));
-    for (; i < end; ++i) fill_pixel(s, x0 + i, p, k.plane, row + size_t(i));
-    zero_columns<C>(p, k.plane, row, end, columns);
+  const int y = t.ya - R + j;
+  const PlaneRow<C> r(k, p, j);
+  if (y < 0 || y >= k.height) {
+    zero_columns<C>(r, 0, columns);
+    return;
   }
+  const SourceRow<C> s(k, ch, y);
+  zero_columns<C>(r, 0, first);
+  // Vectors stop a pixel before the image's right edge: a 3-channel source's channel
+  // c > 0 is loaded as whole pixels from that channel on, c floats past the last pixel.
+  int i = first;
+  for (; i + n < end; i += n) fill_vector(s, x0 + i, r, i);
+  for (; i < end; ++i) fill_pixel(s, x0 + i, r, i);
+  zero_columns<C>(r, end, columns);
 }
 
 // The guides of a vector of pixels (or of their taps at one offset) in the planes.
@@ -367,15 +387,15 @@ void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Tap
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
 // pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
 // k * step from it (step: a tap's spacing along the pass); tap k of channel c at values +
-// c * plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). The centre tap
+// c * value_plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). The centre tap
 // weighs g(0) > 0 (its depth and normal match), so the weight sum is never 0.
 template <int C, class Lobe, class Taps>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step,
-                const float* values, float* const* out, const Lobe& lobe, Taps taps, const PairLobes& lobes) {
+                const float* values, size_t value_plane, float* const* out, const Lobe& lobe, Taps taps,
+                const PairLobes& lobes) {
   const FloatLanes d;
   const int T = taps, width = t.lane_width(), n = lane_count();
   const Lanes inv_tol = broadcast(k.inv_tol);
-  const size_t plane = k.plane;
   for (int i = 0; i < width; i += n) {
     const GuideLanes c0 = load_guides(p, centre + size_t(i));
     const Lanes depth_scale = hn::Div(inv_tol, c0.depth);
@@ -389,7 +409,7 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
                              : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
                                        : hn::LoadU(d, lobes.at(-tap, at));
       const Lanes w = tap_weight(k.g[tap + T], c0.depth, depth_scale, hn::LoadU(d, p.depth + at), tap_lobe);
-      for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * plane + off)));
+      for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
       wsum = hn::Add(wsum, w);
     });
     const Lanes inv = hn::Div(broadcast(1.0f), wsum);
@@ -397,13 +417,16 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
   }
 }
 
-// Pass 1 (horizontal) on every plane row of the tile: guides and taps in the same planes.
-// Masked pixels and rows outside the image get 0 (their normal is 0, so pass 2 weighs them
-// 0 anyway; no NaN is read).
+// Pass 1 (horizontal) on every plane row of the tile, each row filled from the frame just
+// before it is filtered (its values read from the row buffer while in the first-level
+// cache; the guide planes stay for pass 2). Masked pixels and rows outside the image get 0
+// (their normal is 0, so pass 2 weighs them 0 anyway; no NaN is read).
 template <int C, class Lobe, class Taps>
-void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& t, const Lobe& lobe, Taps taps) {
+void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
+                     const Lobe& lobe, Taps taps) {
   const int R = k.radius;
   for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
+    fill_row<C>(k, ch, t, p, j);
     const int y = t.ya - R + j;
     const size_t row = size_t(j) * size_t(k.plane_stride);
     float* out[C];
@@ -417,7 +440,8 @@ void horizontal_pass(const FilterConstants& k, const TilePlanes& p, const Tile& 
     // R - j spacing.
     const PairLobes lobes{p.lobe, size_t(k.plane_stride), row};
     pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
-    filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + row + R, out, lobe, taps, lobes);
+    filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps,
+                  lobes);
     const uint8_t* m = k.mask.ptr<uint8_t>(y);
     for (int c = 0; c < C; ++c)
       for (int i = 0; i < t.width(); ++i) out[c][i] = m[t.xa + i] ? out[c][i] : 0.0f;
@@ -482,7 +506,7 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
-    filter_row<C>(k, p, t, row + size_t(R), tap_step, p.horizontal + row, to, lobe, taps, lobes);
+    filter_row<C>(k, p, t, row + size_t(R), tap_step, p.horizontal + row, k.plane, to, lobe, taps, lobes);
     write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
@@ -491,17 +515,16 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
 template <int C, class Lobe, class Taps>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
                      const Lobe& lobe, Taps taps) {
-  // The guide and value planes, and the horizontal results.
-  const size_t scratch_floats = tile_floats(k.plane, C, k.taps);
+  // The guide planes, the value rows, the horizontal results and the lobes.
+  const size_t scratch_floats = tile_floats(k, C);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     thread_local TileScratch scratch;
-    const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k.plane, C);
+    const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k, C);
     for (int ya = rows.start; ya < rows.end; ya += kTileRows) {
       const int yb = std::min(ya + kTileRows, rows.end);
       for (int xa = r.x; xa < r.x + r.width; xa += kTileCols) {
         const Tile t{ya, yb, xa, std::min(xa + kTileCols, r.x + r.width)};
-        fill_planes<C>(k, ch, t, planes);
-        horizontal_pass<C>(k, planes, t, lobe, taps);
+        horizontal_pass<C>(k, ch, planes, t, lobe, taps);
         vertical_pass<C>(k, ch, planes, t, lobe, taps);
       }
     }

@@ -91,9 +91,10 @@ TEST(Denoise, MatchesBruteForce) {
 }
 
 // Taps spaced apart (the half grid's footprint, and a radius that is no multiple of the
-// spacing), against the brute force; wider than a tile, so the seams are crossed.
+// spacing), against the brute force; wider and taller than a tile (256 x 64 pixels), so
+// the seams are crossed both ways.
 TEST(Denoise, SpacedTapsMatchBruteForce) {
-  const Guides g = random_guides(cv::Size(300, 45), 13);
+  const Guides g = random_guides(cv::Size(300, 150), 13);
   for (const auto& [radius, spacing] : {std::pair{8, 2}, std::pair{7, 3}, std::pair{32, 4}}) {
     DenoiseSettings s;
     s.radius_px = radius;
@@ -103,8 +104,9 @@ TEST(Denoise, SpacedTapsMatchBruteForce) {
   }
 }
 
+// Taller than two tiles, so that two threads take different strips of rows.
 TEST(Denoise, OneAndTwoThreadsIdentical) {
-  const cv::Size size(64, 48);
+  const cv::Size size(64, 200);
   const Guides g = random_guides(size, 3);
   cv::Mat src(size, CV_32FC3), a, b;
   cv::randu(src, 0.0f, 1.0f);
