@@ -457,8 +457,12 @@ inline void write_pixels3(const uint8_t* m, const float* in, float* out, int wid
   for (; i + lane_count() <= width; i += lane_count()) {
     const hn::Mask<FloatLanes> on = foreground_lanes(m + i);
     Lanes v[3];
-    hn::LoadInterleaved3(d, in + 3 * size_t(i), v[0], v[1], v[2]);
-    for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(on, hn::LoadU(d, result[c] + i), v[c]);
+    if (hn::AllTrue(d, on)) {  // most vectors: the source is not read
+      for (int c = 0; c < 3; ++c) v[c] = hn::LoadU(d, result[c] + i);
+    } else {
+      hn::LoadInterleaved3(d, in + 3 * size_t(i), v[0], v[1], v[2]);
+      for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(on, hn::LoadU(d, result[c] + i), v[c]);
+    }
     hn::StoreInterleaved3(v[0], v[1], v[2], d, out + 3 * size_t(i));
   }
   for (; i < width; ++i)
