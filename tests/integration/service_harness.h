@@ -52,11 +52,7 @@ struct SlowFrame {
   const char* method;
   const char* preset;
   const char* ssdo_method = nullptr;
-  std::vector<std::string> args() const {
-    std::vector<std::string> a = {"--method", method, "--preset", preset};
-    if (ssdo_method) a.insert(a.end(), {"--terms", "ao,ssdo", "--ssdo-method", ssdo_method});
-    return a;
-  }
+  // The options of a socket request (the command line's names without "--").
   json options() const {
     json o = {{"method", method}, {"preset", preset}};
     if (ssdo_method) {
@@ -64,6 +60,13 @@ struct SlowFrame {
       o["ssdo-method"] = ssdo_method;
     }
     return o;
+  }
+  // The same options on a command line.
+  std::vector<std::string> args() const {
+    const json o = options();
+    std::vector<std::string> a;
+    for (const auto& [name, value] : o.items()) a.insert(a.end(), {"--" + name, value.get<std::string>()});
+    return a;
   }
 };
 #ifdef SSDO_SANITIZER_BUILD
