@@ -126,7 +126,7 @@ inline void for_each_tap(int taps, int from, const F& f) {
 
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
 // columns either side, every plane of a tile (depth, normal x/y/z, C horizontal results, T
-// lobes; the C source values are rows) is (64 + 2R) x (256 + 2R + kMaxLanes) floats, 81 KB
+// vertical lobes; the C source values and the T horizontal lobes are rows) is (64 + 2R) x (256 + 2R + kMaxLanes) floats, 81 KB
 // at the default R = 4 on AVX-512 (92 KB at the half grid's R = 8): the passes run on
 // planes in the second-level cache, and the frame's guides and source are read from memory
 // once. The horizontal pass also computes the 2R halo rows the vertical pass's taps read,
@@ -197,13 +197,14 @@ struct TilePlanes {
   float* value;       // C rows, plane_stride floats apart: the source channels of the plane row
                       // the horizontal pass filters (fill_row writes it just before)
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
-  float* lobe;        // T planes: the pass's pair lobes at taps 1 .. T (pair_lobes)
+  float* lobe;        // T planes: the vertical pass's pair lobes at taps 1 .. T (pair_lobes)
+  float* row_lobe;    // T rows: the horizontal pass's, of the plane row it filters
 };
 
 // Floats of a tile's scratch for C channels: 4 guide planes, C value rows, C planes of
-// horizontal results, T lobe planes.
+// horizontal results, T lobe planes, T lobe rows.
 size_t tile_floats(const FilterConstants& k, int channels) {
-  return k.plane * size_t(4 + channels + k.taps) + size_t(k.plane_stride) * size_t(channels);
+  return k.plane * size_t(4 + channels + k.taps) + size_t(k.plane_stride) * size_t(channels + k.taps);
 }
 
 TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels) {
@@ -215,6 +216,7 @@ TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels) {
   p.value = p.nz + k.plane;
   p.horizontal = p.value + size_t(channels) * size_t(k.plane_stride);
   p.lobe = p.horizontal + size_t(channels) * k.plane;
+  p.row_lobe = p.lobe + size_t(k.taps) * k.plane;
   return p;
 }
 
@@ -439,7 +441,7 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
     }
     // Pairs (x, x + j spacing) of the row: centres from column R, taps -j from column
     // R - j spacing.
-    const PairLobes lobes{p.lobe, size_t(k.plane_stride), row};
+    const PairLobes lobes{p.row_lobe, size_t(k.plane_stride), row};
     pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
     filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps,
                   lobes);
@@ -675,7 +677,8 @@ std::string validate(const DenoiseSettings& s) {
   if (s.radius_px < 0 || s.radius_px > kMaxRadiusPx) return detail::out_of_range("radius_px", s.radius_px, "[0, 32]");
   if (s.tap_spacing_px < 1 || s.tap_spacing_px > kMaxTapSpacingPx)
     return detail::out_of_range("tap_spacing_px", s.tap_spacing_px, "[1, 4]");
-  if (!(s.sigma_px > 0.0f) || !std::isfinite(s.sigma_px)) return detail::out_of_range("sigma_px", s.sigma_px, "(0, inf)");
+  if (!(s.sigma_px > 0.0f) || !std::isfinite(s.sigma_px))
+    return detail::out_of_range("sigma_px", s.sigma_px, "(0, inf)");
   if (!(s.depth_tolerance_relative > 0.0f) || !std::isfinite(s.depth_tolerance_relative))
     return detail::out_of_range("depth_tolerance_relative", s.depth_tolerance_relative, "(0, inf)");
   if (!(s.normal_power >= 0.0f && s.normal_power <= 256.0f))
