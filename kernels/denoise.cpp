@@ -126,14 +126,15 @@ inline void for_each_tap(int taps, int from, const F& f) {
 
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
 // columns either side, every plane of a tile (depth, normal x/y/z, C horizontal results, T
-// vertical lobes; the C source values and the T horizontal lobes are rows) is (64 + 2R) x (256 + 2R + kMaxLanes) floats, 81 KB
-// at the default R = 4 on AVX-512 (92 KB at the half grid's R = 8): the passes run on
-// planes in the second-level cache, and the frame's guides and source are read from memory
-// once. The horizontal pass also computes the 2R halo rows the vertical pass's taps read,
-// 2R / kTileRows more rows: 64 rows keep that to an eighth at R = 4 and a quarter at R = 8,
-// and three channels' planes in a 2 MiB second-level cache (docs/performance.md, "The
-// denoise's tiles 64 rows tall, its values a row at a time"). The kMaxLanes columns past
-// the halo let pair_lobes run whole vectors past it (for nobody).
+// vertical lobes; the C source values and the T horizontal lobes are rows) is (64 + 2R) x
+// (256 + 2R + kMaxLanes) floats, 81 KB at the default R = 4 on AVX-512 (92 KB at the half
+// grid's R = 8): the passes run on planes in the second-level cache, and the frame's guides
+// and source are read from memory once. The horizontal pass also computes the 2R halo rows
+// the vertical pass's taps read, 2R / kTileRows more rows: 64 rows keep that to an eighth
+// at R = 4 and a quarter at R = 8, and three channels' planes in a 2 MiB second-level cache
+// (docs/performance.md, "The denoise's tiles 64 rows tall, its values a row at a time").
+// The kMaxLanes columns past the halo let pair_lobes run whole vectors past it (for
+// nobody).
 constexpr int kTileRows = 64;
 constexpr int kTileCols = 256;
 static_assert(kTileCols % kMaxLanes == 0, "a tile row is whole vectors");
