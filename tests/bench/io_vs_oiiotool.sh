@@ -4,7 +4,9 @@
 # ssdo reads (depth, normal, albedo) to half ZIP. Runs every command alternately RUNS
 # times in one run (ratios hold on a loaded machine) and prints the medians, the ratios to
 # oiiotool and the per-stage split ssdo reports (read, compute, write: medians over the
-# runs); then the throughput over a folder of 8 copies of the frame (frames/s). Every run
+# runs); then the throughput over a folder of 8 copies of the frame (frames/s: a batch's
+# steady state, so once the earlier runs' outputs fill the page cache's dirty limit the
+# uncompressed batches, 87 MB a frame, run at the disk's write speed). Every run
 # writes new files, as a batch does: the outputs of the previous run are removed first
 # (replacing a file costs more than writing one: on ext4, renaming over a file first
 # flushes the new one, ~30 ms for 45 MB).
