@@ -462,51 +462,45 @@ inline bool streams(const float* out) {
   return reinterpret_cast<uintptr_t>(out) % (size_t(lane_count()) * sizeof(float)) == 0;
 }
 
-// Columns [0, width) of one output row of a 1-channel image from result: the filtered value
-// where the mask is set, the source where not.
-inline void write_pixels1(const uint8_t* m, const float* in, float* out, int width, const float* result) {
+// Columns [0, width) of one output row of an N-channel image (N = 1 or 3) whose channels
+// are result[0 .. N): the filtered value where the mask is set, the source where not;
+// whole pixels a vector at a time (three strided scalar stores per pixel took a third of
+// the vertical pass).
+template <int N>
+inline void write_pixels(const uint8_t* m, const float* in, float* out, int width, const float* const* result) {
+  static_assert(N == 1 || N == 3);
   const FloatLanes d;
+  const int n = lane_count();
   const bool stream = streams(out);
   int i = 0;
-  for (; i + lane_count() <= width; i += lane_count()) {
+  for (; i + n <= width; i += n) {
     const hn::Mask<FloatLanes> on = foreground_lanes(m + i);
-    Lanes v = hn::LoadU(d, result + i);
-    if (!hn::AllTrue(d, on)) v = hn::IfThenElse(on, v, hn::LoadU(d, in + i));  // most vectors: in is not read
-    if (stream)
-      hn::Stream(v, d, out + i);
-    else
-      hn::StoreU(v, d, out + i);
-  }
-  for (; i < width; ++i) out[i] = m[i] ? result[i] : in[i];
-}
-
-// Columns [0, width) of one output row of a 3-channel image whose channels are result[0..2],
-// as write_pixels1; whole pixels a vector at a time (three strided scalar stores per pixel
-// took a third of the vertical pass).
-inline void write_pixels3(const uint8_t* m, const float* in, float* out, int width, const float* const* result) {
-  const FloatLanes d;
-  const bool stream = streams(out);
-  int i = 0;
-  for (; i + lane_count() <= width; i += lane_count()) {
-    const hn::Mask<FloatLanes> on = foreground_lanes(m + i);
-    Lanes v[3];
-    if (hn::AllTrue(d, on)) {  // most vectors: the source is not read
-      for (int c = 0; c < 3; ++c) v[c] = hn::LoadU(d, result[c] + i);
-    } else {
-      hn::LoadInterleaved3(d, in + 3 * size_t(i), v[0], v[1], v[2]);
-      for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(on, hn::LoadU(d, result[c] + i), v[c]);
+    Lanes v[N];
+    for (int c = 0; c < N; ++c) v[c] = hn::LoadU(d, result[c] + i);
+    if (!hn::AllTrue(d, on)) {  // most vectors are all foreground: the source is not read
+      Lanes source[N];
+      if constexpr (N == 1)
+        source[0] = hn::LoadU(d, in + i);
+      else
+        hn::LoadInterleaved3(d, in + 3 * size_t(i), source[0], source[1], source[2]);
+      for (int c = 0; c < N; ++c) v[c] = hn::IfThenElse(on, v[c], source[c]);
     }
-    if (stream) {  // interleaved in the first-level cache, then streamed out
+    float* at = out + size_t(N) * size_t(i);
+    if constexpr (N == 1) {
+      if (stream)
+        hn::Stream(v[0], d, at);
+      else
+        hn::StoreU(v[0], d, at);
+    } else if (stream) {  // interleaved in the first-level cache, then streamed out
       alignas(64) float pixels[3 * kMaxLanes];
       hn::StoreInterleaved3(v[0], v[1], v[2], d, pixels);
-      for (int c = 0; c < 3; ++c)
-        hn::Stream(hn::Load(d, pixels + c * lane_count()), d, out + 3 * size_t(i) + c * lane_count());
+      for (int c = 0; c < 3; ++c) hn::Stream(hn::Load(d, pixels + c * n), d, at + c * n);
     } else {
-      hn::StoreInterleaved3(v[0], v[1], v[2], d, out + 3 * size_t(i));
+      hn::StoreInterleaved3(v[0], v[1], v[2], d, at);
     }
   }
   for (; i < width; ++i)
-    for (int c = 0; c < 3; ++c) out[3 * i + c] = m[i] ? result[c][i] : in[3 * i + c];
+    for (int c = 0; c < N; ++c) out[N * i + c] = m[i] ? result[c][i] : in[N * i + c];
 }
 
 // Output row y of the tile from the pass's results: the filtered value where the mask is
@@ -518,13 +512,14 @@ void write_row(const Channel* ch, const uint8_t* m, const Tile& t, int y, const 
     float* out = ch[c].dst->ptr<float>(y) + ch[c].offset;
     const int stride = ch[c].stride;
     if (stride == 1) {  // a 1-channel image
-      write_pixels1(m + t.xa, in + t.xa, out + t.xa, t.width(), result[c]);
+      const float* channel = result[c];
+      write_pixels<1>(m + t.xa, in + t.xa, out + t.xa, t.width(), &channel);
       ++c;
       continue;
     }
     if (stride == 3 && ch[c].offset == 0 && c + 2 < C && ch[c + 2].src == ch[c].src) {  // a whole image
       const float* channels[3] = {result[c], result[c + 1], result[c + 2]};
-      write_pixels3(m + t.xa, in + 3 * t.xa, out + 3 * t.xa, t.width(), channels);
+      write_pixels<3>(m + t.xa, in + 3 * t.xa, out + 3 * t.xa, t.width(), channels);
       c += 3;
       continue;
     }
