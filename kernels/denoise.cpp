@@ -202,22 +202,27 @@ struct TilePlanes {
   float* row_lobe;    // T rows: the horizontal pass's, of the plane row it filters
 };
 
-// Floats of a tile's scratch for C channels: 4 guide planes, C value rows, C planes of
-// horizontal results, T lobe planes, T lobe rows.
-size_t tile_floats(const FilterConstants& k, int channels) {
-  return k.plane * size_t(4 + channels + k.taps) + size_t(k.plane_stride) * size_t(channels + k.taps);
-}
-
-TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels) {
+// The planes and rows of a tile for C channels, in this order at `scratch`: 4 guide
+// planes, C value rows, C planes of horizontal results, T lobe planes, T lobe rows;
+// *floats receives how many floats they take (scratch may be null: the count only).
+TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, size_t* floats = nullptr) {
+  size_t at = 0;
+  auto take = [&](size_t n) {
+    float* q = scratch ? scratch + at : nullptr;
+    at += n;
+    return q;
+  };
+  const size_t plane = k.plane, row = size_t(k.plane_stride), c = size_t(channels), taps = size_t(k.taps);
   TilePlanes p;
-  p.depth = scratch;
-  p.nx = p.depth + k.plane;
-  p.ny = p.nx + k.plane;
-  p.nz = p.ny + k.plane;
-  p.value = p.nz + k.plane;
-  p.horizontal = p.value + size_t(channels) * size_t(k.plane_stride);
-  p.lobe = p.horizontal + size_t(channels) * k.plane;
-  p.row_lobe = p.lobe + size_t(k.taps) * k.plane;
+  p.depth = take(plane);
+  p.nx = take(plane);
+  p.ny = take(plane);
+  p.nz = take(plane);
+  p.value = take(c * row);
+  p.horizontal = take(c * plane);
+  p.lobe = take(taps * plane);
+  p.row_lobe = take(taps * row);
+  if (floats) *floats = at;
   return p;
 }
 
@@ -560,7 +565,8 @@ template <int C, class Lobe, class Taps>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
                      const Lobe& lobe, Taps taps) {
   // The guide planes, the value rows, the horizontal results and the lobes.
-  const size_t scratch_floats = tile_floats(k, C);
+  size_t scratch_floats = 0;
+  tile_planes(nullptr, k, C, &scratch_floats);
   parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     thread_local TileScratch scratch;
     const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k, C);
