@@ -396,8 +396,10 @@ void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Tap
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
 // pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
 // k * step from it (step: a tap's spacing along the pass); tap k of channel c at values +
-// c * value_plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). The centre tap
-// weighs g(0) > 0 (its depth and normal match), so the weight sum is never 0.
+// c * value_plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). A foreground
+// centre weighs g(0) > 0 (its depth and normal match), so its weight sum is never 0; a masked
+// centre (depth and normal 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the
+// sums.
 template <int C, class Lobe, class Taps>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step,
                 const float* values, size_t value_plane, float* const* out, const Lobe& lobe, Taps taps,
@@ -422,14 +424,15 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
       wsum = hn::Add(wsum, w);
     });
     const Lanes inv = hn::Div(broadcast(1.0f), wsum);
-    for (int c = 0; c < C; ++c) hn::StoreU(hn::Mul(sum[c], inv), d, out[c] + i);
+    const hn::Mask<FloatLanes> weighed = hn::Gt(wsum, hn::Zero(d));
+    for (int c = 0; c < C; ++c) hn::StoreU(hn::IfThenElseZero(weighed, hn::Mul(sum[c], inv)), d, out[c] + i);
   }
 }
 
 // Pass 1 (horizontal) on every plane row of the tile, each row filled from the frame just
 // before it is filtered (its values read from the row buffer while in the first-level
-// cache; the guide planes stay for pass 2). Masked pixels and rows outside the image get 0
-// (their normal is 0, so pass 2 weighs them 0 anyway; no NaN is read).
+// cache; the guide planes stay for pass 2). Masked pixels (filter_row) and rows outside the
+// image get 0 (their normal is 0, so pass 2 weighs them 0 anyway; no NaN is read).
 template <int C, class Lobe, class Taps>
 void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
                      const Lobe& lobe, Taps taps) {
@@ -451,9 +454,6 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
     pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
     filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps,
                   lobes);
-    const uint8_t* m = k.mask.ptr<uint8_t>(y);
-    for (int c = 0; c < C; ++c)
-      for (int i = 0; i < t.width(); ++i) out[c][i] = m[t.xa + i] ? out[c][i] : 0.0f;
   }
 }
 
