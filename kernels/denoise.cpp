@@ -15,7 +15,8 @@
 // products summed in the same order, so the same bits. Each pass computes the lobe of
 // every pair at offset k = 1 .. R once (pair_lobes), and tap -k of a pixel reads the lobe
 // that tap +k of the pixel k before it computed: half the lobes, the larger part of a
-// tap's weight.
+// tap's weight. The spatial Gaussian is symmetric too, g(-k) = g(k), so a pair's lobe is
+// stored times g(k) and a tap's weight is one product, its depth weight times it.
 #include "kernels/denoise.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -358,16 +359,16 @@ inline Lanes normal_lobe(Lanes nx, Lanes ny, Lanes nz, Lanes tap_nx, Lanes tap_n
   return lobe(max0(hn::Add(hn::Add(hn::Mul(nx, tap_nx), hn::Mul(ny, tap_ny)), hn::Mul(nz, tap_nz))));
 }
 
-// The weight of the taps at one offset: the spatial Gaussian g(k) times the range weight,
-// the hard-cut linear depth weight max(0, 1 - |d_tap - d| / (tol d)) (depth_scale =
-// 1 / (tol d)) times the normal lobe.
-inline Lanes tap_weight(float g, Lanes depth, Lanes depth_scale, Lanes tap_depth, Lanes lobe) {
+// The weight of the taps at one offset: the hard-cut linear depth weight
+// max(0, 1 - |d_tap - d| / (tol d)) (depth_scale = 1 / (tol d)) times g_lobe, the spatial
+// Gaussian g(k) times the normal lobe.
+inline Lanes tap_weight(Lanes depth, Lanes depth_scale, Lanes tap_depth, Lanes g_lobe) {
   const Lanes wd = max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap_depth, depth)), depth_scale)));
-  return hn::Mul(broadcast(g), hn::Mul(wd, lobe));
+  return hn::Mul(wd, g_lobe);
 }
 
-// Where a pass finds the pair lobes: the lobe of guide offsets (pos, pos + k step) at
-// data[(k - 1) plane + pos - origin], k = 1 .. T (step: the guide offset of one tap).
+// Where a pass finds the pair lobes: g(k) times the lobe of guide offsets (pos, pos + k step)
+// at data[(k - 1) plane + pos - origin], k = 1 .. T (step: the guide offset of one tap).
 struct PairLobes {
   float* data;
   size_t plane;
@@ -375,20 +376,20 @@ struct PairLobes {
   float* at(int k, size_t pos) const { return data + size_t(k - 1) * plane + (pos - origin); }
 };
 
-// The pair lobes at taps k = 1 .. T (step apart) of guide offsets [from, to) (extended to
-// whole vectors), into lobes.data.
+// The pair lobes times g(k) at taps k = 1 .. T (step apart) of guide offsets [from, to)
+// (extended to whole vectors), into lobes.data.
 template <class Lobe, class Taps>
-void pair_lobes(const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Taps taps, const PairLobes& lobes,
-                const Lobe& lobe) {
+void pair_lobes(const FilterConstants& k, const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Taps taps,
+                const PairLobes& lobes, const Lobe& lobe) {
   const FloatLanes d;
   const size_t n = size_t(lane_count());
   for (size_t pos = from; pos < to; pos += n) {
     const Lanes nx = hn::LoadU(d, p.nx + pos), ny = hn::LoadU(d, p.ny + pos), nz = hn::LoadU(d, p.nz + pos);
-    for_each_tap(taps, 1, [&](int k) {
-      const size_t tap = size_t(ptrdiff_t(pos) + k * step);
+    for_each_tap(taps, 1, [&](int j) {
+      const size_t tap = size_t(ptrdiff_t(pos) + j * step);
       const Lanes l = normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
                                   hn::LoadU(d, p.nz + tap), lobe);
-      hn::StoreU(l, d, lobes.at(k, pos));
+      hn::StoreU(hn::Mul(broadcast(k.g[int(taps) + j]), l), d, lobes.at(j, pos));
     });
   }
 }
@@ -416,10 +417,11 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
       const ptrdiff_t off = tap * step + i;
       const size_t at = size_t(ptrdiff_t(centre) + off);
       // Tap -k pairs with the pixel k before: the lobe of (at, at + k step).
-      const Lanes tap_lobe = tap == 0 ? normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe)
-                             : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
-                                       : hn::LoadU(d, lobes.at(-tap, at));
-      const Lanes w = tap_weight(k.g[tap + T], c0.depth, depth_scale, hn::LoadU(d, p.depth + at), tap_lobe);
+      const Lanes g_lobe =
+          tap == 0 ? hn::Mul(broadcast(k.g[T]), normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe))
+          : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
+                    : hn::LoadU(d, lobes.at(-tap, at));
+      const Lanes w = tap_weight(c0.depth, depth_scale, hn::LoadU(d, p.depth + at), g_lobe);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
       wsum = hn::Add(wsum, w);
     });
@@ -451,7 +453,7 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
     // Pairs (x, x + j spacing) of the row: centres from column R, taps -j from column
     // R - j spacing.
     const PairLobes lobes{p.row_lobe, size_t(k.plane_stride), row};
-    pair_lobes(p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
+    pair_lobes(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
     filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps,
                   lobes);
   }
@@ -548,7 +550,7 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
   const ptrdiff_t tap_step = ptrdiff_t(k.spacing) * k.plane_stride;
   const PairLobes lobes{p.lobe, k.plane, 0};
   for (int j = 0; j < (t.yb - t.ya) + R; ++j)
-    pair_lobes(p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
+    pair_lobes(k, p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
                taps, lobes, lobe);
   for (int y = t.ya; y < t.yb; ++y) {
     const size_t row = size_t(y - t.ya + R) * stride;
