@@ -88,8 +88,7 @@ void parallel_rows(const cv::Range& rows, int nthreads,
     const int begin = rows.start + head_rows + (i - head_strips) * tail_strip;
     return cv::Range(begin, std::min(begin + tail_strip, rows.end));
   };
-  const int pool = nthreads > 1 ? std::min(nthreads, cv::getNumThreads()) : cv::getNumThreads();
-  const int workers = std::max(1, std::min(pool, n_strips));
+  const int workers = threads_used(nthreads, n_strips);
   std::atomic<int> next{0};
   // One task per worker, each taking strips until none is left: at most `workers` threads
   // of the pool run this call.
@@ -97,6 +96,38 @@ void parallel_rows(const cv::Range& rows, int nthreads,
     for (int i = next.fetch_add(1); i < n_strips; i = next.fetch_add(1)) body(strip(i));
   };
   run_parallel_for(cv::Range(0, workers), take_strips, workers);
+}
+
+int threads_used(int nthreads, int tasks) {
+  const int pool = nthreads > 1 ? std::min(nthreads, cv::getNumThreads()) : cv::getNumThreads();
+  return std::max(1, std::min(pool, tasks));
+}
+
+void parallel_row_blocks(const cv::Range& rows, int nthreads,
+                         const std::function<void(const cv::Range&)>& body, int granularity) {
+  if (rows.end <= rows.start) return;
+  if (nthreads == 1) {
+    body(rows);
+    return;
+  }
+  const int g = std::max(1, granularity);
+  const int workers = threads_used(nthreads, (rows.end - rows.start + g - 1) / g);
+  // The block from row s: a function of s alone, so the same blocks whichever thread
+  // takes each.
+  auto block_end = [&](int s) {
+    const int left = rows.end - s;
+    return s + std::min(left, std::max(g, left / workers / g * g));
+  };
+  std::atomic<int> next{rows.start};
+  const std::function<void(const cv::Range&)> take_blocks = [&](const cv::Range&) {
+    for (int s = next.load(); s < rows.end;) {
+      const int e = block_end(s);
+      if (!next.compare_exchange_weak(s, e)) continue;  // s now holds the current start
+      body(cv::Range(s, e));
+      s = next.load();
+    }
+  };
+  run_parallel_for(cv::Range(0, workers), take_blocks, workers);
 }
 
 }  // namespace ssdo

@@ -1,5 +1,5 @@
-// The one parallel helper of the kernels: splits a row range into strips and runs a
-// body over them with cv::parallel_for_. Kernels call it; nothing else in kernels/
+// The parallel helpers of the kernels: split a row range into strips (or blocks) and run a
+// body over them with cv::parallel_for_. Kernels call them; nothing else in kernels/
 // calls cv::parallel_for_ directly.
 //
 // OpenCV runs a nested or concurrent second parallel_for_ serially (a process-wide
@@ -35,5 +35,22 @@ cv::Rect resolve_roi(const cv::Rect& roi, cv::Size image);
 // that the threads finish close together.
 void parallel_rows(const cv::Range& rows, int nthreads,
                    const std::function<void(const cv::Range&)>& body, int rows_per_strip = 4);
+
+// Runs body(rows) over blocks covering [rows.start, rows.end), for kernels whose first rows
+// of a block cost more than the rest (a tiled filter's halo, computed once per block and
+// then carried from tile to tile): the blocks are few and large, shrinking towards the end
+// so that the threads still finish close together. Guided self-scheduling (Polychronopoulos
+// & Kuck 1987, "Guided self-scheduling: a practical scheduling scheme for parallel
+// supercomputers"): the block starting at row s holds (rows.end - s) / W rows, W the threads
+// used, rounded down to a multiple of `granularity`, and at least `granularity` (the last
+// block: what is left). The blocks depend on the thread count (not on which thread takes
+// them): only for kernels whose results do not depend on the split. nthreads as for
+// parallel_rows; 1 = one block, serially.
+void parallel_row_blocks(const cv::Range& rows, int nthreads,
+                         const std::function<void(const cv::Range&)>& body, int granularity);
+
+// How many of the pool's threads a call with nthreads != 1 over `tasks` strips or blocks
+// uses: the pool as configured, capped by nthreads > 1 and by the tasks, at least 1.
+int threads_used(int nthreads, int tasks);
 
 }  // namespace ssdo

@@ -130,10 +130,11 @@ inline void for_each_tap(int taps, int from, const F& f) {
 // vertical lobes; the C source values and the T horizontal lobes are rows) is (64 + 2R) x
 // (256 + 2R + kMaxLanes) floats, 81 KB at the default R = 4 on AVX-512 (92 KB at the half
 // grid's R = 8): the passes run on planes in the second-level cache, and the frame's guides
-// and source are read from memory once. The horizontal pass also computes the 2R halo rows
-// the vertical pass's taps read, 2R / kTileRows more rows: 64 rows keep that to an eighth
-// at R = 4 and a quarter at R = 8, and three channels' planes in a 2 MiB second-level cache
-// (docs/performance.md, "The denoise's tiles 64 rows tall, its values a row at a time").
+// and source are read from memory once. The vertical pass's taps read 2R halo rows, which
+// the horizontal pass computes for the first tile of a block of rows and each tile below
+// keeps from the one above (copy_halo); 64 rows keep three channels' planes in a 2 MiB
+// second-level cache (docs/performance.md, "The denoise's tiles 64 rows tall, its values a
+// row at a time", "The denoise's halo rows computed once per block").
 // The kMaxLanes columns past the halo let pair_lobes run whole vectors past it (for
 // nobody).
 constexpr int kTileRows = 64;
@@ -431,15 +432,16 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
   }
 }
 
-// Pass 1 (horizontal) on every plane row of the tile, each row filled from the frame just
-// before it is filtered (its values read from the row buffer while in the first-level
-// cache; the guide planes stay for pass 2). Masked pixels (filter_row) and rows outside the
-// image get 0 (their normal is 0, so pass 2 weighs them 0 anyway; no NaN is read).
+// Pass 1 (horizontal) on the tile's plane rows from `first` on (the rows before it were
+// kept from the tile above: copy_halo), each row filled from the frame just before it is
+// filtered (its values read from the row buffer while in the first-level cache; the guide
+// planes stay for pass 2). Masked pixels (filter_row) and rows outside the image get 0
+// (their normal is 0, so pass 2 weighs them 0 anyway; no NaN is read).
 template <int C, class Lobe, class Taps>
-void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
+void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t, int first,
                      const Lobe& lobe, Taps taps) {
   const int R = k.radius;
-  for (int j = 0; j < (t.yb - t.ya) + 2 * R; ++j) {
+  for (int j = first; j < (t.yb - t.ya) + 2 * R; ++j) {
     fill_row<C>(k, ch, t, p, j);
     const int y = t.ya - R + j;
     const size_t row = size_t(j) * size_t(k.plane_stride);
@@ -562,26 +564,66 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
   }
 }
 
-// The filter of C channels with one set of weights, over the roi r, tile by tile.
+// The plane rows a tile shares with the tile below it in the same columns: the tile below
+// reads, as its plane rows [0, 2R), the image rows yb - R .. yb + R - 1 that the tile has
+// in its plane rows [h, h + 2R) (h: its height), guides and horizontal results. A thread
+// keeps them per column of tiles in a halo store (4 + C planes of 2R rows each), so that
+// the horizontal pass of the tile below starts at row 2R instead of computing them again.
+// The floats of one column's store:
+inline size_t halo_floats(const FilterConstants& k, int channels) {
+  return size_t(4 + channels) * size_t(2 * k.radius) * size_t(k.plane_stride);
+}
+
+// Plane rows [h, h + 2R) of the tile into `store` (out = true), or `store` into plane rows
+// [0, 2R) (out = false; h unused).
+template <int C>
+void copy_halo(const FilterConstants& k, const TilePlanes& p, int h, float* store, bool out) {
+  const size_t rows = size_t(2 * k.radius) * size_t(k.plane_stride);
+  const size_t at = out ? size_t(h) * size_t(k.plane_stride) : 0;
+  float* planes[4 + C] = {p.depth, p.nx, p.ny, p.nz};
+  for (int c = 0; c < C; ++c) planes[4 + c] = p.horizontal + size_t(c) * k.plane;
+  for (int q = 0; q < 4 + C; ++q, store += rows) {
+    if (out)
+      std::copy(planes[q] + at, planes[q] + at + rows, store);
+    else
+      std::copy(store, store + rows, planes[q]);
+  }
+}
+
+// The filter of C channels with one set of weights, over the roi r. Each thread takes
+// blocks of rows (parallel_row_blocks) and filters a block a row of tiles at a time (in
+// the frame's memory order), each tile starting from the halo rows the tile above left in
+// the halo store: the horizontal pass computes a block's 2R halo rows once, not once per
+// row of tiles. Every pixel's sums are the same whatever the blocks and tiles: the same
+// bits.
 template <int C, class Lobe, class Taps>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
                      const Lobe& lobe, Taps taps) {
-  // The guide planes, the value rows, the horizontal results and the lobes.
-  size_t scratch_floats = 0;
-  tile_planes(nullptr, k, C, &scratch_floats);
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+  // The guide planes, the value rows, the horizontal results and the lobes, then the halo
+  // store of every column of tiles.
+  size_t tile_floats = 0;
+  tile_planes(nullptr, k, C, &tile_floats);
+  const int columns = (r.width + kTileCols - 1) / kTileCols;
+  const size_t halo = halo_floats(k, C);
+  static_assert(kTileRows >= 2 * kMaxRadiusPx, "a tile's halo rows below do not overlap its top ones");
+  parallel_row_blocks(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     thread_local TileScratch scratch;
-    const TilePlanes planes = tile_planes(scratch.get(scratch_floats), k, C);
+    float* const buffer = scratch.get(tile_floats + size_t(columns) * halo);
+    const TilePlanes planes = tile_planes(buffer, k, C);
     for (int ya = rows.start; ya < rows.end; ya += kTileRows) {
       const int yb = std::min(ya + kTileRows, rows.end);
-      for (int xa = r.x; xa < r.x + r.width; xa += kTileCols) {
+      for (int i = 0; i < columns; ++i) {
+        const int xa = r.x + i * kTileCols;
         const Tile t{ya, yb, xa, std::min(xa + kTileCols, r.x + r.width)};
-        horizontal_pass<C>(k, ch, planes, t, lobe, taps);
+        float* const store = buffer + tile_floats + size_t(i) * halo;
+        if (ya > rows.start) copy_halo<C>(k, planes, 0, store, false);
+        horizontal_pass<C>(k, ch, planes, t, ya > rows.start ? 2 * k.radius : 0, lobe, taps);
         vertical_pass<C>(k, ch, planes, t, lobe, taps);
+        if (yb < rows.end) copy_halo<C>(k, planes, yb - ya, store, true);
       }
     }
-    hwy::FlushStream();  // the strip's stream stores (write_row) before the caller reads them
-  }, kTileRows);
+    hwy::FlushStream();  // the block's stream stores (write_row) before the caller reads them
+  }, kTileRows / 4);
 }
 
 // filter_channels with the channel count as a compile-time constant (the sums stay in

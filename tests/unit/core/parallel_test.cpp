@@ -1,5 +1,5 @@
 // The kernels' one parallel helper (core/parallel.h): every row once, in strips that do
-// not depend on the thread count.
+// not depend on the thread count, or in guided blocks that shrink towards the end.
 #include "core/parallel.h"
 
 #include <algorithm>
@@ -57,6 +57,55 @@ TEST(ParallelRows, EveryRowOnceInStripsIndependentOfTheThreadCount) {
       ASSERT_EQ(one.size(), 1u);
       EXPECT_EQ(one[0], rows);
     }
+}
+
+// The blocks parallel_row_blocks hands out, sorted by their first row.
+std::vector<cv::Range> blocks_of(const cv::Range& rows, int nthreads, int granularity) {
+  std::mutex lock;
+  std::vector<cv::Range> blocks;
+  parallel_row_blocks(rows, nthreads, [&](const cv::Range& r) {
+    const std::lock_guard<std::mutex> hold(lock);
+    blocks.push_back(r);
+  }, granularity);
+  std::sort(blocks.begin(), blocks.end(), [](const cv::Range& a, const cv::Range& b) { return a.start < b.start; });
+  return blocks;
+}
+
+// Guided self-scheduling: every row once, each block (rows left) / threads rows rounded down
+// to the granularity and at least that, so the blocks shrink; the same blocks on every
+// call with the same thread count, and one block serially.
+TEST(ParallelRowBlocks, EveryRowOnceInBlocksThatShrinkTowardsTheEnd) {
+  const int before = cv::getNumThreads();
+  set_thread_budget(4);
+  for (const cv::Range rows : {cv::Range(0, 1080), cv::Range(7, 100), cv::Range(3, 4), cv::Range(0, 540)})
+    for (int granularity : {1, 16})
+      for (int threads : {2, 3}) {
+        const std::vector<cv::Range> blocks = blocks_of(rows, threads, granularity);
+        ASSERT_FALSE(blocks.empty());
+        EXPECT_EQ(blocks.front().start, rows.start);
+        EXPECT_EQ(blocks.back().end, rows.end);
+        for (size_t i = 0; i < blocks.size(); ++i) {
+          const cv::Range& b = blocks[i];
+          if (i > 0) {
+            EXPECT_EQ(b.start, blocks[i - 1].end);
+          }
+          const int left = rows.end - b.start;
+          const int expected = std::min(left, std::max(granularity, left / threads / granularity * granularity));
+          EXPECT_EQ(b.size(), expected) << threads << " threads, block at " << b.start;
+        }
+        const std::vector<cv::Range> again = blocks_of(rows, threads, granularity);
+        ASSERT_EQ(again.size(), blocks.size());
+        for (size_t i = 0; i < blocks.size(); ++i) EXPECT_EQ(again[i], blocks[i]);
+        const std::vector<cv::Range> one = blocks_of(rows, 1, granularity);
+        ASSERT_EQ(one.size(), 1u);
+        EXPECT_EQ(one[0], rows);
+      }
+  // 1080 rows on two threads in blocks of 16: 528, 272, 128, 64, 32, 16, 16, 16, 8.
+  const std::vector<cv::Range> frame = blocks_of(cv::Range(0, 1080), 2, 16);
+  std::vector<int> sizes;
+  for (const cv::Range& b : frame) sizes.push_back(b.size());
+  EXPECT_EQ(sizes, (std::vector<int>{528, 272, 128, 64, 32, 16, 16, 16, 8}));
+  set_thread_budget(before);
 }
 
 // The pool's size is the process's (set_thread_budget), never changed by a call; a call

@@ -92,16 +92,20 @@ TEST(Denoise, MatchesBruteForce) {
 
 // Taps spaced apart (the half grid's footprint, and a radius that is no multiple of the
 // spacing), against the brute force; wider and taller than a tile (256 x 64 pixels), so
-// the seams are crossed both ways.
+// the seams are crossed both ways, and on one and two threads, whose first blocks of rows
+// (200 and 96 rows) hold several tiles, each taking its halo rows from the tile above.
 TEST(Denoise, SpacedTapsMatchBruteForce) {
-  const Guides g = random_guides(cv::Size(300, 150), 13);
-  for (const auto& [radius, spacing] : {std::pair{8, 2}, std::pair{7, 3}, std::pair{32, 4}}) {
-    DenoiseSettings s;
-    s.radius_px = radius;
-    s.sigma_px = 2.5f * float(spacing);
-    s.tap_spacing_px = spacing;
-    expect_matches_brute_force(g, s, 2, "radius " + std::to_string(radius) + ", spacing " + std::to_string(spacing));
-  }
+  const Guides g = random_guides(cv::Size(300, 200), 13);
+  for (const auto& [radius, spacing] : {std::pair{8, 2}, std::pair{7, 3}, std::pair{32, 4}})
+    for (int threads : {1, 2}) {
+      DenoiseSettings s;
+      s.radius_px = radius;
+      s.sigma_px = 2.5f * float(spacing);
+      s.tap_spacing_px = spacing;
+      expect_matches_brute_force(g, s, threads,
+                                 "radius " + std::to_string(radius) + ", spacing " + std::to_string(spacing) + ", " +
+                                     std::to_string(threads) + " threads");
+    }
 }
 
 // Taller than two tiles, so that two threads take different strips of rows.
