@@ -303,9 +303,11 @@ void upsample_span(const FullGrid& full, const HalfGrid& h, std::span<const Upsa
   }
 }
 
-// Rows per strip of the upsample: a strip lays out each texel row it reads once
-// (TexelRows), and pixel rows 2j + 1 and 2j + 2 read the same two texel rows.
-constexpr int kRowsPerStrip = 16;
+// Rows of the upsample's last, smallest blocks (parallel_row_blocks): a block lays out each
+// texel row it reads once (TexelRows; pixel rows 2j + 1 and 2j + 2 read the same two texel
+// rows) and takes its row buffers once, so its first row costs more than the others and
+// the blocks are few and large.
+constexpr int kBlockGranularity = 4;
 
 // Lanes of pixels at a time (Highway's full vector of floats: 8 with AVX2, 16 with
 // AVX-512, 4 with NEON): the same operations as the per-pixel code in the same order,
@@ -678,7 +680,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
   const bool finished = std::any_of(images.begin(), images.end(),
                                     [](const UpsampleImage& im) { return im.finish != UpsampleFinish::none; });
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
-  parallel_rows(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
+  parallel_row_blocks(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     lanes::TexelRows texels(h, images);
     const std::optional<lanes::LanePattern> pattern =
         span.begin < span.end ? std::optional<lanes::LanePattern>(std::in_place) : std::nullopt;
@@ -692,7 +694,7 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
       if (finished) finish_row(full, images, out, y, r.x, r.x + r.width);
       outputs.store(y, r.x, r.x + r.width);
     }
-  }, kRowsPerStrip);
+  }, kBlockGranularity);
 }
 
 float upsample_depth_falloff(float x) { return depth_falloff(x); }
