@@ -52,6 +52,13 @@ void run_parallel_for(const cv::Range& rows, const std::function<void(const cv::
 #endif
 }
 
+// How many of the pool's threads a call with nthreads != 1 over `tasks` strips or blocks
+// uses: the pool as configured, capped by nthreads > 1 and by the tasks, at least 1.
+int threads_used(int nthreads, int tasks) {
+  const int pool = nthreads > 1 ? std::min(nthreads, cv::getNumThreads()) : cv::getNumThreads();
+  return std::max(1, std::min(pool, tasks));
+}
+
 }  // namespace
 
 void set_thread_budget(int threads) {
@@ -96,11 +103,6 @@ void parallel_rows(const cv::Range& rows, int nthreads,
     for (int i = next.fetch_add(1); i < n_strips; i = next.fetch_add(1)) body(strip(i));
   };
   run_parallel_for(cv::Range(0, workers), take_strips, workers);
-}
-
-int threads_used(int nthreads, int tasks) {
-  const int pool = nthreads > 1 ? std::min(nthreads, cv::getNumThreads()) : cv::getNumThreads();
-  return std::max(1, std::min(pool, tasks));
 }
 
 void parallel_row_blocks(const cv::Range& rows, int nthreads,

@@ -49,8 +49,4 @@ void parallel_rows(const cv::Range& rows, int nthreads,
 void parallel_row_blocks(const cv::Range& rows, int nthreads,
                          const std::function<void(const cv::Range&)>& body, int granularity);
 
-// How many of the pool's threads a call with nthreads != 1 over `tasks` strips or blocks
-// uses: the pool as configured, capped by nthreads > 1 and by the tasks, at least 1.
-int threads_used(int nthreads, int tasks);
-
 }  // namespace ssdo
