@@ -398,10 +398,10 @@ void pair_lobes(const FilterConstants& k, const TilePlanes& p, size_t from, size
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
 // pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
 // k * step from it (step: a tap's spacing along the pass); tap k of channel c at values +
-// c * value_plane + k * step + i; the lobes of taps k != 0 in `lobes` (pair_lobes). A foreground
-// centre weighs g(0) > 0 (its depth and normal match), so its weight sum is never 0; a masked
-// centre (depth and normal 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the
-// sums.
+// c * value_plane + k * step + i; g(k) times the lobes of taps k != 0 in `lobes`
+// (pair_lobes). A foreground centre weighs g(0) = 1 times its own lobe, which is > 0 (its
+// depth and normal match), so its weight sum is never 0; a masked centre (depth and normal
+// 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the sums.
 template <int C, class Lobe, class Taps>
 void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step,
                 const float* values, size_t value_plane, float* const* out, const Lobe& lobe, Taps taps,
@@ -417,11 +417,10 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
     for_each_tap(taps, -T, [&](int tap) {
       const ptrdiff_t off = tap * step + i;
       const size_t at = size_t(ptrdiff_t(centre) + off);
-      // Tap -k pairs with the pixel k before: the lobe of (at, at + k step).
-      const Lanes g_lobe =
-          tap == 0 ? hn::Mul(broadcast(k.g[T]), normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe))
-          : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
-                    : hn::LoadU(d, lobes.at(-tap, at));
+      // Tap -k pairs with the pixel k before: the lobe of (at, at + k step). g(0) = 1.
+      const Lanes g_lobe = tap == 0 ? normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe)
+                           : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
+                                     : hn::LoadU(d, lobes.at(-tap, at));
       const Lanes w = tap_weight(c0.depth, depth_scale, hn::LoadU(d, p.depth + at), g_lobe);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
       wsum = hn::Add(wsum, w);
