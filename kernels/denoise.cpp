@@ -573,19 +573,18 @@ inline size_t halo_floats(const FilterConstants& k, int channels) {
   return size_t(4 + channels) * size_t(2 * k.radius) * size_t(k.plane_stride);
 }
 
-// Plane rows [h, h + 2R) of the tile into `store` (out = true), or `store` into plane rows
-// [0, 2R) (out = false; h unused).
+// Plane rows [row, row + 2R) of the kept planes into `store` (to_store), or back from it.
 template <int C>
-void copy_halo(const FilterConstants& k, const TilePlanes& p, int h, float* store, bool out) {
+void copy_halo(const FilterConstants& k, const TilePlanes& p, int row, float* store, bool to_store) {
   const size_t rows = size_t(2 * k.radius) * size_t(k.plane_stride);
-  const size_t at = out ? size_t(h) * size_t(k.plane_stride) : 0;
+  const size_t at = size_t(row) * size_t(k.plane_stride);
   float* planes[4 + C] = {p.depth, p.nx, p.ny, p.nz};
   for (int c = 0; c < C; ++c) planes[4 + c] = p.horizontal + size_t(c) * k.plane;
   for (int q = 0; q < 4 + C; ++q, store += rows) {
-    if (out)
+    if (to_store)
       std::copy(planes[q] + at, planes[q] + at + rows, store);
     else
-      std::copy(store, store + rows, planes[q]);
+      std::copy(store, store + rows, planes[q] + at);
   }
 }
 
