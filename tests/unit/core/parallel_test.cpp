@@ -14,16 +14,23 @@
 namespace ssdo {
 namespace {
 
+// The row ranges a helper hands out (split(body) calls it with the body), sorted by their
+// first row.
+template <class Split>
+std::vector<cv::Range> ranges_of(const Split& split) {
+  std::mutex lock;
+  std::vector<cv::Range> ranges;
+  split([&](const cv::Range& r) {
+    const std::lock_guard<std::mutex> hold(lock);
+    ranges.push_back(r);
+  });
+  std::sort(ranges.begin(), ranges.end(), [](const cv::Range& a, const cv::Range& b) { return a.start < b.start; });
+  return ranges;
+}
+
 // The strips parallel_rows hands out, sorted by their first row.
 std::vector<cv::Range> strips_of(const cv::Range& rows, int nthreads, int rows_per_strip) {
-  std::mutex lock;
-  std::vector<cv::Range> strips;
-  parallel_rows(rows, nthreads, [&](const cv::Range& r) {
-    const std::lock_guard<std::mutex> hold(lock);
-    strips.push_back(r);
-  }, rows_per_strip);
-  std::sort(strips.begin(), strips.end(), [](const cv::Range& a, const cv::Range& b) { return a.start < b.start; });
-  return strips;
+  return ranges_of([&](const auto& body) { parallel_rows(rows, nthreads, body, rows_per_strip); });
 }
 
 TEST(ParallelRows, EveryRowOnceInStripsIndependentOfTheThreadCount) {
@@ -61,14 +68,7 @@ TEST(ParallelRows, EveryRowOnceInStripsIndependentOfTheThreadCount) {
 
 // The blocks parallel_row_blocks hands out, sorted by their first row.
 std::vector<cv::Range> blocks_of(const cv::Range& rows, int nthreads, int granularity) {
-  std::mutex lock;
-  std::vector<cv::Range> blocks;
-  parallel_row_blocks(rows, nthreads, [&](const cv::Range& r) {
-    const std::lock_guard<std::mutex> hold(lock);
-    blocks.push_back(r);
-  }, granularity);
-  std::sort(blocks.begin(), blocks.end(), [](const cv::Range& a, const cv::Range& b) { return a.start < b.start; });
-  return blocks;
+  return ranges_of([&](const auto& body) { parallel_row_blocks(rows, nthreads, body, granularity); });
 }
 
 // Guided self-scheduling: every row once, each block (rows left) / threads rows rounded down
