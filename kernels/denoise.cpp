@@ -228,14 +228,14 @@ TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, s
   return p;
 }
 
-// Per-thread scratch of the tiles, grown once per thread (never inside the pixel loops).
-struct TileScratch {
-  std::vector<float> buffer;
-  float* get(size_t floats) {
-    if (buffer.size() < floats) buffer.resize(floats);
-    return buffer.data();
-  }
-};
+// The thread's scratch for the tiles of every filter_channels (whatever its channels, lobe
+// and taps: one buffer per thread, not one per instantiation), at least `floats` long; it
+// grows once per thread to the largest call's size (never inside the pixel loops).
+float* tile_scratch(size_t floats) {
+  thread_local std::vector<float> buffer;
+  if (buffer.size() < floats) buffer.resize(floats);
+  return buffer.data();
+}
 
 
 // What fill_row reads of one image row: the mask, the guides and the C channels'
@@ -605,8 +605,7 @@ void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect
   const size_t halo = halo_floats(k, C);
   static_assert(kTileRows >= 2 * kMaxRadiusPx, "a tile's halo rows below do not overlap its top ones");
   parallel_row_blocks(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    thread_local TileScratch scratch;
-    float* const buffer = scratch.get(tile_floats + size_t(columns) * halo);
+    float* const buffer = tile_scratch(tile_floats + size_t(columns) * halo);
     const TilePlanes planes = tile_planes(buffer, k, C);
     for (int ya = rows.start; ya < rows.end; ya += kTileRows) {
       const int yb = std::min(ya + kTileRows, rows.end);
