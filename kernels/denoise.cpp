@@ -421,7 +421,8 @@ void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, si
       const Lanes g_lobe = tap == 0 ? normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe)
                            : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
                                      : hn::LoadU(d, lobes.at(-tap, at));
-      const Lanes w = tap_weight(c0.depth, depth_scale, hn::LoadU(d, p.depth + at), g_lobe);
+      // The centre's depth weight is 1 (|d - d| = 0; a masked centre's lobe is 0).
+      const Lanes w = tap == 0 ? g_lobe : tap_weight(c0.depth, depth_scale, hn::LoadU(d, p.depth + at), g_lobe);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
       wsum = hn::Add(wsum, w);
     });
