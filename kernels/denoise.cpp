@@ -202,12 +202,16 @@ struct TilePlanes {
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
   float* lobe;        // T planes: the vertical pass's pair lobes at taps 1 .. T (pair_lobes)
   float* row_lobe;    // T rows: the horizontal pass's, of the plane row it filters
+  float* halo;        // the halo store (copy_halo) of every column of tiles, halo_column floats apart
+  size_t halo_column;
 };
 
 // The planes and rows of a tile for C channels, in this order at `scratch`: 4 guide
-// planes, C value rows, C planes of horizontal results, T lobe planes, T lobe rows;
-// *floats receives how many floats they take (scratch may be null: the count only).
-TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, size_t* floats = nullptr) {
+// planes, C value rows, C planes of horizontal results, T lobe planes, T lobe rows, then
+// the halo store of `columns` columns of tiles (4 + C planes of 2R rows each); *floats
+// receives how many floats they take (scratch may be null: the count only).
+TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, int columns,
+                       size_t* floats = nullptr) {
   size_t at = 0;
   auto take = [&](size_t n) {
     float* q = scratch ? scratch + at : nullptr;
@@ -224,6 +228,8 @@ TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, s
   p.horizontal = take(c * plane);
   p.lobe = take(taps * plane);
   p.row_lobe = take(taps * row);
+  p.halo_column = (4 + c) * size_t(2 * k.radius) * row;
+  p.halo = take(size_t(columns) * p.halo_column);
   if (floats) *floats = at;
   return p;
 }
@@ -569,11 +575,6 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
 // in its plane rows [h, h + 2R) (h: its height), guides and horizontal results. A thread
 // keeps them per column of tiles in a halo store (4 + C planes of 2R rows each), so that
 // the horizontal pass of the tile below starts at row 2R instead of computing them again.
-// The floats of one column's store:
-inline size_t halo_floats(const FilterConstants& k, int channels) {
-  return size_t(4 + channels) * size_t(2 * k.radius) * size_t(k.plane_stride);
-}
-
 // Plane rows [row, row + 2R) of the kept planes into `store` (to_store), or back from it.
 template <int C>
 void copy_halo(const FilterConstants& k, const TilePlanes& p, int row, float* store, bool to_store) {
@@ -598,22 +599,18 @@ void copy_halo(const FilterConstants& k, const TilePlanes& p, int row, float* st
 template <int C, class Lobe, class Taps>
 void filter_channels(const FilterConstants& k, const Channel* ch, const cv::Rect& r, int nthreads,
                      const Lobe& lobe, Taps taps) {
-  // The guide planes, the value rows, the horizontal results and the lobes, then the halo
-  // store of every column of tiles.
-  size_t tile_floats = 0;
-  tile_planes(nullptr, k, C, &tile_floats);
   const int columns = (r.width + kTileCols - 1) / kTileCols;
-  const size_t halo = halo_floats(k, C);
+  size_t scratch_floats = 0;
+  tile_planes(nullptr, k, C, columns, &scratch_floats);
   static_assert(kTileRows >= 2 * kMaxRadiusPx, "a tile's halo rows below do not overlap its top ones");
   parallel_row_blocks(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
-    float* const buffer = tile_scratch(tile_floats + size_t(columns) * halo);
-    const TilePlanes planes = tile_planes(buffer, k, C);
+    const TilePlanes planes = tile_planes(tile_scratch(scratch_floats), k, C, columns);
     for (int ya = rows.start; ya < rows.end; ya += kTileRows) {
       const int yb = std::min(ya + kTileRows, rows.end);
       for (int i = 0; i < columns; ++i) {
         const int xa = r.x + i * kTileCols;
         const Tile t{ya, yb, xa, std::min(xa + kTileCols, r.x + r.width)};
-        float* const store = buffer + tile_floats + size_t(i) * halo;
+        float* const store = planes.halo + size_t(i) * planes.halo_column;
         if (ya > rows.start) copy_halo<C>(k, planes, 0, store, false);
         horizontal_pass<C>(k, ch, planes, t, ya > rows.start ? 2 * k.radius : 0, lobe, taps);
         vertical_pass<C>(k, ch, planes, t, lobe, taps);
