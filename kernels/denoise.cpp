@@ -11,12 +11,12 @@
 // pass is, per tile row, a weight computation and an accumulation over the taps k for a
 // vector of pixels at once (Highway: the same source for every instruction set).
 //
-// The normal lobe of a pair of pixels is symmetric: n_a . n_b and n_b . n_a are the same
-// products summed in the same order, so the same bits. Each pass computes the lobe of
-// every pair at offset k = 1 .. R once (pair_lobes), and tap -k of a pixel reads the lobe
-// that tap +k of the pixel k before it computed: half the lobes, the larger part of a
-// tap's weight. The spatial Gaussian is symmetric too, g(-k) = g(k), so a pair's lobe is
-// stored times g(k) and a tap's weight is one product, its depth weight times it.
+// A tap's weight is symmetric in the pair of pixels (a, b): the normal lobe's n_a . n_b
+// and n_b . n_a are the same products summed in the same order, the depth weight's
+// |d_b - d_a| (1 / d_a + 1 / d_b) is the same either way, and g(-k) = g(k), so the same
+// bits from either end. Each pass computes the weight of every pair at offset k = 1 .. T
+// once (pair_weights), and tap -k of a pixel reads the weight that tap +k of the pixel k
+// before it computed: half the weights, and the tap loop itself only sums.
 #include "kernels/denoise.h"
 
 #undef HWY_TARGET_INCLUDE
@@ -126,16 +126,16 @@ inline void for_each_tap(int taps, int from, const F& f) {
 }
 
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
-// columns either side, every plane of a tile (depth, normal x/y/z, C horizontal results, T
-// vertical lobes; the C source values and the T horizontal lobes are rows) is (64 + 2R) x
-// (256 + 2R + kMaxLanes) floats, 81 KB at the default R = 4 on AVX-512 (92 KB at the half
-// grid's R = 8): the passes run on planes in the second-level cache, and the frame's guides
+// columns either side, every plane of a tile (depth, its scale, normal x/y/z, C horizontal
+// results, T vertical pair weights; the C source values and the T horizontal pair weights
+// are rows) is (64 + 2R) x (256 + 2R + kMaxLanes) floats, 81 KB at the default R = 4 on
+// AVX-512 (92 KB at the half grid's R = 8): the passes run on planes in the second-level cache, and the frame's guides
 // and source are read from memory once. The vertical pass's taps read 2R halo rows, which
 // the horizontal pass computes for the first tile of a block of rows and each tile below
 // keeps from the one above (copy_halo); 64 rows keep three channels' planes in a 2 MiB
 // second-level cache (docs/performance.md, "The denoise's tiles 64 rows tall, its values a
 // row at a time", "The denoise's halo rows computed once per block").
-// The kMaxLanes columns past the halo let pair_lobes run whole vectors past it (for
+// The kMaxLanes columns past the halo let pair_weights run whole vectors past it (for
 // nobody).
 constexpr int kTileRows = 64;
 constexpr int kTileCols = 256;
@@ -165,14 +165,14 @@ struct FilterConstants {
   int spacing;                 // tap_spacing_px
   int radius;                  // R = T spacing: the pixels a pass reaches either side (the halo)
   float g[2 * kMaxRadiusPx + 1];  // the spatial Gaussian of tap k (at k spacing pixels), at k + T
-  float inv_tol;               // 1 / depth_tolerance_relative
+  float half_inv_tol;          // 1 / (2 depth_tolerance_relative)
   int plane_stride;            // floats per plane row: kTileCols + 2R + kMaxLanes
   size_t plane;                // floats per plane: plane_stride x (kTileRows + 2R)
 
   FilterConstants(const cv::Mat& depth, const cv::Mat& normal, const cv::Mat& m, const DenoiseSettings& s)
       : depth_view(depth), normal_view(normal), mask(m), width(depth.cols), height(depth.rows),
         taps(s.radius_px / s.tap_spacing_px), spacing(s.tap_spacing_px), radius(taps * spacing), g{},
-        inv_tol(1.0f / s.depth_tolerance_relative), plane_stride(kTileCols + 2 * radius + kMaxLanes),
+        half_inv_tol(0.5f / s.depth_tolerance_relative), plane_stride(kTileCols + 2 * radius + kMaxLanes),
         plane(size_t(plane_stride) * size_t(kTileRows + 2 * radius)) {
     for (int k = -taps; k <= taps; ++k) {
       const int d = k * spacing;
@@ -194,22 +194,26 @@ struct Tile {
 // The planes of a tile in the per-thread scratch.
 struct TilePlanes {
   float* depth;
+  float* scale;       // 1 / (2 tol depth) (depth_scale), 0 where the depth is 0
   float* nx;
   float* ny;
   float* nz;
   float* value;       // C rows, plane_stride floats apart: the source channels of the plane row
                       // the horizontal pass filters (fill_row writes it just before)
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
-  float* lobe;        // T planes: the vertical pass's pair lobes at taps 1 .. T (pair_lobes)
-  float* row_lobe;    // T rows: the horizontal pass's, of the plane row it filters
+  float* weight;      // T planes: the vertical pass's pair weights at taps 1 .. T (pair_weights)
+  float* row_weight;  // T rows: the horizontal pass's, of the plane row it filters
   float* halo;        // the halo store (copy_halo) of every column of tiles, halo_column floats apart
   size_t halo_column;
 };
 
-// The planes and rows of a tile for C channels, in this order at `scratch`: 4 guide
-// planes, C value rows, C planes of horizontal results, T lobe planes, T lobe rows, then
-// the halo store of `columns` columns of tiles (4 + C planes of 2R rows each); *floats
-// receives how many floats they take (scratch may be null: the count only).
+// The guide planes of a tile: depth, its scale, normal x, y, z.
+constexpr int kGuidePlanes = 5;
+
+// The planes and rows of a tile for C channels, in this order at `scratch`: the guide
+// planes, C value rows, C planes of horizontal results, T weight planes, T weight rows,
+// then the halo store of `columns` columns of tiles (kGuidePlanes + C planes of 2R rows
+// each); *floats receives how many floats they take (scratch may be null: the count only).
 TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, int columns,
                        size_t* floats = nullptr) {
   size_t at = 0;
@@ -221,14 +225,15 @@ TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, i
   const size_t plane = k.plane, row = size_t(k.plane_stride), c = size_t(channels), taps = size_t(k.taps);
   TilePlanes p;
   p.depth = take(plane);
+  p.scale = take(plane);
   p.nx = take(plane);
   p.ny = take(plane);
   p.nz = take(plane);
   p.value = take(c * row);
   p.horizontal = take(c * plane);
-  p.lobe = take(taps * plane);
-  p.row_lobe = take(taps * row);
-  p.halo_column = (4 + c) * size_t(2 * k.radius) * row;
+  p.weight = take(taps * plane);
+  p.row_weight = take(taps * row);
+  p.halo_column = (kGuidePlanes + c) * size_t(2 * k.radius) * row;
   p.halo = take(size_t(columns) * p.halo_column);
   if (floats) *floats = at;
   return p;
@@ -268,6 +273,7 @@ struct SourceRow {
 template <int C>
 struct PlaneRow {
   float* depth;
+  float* scale;
   float* nx;
   float* ny;
   float* nz;
@@ -275,7 +281,7 @@ struct PlaneRow {
 
   PlaneRow(const FilterConstants& k, const TilePlanes& p, int j) {
     const size_t row = size_t(j) * size_t(k.plane_stride);
-    depth = p.depth + row, nx = p.nx + row, ny = p.ny + row, nz = p.nz + row;
+    depth = p.depth + row, scale = p.scale + row, nx = p.nx + row, ny = p.ny + row, nz = p.nz + row;
     for (int c = 0; c < C; ++c) value[c] = p.value + size_t(c) * size_t(k.plane_stride);
   }
 };
@@ -283,16 +289,22 @@ struct PlaneRow {
 // Columns [from, to) of a plane row: 0 in every plane and value row.
 template <int C>
 void zero_columns(const PlaneRow<C>& r, int from, int to) {
-  float* rows[4 + C] = {r.depth, r.nx, r.ny, r.nz};
-  for (int c = 0; c < C; ++c) rows[4 + c] = r.value[c];
+  float* rows[kGuidePlanes + C] = {r.depth, r.scale, r.nx, r.ny, r.nz};
+  for (int c = 0; c < C; ++c) rows[kGuidePlanes + c] = r.value[c];
   for (float* q : rows) std::fill(q + from, q + to, 0.0f);
 }
 
+// The depth weight's scale 1 / (2 tol d) of a pixel at depth d, once per pixel rather than
+// per pair (a division).
+inline float depth_scale(const FilterConstants& k, float depth) { return k.half_inv_tol / depth; }
+inline Lanes depth_scale(const FilterConstants& k, Lanes depth) { return hn::Div(broadcast(k.half_inv_tol), depth); }
+
 // Pixel x of a source row into column i of the plane row; 0 where the mask is 0.
 template <int C>
-inline void fill_pixel(const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i) {
+inline void fill_pixel(const FilterConstants& k, const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i) {
   const bool on = s.mask[x] != 0;
   r.depth[i] = on ? s.depth[x] : 0.0f;
+  r.scale[i] = on ? depth_scale(k, s.depth[x]) : 0.0f;
   r.nx[i] = on ? s.normal[3 * x] : 0.0f;
   r.ny[i] = on ? s.normal[3 * x + 1] : 0.0f;
   r.nz[i] = on ? s.normal[3 * x + 2] : 0.0f;
@@ -301,10 +313,12 @@ inline void fill_pixel(const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i
 
 // The vector of pixels from x, as fill_pixel.
 template <int C>
-inline void fill_vector(const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i) {
+inline void fill_vector(const FilterConstants& k, const SourceRow<C>& s, int x, const PlaneRow<C>& r, int i) {
   const FloatLanes d;
   const hn::Mask<FloatLanes> on = foreground_lanes(s.mask + x);
-  hn::StoreU(hn::IfThenElseZero(on, hn::LoadU(d, s.depth + x)), d, r.depth + i);
+  const Lanes depth = hn::LoadU(d, s.depth + x);
+  hn::StoreU(hn::IfThenElseZero(on, depth), d, r.depth + i);
+  hn::StoreU(hn::IfThenElseZero(on, depth_scale(k, depth)), d, r.scale + i);
   Lanes v[3];
   hn::LoadInterleaved3(d, s.normal + 3 * size_t(x), v[0], v[1], v[2]);
   hn::StoreU(hn::IfThenElseZero(on, v[0]), d, r.nx + i);
@@ -345,19 +359,9 @@ void fill_row(const FilterConstants& k, const Channel* ch, const Tile& t, const 
   // Vectors stop a pixel before the image's right edge: a 3-channel source's channel
   // c > 0 is loaded as whole pixels from that channel on, c floats past the last pixel.
   int i = first;
-  for (; i + n < end; i += n) fill_vector(s, x0 + i, r, i);
-  for (; i < end; ++i) fill_pixel(s, x0 + i, r, i);
+  for (; i + n < end; i += n) fill_vector(k, s, x0 + i, r, i);
+  for (; i < end; ++i) fill_pixel(k, s, x0 + i, r, i);
   zero_columns<C>(r, end, columns);
-}
-
-// The guides of a vector of pixels (or of their taps at one offset) in the planes.
-struct GuideLanes {
-  Lanes depth, nx, ny, nz;
-};
-
-inline GuideLanes load_guides(const TilePlanes& p, size_t at) {
-  const FloatLanes d;
-  return {hn::LoadU(d, p.depth + at), hn::LoadU(d, p.nx + at), hn::LoadU(d, p.ny + at), hn::LoadU(d, p.nz + at)};
 }
 
 // The normal lobe of the range weight: lobe(max(0, n . n_tap)).
@@ -366,69 +370,69 @@ inline Lanes normal_lobe(Lanes nx, Lanes ny, Lanes nz, Lanes tap_nx, Lanes tap_n
   return lobe(max0(hn::Add(hn::Add(hn::Mul(nx, tap_nx), hn::Mul(ny, tap_ny)), hn::Mul(nz, tap_nz))));
 }
 
-// The weight of the taps at one offset: the hard-cut linear depth weight
-// max(0, 1 - |d_tap - d| / (tol d)) (depth_scale = 1 / (tol d)) times g_lobe, the spatial
-// Gaussian g(k) times the normal lobe.
-inline Lanes tap_weight(Lanes depth, Lanes depth_scale, Lanes tap_depth, Lanes g_lobe) {
-  const Lanes wd = max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap_depth, depth)), depth_scale)));
+// The weight of the pairs (a, a + k step) of a vector of pixels a: the hard-cut linear
+// depth weight max(0, 1 - |d_b - d_a| (scale_a + scale_b)) (scale = 1 / (2 tol d):
+// the depth difference relative to the harmonic mean of the two depths) times g(k) times
+// the normal lobe.
+inline Lanes pair_weight(Lanes depth, Lanes scale, Lanes tap_depth, Lanes tap_scale, Lanes g_lobe) {
+  const Lanes wd =
+      max0(hn::Sub(broadcast(1.0f), hn::Mul(hn::Abs(hn::Sub(tap_depth, depth)), hn::Add(scale, tap_scale))));
   return hn::Mul(wd, g_lobe);
 }
 
-// Where a pass finds the pair lobes: g(k) times the lobe of guide offsets (pos, pos + k step)
-// at data[(k - 1) plane + pos - origin], k = 1 .. T (step: the guide offset of one tap).
-struct PairLobes {
+// Where a pass finds the pair weights: the weight of guide offsets (pos, pos + k step) at
+// data[(k - 1) plane + pos - origin], k = 1 .. T (step: the guide offset of one tap).
+struct PairWeights {
   float* data;
   size_t plane;
   size_t origin;
   float* at(int k, size_t pos) const { return data + size_t(k - 1) * plane + (pos - origin); }
 };
 
-// The pair lobes times g(k) at taps k = 1 .. T (step apart) of guide offsets [from, to)
-// (extended to whole vectors), into lobes.data.
+// The pair weights at taps k = 1 .. T (step apart) of guide offsets [from, to) (extended to
+// whole vectors), into weights.data.
 template <class Lobe, class Taps>
-void pair_lobes(const FilterConstants& k, const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Taps taps,
-                const PairLobes& lobes, const Lobe& lobe) {
+void pair_weights(const FilterConstants& k, const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Taps taps,
+                  const PairWeights& weights, const Lobe& lobe) {
   const FloatLanes d;
   const size_t n = size_t(lane_count());
   for (size_t pos = from; pos < to; pos += n) {
     const Lanes nx = hn::LoadU(d, p.nx + pos), ny = hn::LoadU(d, p.ny + pos), nz = hn::LoadU(d, p.nz + pos);
+    const Lanes depth = hn::LoadU(d, p.depth + pos), scale = hn::LoadU(d, p.scale + pos);
     for_each_tap(taps, 1, [&](int j) {
       const size_t tap = size_t(ptrdiff_t(pos) + j * step);
-      const Lanes l = normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
-                                  hn::LoadU(d, p.nz + tap), lobe);
-      hn::StoreU(hn::Mul(broadcast(k.g[int(taps) + j]), l), d, lobes.at(j, pos));
+      const Lanes g_lobe = hn::Mul(broadcast(k.g[int(taps) + j]),
+                                   normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
+                                               hn::LoadU(d, p.nz + tap), lobe));
+      const Lanes w = pair_weight(depth, scale, hn::LoadU(d, p.depth + tap), hn::LoadU(d, p.scale + tap), g_lobe);
+      hn::StoreU(w, d, weights.at(j, pos));
     });
   }
 }
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
-// pixels i in [0, lane_width). The centre guides at plane offset `centre` + i, tap k at
-// k * step from it (step: a tap's spacing along the pass); tap k of channel c at values +
-// c * value_plane + k * step + i; g(k) times the lobes of taps k != 0 in `lobes`
-// (pair_lobes). A foreground centre weighs g(0) = 1 times its own lobe, which is > 0 (its
-// depth and normal match), so its weight sum is never 0; a masked centre (depth and normal
-// 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the sums.
+// pixels i in [0, lane_width). The centre's normal at plane offset `centre` + i; tap k of
+// channel c at values + c * value_plane + k * step + i (step: a tap's spacing along the
+// pass); the weights of taps k != 0 in `weights` (pair_weights). A foreground centre weighs
+// its own lobe (g(0) = 1, depth weight 1), which is > 0, so its weight sum is never 0; a
+// masked centre (normal 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the
+// sums.
 template <int C, class Lobe, class Taps>
-void filter_row(const FilterConstants& k, const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step,
-                const float* values, size_t value_plane, float* const* out, const Lobe& lobe, Taps taps,
-                const PairLobes& lobes) {
+void filter_row(const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step, const float* values,
+                size_t value_plane, float* const* out, const Lobe& lobe, Taps taps, const PairWeights& weights) {
   const FloatLanes d;
   const int T = taps, width = t.lane_width(), n = lane_count();
-  const Lanes inv_tol = broadcast(k.inv_tol);
   for (int i = 0; i < width; i += n) {
-    const GuideLanes c0 = load_guides(p, centre + size_t(i));
-    const Lanes depth_scale = hn::Div(inv_tol, c0.depth);
+    const size_t at = centre + size_t(i);
+    const Lanes nx = hn::LoadU(d, p.nx + at), ny = hn::LoadU(d, p.ny + at), nz = hn::LoadU(d, p.nz + at);
     Lanes sum[C], wsum = hn::Zero(d);
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
     for_each_tap(taps, -T, [&](int tap) {
       const ptrdiff_t off = tap * step + i;
-      const size_t at = size_t(ptrdiff_t(centre) + off);
-      // Tap -k pairs with the pixel k before: the lobe of (at, at + k step). g(0) = 1.
-      const Lanes g_lobe = tap == 0 ? normal_lobe(c0.nx, c0.ny, c0.nz, c0.nx, c0.ny, c0.nz, lobe)
-                           : tap > 0 ? hn::LoadU(d, lobes.at(tap, centre + size_t(i)))
-                                     : hn::LoadU(d, lobes.at(-tap, at));
-      // The centre's depth weight is 1 (|d - d| = 0; a masked centre's lobe is 0).
-      const Lanes w = tap == 0 ? g_lobe : tap_weight(c0.depth, depth_scale, hn::LoadU(d, p.depth + at), g_lobe);
+      // Tap -k is the pair (pixel k before, this one), which that pixel's tap +k weighs.
+      const Lanes w = tap == 0  ? normal_lobe(nx, ny, nz, nx, ny, nz, lobe)
+                      : tap > 0 ? hn::LoadU(d, weights.at(tap, at))
+                                : hn::LoadU(d, weights.at(-tap, size_t(ptrdiff_t(centre) + off)));
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
       wsum = hn::Add(wsum, w);
     });
@@ -460,10 +464,9 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
     }
     // Pairs (x, x + j spacing) of the row: centres from column R, taps -j from column
     // R - j spacing.
-    const PairLobes lobes{p.row_lobe, size_t(k.plane_stride), row};
-    pair_lobes(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, lobes, lobe);
-    filter_row<C>(k, p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps,
-                  lobes);
+    const PairWeights weights{p.row_weight, size_t(k.plane_stride), row};
+    pair_weights(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, weights, lobe);
+    filter_row<C>(p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps, weights);
   }
 }
 
@@ -556,16 +559,16 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
   // Pairs (y, y + j spacing) of the tile's columns: centres from plane row R, taps -j from
   // row R - j spacing.
   const ptrdiff_t tap_step = ptrdiff_t(k.spacing) * k.plane_stride;
-  const PairLobes lobes{p.lobe, k.plane, 0};
+  const PairWeights weights{p.weight, k.plane, 0};
   for (int j = 0; j < (t.yb - t.ya) + R; ++j)
-    pair_lobes(k, p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
-               taps, lobes, lobe);
+    pair_weights(k, p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
+                 taps, weights, lobe);
   for (int y = t.ya; y < t.yb; ++y) {
     const size_t row = size_t(y - t.ya + R) * stride;
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
-    filter_row<C>(k, p, t, row + size_t(R), tap_step, p.horizontal + row, k.plane, to, lobe, taps, lobes);
+    filter_row<C>(p, t, row + size_t(R), tap_step, p.horizontal + row, k.plane, to, lobe, taps, weights);
     write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }
@@ -573,16 +576,17 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
 // The plane rows a tile shares with the tile below it in the same columns: the tile below
 // reads, as its plane rows [0, 2R), the image rows yb - R .. yb + R - 1 that the tile has
 // in its plane rows [h, h + 2R) (h: its height), guides and horizontal results. A thread
-// keeps them per column of tiles in a halo store (4 + C planes of 2R rows each), so that
-// the horizontal pass of the tile below starts at row 2R instead of computing them again.
+// keeps them per column of tiles in a halo store (kGuidePlanes + C planes of 2R rows
+// each), so that the horizontal pass of the tile below starts at row 2R instead of
+// computing them again.
 // Plane rows [row, row + 2R) of the kept planes into `store` (to_store), or back from it.
 template <int C>
 void copy_halo(const FilterConstants& k, const TilePlanes& p, int row, float* store, bool to_store) {
   const size_t rows = size_t(2 * k.radius) * size_t(k.plane_stride);
   const size_t at = size_t(row) * size_t(k.plane_stride);
-  float* planes[4 + C] = {p.depth, p.nx, p.ny, p.nz};
-  for (int c = 0; c < C; ++c) planes[4 + c] = p.horizontal + size_t(c) * k.plane;
-  for (int q = 0; q < 4 + C; ++q, store += rows) {
+  float* planes[kGuidePlanes + C] = {p.depth, p.scale, p.nx, p.ny, p.nz};
+  for (int c = 0; c < C; ++c) planes[kGuidePlanes + c] = p.horizontal + size_t(c) * k.plane;
+  for (int q = 0; q < kGuidePlanes + C; ++q, store += rows) {
     if (to_store)
       std::copy(planes[q] + at, planes[q] + at + rows, store);
     else

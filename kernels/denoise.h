@@ -21,10 +21,12 @@ struct DenoiseSettings {
   // Standard deviation of the Gaussian spatial weight, pixels, (0, inf). 2.5 keeps the
   // outermost tap of radius 4 at weight exp(-16 / 12.5) = 0.28.
   float sigma_px = 2.5f;
-  // Depth tolerance relative to the centre's depth, (0, inf): a tap whose depth differs
-  // by |d_tap - d| >= depth_tolerance_relative * d gets weight 0 (hard cut, so nothing
-  // crosses a silhouette); below it the weight falls linearly from 1. 0.05 is ~5x the
-  // depth change across 4 px of a surface at 80 deg from the view at 640 px.
+  // Depth tolerance relative to the two pixels' depths, (0, inf): a tap whose depth
+  // differs by |d_tap - d| >= depth_tolerance_relative * h, h the harmonic mean of d and
+  // d_tap, gets weight 0 (hard cut, so nothing crosses a silhouette); below it the weight
+  // falls linearly from 1. The same for either pixel of a pair (a tap's weight is
+  // computed once per pair). 0.05 is ~5x the depth change across 4 px of a surface at 80
+  // deg from the view at 640 px.
   float depth_tolerance_relative = 0.05f;
   // Exponent of the normal weight max(0, dot(n, n_tap))^normal_power, [0, 256]. 16 halves
   // the weight at ~17 deg and cuts creases of 45 deg and more to < 0.004.
@@ -52,10 +54,11 @@ cv::Rect denoise_reads(const cv::Rect& roi, const DenoiseSettings& s, const cv::
 
 // Depth- and normal-aware separable bilateral blur (a horizontal pass, then a vertical
 // pass over its result) of a CV_32FC1 or CV_32FC3 image. Tap weight:
-//   g(k) * max(0, 1 - |d_tap - d| / (tol * d)) * max(0, n . n_tap)^power,
-// k the tap's offset in pixels (a multiple of tap_spacing_px, |k| <= radius_px), g the
-// Gaussian of sigma_px; taps outside the image or with mask 0 weigh 0. The centre
-// always weighs g(0) > 0, so the weight sum is never 0. Pixels with mask 0 are copied
+//   g(k) * max(0, 1 - |d_tap - d| / (tol h)) * max(0, n . n_tap)^power,
+// h = 2 / (1 / d + 1 / d_tap) the harmonic mean of the two depths (the weight is symmetric
+// in the pixel and its tap); k the tap's offset in pixels (a multiple of tap_spacing_px,
+// |k| <= radius_px), g the Gaussian of sigma_px; taps outside the image or with mask 0
+// weigh 0. The centre always weighs g(0) > 0, so the weight sum is never 0. Pixels with mask 0 are copied
 // unchanged. depth_view CV_32FC1 planar (> 0 on foreground), normal_view CV_32FC3 unit,
 // mask CV_8UC1 (255 = foreground). dst is allocated like src when needed and only roi
 // (empty = all) is written; dst must not share memory with src.

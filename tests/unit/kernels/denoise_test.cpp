@@ -41,7 +41,7 @@ cv::Mat brute_force(const cv::Mat& src, const Guides& g, const DenoiseSettings& 
   auto weight = [&](int cx, int cy, int tx, int ty, int k) -> double {
     if (tx < 0 || ty < 0 || tx >= W || ty >= H || !g.mask.at<uint8_t>(ty, tx)) return 0.0;
     const double d = g.depth.at<float>(cy, cx), dt = g.depth.at<float>(ty, tx);
-    const double wd = std::max(0.0, 1.0 - std::abs(dt - d) / (s.depth_tolerance_relative * d));
+    const double wd = std::max(0.0, 1.0 - std::abs(dt - d) * (1.0 / d + 1.0 / dt) / (2.0 * s.depth_tolerance_relative));
     const double c = g.normal.at<cv::Vec3f>(cy, cx).dot(g.normal.at<cv::Vec3f>(ty, tx));
     const double wn = c > 0 ? std::pow(c, double(s.normal_power)) : 0.0;
     return std::exp(-0.5 * k * k / (double(s.sigma_px) * s.sigma_px)) * wd * wn;
