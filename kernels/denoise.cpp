@@ -127,10 +127,10 @@ inline void for_each_tap(int taps, int from, const F& f) {
 
 // Tile of the filter, pixels: kTileRows x kTileCols outputs. With the halo of R rows and
 // columns either side, every plane of a tile (depth, its scale, normal x/y/z, C horizontal
-// results, T vertical pair weights; the C source values and the T horizontal pair weights
-// are rows) is (64 + 2R) x (256 + 2R + kMaxLanes) floats, 81 KB at the default R = 4 on
-// AVX-512 (92 KB at the half grid's R = 8): the passes run on planes in the second-level cache, and the frame's guides
-// and source are read from memory once. The vertical pass's taps read 2R halo rows, which
+// results; the C source values and the pair weights are rows) is (64 + 2R) x (256 + 2R +
+// kMaxLanes) floats, 81 KB at the default R = 4 on AVX-512 (92 KB at the half grid's R =
+// 8): the passes run on planes in the second-level cache, and the frame's guides and
+// source are read from memory once. The vertical pass's taps read 2R halo rows, which
 // the horizontal pass computes for the first tile of a block of rows and each tile below
 // keeps from the one above (copy_halo); 64 rows keep three channels' planes in a 2 MiB
 // second-level cache (docs/performance.md, "The denoise's tiles 64 rows tall, its values a
@@ -201,7 +201,8 @@ struct TilePlanes {
   float* value;       // C rows, plane_stride floats apart: the source channels of the plane row
                       // the horizontal pass filters (fill_row writes it just before)
   float* horizontal;  // C planes: the horizontal pass, tile columns only (no column halo)
-  float* weight;      // T planes: the vertical pass's pair weights at taps 1 .. T (pair_weights)
+  float* ring;        // the vertical pass's pair weights at taps 1 .. T (pair_weights) of its
+                      // last R + 1 plane rows: T rings of R + 1 rows (ring_row)
   float* row_weight;  // T rows: the horizontal pass's, of the plane row it filters
   float* halo;        // the halo store (copy_halo) of every column of tiles, halo_column floats apart
   size_t halo_column;
@@ -211,9 +212,10 @@ struct TilePlanes {
 constexpr int kGuidePlanes = 5;
 
 // The planes and rows of a tile for C channels, in this order at `scratch`: the guide
-// planes, C value rows, C planes of horizontal results, T weight planes, T weight rows,
-// then the halo store of `columns` columns of tiles (kGuidePlanes + C planes of 2R rows
-// each); *floats receives how many floats they take (scratch may be null: the count only).
+// planes, C value rows, C planes of horizontal results, T rings of R + 1 weight rows, T
+// weight rows, then the halo store of `columns` columns of tiles (kGuidePlanes + C planes
+// of 2R rows each); *floats receives how many floats they take (scratch may be null: the
+// count only).
 TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, int columns,
                        size_t* floats = nullptr) {
   size_t at = 0;
@@ -231,7 +233,7 @@ TilePlanes tile_planes(float* scratch, const FilterConstants& k, int channels, i
   p.nz = take(plane);
   p.value = take(c * row);
   p.horizontal = take(c * plane);
-  p.weight = take(taps * plane);
+  p.ring = take(taps * size_t(k.radius + 1) * row);
   p.row_weight = take(taps * row);
   p.halo_column = (kGuidePlanes + c) * size_t(2 * k.radius) * row;
   p.halo = take(size_t(columns) * p.halo_column);
@@ -380,20 +382,11 @@ inline Lanes pair_weight(Lanes depth, Lanes scale, Lanes tap_depth, Lanes tap_sc
   return hn::Mul(wd, g_lobe);
 }
 
-// Where a pass finds the pair weights: the weight of guide offsets (pos, pos + k step) at
-// data[(k - 1) plane + pos - origin], k = 1 .. T (step: the guide offset of one tap).
-struct PairWeights {
-  float* data;
-  size_t plane;
-  size_t origin;
-  float* at(int k, size_t pos) const { return data + size_t(k - 1) * plane + (pos - origin); }
-};
-
 // The pair weights at taps k = 1 .. T (step apart) of guide offsets [from, to) (extended to
-// whole vectors), into weights.data.
+// whole vectors), the weight of pair (pos, pos + k step) at dst[k - 1][pos - from].
 template <class Lobe, class Taps>
 void pair_weights(const FilterConstants& k, const TilePlanes& p, size_t from, size_t to, ptrdiff_t step, Taps taps,
-                  const PairWeights& weights, const Lobe& lobe) {
+                  float* const* dst, const Lobe& lobe) {
   const FloatLanes d;
   const size_t n = size_t(lane_count());
   for (size_t pos = from; pos < to; pos += n) {
@@ -405,21 +398,28 @@ void pair_weights(const FilterConstants& k, const TilePlanes& p, size_t from, si
                                    normal_lobe(nx, ny, nz, hn::LoadU(d, p.nx + tap), hn::LoadU(d, p.ny + tap),
                                                hn::LoadU(d, p.nz + tap), lobe));
       const Lanes w = pair_weight(depth, scale, hn::LoadU(d, p.depth + tap), hn::LoadU(d, p.scale + tap), g_lobe);
-      hn::StoreU(w, d, weights.at(j, pos));
+      hn::StoreU(w, d, dst[j - 1] + (pos - from));
     });
   }
 }
 
+// The weights of a tile row's taps, by the row's pixel i: tap +k at plus[k - 1][i] (the
+// pixel's pair with the pixel k taps after it), tap -k at minus[k - 1][i] (the pair of the
+// pixel k taps before it with this one: the same weight, computed once).
+struct RowWeights {
+  const float* plus[kMaxRadiusPx];
+  const float* minus[kMaxRadiusPx];
+};
+
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
 // pixels i in [0, lane_width). The centre's normal at plane offset `centre` + i; tap k of
 // channel c at values + c * value_plane + k * step + i (step: a tap's spacing along the
-// pass); the weights of taps k != 0 in `weights` (pair_weights). A foreground centre weighs
-// its own lobe (g(0) = 1, depth weight 1), which is > 0, so its weight sum is never 0; a
-// masked centre (normal 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the
-// sums.
+// pass); the weights of taps k != 0 in `weights`. A foreground centre weighs its own lobe
+// (g(0) = 1, depth weight 1), which is > 0, so its weight sum is never 0; a masked centre
+// (normal 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the sums.
 template <int C, class Lobe, class Taps>
 void filter_row(const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step, const float* values,
-                size_t value_plane, float* const* out, const Lobe& lobe, Taps taps, const PairWeights& weights) {
+                size_t value_plane, float* const* out, const Lobe& lobe, Taps taps, const RowWeights& weights) {
   const FloatLanes d;
   const int T = taps, width = t.lane_width(), n = lane_count();
   for (int i = 0; i < width; i += n) {
@@ -429,10 +429,9 @@ void filter_row(const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t ste
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
     for_each_tap(taps, -T, [&](int tap) {
       const ptrdiff_t off = tap * step + i;
-      // Tap -k is the pair (pixel k before, this one), which that pixel's tap +k weighs.
       const Lanes w = tap == 0  ? normal_lobe(nx, ny, nz, nx, ny, nz, lobe)
-                      : tap > 0 ? hn::LoadU(d, weights.at(tap, at))
-                                : hn::LoadU(d, weights.at(-tap, size_t(ptrdiff_t(centre) + off)));
+                      : tap > 0 ? hn::LoadU(d, weights.plus[tap - 1] + i)
+                                : hn::LoadU(d, weights.minus[-tap - 1] + i);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
       wsum = hn::Add(wsum, w);
     });
@@ -462,10 +461,16 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
         for (int i = 0; i < t.lane_width(); ++i) out[c][i] = 0.0f;
       continue;
     }
-    // Pairs (x, x + j spacing) of the row: centres from column R, taps -j from column
-    // R - j spacing.
-    const PairWeights weights{p.row_weight, size_t(k.plane_stride), row};
-    pair_weights(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, weights, lobe);
+    // Pairs (x, x + k spacing) of the row from column 0: centres from column R, taps -k
+    // from column R - k spacing.
+    float* dst[kMaxRadiusPx];
+    RowWeights weights;
+    for (int j = 0; j < int(taps); ++j) {
+      dst[j] = p.row_weight + size_t(j) * size_t(k.plane_stride);
+      weights.plus[j] = dst[j] + R;
+      weights.minus[j] = dst[j] + R - (j + 1) * k.spacing;
+    }
+    pair_weights(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, dst, lobe);
     filter_row<C>(p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps, weights);
   }
 }
@@ -549,22 +554,39 @@ void write_row(const Channel* ch, const uint8_t* m, const Tile& t, int y, const 
   }
 }
 
+// Row r of the vertical pass's ring of tap k's pair weights (plane row r of the tile: the
+// pairs (r, r + k spacing) of its columns from column R).
+inline float* ring_row(const FilterConstants& k, const TilePlanes& p, int tap, int r) {
+  const int rows = k.radius + 1;
+  return p.ring + (size_t(tap - 1) * size_t(rows) + size_t(r % rows)) * size_t(k.plane_stride);
+}
+
 // Pass 2 (vertical) over the horizontal results, on the tile's rows, into the outputs;
-// masked pixels copy the source.
+// masked pixels copy the source. A row's pair weights are computed just before it is
+// filtered, into rings of the last R + 1 rows (the pairs its taps -k read are those of the
+// rows k spacing above it), which stay in the first-level cache.
 template <int C, class Lobe, class Taps>
 void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t,
                    const Lobe& lobe, Taps taps) {
   const int R = k.radius;
   const size_t stride = size_t(k.plane_stride);
-  // Pairs (y, y + j spacing) of the tile's columns: centres from plane row R, taps -j from
-  // row R - j spacing.
   const ptrdiff_t tap_step = ptrdiff_t(k.spacing) * k.plane_stride;
-  const PairWeights weights{p.weight, k.plane, 0};
-  for (int j = 0; j < (t.yb - t.ya) + R; ++j)
-    pair_weights(k, p, size_t(j) * stride + size_t(R), size_t(j) * stride + size_t(R + t.lane_width()), tap_step,
-                 taps, weights, lobe);
+  auto pairs_of_row = [&](int r) {
+    float* dst[kMaxRadiusPx];
+    for (int j = 1; j <= int(taps); ++j) dst[j - 1] = ring_row(k, p, j, r);
+    const size_t first = size_t(r) * stride + size_t(R);
+    pair_weights(k, p, first, first + size_t(t.lane_width()), tap_step, taps, dst, lobe);
+  };
+  for (int r = 0; r < R; ++r) pairs_of_row(r);
   for (int y = t.ya; y < t.yb; ++y) {
-    const size_t row = size_t(y - t.ya + R) * stride;
+    const int r = y - t.ya + R;
+    pairs_of_row(r);
+    RowWeights weights;
+    for (int j = 1; j <= int(taps); ++j) {
+      weights.plus[j - 1] = ring_row(k, p, j, r);
+      weights.minus[j - 1] = ring_row(k, p, j, r - j * k.spacing);
+    }
+    const size_t row = size_t(r) * stride;
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
