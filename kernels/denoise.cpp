@@ -412,24 +412,25 @@ struct RowWeights {
 };
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
-// pixels i in [0, lane_width). The centre's normal at plane offset `centre` + i; tap k of
-// channel c at values + c * value_plane + k * step + i (step: a tap's spacing along the
-// pass); the weights of taps k != 0 in `weights`. A foreground centre weighs its own lobe
-// (g(0) = 1, depth weight 1), which is > 0, so its weight sum is never 0; a masked centre
-// (normal 0) weighs every tap 0, and its outputs are 0, not the 0 / 0 of the sums.
-template <int C, class Lobe, class Taps>
+// pixels i in [0, lane_width). The centre's depth scale at plane offset `centre` + i; tap
+// k of channel c at values + c * value_plane + k * step + i (step: a tap's spacing along
+// the pass); the weights of taps k != 0 in `weights`. A foreground centre (its depth scale
+// > 0) weighs 1 (g(0) = 1, depth weight 1, and the lobe of a unit normal with itself), so
+// its weight sum is never 0; a masked centre (scale 0, normal 0) weighs itself and every
+// tap 0, and its outputs are 0, not the 0 / 0 of the sums.
+template <int C, class Taps>
 void filter_row(const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step, const float* values,
-                size_t value_plane, float* const* out, const Lobe& lobe, Taps taps, const RowWeights& weights) {
+                size_t value_plane, float* const* out, Taps taps, const RowWeights& weights) {
   const FloatLanes d;
   const int T = taps, width = t.lane_width(), n = lane_count();
   for (int i = 0; i < width; i += n) {
-    const size_t at = centre + size_t(i);
-    const Lanes nx = hn::LoadU(d, p.nx + at), ny = hn::LoadU(d, p.ny + at), nz = hn::LoadU(d, p.nz + at);
+    const Lanes self = hn::IfThenElseZero(hn::Gt(hn::LoadU(d, p.scale + centre + size_t(i)), hn::Zero(d)),
+                                          broadcast(1.0f));
     Lanes sum[C], wsum = hn::Zero(d);
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
     for_each_tap(taps, -T, [&](int tap) {
       const ptrdiff_t off = tap * step + i;
-      const Lanes w = tap == 0  ? normal_lobe(nx, ny, nz, nx, ny, nz, lobe)
+      const Lanes w = tap == 0  ? self
                       : tap > 0 ? hn::LoadU(d, weights.plus[tap - 1] + i)
                                 : hn::LoadU(d, weights.minus[-tap - 1] + i);
       for (int c = 0; c < C; ++c) sum[c] = hn::Add(sum[c], hn::Mul(w, hn::LoadU(d, values + c * value_plane + off)));
@@ -471,7 +472,7 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
       weights.minus[j] = dst[j] + R - (j + 1) * k.spacing;
     }
     pair_weights(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, dst, lobe);
-    filter_row<C>(p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, lobe, taps, weights);
+    filter_row<C>(p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, taps, weights);
   }
 }
 
@@ -590,7 +591,7 @@ void vertical_pass(const FilterConstants& k, const Channel* ch, const TilePlanes
     float result[C][kTileCols];
     float* to[C];
     for (int c = 0; c < C; ++c) to[c] = result[c];
-    filter_row<C>(p, t, row + size_t(R), tap_step, p.horizontal + row, k.plane, to, lobe, taps, weights);
+    filter_row<C>(p, t, row + size_t(R), tap_step, p.horizontal + row, k.plane, to, taps, weights);
     write_row<C>(ch, k.mask.ptr<uint8_t>(y), t, y, result);
   }
 }

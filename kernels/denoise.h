@@ -58,7 +58,8 @@ cv::Rect denoise_reads(const cv::Rect& roi, const DenoiseSettings& s, const cv::
 // h = 2 / (1 / d + 1 / d_tap) the harmonic mean of the two depths (the weight is symmetric
 // in the pixel and its tap); k the tap's offset in pixels (a multiple of tap_spacing_px,
 // |k| <= radius_px), g the Gaussian of sigma_px; taps outside the image or with mask 0
-// weigh 0. The centre always weighs g(0) > 0, so the weight sum is never 0. Pixels with mask 0 are copied
+// weigh 0. The centre always weighs 1 (g(0), its depth weight and the lobe of its unit
+// normal with itself), so the weight sum is never 0. Pixels with mask 0 are copied
 // unchanged. depth_view CV_32FC1 planar (> 0 on foreground), normal_view CV_32FC3 unit,
 // mask CV_8UC1 (255 = foreground). dst is allocated like src when needed and only roi
 // (empty = all) is written; dst must not share memory with src.

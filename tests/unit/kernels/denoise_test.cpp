@@ -40,6 +40,7 @@ cv::Mat brute_force(const cv::Mat& src, const Guides& g, const DenoiseSettings& 
   const int C = src.channels(), W = src.cols, H = src.rows, R = s.radius_px, D = s.tap_spacing_px;
   auto weight = [&](int cx, int cy, int tx, int ty, int k) -> double {
     if (tx < 0 || ty < 0 || tx >= W || ty >= H || !g.mask.at<uint8_t>(ty, tx)) return 0.0;
+    if (k == 0) return 1.0;  // the centre: g(0), its depth weight and its unit normal's lobe are 1
     const double d = g.depth.at<float>(cy, cx), dt = g.depth.at<float>(ty, tx);
     const double wd = std::max(0.0, 1.0 - std::abs(dt - d) * (1.0 / d + 1.0 / dt) / (2.0 * s.depth_tolerance_relative));
     const double c = g.normal.at<cv::Vec3f>(cy, cx).dot(g.normal.at<cv::Vec3f>(ty, tx));
