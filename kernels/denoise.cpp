@@ -412,19 +412,19 @@ struct RowWeights {
 };
 
 // One pass over a tile row: out[c][i] = sum_k w_k v_c,k / sum_k w_k for the tile row's
-// pixels i in [0, lane_width). The centre's depth scale at plane offset `centre` + i; tap
-// k of channel c at values + c * value_plane + k * step + i (step: a tap's spacing along
-// the pass); the weights of taps k != 0 in `weights`. A foreground centre (its depth scale
-// > 0) weighs 1 (g(0) = 1, depth weight 1, and the lobe of a unit normal with itself), so
-// its weight sum is never 0; a masked centre (scale 0, normal 0) weighs itself and every
-// tap 0, and its outputs are 0, not the 0 / 0 of the sums.
+// pixels i in [0, lane_width). The centre's depth at plane offset `centre` + i; tap k of
+// channel c at values + c * value_plane + k * step + i (step: a tap's spacing along the
+// pass); the weights of taps k != 0 in `weights`. A foreground centre (depth > 0) weighs 1
+// (g(0) = 1, depth weight 1, and the lobe of a unit normal with itself), so its weight sum
+// is never 0; a masked centre (depth and normal 0) weighs itself and every tap 0, and its
+// outputs are 0, not the 0 / 0 of the sums.
 template <int C, class Taps>
 void filter_row(const TilePlanes& p, const Tile& t, size_t centre, ptrdiff_t step, const float* values,
                 size_t value_plane, float* const* out, Taps taps, const RowWeights& weights) {
   const FloatLanes d;
   const int T = taps, width = t.lane_width(), n = lane_count();
   for (int i = 0; i < width; i += n) {
-    const Lanes self = hn::IfThenElseZero(hn::Gt(hn::LoadU(d, p.scale + centre + size_t(i)), hn::Zero(d)),
+    const Lanes self = hn::IfThenElseZero(hn::Gt(hn::LoadU(d, p.depth + centre + size_t(i)), hn::Zero(d)),
                                           broadcast(1.0f));
     Lanes sum[C], wsum = hn::Zero(d);
     for (int c = 0; c < C; ++c) sum[c] = hn::Zero(d);
