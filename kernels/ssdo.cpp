@@ -41,8 +41,7 @@ constexpr float kPlaneCorrectionMaxRelative = 0.25f;
 // max_radius_px around the pixel, and their cache misses are a large part of the kernel's
 // cost). For a plane seen in perspective, 1 / depth is an affine function of the pixel
 // coordinates, so the pixel's tangent plane gives the surface depth anywhere in the pixel
-// from 1 / depth at the centre (recomputed per tap, the same division as when the record
-// was built) and its two screen gradients.
+// from the depth at the centre and the two screen gradients of 1 / depth.
 struct TapTexel {
   float depth_view;      // planar depth at the centre; +inf where mask = 0 (nothing there)
   float inv_depth_dx;    // d(1 / depth) / d(pixel x) of the tangent plane (0: not used)
@@ -150,13 +149,13 @@ inline glm::vec3 cosine_direction(float u, float v, const glm::vec3& t, const gl
   return t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * std::sqrt(std::max(0.0f, 1.0f - u));
 }
 
-// The fraction of [0, r] over which the point clip_p + lambda clip_w (homogeneous clip
-// coordinates of a ray from an on-screen receiver) stays inside the view frustum's side
+// The length of the part of [0, r] over which the point clip_p + lambda clip_w (homogeneous
+// clip coordinates of a ray from an on-screen receiver) stays inside the view frustum's side
 // planes, -w <= x, y <= w, w > 0 (Liang and Barsky 1984, "A New Concept and Method for
 // Line Clipping", ACM TOG 3(1): each plane a + lambda b >= 0 bounds lambda by -a / b when b < 0).
 // Slightly shortened so that the end point itself projects inside the frame.
 // Without branches, so that a loop over directions vectorises.
-inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w, float r) {
+inline float on_screen_length(const glm::vec4& clip_p, const glm::vec4& clip_w, float r) {
   float lambda_max = r;
   auto bound = [&](float a, float b) {
     const float limit = std::min(lambda_max, std::max(0.0f, -a / b));
@@ -167,7 +166,7 @@ inline float on_screen_fraction(const glm::vec4& clip_p, const glm::vec4& clip_w
   bound(clip_p.w - clip_p.y, clip_w.w - clip_w.y);
   bound(clip_p.w + clip_p.y, clip_w.w + clip_w.y);
   bound(clip_p.w, clip_w.w);
-  return (lambda_max / r) * (1.0f - 1e-4f);
+  return lambda_max * (1.0f - 1e-4f);
 }
 
 // visible: in front of the surface the screen shows there (or over background);
@@ -289,7 +288,8 @@ struct SampleBatch {
   // batch).
   float wx[kSampleBatch] = {}, wy[kSampleBatch] = {}, wz[kSampleBatch] = {};
   float cwx[kSampleBatch] = {}, cwy[kSampleBatch] = {}, cww[kSampleBatch] = {};  // clip z is not needed
-  float march_at[kSampleBatch], xi_at[kSampleBatch], denominator_at[kSampleBatch];
+  // Each direction's jitter xi and the spacing m / (k - 1 + xi) of its points.
+  float xi_at[kSampleBatch], step_at[kSampleBatch];
   // kPoints is a multiple of any vector's lanes: test_points fills whole vectors.
   float lambda[kPoints], depth_s[kPoints];
   float clip_x[kPoints], clip_y[kPoints];
@@ -338,8 +338,8 @@ inline void sample_directions(const Constants& c, const Receiver& rcv, const Ray
     // nothing can be tested, and a coarse step that leaps off screen would otherwise end
     // the march before it tests an occluder at the frame's edge (walls that leave the
     // frame, e.g.).
-    b.march_at[s] = rcv.r * on_screen_fraction(f.clip_p, cw, rcv.r);
-    b.denominator_at[s] = steps > 1 ? float(steps - 1) + b.xi_at[s] : 1.0f;
+    const float march = on_screen_length(f.clip_p, cw, rcv.r);
+    b.step_at[s] = march / (steps > 1 ? float(steps - 1) + b.xi_at[s] : 1.0f);
   }
 }
 
@@ -406,11 +406,14 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   const V sy = hn::ConvertTo(d, hn::BitCast(di, hn::ShiftRight<16>(source)));
   const V depth_q = t[0];
   const M background = hn::Not(hn::Lt(depth_q, hn::Set(d, std::numeric_limits<float>::infinity())));
-  const V inv = hn::Add(hn::Add(hn::Div(one, depth_q), hn::Mul(t[1], hn::Sub(hn::Sub(px, sx), half))),
-                        hn::Mul(t[2], hn::Sub(hn::Sub(py, sy), half)));
+  // 1 / depth = 1 / depth_q + a at S's offset from the source pixel's centre, so depth =
+  // depth_q / (1 + depth_q a): one division; the plane is in front of the eye there when
+  // 1 + depth_q a > 0.
+  const V a = hn::Add(hn::Mul(t[1], hn::Sub(hn::Sub(px, sx), half)), hn::Mul(t[2], hn::Sub(hn::Sub(py, sy), half)));
+  const V depth_q_inv = hn::Add(one, hn::Mul(depth_q, a));  // depth_q x (1 / depth)
   const V limit = hn::Mul(hn::Set(d, kPlaneCorrectionMaxRelative), depth_q);
-  const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(one, inv)));
-  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(inv, zero), clamped, depth_q));
+  const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(depth_q, depth_q_inv)));
+  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(depth_q_inv, zero), clamped, depth_q));
   const M beyond_bias = hn::Gt(behind, hn::Mul(hn::Set(d, c.s.depth_bias_relative), depth_s));
   const M within_thickness = hn::Lt(behind, thickness);
   static_assert(int(Tap::visible) == 0 && int(Tap::occluded) == 1 && int(Tap::behind) == 2 &&
@@ -428,7 +431,7 @@ inline void test_points(const Constants& c, const Receiver& rcv, const RayFrame&
   for (int j = 0; j < steps; ++j)
     for (int s = 0; s < b.count; ++s) {
       const int k = j * b.count + s;
-      b.lambda[k] = b.march_at[s] * (float(j) + b.xi_at[s]) / b.denominator_at[s];
+      b.lambda[k] = b.step_at[s] * (float(j) + b.xi_at[s]);
       b.depth_s[k] = -(rcv.p.z + b.lambda[k] * b.wz[s]);
       b.clip_x[k] = f.clip_p.x + b.lambda[k] * b.cwx[s];
       b.clip_y[k] = f.clip_p.y + b.lambda[k] * b.cwy[s];
