@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <numbers>
 #include <optional>
@@ -37,18 +38,30 @@ namespace {
 // ray) from extrapolating far beyond the pixel.
 constexpr float kPlaneCorrectionMaxRelative = 0.25f;
 
-// What a tap reads of a pixel: one 16-byte record, one cache line (taps scatter over up to
-// max_radius_px around the pixel, and their cache misses are a large part of the kernel's
-// cost). For a plane seen in perspective, 1 / depth is an affine function of the pixel
-// coordinates, so the pixel's tangent plane gives the surface depth anywhere in the pixel
-// from the depth at the centre and the two screen gradients of 1 / depth.
+// What a tap reads of a texel: one 8-byte record (taps scatter over up to max_radius_px
+// around the pixel, and their cache misses are a large part of the kernel's cost: eight
+// records per cache line, and a tile's taps fit the first-level cache twice as well as
+// with 16 bytes). For a plane seen in perspective, 1 / depth is an affine function of the
+// pixel coordinates, so a tangent plane gives the surface depth anywhere near the texel's
+// centre from the depth there, d, and the plane's relative screen gradients g = d x
+// d(1 / depth) / d(pixel): 1 / depth = (1 + g . offset) / d (tap_surface_depth).
 struct TapTexel {
-  float depth_view;      // planar depth at the centre; +inf where mask = 0 (nothing there)
-  float inv_depth_dx;    // d(1 / depth) / d(pixel x) of the tangent plane (0: not used)
-  float inv_depth_dy;    // d(1 / depth) / d(pixel y)
-  uint32_t source;       // the full-resolution pixel x | y << 16 whose tangent plane this is
+  float depth_view;  // planar depth at the texel's centre; +inf where mask = 0 (nothing there)
+  // g (x in the low 16 bits, y in the high), each as bfloat16 (a float's upper 16 bits,
+  // rounded: 8 significant bits); 0 where the plane is not used. The correction g . offset
+  // is at most kPlaneCorrectionMaxRelative of the depth where it is applied, so the
+  // rounding moves the surface by at most 2^-9 x 0.25 = 5e-4 of its depth, below the depth
+  // bias' 1e-3 (and by 2e-6 of it for a plane at 60 deg from the view within a pixel).
+  uint32_t gradient;
 };
-static_assert(sizeof(TapTexel) == 16);
+static_assert(sizeof(TapTexel) == 8);
+
+// v's upper 16 bits, rounded to nearest even (bfloat16; v finite).
+inline uint32_t bfloat16_bits(float v) {
+  uint32_t u;
+  std::memcpy(&u, &v, sizeof(u));
+  return (u + 0x7FFFu + ((u >> 16) & 1u)) >> 16;
+}
 
 // What a sender contributes needs its position and normal: read only for occluded samples.
 struct SenderTexel {
@@ -59,9 +72,9 @@ struct SenderTexel {
 // Taps far from the receiver read a coarser level of a pyramid of TapTexels (McGuire et
 // al. 2012, "Scalable Ambient Obscurance", sec. 4.3): nearby texels of one level share
 // cache lines, which the scattered far taps of a large radius otherwise miss. Level l has
-// ceil(size / 2^l) texels; each is one full-resolution pixel of its 2x2 children (the
-// rotated-grid choice of SAO, no averaging across depth edges), whose tangent plane is
-// kept and whose pixel is the sender. A tap at a distance rho from the receiver's pixel
+// ceil(size / 2^l) texels; each keeps the tangent plane of one full-resolution pixel of
+// its 2x2 children (its source: the rotated-grid choice of SAO, no averaging across depth
+// edges), evaluated at the texel's centre. A tap at a distance rho from the receiver's pixel
 // reads level floor(log2(rho / kMipStartPx)) + 1 when rho >= kMipStartPx, else level 0:
 // the contact region, where occlusion changes fastest, is always read at full resolution.
 constexpr float kMipStartPx = 16.0f;
@@ -356,7 +369,7 @@ namespace hn = hwy::HWY_NAMESPACE;
 //   steps: on the shared frames, bisecting on coarse texels left the bounce 27-31% from
 //   the oracle, on full-resolution texels 13-17%).
 // - The surface depth on S's own ray: the texel's tangent plane (its source pixel's) at
-//   S's sub-pixel offset, as 1 / depth affine in screen position, clamped to
+//   S's offset from the texel's centre, as 1 / depth affine in screen position, clamped to
 //   kPlaneCorrectionMaxRelative of the texel's depth.
 // - The thickness: the texel's source pixel's, from the second depth layer, or the
 //   settings' thickness_world.
@@ -378,8 +391,11 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   qx = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, px));
   qy = hn::ConvertTo(di, hn::IfThenElseZero(on_screen, py));
   VI texel;
+  V centre_x, centre_y;  // the texel's centre, pixels
   if (full_resolution || c.n_levels == 1) {
     texel = hn::Add(hn::Mul(qy, width_i), qx);
+    centre_x = hn::Add(hn::ConvertTo(d, qx), half);
+    centre_y = hn::Add(hn::ConvertTo(d, qy), half);
   } else {
     const V dx = hn::Sub(px, hn::Set(d, origin_px.x)), dy = hn::Sub(py, hn::Set(d, origin_px.y));
     const V rho2 = hn::Mul(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Set(d, 1.0f / (kMipStartPx * kMipStartPx)));
@@ -390,30 +406,33 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
     const VI level = hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
                                         hn::Min(hn::Set(di, c.n_levels - 1), hn::Add(hn::ShiftRight<1>(exponent), hn::Set(di, 1))));
     const VI rows_2h = hn::Set(di, c.pyramid_rows_2h);
-    const VI row = hn::Add(hn::Sub(rows_2h, hn::operator>>(rows_2h, level)), hn::operator>>(qy, level));
-    texel = hn::Add(hn::Mul(row, width_i), hn::operator>>(qx, level));
+    const VI texel_x = hn::operator>>(qx, level), texel_y = hn::operator>>(qy, level);
+    const VI row = hn::Add(hn::Sub(rows_2h, hn::operator>>(rows_2h, level)), texel_y);
+    texel = hn::Add(hn::Mul(row, width_i), texel_x);
+    // A texel of level l spans 2^l pixels (a float's exponent field set to l).
+    const V texel_px = hn::BitCast(d, hn::ShiftLeft<23>(hn::Add(level, hn::Set(di, 127))));
+    centre_x = hn::Mul(hn::Add(hn::ConvertTo(d, texel_x), half), texel_px);
+    centre_y = hn::Mul(hn::Add(hn::ConvertTo(d, texel_y), half), texel_px);
   }
-  alignas(64) int32_t offset[hn::MaxLanes(di)];
-  hn::Store(hn::ShiftLeft<2>(texel), di, offset);
-  V t[4];  // TapTexel's fields
-  static_assert(sizeof(TapTexel) == 4 * sizeof(float));
-  load_records4(d, reinterpret_cast<const float*>(c.pyramid), offset, t);
+  alignas(64) int32_t index[hn::MaxLanes(di)];
+  hn::Store(texel, di, index);
+  V t[2];  // TapTexel's fields
+  load_records2(d, c.pyramid, index, t);
   const V thickness =
       c.pyramid_thickness ? hn::GatherIndex(d, c.pyramid_thickness, texel) : hn::Set(d, c.s.thickness_world);
   // The class.
-  const auto source = hn::BitCast(du, t[3]);
-  const V sx = hn::ConvertTo(d, hn::BitCast(di, hn::And(source, hn::Set(du, 0xFFFFu))));
-  const V sy = hn::ConvertTo(d, hn::BitCast(di, hn::ShiftRight<16>(source)));
   const V depth_q = t[0];
   const M background = hn::Not(hn::Lt(depth_q, hn::Set(d, std::numeric_limits<float>::infinity())));
-  // 1 / depth = 1 / depth_q + a at S's offset from the source pixel's centre, so depth =
-  // depth_q / (1 + depth_q a): one division; the plane is in front of the eye there when
-  // 1 + depth_q a > 0.
-  const V a = hn::Add(hn::Mul(t[1], hn::Sub(hn::Sub(px, sx), half)), hn::Mul(t[2], hn::Sub(hn::Sub(py, sy), half)));
-  const V depth_q_inv = hn::Add(one, hn::Mul(depth_q, a));  // depth_q x (1 / depth)
+  const auto gradient = hn::BitCast(du, t[1]);
+  const V gx = hn::BitCast(d, hn::ShiftLeft<16>(gradient));
+  const V gy = hn::BitCast(d, hn::And(gradient, hn::Set(du, 0xFFFF0000u)));
+  // 1 / depth = (1 + g . offset) / depth_q at S's offset from the texel's centre (TapTexel),
+  // so depth = depth_q / (1 + g . offset): one division; the plane is in front of the eye
+  // there when 1 + g . offset > 0.
+  const V plane = hn::Add(one, hn::Add(hn::Mul(gx, hn::Sub(px, centre_x)), hn::Mul(gy, hn::Sub(py, centre_y))));
   const V limit = hn::Mul(hn::Set(d, kPlaneCorrectionMaxRelative), depth_q);
-  const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(depth_q, depth_q_inv)));
-  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(depth_q_inv, zero), clamped, depth_q));
+  const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(depth_q, plane)));
+  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(plane, zero), clamped, depth_q));
   const M beyond_bias = hn::Gt(behind, hn::Mul(hn::Set(d, c.s.depth_bias_relative), depth_s));
   const M within_thickness = hn::Lt(behind, thickness);
   static_assert(int(Tap::visible) == 0 && int(Tap::occluded) == 1 && int(Tap::behind) == 2 &&
@@ -854,7 +873,6 @@ void light_pixel(const Constants& c, int x, int y, bool want_direct, bool want_i
 // the camera than P projects farther out) or the image is one texel wide; the arrays
 // allocated, not written.
 TapPyramid allocate_tap_pyramid(cv::Size size, const SsdoSettings& settings) {
-  CV_Assert(size.width <= 65536 && size.height <= 65536);  // sources pack x | y << 16
   TapPyramid p;
   p.width = size.width;
   p.level_width[0] = size.width;
@@ -877,22 +895,63 @@ TapPyramid allocate_tap_pyramid(cv::Size size, const SsdoSettings& settings) {
   return p;
 }
 
-// Level 0 and the senders: each pixel's depth (+inf where nothing is), its position and
-// normal, and the screen gradients of 1 / depth of its tangent plane. Tangent plane
-// n . X = n . P of pixel q met by the eye ray through pixel (u, v), X = depth ray(u, v)
-// with ray(u, v) the view point at depth 1 (affine in u, v for a perspective camera):
-// 1 / depth = n . ray(u, v) / (n . P), so its gradients are n . ray_du / (n . P) and
-// n . ray_dv / (n . P).
-void write_full_resolution(const SsdoInputs& in, TapPyramid& p, int nthreads) {
-  const bool perspective = in.camera.is_perspective();
-  const glm::vec3 ray_00 = in.camera.view_from_pixel_depth({0.0f, 0.0f}, 1.0f);
-  const glm::vec3 ray_du = in.camera.view_from_pixel_depth({1.0f, 0.0f}, 1.0f) - ray_00;
-  const glm::vec3 ray_dv = in.camera.view_from_pixel_depth({0.0f, 1.0f}, 1.0f) - ray_00;
+// The eye rays' steps per pixel, for the tangent planes' screen gradients (pixel_plane).
+struct PlaneRays {
+  bool perspective;
+  glm::vec3 du, dv;  // ray(u + 1, v) - ray(u, v) and ray(u, v + 1) - ray(u, v)
+};
+
+PlaneRays plane_rays(const Camera& camera) {
+  const glm::vec3 ray_00 = camera.view_from_pixel_depth({0.0f, 0.0f}, 1.0f);
+  return {camera.is_perspective(), camera.view_from_pixel_depth({1.0f, 0.0f}, 1.0f) - ray_00,
+          camera.view_from_pixel_depth({0.0f, 1.0f}, 1.0f) - ray_00};
+}
+
+// A pixel's tangent plane as the taps read it: its depth (+inf where nothing is) and the
+// screen gradients of 1 / depth ((0, 0): not used). Tangent plane n . X = n . P of pixel q
+// met by the eye ray through pixel (u, v), X = depth ray(u, v) with ray(u, v) the view
+// point at depth 1 (affine in u, v for a perspective camera): 1 / depth = n . ray(u, v) /
+// (n . P), so its gradients are n . ray_du / (n . P) and n . ray_dv / (n . P).
+struct PixelPlane {
+  float depth_view;
+  glm::vec2 inv_depth_gradient;
+};
+
+PixelPlane pixel_plane(const SsdoInputs& in, const PlaneRays& rays, const SenderTexel& q, int x, int y) {
+  const float d = in.depth_view.ptr<float>(y)[x];
+  const bool foreground = in.mask.ptr<uint8_t>(y)[x] != 0 && d > 0.0f && d < std::numeric_limits<float>::infinity();
+  PixelPlane plane{foreground ? d : std::numeric_limits<float>::infinity(), glm::vec2(0.0f)};
+  const float n_dot_p = glm::dot(q.normal_view, q.position_view);
+  // A plane through the eye (n . P ~ 0) is seen edge-on: no usable gradient. The threshold
+  // is relative to the depth (|n . P| = depth x |cos| of the view angle), i.e. views within
+  // ~0.06 deg of grazing keep the centre depth.
+  if (foreground && rays.perspective && std::abs(n_dot_p) > 1e-3f * d)
+    plane.inv_depth_gradient = {glm::dot(q.normal_view, rays.du) / n_dot_p, glm::dot(q.normal_view, rays.dv) / n_dot_p};
+  return plane;
+}
+
+// The texel centred at `centre` (pixels) that keeps the plane of the pixel whose centre is
+// at `source`: the plane's depth there, clamped as test_lanes clamps a tap's, and its
+// relative gradients; where the clamp holds or the plane has passed the eye, the clamped
+// or the source's depth without gradients (what a tap there would find).
+TapTexel plane_texel(const PixelPlane& q, glm::vec2 source, glm::vec2 centre) {
+  if (!(q.depth_view < std::numeric_limits<float>::infinity())) return {q.depth_view, 0u};
+  const float plane = 1.0f + q.depth_view * glm::dot(q.inv_depth_gradient, centre - source);
+  const float limit = kPlaneCorrectionMaxRelative * q.depth_view;
+  if (!(plane > 0.0f)) return {q.depth_view, 0u};
+  const float depth = q.depth_view / plane;
+  if (!(std::abs(depth - q.depth_view) <= limit))
+    return {std::clamp(depth, q.depth_view - limit, q.depth_view + limit), 0u};
+  const glm::vec2 g = depth * q.inv_depth_gradient;
+  return {depth, bfloat16_bits(g.x) | (bfloat16_bits(g.y) << 16)};
+}
+
+// Level 0 and the senders: each pixel's position and normal, and its tangent plane at its
+// centre.
+void write_full_resolution(const SsdoInputs& in, const PlaneRays& rays, TapPyramid& p, int nthreads) {
   const int width = p.width;
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
-      const uint8_t* m = in.mask.ptr<uint8_t>(y);
-      const float* d = in.depth_view.ptr<float>(y);
       const cv::Vec3f* nrm = in.normal_view.ptr<cv::Vec3f>(y);
       const cv::Vec3f* pos = in.position_view.ptr<cv::Vec3f>(y);
       TapTexel* t = &p.taps[p.level_row(0, y)];
@@ -900,35 +959,40 @@ void write_full_resolution(const SsdoInputs& in, TapPyramid& p, int nthreads) {
       for (int x = 0; x < width; ++x) {
         snd[x].position_view = glm::vec3(pos[x][0], pos[x][1], pos[x][2]);
         snd[x].normal_view = glm::vec3(nrm[x][0], nrm[x][1], nrm[x][2]);
-        const bool foreground = m[x] != 0 && d[x] > 0.0f && d[x] < std::numeric_limits<float>::infinity();
-        t[x].depth_view = foreground ? d[x] : std::numeric_limits<float>::infinity();
-        t[x].inv_depth_dx = t[x].inv_depth_dy = 0.0f;
-        t[x].source = uint32_t(x) | (uint32_t(y) << 16);
-        const float plane = glm::dot(snd[x].normal_view, snd[x].position_view);
-        // A plane through the eye (plane ~ 0) is seen edge-on: no usable gradient. The
-        // threshold is relative to the depth (|n . P| = depth x |cos| of the view angle),
-        // i.e. views within ~0.06 deg of grazing keep the centre depth.
-        if (foreground && perspective && std::abs(plane) > 1e-3f * d[x]) {
-          t[x].inv_depth_dx = glm::dot(snd[x].normal_view, ray_du) / plane;
-          t[x].inv_depth_dy = glm::dot(snd[x].normal_view, ray_dv) / plane;
-        }
+        const glm::vec2 centre(float(x) + 0.5f, float(y) + 0.5f);
+        t[x] = plane_texel(pixel_plane(in, rays, snd[x], x, y), centre, centre);
       }
     }
   });
 }
 
-// Level l > 0 from level l - 1: SAO's rotated grid, child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)),
-// clamped to the image.
-void write_coarse_levels(TapPyramid& p) {
+// The full-resolution pixel whose tangent plane texel (x, y) of level l keeps: from each
+// level, SAO's rotated grid, child (2x + (y & 1 ^ 1), 2y + (x & 1 ^ 1)), clamped to the
+// image.
+cv::Point source_pixel(const TapPyramid& p, int l, int x, int y) {
+  for (; l > 0; --l) {
+    const int cx = std::min(2 * x + ((y & 1) ^ 1), p.level_width[l - 1] - 1);
+    const int cy = std::min(2 * y + ((x & 1) ^ 1), p.level_height[l - 1] - 1);
+    x = cx, y = cy;
+  }
+  return {x, y};
+}
+
+// Levels l > 0: each texel the plane of its source pixel at the texel's centre.
+void write_coarse_levels(const SsdoInputs& in, const PlaneRays& rays, TapPyramid& p, int nthreads) {
   for (int l = 1; l < p.n_levels; ++l)
-    for (int y = 0; y < p.level_height[l]; ++y) {
-      TapTexel* lt = &p.taps[p.level_row(l, y)];
-      for (int x = 0; x < p.level_width[l]; ++x) {
-        const int cx = std::min(2 * x + ((y & 1) ^ 1), p.level_width[l - 1] - 1);
-        const int cy = std::min(2 * y + ((x & 1) ^ 1), p.level_height[l - 1] - 1);
-        lt[x] = p.taps[p.level_row(l - 1, cy) + size_t(cx)];
+    parallel_rows(cv::Range(0, p.level_height[l]), nthreads, [&](const cv::Range& rows) {
+      const float texel_px = float(1 << l);
+      for (int y = rows.start; y < rows.end; ++y) {
+        TapTexel* lt = &p.taps[p.level_row(l, y)];
+        for (int x = 0; x < p.level_width[l]; ++x) {
+          const cv::Point s = source_pixel(p, l, x, y);
+          const SenderTexel& q = p.senders[size_t(s.y) * size_t(p.width) + size_t(s.x)];
+          lt[x] = plane_texel(pixel_plane(in, rays, q, s.x, s.y), glm::vec2(float(s.x) + 0.5f, float(s.y) + 0.5f),
+                              glm::vec2((float(x) + 0.5f) * texel_px, (float(y) + 0.5f) * texel_px));
+        }
       }
-    }
+    });
 }
 
 // Each texel's occluder thickness from the second depth layer: back - front of its source
@@ -939,10 +1003,9 @@ void write_thickness(const SsdoInputs& in, TapPyramid& p) {
   for (int l = 0; l < p.n_levels; ++l)
     for (int y = 0; y < p.level_height[l]; ++y)
       for (int x = 0; x < p.level_width[l]; ++x) {
-        const size_t i = p.level_row(l, y) + size_t(x);
-        const int sx = int(p.taps[i].source & 0xFFFFu), sy = int(p.taps[i].source >> 16);
-        const float front = in.depth_view.ptr<float>(sy)[sx], back = in.depth_back_view->ptr<float>(sy)[sx];
-        p.thickness[i] = back > front ? back - front : 0.0f;
+        const cv::Point s = source_pixel(p, l, x, y);
+        const float front = in.depth_view.ptr<float>(s.y)[s.x], back = in.depth_back_view->ptr<float>(s.y)[s.x];
+        p.thickness[p.level_row(l, y) + size_t(x)] = back > front ? back - front : 0.0f;
       }
 }
 
@@ -950,8 +1013,9 @@ void write_thickness(const SsdoInputs& in, TapPyramid& p) {
 // coarser levels, and the texels' thickness when there is a second depth layer.
 TapPyramid build_tap_pyramid(const SsdoInputs& in, const SsdoSettings& settings, int nthreads) {
   TapPyramid p = allocate_tap_pyramid(in.depth_view.size(), settings);
-  write_full_resolution(in, p, nthreads);
-  write_coarse_levels(p);
+  const PlaneRays rays = plane_rays(in.camera);
+  write_full_resolution(in, rays, p, nthreads);
+  write_coarse_levels(in, rays, p, nthreads);
   if (in.depth_back_view != nullptr && !in.depth_back_view->empty()) write_thickness(in, p);
   return p;
 }
