@@ -479,34 +479,53 @@ HWY_INLINE hn::Mask<D> tap_is(D d, VI tap, Tap value) {
   return hn::RebindMask(d, hn::Eq(tap, hn::Set(hn::RebindToSigned<D>(), int32_t(value))));
 }
 
-// test_lanes of the points rcv.p + lambda w of the lanes, given w's clip coordinates (cwx,
-// cwy, ., cww) and view z wz per lane: clip coordinates f.clip_p + lambda cw, planar depth
-// -(rcv.p + lambda w).z.
-template <class D, class V = hn::Vec<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
-HWY_INLINE VI test_along(D d, const Constants& c, const Receiver& rcv, const RayFrame& f, V lambda, V cwx, V cwy,
-                         V cww, V wz, bool full_resolution, VI& qx, VI& qy) {
-  const V clip_x = hn::Add(hn::Set(d, f.clip_p.x), hn::Mul(lambda, cwx));
-  const V clip_y = hn::Add(hn::Set(d, f.clip_p.y), hn::Mul(lambda, cwy));
-  const V clip_w = hn::Add(hn::Set(d, f.clip_p.w), hn::Mul(lambda, cww));
-  const V depth_s = hn::Neg(hn::Add(hn::Set(d, rcv.p.z), hn::Mul(lambda, wz)));
-  return test_lanes(d, c, f.origin_px, clip_x, clip_y, clip_w, depth_s, full_resolution, qx, qy);
+// A ray per lane: from a receiver P (its clip coordinates and view z) along a direction w
+// (w's clip coordinates and view z; clip z is not needed).
+template <class V>
+struct RayLanes {
+  V clip_x, clip_y, clip_w, p_z;
+  V dir_x, dir_y, dir_w, dir_z;
+};
+
+// The rays from the receiver (rcv, f) along the lanes' directions.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE RayLanes<V> receiver_rays(D d, const Receiver& rcv, const RayFrame& f, V dir_x, V dir_y, V dir_w, V dir_z) {
+  return {hn::Set(d, f.clip_p.x), hn::Set(d, f.clip_p.y), hn::Set(d, f.clip_p.w), hn::Set(d, rcv.p.z),
+          dir_x,                  dir_y,                  dir_w,                  dir_z};
 }
 
-// Bisection of the brackets [lo, hi] of the lanes `which` of the batch's directions s0 ..
-// (lo in front of the depth buffer, hi behind it; both on screen, so every point between
-// is: projection keeps segments convex), on full-resolution texels:
-// sample_refinements halvings; each occluded midpoint becomes the lane's occluder and
-// sender (qx, qy).
+// The rays from the receiver along the batch's directions s0 ...
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE RayLanes<V> batch_rays(D d, const Receiver& rcv, const RayFrame& f, const SampleBatch& b, size_t s0) {
+  return receiver_rays(d, rcv, f, hn::LoadU(d, b.cwx + s0), hn::LoadU(d, b.cwy + s0), hn::LoadU(d, b.cww + s0),
+                       hn::LoadU(d, b.wz + s0));
+}
+
+// test_lanes of the points P + lambda w of the lanes' rays: clip coordinates clip_p + lambda
+// cw, planar depth -(P + lambda w).z.
+template <class D, class V = hn::Vec<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
+HWY_INLINE VI test_along(D d, const Constants& c, const glm::vec2& origin_px, const RayLanes<V>& r, V lambda,
+                         bool full_resolution, VI& qx, VI& qy) {
+  const V clip_x = hn::Add(r.clip_x, hn::Mul(lambda, r.dir_x));
+  const V clip_y = hn::Add(r.clip_y, hn::Mul(lambda, r.dir_y));
+  const V clip_w = hn::Add(r.clip_w, hn::Mul(lambda, r.dir_w));
+  const V depth_s = hn::Neg(hn::Add(r.p_z, hn::Mul(lambda, r.dir_z)));
+  return test_lanes(d, c, origin_px, clip_x, clip_y, clip_w, depth_s, full_resolution, qx, qy);
+}
+
+// Bisection of the brackets [lo, hi] of the lanes `which` along their rays (lo in front of
+// the depth buffer, hi behind it; both on screen, so every point between is: projection
+// keeps segments convex), on full-resolution texels: sample_refinements halvings; each
+// occluded midpoint becomes the lane's occluder and sender (qx, qy).
 template <class D, class V = hn::Vec<D>, class M = hn::Mask<D>, class VI = hn::Vec<hn::RebindToSigned<D>>>
-HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleBatch& b,
-                             size_t s0, M which, V lo, V hi, M& occluded, VI& qx, VI& qy) {
+HWY_INLINE void bisect_lanes(D d, const Constants& c, const RayLanes<V>& ray, M which, V lo, V hi, M& occluded,
+                             VI& qx, VI& qy) {
   const hn::RebindToSigned<D> di;
-  const V cwx = hn::LoadU(d, b.cwx + s0), cwy = hn::LoadU(d, b.cwy + s0), cww = hn::LoadU(d, b.cww + s0);
-  const V wz = hn::LoadU(d, b.wz + s0);
+  const glm::vec2 unused_origin(0.0f);  // full-resolution texels: no level by distance
   for (int h = 0; h < c.s.sample_refinements; ++h) {
     const V mid = hn::Mul(hn::Set(d, 0.5f), hn::Add(lo, hi));
     VI mx = hn::Zero(di), my = hn::Zero(di);
-    const VI tap = test_along(d, c, rcv, f, mid, cwx, cwy, cww, wz, true, mx, my);
+    const VI tap = test_along(d, c, unused_origin, ray, mid, true, mx, my);
     const M visible = hn::And(which, tap_is(d, tap, Tap::visible));
     const M hit = hn::And(which, tap_is(d, tap, Tap::occluded));
     lo = hn::IfThenElse(visible, mid, lo);
@@ -517,6 +536,78 @@ HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const
   }
 }
 
+// The sender pass's bisections that locate a sender (march_batch), queued across pixels
+// and run a full vector of brackets at a time: their result goes only to the pixel's
+// record (its sample's sender), which nothing reads before the pass has ended, and a
+// pixel's own bisection has a vector to itself of which a few lanes (the occluded
+// directions) are used. The same halvings on the same lanes' values: the same bits.
+struct LocateQueue {
+  static constexpr int kCapacity = 64;
+  static_assert(kCapacity % hn::MaxLanes(hn::ScalableTag<float>()) == 0, "whole vectors");
+  int count = 0;
+  alignas(64) float clip_x[kCapacity], clip_y[kCapacity], clip_w[kCapacity], p_z[kCapacity];
+  alignas(64) float dir_x[kCapacity], dir_y[kCapacity], dir_w[kCapacity], dir_z[kCapacity];
+  alignas(64) float lo[kCapacity], hi[kCapacity];
+  int32_t* slot[kCapacity];  // the record entry that receives the sender's pixel y W + x
+
+  // Room for n more brackets: runs the queued ones first when there is not.
+  void reserve(const Constants& c, int n) {
+    if (count + n > kCapacity) run(c);
+  }
+
+  // Bisects every queued bracket and writes the senders found to their records.
+  void run(const Constants& c) {
+    const hn::ScalableTag<float> d;
+    const hn::RebindToSigned<decltype(d)> di;
+    using V = hn::Vec<decltype(d)>;
+    const size_t lanes = hn::Lanes(d);
+    const int width = int(c.width_px);
+    // The last vector's lanes past `count` bisect [0, 0] along a ray at the eye (clip w 0:
+    // off screen), for nobody.
+    const size_t padded = hwy::RoundUpTo(size_t(count), lanes);
+    for (float* a : {clip_x, clip_y, clip_w, p_z, dir_x, dir_y, dir_w, dir_z, lo, hi})
+      std::fill(a + count, a + padded, 0.0f);
+    for (size_t k = 0; k < size_t(count); k += lanes) {
+      const RayLanes<V> ray{hn::Load(d, clip_x + k), hn::Load(d, clip_y + k), hn::Load(d, clip_w + k),
+                            hn::Load(d, p_z + k),    hn::Load(d, dir_x + k),  hn::Load(d, dir_y + k),
+                            hn::Load(d, dir_w + k),  hn::Load(d, dir_z + k)};
+      const auto queued = hn::RebindMask(d, hn::Lt(hn::Iota(di, int32_t(k)), hn::Set(di, count)));
+      auto found = hn::FirstN(d, 0);
+      auto qx = hn::Zero(di), qy = hn::Zero(di);
+      bisect_lanes(d, c, ray, queued, hn::Load(d, lo + k), hn::Load(d, hi + k), found, qx, qy);
+      alignas(64) int32_t found_lanes[hn::MaxLanes(di)], x_lanes[hn::MaxLanes(di)], y_lanes[hn::MaxLanes(di)];
+      hn::Store(hn::VecFromMask(di, hn::RebindMask(di, found)), di, found_lanes);
+      hn::Store(qx, di, x_lanes);
+      hn::Store(qy, di, y_lanes);
+      for (size_t l = 0; l < lanes && k + l < size_t(count); ++l)
+        if (found_lanes[l]) *slot[k + l] = y_lanes[l] * width + x_lanes[l];
+    }
+    count = 0;
+  }
+};
+
+// Queues the brackets [lo, hi] of the lanes `locate` (directions s0 + l of the batch),
+// their record entries record_batch + s0 + l.
+template <class D, class V = hn::Vec<D>, class M = hn::Mask<D>>
+HWY_INLINE void queue_locate(D d, const Receiver& rcv, const RayFrame& f, const SampleBatch& b, size_t s0, M locate,
+                             V lo, V hi, int32_t* record_batch, LocateQueue& q) {
+  const hn::RebindToSigned<D> di;
+  alignas(64) int32_t locate_lanes[hn::MaxLanes(di)];
+  alignas(64) float lo_lanes[hn::MaxLanes(d)], hi_lanes[hn::MaxLanes(d)];
+  hn::Store(hn::VecFromMask(di, hn::RebindMask(di, locate)), di, locate_lanes);
+  hn::Store(lo, d, lo_lanes);
+  hn::Store(hi, d, hi_lanes);
+  for (size_t l = 0; l < hn::Lanes(d); ++l) {
+    if (!locate_lanes[l]) continue;
+    const size_t s = s0 + l;
+    const int k = q.count++;
+    q.clip_x[k] = f.clip_p.x, q.clip_y[k] = f.clip_p.y, q.clip_w[k] = f.clip_p.w, q.p_z[k] = rcv.p.z;
+    q.dir_x[k] = b.cwx[s], q.dir_y[k] = b.cwy[s], q.dir_w[k] = b.cww[s], q.dir_z[k] = b.wz[s];
+    q.lo[k] = lo_lanes[l], q.hi[k] = hi_lanes[l];
+    q.slot[k] = record_batch + s;
+  }
+}
+
 // The march of each direction s of the batch, one direction per lane: the first point
 // behind the depth buffer within the thickness decides; occluded[s] says whether it was
 // found, and (qx, qy)[s] is then the sender. Between two steps, bisection (bisect_lanes):
@@ -524,7 +615,9 @@ HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const
 //   surface where w enters the occluder, not wherever a coarse step overshot to (an
 //   overshot point projects onto a face of the occluder that often faces away from P, which
 //   the back-face test then drops: a dark bias of the bounce). Only the bounce needs it.
-//   The march ends there whatever the bisection finds, so these run together at the end.
+//   The march ends there whatever the bisection finds, so these run together at the end,
+//   or, given a queue, are queued there (LocateQueue) with record_batch + s as their
+//   record entries, which receive the step's pixel meanwhile.
 // - after a step farther behind the surface than the thickness right after one in front:
 //   the ray crossed the stored surface in between, and the part within the thickness lies
 //   between the steps (large occluders seen face-on: deep inside, a point is farther than
@@ -534,7 +627,8 @@ HWY_INLINE void bisect_lanes(D d, const Constants& c, const Receiver& rcv, const
 // branches on what a tap found, or texel reads one after the other (each a cache miss
 // when it lands far from the last), cost more than the lanes' wasted work.
 void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, const SampleBatch& b,
-                 bool locate_sender, bool* occluded_out, int* qx_out, int* qy_out) {
+                 bool locate_sender, LocateQueue* queue, int32_t* record_batch, bool* occluded_out, int* qx_out,
+                 int* qy_out) {
   const hn::CappedTag<float, kSampleBatch> d;
   const hn::RebindToSigned<decltype(d)> di;
   using V = hn::Vec<decltype(d)>;
@@ -573,12 +667,17 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
       after_front = hn::Or(hn::AndNot(hit, after_front), visible);
       if (!hn::AllFalse(d, crossed)) {
         M found = none;
-        bisect_lanes(d, c, rcv, f, b, s0, crossed, lambda_front, lambda, found, qx, qy);
+        bisect_lanes(d, c, batch_rays(d, rcv, f, b, s0), crossed, lambda_front, lambda, found, qx, qy);
         occluded = hn::Or(occluded, found);
         active = hn::AndNot(found, active);
       }
     }
-    if (!hn::AllFalse(d, locate)) bisect_lanes(d, c, rcv, f, b, s0, locate, locate_lo, locate_hi, occluded, qx, qy);
+    if (!hn::AllFalse(d, locate)) {
+      if (queue)
+        queue_locate(d, rcv, f, b, s0, locate, locate_lo, locate_hi, record_batch, *queue);
+      else
+        bisect_lanes(d, c, batch_rays(d, rcv, f, b, s0), locate, locate_lo, locate_hi, occluded, qx, qy);
+    }
     alignas(64) int32_t occluded_lanes[hn::MaxLanes(di)];
     hn::Store(hn::VecFromMask(di, hn::RebindMask(di, occluded)), di, occluded_lanes);
     const size_t n = std::min(hn::Lanes(d), size_t(std::max(0, b.count - int(s0))));
@@ -743,9 +842,11 @@ inline glm::vec3 direct_estimate(const Constants& c, const Receiver& rcv, int x,
 // terms; sender_direct is the sender pass (used only without `lighting`).
 // record (may be null): receives, per sample, the sender's pixel index y W + x, or -1 when
 // the sample is visible. recorded (may be null): such a record from an earlier pass with
-// the same inputs and settings; the samples are then not marched again.
+// the same inputs and settings; the samples are then not marched again. locate_queue (may
+// be null): where a pixel that records and wants no indirect light queues the bisections
+// that locate its senders; the record is complete once the queue has run.
 void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
-                const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded,
+                const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded, LocateQueue* locate_queue,
                 glm::vec3& direct, glm::vec3& indirect) {
   const Receiver rcv = receiver_at(c, x, y);
   const int n_samples = c.s.samples;
@@ -759,6 +860,8 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
     const RayFrame f = ray_frame(c, rcv, x, y);
     const SampleShift shift = sample_shift(c, x, y);
     const bool locate_sender = want_indirect || record != nullptr;
+    // Only the record needs the senders' entry points: their bisections can wait.
+    LocateQueue* queue = record != nullptr && !want_indirect ? locate_queue : nullptr;
     SampleBatch b;
     for (int i0 = 0; i0 < n_samples; i0 += kSampleBatch) {
       b.first = i0;
@@ -767,7 +870,8 @@ void ssdo_pixel(const Constants& c, int x, int y, bool want_direct, bool want_in
       test_points(c, rcv, f, b);
       bool occluded[kSampleBatch];
       int qx[kSampleBatch], qy[kSampleBatch];
-      march_batch(c, rcv, f, b, locate_sender, occluded, qx, qy);
+      if (queue) queue->reserve(c, b.count);
+      march_batch(c, rcv, f, b, locate_sender, queue, queue ? record + i0 : nullptr, occluded, qx, qy);
       for (int s = 0; s < b.count; ++s) {
         if (record) record[i0 + s] = occluded[s] ? qy[s] * width + qx[s] : -1;
         add_sample(c, rcv, sender_direct, want_direct, want_indirect, b.w(s), occluded[s], qx[s], qy[s], sums);
@@ -806,8 +910,8 @@ bool oracle_march(const Constants& c, const Receiver& rcv, const RayFrame& f, co
     const auto k = hn::ConvertTo(d, hn::Iota(di, k0));
     const auto lambda = hn::Add(hn::Mul(hn::Add(k, hn::Set(d, step_jitter)), hn::Set(d, step)), hn::Set(d, 1e-7f * rcv.r));
     auto lane_x = hn::Zero(di), lane_y = hn::Zero(di);
-    const auto tap = test_along(d, c, rcv, f, lambda, hn::Set(d, cw.x), hn::Set(d, cw.y), hn::Set(d, cw.w),
-                                hn::Set(d, w.z), true, lane_x, lane_y);
+    const auto ray = receiver_rays(d, rcv, f, hn::Set(d, cw.x), hn::Set(d, cw.y), hn::Set(d, cw.w), hn::Set(d, w.z));
+    const auto tap = test_along(d, c, f.origin_px, ray, lambda, true, lane_x, lane_y);
     const auto in_range = hn::FirstN(d, size_t(steps - k0));
     const auto ends = hn::And(in_range, hn::Or(tap_is(d, tap, Tap::occluded), tap_is(d, tap, Tap::off_screen)));
     const intptr_t first = hn::FindFirstTrue(d, ends);
@@ -860,12 +964,12 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
 }
 
 void light_pixel(const Constants& c, int x, int y, bool want_direct, bool want_indirect,
-                 const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded,
+                 const cv::Mat& sender_direct, int32_t* record, const int32_t* recorded, LocateQueue* locate_queue,
                  glm::vec3& direct, glm::vec3& indirect) {
   if (c.s.method == SsdoMethod::oracle)
     oracle_pixel(c, x, y, want_direct, want_indirect, sender_direct, direct, indirect);
   else
-    ssdo_pixel(c, x, y, want_direct, want_indirect, sender_direct, record, recorded, direct, indirect);
+    ssdo_pixel(c, x, y, want_direct, want_indirect, sender_direct, record, recorded, locate_queue, direct, indirect);
 }
 
 // The pyramid's levels (method ssdo only; the oracle is the full-resolution best case):
@@ -1099,6 +1203,7 @@ void sender_pass(const Constants& c, SenderRecord& record, int nthreads, cv::Mat
   sender_direct.create(mask.size(), CV_32FC3);
   parallel_rows(cv::Range(0, mask.rows), nthreads, [&](const cv::Range& rows) {
     glm::vec3 direct(0.0f), unused(0.0f);
+    LocateQueue locate_queue;
     for (int x0 = 0; x0 < width; x0 += kTileWidthPx)
       for (int y = rows.start; y < rows.end; ++y) {
         const uint8_t* m = mask.ptr<uint8_t>(y);
@@ -1108,10 +1213,11 @@ void sender_pass(const Constants& c, SenderRecord& record, int nthreads, cv::Mat
             d[x] = cv::Vec3f(0.0f, 0.0f, 0.0f);
             continue;
           }
-          light_pixel(c, x, y, true, false, sender_direct, record.at(x, y), nullptr, direct, unused);
+          light_pixel(c, x, y, true, false, sender_direct, record.at(x, y), nullptr, &locate_queue, direct, unused);
           d[x] = cv::Vec3f(direct.x, direct.y, direct.z);
         }
       }
+    locate_queue.run(c);
   }, kStripRows);
 }
 
@@ -1135,9 +1241,9 @@ void receiver_pass(const Constants& c, const cv::Mat& sender_direct, const Sende
           if (!sender_direct.empty()) {
             const cv::Vec3f& d = sender_direct.at<cv::Vec3f>(y, x);
             direct = glm::vec3(d[0], d[1], d[2]);
-            light_pixel(c, x, y, false, true, sender_direct, nullptr, record.at(x, y), direct, indirect);
+            light_pixel(c, x, y, false, true, sender_direct, nullptr, record.at(x, y), nullptr, direct, indirect);
           } else {
-            light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, direct, indirect);
+            light_pixel(c, x, y, true, want_indirect, sender_direct, nullptr, nullptr, nullptr, direct, indirect);
           }
           od[x] = cv::Vec3f(direct.x, direct.y, direct.z);
           oi[x] = cv::Vec3f(indirect.x, indirect.y, indirect.z);
