@@ -44,14 +44,14 @@ constexpr float kPlaneCorrectionMaxRelative = 0.25f;
 // with 16 bytes). For a plane seen in perspective, 1 / depth is an affine function of the
 // pixel coordinates, so a tangent plane gives the surface depth anywhere near the texel's
 // centre from the depth there, d, and the plane's relative screen gradients g = d x
-// d(1 / depth) / d(pixel): 1 / depth = (1 + g . offset) / d (tap_surface_depth).
+// d(1 / depth) / d(pixel): 1 / depth = (1 + g . offset) / d (test_lanes).
 struct TapTexel {
   float depth_view;  // planar depth at the texel's centre; +inf where mask = 0 (nothing there)
   // g (x in the low 16 bits, y in the high), each as bfloat16 (a float's upper 16 bits,
   // rounded: 8 significant bits); 0 where the plane is not used. The correction g . offset
   // is at most kPlaneCorrectionMaxRelative of the depth where it is applied, so the
   // rounding moves the surface by at most 2^-9 x 0.25 = 5e-4 of its depth, below the depth
-  // bias' 1e-3 (and by 2e-6 of it for a plane at 60 deg from the view within a pixel).
+  // bias' 1e-3 (by 2e-6 of the depth for a plane at 60 deg from the view, within a pixel).
   uint32_t gradient;
 };
 static_assert(sizeof(TapTexel) == 8);
@@ -427,12 +427,14 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   const V gx = hn::BitCast(d, hn::ShiftLeft<16>(gradient));
   const V gy = hn::BitCast(d, hn::And(gradient, hn::Set(du, 0xFFFF0000u)));
   // 1 / depth = (1 + g . offset) / depth_q at S's offset from the texel's centre (TapTexel),
-  // so depth = depth_q / (1 + g . offset): one division; the plane is in front of the eye
-  // there when 1 + g . offset > 0.
-  const V plane = hn::Add(one, hn::Add(hn::Mul(gx, hn::Sub(px, centre_x)), hn::Mul(gy, hn::Sub(py, centre_y))));
+  // so depth = depth_q / depth_ratio with depth_ratio = 1 + g . offset: one division; the
+  // plane is in front of the eye there when depth_ratio > 0.
+  const V depth_ratio =
+      hn::Add(one, hn::Add(hn::Mul(gx, hn::Sub(px, centre_x)), hn::Mul(gy, hn::Sub(py, centre_y))));
   const V limit = hn::Mul(hn::Set(d, kPlaneCorrectionMaxRelative), depth_q);
-  const V clamped = hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(depth_q, plane)));
-  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(plane, zero), clamped, depth_q));
+  const V clamped =
+      hn::Min(hn::Add(depth_q, limit), hn::Max(hn::Sub(depth_q, limit), hn::Div(depth_q, depth_ratio)));
+  const V behind = hn::Sub(depth_s, hn::IfThenElse(hn::Gt(depth_ratio, zero), clamped, depth_q));
   const M beyond_bias = hn::Gt(behind, hn::Mul(hn::Set(d, c.s.depth_bias_relative), depth_s));
   const M within_thickness = hn::Lt(behind, thickness);
   static_assert(int(Tap::visible) == 0 && int(Tap::occluded) == 1 && int(Tap::behind) == 2 &&
@@ -1040,10 +1042,11 @@ PixelPlane pixel_plane(const SsdoInputs& in, const PlaneRays& rays, const Sender
 // or the source's depth without gradients (what a tap there would find).
 TapTexel plane_texel(const PixelPlane& q, glm::vec2 source, glm::vec2 centre) {
   if (!(q.depth_view < std::numeric_limits<float>::infinity())) return {q.depth_view, 0u};
-  const float plane = 1.0f + q.depth_view * glm::dot(q.inv_depth_gradient, centre - source);
+  // depth_q / depth at the centre (as test_lanes' depth_ratio).
+  const float depth_ratio = 1.0f + q.depth_view * glm::dot(q.inv_depth_gradient, centre - source);
   const float limit = kPlaneCorrectionMaxRelative * q.depth_view;
-  if (!(plane > 0.0f)) return {q.depth_view, 0u};
-  const float depth = q.depth_view / plane;
+  if (!(depth_ratio > 0.0f)) return {q.depth_view, 0u};
+  const float depth = q.depth_view / depth_ratio;
   if (!(std::abs(depth - q.depth_view) <= limit))
     return {std::clamp(depth, q.depth_view - limit, q.depth_view + limit), 0u};
   const glm::vec2 g = depth * q.inv_depth_gradient;
