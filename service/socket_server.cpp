@@ -7,11 +7,14 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <memory>
 #include <system_error>
+#include <vector>
 
 #include "formats/output_writer.h"
 #include "service/frame_list.h"
@@ -48,6 +51,13 @@ bool peer_closed(int fd) {
 
 // How long an over-limit client gets to read its "busy" answer before it is closed.
 constexpr double kBusyReplySeconds = 0.5;
+// How long a connection answered at accept ("busy") stays open, its input read and dropped,
+// before it is closed: long enough for its client to send the request it connected with
+// (sending to a closed connection fails, and a client that stops there never reads the
+// answer). At most kMaxAnsweredOpen such connections wait at once; the oldest is closed
+// for a new one.
+constexpr double kAnsweredOpenSeconds = 1.0;
+constexpr size_t kMaxAnsweredOpen = 32;
 // How long stop() waits for connections to finish their request, beyond the deadlines
 // they already have.
 constexpr double kStopMarginSeconds = 5;
@@ -230,33 +240,95 @@ void SocketServer::stop() {
     }
 }
 
+namespace {
+
+// Connections answered at accept, open until their client has sent and closed or until
+// kAnsweredOpenSeconds have passed (see there).
+class AnsweredConnections {
+ public:
+  ~AnsweredConnections() {
+    for (const Entry& e : open_) ::close(e.fd);
+  }
+  // Keeps fd open for a while (closes it at once when that cannot be done).
+  void add(int fd) {
+    try {
+      if (open_.size() >= kMaxAnsweredOpen) close_at(0);
+      open_.push_back({fd, Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                              std::chrono::duration<double>(kAnsweredOpenSeconds))});
+    } catch (const std::exception&) {
+      ::close(fd);
+    }
+  }
+  // Their pollfds, appended to `fds`; the poll timeout until the first deadline (-1: none).
+  int watch(std::vector<pollfd>& fds) const {
+    for (const Entry& e : open_) fds.push_back({e.fd, POLLIN, 0});
+    if (open_.empty()) return -1;
+    const auto wait = open_.front().until - Clock::now();
+    return int(std::clamp<int64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(wait).count() + 1, 0, 1000));
+  }
+  // After the poll: drops what arrived, closes those whose client closed or whose time is up.
+  void service(const pollfd* polled) {
+    const Clock::time_point now = Clock::now();
+    std::vector<bool> done(open_.size());
+    for (size_t i = 0; i < open_.size(); ++i)
+      done[i] = now >= open_[i].until || (polled[i].revents != 0 && !drain(open_[i].fd));
+    for (size_t i = open_.size(); i-- > 0;)
+      if (done[i]) close_at(i);
+  }
+
+ private:
+  struct Entry {
+    int fd;
+    Clock::time_point until;
+  };
+  // Reads and drops what the client sent; false once it has closed (or the read failed).
+  static bool drain(int fd) {
+    char buffer[4096];
+    for (;;) {
+      const ssize_t n = ::read(fd, buffer, sizeof buffer);
+      if (n > 0) continue;
+      return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR);
+    }
+  }
+  void close_at(size_t i) {
+    ::close(open_[i].fd);
+    open_.erase(open_.begin() + ptrdiff_t(i));
+  }
+  std::vector<Entry> open_;  // in order of their deadlines
+};
+
+}  // namespace
+
 void SocketServer::accept_loop() {
+  AnsweredConnections answered;
+  std::vector<pollfd> fds;
   for (;;) {
-    pollfd fds[2] = {{listen_fd_, POLLIN, 0}, {stop_pipe_[0], POLLIN, 0}};
-    if (::poll(fds, 2, -1) < 0 && errno != EINTR) return;
+    fds.assign({{listen_fd_, POLLIN, 0}, {stop_pipe_[0], POLLIN, 0}});
+    const int timeout_ms = answered.watch(fds);
+    if (::poll(fds.data(), fds.size(), timeout_ms) < 0 && errno != EINTR) return;
     if (fds[1].revents) return;
+    answered.service(fds.data() + 2);
     if (!(fds[0].revents & POLLIN)) continue;
     const int fd = ::accept4(listen_fd_, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
     if (fd < 0) continue;
     // Nothing a client brings may end the accept loop (it would end the service): a
     // connection that cannot be set up (no thread, no memory) is answered and closed.
     try {
-      accept_connection(fd);
+      if (!accept_connection(fd)) answered.add(fd);
     } catch (const std::exception&) {
       ::close(fd);
     }
   }
 }
 
-void SocketServer::accept_connection(int fd) {
+bool SocketServer::accept_connection(int fd) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (stopping_ || (open_slots() <= 0 && !evict_idle_connection())) {
     const json busy = error_response(
         "busy", stopping_ ? "the service is stopping"
                           : "too many clients (" + std::to_string(options_.max_clients) + "); try again later");
     write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
-    ::close(fd);
-    return;
+    return false;
   }
   connections_.emplace(fd, Connection{});
   ++clients_;
@@ -267,8 +339,9 @@ void SocketServer::accept_connection(int fd) {
     --clients_;
     const json busy = error_response("busy", "the service could not start a thread for this client; try again later");
     write_message(fd, to_wire(busy), deadline_in(kBusyReplySeconds));
-    ::close(fd);
+    return false;
   }
+  return true;
 }
 
 int SocketServer::open_slots() const {

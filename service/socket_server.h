@@ -73,9 +73,10 @@ class SocketServer {
 
  private:
   void accept_loop();
-  // Registers an accepted client and starts its thread, or answers it busy; throws only
-  // when even that fails (the loop then closes it).
-  void accept_connection(int fd);
+  // Registers an accepted client and starts its thread (true), or answers it busy (false:
+  // the loop closes it once its client has sent); throws only when even that fails (the
+  // loop then closes it at once).
+  bool accept_connection(int fd);
   void serve_connection(int fd);
   // Handles one request; false when the connection must close (the stream is out of step).
   bool handle_request(int fd, const std::string& header);
