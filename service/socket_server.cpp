@@ -244,22 +244,21 @@ namespace {
 
 // Connections answered at accept, open until their client has sent and closed or until
 // kAnsweredOpenSeconds have passed (see there).
+// Allocates nothing after its construction (the accept loop runs on when memory is short).
 class AnsweredConnections {
  public:
+  AnsweredConnections() { open_.reserve(kMaxAnsweredOpen); }
   ~AnsweredConnections() {
     for (const Entry& e : open_) ::close(e.fd);
   }
-  // Keeps fd open for a while (closes it at once when that cannot be done).
+  // Keeps fd open for a while.
   void add(int fd) {
-    try {
-      if (open_.size() >= kMaxAnsweredOpen) close_at(0);
-      open_.push_back({fd, Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                              std::chrono::duration<double>(kAnsweredOpenSeconds))});
-    } catch (const std::exception&) {
-      ::close(fd);
-    }
+    if (open_.size() >= kMaxAnsweredOpen) close_at(0);
+    open_.push_back({fd, Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                            std::chrono::duration<double>(kAnsweredOpenSeconds))});
   }
-  // Their pollfds, appended to `fds`; the poll timeout until the first deadline (-1: none).
+  // Their pollfds, appended to `fds` (room for kMaxAnsweredOpen reserved); the poll
+  // timeout until the first deadline (-1: none).
   int watch(std::vector<pollfd>& fds) const {
     for (const Entry& e : open_) fds.push_back({e.fd, POLLIN, 0});
     if (open_.empty()) return -1;
@@ -269,11 +268,8 @@ class AnsweredConnections {
   // After the poll: drops what arrived, closes those whose client closed or whose time is up.
   void service(const pollfd* polled) {
     const Clock::time_point now = Clock::now();
-    std::vector<bool> done(open_.size());
-    for (size_t i = 0; i < open_.size(); ++i)
-      done[i] = now >= open_[i].until || (polled[i].revents != 0 && !drain(open_[i].fd));
-    for (size_t i = open_.size(); i-- > 0;)
-      if (done[i]) close_at(i);
+    for (size_t i = open_.size(); i-- > 0;)  // from the back: erasing keeps the earlier indices
+      if (now >= open_[i].until || (polled[i].revents != 0 && !drain(open_[i].fd))) close_at(i);
   }
 
  private:
@@ -281,14 +277,15 @@ class AnsweredConnections {
     int fd;
     Clock::time_point until;
   };
-  // Reads and drops what the client sent; false once it has closed (or the read failed).
+  // Reads and drops what the client sent, at most 64 KiB a round (a client that keeps
+  // sending does not hold the accept loop); false once it has closed (or the read failed).
   static bool drain(int fd) {
     char buffer[4096];
-    for (;;) {
+    for (int i = 0; i < 16; ++i) {
       const ssize_t n = ::read(fd, buffer, sizeof buffer);
-      if (n > 0) continue;
-      return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR);
+      if (n <= 0) return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR);
     }
+    return true;
   }
   void close_at(size_t i) {
     ::close(open_[i].fd);
@@ -302,6 +299,7 @@ class AnsweredConnections {
 void SocketServer::accept_loop() {
   AnsweredConnections answered;
   std::vector<pollfd> fds;
+  fds.reserve(2 + kMaxAnsweredOpen);
   for (;;) {
     fds.assign({{listen_fd_, POLLIN, 0}, {stop_pipe_[0], POLLIN, 0}});
     const int timeout_ms = answered.watch(fds);
