@@ -126,6 +126,19 @@ IoStatus write_message(int fd, std::string_view message, Deadline deadline) {
   return write_all(fd, framed.data(), framed.size(), deadline);
 }
 
+IoStatus drain_input(int fd, Deadline deadline) {
+  char sink[1 << 16];
+  for (;;) {
+    const ssize_t n = ::read(fd, sink, sizeof sink);
+    const int error = n < 0 ? errno : 0;
+    if (n == 0) return IoStatus::closed;
+    if (n < 0 && error != EINTR && error != EAGAIN && error != EWOULDBLOCK) return IoStatus::error;
+    if (Clock::now() >= deadline) return IoStatus::timeout;  // a client that keeps sending
+    if (n < 0 && error != EINTR)
+      if (const IoStatus s = wait_ready(fd, POLLIN, deadline); s != IoStatus::ok) return s;
+  }
+}
+
 IoStatus skip_bytes(int fd, size_t size, Deadline deadline) {
   std::vector<char> sink(std::min<size_t>(size, 1 << 16));
   while (size > 0) {

@@ -51,6 +51,11 @@ IoStatus wait_readable_running(int fd, double seconds);
 IoStatus read_message(int fd, std::string& message, size_t max_bytes, Deadline deadline);
 IoStatus write_message(int fd, std::string_view message, Deadline deadline);
 
+// Reads and drops what arrives until the other end closes (closed), the read fails or the
+// deadline passes (a connection ended after its answer: the client's sending does not
+// fail before it reads that answer).
+IoStatus drain_input(int fd, Deadline deadline);
+
 // Reads and discards `size` bytes (an unwanted inline payload), so the stream stays in step.
 IoStatus skip_bytes(int fd, size_t size, Deadline deadline);
 

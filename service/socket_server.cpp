@@ -51,11 +51,12 @@ bool peer_closed(int fd) {
 
 // How long an over-limit client gets to read its "busy" answer before it is closed.
 constexpr double kBusyReplySeconds = 0.5;
-// How long a connection answered at accept ("busy") stays open, its input read and dropped,
-// before it is closed: long enough for its client to send the request it connected with
-// (sending to a closed connection fails, and a client that stops there never reads the
-// answer). At most kMaxAnsweredOpen such connections wait at once; the oldest is closed
-// for a new one.
+// How long a connection the service ends after answering (at accept: "busy"; later:
+// too_large, timeout, a request refused before its inline bytes were read) stays open, its
+// input read and dropped, before it is closed: long enough for its client to finish
+// sending (sending to a closed connection fails, and a client that stops there never reads
+// the answer). At most kMaxAnsweredOpen connections answered at accept wait at once; the
+// oldest is closed for a new one.
 constexpr double kAnsweredOpenSeconds = 1.0;
 constexpr size_t kMaxAnsweredOpen = 32;
 // How long stop() waits for connections to finish their request, beyond the deadlines
@@ -450,6 +451,11 @@ void SocketServer::serve_connection(int fd) {
     if (header.size() > kSmallHeaderBytes) give(header_bytes_, header.size());
     if (!go_on) break;
   }
+  // The client may still be sending (a header over --max-request-bytes, inline bytes its
+  // request was refused before): the connection ends once it has stopped, or after
+  // kAnsweredOpenSeconds, so that its sending does not fail before it reads the answer.
+  ::shutdown(fd, SHUT_WR);
+  drain_input(fd, deadline_in(kAnsweredOpenSeconds));
   std::lock_guard<std::mutex> lock(mutex_);
   connections_.erase(fd);
   ::close(fd);

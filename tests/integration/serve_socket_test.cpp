@@ -113,6 +113,30 @@ TEST(ServeSocket, SixteenClientsTwoRequestsEachByPathAndInline) {
   EXPECT_FALSE(path_exists(service.socket));
 }
 
+// A client still sending when the service answers and ends its connection (the rest of a
+// header over --max-request-bytes; an inline frame refused for its options before its bytes
+// were read) finishes sending and reads the answer, instead of failing to send to a closed
+// connection. Both messages are far larger than a socket's buffer.
+TEST(ServeSocket, AClientStillSendingWhenAnsweredReadsTheAnswer) {
+  ScratchDir dir;
+  SocketService service(dir, "linger", {"--max-request-bytes", "4096", "--max-inline-mb", "16"});
+  ASSERT_TRUE(service.ready) << service.log();
+  {
+    Client c(service.socket);
+    std::string message(4 + (4 << 20), ' ');
+    encode_length(uint32_t(message.size() - 4), reinterpret_cast<unsigned char*>(message.data()));
+    EXPECT_EQ(write_all(c.fd(), message.data(), message.size(), deadline_in(10)), IoStatus::ok);
+    EXPECT_EQ(c.read_response(nullptr, 10).value("code", ""), "too_large");
+  }
+  {
+    Client c(service.socket);
+    const json reply = c.request({{"op", "process"}, {"name", "late"}, {"options", {{"method", "magic"}}}},
+                                 std::string(8 << 20, '\0'), nullptr, 10);
+    EXPECT_EQ(reply.value("code", ""), "bad_request") << reply.dump();
+  }
+  EXPECT_EQ(ping(service.socket).value("ok", false), true);
+}
+
 TEST(ServeSocket, MalformedOversizeAndEscapingRequestsAreRefusedServiceStaysHealthy) {
   ScratchDir dir;
   SocketService service(dir, "refuse", {"--max-request-bytes", "4096", "--max-inline-mb", "1", "--client-timeout", "1.5"});
