@@ -451,6 +451,15 @@ template <int C, class Lobe, class Taps>
 void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlanes& p, const Tile& t, int first,
                      const Lobe& lobe, Taps taps) {
   const int R = k.radius;
+  // Pairs (x, x + k spacing) of a row from column 0, tap k's in row buffer k - 1: centres
+  // from column R, taps -k from column R - k spacing.
+  float* dst[kMaxRadiusPx];
+  RowWeights weights;
+  for (int tap = 1; tap <= int(taps); ++tap) {
+    dst[tap - 1] = p.row_weight + size_t(tap - 1) * size_t(k.plane_stride);
+    weights.plus[tap - 1] = dst[tap - 1] + R;
+    weights.minus[tap - 1] = dst[tap - 1] + R - tap * k.spacing;
+  }
   for (int j = first; j < (t.yb - t.ya) + 2 * R; ++j) {
     fill_row<C>(k, ch, t, p, j);
     const int y = t.ya - R + j;
@@ -461,15 +470,6 @@ void horizontal_pass(const FilterConstants& k, const Channel* ch, const TilePlan
       for (int c = 0; c < C; ++c)
         for (int i = 0; i < t.lane_width(); ++i) out[c][i] = 0.0f;
       continue;
-    }
-    // Pairs (x, x + k spacing) of the row from column 0: centres from column R, taps -k
-    // from column R - k spacing.
-    float* dst[kMaxRadiusPx];
-    RowWeights weights;
-    for (int j = 0; j < int(taps); ++j) {
-      dst[j] = p.row_weight + size_t(j) * size_t(k.plane_stride);
-      weights.plus[j] = dst[j] + R;
-      weights.minus[j] = dst[j] + R - (j + 1) * k.spacing;
     }
     pair_weights(k, p, row, row + size_t(t.lane_width() + R), k.spacing, taps, dst, lobe);
     filter_row<C>(p, t, row + size_t(R), k.spacing, p.value + R, size_t(k.plane_stride), out, taps, weights);
