@@ -52,8 +52,9 @@ IoStatus read_message(int fd, std::string& message, size_t max_bytes, Deadline d
 IoStatus write_message(int fd, std::string_view message, Deadline deadline);
 
 // Reads and drops what arrives until the other end closes (closed), the read fails or the
-// deadline passes (a connection ended after its answer: the client's sending does not
-// fail before it reads that answer).
+// deadline passes (timeout; a deadline already past: one read, without waiting): a
+// connection ended after its answer, so that the client's sending does not fail before it
+// reads that answer.
 IoStatus drain_input(int fd, Deadline deadline);
 
 // Reads and discards `size` bytes (an unwanted inline payload), so the stream stays in step.

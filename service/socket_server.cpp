@@ -270,7 +270,7 @@ class AnsweredConnections {
   void service(const pollfd* polled) {
     const Clock::time_point now = Clock::now();
     for (size_t i = open_.size(); i-- > 0;)  // from the back: erasing keeps the earlier indices
-      if (now >= open_[i].until || (polled[i].revents != 0 && !drain(open_[i].fd))) close_at(i);
+      if (now >= open_[i].until || (polled[i].revents != 0 && !drain_round(open_[i].fd))) close_at(i);
   }
 
  private:
@@ -278,16 +278,10 @@ class AnsweredConnections {
     int fd;
     Clock::time_point until;
   };
-  // Reads and drops what the client sent, at most 64 KiB a round (a client that keeps
-  // sending does not hold the accept loop); false once it has closed (or the read failed).
-  static bool drain(int fd) {
-    char buffer[4096];
-    for (int i = 0; i < 16; ++i) {
-      const ssize_t n = ::read(fd, buffer, sizeof buffer);
-      if (n <= 0) return n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR);
-    }
-    return true;
-  }
+  // Reads and drops what the client sent, one read a round (drain_input with a deadline
+  // already past: a client that keeps sending does not hold the accept loop); false once it
+  // has closed (or the read failed).
+  static bool drain_round(int fd) { return drain_input(fd, Clock::now()) == IoStatus::timeout; }
   void close_at(size_t i) {
     ::close(open_[i].fd);
     open_.erase(open_.begin() + ptrdiff_t(i));
