@@ -20,10 +20,13 @@
 //   point back along its view ray by thickness_world, clipped to the radius sphere
 //   (exactly Cycles' binary "hit within radius"). The segments' angular intervals are
 //   accumulated in a 64-sector visibility mask per slice (the idea of Therrien, Levesque
-//   & Gilet 2023, "Screen Space Indirect Lighting with Visibility Bitmask"), with the
-//   sectors equally spaced in the cosine-weighted measure above, so the visible fraction
-//   of a slice is exactly popcount(free sectors) / 64 of its analytic integral. This lets
-//   light through the gap under a floating object, which a height field cannot.
+//   & Gilet 2023, "Screen Space Indirect Lighting with Visibility Bitmask"). The sectors
+//   are fixed angles from the projected normal, equally spaced in the pseudo-angle
+//   p = sin f / (|sin f| + cos f) of the angle f = h - n (p in [-1, 1] over the
+//   hemisphere), which a tap's end gets from its slice coordinates with one division and
+//   no arccosine; each sector's measure is closed-form in n (see SectorTables), and the
+//   visible part of a slice is its analytic integral less its occupied sectors' measure.
+//   This lets light through the gap under a floating object, which a height field cannot.
 //   Sparse taps: a few taps per side sample a surface at a few points only, and their
 //   segments alone leave the angles between them open (a wall seen through 4 taps lets
 //   light through 3 gaps). Consecutive taps of a side whose depths differ by at most the
@@ -64,6 +67,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cstring>
 #include <numbers>
 #include <vector>
 
@@ -87,7 +91,7 @@ constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
 
 
-// The sectors whose centres lie in [u0, u1] (fractions of the slice measure): the first,
+// The sectors whose centres lie in [u0, u1] (u = (p + 1) / 2 of the pseudo-angle p): the first,
 // k0, and how many (0 when none), in two steps without branches (float to int, then the
 // 64-bit run), so that the ordered pass runs each in vector lanes.
 inline void sector_range(float u0, float u1, int32_t& k0, int32_t& count) {
@@ -115,6 +119,58 @@ inline void add_sector_runs(const int32_t* k0, const int32_t* count, uint64_t* o
     const auto shift = hn::BitCast(du, hn::PromoteTo(di, hn::LoadU(d32, k0 + l)));
     hn::StoreU(hn::Or(hn::LoadU(du, occupied + l), hn::Shl(run, shift)), du, occupied + l);
   }
+}
+
+// The position of a direction in the visibility mask, u in [0, 1] (sector k covers
+// [k, k + 1] / 64): u = (p + 1) / 2 of the pseudo-angle p = sin f / (|sin f| + cos f) of its
+// angle f from the projected normal (-1 and 1 at the tangent limits, 0 along the normal; as
+// tan f / (1 + |tan f|), monotone in f, its sectors between 1.8 and 3.6 degrees wide). From
+// a point (v, d) of the slice plane (coordinates along the view vector and the slice
+// direction) and the normal's angle n: sin f and cos f are d cos n - v sin n and
+// v cos n + d sin n over the point's distance, which the ratio cancels. A point below the
+// tangent line (cos f <= 0) is at the limit of its side `side_u` (1: +, 0: -).
+inline float sector_u(float v, float d, float cos_n, float sin_n, float side_u) {
+  const float a = d * cos_n - v * sin_n;
+  const float b = v * cos_n + d * sin_n;
+  return b > 0.0f ? 0.5f + 0.5f * (a / (std::abs(a) + b)) : side_u;
+}
+
+// The sectors' measures in the slice's cosine-weighted measure cos(f)|sin(f + n)| df
+// (GTAO eq. 10's integrand with h = f + n). Where sin(f + n) >= 0 its antiderivative is
+// cos n G1(f) + sin n G2(f) with G1 = sin^2 f / 2 and G2 = f / 2 + sin 2f / 4, so a run of
+// sectors on one side of the view vector (f = -n) weighs cos n dG1 + sin n dG2 (negated
+// below it), and the sums of dG1 and dG2 over any set of sectors come from a table per
+// byte of the mask. Built once, in double, rounded to float.
+struct SectorTables {
+  float g1[kSectors + 1], g2[kSectors + 1];  // G1, G2 at the sectors' edges
+  // dG1 and dG2 summed over the set bits of byte b of a mask with value v, at 256 b + v:
+  // the two floats in one 64-bit entry (dG1 first in memory), one gather per byte.
+  uint64_t byte_g[8 * 256];
+
+  SectorTables() {
+    double gd[kSectors + 1][2];
+    for (int k = 0; k <= kSectors; ++k) {
+      const double p = -1.0 + 2.0 * double(k) / kSectors;
+      // tan f = p / (1 - |p|); the limits are +-pi / 2.
+      const double f = std::abs(p) == 1.0 ? std::copysign(std::numbers::pi / 2.0, p) : std::atan(p / (1.0 - std::abs(p)));
+      gd[k][0] = 0.5 * std::sin(f) * std::sin(f);
+      gd[k][1] = 0.5 * f + 0.25 * std::sin(2.0 * f);
+      g1[k] = float(gd[k][0]), g2[k] = float(gd[k][1]);
+    }
+    for (int b = 0; b < 8; ++b)
+      for (int v = 0; v < 256; ++v) {
+        float sum[2] = {0.0f, 0.0f};
+        for (int j = 0; j < 8; ++j)
+          if (v >> j & 1)
+            for (int c = 0; c < 2; ++c) sum[c] += float(gd[8 * b + j + 1][c] - gd[8 * b + j][c]);
+        std::memcpy(&byte_g[256 * b + v], sum, sizeof(sum));
+      }
+  }
+};
+
+const SectorTables& sector_tables() {
+  static const SectorTables tables;
+  return tables;
 }
 
 // What a tap reads from the pixel it lands in, in two planes: the view-space position and
@@ -243,6 +299,7 @@ struct Constants {
   TapGrid grid;
   bool keep_indices;  // a pixel's tap indices fit in its tile row (kKeptSteps)
   bool keep_bases;    // a pixel's slice bases fit in its row's (kKeptSlices)
+  const SectorTables* sectors;  // the visibility mask's sector measures
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
   // slice in the pixel loop.
   std::vector<std::array<float, 2>> slice_rot;
@@ -264,6 +321,7 @@ struct Constants {
         grid{in.depth_view.cols, in.depth_view.rows, s.directions, s.steps},
         keep_indices(s.directions * s.steps <= kKeptSteps),
         keep_bases(slices <= kKeptSlices),
+        sectors(&sector_tables()),
         slice_rot(size_t(s.directions)) {
     for (int i = 0; i < slices; ++i) {
       // The float pi widened to double (the slice angles' bits depend on it).
@@ -397,9 +455,7 @@ struct SliceFields {
   glm::vec3 dir, axis;
   float origin_v, origin_d, origin_a;
   float cos_n, sin_n;
-  float weight_neg, inv_total;
   float pn_len, weight_total;
-  float lim_pos, lim_neg;
 };
 
 [[gnu::always_inline]] inline SliceFields slice_fields(const Constants& k, const PixelPoint& px, glm::vec2 d) {
@@ -408,17 +464,30 @@ struct SliceFields {
   // n +- pi/2 have cos = -+sin n: no trig per slice.
   const float cos_n = sl.cos_n;
   const float sin_n = std::copysign(std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n)), sl.n);
-  // Slice measure of the negative side and in total (inner integral at n +- pi/2).
-  const float weight_neg = inner_integral(sl.n - kHalfPi, sin_n, -cos_n, cos_n, sin_n);
+  // Slice measure in total (inner integral from n - pi/2 to n + pi/2).
   const float weight_total = cos_n + sl.n * sin_n;
-  const float inv_total = weight_total > 0.0f ? 1.0f / weight_total : 0.0f;
-  const float lim_pos = sl.n + kHalfPi, lim_neg = kHalfPi - sl.n;
   // The origin in the slice's orthonormal frame (per slice, so that each tap needs three dot
   // products).
   const glm::vec3 &origin = px.origin, &dir = sl.direction, &axis = sl.axis;
-  return {dir,    axis,      glm::dot(origin, px.view), glm::dot(origin, dir), glm::dot(origin, axis),
-          cos_n,  sin_n,     weight_neg, inv_total, sl.projected_normal_length, weight_total,
-          lim_pos, lim_neg};
+  return {dir,   axis,  glm::dot(origin, px.view), glm::dot(origin, dir), glm::dot(origin, axis),
+          cos_n, sin_n, sl.projected_normal_length, weight_total};
+}
+
+// The visibility mask's sector holding the view vector (sector_u of f = -n), and that
+// sector's measure: from its lower edge up to the view vector and from there to its upper
+// edge, each side's antiderivative (SectorTables) taken from its value at f = -n,
+// cos n G1(-n) + sin n G2(-n) = -n sin n / 2 (n sin n = weight_total - cos n). A normal
+// facing away (cos n <= 0) puts the view vector past a limit: every sector then lies on
+// one side of it. Apart from the slice's other fields, whose loop has no table reads.
+inline void split_sector(const SectorTables& t, float cos_n, float sin_n, float weight_total, int32_t& split,
+                         float& split_measure) {
+  const float u_view = sector_u(1.0f, 0.0f, cos_n, sin_n, sin_n > 0.0f ? 0.0f : 1.0f);
+  const int32_t k = std::clamp(int32_t(u_view * kSectors), 0, kSectors - 1);
+  const float edge_lo = cos_n * t.g1[k] + sin_n * t.g2[k];
+  const float edge_hi = cos_n * t.g1[k + 1] + sin_n * t.g2[k + 1];
+  const float straddled = edge_lo + edge_hi + (weight_total - cos_n);
+  split = k;
+  split_measure = cos_n > 0.0f ? straddled : k == 0 ? edge_hi - edge_lo : edge_lo - edge_hi;
 }
 
 // The points and slice bases of a tile row's pixels, field by field (slice slot s of pixel
@@ -430,9 +499,9 @@ struct RowBases {
   alignas(64) float origin_v[kKeptSlices][kTileWidthPx], origin_d[kKeptSlices][kTileWidthPx],
       origin_a[kKeptSlices][kTileWidthPx];
   alignas(64) float cos_n[kKeptSlices][kTileWidthPx], sin_n[kKeptSlices][kTileWidthPx];
-  alignas(64) float weight_neg[kKeptSlices][kTileWidthPx], inv_total[kKeptSlices][kTileWidthPx];
   alignas(64) float pn_len[kKeptSlices][kTileWidthPx], weight_total[kKeptSlices][kTileWidthPx];
-  alignas(64) float lim_pos[kKeptSlices][kTileWidthPx], lim_neg[kKeptSlices][kTileWidthPx];
+  alignas(64) int32_t split[kKeptSlices][kTileWidthPx];
+  alignas(64) float split_measure[kKeptSlices][kTileWidthPx];
 
   void set_point(size_t xi, const PixelPoint& p) {
     for (int c = 0; c < 3; ++c) origin[c][xi] = p.origin[c], normal[c][xi] = p.normal[c], view[c][xi] = p.view[c];
@@ -446,15 +515,17 @@ struct RowBases {
     for (int c = 0; c < 3; ++c) dir[s][c][xi] = f.dir[c], axis[s][c][xi] = f.axis[c];
     origin_v[s][xi] = f.origin_v, origin_d[s][xi] = f.origin_d, origin_a[s][xi] = f.origin_a;
     cos_n[s][xi] = f.cos_n, sin_n[s][xi] = f.sin_n;
-    weight_neg[s][xi] = f.weight_neg, inv_total[s][xi] = f.inv_total;
     pn_len[s][xi] = f.pn_len, weight_total[s][xi] = f.weight_total;
-    lim_pos[s][xi] = f.lim_pos, lim_neg[s][xi] = f.lim_neg;
   }
   // Slice i's fields of pixels xi0 .. xi1 - 1 into slot s (no branch: the loop vectorises).
-  void compute_slice(const Constants& k, const TileRow& row, int s, int i, int xi0, int xi1) {
+  [[gnu::always_inline]] void compute_slice(const Constants& k, const TileRow& row, int s, int i, int xi0, int xi1) {
     for (int xi = xi0; xi < xi1; ++xi) {
       const size_t x = size_t(xi);
       set_fields(s, x, slice_fields(k, point(x), slice_direction(k, row.rot_c[x], row.rot_s[x], i)));
+    }
+    for (int xi = xi0; xi < xi1; ++xi) {
+      const size_t x = size_t(xi);
+      split_sector(*k.sectors, cos_n[s][x], sin_n[s][x], weight_total[s][x], split[s][x], split_measure[s][x]);
     }
   }
 };
@@ -469,9 +540,9 @@ struct SliceLanes {
   alignas(64) float ax[kLanes], ay[kLanes], az[kLanes];  // slice axis
   alignas(64) float origin_v[kLanes], origin_d[kLanes], origin_a[kLanes];  // the origin in the slice frame
   alignas(64) float cos_n[kLanes], sin_n[kLanes];  // the projected normal's angle n
-  alignas(64) float weight_neg[kLanes], inv_total[kLanes];  // slice measure of the negative side, 1 / total
   alignas(64) float pn_len[kLanes], weight_total[kLanes];   // |projected normal|, the slice measure
-  alignas(64) float lim_pos[kLanes], lim_neg[kLanes];       // the hemisphere's limit angles per side
+  alignas(64) int32_t split[kLanes];                        // the view vector's sector
+  alignas(64) float split_measure[kLanes];                  // and its measure
   alignas(64) float screen_x[kLanes], screen_y[kLanes];     // slice_direction
 
   // From slot s of the row's bases, pixels xi0 .. xi0 + kLanes - 1.
@@ -485,9 +556,8 @@ struct SliceLanes {
       ax[l] = b.axis[s][0][x], ay[l] = b.axis[s][1][x], az[l] = b.axis[s][2][x];
       origin_v[l] = b.origin_v[s][x], origin_d[l] = b.origin_d[s][x], origin_a[l] = b.origin_a[s][x];
       cos_n[l] = b.cos_n[s][x], sin_n[l] = b.sin_n[s][x];
-      weight_neg[l] = b.weight_neg[s][x], inv_total[l] = b.inv_total[s][x];
       pn_len[l] = b.pn_len[s][x], weight_total[l] = b.weight_total[s][x];
-      lim_pos[l] = b.lim_pos[s][x], lim_neg[l] = b.lim_neg[s][x];
+      split[l] = b.split[s][x], split_measure[l] = b.split_measure[s][x];
       const glm::vec2 d = slice_direction(k, row.rot_c[x], row.rot_s[x], i);
       screen_x[l] = d.x, screen_y[l] = d.y;
     }
@@ -567,15 +637,14 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
 }
 
 // The occluded interval [u0, u1] of each lane's occluder segment on side `side` (0: +, 1:
-// -), in fractions of the slice measure (the visibility mask's sectors), every lane alike.
+// -), as positions in the visibility mask (sector_u), every lane alike.
 template <bool perspective, bool per_texel_thickness>
 [[gnu::noinline]] void step_intervals(const Constants& k, const Frame& f, const SliceLanes& s, int side,
                                       StepLanes& __restrict t) {
   const float* texel_thickness = per_texel_thickness ? f.thickness.data() : nullptr;
   const float thickness_world = k.thickness_world, r2 = k.r2;
-  // The side's sign of the angle.
-  const float sign = side == 0 ? 1.0f : -1.0f;
-  const bool pos = side == 0;
+  // The side's sign of the direction coordinate, and its limit in the mask.
+  const float sign = side == 0 ? 1.0f : -1.0f, side_u = side == 0 ? 1.0f : 0.0f;
   for (int l = 0; l < kLanes; ++l) {
     const float dv = t.dv[l], dd = t.dd[l], da = t.da[l], dist2 = t.dist2[l];
     const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
@@ -602,36 +671,16 @@ template <bool perspective, bool per_texel_thickness>
     if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(t.index[l], 0)];
     const float t0 = std::max(0.0f, -b - root);
     const float t1 = std::min(thickness, -b + root);
-    // Cosines and sines (unsigned angles from the view vector) of the segment's two ends
-    // in the slice plane: sin = |direction coordinate| / length.
-    const float e0v = dv + t0 * rv, e0d = dd + t0 * rd;
-    const float e1v = dv + t1 * rv, e1d = dd + t1 * rd;
-    const float inv0 = 1.0f / std::sqrt(e0v * e0v + e0d * e0d);
-    const float inv1 = 1.0f / std::sqrt(e1v * e1v + e1d * e1d);
-    const float c0 = std::clamp(e0v * inv0, -1.0f, 1.0f);
-    const float c1 = std::clamp(e1v * inv1, -1.0f, 1.0f);
-    const float s0 = std::min(std::abs(e0d) * inv0, 1.0f);
-    const float s1 = std::min(std::abs(e1d) * inv1, 1.0f);
-    // Unsigned angles a = acos(c) of the two ends, ordered, clipped to the hemisphere's
-    // limit on this side (n + pi/2 on +, pi/2 - n on -), whose cosine is -+sin n and sine
-    // |cos n|.
-    const bool first_higher = c0 >= c1;  // a(ca) <= a(cb)
-    const float ca = first_higher ? c0 : c1, sa = first_higher ? s0 : s1;
-    const float cos_lim = pos ? -sin_n : sin_n, lim = pos ? s.lim_pos[l] : s.lim_neg[l];
-    const float c_far = first_higher ? c1 : c0, s_far = first_higher ? s1 : s0;
-    const bool clip = c_far < cos_lim;
-    const float cb = clip ? cos_lim : c_far, sb = clip ? std::abs(cos_n) : s_far;
-    const float aa = std::min(fast_acos(ca), lim), ab = std::min(fast_acos(cb), lim);
-    // Positive side: u = measure of the negative side + of [0, a]. Negative side (signed
-    // angle -a): the weight of [-a, 0] comes off the negative side's, and the end nearer
-    // the view vector is the higher u.
-    const float h_lo = pos ? aa : ab, c_lo = pos ? ca : cb, s_lo = pos ? sa : sb;
-    const float h_hi = pos ? ab : aa, c_hi = pos ? cb : ca, s_hi = pos ? sb : sa;
-    const float i_lo = sign * inner_integral(sign * h_lo, c_lo, sign * s_lo, cos_n, sin_n);
-    const float i_hi = sign * inner_integral(sign * h_hi, c_hi, sign * s_hi, cos_n, sin_n);
-    const float u0 = (s.weight_neg[l] + i_lo) * s.inv_total[l];
-    const float u1 = (s.weight_neg[l] + i_hi) * s.inv_total[l];
-    const bool hit = (disc >= 0.0f) & (t1 >= t0) & (ca > cos_lim);
+    // The segment's two ends in the slice plane, on the tap's side of the view vector
+    // (|direction coordinate| with the side's sign), as positions in the mask.
+    const float e0v = dv + t0 * rv, e0d = sign * std::abs(dd + t0 * rd);
+    const float e1v = dv + t1 * rv, e1d = sign * std::abs(dd + t1 * rd);
+    const float w0 = sector_u(e0v, e0d, cos_n, sin_n, side_u);
+    const float w1 = sector_u(e1v, e1d, cos_n, sin_n, side_u);
+    const float u0 = std::min(w0, w1), u1 = std::max(w0, w1);
+    // Some of the segment above the tangent line (cos f > 0 at an end).
+    const bool above = (e0v * cos_n + e0d * sin_n > 0.0f) | (e1v * cos_n + e1d * sin_n > 0.0f);
+    const bool hit = (disc >= 0.0f) & (t1 >= t0) & above;
     t.u0[l] = hit ? u0 : 1.0f;  // empty: u0 > u1
     t.u1[l] = hit ? u1 : 0.0f;
   }
@@ -800,10 +849,47 @@ inline float height_field_integral(float cos_pos, float cos_neg, float cos_n, fl
   const float sm = -std::sqrt(std::max(0.0f, 1.0f - cos_neg * cos_neg));
   return inner_integral(h_pos, cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, cos_neg, sm, cos_n, sin_n);
 }
-// The visibility-mask slice integral: the free sectors' share of the slice measure (the
-// sectors are equally spaced in it).
-inline float visibility_mask_integral(int free_sectors, float weight_total) {
-  return weight_total * float(free_sectors) * (1.0f / kSectors);
+// The visibility-mask slice integrals of a group's lanes: each slice's measure less its
+// occupied sectors', so that a slice without occluders is exactly its measure. The sectors
+// above the view vector's (`split`) weigh +(cos n dG1 + sin n dG2), those below it the
+// negative (SectorTables), the split sector split_measure. A vector of 64-bit lanes (the
+// masks) at a time, a gather per byte of each mask; std::clamp's selects.
+inline void visibility_mask_integrals(const SectorTables& t, const uint64_t* occupied, const SliceLanes& s,
+                                      float* visible) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<uint64_t, kLanes> du;
+  const hn::RebindToSigned<decltype(du)> di;
+  const hn::Rebind<uint32_t, decltype(du)> du32;
+  const hn::Rebind<int32_t, decltype(du)> d32;
+  const hn::Rebind<float, decltype(du)> df;
+  const auto one = hn::Set(du, 1), byte = hn::Set(du, 255);
+  const auto zero = hn::Zero(df);
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(du)) {
+    const auto occ = hn::Load(du, occupied + l);
+    const auto split_bit = hn::Shl(one, hn::BitCast(du, hn::PromoteTo(di, hn::Load(d32, s.split + l))));
+    const auto below = hn::Sub(split_bit, one);
+    const auto lo = hn::And(occ, below), hi = hn::AndNot(hn::Or(below, split_bit), occ);
+    auto g1 = zero, g2 = zero;
+    for (int b = 0; b < 8; ++b) {
+      const auto offset = hn::Set(du, uint64_t(256 * b));
+      const auto hi_byte = hn::Add(hn::And(hn::ShiftRightSame(hi, 8 * b), byte), offset);
+      const auto lo_byte = hn::Add(hn::And(hn::ShiftRightSame(lo, 8 * b), byte), offset);
+      const auto g_hi = hn::GatherIndex(du, t.byte_g, hn::BitCast(di, hi_byte));
+      const auto g_lo = hn::GatherIndex(du, t.byte_g, hn::BitCast(di, lo_byte));
+      const auto first = [&](auto v) { return hn::BitCast(df, hn::TruncateTo(du32, v)); };
+      const auto second = [&](auto v) { return hn::BitCast(df, hn::TruncateTo(du32, hn::ShiftRight<32>(v))); };
+      g1 = hn::Add(g1, hn::Sub(first(g_hi), first(g_lo)));
+      g2 = hn::Add(g2, hn::Sub(second(g_hi), second(g_lo)));
+    }
+    const auto split_on = hn::BitCast(df, hn::TruncateTo(du32, hn::VecFromMask(du, hn::TestBit(occ, split_bit))));
+    const auto split_part = hn::And(split_on, hn::Load(df, s.split_measure + l));
+    const auto occluded = hn::Add(hn::Add(hn::Mul(hn::Load(df, s.cos_n + l), g1), hn::Mul(hn::Load(df, s.sin_n + l), g2)),
+                                  split_part);
+    const auto total = hn::Load(df, s.weight_total + l);
+    const auto v = hn::Sub(total, occluded);
+    const auto low = hn::IfThenElse(hn::Lt(v, zero), zero, v);
+    hn::Store(hn::IfThenElse(hn::Lt(total, low), total, low), df, visible + l);
+  }
 }
 
 // The slice's bent normal, weighted by |pn|, added to (x, y, z): its cosine-weighted mean
@@ -886,16 +972,12 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
       visibility_mask_step(k, f, t[sd], sd, side[sd], occupied);
     }
   }
-  // Free sectors first (a 64-bit popcount has no vector instruction before AVX-512's
-  // VPOPCNTDQ), so that the loop after runs in float lanes.
-  alignas(64) int32_t free_sectors[kLanes];
-  for (int l = 0; l < kLanes; ++l) free_sectors[l] = kSectors - std::popcount(occupied[l]);
   alignas(64) float visible[kLanes];
   if (k.height_field)
     for (int l = 0; l < kLanes; ++l)
       visible[l] = height_field_integral(side[0].horizon_cos[l], side[1].horizon_cos[l], s.cos_n[l], s.sin_n[l]);
   else
-    for (int l = 0; l < kLanes; ++l) visible[l] = visibility_mask_integral(free_sectors[l], s.weight_total[l]);
+    visibility_mask_integrals(*k.sectors, occupied, s, visible);
   for (int l = 0; l < kLanes; ++l) {
     const float cp = side[0].horizon_cos[l], cm = side[1].horizon_cos[l];
     sums.visible[l] += s.pn_len[l] * visible[l];
