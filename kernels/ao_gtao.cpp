@@ -121,6 +121,9 @@ inline void add_sector_runs(const int32_t* k0, const int32_t* count, uint64_t* o
   }
 }
 
+// c from c |c|.
+inline float signed_sqrt(float x) { return std::copysign(std::sqrt(std::abs(x)), x); }
+
 // The position of a direction in the visibility mask, u in [0, 1] (sector k covers
 // [k, k + 1] / 64): u = (p + 1) / 2 of the pseudo-angle p = sin f / (|sin f| + cos f) of its
 // angle f from the projected normal (-1 and 1 at the tangent limits, 0 along the normal; as
@@ -566,13 +569,14 @@ struct SliceLanes {
 
 // The taps of one step of one side of a slice, across the group's pixels (lanes): texel
 // index, the texel, its coordinates in the slice frame, its height above the tangent plane
-// (only its sign is used), its squared distance in the slice plane and in 3D, the cosine of
-// its angle in the slice, and the occluded interval [u0, u1] of its segment (u0 > u1: none).
+// (only its sign is used), its squared distance in the slice plane and in 3D, the cosine c
+// of its angle in the slice as c |c| (its order without a square root: signed_sqrt gives c
+// back), and the occluded interval [u0, u1] of its segment in the mask (u0 > u1: none).
 struct StepLanes {
   alignas(64) int32_t index[kLanes];
   alignas(64) float x[kLanes], y[kLanes], z[kLanes], depth_view[kLanes];
   alignas(64) float dv[kLanes], dd[kLanes], da[kLanes];
-  alignas(64) float height[kLanes], dist_slice2[kLanes], dist2[kLanes], tap_cos[kLanes];
+  alignas(64) float height[kLanes], dist_slice2[kLanes], dist2[kLanes], tap_cos_sq[kLanes];
   alignas(64) float u0[kLanes], u1[kLanes];
   // An occluder the ordered pass reads: on screen, foreground, above the tangent plane,
   // off the slice's centre (set by step_coordinates).
@@ -629,7 +633,7 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
     t.dist_slice2[l] = dist_slice2;
     t.dist2[l] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
-    t.tap_cos[l] = dv / std::sqrt(dist_slice2);
+    t.tap_cos_sq[l] = dv * std::abs(dv) / dist_slice2;
     t.occluder[l] = (index >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f);
     occluders |= t.occluder[l];
   }
@@ -695,20 +699,21 @@ inline void height_field_step(const Constants& k, const SliceLanes& s, const Ste
   for (int l = 0; l < kLanes; ++l) {
     const float low_cos = side == 0 ? -s.sin_n[l] : s.sin_n[l];
     const float w = k.falloff(std::sqrt(t.dist2[l]));
-    const float raised = std::max(horizon_cos[l], low_cos + (t.tap_cos[l] - low_cos) * w);
+    const float raised = std::max(horizon_cos[l], low_cos + (signed_sqrt(t.tap_cos_sq[l]) - low_cos) * w);
     horizon_cos[l] = occluder(t, l) ? raised : horizon_cos[l];
   }
 }
 
 // A side's last tap per lane, for the connection rule (top of this file): its depth (< 0:
-// none to connect to), its occluded interval in fractions of the slice measure, its texel,
+// none to connect to), its occluded interval in the mask, its texel,
 // whether it was on or below the tangent plane (its interval is then the tangent limit);
-// and the side's horizon, as a cosine from the view vector.
+// and the side's horizon: its cosine c from the view vector (height field), or c |c|
+// (visibility mask, whose taps compare their tap_cos_sq).
 struct SideLanes {
   alignas(64) float depth_view[kLanes], u0[kLanes], u1[kLanes];
   alignas(64) int32_t texel[kLanes];
   alignas(64) int32_t below[kLanes];
-  alignas(64) float horizon_cos[kLanes];
+  alignas(64) float horizon[kLanes];
 };
 
 // Which lanes' taps continue their side's last tap (the connection rule): the depths
@@ -800,8 +805,8 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
     const auto centre = hn::AndNot(hn::Gt(hn::Load(d, t.dist_slice2 + l), zero), above);  // on the centre line
     const auto in_radius = hn::And(hn::RebindMask(d, hn::Ne(hn::Load(di, t.occluder + l), zero_i)),
                                    hn::Le(hn::Load(d, t.dist2 + l), hn::Set(d, k.r2)));
-    const auto horizon = hn::Load(d, st.horizon_cos + l), tap_cos = hn::Load(d, t.tap_cos + l);
-    hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap_cos)), tap_cos, horizon), d, st.horizon_cos + l);
+    const auto horizon = hn::Load(d, st.horizon + l), tap = hn::Load(d, t.tap_cos_sq + l);
+    hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap)), tap, horizon), d, st.horizon + l);
     const auto has = hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i));
     const auto joined = hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i));
     const auto tu0 = hn::Load(d, t.u0 + l), tu1 = hn::Load(d, t.u1 + l);
@@ -947,7 +952,9 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
       side[sd].depth_view[l] = -1.0f;
       side[sd].u0[l] = 1.0f, side[sd].u1[l] = 0.0f;
       side[sd].texel[l] = 0, side[sd].below[l] = 0;
-      side[sd].horizon_cos[l] = sd == 0 ? -s.sin_n[l] : s.sin_n[l];  // the tangent limits: the lowest horizons
+      // The tangent limits, -+sin n: the lowest horizons.
+      const float low = sd == 0 ? -s.sin_n[l] : s.sin_n[l];
+      side[sd].horizon[l] = k.height_field ? low : low * std::abs(low);
     }
   alignas(64) uint64_t occupied[kLanes] = {};
   const bool per_texel_thickness = !f.thickness.empty();
@@ -957,7 +964,7 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
     for (int sd = 0; sd < 2; ++sd) {
       const bool occluders = step_coordinates(f.texels.data(), s, t[sd]);
       if (k.height_field) {
-        if (occluders) height_field_step(k, s, t[sd], sd, side[sd].horizon_cos);
+        if (occluders) height_field_step(k, s, t[sd], sd, side[sd].horizon);
         continue;
       }
       if (occluders) {
@@ -972,14 +979,17 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
       visibility_mask_step(k, f, t[sd], sd, side[sd], occupied);
     }
   }
-  alignas(64) float visible[kLanes];
+  alignas(64) float visible[kLanes], horizon_cos[2][kLanes];
+  for (int sd = 0; sd < 2; ++sd)
+    for (int l = 0; l < kLanes; ++l)
+      horizon_cos[sd][l] = k.height_field ? side[sd].horizon[l] : signed_sqrt(side[sd].horizon[l]);
   if (k.height_field)
     for (int l = 0; l < kLanes; ++l)
-      visible[l] = height_field_integral(side[0].horizon_cos[l], side[1].horizon_cos[l], s.cos_n[l], s.sin_n[l]);
+      visible[l] = height_field_integral(horizon_cos[0][l], horizon_cos[1][l], s.cos_n[l], s.sin_n[l]);
   else
     visibility_mask_integrals(*k.sectors, occupied, s, visible);
   for (int l = 0; l < kLanes; ++l) {
-    const float cp = side[0].horizon_cos[l], cm = side[1].horizon_cos[l];
+    const float cp = horizon_cos[0][l], cm = horizon_cos[1][l];
     sums.visible[l] += s.pn_len[l] * visible[l];
     sums.open[l] += s.pn_len[l] * s.weight_total[l];
     add_slice_bent_normal(cp, cm, s, l, sums.bent_x[l], sums.bent_y[l], sums.bent_z[l]);
