@@ -847,12 +847,16 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
 
 // The height-field slice integral: the visible measure between the two horizons (GTAO
 // eq. 10's inner integral per side, Alg. 1 lines 27-29); positive side +acos, negative -acos.
-inline float height_field_integral(float cos_pos, float cos_neg, float cos_n, float sin_n) {
+// Both horizons at the tangent limits (-+sin n, none raised): the slice's whole measure,
+// exactly (the arccosine's 7e-5 rad would leave an open slice short of it).
+inline float height_field_integral(float cos_pos, float cos_neg, float cos_n, float sin_n, float weight_total) {
   const float h_pos = fast_acos(cos_pos);
   const float h_neg = -fast_acos(cos_neg);
   const float sp = std::sqrt(std::max(0.0f, 1.0f - cos_pos * cos_pos));
   const float sm = -std::sqrt(std::max(0.0f, 1.0f - cos_neg * cos_neg));
-  return inner_integral(h_pos, cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, cos_neg, sm, cos_n, sin_n);
+  const float visible =
+      inner_integral(h_pos, cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, cos_neg, sm, cos_n, sin_n);
+  return (cos_pos == -sin_n) & (cos_neg == sin_n) ? weight_total : visible;
 }
 // The visibility-mask slice integrals of a group's lanes: each slice's measure less its
 // occupied sectors', so that a slice without occluders is exactly its measure. The sectors
@@ -985,7 +989,8 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
       horizon_cos[sd][l] = k.height_field ? side[sd].horizon[l] : signed_sqrt(side[sd].horizon[l]);
   if (k.height_field)
     for (int l = 0; l < kLanes; ++l)
-      visible[l] = height_field_integral(horizon_cos[0][l], horizon_cos[1][l], s.cos_n[l], s.sin_n[l]);
+      visible[l] =
+          height_field_integral(horizon_cos[0][l], horizon_cos[1][l], s.cos_n[l], s.sin_n[l], s.weight_total[l]);
   else
     visibility_mask_integrals(*k.sectors, occupied, s, visible);
   for (int l = 0; l < kLanes; ++l) {

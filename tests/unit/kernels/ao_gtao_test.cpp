@@ -1,9 +1,14 @@
 // GTAO against closed forms. Tolerances: high within 0.02 of every closed form (the
 // sphere with thickness_world = 4R/3, the sphere's mean chord along parallel rays; ultra
 // within 0.025 there, see below);
-// open planes exact to float rounding at any angle.
+// open planes exact to float rounding at any angle, with either occluder model (the
+// visibility mask's thickness, the height field), through perspective and orthographic
+// cameras.
+#include <limits>
 #include <numbers>
 #include <string>
+
+#include <glm/gtc/matrix_transform.hpp>
 
 #include "tests/unit/kernels/ao_closed_forms.h"
 
@@ -100,6 +105,52 @@ TEST(AoGtao, OpenPlanesAreUnoccludedAtAnyAngle) {
     EXPECT_LE(open_plane_worst(s), 1e-6) << to_string(p);
     s.thickness_world = 0.5f;
     EXPECT_LE(open_plane_worst(s), 1e-6) << to_string(p) << " with thickness";
+    s.thickness_world = std::numeric_limits<float>::infinity();
+    EXPECT_LE(open_plane_worst(s), 1e-6) << to_string(p) << " as a height field";
+  }
+}
+
+// Through parallel rays (an orthographic camera: the occluder segments run along -z, not
+// along each tap's own view ray): open planes stay open at oblique and grazing views, with
+// and without thickness, and the floor beside the corner's wall is half occluded.
+TEST(AoGtao, OrthographicCameraKeepsTheClosedForms) {
+  const glm::vec3 n_world = glm::normalize(glm::vec3(1, 2, 3));
+  for (float elevation : {90.0f, 30.0f, 5.0f}) {
+    Camera cam = raycast::open_plane_camera(n_world, elevation, 96, 54);
+    cam.view_to_clip = glm::ortho(-2.0f, 2.0f, -1.125f, 1.125f, 0.1f, 100.0f);
+    ASSERT_FALSE(cam.is_perspective());
+    const Frame f = render(raycast::open_plane(n_world), cam);
+    for (Preset p : {Preset::medium, Preset::high})
+      for (float thickness : {0.0f, std::numeric_limits<float>::infinity()}) {
+        AoSettings s = ao_preset(AoMethod::gtao, p);
+        s.radius_world = 0.5f;
+        s.thickness_world = thickness;
+        EXPECT_LE(max_abs_dev(run(f, s).ao, all_pixels(f), 1.0), 1e-6)
+            << to_string(p) << " elevation " << elevation << " thickness " << thickness;
+      }
+  }
+  // The floor beside the corner's wall within a radius R, as in
+  // CornerWithARadiusIsRightAtAnyAspectAndFieldOfView (its closed form per pixel).
+  constexpr float kRadius = 0.25f;
+  Camera cam = raycast::corner_camera(320, 180);
+  cam.view_to_clip = glm::ortho(-1.5f, 1.5f, -0.84375f, 0.84375f, 0.1f, 100.0f);
+  const Frame f = render(raycast::corner_scene(), cam);
+  const std::vector<Pixel> floor = select(f, [](glm::vec3 p, int, int) {
+    return std::abs(p.z) < 1e-3f && p.x > 0.02f && p.x < 0.5f * kRadius && std::abs(p.y) < 0.3f;
+  });
+  ASSERT_GE(floor.size(), 50u);
+  double exact = 0.0;
+  for (const Pixel& px : floor) {
+    const double a = std::min(1.0, double(f.position_world.at<cv::Vec3f>(px.y, px.x)[0]) / kRadius);
+    exact += 1.0 - (std::acos(a) - a * std::sqrt(1.0 - a * a)) / std::numbers::pi;
+  }
+  exact /= double(floor.size());
+  for (Preset p : {Preset::medium, Preset::high}) {
+    AoSettings s = ao_preset(AoMethod::gtao, p);
+    s.radius_world = kRadius;
+    const double ao = mean_at(run(f, s).ao, floor);
+    std::printf("gtao %s orthographic corner, R %.2f: %.4f (exact %.4f)\n", to_string(p).data(), kRadius, ao, exact);
+    EXPECT_NEAR(ao, exact, p == Preset::high ? 0.012 : 0.03) << to_string(p);
   }
 }
 
