@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "kernels/hemisphere_sampling.h"
 #include "kernels/noise.h"
 #include "core/parallel.h"
@@ -533,6 +535,13 @@ Camera open_plane_camera(glm::vec3 normal_world, float elevation_deg, int width_
   // Head-on views need an up vector that is not the normal.
   const glm::vec3 up = elevation_deg > 80.0f ? b : n;
   return look_at(eye, glm::vec3(0.0f), up, width_px, height_px, 60.0f);
+}
+
+Camera with_parallel_rays(Camera camera, float half_width_world) {
+  const float half_height_world = half_width_world * float(camera.height_px) / float(camera.width_px);
+  camera.view_to_clip =
+      glm::ortho(-half_width_world, half_width_world, -half_height_world, half_height_world, 0.1f, 100.0f);
+  return camera;
 }
 
 Scene cornell_scene() {

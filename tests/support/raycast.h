@@ -195,6 +195,9 @@ Scene open_plane(glm::vec3 normal_world);
 // (90 = head-on, a few degrees = grazing).
 Camera open_plane_camera(glm::vec3 normal_world, float elevation_deg, int width_px = 160,
                          int height_px = 90);
+// The same camera through parallel rays: an orthographic view half_width_world to each
+// side of its axis (the height from the frame's aspect), depths 0.1 to 100.
+Camera with_parallel_rays(Camera camera, float half_width_world);
 
 // Cornell-like room as the shared "cornell" dump: x in [-2, 2], y in [0, 4], z in [0, 3];
 // red left wall (x = -2), green right wall, grey floor, back wall and ceiling with a 2x2

@@ -8,8 +8,6 @@
 #include <numbers>
 #include <string>
 
-#include <glm/gtc/matrix_transform.hpp>
-
 #include "tests/unit/kernels/ao_closed_forms.h"
 
 namespace ssdo::ao_test {
@@ -52,26 +50,17 @@ TEST(AoGtao, CornerWithARadiusIsRightAtAnyAspectAndFieldOfView) {
     const Frame f = render(raycast::corner_scene(),
                            raycast::look_at({2.5f, 0.0f, 1.0f}, {0.0f, 0.0f, 0.3f}, glm::vec3(0.0f, 0.0f, 1.0f),
                                             fr.width_px, fr.height_px, fr.fov_x_deg));
-    // Floor pixels from 0.02 to R / 2 from the wall, away from the frame's near and far ends.
-    const std::vector<Pixel> floor = select(f, [](glm::vec3 p, int, int) {
-      return std::abs(p.z) < 1e-3f && p.x > 0.02f && p.x < 0.5f * kRadius && std::abs(p.y) < 0.3f;
-    });
+    const CornerFloor floor = corner_floor(f, kRadius);
     const std::string framing =
         std::to_string(fr.width_px) + "x" + std::to_string(fr.height_px) + " fov " + std::to_string(int(fr.fov_x_deg));
-    ASSERT_GE(floor.size(), 50u) << framing;
-    double exact = 0.0;
-    for (const Pixel& px : floor) {
-      const double a = std::min(1.0, double(f.position_world.at<cv::Vec3f>(px.y, px.x)[0]) / kRadius);
-      exact += 1.0 - (std::acos(a) - a * std::sqrt(1.0 - a * a)) / std::numbers::pi;
-    }
-    exact /= double(floor.size());
+    ASSERT_GE(floor.pixels.size(), 50u) << framing;
     for (Preset p : {Preset::medium, Preset::high}) {
       AoSettings s = ao_preset(AoMethod::gtao, p);
       s.radius_world = kRadius;
-      const double ao = mean_at(run(f, s).ao, floor);
+      const double ao = mean_at(run(f, s).ao, floor.pixels);
       std::printf("gtao %s corner, R %.2f, %s: %.4f (exact %.4f)\n", to_string(p).data(), kRadius, framing.c_str(), ao,
-                  exact);
-      EXPECT_NEAR(ao, exact, p == Preset::high ? 0.012 : 0.03) << to_string(p) << " " << framing;
+                  floor.exact);
+      EXPECT_NEAR(ao, floor.exact, p == Preset::high ? 0.012 : 0.03) << to_string(p) << " " << framing;
     }
   }
 }
@@ -112,12 +101,12 @@ TEST(AoGtao, OpenPlanesAreUnoccludedAtAnyAngle) {
 
 // Through parallel rays (an orthographic camera: the occluder segments run along -z, not
 // along each tap's own view ray): open planes stay open at oblique and grazing views, with
-// and without thickness, and the floor beside the corner's wall is half occluded.
+// either occluder model, and the floor beside the corner's wall within a radius matches its
+// closed form as through a perspective camera.
 TEST(AoGtao, OrthographicCameraKeepsTheClosedForms) {
   const glm::vec3 n_world = glm::normalize(glm::vec3(1, 2, 3));
   for (float elevation : {90.0f, 30.0f, 5.0f}) {
-    Camera cam = raycast::open_plane_camera(n_world, elevation, 96, 54);
-    cam.view_to_clip = glm::ortho(-2.0f, 2.0f, -1.125f, 1.125f, 0.1f, 100.0f);
+    const Camera cam = raycast::with_parallel_rays(raycast::open_plane_camera(n_world, elevation, 96, 54), 2.0f);
     ASSERT_FALSE(cam.is_perspective());
     const Frame f = render(raycast::open_plane(n_world), cam);
     for (Preset p : {Preset::medium, Preset::high})
@@ -129,28 +118,18 @@ TEST(AoGtao, OrthographicCameraKeepsTheClosedForms) {
             << to_string(p) << " elevation " << elevation << " thickness " << thickness;
       }
   }
-  // The floor beside the corner's wall within a radius R, as in
-  // CornerWithARadiusIsRightAtAnyAspectAndFieldOfView (its closed form per pixel).
+  // The floor beside the corner's wall within a radius R, as CornerWithARadiusIsRightAtAnyAspectAndFieldOfView.
   constexpr float kRadius = 0.25f;
-  Camera cam = raycast::corner_camera(320, 180);
-  cam.view_to_clip = glm::ortho(-1.5f, 1.5f, -0.84375f, 0.84375f, 0.1f, 100.0f);
-  const Frame f = render(raycast::corner_scene(), cam);
-  const std::vector<Pixel> floor = select(f, [](glm::vec3 p, int, int) {
-    return std::abs(p.z) < 1e-3f && p.x > 0.02f && p.x < 0.5f * kRadius && std::abs(p.y) < 0.3f;
-  });
-  ASSERT_GE(floor.size(), 50u);
-  double exact = 0.0;
-  for (const Pixel& px : floor) {
-    const double a = std::min(1.0, double(f.position_world.at<cv::Vec3f>(px.y, px.x)[0]) / kRadius);
-    exact += 1.0 - (std::acos(a) - a * std::sqrt(1.0 - a * a)) / std::numbers::pi;
-  }
-  exact /= double(floor.size());
+  const Frame f = render(raycast::corner_scene(), raycast::with_parallel_rays(raycast::corner_camera(320, 180), 1.5f));
+  const CornerFloor floor = corner_floor(f, kRadius);
+  ASSERT_GE(floor.pixels.size(), 50u);
   for (Preset p : {Preset::medium, Preset::high}) {
     AoSettings s = ao_preset(AoMethod::gtao, p);
     s.radius_world = kRadius;
-    const double ao = mean_at(run(f, s).ao, floor);
-    std::printf("gtao %s orthographic corner, R %.2f: %.4f (exact %.4f)\n", to_string(p).data(), kRadius, ao, exact);
-    EXPECT_NEAR(ao, exact, p == Preset::high ? 0.012 : 0.03) << to_string(p);
+    const double ao = mean_at(run(f, s).ao, floor.pixels);
+    std::printf("gtao %s orthographic corner, R %.2f: %.4f (exact %.4f)\n", to_string(p).data(), kRadius, ao,
+                floor.exact);
+    EXPECT_NEAR(ao, floor.exact, p == Preset::high ? 0.012 : 0.03) << to_string(p);
   }
 }
 

@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstring>
 
-#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include "tests/support/raycast.h"
@@ -100,8 +99,7 @@ TEST(AoRaymarch, OpenPlaneIsExactlyOne) {
 TEST(AoRaymarch, OpenPlaneIsExactlyOneThroughAnOrthographicCamera) {
   const glm::vec3 n_world = glm::normalize(glm::vec3(1, 2, 3));
   for (float elevation : {90.0f, 30.0f, 5.0f}) {
-    Camera cam = raycast::open_plane_camera(n_world, elevation, 96, 54);
-    cam.view_to_clip = glm::ortho(-2.0f, 2.0f, -1.125f, 1.125f, 0.1f, 100.0f);
+    const Camera cam = raycast::with_parallel_rays(raycast::open_plane_camera(n_world, elevation, 96, 54), 2.0f);
     ASSERT_FALSE(cam.is_perspective());
     const GBuffer g = raycast::render_gbuffer(raycast::open_plane(n_world), cam, 2);
     ASSERT_GT(cv::countNonZero(g.mask), 96 * 54 / 4) << "elevation " << elevation;

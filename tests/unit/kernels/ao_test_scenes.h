@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numbers>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -89,6 +90,26 @@ inline std::vector<Pixel> corner_line_pixels(const Frame& f) {
   return select(f, [](glm::vec3 p, int, int) {
     return std::abs(p.z) < 1e-3f && p.x > 0.02f && p.x < 0.06f && std::abs(p.y) < 0.6f;
   });
+}
+
+// corner_scene's floor within a radius R of the wall: the pixels from 0.02 to R / 2 from it,
+// away from the frame's near and far ends, and the mean over them of the closed form
+// 1 - (acos(a) - a sqrt(1 - a^2)) / pi, a = d / R at distance d from the wall (raycast.h).
+struct CornerFloor {
+  std::vector<Pixel> pixels;
+  double exact = 0.0;
+};
+inline CornerFloor corner_floor(const Frame& f, float radius_world) {
+  CornerFloor c;
+  c.pixels = select(f, [radius_world](glm::vec3 p, int, int) {
+    return std::abs(p.z) < 1e-3f && p.x > 0.02f && p.x < 0.5f * radius_world && std::abs(p.y) < 0.3f;
+  });
+  for (const Pixel& px : c.pixels) {
+    const double a = std::min(1.0, double(f.position_world.at<cv::Vec3f>(px.y, px.x)[0]) / radius_world);
+    c.exact += 1.0 - (std::acos(a) - a * std::sqrt(1.0 - a * a)) / std::numbers::pi;
+  }
+  if (!c.pixels.empty()) c.exact /= double(c.pixels.size());
+  return c;
 }
 
 // Floor pixels within `r` of the foot point (0, 0, 0) under the sphere.
