@@ -57,7 +57,7 @@
 // gather_texels, step_coordinates), with either the height-field horizons
 // (height_field_step) and their integral (height_field_integral), or the occluder segments
 // (step_intervals), the visibility mask's ordered pass (visibility_mask_step) and its
-// integral (visibility_mask_integral); the slice's bent normal (add_slice_bent_normal); a
+// integral (visibility_mask_integrals); the slice's bent normal (add_slice_bent_normal); a
 // row's sums become AO and bent normal in finish_row.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/ao_gtao.cpp"
