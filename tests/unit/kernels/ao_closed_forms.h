@@ -51,4 +51,19 @@ inline double open_plane_worst(const AoSettings& base) {
   return worst;
 }
 
+// The same through parallel rays (an orthographic camera 4 units wide): one oblique plane
+// head-on, at 30 and at 5 degrees, the radius 0.5 (settings' own otherwise).
+inline double open_plane_worst_parallel_rays(const AoSettings& base) {
+  const glm::vec3 n = glm::normalize(glm::vec3(1, 2, 3));
+  AoSettings s = base;
+  s.radius_world = 0.5f;
+  double worst = 0.0;
+  for (float e : {90.0f, 30.0f, 5.0f}) {
+    const Camera camera = raycast::with_parallel_rays(raycast::open_plane_camera(n, e, 96, 54), 2.0f);
+    const Frame f = render(raycast::open_plane(n), camera);
+    worst = std::max(worst, max_abs_dev(run(f, s).ao, all_pixels(f), 1.0));
+  }
+  return worst;
+}
+
 }  // namespace ssdo::ao_test

@@ -104,20 +104,12 @@ TEST(AoGtao, OpenPlanesAreUnoccludedAtAnyAngle) {
 // either occluder model, and the floor beside the corner's wall within a radius matches its
 // closed form as through a perspective camera.
 TEST(AoGtao, OrthographicCameraKeepsTheClosedForms) {
-  const glm::vec3 n_world = glm::normalize(glm::vec3(1, 2, 3));
-  for (float elevation : {90.0f, 30.0f, 5.0f}) {
-    const Camera cam = raycast::with_parallel_rays(raycast::open_plane_camera(n_world, elevation, 96, 54), 2.0f);
-    ASSERT_FALSE(cam.is_perspective());
-    const Frame f = render(raycast::open_plane(n_world), cam);
-    for (Preset p : {Preset::medium, Preset::high})
-      for (float thickness : {0.0f, std::numeric_limits<float>::infinity()}) {
-        AoSettings s = ao_preset(AoMethod::gtao, p);
-        s.radius_world = 0.5f;
-        s.thickness_world = thickness;
-        EXPECT_LE(max_abs_dev(run(f, s).ao, all_pixels(f), 1.0), 1e-6)
-            << to_string(p) << " elevation " << elevation << " thickness " << thickness;
-      }
-  }
+  for (Preset p : {Preset::medium, Preset::high})
+    for (float thickness : {0.0f, std::numeric_limits<float>::infinity()}) {
+      AoSettings s = ao_preset(AoMethod::gtao, p);
+      s.thickness_world = thickness;
+      EXPECT_LE(open_plane_worst_parallel_rays(s), 1e-6) << to_string(p) << " thickness " << thickness;
+    }
   // The floor beside the corner's wall within a radius R, as CornerWithARadiusIsRightAtAnyAspectAndFieldOfView.
   constexpr float kRadius = 0.25f;
   const Frame f = render(raycast::corner_scene(), raycast::with_parallel_rays(raycast::corner_camera(320, 180), 1.5f));

@@ -31,5 +31,11 @@ TEST(AoHbao, OpenPlanesAreUnoccludedAtAnyAngle) {
     EXPECT_LE(open_plane_worst(ao_preset(AoMethod::hbao, p)), 1e-6) << to_string(p);
 }
 
+// Through parallel rays (an orthographic camera) too, head-on to grazing.
+TEST(AoHbao, OpenPlanesAreUnoccludedThroughAnOrthographicCamera) {
+  for (Preset p : {Preset::medium, Preset::high})
+    EXPECT_LE(open_plane_worst_parallel_rays(ao_preset(AoMethod::hbao, p)), 1e-6) << to_string(p);
+}
+
 }  // namespace
 }  // namespace ssdo::ao_test
