@@ -1,6 +1,7 @@
-// Records of four or two consecutive 4-byte fields (a texel's) read into lanes, one 16- or
-// 8-byte load per lane instead of a gather instruction per field, for the kernels' lane
-// loops (Highway).
+// Records of four or two consecutive 4-byte fields (a texel's) read into lanes for the
+// kernels' lane loops (Highway), instead of a gather instruction per field: four fields at
+// any float offset with a 16-byte load per lane; two fields of 8-byte records with one
+// 64-bit gather per record.
 //
 // Included once per instruction set (by the kernels' foreach_target files, after
 // hwy/highway.h), into that target's namespace, as kernels/integer_power.h.
@@ -66,39 +67,31 @@ HWY_INLINE void load_records4(D d, const float* base, const int32_t* offset, hwy
 }
 
 // field[0] lane l = the first 4-byte field of the 8-byte record index[l] of `records`,
-// field[1] its second, for the lanes of one vector of d: one 8-byte load per lane into a
-// vector of 64-bit lanes (half of d's lanes per vector), then each record's two halves
-// moved into their fields' lanes (ConcatEven, ConcatOdd: a record's first field is the low
-// half of its 64-bit lane, the targets being little-endian). A loaded 8-byte lane plus a
-// select per record, as load_records4's 16-byte ones.
+// field[1] its second, for the lanes of one vector of d: the records gathered as 64-bit
+// lanes (half of d's lanes per vector, two gathers), then each record's two halves moved
+// into their fields' lanes (ConcatEven, ConcatOdd: a record's first field is the low half
+// of its 64-bit lane, the targets being little-endian). index[l] >= 0.
 template <class D>
 HWY_INLINE void load_records2(D d, const void* records, const int32_t* index, hwy::HWY_NAMESPACE::Vec<D>* field) {
   namespace hn = hwy::HWY_NAMESPACE;
   const hn::RebindToUnsigned<D> du;
-  const auto* bytes = static_cast<const uint8_t*>(records);
-  auto record = [&](size_t l) {
-    uint64_t r;
-    std::memcpy(&r, bytes + size_t(index[l]) * sizeof(uint64_t), sizeof(r));
-    return r;
-  };
 #if HWY_TARGET != HWY_SCALAR
   if constexpr (hn::MaxLanes(d) > 1) {
     const hn::Repartition<uint64_t, D> d64;
+    const hn::RebindToSigned<decltype(d64)> di64;
+    const hn::Rebind<int32_t, decltype(d64)> d32;
     const size_t half = hn::Lanes(d64);
-    const auto lane = hn::Iota(d64, 0);
-    auto lo = hn::Set(d64, record(0)), hi = hn::Set(d64, record(half));
-    for (size_t l = 1; l < half; ++l) {
-      const auto at = hn::Eq(lane, hn::Set(d64, uint64_t(l)));
-      lo = hn::IfThenElse(at, hn::Set(d64, record(l)), lo);
-      hi = hn::IfThenElse(at, hn::Set(d64, record(half + l)), hi);
-    }
+    const auto* words = static_cast<const uint64_t*>(records);
+    const auto lo = hn::GatherIndex(d64, words, hn::PromoteTo(di64, hn::LoadU(d32, index)));
+    const auto hi = hn::GatherIndex(d64, words, hn::PromoteTo(di64, hn::LoadU(d32, index + half)));
     field[0] = hn::BitCast(d, hn::ConcatEven(du, hn::BitCast(du, hi), hn::BitCast(du, lo)));
     field[1] = hn::BitCast(d, hn::ConcatOdd(du, hn::BitCast(du, hi), hn::BitCast(du, lo)));
     return;
   }
 #endif
   // One lane.
-  const uint64_t r = record(0);
+  uint64_t r;
+  std::memcpy(&r, static_cast<const uint8_t*>(records) + size_t(index[0]) * sizeof(r), sizeof(r));
   field[0] = hn::BitCast(d, hn::Set(du, uint32_t(r)));
   field[1] = hn::BitCast(d, hn::Set(du, uint32_t(r >> 32)));
 }
