@@ -14,6 +14,7 @@
 #include <limits>
 #include <numbers>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "kernels/hemisphere_sampling.h"
@@ -588,26 +589,26 @@ struct LocateQueue {
   }
 };
 
-// Queues the brackets [lo, hi] of the lanes `locate` (directions s0 + l of the batch),
-// their record entries record_batch + s0 + l.
+// Queues the brackets [lo, hi] of the lanes `locate` along their rays (batch_rays of the
+// directions s0 + l), their record entries record_batch + s0 + l.
 template <class D, class V = hn::Vec<D>, class M = hn::Mask<D>>
 HWY_INLINE void queue_locate(D d, const Receiver& rcv, const RayFrame& f, const SampleBatch& b, size_t s0, M locate,
                              V lo, V hi, int32_t* record_batch, LocateQueue& q) {
   const hn::RebindToSigned<D> di;
+  const RayLanes<V> ray = batch_rays(d, rcv, f, b, s0);
+  const int k = q.count;
+  size_t n = 0;
+  for (const auto& [v, to] : {std::pair{ray.clip_x, q.clip_x}, std::pair{ray.clip_y, q.clip_y},
+                              std::pair{ray.clip_w, q.clip_w}, std::pair{ray.p_z, q.p_z}, std::pair{ray.dir_x, q.dir_x},
+                              std::pair{ray.dir_y, q.dir_y}, std::pair{ray.dir_w, q.dir_w},
+                              std::pair{ray.dir_z, q.dir_z}, std::pair{lo, q.lo}, std::pair{hi, q.hi}})
+    n = hn::CompressBlendedStore(v, locate, d, to + k);
   alignas(64) int32_t locate_lanes[hn::MaxLanes(di)];
-  alignas(64) float lo_lanes[hn::MaxLanes(d)], hi_lanes[hn::MaxLanes(d)];
   hn::Store(hn::VecFromMask(di, hn::RebindMask(di, locate)), di, locate_lanes);
-  hn::Store(lo, d, lo_lanes);
-  hn::Store(hi, d, hi_lanes);
-  for (size_t l = 0; l < hn::Lanes(d); ++l) {
-    if (!locate_lanes[l]) continue;
-    const size_t s = s0 + l;
-    const int k = q.count++;
-    q.clip_x[k] = f.clip_p.x, q.clip_y[k] = f.clip_p.y, q.clip_w[k] = f.clip_p.w, q.p_z[k] = rcv.p.z;
-    q.dir_x[k] = b.cwx[s], q.dir_y[k] = b.cwy[s], q.dir_w[k] = b.cww[s], q.dir_z[k] = b.wz[s];
-    q.lo[k] = lo_lanes[l], q.hi[k] = hi_lanes[l];
-    q.slot[k] = record_batch + s;
-  }
+  int slot = k;
+  for (size_t l = 0; l < hn::Lanes(d); ++l)
+    if (locate_lanes[l]) q.slot[slot++] = record_batch + s0 + l;
+  q.count = k + int(n);
 }
 
 // The march of each direction s of the batch, one direction per lane: the first point
