@@ -50,15 +50,16 @@
 // summed over slices and normalised.
 //
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
-// becomes packed texels (build_texels); tiles of pixels are shaded row by row, each row
-// planned first across its pixels (plan_row: tap patterns, tap indices, points and slice
-// bases); then groups of kLanes pixels, one per vector lane (shade_group), slice by slice
-// (shade_slice), each slice's taps a step at a time for every lane (step_taps,
-// gather_texels, step_coordinates), with either the height-field horizons
-// (height_field_step) and their integral (height_field_integral), or the occluder segments
-// (step_intervals), the visibility mask's ordered pass (visibility_mask_step) and its
-// integral (visibility_mask_integrals); the slice's bent normal (add_slice_bent_normal); a
-// row's sums become AO and bent normal in finish_row.
+// becomes packed texels and their coarser levels for the far taps (build_texels,
+// build_coarse_levels); tiles of pixels are shaded row by row, each row planned first
+// across its pixels (plan_row: tap patterns, tap indices, points and slice bases); then
+// groups of kLanes pixels, one per vector lane (shade_group), slice by slice (shade_slice),
+// each slice's taps a step at a time for every lane (step_taps, gather_texels,
+// step_coordinates), with either the height-field horizons (height_field_step) and their
+// integral (height_field_integral), or the occluder segments (step_intervals), the
+// visibility mask's ordered pass (visibility_mask_step) and its integral
+// (visibility_mask_integrals); the slice's bent normal (add_slice_bent_normal); a row's sums
+// become AO and bent normal in finish_row.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/ao_gtao.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
@@ -188,11 +189,114 @@ struct TexelPlane {
   float nx, ny, nz, plane_c;  // unit normal and its tangent plane dot(n, x) = plane_c
 };
 
-void build_texels(const AoInputs& in, UninitializedVector<Texel>& texels, UninitializedVector<TexelPlane>& planes,
-                  int nthreads) {
+// Coarser levels of the texels the far taps read (XeGTAO's depth MIP chain): level L holds
+// one texel of each block of 2^L x 2^L texels, so that a tile's far taps read a footprint
+// 4^L times smaller. A level's texel is a point sample, its block's centre texel: an average
+// of a depth edge's two sides would be a point on neither surface, and the block's nearest
+// texel would widen every near object by up to a block (occlusion that is not there). A
+// tap reads level L from 2^L kFineTapsPx texels away, its texel then within 1/8 of its
+// distance from where the pattern put it, and only where its pattern's steps are at least
+// two blocks apart (level_cap), so that consecutive taps keep their order.
+constexpr int kCoarseLevels = 4;
+constexpr int kFineTapsPx = 8;
+
+// The grid the taps land on, its levels, and the pattern's counts.
+struct TapGrid {
+  int width, height;
+  int slices, steps;
+  // The blocks are aligned to the picture's pixel (0, 0), at `origin` in the grid (a guard
+  // band round the picture leaves the picture's blocks as they are): grid texel (x, y) is
+  // in block ((x - origin.x) >> L, (y - origin.y) >> L) of level L. Level L's blocks from
+  // block_x0[L], block_y0[L] (those of texel (0, 0)), level_width[L] x level_height[L] of
+  // them, are stored from index level_base[L] of the texel arrays (level 0's from 0: texel
+  // (x, y) at y width + x).
+  cv::Point origin;
+  int block_x0[kCoarseLevels + 1], block_y0[kCoarseLevels + 1];
+  int level_width[kCoarseLevels + 1], level_height[kCoarseLevels + 1], level_base[kCoarseLevels + 1];
+  int64_t texels;  // all levels' (indices are 32-bit: ao_gtao checks that they fit)
+
+  TapGrid(int width_px, int height_px, cv::Point origin_px, int slice_count, int step_count)
+      : width(width_px), height(height_px), slices(slice_count), steps(step_count), origin(origin_px) {
+    int64_t base = 0;
+    for (int level = 0; level <= kCoarseLevels; ++level) {
+      block_x0[level] = -origin.x >> level;
+      block_y0[level] = -origin.y >> level;
+      level_width[level] = ((width - 1 - origin.x) >> level) - block_x0[level] + 1;
+      level_height[level] = ((height - 1 - origin.y) >> level) - block_y0[level] + 1;
+      level_base[level] = int(std::min<int64_t>(base, INT32_MAX));
+      base += int64_t(level_width[level]) * int64_t(level_height[level]);
+    }
+    texels = base;
+  }
+};
+
+// The coarsest level a pixel's taps read, their steps spacing_px apart: the largest L <=
+// kCoarseLevels with spacing_px >= 2^(L + 1) (a block at most half the spacing, so that
+// consecutive taps keep their order), by compares (so that a loop over lanes vectorises).
+inline int32_t level_cap(float spacing_px) {
+  int32_t level = 0;
+  for (int l = 1; l <= kCoarseLevels; ++l) level += spacing_px >= float(2 << l);
+  return level;
+}
+
+// The level a tap at dist_px from its pixel reads: the largest L <= cap with dist_px >=
+// 2^L kFineTapsPx.
+inline int tap_level(float dist_px, int32_t cap) {
+  int level = 0;
+  for (int l = 1; l <= kCoarseLevels; ++l) level += dist_px >= float(kFineTapsPx << l);
+  return std::min(level, cap);
+}
+
+// A tap's texel index in its level, by selects on values held in registers (so that a loop
+// over lanes vectorises: selects between the grid's fields in memory keep GCC from it).
+struct LevelSelect {
+  cv::Point origin;
+  int offset[kCoarseLevels + 1], width[kCoarseLevels + 1];  // index = offset + by width + bx
+
+  explicit LevelSelect(const TapGrid& g) : origin(g.origin) {
+    for (int l = 0; l <= kCoarseLevels; ++l) {
+      width[l] = g.level_width[l];
+      offset[l] = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
+    }
+  }
+  // The index of the texel of level `level` holding grid texel (x, y).
+  int32_t index(int level, int x, int y) const {
+    int o = offset[0], w = width[0];
+    for (int l = 1; l <= kCoarseLevels; ++l) {
+      o = level == l ? offset[l] : o;
+      w = level == l ? width[l] : w;
+    }
+    return o + ((y - origin.y) >> level) * w + ((x - origin.x) >> level);
+  }
+};
+
+// Each array's texels of levels 1 .. kCoarseLevels (from level_base[1]) from its level 0:
+// block (bx, by) of level L holds its centre texel (right of and below the centre; clamped
+// to the grid). One parallel loop over all the levels' rows: each reads level 0 only.
+template <class... Record>
+void build_coarse_levels(const TapGrid& g, int nthreads, Record*... records) {
+  int rows = 0;
+  for (int level = 1; level <= kCoarseLevels; ++level) rows += g.level_height[level];
+  parallel_rows(cv::Range(0, rows), nthreads, [&](const cv::Range& r) {
+    for (int row = r.start; row < r.end; ++row) {
+      int level = 1, j = row;
+      while (j >= g.level_height[level]) j -= g.level_height[level++];
+      const int w = g.level_width[level], half = 1 << (level - 1);
+      const int y = std::clamp(((g.block_y0[level] + j) << level) + half + g.origin.y, 0, g.height - 1);
+      const size_t out = size_t(g.level_base[level]) + size_t(j) * size_t(w), in = size_t(y) * size_t(g.width);
+      for (int i = 0; i < w; ++i) {
+        const int x = std::clamp(((g.block_x0[level] + i) << level) + half + g.origin.x, 0, g.width - 1);
+        ((records[out + size_t(i)] = records[in + size_t(x)]), ...);
+      }
+    }
+  });
+}
+
+void build_texels(const AoInputs& in, const TapGrid& g, UninitializedVector<Texel>& texels,
+                  UninitializedVector<TexelPlane>& planes, int nthreads) {
   const int width = in.depth_view.cols;
-  // Before the parallel loop, which writes every element (not zeroed first).
-  texels.resize(size_t(width) * size_t(in.depth_view.rows));
+  // Before the parallel loops, which write every element (not zeroed first).
+  texels.resize(size_t(g.texels));
   planes.resize(texels.size());
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
@@ -210,6 +314,7 @@ void build_texels(const AoInputs& in, UninitializedVector<Texel>& texels, Uninit
       }
     }
   });
+  build_coarse_levels(g, nthreads, texels.data(), planes.data());
 }
 
 // Normals within acos(0.95) = 18 deg of each other: the same plane up to the curvature
@@ -256,20 +361,15 @@ constexpr int kKeptSlices = 3;
 constexpr int32_t kOffScreen = -1;
 constexpr int32_t kNoTap = -2;
 
-// The grid the taps land on and the pattern's counts.
-struct TapGrid {
-  int width, height;
-  int slices, steps;
-};
-
 // Each texel's occluder segment length from the second depth layer (AoInputs::
 // depth_back_view), once per texel rather than per tap: back - front in planar depth, as a
 // length along its view ray, i.e. divided by |r.z| (= depth / |tap| in perspective, 1
 // orthographic). Background texels are never read.
-void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const UninitializedVector<Texel>& texels,
-                           bool perspective, UninitializedVector<float>& thickness, int nthreads) {
+void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const TapGrid& g,
+                           const UninitializedVector<Texel>& texels, bool perspective,
+                           UninitializedVector<float>& thickness, int nthreads) {
   const int width = in.depth_view.cols;
-  thickness.resize(texels.size());  // before the parallel loop, which writes every element
+  thickness.resize(texels.size());  // before the parallel loops, which write every element
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const float* back_row = back.ptr<float>(y);
@@ -282,6 +382,7 @@ void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const Uninit
       }
     }
   });
+  build_coarse_levels(g, nthreads, thickness.data());
 }
 
 // The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
@@ -321,7 +422,7 @@ struct Constants {
         r2(s.radius_world * s.radius_world),
         falloff(s.radius_world, s.falloff_fraction),
         screen_to_view(in.camera),
-        grid{in.depth_view.cols, in.depth_view.rows, s.directions, s.steps},
+        grid{in.depth_view.cols, in.depth_view.rows, in.frame_origin_px, s.directions, s.steps},
         keep_indices(s.directions * s.steps <= kKeptSteps),
         keep_bases(slices <= kKeptSlices),
         sectors(&sector_tables()),
@@ -359,6 +460,7 @@ enum : uint8_t { kBackground, kNoTaps, kShaded };
 struct TileRow {
   alignas(64) int32_t has_taps[kTileWidthPx];
   alignas(64) float radius_px[kTileWidthPx];  // the projected radius
+  alignas(64) int32_t level_cap[kTileWidthPx];  // the coarsest level its taps read
   alignas(64) float step_noise[kTileWidthPx];
   alignas(64) float rot_c[kTileWidthPx], rot_s[kTileWidthPx];  // the rotation of the slices
   alignas(64) uint8_t state[kTileWidthPx];
@@ -390,6 +492,7 @@ inline void pixel_taps(const Constants& k, const AoInputs& in, int x0, int n, in
     sincos_turns(slice_noise / float(2 * k.slices), rot_c, rot_s);
     row.has_taps[xi] = has_taps;
     row.radius_px[xi] = foreground ? radius_px : 0.0f;
+    row.level_cap[xi] = level_cap((radius_px - kMinTapDistancePx) / float(k.steps));
     row.step_noise[xi] = has_taps ? step_noise : 0.0f;
     row.rot_c[xi] = has_taps ? rot_c : 1.0f;
     row.rot_s[xi] = has_taps ? rot_s : 0.0f;
@@ -407,12 +510,15 @@ inline void pixel_taps(const Constants& k, const AoInputs& in, int x0, int n, in
 
 // Texel indices of the taps of step j of slice i, both sides, of the row's pixels xi0 ..
 // xi0 + kLanes - 1 (x = x0 + xi), in lanes: pos[l] and neg[l] for pixel xi0 + l. dir_x,
-// dir_y: the pixels' screen directions of the slice, by lane.
+// dir_y: the pixels' screen directions of the slice, by lane. `coarse`: some pixel's taps may
+// read a coarse level (else every tap reads level 0, without the level's selects).
+template <bool coarse>
 inline void step_indices(const Constants& k, const TileRow& row, const float* dir_x, const float* dir_y, int x0,
                          int y, int xi0, int i, int j, int32_t* __restrict pos, int32_t* __restrict neg) {
   const TapGrid& g = k.grid;
   // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
   const float step_shift = float(i + j * g.slices) * 0.618033988749895f;
+  const LevelSelect levels(g);
   for (int l = 0; l < kLanes; ++l) {
     const int xi = xi0 + l;
     float t = row.step_noise[xi] + step_shift;
@@ -431,9 +537,24 @@ inline void step_indices(const Constants& k, const TileRow& row, const float* di
     const int px = x + ox, py = y + oy, nx = x - ox, ny = y - oy;
     const bool pos_on = (px >= 0) & (py >= 0) & (px < g.width) & (py < g.height);
     const bool neg_on = (nx >= 0) & (ny >= 0) & (nx < g.width) & (ny < g.height);
-    pos[l] = !tap ? kNoTap : pos_on ? py * g.width + px : kOffScreen;
-    neg[l] = !tap ? kNoTap : neg_on ? ny * g.width + nx : kOffScreen;
+    const int level = coarse ? tap_level(dist_px, row.level_cap[xi]) : 0;
+    const int32_t pos_index = coarse ? levels.index(level, px, py) : py * g.width + px;
+    const int32_t neg_index = coarse ? levels.index(level, nx, ny) : ny * g.width + nx;
+    pos[l] = !tap ? kNoTap : pos_on ? pos_index : kOffScreen;
+    neg[l] = !tap ? kNoTap : neg_on ? neg_index : kOffScreen;
   }
+}
+
+// step_indices of the group of lanes at xi0, with the level selects only where some pixel
+// of the group has a coarse level to read.
+inline void group_step_indices(const Constants& k, const TileRow& row, const float* dir_x, const float* dir_y, int x0,
+                               int y, int xi0, int i, int j, int32_t* __restrict pos, int32_t* __restrict neg) {
+  int32_t cap = 0;
+  for (int l = 0; l < kLanes; ++l) cap |= row.level_cap[xi0 + l];
+  if (cap != 0)
+    step_indices<true>(k, row, dir_x, dir_y, x0, y, xi0, i, j, pos, neg);
+  else
+    step_indices<false>(k, row, dir_x, dir_y, x0, y, xi0, i, j, pos, neg);
 }
 
 // A pixel's point (GTAO Alg. 1 lines 1-4): its biased origin, normal and view vector.
@@ -933,7 +1054,7 @@ struct GroupSums {
                                              const SliceLanes& s, int x0, int y, int xi0, int row_lanes, int i,
                                              int j, StepLanes t[2]) {
   if (!k.keep_indices) {
-    step_indices(k, row, s.screen_x, s.screen_y, x0, y, xi0, i, j, t[0].index, t[1].index);
+    group_step_indices(k, row, s.screen_x, s.screen_y, x0, y, xi0, i, j, t[0].index, t[1].index);
     return;
   }
   const int ij = i * k.steps + j;
@@ -1070,6 +1191,7 @@ void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow
   for (int xi = n; xi < row_lanes; ++xi) {
     row.has_taps[xi] = 0;
     row.radius_px[xi] = row.step_noise[xi] = row.rot_s[xi] = 0.0f;
+    row.level_cap[xi] = 0;
     row.rot_c[xi] = 1.0f;
     row.state[xi] = kBackground;
   }
@@ -1082,8 +1204,8 @@ void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow
       }
       for (int j = 0; j < k.steps; ++j)
         for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes)
-          step_indices(k, row, screen_x + xi0, screen_y + xi0, x0, y, xi0, i, j, row.index[i * k.steps + j][0] + xi0,
-                       row.index[i * k.steps + j][1] + xi0);
+          group_step_indices(k, row, screen_x + xi0, screen_y + xi0, x0, y, xi0, i, j,
+                             row.index[i * k.steps + j][0] + xi0, row.index[i * k.steps + j][1] + xi0);
     }
   }
   for (int xi = 0; xi < n; ++xi) bases.set_point(size_t(xi), pixel_point(k, f, x0 + xi, y));
@@ -1111,10 +1233,11 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
              int nthreads) {
   const Constants k(in, s);
   // Texel indices are 32-bit, and so are the texels' float offsets (gather_texels).
-  CV_Assert(int64_t(k.grid.width) * int64_t(k.grid.height) <= int64_t(INT32_MAX / 4));
+  CV_Assert(k.grid.texels <= int64_t(INT32_MAX / 4));
   Frame f{in, {}, {}, {}};
-  build_texels(in, f.texels, f.planes, nthreads);
-  if (const cv::Mat* back = back_layer(in, k)) build_texel_thickness(in, *back, f.texels, k.perspective, f.thickness, nthreads);
+  build_texels(in, k.grid, f.texels, f.planes, nthreads);
+  if (const cv::Mat* back = back_layer(in, k))
+    build_texel_thickness(in, *back, k.grid, f.texels, k.perspective, f.thickness, nthreads);
   // Tiles of kTileWidthPx x kTileHeightPx pixels: a pixel's taps land anywhere within its
   // radius, so the texels a tile reads are its footprint grown by the radius, which stays
   // in cache while the tile runs; row by row, the band of rows within the radius of a
