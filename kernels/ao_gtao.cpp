@@ -843,8 +843,9 @@ struct SideLanes {
 // Which lanes' taps continue their side's last tap (the connection rule): the depths
 // within the thickness; from the tangent plane, the two points within the thickness in 3D
 // (a wall standing on the floor, never the gap under a floating object); or the two taps on
-// one plane. Each of the last two tests runs only when some lane needs it.
-inline void connections(const Constants& k, const Frame& f, const StepLanes& __restrict t,
+// one plane. Each of the last two tests runs only when some lane needs it. Returns whether
+// some lane has an interval.
+inline bool connections(const Constants& k, const Frame& f, const StepLanes& __restrict t,
                         const SideLanes& __restrict st, int32_t* __restrict interval, int32_t* __restrict connect) {
   namespace hn = hwy::HWY_NAMESPACE;
   const float thickness = k.thickness_world;
@@ -854,7 +855,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& __r
   const hn::CappedTag<float, kLanes> d;
   const hn::RebindToSigned<decltype(d)> di;
   const auto one = hn::Set(di, 1), zero = hn::Zero(di);
-  bool any_near = false, any_plane = false;
+  bool any_interval = false, any_near = false, any_plane = false;
   for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
     const auto has = hn::AndNot(hn::RebindMask(di, hn::Gt(hn::Load(d, t.u0 + l), hn::Load(d, t.u1 + l))),
                                 hn::Ne(hn::Load(di, t.occluder + l), zero));
@@ -870,6 +871,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& __r
     hn::Store(hn::IfThenElseZero(hn::And(above_last, by_depth), one), di, connect + l);
     hn::Store(hn::IfThenElseZero(near_lanes, one), di, near + l);
     hn::Store(hn::IfThenElseZero(plane_lanes, one), di, plane + l);
+    any_interval |= !hn::AllFalse(di, has);
     any_near |= !hn::AllFalse(di, near_lanes);
     any_plane |= !hn::AllFalse(di, plane_lanes);
   }
@@ -897,6 +899,7 @@ inline void connections(const Constants& k, const Frame& f, const StepLanes& __r
       connect[l] |= plane[l] & coplanar(a, b, tx, thickness);
     }
   }
+  return any_interval;
 }
 
 // The ordered pass's update of a side from its step, per lane: the occluded range
@@ -957,13 +960,22 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
 // One step of side `side` of the visibility mask (Therrien et al. 2023; finite
 // thickness_world) of each lane: the sectors the tap's segment occludes, with the side's
 // last tap's when they connect, into `occupied`; the side's last tap and its horizon (the
-// taps within the radius) updated.
+// taps within the radius) updated. `occluders`: some lane's tap is one (step_coordinates);
+// without one (half of a frame's steps, on open surfaces) or without an interval, only the
+// side's last tap changes.
 [[gnu::noinline]] void visibility_mask_step(const Constants& k, const Frame& f, const StepLanes& __restrict t, int side,
-                                            SideLanes& __restrict st, uint64_t* __restrict occupied) {
+                                            bool occluders, SideLanes& __restrict st, uint64_t* __restrict occupied) {
   alignas(64) int32_t interval[kLanes], connect[kLanes];
-  connections(k, f, t, st, interval, connect);
+  bool intervals = false;
+  if (occluders) {
+    intervals = connections(k, f, t, st, interval, connect);
+  } else {
+    std::fill_n(interval, kLanes, 0);
+    std::fill_n(connect, kLanes, 0);
+  }
   alignas(64) float h0[kLanes], h1[kLanes];
   update_side(k, t, side, interval, connect, st, h0, h1);
+  if (!intervals) return;  // h0 > h1 in every lane: no sector
   alignas(64) int32_t k0[kLanes], count[kLanes];
   for (int l = 0; l < kLanes; ++l) sector_range(h0[l], h1[l], k0[l], count[l]);
   add_sector_runs(k0, count, occupied, kLanes);
@@ -1104,7 +1116,7 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
         std::fill_n(t[sd].u0, kLanes, 1.0f);  // no occluder: no interval
         std::fill_n(t[sd].u1, kLanes, 0.0f);
       }
-      visibility_mask_step(k, f, t[sd], sd, side[sd], occupied);
+      visibility_mask_step(k, f, t[sd], sd, occluders, side[sd], occupied);
     }
   }
   alignas(64) float visible[kLanes], horizon_cos[2][kLanes];
