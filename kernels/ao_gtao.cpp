@@ -177,13 +177,15 @@ const SectorTables& sector_tables() {
   return tables;
 }
 
-// What a tap reads from the pixel it lands in, in two planes: the view-space position and
-// the planar depth (negative on masked pixels: no occluder there) in 16 bytes (one load,
-// four texels per cache line), read by every tap; the normal and its tangent plane, read
-// only by the connection rule's coplanar test. Taps land anywhere within the radius, so
-// the bytes per tap set how much of the frame stays in cache.
+// What a tap reads from the pixel it lands in, in two planes: the view-space position
+// (planar depth -z) and the inverse of its distance from the eye (1 through an orthographic
+// camera; negative on masked pixels: no occluder there; the direction of its occluder
+// segment, once per texel rather than a square root and a division per tap) in 16 bytes
+// (one load, four texels per cache line), read by every tap; the normal and its tangent
+// plane, read only by the connection rule's coplanar test. Taps land anywhere within the
+// radius, so the bytes per tap set how much of the frame stays in cache.
 struct Texel {
-  float x, y, z, depth_view;
+  float x, y, z, inv_distance;
 };
 struct TexelPlane {
   float nx, ny, nz, plane_c;  // unit normal and its tangent plane dot(n, x) = plane_c
@@ -295,13 +297,13 @@ void build_coarse_levels(const TapGrid& g, int nthreads, Record*... records) {
 void build_texels(const AoInputs& in, const TapGrid& g, UninitializedVector<Texel>& texels,
                   UninitializedVector<TexelPlane>& planes, int nthreads) {
   const int width = in.depth_view.cols;
+  const bool perspective = in.camera.is_perspective();
   // Before the parallel loops, which write every element (not zeroed first).
   texels.resize(size_t(g.texels));
   planes.resize(texels.size());
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
-      const float* depth_row = in.depth_view.ptr<float>(y);
       const cv::Vec3f* pos_row = in.position_view.ptr<cv::Vec3f>(y);
       const cv::Vec3f* nor_row = in.normal_view.ptr<cv::Vec3f>(y);
       Texel* out = texels.data() + size_t(y) * size_t(width);
@@ -309,7 +311,8 @@ void build_texels(const AoInputs& in, const TapGrid& g, UninitializedVector<Texe
       for (int x = 0; x < width; ++x) {
         const cv::Vec3f& p = pos_row[x];
         const cv::Vec3f& n = nor_row[x];
-        out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], depth_row[x]} : Texel{0.0f, 0.0f, 0.0f, -1.0f};
+        const float inv_distance = perspective ? 1.0f / std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) : 1.0f;
+        out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], inv_distance} : Texel{0.0f, 0.0f, 0.0f, -1.0f};
         out_plane[x] = mask_row[x] ? TexelPlane{n[0], n[1], n[2], n.dot(p)} : TexelPlane{0.0f, 0.0f, 0.0f, 0.0f};
       }
     }
@@ -373,12 +376,14 @@ void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const TapGri
   parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const float* back_row = back.ptr<float>(y);
+      const float* depth_row = in.depth_view.ptr<float>(y);
       for (int x = 0; x < width; ++x) {
         const size_t index = size_t(y) * size_t(width) + size_t(x);
         const Texel& tx = texels[index];
-        const float planar = back_row[x] > tx.depth_view ? back_row[x] - tx.depth_view : 0.0f;
+        const float depth = depth_row[x];
+        const float planar = back_row[x] > depth ? back_row[x] - depth : 0.0f;
         const float tap_length = std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z);
-        thickness[index] = perspective ? planar * tap_length / tx.depth_view : planar;
+        thickness[index] = perspective ? planar * tap_length / depth : planar;
       }
     }
   });
@@ -698,7 +703,7 @@ struct SliceLanes {
 // back), and the occluded interval [u0, u1] of its segment in the mask (u0 > u1: none).
 struct StepLanes {
   alignas(64) int32_t index[kLanes];
-  alignas(64) float x[kLanes], y[kLanes], z[kLanes], depth_view[kLanes];
+  alignas(64) float x[kLanes], y[kLanes], z[kLanes], inv_distance[kLanes];
   alignas(64) float dv[kLanes], dd[kLanes], da[kLanes];
   alignas(64) float height[kLanes], dist_slice2[kLanes], dist2[kLanes], tap_cos_sq[kLanes];
   alignas(64) float u0[kLanes], u1[kLanes];
@@ -729,7 +734,7 @@ inline void gather_records(const Record* records, const int32_t* index, float* c
 
 // The taps' texels in lanes.
 inline void gather_texels(const Texel* texels, StepLanes& t) {
-  float* const field[4] = {t.x, t.y, t.z, t.depth_view};
+  float* const field[4] = {t.x, t.y, t.z, t.inv_distance};
   gather_records(texels, t.index, field);
 }
 
@@ -740,7 +745,7 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
   int occluders = 0;
   for (int l = 0; l < kLanes; ++l) {
     const int32_t index = t.index[l];
-    const Texel tx{t.x[l], t.y[l], t.z[l], t.depth_view[l]};
+    const Texel tx{t.x[l], t.y[l], t.z[l], t.inv_distance[l]};
     const float ex = tx.x - s.ox[l], ey = tx.y - s.oy[l], ez = tx.z - s.oz[l];
     const float height = ex * s.nx[l] + ey * s.ny[l] + ez * s.nz[l];
     // The tap in the slice's orthonormal frame (view, direction, axis): the slice plane
@@ -758,7 +763,7 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
     t.dist2[l] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
     t.tap_cos_sq[l] = dv * std::abs(dv) / dist_slice2;
-    t.occluder[l] = (index >= 0) & (tx.depth_view >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f);
+    t.occluder[l] = (index >= 0) & (tx.inv_distance >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f);
     occluders |= t.occluder[l];
   }
   return occluders != 0;
@@ -777,16 +782,15 @@ template <bool perspective, bool per_texel_thickness>
     const float dv = t.dv[l], dd = t.dd[l], da = t.da[l], dist2 = t.dist2[l];
     const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
     // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
-    // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too
-    // (the tap's frame coordinates are the origin's plus delta's).
-    const float pv = s.origin_v[l] + dv, pd = s.origin_d[l] + dd, pa = s.origin_a[l] + da;
-    const float inv_len = 1.0f / std::sqrt(pv * pv + pd * pd + pa * pa);
+    // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too:
+    // the tap's frame coordinates (the origin's plus delta's) over its distance.
     // The orthographic view ray in the slice frame.
     float rv = -s.vz[l], rd = -s.dz[l], ra = -s.az[l];
     if constexpr (perspective) {
-      rv = pv * inv_len;
-      rd = pd * inv_len;
-      ra = pa * inv_len;
+      const float inv_distance = t.inv_distance[l];
+      rv = (s.origin_v[l] + dv) * inv_distance;
+      rd = (s.origin_d[l] + dd) * inv_distance;
+      ra = (s.origin_a[l] + da) * inv_distance;
     }
     const float b = dv * rv + dd * rd + da * ra;
     const float c = dist2 - r2;
@@ -863,7 +867,7 @@ inline bool connections(const Constants& k, const Frame& f, const StepLanes& __r
     const auto has_last = hn::And(has, hn::RebindMask(di, hn::Ge(st_depth, hn::Zero(d))));
     const auto below = hn::Ne(hn::Load(di, st.below + l), zero);
     const auto by_depth = hn::RebindMask(
-        di, hn::Le(hn::Abs(hn::Sub(hn::Load(d, t.depth_view + l), st_depth)), hn::Set(d, thickness)));
+        di, hn::Le(hn::Abs(hn::Sub(hn::Neg(hn::Load(d, t.z + l)), st_depth)), hn::Set(d, thickness)));
     const auto above_last = hn::AndNot(below, has_last);
     const auto near_lanes = hn::And(has_last, below);
     const auto plane_lanes = hn::AndNot(by_depth, above_last);
@@ -895,7 +899,7 @@ inline bool connections(const Constants& k, const Frame& f, const StepLanes& __r
     for (int l = 0; l < kLanes; ++l) {
       const TexelPlane a{last[0][l], last[1][l], last[2][l], last[3][l]};
       const TexelPlane b{tap[0][l], tap[1][l], tap[2][l], tap[3][l]};
-      const Texel tx{t.x[l], t.y[l], t.z[l], t.depth_view[l]};
+      const Texel tx{t.x[l], t.y[l], t.z[l], t.inv_distance[l]};
       connect[l] |= plane[l] & coplanar(a, b, tx, thickness);
     }
   }
@@ -920,8 +924,9 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
   const auto u_lim = hn::Set(d, side == 0 ? 1.0f : 0.0f);
   for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
     const auto index = hn::Load(di, t.index + l);
-    const auto depth = hn::Load(d, t.depth_view + l);
-    const auto foreground = hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(depth, zero));
+    const auto depth = hn::Neg(hn::Load(d, t.z + l));  // planar
+    const auto foreground =
+        hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(hn::Load(d, t.inv_distance + l), zero));
     // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
     // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
     // first matters: rounding taps to pixel centres moves them off the slice, and their
