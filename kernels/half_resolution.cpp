@@ -105,10 +105,48 @@ void positions_at_sources(const PixelDepthLanes& solve, const Camera& camera, co
   }
 }
 
+// Texels i .. i + N - 1 of half-grid row j whose blocks' first pixels (2i, 2j) .. are all
+// foreground (most of a frame's): their sources are those pixels, and their depths,
+// normals and positions the even lanes of the pixels' (ConcatEven). Returns false, having
+// written nothing, where one is background.
+bool half_grid_lanes(const FullGrid& full, HalfGrid& h, int j, int i, bool copy_position) {
+#if HWY_TARGET == HWY_SCALAR  // one lane: no even lanes to concatenate
+  (void)full, (void)h, (void)j, (void)i, (void)copy_position;
+  return false;
+#else
+  const FloatLanes d;
+  const hn::RebindToSigned<FloatLanes> di;
+  const hn::Rebind<uint8_t, FloatLanes> d8;
+  const int n = int(hn::Lanes(d)), x = 2 * i, y = 2 * j;
+  hn::Vec<decltype(d8)> even_mask, odd_mask;
+  hn::LoadInterleaved2(d8, full.mask.ptr<uint8_t>(y) + x, even_mask, odd_mask);
+  if (!hn::AllFalse(d8, hn::Eq(even_mask, hn::Zero(d8)))) return false;
+  Lanes even, odd;
+  hn::LoadInterleaved2(d, full.depth_view.ptr<float>(y) + x, even, odd);
+  hn::StoreU(even, d, h.depth_view.ptr<float>(j) + i);
+  // The even pixels' 3-vectors of a row into texels i .. i + N - 1.
+  const auto even_vectors = [&](const cv::Mat& from, cv::Mat& to) {
+    const float* src = from.ptr<float>(y) + size_t(3) * size_t(x);
+    Lanes a[3], b[3];
+    hn::LoadInterleaved3(d, src, a[0], a[1], a[2]);
+    hn::LoadInterleaved3(d, src + 3 * n, b[0], b[1], b[2]);
+    hn::StoreInterleaved3(hn::ConcatEven(d, b[0], a[0]), hn::ConcatEven(d, b[1], a[1]), hn::ConcatEven(d, b[2], a[2]),
+                          d, to.ptr<float>(j) + size_t(3) * size_t(i));
+  };
+  even_vectors(full.normal_view, h.normal_view);
+  if (copy_position) even_vectors(full.position_view, h.position_view);
+  hn::StoreU(hn::Set(d8, uint8_t(255)), d8, h.mask.ptr<uint8_t>(j) + i);
+  const auto sx = hn::Add(hn::Set(di, x), hn::ShiftLeft<1>(hn::Iota(di, 0)));
+  hn::StoreInterleaved2(sx, hn::Set(di, y), di, h.source.ptr<int32_t>(j) + size_t(2) * size_t(i));
+  return true;
+#endif
+}
+
 // Half-grid row j: each texel's source, the first foreground pixel of its 2x2 block (in
 // row-major order), and the source's mask, depth and normal (and position, when
 // copy_position: the frame has positions); texels without one are masked, at infinite
-// depth, with zero vectors.
+// depth, with zero vectors. A vector of texels at a time where their blocks' first pixels
+// are foreground (half_grid_lanes), texel by texel elsewhere.
 void half_grid_row(const FullGrid& full, HalfGrid& h, int j, bool copy_position) {
   const cv::Size size = full.depth_view.size();
   cv::Vec2i* source = h.source.ptr<cv::Vec2i>(j);
@@ -120,17 +158,25 @@ void half_grid_row(const FullGrid& full, HalfGrid& h, int j, bool copy_position)
   // where it is not looked at).
   const int y0 = 2 * j, y1 = std::min(2 * j + 1, size.height - 1);
   const uint8_t* mask_rows[2] = {full.mask.ptr<uint8_t>(y0), full.mask.ptr<uint8_t>(y1)};
-  for (int i = 0; i < h.source.cols; ++i) {
-    int sx = -1, sy = -1;
-    for (int k = 0; k < 4 && sx < 0; ++k) {
-      const int x = 2 * i + (k & 1), y = y0 + (k >> 1);
-      if (x < size.width && y < size.height && mask_rows[k >> 1][x]) sx = x, sy = y;
+  const int n = int(hn::Lanes(FloatLanes()));
+  for (int i = 0; i < h.source.cols;) {
+    if (n > 1 && 2 * (i + n) <= size.width && half_grid_lanes(full, h, j, i, copy_position)) {
+      i += n;
+      continue;
     }
-    source[i] = cv::Vec2i(sx, sy);
-    mask[i] = sx < 0 ? 0 : 255;
-    depth[i] = sx < 0 ? std::numeric_limits<float>::infinity() : full.depth_view.ptr<float>(sy)[sx];
-    normal[i] = sx < 0 ? cv::Vec3f(0, 0, 0) : full.normal_view.ptr<cv::Vec3f>(sy)[sx];
-    if (position) position[i] = sx < 0 ? cv::Vec3f(0, 0, 0) : full.position_view.ptr<cv::Vec3f>(sy)[sx];
+    const int end = std::min(i + n, h.source.cols);
+    for (; i < end; ++i) {
+      int sx = -1, sy = -1;
+      for (int k = 0; k < 4 && sx < 0; ++k) {
+        const int x = 2 * i + (k & 1), y = y0 + (k >> 1);
+        if (x < size.width && y < size.height && mask_rows[k >> 1][x]) sx = x, sy = y;
+      }
+      source[i] = cv::Vec2i(sx, sy);
+      mask[i] = sx < 0 ? 0 : 255;
+      depth[i] = sx < 0 ? std::numeric_limits<float>::infinity() : full.depth_view.ptr<float>(sy)[sx];
+      normal[i] = sx < 0 ? cv::Vec3f(0, 0, 0) : full.normal_view.ptr<cv::Vec3f>(sy)[sx];
+      if (position) position[i] = sx < 0 ? cv::Vec3f(0, 0, 0) : full.position_view.ptr<cv::Vec3f>(sy)[sx];
+    }
   }
 }
 
