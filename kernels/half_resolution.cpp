@@ -44,14 +44,25 @@ constexpr int kMaxChannels = 4;
 // and the vector form do the same operations in the same order (no fused multiply-add),
 // so a weight has the same bits on every instruction set, whichever path computes it.
 // x is clamped to -87 (exp = 1.6e-38, still a normal float): a weight that small never
-// decides a blend (kMinUpsampleWeight).
+// decides a blend (kMinUpsampleWeight). Near 0 (x > kExpTaylorFrom: the texel within 0.5% of
+// the pixel's depth, as on most of a frame's smooth surfaces) exp is its degree-5 Taylor
+// polynomial instead, 1 + x (1 + x (1/2 + x (1/6 + x (1/24 + x / 120)))): its truncation
+// (|x|^6 / 720 < 1.4e-9) is far below a float's step there, and a vector of lanes all near
+// 0 skips the range reduction.
 constexpr float kExpMinArgument = -87.0f;
+constexpr float kExpTaylorFrom = -0.1f;
+constexpr float kExpTaylor[5] = {1.0f / 120.0f, 1.0f / 24.0f, 1.0f / 6.0f, 0.5f, 1.0f};
 constexpr float kLog2e = 1.44269504088896341f;
 constexpr float kLn2High = 0.693359375f, kLn2Low = -2.12194440e-4f;
 constexpr float kExpPoly[6] = {1.9875691500e-4f, 1.3981999507e-3f, 8.3334519073e-3f,
                                4.1665795894e-2f, 1.6666665459e-1f, 5.0000001201e-1f};
 
 inline float depth_falloff(float x) {
+  if (x > kExpTaylorFrom) {
+    float q = kExpTaylor[0];
+    for (int i = 1; i < 5; ++i) q = q * x + kExpTaylor[i];
+    return x * q + 1.0f;
+  }
   x = std::max(x, kExpMinArgument);
   const float n = std::floor(x * kLog2e + 0.5f);
   const float r = (x - n * kLn2High) - n * kLn2Low;
@@ -69,6 +80,11 @@ using Lanes = hn::Vec<FloatLanes>;
 inline Lanes depth_falloff_lanes(Lanes x) {
   const FloatLanes d;
   const hn::RebindToSigned<FloatLanes> di;
+  const auto near_zero = hn::Gt(x, hn::Set(d, kExpTaylorFrom));
+  Lanes q = hn::Set(d, kExpTaylor[0]);
+  for (int i = 1; i < 5; ++i) q = hn::Add(hn::Mul(q, x), hn::Set(d, kExpTaylor[i]));
+  const Lanes taylor = hn::Add(hn::Mul(x, q), hn::Set(d, 1.0f));
+  if (hn::AllTrue(d, near_zero)) return taylor;
   x = hn::Max(x, hn::Set(d, kExpMinArgument));
   const Lanes n = hn::Floor(hn::Add(hn::Mul(x, hn::Set(d, kLog2e)), hn::Set(d, 0.5f)));
   const Lanes r = hn::Sub(hn::Sub(x, hn::Mul(n, hn::Set(d, kLn2High))), hn::Mul(n, hn::Set(d, kLn2Low)));
@@ -76,7 +92,7 @@ inline Lanes depth_falloff_lanes(Lanes x) {
   for (int i = 1; i < 6; ++i) p = hn::Add(hn::Mul(p, r), hn::Set(d, kExpPoly[i]));
   const Lanes e = hn::Add(hn::Add(hn::Mul(p, hn::Mul(r, r)), r), hn::Set(d, 1.0f));
   const auto bits = hn::ShiftLeft<23>(hn::Add(hn::ConvertTo(di, n), hn::Set(di, 127)));
-  return hn::Mul(e, hn::BitCast(d, bits));
+  return hn::IfThenElse(near_zero, taylor, hn::Mul(e, hn::BitCast(d, bits)));
 }
 
 // A half-grid row's view-space positions, as view_positions_from_depth at each texel's
