@@ -783,8 +783,8 @@ template <bool perspective, bool per_texel_thickness>
     const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
     // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
     // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too:
-    // the tap's frame coordinates (the origin's plus delta's) over its distance.
-    // The orthographic view ray in the slice frame.
+    // orthographic, the view axis; perspective, the tap's frame coordinates (the origin's
+    // plus delta's) over its distance.
     float rv = -s.vz[l], rd = -s.dz[l], ra = -s.az[l];
     if constexpr (perspective) {
       const float inv_distance = t.inv_distance[l];
