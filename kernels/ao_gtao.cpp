@@ -232,22 +232,21 @@ struct TapGrid {
   }
 };
 
-// The coarsest level a pixel's taps read, their steps spacing_px apart: the largest L <=
-// kCoarseLevels with spacing_px >= 2^(L + 1) (a block at most half the spacing, so that
-// consecutive taps keep their order), by compares (so that a loop over lanes vectorises).
-inline int32_t level_cap(float spacing_px) {
+// How many of the levels 1 .. kCoarseLevels value reaches: the largest L <= kCoarseLevels
+// with value >= 2^L unit, by compares (so that a loop over lanes vectorises).
+inline int32_t levels_reached(float value, int unit) {
   int32_t level = 0;
-  for (int l = 1; l <= kCoarseLevels; ++l) level += spacing_px >= float(2 << l);
+  for (int l = 1; l <= kCoarseLevels; ++l) level += value >= float(unit << l);
   return level;
 }
 
+// The coarsest level a pixel's taps read, their steps spacing_px apart: a block at most half
+// the spacing (spacing_px >= 2^(L + 1)), so that consecutive taps keep their order.
+inline int32_t level_cap(float spacing_px) { return levels_reached(spacing_px, 2); }
+
 // The level a tap at dist_px from its pixel reads: the largest L <= cap with dist_px >=
 // 2^L kFineTapsPx.
-inline int tap_level(float dist_px, int32_t cap) {
-  int level = 0;
-  for (int l = 1; l <= kCoarseLevels; ++l) level += dist_px >= float(kFineTapsPx << l);
-  return std::min(level, cap);
-}
+inline int tap_level(float dist_px, int32_t cap) { return std::min(levels_reached(dist_px, kFineTapsPx), cap); }
 
 // A tap's texel index in its level, by selects on values held in registers (so that a loop
 // over lanes vectorises: selects between the grid's fields in memory keep GCC from it).
