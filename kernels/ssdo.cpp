@@ -597,18 +597,17 @@ HWY_INLINE void queue_locate(D d, const Receiver& rcv, const RayFrame& f, const 
   const hn::RebindToSigned<D> di;
   const RayLanes<V> ray = batch_rays(d, rcv, f, b, s0);
   const int k = q.count;
-  size_t n = 0;
   for (const auto& [v, to] : {std::pair{ray.clip_x, q.clip_x}, std::pair{ray.clip_y, q.clip_y},
                               std::pair{ray.clip_w, q.clip_w}, std::pair{ray.p_z, q.p_z}, std::pair{ray.dir_x, q.dir_x},
                               std::pair{ray.dir_y, q.dir_y}, std::pair{ray.dir_w, q.dir_w},
                               std::pair{ray.dir_z, q.dir_z}, std::pair{lo, q.lo}, std::pair{hi, q.hi}})
-    n = hn::CompressBlendedStore(v, locate, d, to + k);
+    hn::CompressBlendedStore(v, locate, d, to + k);
   alignas(64) int32_t locate_lanes[hn::MaxLanes(di)];
   hn::Store(hn::VecFromMask(di, hn::RebindMask(di, locate)), di, locate_lanes);
   int slot = k;
   for (size_t l = 0; l < hn::Lanes(d); ++l)
     if (locate_lanes[l]) q.slot[slot++] = record_batch + s0 + l;
-  q.count = k + int(n);
+  q.count = slot;
 }
 
 // The march of each direction s of the batch, one direction per lane: the first point
