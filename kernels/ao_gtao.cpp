@@ -248,24 +248,31 @@ inline int32_t level_cap(float spacing_px) { return levels_reached(spacing_px, 2
 // 2^L kFineTapsPx.
 inline int tap_level(float dist_px, int32_t cap) { return std::min(levels_reached(dist_px, kFineTapsPx), cap); }
 
-// A tap's texel index in its level, by selects on values held in registers (so that a loop
-// over lanes vectorises: selects between the grid's fields in memory keep GCC from it).
+// A tap's texel index in its level: level 0's offset and width plus each reached level's
+// step from the one below (so that a loop over lanes vectorises on every target: a select
+// per level merges into one five-way choice, which GCC's if-conversion leaves as branches
+// where the target has no mask registers, and the AVX2 loop then ran one lane at a time).
 struct LevelSelect {
   cv::Point origin;
-  int offset[kCoarseLevels + 1], width[kCoarseLevels + 1];  // index = offset + by width + bx
+  // index = offset + by width + bx, offset and width = [0] + the steps [1 .. level].
+  int offset[kCoarseLevels + 1], width[kCoarseLevels + 1];
 
   explicit LevelSelect(const TapGrid& g) : origin(g.origin) {
+    int last_offset = 0, last_width = 0;
     for (int l = 0; l <= kCoarseLevels; ++l) {
-      width[l] = g.level_width[l];
-      offset[l] = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
+      const int level_offset = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
+      offset[l] = level_offset - last_offset;
+      width[l] = g.level_width[l] - last_width;
+      last_offset = level_offset, last_width = g.level_width[l];
     }
   }
   // The index of the texel of level `level` holding grid texel (x, y).
   int32_t index(int level, int x, int y) const {
     int o = offset[0], w = width[0];
     for (int l = 1; l <= kCoarseLevels; ++l) {
-      o = level == l ? offset[l] : o;
-      w = level == l ? width[l] : w;
+      const int reached = level >= l;
+      o += reached * offset[l];
+      w += reached * width[l];
     }
     return o + ((y - origin.y) >> level) * w + ((x - origin.x) >> level);
   }
