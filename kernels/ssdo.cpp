@@ -590,23 +590,29 @@ struct LocateQueue {
 };
 
 // Queues the brackets [lo, hi] of the lanes `locate` along their rays (batch_rays of the
-// directions s0 + l), their record entries record_batch + s0 + l.
+// directions s0 + l), their record entries record_batch + s0 + l. Lane by lane from the
+// stored vectors: a batch locates a few lanes, and a compressing store per field costs more
+// on several targets (AVX2 has no such instruction: Highway's emulation copies a 1 KiB
+// table per call and stores through vmaskmovps, microcode on AMD's cores).
 template <class D, class V = hn::Vec<D>, class M = hn::Mask<D>>
 HWY_INLINE void queue_locate(D d, const Receiver& rcv, const RayFrame& f, const SampleBatch& b, size_t s0, M locate,
                              V lo, V hi, int32_t* record_batch, LocateQueue& q) {
   const hn::RebindToSigned<D> di;
   const RayLanes<V> ray = batch_rays(d, rcv, f, b, s0);
-  const int k = q.count;
-  for (const auto& [v, to] : {std::pair{ray.clip_x, q.clip_x}, std::pair{ray.clip_y, q.clip_y},
-                              std::pair{ray.clip_w, q.clip_w}, std::pair{ray.p_z, q.p_z}, std::pair{ray.dir_x, q.dir_x},
-                              std::pair{ray.dir_y, q.dir_y}, std::pair{ray.dir_w, q.dir_w},
-                              std::pair{ray.dir_z, q.dir_z}, std::pair{lo, q.lo}, std::pair{hi, q.hi}})
-    hn::CompressBlendedStore(v, locate, d, to + k);
+  constexpr size_t kFields = 10;
+  const V field[kFields] = {ray.clip_x, ray.clip_y, ray.clip_w, ray.p_z, ray.dir_x, ray.dir_y, ray.dir_w, ray.dir_z,
+                            lo,         hi};
+  float* const queued[kFields] = {q.clip_x, q.clip_y, q.clip_w, q.p_z, q.dir_x, q.dir_y, q.dir_w, q.dir_z, q.lo, q.hi};
+  alignas(64) float field_lanes[kFields][hn::MaxLanes(d)];
+  for (size_t i = 0; i < kFields; ++i) hn::Store(field[i], d, field_lanes[i]);
   alignas(64) int32_t locate_lanes[hn::MaxLanes(di)];
   hn::Store(hn::VecFromMask(di, hn::RebindMask(di, locate)), di, locate_lanes);
-  int slot = k;
-  for (size_t l = 0; l < hn::Lanes(d); ++l)
-    if (locate_lanes[l]) q.slot[slot++] = record_batch + s0 + l;
+  int slot = q.count;
+  for (size_t l = 0; l < hn::Lanes(d); ++l) {
+    if (!locate_lanes[l]) continue;
+    for (size_t i = 0; i < kFields; ++i) queued[i][slot] = field_lanes[i][l];
+    q.slot[slot++] = record_batch + s0 + l;
+  }
   q.count = slot;
 }
 
