@@ -917,7 +917,8 @@ inline bool connections(const Constants& k, const Frame& f, const StepLanes& __r
 // where they connect; (1, 0) without one), the side's horizon (the taps within the
 // radius), and its last tap. In explicit vectors: written per lane, GCC turns the updates
 // that keep a lane's value into masked stores, which AMD's cores run as microcode.
-// std::min and std::max as selects (their operand order on ties and zeros).
+// std::min and std::max as selects (their operand order on ties and zeros). interval and
+// connect: per lane, whether the tap has an interval and whether it connects; null: none.
 inline void update_side(const Constants& k, const StepLanes& __restrict t, int side, const int32_t* interval,
                         const int32_t* connect, SideLanes& __restrict st, float* h0, float* h1) {
   namespace hn = hwy::HWY_NAMESPACE;
@@ -945,8 +946,9 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
                                    hn::Le(hn::Load(d, t.dist2 + l), hn::Set(d, k.r2)));
     const auto horizon = hn::Load(d, st.horizon + l), tap = hn::Load(d, t.tap_cos_sq + l);
     hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap)), tap, horizon), d, st.horizon + l);
-    const auto has = hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i));
-    const auto joined = hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i));
+    const auto none = hn::FirstN(d, 0);
+    const auto has = interval ? hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i)) : none;
+    const auto joined = connect ? hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i)) : none;
     const auto tu0 = hn::Load(d, t.u0 + l), tu1 = hn::Load(d, t.u1 + l);
     const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
     // The occluded range, as an empty one (1, 0) without an interval.
@@ -977,15 +979,11 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
 [[gnu::noinline]] void visibility_mask_step(const Constants& k, const Frame& f, const StepLanes& __restrict t, int side,
                                             bool occluders, SideLanes& __restrict st, uint64_t* __restrict occupied) {
   alignas(64) int32_t interval[kLanes], connect[kLanes];
-  bool intervals = false;
-  if (occluders) {
-    intervals = connections(k, f, t, st, interval, connect);
-  } else {
-    std::fill_n(interval, kLanes, 0);
-    std::fill_n(connect, kLanes, 0);
-  }
+  const bool intervals = occluders && connections(k, f, t, st, interval, connect);
   alignas(64) float h0[kLanes], h1[kLanes];
-  update_side(k, t, side, interval, connect, st, h0, h1);
+  // Without an interval no lane connects either (connections), and update_side reads
+  // neither: no arrays of zeros to fill per step.
+  update_side(k, t, side, intervals ? interval : nullptr, intervals ? connect : nullptr, st, h0, h1);
   if (!intervals) return;  // h0 > h1 in every lane: no sector
   alignas(64) int32_t k0[kLanes], count[kLanes];
   for (int l = 0; l < kLanes; ++l) sector_range(h0[l], h1[l], k0[l], count[l]);
