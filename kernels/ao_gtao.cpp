@@ -270,9 +270,9 @@ struct LevelSelect {
   int32_t index(int level, int x, int y) const {
     int o = offset[0], w = width[0];
     for (int l = 1; l <= kCoarseLevels; ++l) {
-      const int reached = level >= l;
-      o += reached * offset[l];
-      w += reached * width[l];
+      const int reached = -int(level >= l);  // all bits set or none
+      o += offset[l] & reached;
+      w += width[l] & reached;
     }
     return o + ((y - origin.y) >> level) * w + ((x - origin.x) >> level);
   }
