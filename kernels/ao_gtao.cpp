@@ -249,30 +249,31 @@ inline int32_t level_cap(float spacing_px) { return levels_reached(spacing_px, 2
 inline int tap_level(float dist_px, int32_t cap) { return std::min(levels_reached(dist_px, kFineTapsPx), cap); }
 
 // A tap's texel index in its level: level 0's offset and width plus each reached level's
-// step from the one below (so that a loop over lanes vectorises on every target: a select
+// step from the one below, so that a loop over lanes vectorises on every target (a select
 // per level merges into one five-way choice, which GCC's if-conversion leaves as branches
-// where the target has no mask registers, and the AVX2 loop then ran one lane at a time).
+// where the target has no mask registers: on AVX2 the loop would run a lane at a time).
 struct LevelSelect {
   cv::Point origin;
-  // index = offset + by width + bx, offset and width = [0] + the steps [1 .. level].
-  int offset[kCoarseLevels + 1], width[kCoarseLevels + 1];
+  // Level L's index = offset + by width + bx, with offset = the sum of offset_step[0 .. L]
+  // and width = the sum of width_step[0 .. L].
+  int offset_step[kCoarseLevels + 1], width_step[kCoarseLevels + 1];
 
   explicit LevelSelect(const TapGrid& g) : origin(g.origin) {
-    int last_offset = 0, last_width = 0;
+    int below_offset = 0, below_width = 0;
     for (int l = 0; l <= kCoarseLevels; ++l) {
-      const int level_offset = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
-      offset[l] = level_offset - last_offset;
-      width[l] = g.level_width[l] - last_width;
-      last_offset = level_offset, last_width = g.level_width[l];
+      const int offset = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
+      offset_step[l] = offset - below_offset;
+      width_step[l] = g.level_width[l] - below_width;
+      below_offset = offset, below_width = g.level_width[l];
     }
   }
   // The index of the texel of level `level` holding grid texel (x, y).
   int32_t index(int level, int x, int y) const {
-    int o = offset[0], w = width[0];
+    int o = offset_step[0], w = width_step[0];
     for (int l = 1; l <= kCoarseLevels; ++l) {
       const int reached = -int(level >= l);  // all bits set or none
-      o += offset[l] & reached;
-      w += width[l] & reached;
+      o += offset_step[l] & reached;
+      w += width_step[l] & reached;
     }
     return o + ((y - origin.y) >> level) * w + ((x - origin.x) >> level);
   }
