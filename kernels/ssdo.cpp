@@ -8,6 +8,7 @@
 #include "kernels/settings_check.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -553,6 +554,10 @@ struct LocateQueue {
   alignas(64) float lo[kCapacity], hi[kCapacity];
   int32_t* slot[kCapacity];  // the record entry that receives the sender's pixel y W + x
 
+  // The queued brackets' fields, in RayLanes' order then lo and hi.
+  static constexpr size_t kFields = 10;
+  std::array<float*, kFields> fields() { return {clip_x, clip_y, clip_w, p_z, dir_x, dir_y, dir_w, dir_z, lo, hi}; }
+
   // Room for n more brackets: runs the queued ones first when there is not.
   void reserve(const Constants& c, int n) {
     if (count + n > kCapacity) run(c);
@@ -568,8 +573,7 @@ struct LocateQueue {
     // The last vector's lanes past `count` bisect [0, 0] along a ray at the eye (clip w 0:
     // off screen), for nobody.
     const size_t padded = hwy::RoundUpTo(size_t(count), lanes);
-    for (float* a : {clip_x, clip_y, clip_w, p_z, dir_x, dir_y, dir_w, dir_z, lo, hi})
-      std::fill(a + count, a + padded, 0.0f);
+    for (float* a : fields()) std::fill(a + count, a + padded, 0.0f);
     for (size_t k = 0; k < size_t(count); k += lanes) {
       const RayLanes<V> ray{hn::Load(d, clip_x + k), hn::Load(d, clip_y + k), hn::Load(d, clip_w + k),
                             hn::Load(d, p_z + k),    hn::Load(d, dir_x + k),  hn::Load(d, dir_y + k),
@@ -599,10 +603,10 @@ HWY_INLINE void queue_locate(D d, const Receiver& rcv, const RayFrame& f, const 
                              V lo, V hi, int32_t* record_batch, LocateQueue& q) {
   const hn::RebindToSigned<D> di;
   const RayLanes<V> ray = batch_rays(d, rcv, f, b, s0);
-  constexpr size_t kFields = 10;
+  constexpr size_t kFields = LocateQueue::kFields;
   const V field[kFields] = {ray.clip_x, ray.clip_y, ray.clip_w, ray.p_z, ray.dir_x, ray.dir_y, ray.dir_w, ray.dir_z,
                             lo,         hi};
-  float* const queued[kFields] = {q.clip_x, q.clip_y, q.clip_w, q.p_z, q.dir_x, q.dir_y, q.dir_w, q.dir_z, q.lo, q.hi};
+  const std::array<float*, kFields> queued = q.fields();
   alignas(64) float field_lanes[kFields][hn::MaxLanes(d)];
   for (size_t i = 0; i < kFields; ++i) hn::Store(field[i], d, field_lanes[i]);
   alignas(64) int32_t locate_lanes[hn::MaxLanes(di)];
