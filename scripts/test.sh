@@ -17,16 +17,14 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 # SSDO_FUZZ_SECONDS (8 s) on its corpus (label fuzz; they run only in this clang build).
 # Not under sanitizers: the Slurm cluster test (label slurm: it exercises the job scheduler,
 # not our code), the whole-frame accuracy suites (label accuracy: minutes each under ASan,
-# and the code paths they run are the unit tests'), and the test preset's name filter:
-# kernel tests that measure estimators or filters against brute-force references with large
+# and the code paths they run are the unit tests'), the test preset's name filter: kernel
+# tests that measure estimators or filters against brute-force references with large
 # sample counts (Ssdo.AccuracyAgainstOracle..., AoRaymarch.OpenPlaneIsExactlyOne,
 # Environment.FilteredMapMatchesTheBruteForce..., ...: the same kernel code runs in the
-# other kernel tests), the confidence's error table over the shared frames, the killed
-# sequence batch (minutes of the raymarch oracle under ASan; the batch's kill and resume
-# code runs in Batch.KillNine...), and the tests that compute a whole shot twice to compare
-# the bytes of two ways (chunks or the watch folder against one batch: each way's code runs
-# in its own tests here), and `ssdo bench` through the binary (every preset up to ultra, two
-# minutes under ASan; the sequence context it runs is the Temporal and Sequence tests').
+# other kernel tests), and the integration tests that skip themselves in a sanitizer build,
+# saying why (SSDO_SKIP_IN_SANITIZER_BUILD: the confidence's error table over the shared
+# frames, the tests that compute a whole shot twice to compare the bytes of two ways, and
+# `ssdo bench` through the binary over every preset up to ultra).
 # docs/fuzzing.md.
 # The sanitizer build compiles the kernels for one instruction set, the build host's (AVX2
 # where it runs it: CMakePresets.json, SSDO_SIMD_TARGETS host); the main stage runs the

@@ -31,6 +31,7 @@ std::map<std::string, AllRow> all_rows(const fs::path& csv) {
 }
 
 TEST(BenchCommand, WritesEveryPresetAndItsShotVariantWhichIsNoWorse) {
+  SSDO_SKIP_IN_SANITIZER_BUILD("every preset up to ultra; the sequence context it runs is the Temporal and Sequence tests'");
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   std::string files;

@@ -145,6 +145,7 @@ TEST(Temporal, AShotWhoseWriterHasNoRoomForAThreadIsComputedWithASmallerWindow) 
 }
 
 TEST(Temporal, ChunksWriteTheBytesOfTheWholeShot) {
+  SSDO_SKIP_IN_SANITIZER_BUILD("a shot computed twice to compare two ways of getting it; each runs in its own tests");
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   copy_temporal_shot(dir.path / "in", 5);
@@ -183,6 +184,7 @@ TEST(Temporal, ANeighbourWithoutACameraIsSkippedWithANote) {
 // The watch mode with the shot already in the folder: each frame's temporal neighbours are
 // the folder's frames, computed for it, and every output holds the batch's header and samples.
 TEST(Temporal, TheWatchModeWritesTheBytesOfTheBatch) {
+  SSDO_SKIP_IN_SANITIZER_BUILD("a shot computed twice to compare two ways of getting it; each runs in its own tests");
   SSDO_REQUIRE_SHARED();
   ScratchDir dir;
   constexpr int kFrames = 3;
