@@ -658,7 +658,7 @@ TEST(Cli, AFrameWithoutForegroundIsWarnedAboutAndNotScored) {
   fs::copy_file(example("cornell.exr"), dir.path / "in" / "ok.exr");
   fs::copy_file(example("cornell.camera.json"), dir.path / "in" / "ok.camera.json");
   r = run_ssdo("bench " + dir / "in/neg.exr" + " " + dir / "in/ok.exr" + " -o " + dir / "bench" +
-               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+               " --runs 1 --no-sweep --methods gtao --views 0 --temporal 0");
   EXPECT_EQ(r.exit_code, 1) << r.output;
   EXPECT_NE(r.output.find("neg.exr: no pixel to compare: the frame has no foreground"), std::string::npos) << r.output;
   const std::string csv = read_text(dir.path / "bench" / "bench.csv");
@@ -732,18 +732,18 @@ TEST(Cli, BenchRefusesExternalCostsThatAreNoNumbersAndRunsAMethodOnce) {
   for (const char* row : {"cycles,8 spp,nan,0.05", "cycles,8 spp,inf,0.05", "cycles,8 spp,-3,0.05",
                           "cycles,8 spp,3000,-0.1", "cycles,8 spp,12ms,0.05"}) {
     std::ofstream(dir.path / "ext.csv") << "series,label,ms,mae\ncycles,16 spp, 5900 ,0.03\n" << row << "\n";
-    const RunResult r = run_ssdo(bench + " -o " + dir / "out" + " --methods hemisphere --external " + dir / "ext.csv");
+    const RunResult r = run_ssdo(bench + " -o " + dir / "out" + " --methods gtao --external " + dir / "ext.csv");
     EXPECT_EQ(r.exit_code, 2) << row << "\n" << r.output;
     EXPECT_NE(r.output.find("ext.csv:3: "), std::string::npos) << row << "\n" << r.output;
     EXPECT_FALSE(fs::exists(dir.path / "out" / "bench.csv")) << row;
   }
   std::ofstream(dir.path / "ext.csv") << "series,label,ms,mae\ncycles,16 spp, 5900 ,0.03\n";
-  const RunResult r = run_ssdo(bench + " -o " + dir / "out" + " --methods hemisphere hemisphere --external " +
+  const RunResult r = run_ssdo(bench + " -o " + dir / "out" + " --methods gtao gtao --external " +
                                dir / "ext.csv");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string csv = read_text(dir.path / "out" / "bench.csv");
   int rows = 0;
-  for (size_t at = csv.find("\nall,hemisphere,low,"); at != std::string::npos; at = csv.find("\nall,hemisphere,low,", at + 1))
+  for (size_t at = csv.find("\nall,gtao,low,"); at != std::string::npos; at = csv.find("\nall,gtao,low,", at + 1))
     ++rows;
   EXPECT_EQ(rows, 1) << csv;
 }
@@ -755,10 +755,10 @@ TEST(Cli, BenchQuotesAFileNameThatHoldsACommaOrAQuote) {
   fs::copy_file(example("cornell.exr"), frame);
   fs::copy_file(example("cornell.camera.json"), dir.path / "take 1, \"final\".camera.json");
   const RunResult r = run_ssdo("bench '" + frame.string() + "' -o " + dir / "bench" +
-                               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+                               " --runs 1 --no-sweep --methods gtao --views 0 --temporal 0");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const std::string csv = read_text(dir.path / "bench" / "bench.csv");
-  const std::string field = "\"" + dir.path.string() + "/take 1, \"\"final\"\".exr\",hemisphere,";
+  const std::string field = "\"" + dir.path.string() + "/take 1, \"\"final\"\".exr\",gtao,";
   EXPECT_NE(csv.find("\n" + field), std::string::npos) << csv;
 }
 
@@ -837,7 +837,7 @@ TEST(Cli, EvalLeavesOutAndSaysWhereTheReferenceIsNotFinite) {
     EXPECT_EQ(stats.nancount[size_t(c)], 0u) << channel;
   }
   const RunResult b = run_ssdo("bench " + dir / "in/nan.exr" + " -o " + dir / "bench" +
-                               " --runs 1 --no-sweep --methods hemisphere --views 0 --temporal 0");
+                               " --runs 1 --no-sweep --methods gtao --views 0 --temporal 0");
   EXPECT_EQ(b.exit_code, 0) << b.output;
   EXPECT_NE(b.output.find("nan.exr: 1600 foreground pixels left out"), std::string::npos) << b.output;
 }
