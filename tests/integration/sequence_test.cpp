@@ -217,14 +217,8 @@ TEST(Sequence, KillNineMidBatchWithViewsThenRerunComputesEachFrameOnce) {
     return n;
   };
   int finished_before = 0;
-  // HBAO ultra: with one job, the first of the seven outputs comes after about 1.3 s and the
-  // last 1.6 s later (on the 2-core machine), so the kill, polled every 20 ms, lands
-  // mid-batch. The sanitizer build computes HBAO 2-3x slower: high keeps that pace there.
-#ifdef SSDO_SANITIZER_BUILD
-  const std::string method = "hbao", preset = "high";
-#else
-  const std::string method = "hbao", preset = "ultra";
-#endif
+  // The kill lands mid-batch at kShotFrame's pace (service_harness.h).
+  const std::string method = kShotFrame.method, preset = kShotFrame.preset;
   {
     SsdoProcess batch({"process", dir / "in", "-o", out.string(), "--jobs", "1", "--views", "2", "--terms", "ao",
                        "--method", method, "--preset", preset},
