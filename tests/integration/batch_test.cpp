@@ -124,15 +124,18 @@ TEST(Batch, AFrameReplacedWhileTheBatchRunsIsComputedAgainByTheRerun) {
   fs::create_directories(dir.path / "in");
   for (int i = 0; i < 3; ++i) copy_example("cornell", dir.path / "in", numbered("f", i));
   const fs::path out = dir.path / "out";
-  std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
-                                   "--views", "0", "--temporal", "0"};
-  for (const std::string& a : kSecondFrame.args()) args.push_back(a);
+  const std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
+                                         "--views", "0", "--temporal", "0", "--preset", "low"};
   {
     SsdoProcess batch(args, dir.path / "batch1.log");
-    ASSERT_TRUE(wait_until([&] { return path_exists(out / "f0.ssdo.exr"); }, 120)) << batch.log();
-    copy_example("greeble", dir.path / "in", "f2.new");  // written aside, then renamed over f2
-    fs::rename(dir.path / "in" / "f2.new.exr", dir.path / "in" / "f2.exr");
-    fs::rename(dir.path / "in" / "f2.new.camera.json", dir.path / "in" / "f2.camera.json");
+    {
+      // While the first frame is in flight on the held worker.
+      HeldWorkers held(batch.pid(), 1);
+      ASSERT_TRUE(held.held()) << batch.log();
+      copy_example("greeble", dir.path / "in", "f2.new");  // written aside, then renamed over f2
+      fs::rename(dir.path / "in" / "f2.new.exr", dir.path / "in" / "f2.exr");
+      fs::rename(dir.path / "in" / "f2.new.camera.json", dir.path / "in" / "f2.camera.json");
+    }
     EXPECT_EQ(batch.signal_and_wait(0, 300), 0) << batch.log();
     EXPECT_NE(batch.log().find("changed while the batch ran"), std::string::npos) << batch.log();
   }
@@ -237,18 +240,22 @@ TEST(Batch, ASignalStopsTheBatchAfterTheFrameInFlight) {
   fs::create_directories(dir.path / "in");
   constexpr int kFrames = 4;
   for (int i = 0; i < kFrames; ++i) copy_example("cornell", dir.path / "in", numbered("f", i));
-  // A second per frame, so the signal comes while the first one is computed.
+  // The signal comes while the first frame is in flight on the held worker.
   auto batch_into = [&](const fs::path& out, const std::string& log) {
-    std::vector<std::string> args = {"process", dir / "in", "-o", out.string(), "--jobs", "1", "--terms", "ao",
-                                     "--temporal", "0"};
-    for (const std::string& a : kSecondFrame.args()) args.push_back(a);
-    return std::make_unique<SsdoProcess>(args, dir.path / log);
+    return std::make_unique<SsdoProcess>(std::vector<std::string>{"process", dir / "in", "-o", out.string(), "--jobs",
+                                                                  "1", "--terms", "ao", "--temporal", "0"},
+                                         dir.path / log);
   };
   for (const int sig : {SIGHUP}) {
     const fs::path out = dir.path / ("out" + std::to_string(sig));
     const auto batch = batch_into(out, "batch" + std::to_string(sig) + ".log");
-    ASSERT_TRUE(wait_until([&] { return !workers_of(batch->pid()).empty(); }, 30)) << batch->log();
-    EXPECT_EQ(batch->signal_and_wait(sig, 600), 1) << sig << "\n" << batch->log();
+    {
+      HeldWorkers held(batch->pid(), 1);
+      ASSERT_TRUE(held.held()) << batch->log();
+      ::kill(batch->pid(), sig);
+      ASSERT_TRUE(batch->wait_for_log("ssdo process: stopping", 30)) << batch->log();
+    }
+    EXPECT_EQ(batch->signal_and_wait(0, 600), 1) << sig << "\n" << batch->log();
     EXPECT_NE(batch->log().find("ssdo process: stopping"), std::string::npos) << batch->log();
     int written = 0;
     for (int i = 0; i < kFrames; ++i) {
@@ -264,7 +271,8 @@ TEST(Batch, ASignalStopsTheBatchAfterTheFrameInFlight) {
   // A second signal stops at once: the frame in flight is abandoned, never half written.
   const fs::path out = dir.path / "out_twice";
   const auto batch = batch_into(out, "twice.log");
-  ASSERT_TRUE(wait_until([&] { return !workers_of(batch->pid()).empty(); }, 30)) << batch->log();
+  HeldWorkers held(batch->pid(), 1);
+  ASSERT_TRUE(held.held()) << batch->log();
   ::kill(batch->pid(), SIGINT);
   ASSERT_TRUE(wait_until([&] { return batch->log().find("a second signal stops at once") != std::string::npos; }, 30))
       << batch->log();

@@ -16,9 +16,9 @@ namespace ssdo::test {
 namespace {
 
 std::vector<std::string> watch_args(const fs::path& in, const fs::path& out, const std::string& socket,
-                                    std::vector<std::string> extra = {}, const std::string& preset = "low") {
+                                    std::vector<std::string> extra = {}) {
   std::vector<std::string> args = {"serve", "--watch", in.string(), "-o", out.string(), "--socket", socket,
-                                   "--terms", "ao", "--preset", preset, "--frame-timeout", kServiceFrameTimeoutS,
+                                   "--terms", "ao", "--preset", "low", "--frame-timeout", kServiceFrameTimeoutS,
                                    "--memory-limit", "2048"};
   args.insert(args.end(), extra.begin(), extra.end());
   return args;
@@ -129,17 +129,14 @@ TEST(ServeLifetimes, WorkerKilledMidFrameIsRetried) {
   const fs::path in = dir.path / "in", out = dir.path / "out";
   fs::create_directories(in);
   const std::string socket = socket_path_for("retry");
-  // A second per frame: the kill lands while it is computed (GTAO high's 0.1 s could end first).
-  SsdoProcess service(watch_args(in, out, socket, {"--jobs", "1", "--method", kSecondFrame.method}, kSecondFrame.preset),
-                      dir.path / "serve.log");
+  SsdoProcess service(watch_args(in, out, socket, {"--jobs", "1"}), dir.path / "serve.log");
   ASSERT_TRUE(service.wait_for_log("ready", 30)) << service.log();
-  std::vector<pid_t> workers;
-  ASSERT_TRUE(wait_until([&] { return (workers = workers_of(service.pid())).size() == 1; }, 10));
-  const long idle_kib = resident_kib(workers[0]);
+  HeldWorkers held(service.pid(), 1);
+  ASSERT_TRUE(held.held()) << service.log();
   copy_example("cornell", in, "k");
-  // Mid-frame: the frame's images are in the worker's memory.
-  ASSERT_TRUE(wait_until([&] { return resident_kib(workers[0]) > idle_kib + 20 * 1024; }, 20)) << service.log();
-  ASSERT_EQ(::kill(workers[0], SIGKILL), 0);
+  // The frame in flight on the held worker, which dies there.
+  ASSERT_TRUE(wait_until([&] { return stats(socket).value("in_flight", 0) == 1; }, 20)) << service.log();
+  ASSERT_EQ(::kill(held.pids()[0], SIGKILL), 0);
   ASSERT_TRUE(wait_until([&] { return path_exists(out / "k.ssdo.exr"); }, 60)) << service.log();
   EXPECT_TRUE(exr_has_channel((out / "k.ssdo.exr").string(), "ao"));
   EXPECT_FALSE(path_exists(out / "k.error.json"));

@@ -255,19 +255,19 @@ TEST(ServeSocket, BadOptionsAndForeignOutputNamesTouchNoOutput) {
   EXPECT_FALSE(reply_bytes.empty());
 }
 
-// Sends a slow frame of `input` on `client` (the service's only worker busy for seconds):
-// true once a worker computes it.
-bool computing_slow_frame(const Client& client, const SocketService& service, const std::string& input) {
-  const json request = {{"op", "process"}, {"input", input}, {"options", kSecondsFrame.options()}};
+// Sends a frame of `input` on `client` to a service whose workers are held (HeldWorkers):
+// true once it is in flight.
+bool frame_in_flight(const Client& client, const SocketService& service, const std::string& input) {
+  const json request = {{"op", "process"}, {"input", input}};
   return write_message(client.fd(), request.dump(), deadline_in(5)) == IoStatus::ok &&
          wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30);
 }
 
-// Sends a slow frame of `input` to `output` on `client` behind one computing: true once it
+// Sends a frame of `input` to `output` on `client` behind the one in flight: true once it
 // waits in the queue.
-bool queued_slow_frame(const Client& client, const SocketService& service, const std::string& input,
-                       const std::string& output) {
-  const json request = {{"op", "process"}, {"input", input}, {"output", output}, {"options", kSecondsFrame.options()}};
+bool frame_queued(const Client& client, const SocketService& service, const std::string& input,
+                  const std::string& output) {
+  const json request = {{"op", "process"}, {"input", input}, {"output", output}};
   return write_message(client.fd(), request.dump(), deadline_in(5)) == IoStatus::ok &&
          wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 30);
 }
@@ -277,15 +277,16 @@ bool queued_slow_frame(const Client& client, const SocketService& service, const
 // computed or written for it.
 TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   ScratchDir dir;
-  // The frame timeout (the last one given wins) leaves the slow frame room beside another test.
-  SocketService service(dir, "leave", {"--jobs", "1", "--frame-timeout", "600"});
+  SocketService service(dir, "leave", {"--jobs", "1"});
   ASSERT_TRUE(service.ready) << service.log();
+  HeldWorkers held(service.process->pid(), 1);
+  ASSERT_TRUE(held.held()) << service.log();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
-  ASSERT_TRUE(computing_slow_frame(first, service, input)) << service.log();
+  ASSERT_TRUE(frame_in_flight(first, service, input)) << service.log();
   {
     Client gone(service.socket);
-    ASSERT_TRUE(queued_slow_frame(gone, service, input, (dir.path / "out" / "gone.exr").string())) << service.log();
+    ASSERT_TRUE(frame_queued(gone, service, input, (dir.path / "out" / "gone.exr").string())) << service.log();
     // first, gone and this request's own (once earlier stats requests' connections closed)
     EXPECT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 3; }, 10));
   }
@@ -293,6 +294,7 @@ TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
   EXPECT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 2; }, 30));
   pollfd p{first.fd(), POLLIN, 0};
   EXPECT_EQ(::poll(&p, 1, 0), 0) << "the first frame is still computing";
+  held.release();
   EXPECT_EQ(first.read_response().value("ok", false), true);
   ASSERT_TRUE(wait_until([&] { return service.log().find("dropped") != std::string::npos; }, 30)) << service.log();
   EXPECT_NE(service.log().find("its client closed the connection while it was queued"), std::string::npos);
@@ -305,14 +307,16 @@ TEST(ServeSocket, AClientThatLeavesGivesBackItsSlotAndItsQueuedFrame) {
 // the frame ahead of it is still computing.
 TEST(ServeSocket, AQueuedRequestLeavesTheQueueWithItsClient) {
   ScratchDir dir;
-  SocketService service(dir, "leaveq", {"--jobs", "1", "--queue", "1", "--frame-timeout", "600"});
+  SocketService service(dir, "leaveq", {"--jobs", "1", "--queue", "1"});
   ASSERT_TRUE(service.ready) << service.log();
+  HeldWorkers held(service.process->pid(), 1);
+  ASSERT_TRUE(held.held()) << service.log();
   const std::string input = dir / "frames/cornell.exr";
   Client first(service.socket);
-  ASSERT_TRUE(computing_slow_frame(first, service, input)) << service.log();
+  ASSERT_TRUE(frame_in_flight(first, service, input)) << service.log();
   {
     Client gone(service.socket);
-    ASSERT_TRUE(queued_slow_frame(gone, service, input, "gone.ssdo.exr")) << service.log();
+    ASSERT_TRUE(frame_queued(gone, service, input, "gone.ssdo.exr")) << service.log();
   }
   // Its slot back (first's and the stats request's own only), while the first frame computes.
   ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("clients", 0) == 2; }, 10));
@@ -325,6 +329,7 @@ TEST(ServeSocket, AQueuedRequestLeavesTheQueueWithItsClient) {
                           deadline_in(5)),
             IoStatus::ok);
   EXPECT_TRUE(wait_until([&] { return stats(service.socket).value("queue_depth", 0) == 1; }, 10));
+  held.release();
   EXPECT_EQ(first.read_response().value("ok", false), true);
   const json reply = next.read_response();
   EXPECT_EQ(reply.value("ok", false), true) << reply.dump();
@@ -356,16 +361,16 @@ TEST(ServeSocket, AClientThatNeverReadsItsReplyDoesNotHoldTheStop) {
   EXPECT_FALSE(path_exists(service.socket));
 }
 
-// An inline frame's errors name it as the client knows it, not by the service's private
-// spool path (gone once the client is answered); its error file too.
 // An inline frame dropped from the queue because its client left is logged under its name,
 // not under the spool path the client never saw.
 TEST(ServeSocket, AnInlineFrameDroppedFromTheQueueIsLoggedUnderItsName) {
   ScratchDir dir;
-  SocketService service(dir, "inlinedrop", {"--jobs", "1", "--frame-timeout", "600"});
+  SocketService service(dir, "inlinedrop", {"--jobs", "1"});
   ASSERT_TRUE(service.ready) << service.log();
+  HeldWorkers held(service.process->pid(), 1);
+  ASSERT_TRUE(held.held()) << service.log();
   Client first(service.socket);
-  ASSERT_TRUE(computing_slow_frame(first, service, dir / "frames/cornell.exr")) << service.log();
+  ASSERT_TRUE(frame_in_flight(first, service, dir / "frames/cornell.exr")) << service.log();
   {
     Client gone(service.socket);
     const std::string bytes = read_text(dir.path / "frames" / "cornell.exr");
@@ -378,9 +383,12 @@ TEST(ServeSocket, AnInlineFrameDroppedFromTheQueueIsLoggedUnderItsName) {
   EXPECT_NE(service.log().find("dropped inline frame shot9: its client closed the connection"), std::string::npos)
       << service.log();
   EXPECT_EQ(service.log().find(".ssdo-spool"), std::string::npos) << service.log();
+  held.release();
   EXPECT_EQ(first.read_response().value("ok", false), true);
 }
 
+// An inline frame's errors name it as the client knows it, not by the service's private
+// spool path (gone once the client is answered); its error file too.
 TEST(ServeSocket, AnInlineFramesErrorsNameTheFrameNotTheSpool) {
   ScratchDir dir;
   SocketService service(dir, "inlineerr");
@@ -453,20 +461,22 @@ TEST(ServeSocket, AnOutputNeverReplacesAFrameOrAnotherProgramsFile) {
 // being told "ok" while one replaces the other's result.
 TEST(ServeSocket, TwoUploadsOfOneNameAtOnceConflict) {
   ScratchDir dir;
-  SocketService service(dir, "samename", {"--jobs", "2", "--frame-timeout", "600"});
+  SocketService service(dir, "samename", {"--jobs", "2"});
   ASSERT_TRUE(service.ready) << service.log();
+  HeldWorkers held(service.process->pid(), 2);
+  ASSERT_TRUE(held.held()) << service.log();
   const std::string bytes = read_text(dir.path / "frames" / "cornell.exr");
   const json sidecar = json::parse(read_text(dir.path / "frames" / "cornell.camera.json"));
   Client first(service.socket);
-  json slow{{"op", "process"}, {"name", "same"}, {"sidecar", sidecar}, {"options", kSecondFrame.options()}};
-  slow["inline_size"] = bytes.size();
-  ASSERT_EQ(write_message(first.fd(), slow.dump(), deadline_in(5)), IoStatus::ok);
+  json upload{{"op", "process"}, {"name", "same"}, {"sidecar", sidecar}, {"inline_size", bytes.size()}};
+  ASSERT_EQ(write_message(first.fd(), upload.dump(), deadline_in(5)), IoStatus::ok);
   ASSERT_EQ(write_all(first.fd(), bytes.data(), bytes.size(), deadline_in(5)), IoStatus::ok);
   ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 30)) << service.log();
   Client second(service.socket);
   const json r = second.request({{"op", "process"}, {"name", "same"}, {"sidecar", sidecar}}, bytes);
   EXPECT_EQ(r.value("code", ""), "conflict") << r.dump();
   EXPECT_NE(r.value("error", "").find("is being computed for another request now"), std::string::npos) << r.dump();
+  held.release();
   EXPECT_EQ(first.read_response().value("ok", false), true);
   // Once it is done, the name is free again.
   Client third(service.socket);
@@ -548,11 +558,10 @@ TEST(ServeSocket, ASecondSignalStopsAtOnce) {
   ScratchDir dir;
   SocketService service(dir, "twice", {"--jobs", "1"});
   ASSERT_TRUE(service.ready) << service.log();
+  HeldWorkers held(service.process->pid(), 1);
+  ASSERT_TRUE(held.held()) << service.log();
   json reply;
-  std::thread slow([&] {
-    reply = process_path(service.socket, dir / "frames/cornell.exr",
-                         {{"options", {{"method", "raymarch"}, {"preset", "medium"}}}});
-  });
+  std::thread slow([&] { reply = process_path(service.socket, dir / "frames/cornell.exr"); });
   ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
   ::kill(service.process->pid(), SIGTERM);
   ASSERT_TRUE(service.process->wait_for_log("a second signal stops at once", 30)) << service.log();
@@ -589,13 +598,17 @@ TEST(ServeSocket, AFrameReplacedWhileComputedIsSaidAndItsOutputLeftOutOfDate) {
   ScratchDir dir;
   SocketService service(dir, "replaced", {"--jobs", "1"});
   ASSERT_TRUE(service.ready) << service.log();
+  HeldWorkers held(service.process->pid(), 1);
+  ASSERT_TRUE(held.held()) << service.log();
   const fs::path input = dir.path / "frames" / "cornell.exr";
   json reply;
-  std::thread request([&] { reply = process_path(service.socket, input.string(), {{"options", kSecondsFrame.options()}}); });
+  std::thread request([&] { reply = process_path(service.socket, input.string()); });
+  // In flight: the service took the frame as it was then, whichever version its held worker
+  // then reads.
   ASSERT_TRUE(wait_until([&] { return stats(service.socket).value("in_flight", 0) == 1; }, 20));
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the worker has read the first version
   fs::copy_file(example_frame("greeble.exr"), dir.path / "frames" / ".cornell.exr.part");
   fs::rename(dir.path / "frames" / ".cornell.exr.part", input);
+  held.release();
   request.join();
   ASSERT_EQ(reply.value("ok", false), true) << reply.dump();
   const json warnings = reply.value("warnings", json::array());

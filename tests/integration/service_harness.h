@@ -194,6 +194,53 @@ inline std::vector<pid_t> workers_of(pid_t parent) {
   return pids;
 }
 
+// The state letter of /proc/PID/stat ('T': stopped), 0 when the process is gone.
+inline char process_state(pid_t pid) {
+  const std::string stat = read_text("/proc/" + std::to_string(pid) + "/stat");
+  const size_t name_end = stat.rfind(')');
+  return name_end == std::string::npos || name_end + 2 >= stat.size() ? 0 : stat[name_end + 2];
+}
+
+// The workers of a batch or service held stopped (SIGSTOP) until release() or the end of
+// this object's life (SIGCONT). A frame sent to a held worker stays in flight, computing
+// nothing, for as long as a test needs to signal, replace a file or leave around it, and
+// ends as soon as the worker is let go: what a slow frame would give without burning both
+// cores for seconds, and without its race (a slow frame can still end before a loaded
+// machine gets to the test's next step). The worker's parent only sees a frame that takes
+// a while: its --frame-timeout counts the held time. Declare it after the process it holds
+// the workers of, so that they are let go before that process is stopped.
+class HeldWorkers {
+ public:
+  // Waits up to `seconds` for `count` workers of `parent` (a service starts its workers when
+  // ready, a batch at its first frame), stops them, and waits until each is stopped.
+  HeldWorkers(pid_t parent, size_t count, double seconds = 30) {
+    if (!wait_until([&] { return (pids_ = workers_of(parent)).size() >= count; }, seconds)) return;
+    for (const pid_t pid : pids_) ::kill(pid, SIGSTOP);
+    held_ = wait_until(
+        [&] {
+          for (const pid_t pid : pids_)
+            if (process_state(pid) != 'T') return false;
+          return true;
+        },
+        10);
+  }
+  ~HeldWorkers() { release(); }
+  HeldWorkers(const HeldWorkers&) = delete;
+  HeldWorkers& operator=(const HeldWorkers&) = delete;
+
+  bool held() const { return held_; }
+  const std::vector<pid_t>& pids() const { return pids_; }
+  void release() {
+    for (const pid_t pid : pids_) ::kill(pid, SIGCONT);
+    pids_.clear();
+    held_ = false;
+  }
+
+ private:
+  std::vector<pid_t> pids_;
+  bool held_ = false;
+};
+
 // A running ssdo process (serve or process) with its output in a log file.
 class SsdoProcess {
  public:
