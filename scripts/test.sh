@@ -12,17 +12,16 @@ scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPI
 
 # Second stage, on by default (CI runs it; SSDO_SANITIZE=0 leaves it out): the suite built
 # by clang with AddressSanitizer + UndefinedBehaviorSanitizer (CMakePresets.json "asan",
-# build-asan/: -O1 with line tables, no benchmarks, no accuracy suites, unity batches as
+# build-asan/: -O0 with line tables, the kernels -O3, no benchmarks, no accuracy suites, unity batches as
 # above), run with `ctest --preset asan`, which also runs every fuzz target for
 # SSDO_FUZZ_SECONDS (8 s) on its corpus (label fuzz; they run only in this clang build).
 # Not under sanitizers: the Slurm cluster test (label slurm: it exercises the job scheduler,
 # not our code), the whole-frame accuracy suites (label accuracy: minutes each under ASan,
-# and the code paths they run are the unit tests'), the test preset's name filter: kernel
-# tests that measure estimators or filters against brute-force references with large
-# sample counts (Ssdo.AccuracyAgainstOracle..., AoRaymarch.OpenPlaneIsExactlyOne,
-# Environment.FilteredMapMatchesTheBruteForce..., ...: the same kernel code runs in the
-# other kernel tests), and the integration tests that skip themselves in a sanitizer build,
-# saying why (SSDO_SKIP_IN_SANITIZER_BUILD: the confidence's error table over the shared
+# and the code paths they run are the unit tests'), and the tests that skip themselves in a
+# sanitizer build, saying why: kernel tests that measure estimators or filters against
+# brute-force references with large sample counts (SSDO_REFERENCE_MEASUREMENT: the same
+# kernel code runs in the other kernel tests; tests/support/reference_measurement.h), and
+# integration tests (SSDO_SKIP_IN_SANITIZER_BUILD: the confidence's error table over the shared
 # frames, the tests that compute a whole shot twice to compare the bytes of two ways, and
 # `ssdo bench` through the binary over every preset up to ultra).
 # docs/fuzzing.md.

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "tests/support/raycast.h"
+#include "tests/support/reference_measurement.h"
 
 namespace ssdo {
 namespace {
@@ -70,6 +71,7 @@ TEST(AoRaymarch, ComputeAoDispatchesToTheOracle) {
 // views (the tangent-plane depth reference keeps the sub-pixel depth change from
 // occluding), and the bent normal is the normal up to the sampling's noise.
 TEST(AoRaymarch, OpenPlaneIsExactlyOne) {
+  SSDO_REFERENCE_MEASUREMENT();
   for (glm::vec3 n_world : {glm::vec3(0, 0, 1), glm::normalize(glm::vec3(1, 2, 3))}) {
     for (float elevation : {90.0f, 30.0f, 5.0f}) {
       const Camera cam = raycast::open_plane_camera(n_world, elevation, 96, 54);
@@ -115,6 +117,7 @@ TEST(AoRaymarch, OpenPlaneIsExactlyOneThroughAnOrthographicCamera) {
 // radius are on screen: where every step landed on screen (confidence 1), the oracle
 // matches the ray-traced reference up to the two estimators' noise.
 TEST(AoRaymarch, CornerMatchesReferenceWhereEverythingIsVisible) {
+  SSDO_REFERENCE_MEASUREMENT();
   const raycast::Scene scene = raycast::corner_scene();
   const Camera cam = raycast::look_at({5.0f, 0.0f, 2.2f}, {0.0f, 0.0f, 0.3f}, {0, 0, 1}, 160, 90, 70.0f);
   const GBuffer g = raycast::render_gbuffer(scene, cam, 2);
@@ -158,6 +161,7 @@ TEST(AoRaymarch, SameBytesForOneAndTwoThreads) {
 // around them; a thickness of 0.5 lets the plane's rays pass behind them, as in reality
 // (the objects are far beyond the 1-unit radius).
 TEST(AoRaymarch, ThicknessReducesErrorAtDepthDiscontinuities) {
+  SSDO_REFERENCE_MEASUREMENT();
   const raycast::Scene scene = raycast::floating_scene();
   const GBuffer g = raycast::render_gbuffer(scene, raycast::floating_camera(), 2);
   const float radius = 1.0f;

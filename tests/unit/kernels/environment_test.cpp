@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include "tests/support/reference_measurement.h"
+
 namespace ssdo {
 namespace {
 
@@ -281,6 +283,7 @@ cv::Mat reference_filtered_map(const cv::Mat& image, const EnvironmentSettings& 
 }
 
 TEST(Environment, FilteredMapMatchesTheBruteForceConeFilterBitForBit) {
+  SSDO_REFERENCE_MEASUREMENT();
   cv::RNG rng(3);
   // Sources used as they are (64 rows or fewer, of either aspect) and box-averaged ones.
   for (const cv::Size size : {cv::Size(128, 64), cv::Size(90, 37), cv::Size(200, 100)}) {

@@ -12,6 +12,7 @@
 
 #include "kernels/metrics.h"
 #include "tests/support/raycast.h"
+#include "tests/support/reference_measurement.h"
 
 namespace ssdo {
 namespace {
@@ -86,6 +87,7 @@ TEST(Ssdo, PresetsAndValidation) {
 // A white unoccluded surface under uniform radiance 1: direct = 1 (the DiffDir convention),
 // indirect = 0, head-on and grazing, for every estimator and the oracle.
 TEST(Ssdo, OpenPlaneUnderUniformSkyHasDirectOne) {
+  SSDO_REFERENCE_MEASUREMENT();
   for (float elevation : {90.0f, 35.0f, 8.0f}) {
     const glm::vec3 n = glm::normalize(glm::vec3(0.2f, -0.1f, 1.0f));
     const Frame f = make_frame(raycast::open_plane(n), raycast::open_plane_camera(n, elevation),
@@ -116,6 +118,7 @@ TEST(Ssdo, OpenPlaneUnderUniformSkyHasDirectOne) {
 // space with the camera (and the up axis). Reference: the environment's SH irradiance
 // (exact to ~1e-4 for this sky, see environment_test.cpp).
 TEST(Ssdo, OpenPlanesSeeTheirSideOfTheSky) {
+  SSDO_REFERENCE_MEASUREMENT();
   const Environment sky = Environment::sky(SkyGradient{});
   double worst[4] = {0.0, 0.0, 0.0, 0.0};
   for (const glm::vec3 n : {glm::vec3(0, 0, 1), glm::vec3(0, 0, -1), glm::vec3(1, 0, 0)}) {
@@ -243,6 +246,7 @@ Camera corner_line_camera() {
 }
 
 TEST(Ssdo, CornerDirectMatchesClosedForms) {
+  SSDO_REFERENCE_MEASUREMENT();
   const Frame f = make_frame(raycast::corner_scene(), corner_line_camera(), Environment::constant(glm::vec3(1.0f)));
   const float radius = kCornerRadius;
   auto distance_to_other_plane = [&](int x, int y) {
@@ -366,6 +370,7 @@ TEST(Ssdo, BitwiseIdenticalForOneAndTwoThreadsAndAnyRoi) {
 // cosine-weighted fraction of directions that hit a sender within the radius facing it,
 // which for the corner is 1 - AO (closed form of raycast.h corner_scene()).
 TEST(Ssdo, IndirectUnitsWithKnownSenderRadiance) {
+  SSDO_REFERENCE_MEASUREMENT();
   const Frame f = make_frame(raycast::corner_scene(), corner_line_camera(), Environment::constant(glm::vec3(1.0f)));
   const cv::Mat lighting(f.g.depth_view.size(), CV_32FC3, cv::Scalar(0.3, 0.6, 0.9));
   SsdoSettings s = ssdo_preset(SsdoMethod::oracle, Preset::medium);
@@ -416,6 +421,7 @@ namespace {
 // factor with d_min = 1) is
 // measured beside the defaults; the defaults must not be worse on any scene.
 TEST(Ssdo, AccuracyAgainstOracleAndReferenceOnRayCasterScenes) {
+  SSDO_REFERENCE_MEASUREMENT();
   struct Case {
     const char* name;
     raycast::Scene scene;
