@@ -18,8 +18,9 @@
 namespace ssdo::failure {
 namespace {
 
-// Cases are built on first use (CTest runs each test in its own process: a test builds
-// only the cases it reads).
+// Cases are built on first use and kept: CTest runs the suite in one process
+// (PER_SUITE, tests/CMakeLists.txt), whose tests share them, and a test run alone builds
+// only the cases it reads.
 const Case& find_case(const std::string& name) {
   static std::map<std::string, Case> cache;
   auto it = cache.find(name);
