@@ -43,43 +43,26 @@ using json = nlohmann::json;
 // 640 x 360 example: 0.3 s here, 1.6 s in the sanitizer build, 3 s there beside a build).
 inline const std::string kServiceFrameTimeoutS = "60";
 
-// Frames that compute for a while on a 640 x 360 example, so that a test can signal, rewrite
-// or leave while one runs. The sanitizer build runs the kernels several times slower, the
-// AO oracle most (7x: 10.5 s against 1.5 s on the 2-core AVX-512 machine): there the same
-// wait is bought with cheaper methods. ssdo_method: when set, the frame also computes the
-// SSDO terms with that method (at `preset`).
-struct SlowFrame {
-  const char* method;
-  const char* preset;
-  const char* ssdo_method = nullptr;
-  // The options of a socket request (the command line's names without "--").
-  json options() const {
-    json o = {{"method", method}, {"preset", preset}};
-    if (ssdo_method) {
-      o["terms"] = "ao,ssdo";
-      o["ssdo-method"] = ssdo_method;
-    }
-    return o;
-  }
-  // The same options on a command line.
-  std::vector<std::string> args() const {
-    const json o = options();
-    std::vector<std::string> a;
-    for (const auto& [name, value] : o.items()) a.insert(a.end(), {"--" + name, value.get<std::string>()});
-    return a;
-  }
-};
+// The method and preset of frames that compute for a while, for the tests that need one
+// frame's compute to span their own steps rather than only to be in flight (a frame in
+// flight is a held worker's: HeldWorkers). The sanitizer build runs the kernels several
+// times slower, the AO oracle most (7x: 10.5 s against 1.5 s on the 2-core AVX-512
+// machine): there the same wait is bought with cheaper methods.
+// kSecondFrame: about a second per 640 x 360 example frame, so that a file rewritten once a
+// frame is in flight is rewritten while it is computed.
 // kShotFrame: a seven-frame shot with --views 2 and one job writes its first output after
 // about 0.8 s and its last 1.1 s later (GTAO high on the 2-core Intel machine; HBAO ultra
 // took 8 s for the same), so that a kill polled every 20 ms lands mid-batch; the sanitizer
 // build computes HBAO 2-3x slower, and high keeps that pace there.
+struct SlowFrame {
+  const char* method;
+  const char* preset;
+};
 #ifdef SSDO_SANITIZER_BUILD
-inline constexpr SlowFrame kSecondFrame{"gtao", "ultra"};         // 1.6 s (the AO oracle at low: 10.5 s)
-inline constexpr SlowFrame kSecondsFrame{"gtao", "low", "oracle"};  // 4.3 s: the SSDO oracle at low
+inline constexpr SlowFrame kSecondFrame{"gtao", "ultra"};  // 1.6 s (the AO oracle at low: 10.5 s)
 inline constexpr SlowFrame kShotFrame{"hbao", "high"};
 #else
-inline constexpr SlowFrame kSecondFrame{"raymarch", "low"};      // 1.5 s
-inline constexpr SlowFrame kSecondsFrame{"raymarch", "medium"};  // 5 s
+inline constexpr SlowFrame kSecondFrame{"raymarch", "low"};  // 1.5 s
 inline constexpr SlowFrame kShotFrame{"gtao", "high"};
 #endif
 
@@ -176,8 +159,6 @@ inline long status_kib(pid_t pid, const std::string& field) {
   const size_t at = status.find(field + ":");
   return at == std::string::npos ? 0 : std::stol(status.substr(at + field.size() + 1));
 }
-
-inline long resident_kib(pid_t pid) { return status_kib(pid, "VmRSS"); }
 
 // Processes whose command line says they are workers of `parent`.
 inline std::vector<pid_t> workers_of(pid_t parent) {
