@@ -52,8 +52,9 @@ inline const std::string kServiceFrameTimeoutS = "60";
 // frame is in flight is rewritten while it is computed.
 // kShotFrame: a seven-frame shot with --views 2 and one job writes its first output after
 // about 0.8 s and its last 1.1 s later (GTAO high on the 2-core Intel machine; HBAO ultra
-// took 8 s for the same), so that a kill polled every 20 ms lands mid-batch; the sanitizer
-// build computes HBAO 2-3x slower, and high keeps that pace there.
+// took 8 s for the same), so that a kill polled every 20 ms lands mid-batch. The sanitizer
+// build keeps HBAO high, chosen to match HBAO ultra's pace here (it computes HBAO 2-3x
+// slower): slower than the kill needs, never too fast.
 struct SlowFrame {
   const char* method;
   const char* preset;
