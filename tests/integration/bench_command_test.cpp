@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "service_harness.h"
+#include "tests/support/skips.h"
 
 namespace ssdo::test {
 namespace {

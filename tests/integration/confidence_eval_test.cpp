@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "service_harness.h"
+#include "tests/support/skips.h"
 
 namespace ssdo::test {
 namespace {

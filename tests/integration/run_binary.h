@@ -14,8 +14,6 @@
 
 #include <gtest/gtest.h>
 
-#include "core/sanitizer_build.h"
-
 namespace ssdo::test {
 
 struct RunResult {
@@ -76,15 +74,6 @@ struct ScratchDir {
   ~ScratchDir() { std::filesystem::remove_all(path); }
   std::string operator/(const std::string& name) const { return (path / name).string(); }
 };
-
-// A test left out of the sanitizer builds (core/sanitizer_build.h), with the reason: the
-// tests that compute a whole shot or every preset again to compare two ways of getting
-// it, minutes under ASan over code paths that other tests run there.
-#ifdef SSDO_SANITIZER_BUILD
-#define SSDO_SKIP_IN_SANITIZER_BUILD(reason) GTEST_SKIP() << "left out of the sanitizer build: " << (reason)
-#else
-#define SSDO_SKIP_IN_SANITIZER_BUILD(reason) static_cast<void>(0)
-#endif
 
 #define SSDO_REQUIRE_SHARED()                                                             \
   do {                                                                                    \

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "service_harness.h"
+#include "tests/support/skips.h"
 
 namespace ssdo::test {
 namespace {

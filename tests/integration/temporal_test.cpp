@@ -14,6 +14,7 @@
 
 #include "service/build_features.h"
 #include "service_harness.h"
+#include "tests/support/skips.h"
 
 namespace ssdo::test {
 namespace {

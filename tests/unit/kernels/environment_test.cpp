@@ -9,7 +9,7 @@
 
 #include <gtest/gtest.h>
 
-#include "tests/support/reference_measurement.h"
+#include "tests/support/skips.h"
 
 namespace ssdo {
 namespace {

@@ -12,7 +12,7 @@
 
 #include "kernels/metrics.h"
 #include "tests/support/raycast.h"
-#include "tests/support/reference_measurement.h"
+#include "tests/support/skips.h"
 
 namespace ssdo {
 namespace {
