@@ -10,8 +10,7 @@ scripts/install-deps.sh
 scripts/build.sh -DSSDO_UNITY_TESTS=ON -DSSDO_UNITY_LIBRARIES=ON -DSSDO_PRECOMPILE_HEADERS=ON --target ssdo_tests
 # One test more than cores (TEST_JOBS): a share of the tests wait on what they drive (child
 # processes, sockets, the watcher's rescans, the Slurm scheduler), and the extra test keeps
-# the cores busy meanwhile; on the 2-core machine 3 against 2 took each stage 7-13% less
-# wall time (docs/fuzzing.md).
+# the cores busy meanwhile (measured: docs/fuzzing.md).
 test_jobs=${TEST_JOBS:-$(($(nproc) + 1))}
 (cd "${BUILD_DIR:-build}" && ctest --output-on-failure -j "$test_jobs" "$@")
 
