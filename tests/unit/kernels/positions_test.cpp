@@ -61,8 +61,8 @@ DepthFrame random_frame(uint32_t seed) {
   return f;
 }
 
-// 0 when every pixel inside `roi` holds the scalar solve's bits (0 where masked) and every
-// pixel outside holds `outside`'s; else the number of pixels that do not.
+// 0 when every pixel inside `roi` holds the scalar solve's bits (0 where masked; a NaN as
+// any NaN) and every pixel outside holds `outside`'s; else the number of pixels that do not.
 int mismatches(const DepthFrame& f, const Camera& camera, const cv::Mat& positions, const cv::Rect& roi,
                const cv::Vec3f& outside) {
   int bad = 0;
