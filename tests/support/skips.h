@@ -22,14 +22,10 @@
 
 #ifdef SSDO_SANITIZER_BUILD
 #define SSDO_SKIP_IN_SANITIZER_BUILD(reason) GTEST_SKIP() << "left out of the sanitizer build: " << (reason)
-#else
-#define SSDO_SKIP_IN_SANITIZER_BUILD(reason) static_cast<void>(0)
-#endif
-
-#ifdef SSDO_SANITIZER_BUILD
 #define SSDO_REFERENCE_MEASUREMENT() \
   GTEST_SKIP() << "a measurement against a brute-force reference: left out of the sanitizer build"
 #else
+#define SSDO_SKIP_IN_SANITIZER_BUILD(reason) static_cast<void>(0)
 #define SSDO_REFERENCE_MEASUREMENT()                                                                    \
   do {                                                                                                  \
     if (const char* simd = std::getenv("SSDO_SIMD"); simd != nullptr && *simd != '\0')                 \
