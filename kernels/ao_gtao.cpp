@@ -52,9 +52,9 @@
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
 // becomes packed texels and their coarser levels for the far taps (build_texels,
 // build_coarse_levels); tiles of pixels are shaded row by row, each row planned first
-// across its pixels (plan_row: tap patterns, tap indices, points and slice bases); then
+// across its pixels (plan_row: tap patterns, points and slice bases); then
 // groups of kLanes pixels, one per vector lane (shade_group), slice by slice (shade_slice),
-// each slice's taps a step at a time for every lane (step_taps, gather_texels,
+// each slice's taps a step at a time for every lane (group_step_indices, gather_texels,
 // step_coordinates), with either the height-field horizons (height_field_step) and their
 // integral (height_field_integral), or the occluder segments (step_intervals), the
 // visibility mask's ordered pass (visibility_mask_step) and its integral
@@ -355,11 +355,6 @@ constexpr int kLanes =
     std::clamp(4 * int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>())), 16, kTileWidthPx);
 static_assert(kTileWidthPx % kLanes == 0);
 
-// Slice-steps per pixel (slices x steps) whose tap indices are computed for a whole tile
-// row before it is shaded and kept (plan_row): 48 covers the low (1 x 6), medium (2 x 8)
-// and high (3 x 16) presets (a row's: 24 KiB); ultra's (6 x 16) are computed at their step.
-constexpr int kKeptSteps = 48;
-
 // Slices per pixel whose bases are computed for a whole tile row before it is shaded
 // (plan_row): 3 covers the low, medium and high presets (a row's bases: 13 KiB); with more,
 // each slice's are computed for the group's lanes at the slice.
@@ -413,7 +408,6 @@ struct Constants {
   Falloff falloff;
   ScreenToView screen_to_view;
   TapGrid grid;
-  bool keep_indices;  // a pixel's tap indices fit in its tile row (kKeptSteps)
   bool keep_bases;    // a pixel's slice bases fit in its row's (kKeptSlices)
   const SectorTables* sectors;  // the visibility mask's sector measures
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
@@ -435,7 +429,6 @@ struct Constants {
         falloff(s.radius_world, s.falloff_fraction),
         screen_to_view(in.camera),
         grid{in.depth_view.cols, in.depth_view.rows, in.frame_origin_px, s.directions, s.steps},
-        keep_indices(s.directions * s.steps <= kKeptSteps),
         keep_bases(slices <= kKeptSlices),
         sectors(&sector_tables()),
         slice_rot(size_t(s.directions)) {
@@ -466,8 +459,7 @@ const cv::Mat* back_layer(const AoInputs& in, const Constants& k) {
 }
 
 // A row of a tile, field by field so that loops over its pixels vectorise: the pixels' tap
-// patterns (GTAO Alg. 1 lines 5-6 and the steps' jitter) and kept tap indices, and the
-// shading's per-pixel sums, turned into the outputs for the whole row at once.
+// patterns (GTAO Alg. 1 lines 5-6 and the steps' jitter), and the shading's per-pixel sums, turned into the outputs for the whole row at once.
 enum : uint8_t { kBackground, kNoTaps, kShaded };
 struct TileRow {
   alignas(64) int32_t has_taps[kTileWidthPx];
@@ -477,9 +469,6 @@ struct TileRow {
   alignas(64) float step_noise[kTileWidthPx];
   alignas(64) float rot_c[kTileWidthPx], rot_s[kTileWidthPx];  // the rotation of the slices
   alignas(64) uint8_t state[kTileWidthPx];
-  // Texel index of the tap of step j of slice i on side s (0: +direction, 1: -direction) of
-  // pixel xi: index[i * steps + j][s][xi], when kept (kKeptSteps).
-  alignas(64) int32_t index[kKeptSteps][2][kTileWidthPx];
   alignas(64) float visible_sum[kTileWidthPx];
   alignas(64) float open_sum[kTileWidthPx];
   alignas(64) float bent_x[kTileWidthPx], bent_y[kTileWidthPx], bent_z[kTileWidthPx];
@@ -1071,31 +1060,11 @@ struct GroupSums {
   alignas(64) float bent_x[kLanes] = {}, bent_y[kLanes] = {}, bent_z[kLanes] = {};
 };
 
-// The taps of step j of slice i, both sides, of the group at xi0: kept by the row's plan
-// when they fit, computed now otherwise; with kept indices and a next group in the row
-// (kLanes < kTileWidthPx), its texels of the same step are asked for (a group's taps are
-// shaded by then).
-[[gnu::always_inline]] inline void step_taps(const Constants& k, const Frame& f, const TileRow& row,
-                                             const SliceLanes& s, int x0, int y, int xi0, int row_lanes, int i,
-                                             int j, StepLanes t[2]) {
-  if (!k.keep_indices) {
-    group_step_indices(k, row, s.screen_x, s.screen_y, x0, y, xi0, i, j, t[0].index, t[1].index);
-    return;
-  }
-  const int ij = i * k.steps + j;
-  for (int side = 0; side < 2; ++side) std::copy_n(row.index[ij][side] + xi0, kLanes, t[side].index);
-  if constexpr (kLanes < kTileWidthPx)  // else a tile row is one group
-    if (xi0 + kLanes < row_lanes)
-      for (int side = 0; side < 2; ++side)
-        for (int l = 0; l < kLanes; ++l)
-          __builtin_prefetch(f.texels.data() + std::max(row.index[ij][side][xi0 + kLanes + l], 0));
-}
-
 // Slice i of the group of pixels xi0 .. xi0 + kLanes - 1 of row y (GTAO Alg. 1 lines 5-30):
 // its taps step by step in order of distance, both sides, under the occluder model; its
 // visible measure and bent normal added to the sums.
 void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const SliceLanes& s, int x0, int y,
-                 int xi0, int row_lanes, int i, GroupSums& sums) {
+                 int xi0, int i, GroupSums& sums) {
   SideLanes side[2];
   for (int l = 0; l < kLanes; ++l)
     for (int sd = 0; sd < 2; ++sd) {
@@ -1110,7 +1079,7 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
   const bool per_texel_thickness = !f.thickness.empty();
   for (int j = 0; j < k.steps; ++j) {
     StepLanes t[2];
-    step_taps(k, f, row, s, x0, y, xi0, row_lanes, i, j, t);
+    group_step_indices(k, row, s.screen_x, s.screen_y, x0, y, xi0, i, j, t[0].index, t[1].index);
     for (int sd = 0; sd < 2; ++sd) {
       const bool occluders = step_coordinates(f.texels.data(), s, t[sd]);
       if (k.height_field) {
@@ -1149,8 +1118,7 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
 
 // The group of pixels xi0 .. xi0 + kLanes - 1 of row y: its slices, then its sums into the
 // row (0 where a pixel is not shaded).
-void shade_group(const Constants& k, const Frame& f, TileRow& row, RowBases& bases, int x0, int y, int xi0,
-                 int row_lanes) {
+void shade_group(const Constants& k, const Frame& f, TileRow& row, RowBases& bases, int x0, int y, int xi0) {
   int any_taps = 0;
   for (int l = 0; l < kLanes; ++l) any_taps |= row.has_taps[xi0 + l];
   GroupSums sums;
@@ -1159,7 +1127,7 @@ void shade_group(const Constants& k, const Frame& f, TileRow& row, RowBases& bas
     if (!k.keep_bases) bases.compute_slice(k, row, slot, i, xi0, xi0 + kLanes);
     SliceLanes s;
     s.load(k, row, bases, slot, i, xi0);
-    shade_slice(k, f, row, s, x0, y, xi0, row_lanes, i, sums);
+    shade_slice(k, f, row, s, x0, y, xi0, i, sums);
   }
   for (int l = 0; l < kLanes; ++l) {
     const int xi = xi0 + l;
@@ -1206,10 +1174,9 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
 }
 
 // Row y's pixels x0 .. x1 - 1, and the lanes after them up to a whole group (no taps):
-// their tap patterns, points, kept slice bases and kept tap indices, before the row is
-// shaded. The first group's texels are not prefetched here: a row's kept taps (up to 2048
-// lines with 64 lanes) outnumber what the core can have in flight, and the prefetches
-// stalled the plan (with 64 lanes, 5% of the medium preset, 8% of high).
+// their tap patterns, points and kept slice bases, before the row is shaded. The taps'
+// texel indices are computed at their step, a group at a time (group_step_indices): no
+// row of them to hold in the first-level cache.
 void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow& row, RowBases& bases) {
   const int n = x1 - x0, row_lanes = (n + kLanes - 1) / kLanes * kLanes;
   pixel_taps(k, f.in, x0, n, y, row);
@@ -1219,19 +1186,6 @@ void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow
     row.level_cap[xi] = 0;
     row.rot_c[xi] = 1.0f;
     row.state[xi] = kBackground;
-  }
-  if (k.keep_indices) {
-    for (int i = 0; i < k.slices; ++i) {
-      alignas(64) float screen_x[kTileWidthPx], screen_y[kTileWidthPx];
-      for (int xi = 0; xi < row_lanes; ++xi) {
-        const glm::vec2 d = slice_direction(k, row.rot_c[xi], row.rot_s[xi], i);
-        screen_x[xi] = d.x, screen_y[xi] = d.y;
-      }
-      for (int j = 0; j < k.steps; ++j)
-        for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes)
-          group_step_indices(k, row, screen_x + xi0, screen_y + xi0, x0, y, xi0, i, j,
-                             row.index[i * k.steps + j][0] + xi0, row.index[i * k.steps + j][1] + xi0);
-    }
   }
   for (int xi = 0; xi < n; ++xi) bases.set_point(size_t(xi), pixel_point(k, f, x0 + xi, y));
   for (int xi = n; xi < row_lanes; ++xi) bases.set_point(size_t(xi), PixelPoint{});
@@ -1247,7 +1201,7 @@ inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0
   const int row_lanes = (x1 - x0 + kLanes - 1) / kLanes * kLanes;
   for (int y = y0; y < y1; ++y) {
     plan_row(k, f, x0, x1, y, row, bases);
-    for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes) shade_group(k, f, row, bases, x0, y, xi0, row_lanes);
+    for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes) shade_group(k, f, row, bases, x0, y, xi0);
     finish_row(k, f.in, out, x0, x1, y, row);
   }
 }
