@@ -52,7 +52,7 @@
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
 // becomes packed texels and their coarser levels for the far taps (build_texels,
 // build_coarse_levels); tiles of pixels are shaded row by row, each row planned first
-// across its pixels (plan_row: tap patterns, points and slice bases); then
+// across its pixels (plan_row: tap patterns and points); then
 // groups of kLanes pixels, one per vector lane (shade_group), slice by slice (shade_slice),
 // each slice's taps a step at a time for every lane (group_step_indices, gather_texels,
 // step_coordinates), with either the height-field horizons (height_field_step) and their
@@ -355,10 +355,6 @@ constexpr int kLanes =
     std::clamp(4 * int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>())), 16, kTileWidthPx);
 static_assert(kTileWidthPx % kLanes == 0);
 
-// Slices per pixel whose bases are computed for a whole tile row before it is shaded
-// (plan_row): 3 covers the low, medium and high presets (a row's bases: 13 KiB); with more,
-// each slice's are computed for the group's lanes at the slice.
-constexpr int kKeptSlices = 3;
 
 // A tap's texel index; below 0 there is no texel: off screen (nothing known there: the
 // side's last tap ends), or no tap at all (the pixel has no taps, or the step's offset
@@ -408,7 +404,6 @@ struct Constants {
   Falloff falloff;
   ScreenToView screen_to_view;
   TapGrid grid;
-  bool keep_bases;    // a pixel's slice bases fit in its row's (kKeptSlices)
   const SectorTables* sectors;  // the visibility mask's sector measures
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
   // slice in the pixel loop.
@@ -429,7 +424,6 @@ struct Constants {
         falloff(s.radius_world, s.falloff_fraction),
         screen_to_view(in.camera),
         grid{in.depth_view.cols, in.depth_view.rows, in.frame_origin_px, s.directions, s.steps},
-        keep_bases(slices <= kKeptSlices),
         sectors(&sector_tables()),
         slice_rot(size_t(s.directions)) {
     for (int i = 0; i < slices; ++i) {
@@ -618,43 +612,17 @@ inline void split_sector(const SectorTables& t, float cos_n, float sin_n, float 
   split_measure = cos_n > 0.0f ? straddled : k == 0 ? edge_hi - edge_lo : edge_lo - edge_hi;
 }
 
-// The points and slice bases of a tile row's pixels, field by field (slice slot s of pixel
-// xi at [s][xi]), so that the loops computing them run over the pixels in vector lanes: a
-// basis is a chain of divisions and square roots per pixel and slice.
-struct RowBases {
+// The points of a tile row's pixels, field by field (pixel xi at [c][xi]).
+struct RowPoints {
   alignas(64) float origin[3][kTileWidthPx], normal[3][kTileWidthPx], view[3][kTileWidthPx];
-  alignas(64) float dir[kKeptSlices][3][kTileWidthPx], axis[kKeptSlices][3][kTileWidthPx];
-  alignas(64) float origin_v[kKeptSlices][kTileWidthPx], origin_d[kKeptSlices][kTileWidthPx],
-      origin_a[kKeptSlices][kTileWidthPx];
-  alignas(64) float cos_n[kKeptSlices][kTileWidthPx], sin_n[kKeptSlices][kTileWidthPx];
-  alignas(64) float pn_len[kKeptSlices][kTileWidthPx], weight_total[kKeptSlices][kTileWidthPx];
-  alignas(64) int32_t split[kKeptSlices][kTileWidthPx];
-  alignas(64) float split_measure[kKeptSlices][kTileWidthPx];
 
-  void set_point(size_t xi, const PixelPoint& p) {
+  void set(size_t xi, const PixelPoint& p) {
     for (int c = 0; c < 3; ++c) origin[c][xi] = p.origin[c], normal[c][xi] = p.normal[c], view[c][xi] = p.view[c];
   }
-  PixelPoint point(size_t xi) const {
+  PixelPoint at(size_t xi) const {
     return {{origin[0][xi], origin[1][xi], origin[2][xi]},
             {normal[0][xi], normal[1][xi], normal[2][xi]},
             {view[0][xi], view[1][xi], view[2][xi]}};
-  }
-  void set_fields(int s, size_t xi, const SliceFields& f) {
-    for (int c = 0; c < 3; ++c) dir[s][c][xi] = f.dir[c], axis[s][c][xi] = f.axis[c];
-    origin_v[s][xi] = f.origin_v, origin_d[s][xi] = f.origin_d, origin_a[s][xi] = f.origin_a;
-    cos_n[s][xi] = f.cos_n, sin_n[s][xi] = f.sin_n;
-    pn_len[s][xi] = f.pn_len, weight_total[s][xi] = f.weight_total;
-  }
-  // Slice i's fields of pixels xi0 .. xi1 - 1 into slot s (no branch: the loop vectorises).
-  [[gnu::always_inline]] void compute_slice(const Constants& k, const TileRow& row, int s, int i, int xi0, int xi1) {
-    for (int xi = xi0; xi < xi1; ++xi) {
-      const size_t x = size_t(xi);
-      set_fields(s, x, slice_fields(k, point(x), slice_direction(k, row.rot_c[x], row.rot_s[x], i)));
-    }
-    for (int xi = xi0; xi < xi1; ++xi) {
-      const size_t x = size_t(xi);
-      split_sector(*k.sectors, cos_n[s][x], sin_n[s][x], weight_total[s][x], split[s][x], split_measure[s][x]);
-    }
   }
 };
 
@@ -673,22 +641,26 @@ struct SliceLanes {
   alignas(64) float split_measure[kLanes];                  // and its measure
   alignas(64) float screen_x[kLanes], screen_y[kLanes];     // slice_direction
 
-  // From slot s of the row's bases, pixels xi0 .. xi0 + kLanes - 1.
-  void load(const Constants& k, const TileRow& row, const RowBases& b, int s, int i, int xi0) {
+  // Slice i of the row's pixels xi0 .. xi0 + kLanes - 1, a chain of divisions and square
+  // roots per lane (no branch: the loops vectorise).
+  [[gnu::always_inline]] void compute(const Constants& k, const TileRow& row, const RowPoints& points, int i,
+                                      int xi0) {
     for (int l = 0; l < kLanes; ++l) {
-      const int x = xi0 + l;
-      ox[l] = b.origin[0][x], oy[l] = b.origin[1][x], oz[l] = b.origin[2][x];
-      nx[l] = b.normal[0][x], ny[l] = b.normal[1][x], nz[l] = b.normal[2][x];
-      vx[l] = b.view[0][x], vy[l] = b.view[1][x], vz[l] = b.view[2][x];
-      dx[l] = b.dir[s][0][x], dy[l] = b.dir[s][1][x], dz[l] = b.dir[s][2][x];
-      ax[l] = b.axis[s][0][x], ay[l] = b.axis[s][1][x], az[l] = b.axis[s][2][x];
-      origin_v[l] = b.origin_v[s][x], origin_d[l] = b.origin_d[s][x], origin_a[l] = b.origin_a[s][x];
-      cos_n[l] = b.cos_n[s][x], sin_n[l] = b.sin_n[s][x];
-      pn_len[l] = b.pn_len[s][x], weight_total[l] = b.weight_total[s][x];
-      split[l] = b.split[s][x], split_measure[l] = b.split_measure[s][x];
+      const size_t x = size_t(xi0 + l);
+      const PixelPoint p = points.at(x);
       const glm::vec2 d = slice_direction(k, row.rot_c[x], row.rot_s[x], i);
+      const SliceFields f = slice_fields(k, p, d);
+      ox[l] = p.origin.x, oy[l] = p.origin.y, oz[l] = p.origin.z;
+      nx[l] = p.normal.x, ny[l] = p.normal.y, nz[l] = p.normal.z;
+      vx[l] = p.view.x, vy[l] = p.view.y, vz[l] = p.view.z;
+      dx[l] = f.dir.x, dy[l] = f.dir.y, dz[l] = f.dir.z;
+      ax[l] = f.axis.x, ay[l] = f.axis.y, az[l] = f.axis.z;
+      origin_v[l] = f.origin_v, origin_d[l] = f.origin_d, origin_a[l] = f.origin_a;
+      cos_n[l] = f.cos_n, sin_n[l] = f.sin_n;
+      pn_len[l] = f.pn_len, weight_total[l] = f.weight_total;
       screen_x[l] = d.x, screen_y[l] = d.y;
     }
+    for (int l = 0; l < kLanes; ++l) split_sector(*k.sectors, cos_n[l], sin_n[l], weight_total[l], split[l], split_measure[l]);
   }
 };
 
@@ -1118,15 +1090,13 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
 
 // The group of pixels xi0 .. xi0 + kLanes - 1 of row y: its slices, then its sums into the
 // row (0 where a pixel is not shaded).
-void shade_group(const Constants& k, const Frame& f, TileRow& row, RowBases& bases, int x0, int y, int xi0) {
+void shade_group(const Constants& k, const Frame& f, TileRow& row, const RowPoints& points, int x0, int y, int xi0) {
   int any_taps = 0;
   for (int l = 0; l < kLanes; ++l) any_taps |= row.has_taps[xi0 + l];
   GroupSums sums;
   for (int i = 0; i < k.slices && any_taps; ++i) {
-    const int slot = k.keep_bases ? i : 0;
-    if (!k.keep_bases) bases.compute_slice(k, row, slot, i, xi0, xi0 + kLanes);
     SliceLanes s;
-    s.load(k, row, bases, slot, i, xi0);
+    s.compute(k, row, points, i, xi0);
     shade_slice(k, f, row, s, x0, y, xi0, i, sums);
   }
   for (int l = 0; l < kLanes; ++l) {
@@ -1174,10 +1144,10 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
 }
 
 // Row y's pixels x0 .. x1 - 1, and the lanes after them up to a whole group (no taps):
-// their tap patterns, points and kept slice bases, before the row is shaded. The taps'
-// texel indices are computed at their step, a group at a time (group_step_indices): no
-// row of them to hold in the first-level cache.
-void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow& row, RowBases& bases) {
+// their tap patterns and points, before the row is shaded. A group's slice bases are
+// computed at its slice (SliceLanes::compute) and its taps' texel indices at their step
+// (group_step_indices): no row of either to hold in the first-level cache.
+void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow& row, RowPoints& points) {
   const int n = x1 - x0, row_lanes = (n + kLanes - 1) / kLanes * kLanes;
   pixel_taps(k, f.in, x0, n, y, row);
   for (int xi = n; xi < row_lanes; ++xi) {
@@ -1187,21 +1157,19 @@ void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow
     row.rot_c[xi] = 1.0f;
     row.state[xi] = kBackground;
   }
-  for (int xi = 0; xi < n; ++xi) bases.set_point(size_t(xi), pixel_point(k, f, x0 + xi, y));
-  for (int xi = n; xi < row_lanes; ++xi) bases.set_point(size_t(xi), PixelPoint{});
-  if (k.keep_bases)
-    for (int i = 0; i < k.slices; ++i) bases.compute_slice(k, row, i, i, 0, row_lanes);
+  for (int xi = 0; xi < n; ++xi) points.set(size_t(xi), pixel_point(k, f, x0 + xi, y));
+  for (int xi = n; xi < row_lanes; ++xi) points.set(size_t(xi), PixelPoint{});
 }
 
 // The tile [x0, x1) x [y0, y1), row by row: a row is planned (plan_row), then shaded a
 // group of kLanes pixels at a time, each group's taps step by step.
 inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
   TileRow row;
-  RowBases bases;
+  RowPoints points;
   const int row_lanes = (x1 - x0 + kLanes - 1) / kLanes * kLanes;
   for (int y = y0; y < y1; ++y) {
-    plan_row(k, f, x0, x1, y, row, bases);
-    for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes) shade_group(k, f, row, bases, x0, y, xi0);
+    plan_row(k, f, x0, x1, y, row, points);
+    for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes) shade_group(k, f, row, points, x0, y, xi0);
     finish_row(k, f.in, out, x0, x1, y, row);
   }
 }
