@@ -52,14 +52,14 @@
 // The code follows the passes (as XeGTAO's): the settings become Constants once; the frame
 // becomes packed texels and their coarser levels for the far taps (build_texels,
 // build_coarse_levels); tiles of pixels are shaded row by row, each row planned first
-// across its pixels (plan_row: tap patterns and points); then
-// groups of kLanes pixels, one per vector lane (shade_group), slice by slice (shade_slice),
-// each slice's taps a step at a time for every lane (group_step_indices, gather_texels,
-// step_coordinates), with either the height-field horizons (height_field_step) and their
-// integral (height_field_integral), or the occluder segments (step_intervals), the
-// visibility mask's ordered pass (visibility_mask_step) and its integral
-// (visibility_mask_integrals); the slice's bent normal (add_slice_bent_normal); a row's sums
-// become AO and bent normal in finish_row.
+// across its pixels (plan_row: tap patterns and points); then groups of kLanes pixels, one
+// per vector lane (shade_group), slice by slice (the slice's frame in the lanes,
+// SliceLanes::compute; shade_slice), each slice's taps a step at a time for every lane
+// (group_step_indices, gather_texels, step_coordinates), with either the height-field
+// horizons (height_field_step) and their integral (height_field_integral), or the occluder
+// segments (step_intervals), the visibility mask's ordered pass (visibility_mask_step) and
+// its integral (visibility_mask_integrals); the slice's bent normal
+// (add_slice_bent_normal); a row's sums become AO and bent normal in finish_row.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/ao_gtao.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
@@ -355,7 +355,6 @@ constexpr int kLanes =
     std::clamp(4 * int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>())), 16, kTileWidthPx);
 static_assert(kTileWidthPx % kLanes == 0);
 
-
 // A tap's texel index; below 0 there is no texel: off screen (nothing known there: the
 // side's last tap ends), or no tap at all (the pixel has no taps, or the step's offset
 // rounds to (0, 0): the side's last tap stays).
@@ -453,7 +452,8 @@ const cv::Mat* back_layer(const AoInputs& in, const Constants& k) {
 }
 
 // A row of a tile, field by field so that loops over its pixels vectorise: the pixels' tap
-// patterns (GTAO Alg. 1 lines 5-6 and the steps' jitter), and the shading's per-pixel sums, turned into the outputs for the whole row at once.
+// patterns (GTAO Alg. 1 lines 5-6 and the steps' jitter), and the shading's per-pixel
+// sums, turned into the outputs for the whole row at once.
 enum : uint8_t { kBackground, kNoTaps, kShaded };
 struct TileRow {
   alignas(64) int32_t has_taps[kTileWidthPx];
@@ -660,7 +660,8 @@ struct SliceLanes {
       pn_len[l] = f.pn_len, weight_total[l] = f.weight_total;
       screen_x[l] = d.x, screen_y[l] = d.y;
     }
-    for (int l = 0; l < kLanes; ++l) split_sector(*k.sectors, cos_n[l], sin_n[l], weight_total[l], split[l], split_measure[l]);
+    for (int l = 0; l < kLanes; ++l)
+      split_sector(*k.sectors, cos_n[l], sin_n[l], weight_total[l], split[l], split_measure[l]);
   }
 };
 
