@@ -351,9 +351,9 @@ inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_po
 // a chain waits; more than four only add to the working set (docs/performance.md, "GTAO's
 // groups of lanes"). Lanes without taps (background, sub-pixel radius, past the tile's
 // edge) compute for nobody.
-constexpr int kLanes =
-    std::clamp(4 * int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>())), 16, kTileWidthPx);
-static_assert(kTileWidthPx % kLanes == 0);
+constexpr int kVectorLanes = int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>()));
+constexpr int kLanes = std::clamp(4 * kVectorLanes, 16, kTileWidthPx);
+static_assert(kTileWidthPx % kLanes == 0 && kLanes % kVectorLanes == 0);
 
 // A tap's texel index; below 0 there is no texel: off screen (nothing known there: the
 // side's last tap ends), or no tap at all (the pixel has no taps, or the step's offset
@@ -739,7 +739,9 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
 }
 
 // The occluded interval [u0, u1] of each lane's occluder segment on side `side` (0: +, 1:
-// -), as positions in the visibility mask (sector_u), every lane alike.
+// -), as positions in the visibility mask (sector_u); (1, 0) where there is none. The
+// ordered pass reads the intervals of occluders only (visibility_mask_step): a vector of
+// lanes without one gets the empty interval without the arithmetic.
 template <bool perspective, bool per_texel_thickness>
 [[gnu::noinline]] void step_intervals(const Constants& k, const Frame& f, const SliceLanes& s, int side,
                                       StepLanes& __restrict t) {
@@ -747,43 +749,52 @@ template <bool perspective, bool per_texel_thickness>
   const float thickness_world = k.thickness_world, r2 = k.r2;
   // The side's sign of the direction coordinate, and its limit in the mask.
   const float sign = side == 0 ? 1.0f : -1.0f, side_u = side == 0 ? 1.0f : 0.0f;
-  for (int l = 0; l < kLanes; ++l) {
-    const float dv = t.dv[l], dd = t.dd[l], da = t.da[l], dist2 = t.dist2[l];
-    const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
-    // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
-    // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too:
-    // orthographic, the view axis; perspective, the tap's frame coordinates (the origin's
-    // plus delta's) over its distance.
-    float rv = -s.vz[l], rd = -s.dz[l], ra = -s.az[l];
-    if constexpr (perspective) {
-      const float inv_distance = t.inv_distance[l];
-      rv = (s.origin_v[l] + dv) * inv_distance;
-      rd = (s.origin_d[l] + dd) * inv_distance;
-      ra = (s.origin_a[l] + da) * inv_distance;
+  constexpr int kChunk = std::max(kVectorLanes, 8);
+  for (int l0 = 0; l0 < kLanes; l0 += kChunk) {
+    int occluders = 0;
+    for (int l = l0; l < l0 + kChunk; ++l) occluders |= t.occluder[l];
+    if (!occluders) {
+      for (int l = l0; l < l0 + kChunk; ++l) t.u0[l] = 1.0f, t.u1[l] = 0.0f;
+      continue;
     }
-    const float b = dv * rv + dd * rd + da * ra;
-    const float c = dist2 - r2;
-    const float disc = b * b - c;
-    // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
-    const float root = std::sqrt(disc);
-    // Lanes without a texel read texel 0's, for nobody (no conditional load: the loop
-    // stays vectorised).
-    float thickness = thickness_world;
-    if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(t.index[l], 0)];
-    const float t0 = std::max(0.0f, -b - root);
-    const float t1 = std::min(thickness, -b + root);
-    // The segment's two ends in the slice plane, on the tap's side of the view vector
-    // (|direction coordinate| with the side's sign), as positions in the mask.
-    const float e0v = dv + t0 * rv, e0d = sign * std::abs(dd + t0 * rd);
-    const float e1v = dv + t1 * rv, e1d = sign * std::abs(dd + t1 * rd);
-    const float w0 = sector_u(e0v, e0d, cos_n, sin_n, side_u);
-    const float w1 = sector_u(e1v, e1d, cos_n, sin_n, side_u);
-    const float u0 = std::min(w0, w1), u1 = std::max(w0, w1);
-    // Some of the segment above the tangent line (cos f > 0 at an end).
-    const bool above = (e0v * cos_n + e0d * sin_n > 0.0f) | (e1v * cos_n + e1d * sin_n > 0.0f);
-    const bool hit = (disc >= 0.0f) & (t1 >= t0) & above;
-    t.u0[l] = hit ? u0 : 1.0f;  // empty: u0 > u1
-    t.u1[l] = hit ? u1 : 0.0f;
+    for (int l = l0; l < l0 + kChunk; ++l) {
+      const float dv = t.dv[l], dd = t.dd[l], da = t.da[l], dist2 = t.dist2[l];
+      const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
+      // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
+      // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too:
+      // orthographic, the view axis; perspective, the tap's frame coordinates (the origin's
+      // plus delta's) over its distance.
+      float rv = -s.vz[l], rd = -s.dz[l], ra = -s.az[l];
+      if constexpr (perspective) {
+        const float inv_distance = t.inv_distance[l];
+        rv = (s.origin_v[l] + dv) * inv_distance;
+        rd = (s.origin_d[l] + dd) * inv_distance;
+        ra = (s.origin_a[l] + da) * inv_distance;
+      }
+      const float b = dv * rv + dd * rd + da * ra;
+      const float c = dist2 - r2;
+      const float disc = b * b - c;
+      // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
+      const float root = std::sqrt(disc);
+      // Lanes without a texel read texel 0's, for nobody (no conditional load: the loop
+      // stays vectorised).
+      float thickness = thickness_world;
+      if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(t.index[l], 0)];
+      const float t0 = std::max(0.0f, -b - root);
+      const float t1 = std::min(thickness, -b + root);
+      // The segment's two ends in the slice plane, on the tap's side of the view vector
+      // (|direction coordinate| with the side's sign), as positions in the mask.
+      const float e0v = dv + t0 * rv, e0d = sign * std::abs(dd + t0 * rd);
+      const float e1v = dv + t1 * rv, e1d = sign * std::abs(dd + t1 * rd);
+      const float w0 = sector_u(e0v, e0d, cos_n, sin_n, side_u);
+      const float w1 = sector_u(e1v, e1d, cos_n, sin_n, side_u);
+      const float u0 = std::min(w0, w1), u1 = std::max(w0, w1);
+      // Some of the segment above the tangent line (cos f > 0 at an end).
+      const bool above = (e0v * cos_n + e0d * sin_n > 0.0f) | (e1v * cos_n + e1d * sin_n > 0.0f);
+      const bool hit = (disc >= 0.0f) & (t1 >= t0) & above;
+      t.u0[l] = hit ? u0 : 1.0f;  // empty: u0 > u1
+      t.u1[l] = hit ? u1 : 0.0f;
+    }
   }
 }
 
