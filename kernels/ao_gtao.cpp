@@ -353,7 +353,7 @@ inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_po
 // edge) compute for nobody.
 constexpr int kVectorLanes = int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE::ScalableTag<float>()));
 constexpr int kLanes = std::clamp(4 * kVectorLanes, 16, kTileWidthPx);
-static_assert(kTileWidthPx % kLanes == 0 && kLanes % kVectorLanes == 0);
+static_assert(kTileWidthPx % kLanes == 0);
 
 // A tap's texel index; below 0 there is no texel: off screen (nothing known there: the
 // side's last tap ends), or no tap at all (the pixel has no taps, or the step's offset
@@ -749,7 +749,10 @@ template <bool perspective, bool per_texel_thickness>
   const float thickness_world = k.thickness_world, r2 = k.r2;
   // The side's sign of the direction coordinate, and its limit in the mask.
   const float sign = side == 0 ? 1.0f : -1.0f, side_u = side == 0 ? 1.0f : 0.0f;
+  // A vector of lanes, but at least 8: GCC unrolls a loop of 4 lanes (SSE2, NEON)
+  // completely and leaves the lanes scalar.
   constexpr int kChunk = std::max(kVectorLanes, 8);
+  static_assert(kLanes % kChunk == 0);
   for (int l0 = 0; l0 < kLanes; l0 += kChunk) {
     int occluders = 0;
     for (int l = l0; l < l0 + kChunk; ++l) occluders |= t.occluder[l];
