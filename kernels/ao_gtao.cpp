@@ -739,9 +739,9 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
 }
 
 // The occluded interval [u0, u1] of each lane's occluder segment on side `side` (0: +, 1:
-// -), as positions in the visibility mask (sector_u); (1, 0) where there is none. The
+// -), as positions in the visibility mask (sector_u); (1, 0) where the segment misses. The
 // ordered pass reads the intervals of occluders only (visibility_mask_step): a vector of
-// lanes without one gets the empty interval without the arithmetic.
+// lanes without an occluder gets (1, 0) without the arithmetic.
 template <bool perspective, bool per_texel_thickness>
 [[gnu::noinline]] void step_intervals(const Constants& k, const Frame& f, const SliceLanes& s, int side,
                                       StepLanes& __restrict t) {
