@@ -1073,15 +1073,11 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
         if (occluders) height_field_step(k, s, t[sd], sd, side[sd].horizon);
         continue;
       }
-      if (occluders) {
-        if (k.perspective)
-          per_texel_thickness ? step_intervals<true, true>(k, f, s, sd, t[sd]) : step_intervals<true, false>(k, f, s, sd, t[sd]);
-        else
-          per_texel_thickness ? step_intervals<false, true>(k, f, s, sd, t[sd]) : step_intervals<false, false>(k, f, s, sd, t[sd]);
-      } else {
-        std::fill_n(t[sd].u0, kLanes, 1.0f);  // no occluder: no interval
-        std::fill_n(t[sd].u1, kLanes, 0.0f);
-      }
+      // Without an occluder every vector of lanes gets (1, 0), the empty interval.
+      if (k.perspective)
+        per_texel_thickness ? step_intervals<true, true>(k, f, s, sd, t[sd]) : step_intervals<true, false>(k, f, s, sd, t[sd]);
+      else
+        per_texel_thickness ? step_intervals<false, true>(k, f, s, sd, t[sd]) : step_intervals<false, false>(k, f, s, sd, t[sd]);
       visibility_mask_step(k, f, t[sd], sd, occluders, side[sd], occupied);
     }
   }
