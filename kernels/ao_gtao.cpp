@@ -1000,8 +1000,15 @@ inline void visibility_mask_integrals(const SectorTables& t, const uint64_t* occ
     const auto split_bit = hn::Shl(one, hn::BitCast(du, hn::PromoteTo(di, hn::Load(d32, s.split + l))));
     const auto below = hn::Sub(split_bit, one);
     const auto lo = hn::And(occ, below), hi = hn::AndNot(hn::Or(below, split_bit), occ);
+    // The bytes set in some lane: a byte clear in every lane adds 0 - 0 (both tables' entry
+    // for 0 is +0), which leaves each sum as it is.
+    HWY_ALIGN uint64_t lane_bits[hn::MaxLanes(du)];
+    hn::Store(hn::Or(lo, hi), du, lane_bits);
+    uint64_t bits = 0;
+    for (size_t i = 0; i < hn::Lanes(du); ++i) bits |= lane_bits[i];
     auto g1 = zero, g2 = zero;
     for (int b = 0; b < 8; ++b) {
+      if ((bits >> (8 * b) & 255) == 0) continue;
       const auto offset = hn::Set(du, uint64_t(256 * b));
       const auto hi_byte = hn::Add(hn::And(hn::ShiftRightSame(hi, 8 * b), byte), offset);
       const auto lo_byte = hn::Add(hn::And(hn::ShiftRightSame(lo, 8 * b), byte), offset);
