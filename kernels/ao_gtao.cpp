@@ -1000,8 +1000,8 @@ inline void visibility_mask_integrals(const SectorTables& t, const uint64_t* occ
     const auto split_bit = hn::Shl(one, hn::BitCast(du, hn::PromoteTo(di, hn::Load(d32, s.split + l))));
     const auto below = hn::Sub(split_bit, one);
     const auto lo = hn::And(occ, below), hi = hn::AndNot(hn::Or(below, split_bit), occ);
-    // The bytes set in some lane: a byte clear in every lane adds 0 - 0 (both tables' entry
-    // for 0 is +0), which leaves each sum as it is.
+    // The bytes set in some lane: a byte clear in every lane would add +0 - +0 to both sums
+    // (byte_g's entry for 0), which leaves them as they are.
     HWY_ALIGN uint64_t lane_bits[hn::MaxLanes(du)];
     hn::Store(hn::Or(lo, hi), du, lane_bits);
     uint64_t bits = 0;
