@@ -355,6 +355,9 @@ constexpr int kVectorLanes = int(hwy::HWY_NAMESPACE::MaxLanes(hwy::HWY_NAMESPACE
 constexpr int kLanes = std::clamp(4 * kVectorLanes, 16, kTileWidthPx);
 static_assert(kTileWidthPx % kLanes == 0);
 
+// The lanes of the whole groups that hold a row of `pixels` pixels.
+inline int group_lanes(int pixels) { return (pixels + kLanes - 1) / kLanes * kLanes; }
+
 // A tap's texel index; below 0 there is no texel: off screen (nothing known there: the
 // side's last tap ends), or no tap at all (the pixel has no taps, or the step's offset
 // rounds to (0, 0): the side's last tap stays).
@@ -1166,7 +1169,7 @@ inline void finish_row(const Constants& k, const AoInputs& in, AoOutput& out, in
 // computed at its slice (SliceLanes::compute) and its taps' texel indices at their step
 // (group_step_indices): no row of either to hold in the first-level cache.
 void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow& row, RowPoints& points) {
-  const int n = x1 - x0, row_lanes = (n + kLanes - 1) / kLanes * kLanes;
+  const int n = x1 - x0, row_lanes = group_lanes(n);
   pixel_taps(k, f.in, x0, n, y, row);
   for (int xi = n; xi < row_lanes; ++xi) {
     row.has_taps[xi] = 0;
@@ -1184,7 +1187,7 @@ void plan_row(const Constants& k, const Frame& f, int x0, int x1, int y, TileRow
 inline void shade_tile(const Constants& k, const Frame& f, AoOutput& out, int x0, int x1, int y0, int y1) {
   TileRow row;
   RowPoints points;
-  const int row_lanes = (x1 - x0 + kLanes - 1) / kLanes * kLanes;
+  const int row_lanes = group_lanes(x1 - x0);
   for (int y = y0; y < y1; ++y) {
     plan_row(k, f, x0, x1, y, row, points);
     for (int xi0 = 0; xi0 < row_lanes; xi0 += kLanes) shade_group(k, f, row, points, x0, y, xi0);
