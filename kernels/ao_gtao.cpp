@@ -743,8 +743,9 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
 
 // The occluded interval [u0, u1] of each lane's occluder segment on side `side` (0: +, 1:
 // -), as positions in the visibility mask (sector_u); (1, 0) where the segment misses. The
-// ordered pass reads the intervals of occluders only (visibility_mask_step): a vector of
-// lanes without an occluder gets (1, 0) without the arithmetic.
+// ordered pass reads the intervals of a step with some occluder, and of its occluders only
+// (visibility_mask_step): a vector of lanes without an occluder gets (1, 0) without the
+// arithmetic.
 template <bool perspective, bool per_texel_thickness>
 [[gnu::noinline]] void step_intervals(const Constants& k, const Frame& f, const SliceLanes& s, int side,
                                       StepLanes& __restrict t) {
@@ -898,7 +899,8 @@ inline bool connections(const Constants& k, const Frame& f, const StepLanes& __r
 // radius), and its last tap. In explicit vectors: written per lane, GCC turns the updates
 // that keep a lane's value into masked stores, which AMD's cores run as microcode.
 // std::min and std::max as selects (their operand order on ties and zeros). interval and
-// connect: per lane, whether the tap has an interval and whether it connects; null: none.
+// connect: per lane, whether the tap has an interval and whether it connects; null: none,
+// and the taps' intervals (t.u0, t.u1) are not read.
 inline void update_side(const Constants& k, const StepLanes& __restrict t, int side, const int32_t* interval,
                         const int32_t* connect, SideLanes& __restrict st, float* h0, float* h1) {
   namespace hn = hwy::HWY_NAMESPACE;
@@ -929,7 +931,8 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
     const auto none = hn::FirstN(d, 0);
     const auto has = interval ? hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i)) : none;
     const auto joined = connect ? hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i)) : none;
-    const auto tu0 = hn::Load(d, t.u0 + l), tu1 = hn::Load(d, t.u1 + l);
+    const auto tu0 = interval ? hn::Load(d, t.u0 + l) : hn::Set(d, 1.0f);  // (1, 0): none
+    const auto tu1 = interval ? hn::Load(d, t.u1 + l) : zero;
     const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
     // The occluded range, as an empty one (1, 0) without an interval.
     const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
@@ -962,7 +965,7 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
   const bool intervals = occluders && connections(k, f, t, st, interval, connect);
   alignas(64) float h0[kLanes], h1[kLanes];
   // Without an interval no lane connects either (connections), and update_side reads
-  // neither: no arrays of zeros to fill per step.
+  // neither, nor the taps' intervals: a step without an occluder has none to compute.
   update_side(k, t, side, intervals ? interval : nullptr, intervals ? connect : nullptr, st, h0, h1);
   if (!intervals) return;  // h0 > h1 in every lane: no sector
   alignas(64) int32_t k0[kLanes], count[kLanes];
@@ -1083,11 +1086,13 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
         if (occluders) height_field_step(k, s, t[sd], sd, side[sd].horizon);
         continue;
       }
-      // Without an occluder every vector of lanes gets (1, 0), the empty interval.
-      if (k.perspective)
-        per_texel_thickness ? step_intervals<true, true>(k, f, s, sd, t[sd]) : step_intervals<true, false>(k, f, s, sd, t[sd]);
-      else
-        per_texel_thickness ? step_intervals<false, true>(k, f, s, sd, t[sd]) : step_intervals<false, false>(k, f, s, sd, t[sd]);
+      // Without an occluder nothing reads the step's intervals (visibility_mask_step).
+      if (occluders) {
+        if (k.perspective)
+          per_texel_thickness ? step_intervals<true, true>(k, f, s, sd, t[sd]) : step_intervals<true, false>(k, f, s, sd, t[sd]);
+        else
+          per_texel_thickness ? step_intervals<false, true>(k, f, s, sd, t[sd]) : step_intervals<false, false>(k, f, s, sd, t[sd]);
+      }
       visibility_mask_step(k, f, t[sd], sd, occluders, side[sd], occupied);
     }
   }
