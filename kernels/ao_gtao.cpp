@@ -984,7 +984,7 @@ inline float height_field_integral(float cos_pos, float cos_neg, float cos_n, fl
   const float sm = -std::sqrt(std::max(0.0f, 1.0f - cos_neg * cos_neg));
   const float visible =
       inner_integral(h_pos, cos_pos, sp, cos_n, sin_n) + inner_integral(h_neg, cos_neg, sm, cos_n, sin_n);
-  return (cos_pos == -sin_n) & (cos_neg == sin_n) ? weight_total : visible;
+  return ((cos_pos == -sin_n) & (cos_neg == sin_n)) ? weight_total : visible;
 }
 // The visibility-mask slice integrals of a group's lanes: each slice's measure less its
 // occupied sectors', so that a slice without occluders is exactly its measure. The sectors
