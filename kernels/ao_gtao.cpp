@@ -900,7 +900,7 @@ inline bool connections(const Constants& k, const Frame& f, const StepLanes& __r
 // that keep a lane's value into masked stores, which AMD's cores run as microcode.
 // std::min and std::max as selects (their operand order on ties and zeros). interval and
 // connect: per lane, whether the tap has an interval and whether it connects; null: none,
-// and the taps' intervals (t.u0, t.u1) are not read.
+// and neither the taps' intervals (t.u0, t.u1) are read nor h0, h1 written.
 inline void update_side(const Constants& k, const StepLanes& __restrict t, int side, const int32_t* interval,
                         const int32_t* connect, SideLanes& __restrict st, float* h0, float* h1) {
   namespace hn = hwy::HWY_NAMESPACE;
@@ -930,15 +930,18 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
     hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap)), tap, horizon), d, st.horizon + l);
     const auto none = hn::FirstN(d, 0);
     const auto has = interval ? hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i)) : none;
-    const auto joined = connect ? hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i)) : none;
-    const auto tu0 = interval ? hn::Load(d, t.u0 + l) : hn::Set(d, 1.0f);  // (1, 0): none
-    const auto tu1 = interval ? hn::Load(d, t.u1 + l) : zero;
     const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
-    // The occluded range, as an empty one (1, 0) without an interval.
-    const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
-    const auto hi = hn::IfThenElse(hn::And(joined, hn::Lt(tu1, su1)), su1, tu1);  // std::max(tu1, su1)
-    hn::Store(hn::IfThenElse(has, lo, hn::Set(d, 1.0f)), d, h0 + l);
-    hn::Store(hn::IfThenElseZero(has, hi), d, h1 + l);
+    auto tu0 = u_lim, tu1 = u_lim;  // read only where `has`
+    if (interval) {
+      tu0 = hn::Load(d, t.u0 + l);
+      tu1 = hn::Load(d, t.u1 + l);
+      const auto joined = connect ? hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i)) : none;
+      // The occluded range, as an empty one (1, 0) without an interval.
+      const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
+      const auto hi = hn::IfThenElse(hn::And(joined, hn::Lt(tu1, su1)), su1, tu1);  // std::max(tu1, su1)
+      hn::Store(hn::IfThenElse(has, lo, hn::Set(d, 1.0f)), d, h0 + l);
+      hn::Store(hn::IfThenElseZero(has, hi), d, h1 + l);
+    }
     // The side's last tap: unchanged without a tap or on the centre line; else this one,
     // with nothing to connect to off screen, on background and beyond the radius.
     const auto keep = hn::Or(hn::RebindMask(d, hn::Eq(index, hn::Set(di, kNoTap))), centre);
@@ -965,9 +968,10 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
   const bool intervals = occluders && connections(k, f, t, st, interval, connect);
   alignas(64) float h0[kLanes], h1[kLanes];
   // Without an interval no lane connects either (connections), and update_side reads
-  // neither, nor the taps' intervals: a step without an occluder has none to compute.
+  // neither, nor the taps' intervals, and writes no range: a step without an occluder has
+  // none to compute.
   update_side(k, t, side, intervals ? interval : nullptr, intervals ? connect : nullptr, st, h0, h1);
-  if (!intervals) return;  // h0 > h1 in every lane: no sector
+  if (!intervals) return;  // no lane has a range: no sector
   alignas(64) int32_t k0[kLanes], count[kLanes];
   for (int l = 0; l < kLanes; ++l) sector_range(h0[l], h1[l], k0[l], count[l]);
   add_sector_runs(k0, count, occupied, kLanes);
