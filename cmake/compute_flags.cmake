@@ -50,7 +50,8 @@ target_link_libraries(ssdo_compute_flags INTERFACE hwy::hwy)
 # Targets compiled besides the baseline: AVX2 (with FMA, F16C, BMI2) and AVX-512 on x86,
 # NEON on Arm. SSSE3/SSE4 and the newer AVX-512 and SVE variants would each add a
 # compilation of every dispatched file for little: the loops are memory-bound and
-# 8 lanes wide.
+# 8 lanes wide, and use none of the byte permutes, population counts or compressing
+# stores that AVX3_DL adds (its kernels timed within 3% of AVX3's, docs/performance.md).
 # HWY_DISABLE_PCLMUL_AES: the kernels use no carry-less multiply or AES instruction, so a
 # baseline raised by SSDO_ARCH (x86-64-v3 has neither) makes AVX2 the static target;
 # without it Highway requires both and keeps the emulated baseline.
