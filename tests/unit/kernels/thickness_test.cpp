@@ -1,0 +1,111 @@
+// Thickness from silhouettes (kernels/thickness.h) on frames whose silhouettes and
+// distances are known exactly: a plate floating over the background, a plate in front of a
+// wall, a wall alone.
+#include "kernels/thickness.h"
+
+#include <cmath>
+#include <limits>
+
+#include <gtest/gtest.h>
+
+namespace ssdo {
+namespace {
+
+constexpr int kSize = 101;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+struct Frame {
+  cv::Mat depth = cv::Mat(kSize, kSize, CV_32FC1, cv::Scalar(kInf));
+  cv::Mat mask = cv::Mat::zeros(kSize, kSize, CV_8UC1);
+  Camera camera = Camera::from_fov_x(kSize, kSize, 60.0f);
+
+  void fill(const cv::Rect& r, float depth_view) {
+    depth(r).setTo(depth_view);
+    mask(r).setTo(255);
+  }
+};
+
+// Scene units per pixel at this depth, as the kernel takes it.
+float units_per_px(const Camera& c, float depth_view) { return 1.0f / c.pixels_per_unit(depth_view).y; }
+
+// A plate of 41 x 41 pixels (columns and rows 30 .. 70) at depth 5 over background: its
+// border pixels are its silhouette, and each pixel's thickness is 4 x (its distance to the
+// border + 1/2 pixel) in scene units.
+TEST(Thickness, PlateOverBackgroundIsAsDeepAsItIsWide) {
+  Frame f;
+  f.fill(cv::Rect(30, 30, 41, 41), 5.0f);
+  cv::Mat back;
+  const SilhouetteThicknessSettings s;
+  estimate_back_depth(f.depth, f.mask, f.camera, s, back, 1);
+  ASSERT_EQ(back.type(), CV_32FC1);
+  const float u = units_per_px(f.camera, 5.0f);
+  // The border: half a pixel.
+  EXPECT_NEAR(back.at<float>(30, 50), 5.0f + 4.0f * 0.5f * u, 1e-5f);
+  EXPECT_NEAR(back.at<float>(50, 70), 5.0f + 4.0f * 0.5f * u, 1e-5f);
+  // The centre: 20 pixels from the border (the 5 x 5 mask's distance along an axis is exact).
+  EXPECT_NEAR(back.at<float>(50, 50), 5.0f + 4.0f * 20.5f * u, 1e-4f);
+  // 5 pixels in from the left border, in the middle row.
+  EXPECT_NEAR(back.at<float>(50, 35), 5.0f + 4.0f * 5.5f * u, 1e-4f);
+  // Background: solid (never read).
+  EXPECT_EQ(back.at<float>(0, 0), kInf);
+  // Twice the factor, twice the thickness.
+  SilhouetteThicknessSettings twice = s;
+  twice.thickness_per_distance = 8.0f;
+  cv::Mat back2;
+  estimate_back_depth(f.depth, f.mask, f.camera, twice, back2, 1);
+  EXPECT_NEAR(back2.at<float>(50, 50) - 5.0f, 2.0f * (back.at<float>(50, 50) - 5.0f), 1e-4f);
+}
+
+// The same plate 1 unit in front of a wall at depth 6: the plate is bounded by its
+// silhouette as before; the wall's pixels, whose nearest silhouette is the plate's rim in
+// front of them, and which nothing bounds, stay solid.
+TEST(Thickness, WallBehindAPlateStaysSolid) {
+  Frame f;
+  f.fill(cv::Rect(0, 0, kSize, kSize), 6.0f);
+  f.fill(cv::Rect(30, 30, 41, 41), 5.0f);
+  cv::Mat back;
+  estimate_back_depth(f.depth, f.mask, f.camera, {}, back, 0);
+  const float u = units_per_px(f.camera, 5.0f);
+  EXPECT_NEAR(back.at<float>(50, 50), 5.0f + 4.0f * 20.5f * u, 1e-4f);
+  EXPECT_NEAR(back.at<float>(30, 40), 5.0f + 4.0f * 0.5f * u, 1e-5f);
+  EXPECT_EQ(back.at<float>(29, 40), kInf);  // the wall just outside the rim
+  EXPECT_EQ(back.at<float>(0, 0), kInf);
+  // A step of less than edge_depth_ratio of the depth is no silhouette: the same frame with
+  // the plate 0.5 units (< 10% of 5) in front of the wall is one surface, solid everywhere.
+  Frame g;
+  g.fill(cv::Rect(0, 0, kSize, kSize), 5.45f);
+  g.fill(cv::Rect(30, 30, 41, 41), 5.0f);
+  estimate_back_depth(g.depth, g.mask, g.camera, {}, back, 0);
+  EXPECT_EQ(cv::countNonZero(back != kInf), 0);
+}
+
+// A frame that no silhouette crosses (a wall filling the picture; its border is the frame's,
+// not a silhouette) is solid everywhere, and the result does not depend on the thread count.
+TEST(Thickness, NoSilhouetteIsSolidAndThreadsDoNotMatter) {
+  Frame f;
+  f.fill(cv::Rect(0, 0, kSize, kSize), 3.0f);
+  cv::Mat back;
+  estimate_back_depth(f.depth, f.mask, f.camera, {}, back, 0);
+  EXPECT_EQ(cv::countNonZero(back != kInf), 0);
+
+  Frame p;
+  p.fill(cv::Rect(10, 20, 60, 30), 4.0f);
+  p.fill(cv::Rect(50, 40, 30, 50), 2.0f);
+  cv::Mat one, two;
+  estimate_back_depth(p.depth, p.mask, p.camera, {}, one, 1);
+  estimate_back_depth(p.depth, p.mask, p.camera, {}, two, 4);
+  EXPECT_EQ(cv::norm(one != two, cv::NORM_L1), 0.0);
+}
+
+TEST(Thickness, SettingsAreChecked) {
+  EXPECT_EQ(validate(SilhouetteThicknessSettings{}), "");
+  EXPECT_NE(validate(SilhouetteThicknessSettings{.edge_depth_ratio = 0.0f}).find("edge_depth_ratio"),
+            std::string::npos);
+  EXPECT_NE(validate(SilhouetteThicknessSettings{.thickness_per_distance = -1.0f}).find("thickness_per_distance"),
+            std::string::npos);
+  EXPECT_NE(validate(SilhouetteThicknessSettings{.thickness_per_distance = kInf}).find("thickness_per_distance"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace ssdo
