@@ -837,15 +837,19 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
 
 // The second depth layer on a grid (depth, mask, camera of the grid; `file_back` the
 // frame's own layer on that grid, or empty): the occupancy of all views when there are
-// views, else the file's layer. Empty when neither.
+// views, else the file's layer, else the one estimated from the grid's silhouettes when the
+// settings ask for it (the views' occupancy starts from that too). Empty when none.
 cv::Mat grid_back_layer(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
                         const cv::Mat& file_back, const TermInputs& in, const TermSettings& settings,
                         std::vector<ViewUse>& uses, int nthreads) {
-  if (in.views.empty()) return file_back;
+  cv::Mat own = file_back;
+  if (own.empty() && settings.silhouette_thickness != nullptr)
+    estimate_back_depth(depth_view, mask, camera, *settings.silhouette_thickness, own, nthreads);
+  if (in.views.empty()) return own;
   cv::Mat back;
-  const MultiViewInputs grid{depth_view, mask, camera, file_back.empty() ? nullptr : &file_back};
+  const MultiViewInputs grid{depth_view, mask, camera, own.empty() ? nullptr : &own};
   uses = occupancy_from_views(grid, in.views, multiview_settings(settings), back, nthreads);
-  return back.empty() ? file_back : back;
+  return back.empty() ? own : back;
 }
 
 // The views the confidence counts as observers (a grid's depth, mask and camera): those the

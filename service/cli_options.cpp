@@ -356,6 +356,14 @@ bool resolve_settings(const ComputeOptionArgs& a, FrameRequest& request, std::st
     error = "unknown method or preset: " + a.method + " / " + a.preset;
     return false;
   }
+  request.silhouette_thickness.reset();
+  if (a.thickness_model == "silhouettes") {
+    if (a.thickness_world > 0) {
+      error = "give --thickness (a constant thickness) or --thickness-model silhouettes, not both";
+      return false;
+    }
+    request.silhouette_thickness = SilhouetteThicknessSettings{};
+  }
   request.ao = ao_preset(*method, *preset);
   if (a.radius_world > 0) request.ao.radius_world = a.radius_world;
   if (a.thickness_world > 0) request.ao.thickness_world = a.thickness_world;

@@ -52,5 +52,25 @@ TEST(EvalTerms, ALightTermWithoutTheRendersEnvironmentIsNoted) {
   EXPECT_EQ(ao.output.find("note: no --env"), std::string::npos) << ao.output;
 }
 
+// --thickness-model silhouettes (kernels/thickness.h) through the product: the AO of the
+// greeble frame and of cornell against Cycles, and the option's conflict with --thickness.
+TEST(EvalTerms, ThicknessFromSilhouettesAgainstCycles) {
+  const fs::path dir = shared_dir() / "gbuffers";
+  if (!fs::exists(dir / "greeble.exr")) GTEST_SKIP() << "no shared frames at " << dir;
+  // Measured (2026-12-06, gtao low): greeble 0.0595 -> 0.0360, cornell 0.1013 -> 0.0905.
+  for (const std::string name : {"greeble.exr", "cornell.exr"}) {
+    const double constant = eval_mae(dir / name, "--reference AO");
+    const double silhouettes = eval_mae(dir / name, "--reference AO --thickness-model silhouettes");
+    EXPECT_GT(silhouettes, 0.0) << name;
+    EXPECT_LT(silhouettes, 0.95 * constant) << name;
+  }
+  const RunResult both = run_ssdo("eval " + (dir / "cornell.exr").string() +
+                                  " --reference AO --thickness 0.3 --thickness-model silhouettes");
+  EXPECT_EQ(both.exit_code, 2) << both.output;
+  EXPECT_NE(both.output.find("give --thickness (a constant thickness) or --thickness-model silhouettes, not both"),
+            std::string::npos)
+      << both.output;
+}
+
 }  // namespace
 }  // namespace ssdo::test
