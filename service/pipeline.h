@@ -13,7 +13,6 @@
 #include "formats/output_writer.h"
 #include "kernels/ao.h"
 #include "kernels/composite.h"
-#include "kernels/thickness.h"
 #include "kernels/denoise.h"
 #include "kernels/environment.h"
 #include "kernels/half_resolution.h"
@@ -21,6 +20,7 @@
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
 #include "kernels/temporal.h"
+#include "kernels/thickness.h"
 #include "service/quality.h"
 #include "service/sequence.h"
 

@@ -184,8 +184,8 @@ TEST(FailureCases, MitigationBackFaceDepth) {
   check_back_face_depth("raymarch low", settings_of({AoMethod::raymarch, Preset::low}), 0.8);
 }
 
-// The same for GTAO's visibility mask (high: full resolution; the half-resolution grid of
-// low and medium does not carry the back layer).
+// The same for GTAO's visibility mask, at high (full resolution; the half grid of low and
+// medium samples the back layer at its texels).
 TEST(FailureCases, MitigationBackFaceDepthGtao) {
   check_back_face_depth("gtao high", settings_of({AoMethod::gtao, Preset::high}), 1.0);
 }
