@@ -61,20 +61,19 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   assert(validate(s).empty());
   cv::Mat not_edge, distance_px, nearest;
   mark_silhouettes(depth_view, mask, s.edge_depth_ratio, not_edge, nthreads);
-  // Each silhouette pixel's depth by its label (the distance transform gives every pixel the
-  // label of its nearest silhouette pixel; 0 = none).
-  std::vector<float> silhouette_depth(1, 0.0f);
-  if (cv::countNonZero(not_edge) < int(not_edge.total())) {
+  // Each silhouette pixel's depth by its label: the distance transform gives each of the
+  // `edges` silhouette pixels its own label in 1 .. edges, and every pixel the label of its
+  // nearest one.
+  const size_t edges = not_edge.total() - size_t(cv::countNonZero(not_edge));
+  const bool any_edge = edges > 0;
+  std::vector<float> silhouette_depth(edges + 1, 0.0f);
+  if (any_edge) {
     cv::distanceTransform(not_edge, distance_px, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
     for (int y = 0; y < not_edge.rows; ++y)
-      for (int x = 0; x < not_edge.cols; ++x) {
-        if (not_edge.at<uint8_t>(y, x)) continue;
-        const size_t label = size_t(nearest.at<int32_t>(y, x));
-        if (label >= silhouette_depth.size()) silhouette_depth.resize(label + 1, 0.0f);
-        silhouette_depth[label] = depth_view.at<float>(y, x);
-      }
+      for (int x = 0; x < not_edge.cols; ++x)
+        if (!not_edge.at<uint8_t>(y, x))
+          silhouette_depth.at(size_t(nearest.at<int32_t>(y, x))) = depth_view.at<float>(y, x);
   }
-  const bool any_edge = silhouette_depth.size() > 1;
   back_depth_view.create(depth_view.size(), CV_32FC1);
   parallel_rows(cv::Range(0, depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
