@@ -154,9 +154,22 @@ inline std::vector<std::string> temp_files(const fs::path& dir) {
   return found;
 }
 
+// A file of /proc/PID, empty when the process is gone. A process can exit between the open
+// and the read (other tests' processes come and go while workers_of scans /proc); the read
+// then fails with ESRCH, which an ifstream reports by throwing from its buffer's underflow.
+inline std::string read_proc_text(const std::string& path) {
+  std::string text;
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return text;
+  char buffer[4096];
+  for (ssize_t n; (n = ::read(fd, buffer, sizeof buffer)) > 0;) text.append(buffer, size_t(n));
+  ::close(fd);
+  return text;
+}
+
 // A field of /proc/PID/status in KiB (VmRSS, VmSize), 0 when absent.
 inline long status_kib(pid_t pid, const std::string& field) {
-  const std::string status = read_text("/proc/" + std::to_string(pid) + "/status");
+  const std::string status = read_proc_text("/proc/" + std::to_string(pid) + "/status");
   const size_t at = status.find(field + ":");
   return at == std::string::npos ? 0 : std::stol(status.substr(at + field.size() + 1));
 }
@@ -169,7 +182,7 @@ inline std::vector<pid_t> workers_of(pid_t parent) {
   for (const auto& e : fs::directory_iterator("/proc", ec)) {
     const std::string name = e.path().filename().string();
     if (name.empty() || !std::isdigit(static_cast<unsigned char>(name[0]))) continue;
-    const std::string cmdline = read_text(e.path() / "cmdline");
+    const std::string cmdline = read_proc_text(e.path() / "cmdline");
     if (cmdline.find("worker") != std::string::npos && cmdline.find(marker) != std::string::npos)
       pids.push_back(pid_t(std::stol(name)));
   }
@@ -178,7 +191,7 @@ inline std::vector<pid_t> workers_of(pid_t parent) {
 
 // The state letter of /proc/PID/stat ('T': stopped), 0 when the process is gone.
 inline char process_state(pid_t pid) {
-  const std::string stat = read_text("/proc/" + std::to_string(pid) + "/stat");
+  const std::string stat = read_proc_text("/proc/" + std::to_string(pid) + "/stat");
   const size_t name_end = stat.rfind(')');
   return name_end == std::string::npos || name_end + 2 >= stat.size() ? 0 : stat[name_end + 2];
 }
