@@ -2,10 +2,10 @@
 
 #include <cassert>
 #include <cmath>
+#include <algorithm>
+#include <cstdint>
 #include <limits>
 #include <vector>
-
-#include <opencv2/imgproc.hpp>
 
 #include "core/parallel.h"
 #include "kernels/settings_check.h"
@@ -15,31 +15,151 @@ namespace ssdo {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr int32_t kNone = -1;
 
-// 0 on silhouette pixels (a foreground pixel with a background or farther 4-neighbour), 1
-// elsewhere: the zeros the distance transform measures to. Neighbours outside the image
-// are unknown, not background: the frame's border is no silhouette.
-void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& not_edge,
-                      int nthreads) {
+// The silhouette pixels of row y among columns [x0, x1) into edge[x - x0] (1 = on a
+// silhouette): foreground pixels with a 4-neighbour that is background or farther than them
+// by more than edge_depth_ratio of their depth. Neighbours outside the image are unknown,
+// not background: the frame's border is no silhouette.
+void silhouettes_of_row(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, int y, int x0,
+                        int x1, uint8_t* edge) {
   const int w = depth_view.cols, h = depth_view.rows;
-  not_edge.create(depth_view.size(), CV_8UC1);
-  parallel_rows(cv::Range(0, h), nthreads, [&](const cv::Range& rows) {
+  const float* d = depth_view.ptr<float>(y);
+  const uint8_t* m = mask.ptr<uint8_t>(y);
+  // Off-image neighbours read the pixel itself: never behind it.
+  const float* d_up = depth_view.ptr<float>(y > 0 ? y - 1 : y);
+  const float* d_down = depth_view.ptr<float>(y + 1 < h ? y + 1 : y);
+  const uint8_t* m_up = mask.ptr<uint8_t>(y > 0 ? y - 1 : y);
+  const uint8_t* m_down = mask.ptr<uint8_t>(y + 1 < h ? y + 1 : y);
+  const float step = 1.0f + edge_depth_ratio;
+  const auto test = [&](int x, int xl, int xr) {
+    const float farther = d[x] * step;
+    const bool behind = (m[xl] == 0) | (d[xl] > farther) | (m[xr] == 0) | (d[xr] > farther) | (m_up[x] == 0) |
+                        (d_up[x] > farther) | (m_down[x] == 0) | (d_down[x] > farther);
+    edge[x - x0] = uint8_t((m[x] != 0) & behind);
+  };
+  const int inner0 = std::max(x0, 1), inner1 = std::min(x1, w - 1);
+  for (int x = x0; x < std::min(inner0, x1); ++x) test(x, x, std::min(x + 1, w - 1));
+  for (int x = inner0; x < inner1; ++x) test(x, x - 1, x + 1);  // the interior, without clamps
+  for (int x = std::max(inner1, x0); x < x1; ++x) test(x, std::max(x - 1, 0), x);
+}
+
+// The silhouette pixels (edge = 1) of the image, and for each cell of 2 x 2 pixels the
+// first of its silhouette pixels in row-major order (x = kNone: none): the cell's
+// representative. Cells are independent: the threads take rows of them.
+void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& edge,
+                      cv::Mat& representative, int nthreads) {
+  const int w = depth_view.cols, h = depth_view.rows;
+  edge.create(depth_view.size(), CV_8UC1);
+  representative.create((h + 1) / 2, (w + 1) / 2, CV_32SC2);
+  parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& cell_rows) {
+    for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
+      const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
+      silhouettes_of_row(depth_view, mask, edge_depth_ratio, y0, 0, w, edge.ptr<uint8_t>(y0));
+      if (y1 != y0) silhouettes_of_row(depth_view, mask, edge_depth_ratio, y1, 0, w, edge.ptr<uint8_t>(y1));
+      cv::Point* rep = representative.ptr<cv::Point>(cy);
+      for (int cx = 0; cx < representative.cols; ++cx) {
+        const int x0 = 2 * cx, x1 = std::min(x0 + 1, w - 1);
+        rep[cx] = {kNone, kNone};
+        for (const cv::Point p : {cv::Point(x0, y0), cv::Point(x1, y0), cv::Point(x0, y1), cv::Point(x1, y1)})
+          if (rep[cx].x == kNone && edge.at<uint8_t>(p)) rep[cx] = p;
+      }
+    }
+  });
+}
+
+// First phase of the separable exact Euclidean distance transform (Meijster, Roerdink &
+// Hesselink 2000, "A general algorithm for computing distance transforms in linear time"),
+// over cells (a representative: a silhouette cell): for each cell, the row of the
+// nearest silhouette cell in its column (kNone: the column has none), by a sweep down and a
+// sweep up each column. Columns are independent: the threads take strips of them.
+void nearest_in_column(const cv::Mat& representative, cv::Mat& row_of, int nthreads) {
+  const int w = representative.cols, h = representative.rows;
+  row_of.create(representative.size(), CV_32SC1);
+  parallel_rows(cv::Range(0, w), nthreads, [&](const cv::Range& cols) {
+    const int n = cols.size();
+    std::vector<int32_t> nearest(size_t(n), kNone);
+    int32_t* last = nearest.data();
+    for (int y = 0; y < h; ++y) {
+      const cv::Point* rep = representative.ptr<cv::Point>(y) + cols.start;
+      int32_t* out = row_of.ptr<int32_t>(y) + cols.start;
+      for (int i = 0; i < n; ++i) {
+        last[i] = rep[i].x != kNone ? y : last[i];  // the nearest silhouette cell above or on the row
+        out[i] = last[i];
+      }
+    }
+    std::fill(nearest.begin(), nearest.end(), kNone);
+    for (int y = h - 1; y >= 0; --y) {
+      int32_t* out = row_of.ptr<int32_t>(y) + cols.start;
+      for (int i = 0; i < n; ++i) {
+        last[i] = out[i] == y ? y : last[i];  // the nearest below or on the row (marked by the sweep down)
+        const bool below_nearer = last[i] != kNone && (out[i] == kNone || last[i] - y < y - out[i]);
+        out[i] = below_nearer ? last[i] : out[i];
+      }
+    }
+  }, 64);
+}
+
+// Second phase along one row: for each pixel x, the column of the nearest silhouette pixel
+// over the row's columns (each column's own nearest at squared height g2[i]), by the lower
+// envelope of the parabolas (x - i)^2 + g2[i] (Meijster et al., section 4). A row whose
+// columns have no silhouette keeps g2 = kFar and a column whose g2 is kFar.
+// kFar exceeds every squared distance in an image (sides below 2^26 pixels: int64_t holds
+// every sum below without overflow).
+constexpr int64_t kFar = int64_t(1) << 53;
+void nearest_in_row(const std::vector<int64_t>& g2, std::vector<int32_t>& s, std::vector<int32_t>& t,
+                    std::vector<int32_t>& column_of) {
+  const int n = int(g2.size());
+  const int64_t* g = g2.data();
+  const auto f = [g](int64_t x, int32_t i) { return (x - i) * (x - i) + g[i]; };
+  // Sep(i, u): the last x at which column i is nearer than column u (i < u): a floor division.
+  const auto sep = [g](int32_t i, int32_t u) {
+    const int64_t num = int64_t(u) * u - int64_t(i) * i + g[u] - g[i];
+    const int64_t den = 2 * int64_t(u - i);
+    return num >= 0 ? num / den : -((-num + den - 1) / den);
+  };
+  int q = 0;
+  s[0] = 0;
+  t[0] = 0;
+  for (int32_t u = 1; u < n; ++u) {
+    while (q >= 0 && f(t[size_t(q)], s[size_t(q)]) > f(t[size_t(q)], u)) --q;
+    if (q < 0) {
+      q = 0;
+      s[0] = u;
+    } else {
+      const int64_t start = 1 + sep(s[size_t(q)], u);
+      if (start < n) {
+        ++q;
+        s[size_t(q)] = u;
+        t[size_t(q)] = int32_t(start);
+      }
+    }
+  }
+  for (int32_t u = n - 1; u >= 0; --u) {
+    column_of[size_t(u)] = s[size_t(q)];
+    if (u == t[size_t(q)]) --q;
+  }
+}
+
+// For each cell, the representative of the nearest silhouette cell (kNone: there is none):
+// the transform's second phase, row by row of cells.
+void nearest_representative(const cv::Mat& representative, cv::Mat& nearest, int nthreads) {
+  cv::Mat row_of;
+  nearest_in_column(representative, row_of, nthreads);
+  const int w = representative.cols;
+  nearest.create(representative.size(), CV_32SC2);
+  parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& rows) {
+    const size_t n = size_t(w);
+    std::vector<int64_t> g2(n);
+    std::vector<int32_t> s_col(n), t(n), column_of(n);
     for (int y = rows.start; y < rows.end; ++y) {
-      const float* d = depth_view.ptr<float>(y);
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      const float* d_up = y > 0 ? depth_view.ptr<float>(y - 1) : nullptr;
-      const float* d_down = y + 1 < h ? depth_view.ptr<float>(y + 1) : nullptr;
-      const uint8_t* m_up = y > 0 ? mask.ptr<uint8_t>(y - 1) : nullptr;
-      const uint8_t* m_down = y + 1 < h ? mask.ptr<uint8_t>(y + 1) : nullptr;
-      uint8_t* out = not_edge.ptr<uint8_t>(y);
+      const int32_t* row = row_of.ptr<int32_t>(y);
+      for (int x = 0; x < w; ++x) g2[size_t(x)] = row[x] == kNone ? kFar : int64_t(row[x] - y) * (row[x] - y);
+      nearest_in_row(g2, s_col, t, column_of);
+      cv::Point* out = nearest.ptr<cv::Point>(y);
       for (int x = 0; x < w; ++x) {
-        out[x] = 1;
-        if (!m[x]) continue;
-        const float farther = d[x] * (1.0f + edge_depth_ratio);
-        auto behind = [&](const float* dn, const uint8_t* mn, int xn) { return !mn[xn] || dn[xn] > farther; };
-        const bool edge = (x > 0 && behind(d, m, x - 1)) || (x + 1 < w && behind(d, m, x + 1)) ||
-                          (d_up && behind(d_up, m_up, x)) || (d_down && behind(d_down, m_down, x));
-        if (edge) out[x] = 0;
+        const int32_t xs = column_of[size_t(x)];
+        out[x] = row[xs] == kNone ? cv::Point(kNone, kNone) : representative.at<cv::Point>(row[xs], xs);
       }
     }
   });
@@ -59,37 +179,36 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
                          const SilhouetteThicknessSettings& s, cv::Mat& back_depth_view, int nthreads) {
   assert(depth_view.type() == CV_32FC1 && mask.type() == CV_8UC1 && mask.size() == depth_view.size());
   assert(validate(s).empty());
-  cv::Mat not_edge, distance_px, nearest;
-  mark_silhouettes(depth_view, mask, s.edge_depth_ratio, not_edge, nthreads);
-  // Each silhouette pixel's depth by its label: the distance transform gives each of the
-  // `edges` silhouette pixels its own label in 1 .. edges, and every pixel the label of its
-  // nearest one.
-  const size_t edges = not_edge.total() - size_t(cv::countNonZero(not_edge));
-  const bool any_edge = edges > 0;
-  std::vector<float> silhouette_depth(edges + 1, 0.0f);
-  if (any_edge) {
-    cv::distanceTransform(not_edge, distance_px, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-    for (int y = 0; y < not_edge.rows; ++y)
-      for (int x = 0; x < not_edge.cols; ++x)
-        if (!not_edge.at<uint8_t>(y, x))
-          silhouette_depth.at(size_t(nearest.at<int32_t>(y, x))) = depth_view.at<float>(y, x);
-  }
+  const int w = depth_view.cols;
+  // Scene units per pixel at planar depth d (square pixels: the vertical size): the inverse
+  // of Camera::pixels_per_unit, linear in d (clip w is), so taken as a + b d without a
+  // division per pixel.
+  const float units_per_px_0 = 1.0f / camera.pixels_per_unit(0.0f).y;
+  const float units_per_px_slope = 1.0f / camera.pixels_per_unit(1.0f).y - units_per_px_0;
+  cv::Mat edge, representative, nearest;
+  mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, nthreads);
+  nearest_representative(representative, nearest, nthreads);
   back_depth_view.create(depth_view.size(), CV_32FC1);
   parallel_rows(cv::Range(0, depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const float* d = depth_view.ptr<float>(y);
       const uint8_t* m = mask.ptr<uint8_t>(y);
+      const uint8_t* on_edge = edge.ptr<uint8_t>(y);
+      const cv::Point* cell_nearest = nearest.ptr<cv::Point>(y / 2);
       float* back = back_depth_view.ptr<float>(y);
-      for (int x = 0; x < depth_view.cols; ++x) {
+      for (int x = 0; x < w; ++x) {
         back[x] = kInf;
-        if (!m[x] || !any_edge) continue;
+        // A silhouette pixel is its own nearest; any other takes its cell's nearest silhouette
+        // cell's representative.
+        const cv::Point rep = on_edge[x] ? cv::Point(x, y) : cell_nearest[x / 2];
+        if (!m[x] || rep.x == kNone) continue;  // background, or no silhouette in the picture
+        const int xs = rep.x, ys = rep.y;
         // A nearest silhouette in front of the pixel is another object's rim (a pole before a
         // wall): it says nothing of this surface's depth, which stays solid.
-        const float edge_depth = silhouette_depth[size_t(nearest.at<int32_t>(y, x))];
-        if (edge_depth * (1.0f + s.edge_depth_ratio) < d[x]) continue;
-        // Scene units per pixel at this depth (square pixels: the vertical size).
-        const float units_per_px = 1.0f / camera.pixels_per_unit(d[x]).y;
-        back[x] = d[x] + s.thickness_per_distance * (distance_px.at<float>(y, x) + 0.5f) * units_per_px;
+        if (depth_view.at<float>(ys, xs) * (1.0f + s.edge_depth_ratio) < d[x]) continue;
+        const float distance_px = std::sqrt(float(int64_t(x - xs) * (x - xs) + int64_t(y - ys) * (y - ys)));
+        const float units_per_px = units_per_px_0 + units_per_px_slope * d[x];
+        back[x] = d[x] + s.thickness_per_distance * (distance_px + 0.5f) * units_per_px;
       }
     }
   });

@@ -39,11 +39,14 @@ std::string validate(const SilhouetteThicknessSettings& s);
 // back_depth_view = depth_view + the thickness (along the view axis, scene units) on pixels
 // with mask != 0; +inf (solid behind) on background, where no silhouette is in the picture,
 // and where the nearest silhouette lies in front of the pixel (another object's rim). The
-// distance to a silhouette is Euclidean, in pixels of these images (OpenCV's distance
-// transform with its 5 x 5 mask, within 2% of the exact one), times the world size of a
-// pixel at the pixel's depth (Camera::pixels_per_unit), plus half a pixel: a silhouette
-// pixel is half a pixel thick. depth_view CV_32FC1 planar depth, mask CV_8UC1 of its size;
-// back_depth_view is allocated CV_32FC1 at that size.
+// distance to a silhouette is Euclidean, in pixels of these images, to a silhouette pixel
+// found by an exact distance transform over cells of 2 x 2 pixels (Meijster et al. 2000;
+// each cell's first silhouette pixel stands for the cell): 0 on silhouette pixels, else at
+// most 2 sqrt(2) pixels more than the exact distance (0.24 px more on average over a disc),
+// for a quarter of the transform's work. Times the world size of a pixel at the pixel's
+// depth (Camera::pixels_per_unit), plus half a pixel: a silhouette pixel is half a pixel
+// thick. depth_view CV_32FC1 planar depth, mask CV_8UC1 of its size; back_depth_view is
+// allocated CV_32FC1 at that size. The same bits for any nthreads.
 void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
                          const SilhouetteThicknessSettings& s, cv::Mat& back_depth_view, int nthreads = 0);
 

@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   cmake g++ make pkg-config
   libopenimageio-dev openimageio-tools libopenexr-dev libimath-dev libdeflate-dev libisal-dev libpng-dev
-  libopencv-core-dev libopencv-imgproc-dev libglm-dev libhwy-dev nlohmann-json3-dev libcli11-dev
+  libopencv-core-dev libglm-dev libhwy-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev fonts-dejavu-core
   clang libclang-rt-dev universal-ctags
 )

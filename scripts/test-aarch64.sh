@@ -8,7 +8,7 @@
 # and the Arm libraries are extra packages.
 #   scripts/test-aarch64.sh [BUILD_DIR]     (default build/, configured by scripts/build.sh)
 # Needs: g++-aarch64-linux-gnu qemu-user-static, and with `dpkg --add-architecture arm64`:
-#   libc6:arm64 libstdc++6:arm64 libopencv-core-dev:arm64 libopencv-imgproc-dev:arm64 libhwy-dev:arm64
+#   libc6:arm64 libstdc++6:arm64 libopencv-core-dev:arm64 libhwy-dev:arm64
 #   libgtest-dev:arm64 libgmock-dev:arm64 libimath-dev:arm64
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -16,7 +16,7 @@ build_dir="${1:-build}"
 for tool in aarch64-linux-gnu-g++ qemu-aarch64-static; do
   command -v "$tool" >/dev/null || { echo "test-aarch64: needs $tool (see the top of this script)" >&2; exit 2; }
 done
-for lib in libopencv_core.so libopencv_imgproc.so libhwy.so libImath.so libgtest.a; do
+for lib in libopencv_core.so libhwy.so libImath.so libgtest.a; do
   [ -e "/usr/lib/aarch64-linux-gnu/$lib" ] || { echo "test-aarch64: no arm64 $lib (see the top of this script)" >&2; exit 2; }
 done
 [ -f "$build_dir/compile_commands.json" ] || { echo "test-aarch64: no $build_dir/compile_commands.json" >&2; exit 2; }
@@ -31,7 +31,7 @@ python3 scripts/aarch64_compile.py "$build_dir/compile_commands.json" "$out" \
 common=$(ls "$out"/*.o | grep -E '_core_|_kernels_|_tests_support_' | grep -v '_tests_unit_')
 link() {  # link NAME TEST_OBJECTS...
   local name="$1"; shift
-  aarch64-linux-gnu-g++ -o "$out/$name" "$@" $common -lopencv_imgproc -lopencv_core -lhwy -lImath -lgtest -lgtest_main -lpthread
+  aarch64-linux-gnu-g++ -o "$out/$name" "$@" $common -lopencv_core -lhwy -lImath -lgtest -lgtest_main -lpthread
 }
 link ssdo_kernels_tests $(ls "$out"/*_tests_unit_kernels_*.o)
 link ssdo_core_tests $(ls "$out"/*_tests_unit_core_*.o)

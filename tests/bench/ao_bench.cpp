@@ -5,7 +5,7 @@
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_SsdoEnv, BM_Frame);
-// width, threads (denoisers, BM_Confidence, BM_HalfGrid); width, spacing, threads (BM_DenoiseHalfGridTerms);
+// width, threads (denoisers, BM_Confidence, BM_HalfGrid, BM_SilhouetteThickness); width, spacing, threads (BM_DenoiseHalfGridTerms);
 // width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
@@ -38,6 +38,24 @@ void BM_Ao(benchmark::State& state) {
   for (auto _ : state) ssdo::compute_ao_at_resolution(in, s, out, {}, threads);
   state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
                  " " + std::to_string(threads) + "t");
+}
+
+// BM_Ao with the occluders' thickness estimated from the frame's silhouettes on the grid
+// the method runs on (TermSettings::silhouette_thickness), the estimate included.
+void BM_AoSilhouettes(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const auto method = ssdo::AoMethod(state.range(1));
+  const auto preset = ssdo::Preset(state.range(2));
+  const int threads = int(state.range(3));
+  const ssdo::AoSettings s = ssdo::ao_preset(method, preset);
+  const ssdo::SilhouetteThicknessSettings thickness;
+  ssdo::TermSettings settings{&s};
+  settings.silhouette_thickness = &thickness;
+  const ssdo::TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
+  ssdo::TermOutputs out;
+  for (auto _ : state) ssdo::compute_terms(in, settings, out, {}, threads);
+  state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
+                 " silhouettes " + std::to_string(threads) + "t");
 }
 
 void BM_Denoise(benchmark::State& state) {
@@ -273,6 +291,19 @@ void BM_HalfGrid(benchmark::State& state) {
   state.SetLabel(std::to_string(threads) + "t");
 }
 
+// The back layer estimated from the silhouettes of the frame's half grid (what low and
+// medium run on when the frame has no back-face pass).
+void BM_SilhouetteThickness(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const int threads = int(state.range(1));
+  const ssdo::FullGrid full{g.depth_view, g.normal_view, cv::Mat(), g.mask, g.camera};
+  ssdo::HalfGrid half;
+  ssdo::build_half_grid(full, half, threads, /*with_positions=*/false);
+  cv::Mat back;
+  for (auto _ : state) ssdo::estimate_back_depth(half.depth_view, half.mask, half.camera, {}, back, threads);
+  state.SetLabel(std::to_string(threads) + "t");
+}
+
 void BM_BoxBlur(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   cv::Mat src(g.depth_view.size(), CV_32FC1), dst;
@@ -301,6 +332,7 @@ void image_args(benchmark::internal::Benchmark* b) {
 }  // namespace
 
 BENCHMARK(BM_Ao)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_AoSilhouettes)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_DenoiseHalfGridTerms)->ArgsProduct({{640, 1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -316,4 +348,5 @@ BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->U
 BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HalfGrid)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SilhouetteThickness)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();

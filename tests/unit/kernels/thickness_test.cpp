@@ -3,8 +3,11 @@
 // wall, a wall alone.
 #include "kernels/thickness.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -42,7 +45,8 @@ TEST(Thickness, PlateOverBackgroundIsAsDeepAsItIsWide) {
   // The border: half a pixel.
   EXPECT_NEAR(back.at<float>(30, 50), 5.0f + 4.0f * 0.5f * u, 1e-5f);
   EXPECT_NEAR(back.at<float>(50, 70), 5.0f + 4.0f * 0.5f * u, 1e-5f);
-  // The centre: 20 pixels from the border (the 5 x 5 mask's distance along an axis is exact).
+  // The centre: 20 pixels from the border (the nearest silhouette cell's representative lies
+  // on the same row or column here, so the distance is exact).
   EXPECT_NEAR(back.at<float>(50, 50), 5.0f + 4.0f * 20.5f * u, 1e-4f);
   // 5 pixels in from the left border, in the middle row.
   EXPECT_NEAR(back.at<float>(50, 35), 5.0f + 4.0f * 5.5f * u, 1e-4f);
@@ -95,6 +99,47 @@ TEST(Thickness, NoSilhouetteIsSolidAndThreadsDoNotMatter) {
   estimate_back_depth(p.depth, p.mask, p.camera, {}, one, 1);
   estimate_back_depth(p.depth, p.mask, p.camera, {}, two, 4);
   EXPECT_EQ(cv::norm(one != two, cv::NORM_L1), 0.0);
+}
+
+// A disc, whose silhouette pixels lie at every angle: each pixel's distance (read back from
+// its thickness) is at least the exact Euclidean distance to the nearest silhouette pixel
+// (brute force here) and at most 2 sqrt(2) pixels more (the transform runs over cells of
+// 2 x 2 pixels); silhouette pixels are at distance 0.
+TEST(Thickness, DistancesOverCellsStayWithinTheirBound) {
+  Frame f;
+  for (int y = 0; y < kSize; ++y)
+    for (int x = 0; x < kSize; ++x)
+      if (std::hypot(x - 47.3, y - 52.6) < 37.0) f.fill(cv::Rect(x, y, 1, 1), 5.0f);
+  std::vector<cv::Point> silhouette;
+  for (int y = 1; y + 1 < kSize; ++y)
+    for (int x = 1; x + 1 < kSize; ++x)
+      if (f.mask.at<uint8_t>(y, x) && (!f.mask.at<uint8_t>(y, x - 1) || !f.mask.at<uint8_t>(y, x + 1) ||
+                                       !f.mask.at<uint8_t>(y - 1, x) || !f.mask.at<uint8_t>(y + 1, x)))
+        silhouette.push_back({x, y});
+  cv::Mat back;
+  estimate_back_depth(f.depth, f.mask, f.camera, {}, back, 2);
+  const float u = units_per_px(f.camera, 5.0f);
+  int checked = 0;
+  double worst = 0, sum = 0;
+  for (int y = 0; y < kSize; ++y)
+    for (int x = 0; x < kSize; ++x) {
+      if (!f.mask.at<uint8_t>(y, x)) continue;
+      double exact = 1e9;
+      for (const cv::Point& p : silhouette) exact = std::min(exact, std::hypot(double(x - p.x), double(y - p.y)));
+      const double estimated = (back.at<float>(y, x) - 5.0) / (4.0 * u) - 0.5;
+      ASSERT_GE(estimated, exact - 1e-3) << x << ", " << y;
+      ASSERT_LE(estimated, exact + 2.0 * std::sqrt(2.0) + 1e-3) << x << ", " << y;
+      if (exact == 0.0) {
+        EXPECT_NEAR(estimated, 0.0, 1e-3) << x << ", " << y;
+      }
+      worst = std::max(worst, estimated - exact);
+      sum += estimated - exact;
+      ++checked;
+    }
+  EXPECT_GT(checked, 4000);
+  std::printf("distance over cells - exact: mean %.3f px, worst %.3f px\n", sum / checked, worst);
+  EXPECT_GT(worst, 0.5);  // the cells do show
+  EXPECT_LT(sum / checked, 0.5);
 }
 
 TEST(Thickness, SettingsAreChecked) {
