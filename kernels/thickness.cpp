@@ -17,25 +17,48 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr int32_t kNone = -1;
 
+// The depth a neighbour shows to the silhouette test: the foreground's own, +inf where the
+// pixel shows background (mask 0 with a 4-neighbour of mask 0), -inf on a lone background
+// pixel inside the foreground: that is a dropped sample (a non-finite value the reader
+// masked), not a view past an object, and makes no silhouette.
+void neighbour_depth(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& shown, int nthreads) {
+  const int w = mask.cols, h = mask.rows;
+  shown.create(mask.size(), CV_32FC1);
+  parallel_rows(cv::Range(0, h), nthreads, [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const float* d = depth_view.ptr<float>(y);
+      const uint8_t* m = mask.ptr<uint8_t>(y);
+      // Off-image neighbours count as foreground (unknown): the pixel's own row stands in.
+      const uint8_t* m_up = mask.ptr<uint8_t>(y > 0 ? y - 1 : y);
+      const uint8_t* m_down = mask.ptr<uint8_t>(y + 1 < h ? y + 1 : y);
+      const uint8_t up = y > 0, down = y + 1 < h;
+      float* out = shown.ptr<float>(y);
+      for (int x = 0; x < w; ++x) {
+        const int xl = x > 0 ? x - 1 : x, xr = x + 1 < w ? x + 1 : x;
+        const bool open = (xl != x && !m[xl]) | (xr != x && !m[xr]) | (up & !m_up[x]) | (down & !m_down[x]);
+        out[x] = m[x] ? d[x] : open ? kInf : -kInf;
+      }
+    }
+  });
+}
+
 // The silhouette pixels of row y among columns [x0, x1) into edge[x - x0] (1 = on a
-// silhouette): foreground pixels with a 4-neighbour that is background or farther than them
-// by more than edge_depth_ratio of their depth. Neighbours outside the image are unknown,
-// not background: the frame's border is no silhouette.
-void silhouettes_of_row(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, int y, int x0,
-                        int x1, uint8_t* edge) {
-  const int w = depth_view.cols, h = depth_view.rows;
-  const float* d = depth_view.ptr<float>(y);
+// silhouette): foreground pixels with a 4-neighbour whose shown depth (neighbour_depth) is
+// farther than them by more than edge_depth_ratio of their depth, background included.
+// Neighbours outside the image are unknown, not background: the frame's border is no
+// silhouette.
+void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_depth_ratio, int y, int x0, int x1,
+                        uint8_t* edge) {
+  const int w = shown.cols, h = shown.rows;
+  const float* d = shown.ptr<float>(y);
   const uint8_t* m = mask.ptr<uint8_t>(y);
   // Off-image neighbours read the pixel itself: never behind it.
-  const float* d_up = depth_view.ptr<float>(y > 0 ? y - 1 : y);
-  const float* d_down = depth_view.ptr<float>(y + 1 < h ? y + 1 : y);
-  const uint8_t* m_up = mask.ptr<uint8_t>(y > 0 ? y - 1 : y);
-  const uint8_t* m_down = mask.ptr<uint8_t>(y + 1 < h ? y + 1 : y);
+  const float* d_up = shown.ptr<float>(y > 0 ? y - 1 : y);
+  const float* d_down = shown.ptr<float>(y + 1 < h ? y + 1 : y);
   const float step = 1.0f + edge_depth_ratio;
   const auto test = [&](int x, int xl, int xr) {
     const float farther = d[x] * step;
-    const bool behind = (m[xl] == 0) | (d[xl] > farther) | (m[xr] == 0) | (d[xr] > farther) | (m_up[x] == 0) |
-                        (d_up[x] > farther) | (m_down[x] == 0) | (d_down[x] > farther);
+    const bool behind = (d[xl] > farther) | (d[xr] > farther) | (d_up[x] > farther) | (d_down[x] > farther);
     edge[x - x0] = uint8_t((m[x] != 0) & behind);
   };
   const int inner0 = std::max(x0, 1), inner1 = std::min(x1, w - 1);
@@ -50,13 +73,15 @@ void silhouettes_of_row(const cv::Mat& depth_view, const cv::Mat& mask, float ed
 void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& edge,
                       cv::Mat& representative, int nthreads) {
   const int w = depth_view.cols, h = depth_view.rows;
+  cv::Mat shown;
+  neighbour_depth(depth_view, mask, shown, nthreads);
   edge.create(depth_view.size(), CV_8UC1);
   representative.create((h + 1) / 2, (w + 1) / 2, CV_32SC2);
   parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& cell_rows) {
     for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
       const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
-      silhouettes_of_row(depth_view, mask, edge_depth_ratio, y0, 0, w, edge.ptr<uint8_t>(y0));
-      if (y1 != y0) silhouettes_of_row(depth_view, mask, edge_depth_ratio, y1, 0, w, edge.ptr<uint8_t>(y1));
+      silhouettes_of_row(shown, mask, edge_depth_ratio, y0, 0, w, edge.ptr<uint8_t>(y0));
+      if (y1 != y0) silhouettes_of_row(shown, mask, edge_depth_ratio, y1, 0, w, edge.ptr<uint8_t>(y1));
       cv::Point* rep = representative.ptr<cv::Point>(cy);
       for (int cx = 0; cx < representative.cols; ++cx) {
         const int x0 = 2 * cx, x1 = std::min(x0 + 1, w - 1);

@@ -142,6 +142,26 @@ TEST(Thickness, DistancesOverCellsStayWithinTheirBound) {
   EXPECT_LT(sum / checked, 0.5);
 }
 
+// A lone masked pixel inside the plate is a dropped sample, not a hole: its neighbours keep
+// the plate's thickness there; two masked pixels side by side are a hole, rimmed by a
+// silhouette.
+TEST(Thickness, ALoneMaskedPixelMakesNoSilhouette) {
+  Frame f;
+  f.fill(cv::Rect(30, 30, 41, 41), 5.0f);
+  f.depth.at<float>(50, 50) = kInf;
+  f.mask.at<uint8_t>(50, 50) = 0;
+  f.depth(cv::Rect(34, 66, 2, 1)).setTo(kInf);
+  f.mask(cv::Rect(34, 66, 2, 1)).setTo(0);
+  cv::Mat back;
+  estimate_back_depth(f.depth, f.mask, f.camera, {}, back, 1);
+  const float u = units_per_px(f.camera, 5.0f);
+  // 19 px from the plate's right border (to within the cells' 2 sqrt(2) px), not 0.
+  EXPECT_GE(back.at<float>(50, 51), 5.0f + 4.0f * 19.5f * u - 1e-4f);
+  EXPECT_LE(back.at<float>(50, 51), 5.0f + 4.0f * (19.5f + 2.83f) * u);
+  EXPECT_EQ(back.at<float>(50, 50), kInf);                              // the masked pixel itself
+  EXPECT_NEAR(back.at<float>(66, 36), 5.0f + 4.0f * 0.5f * u, 1e-5f);   // beside the hole
+}
+
 TEST(Thickness, SettingsAreChecked) {
   EXPECT_EQ(validate(SilhouetteThicknessSettings{}), "");
   EXPECT_NE(validate(SilhouetteThicknessSettings{.edge_depth_ratio = 0.0f}).find("edge_depth_ratio"),
