@@ -54,11 +54,18 @@ AoSettings ao_preset(AoMethod method, Preset preset) {
       // 0.022; the per-pixel slice rotation and the denoiser average slices spatially.
       // Ultra adds slices, not steps: 24 steps connected more taps across the gap under
       // the closed-form sphere (0.864 vs exact 0.889; 16 steps 0.886).
+      // The thickness from silhouettes: against Cycles over ten shared frames it cuts the
+      // error of every preset by 30-39% (medium 0.045 -> 0.027; docs/accuracy.md). Medium
+      // keeps two slices, though 1 x 8 with it errs less than 2 x 8 without: one slice per
+      // pixel reads light at a crease (the corner line 0.61 at 1 x 8, 0.53 at 2 x 8; the
+      // slices' visible measure over their open measure is a ratio, unbiased only as the
+      // slices grow in number).
       constexpr int kSlices[] = {1, 2, 3, 6};
       constexpr int kSteps[] = {6, 8, 16, 16};
       s.directions = kSlices[level];
       s.steps = kSteps[level];
       s.resolution_divisor = kDivisor[level];
+      s.thickness_model = ThicknessModel::silhouettes;
       break;
     }
     case AoMethod::raymarch: {
@@ -79,6 +86,12 @@ bool runs_on_half_grid(const AoSettings& s) {
   return s.resolution_divisor == 2 && s.method != AoMethod::raymarch;
 }
 
+bool reads_back_layer(const AoSettings& s) { return s.method == AoMethod::gtao || s.method == AoMethod::raymarch; }
+
+bool estimates_back_layer(const AoSettings& s) {
+  return s.thickness_model == ThicknessModel::silhouettes && reads_back_layer(s);
+}
+
 float effective_thickness_world(const AoSettings& s) {
   return s.thickness_world > 0.0f ? s.thickness_world : kThicknessPerRadius * s.radius_world;
 }
@@ -95,6 +108,8 @@ std::string validate(const AoSettings& s) {
     return detail::out_of_range("depth_bias_relative", s.depth_bias_relative, "[0, 0.1]");
   if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
     return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
+  if (s.thickness_model == ThicknessModel::silhouettes)
+    if (std::string e = validate(s.silhouettes); !e.empty()) return "silhouettes." + e;
   return {};
 }
 
@@ -128,7 +143,12 @@ void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out, c
   if (!bent_normal) out.bent_normal_view.release();
   const cv::Rect r = resolve_roi(roi, size);
   if (r.empty()) return;
-  dispatch(in, s, out, r, nthreads);
+  if (in.depth_back_view != nullptr || !estimates_back_layer(s)) return dispatch(in, s, out, r, nthreads);
+  cv::Mat back;
+  estimate_back_depth(in.depth_view, in.mask, in.camera, s.silhouettes, back, nthreads);
+  AoInputs with_back = in;
+  with_back.depth_back_view = &back;
+  dispatch(with_back, s, out, r, nthreads);
 }
 
 }  // namespace ssdo

@@ -20,6 +20,7 @@
 #include "kernels/positions.h"
 #include "kernels/mask_lanes.h"
 #include "kernels/position_lanes.h"
+#include "kernels/thickness.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
@@ -837,19 +838,28 @@ void allocate_upsampled(const TermSettings& settings, const HalfTerms& half, con
 
 // The second depth layer on a grid (depth, mask, camera of the grid; `file_back` the
 // frame's own layer on that grid, or empty): the occupancy of all views when there are
-// views, else the file's layer, else the one estimated from the grid's silhouettes when the
-// settings ask for it (the views' occupancy starts from that too). Empty when none.
+// views, else the file's layer. Empty when none: AO then estimates its own from the grid's
+// silhouettes when its settings ask for it (compute_ao), while SSDO keeps its constant
+// thickness: its terms did not gain from the estimate (docs/accuracy.md, "Thickness from
+// silhouettes"). With views and AO on this grid (ao_here) estimating, the occupancy starts
+// from the estimate and is narrowed to it: the views only carve free space out of it. Their
+// occupancy takes the other views' surfaces to be the constant thickness deep, which would
+// thicken again what the silhouettes made thin (on the orbit shot it raised gtao high's
+// error with views by a quarter), and started from the constant it leaves walls thin
+// (medium's error with views doubled). SSDO then reads that layer too.
 cv::Mat grid_back_layer(const cv::Mat& depth_view, const cv::Mat& mask, const Camera& camera,
                         const cv::Mat& file_back, const TermInputs& in, const TermSettings& settings,
-                        std::vector<ViewUse>& uses, int nthreads) {
+                        bool ao_here, std::vector<ViewUse>& uses, int nthreads) {
+  if (in.views.empty()) return file_back;
   cv::Mat own = file_back;
-  if (own.empty() && settings.silhouette_thickness != nullptr)
-    estimate_back_depth(depth_view, mask, camera, *settings.silhouette_thickness, own, nthreads);
-  if (in.views.empty()) return own;
+  const bool estimated = own.empty() && ao_here && estimates_back_layer(*settings.ao);
+  if (estimated) estimate_back_depth(depth_view, mask, camera, settings.ao->silhouettes, own, nthreads);
   cv::Mat back;
   const MultiViewInputs grid{depth_view, mask, camera, own.empty() ? nullptr : &own};
   uses = occupancy_from_views(grid, in.views, multiview_settings(settings), back, nthreads);
-  return back.empty() ? own : back;
+  if (back.empty()) return own;
+  if (estimated) cv::min(back, own, back);
+  return back;
 }
 
 // The views the confidence counts as observers (a grid's depth, mask and camera): those the
@@ -867,12 +877,12 @@ std::vector<DepthView> confidence_observers(const cv::Mat& depth_view, const cv:
 }
 
 // The second depth layer at the texels of the half grid (see grid_back_layer).
-cv::Mat half_grid_back_layer(const HalfGrid& h, const TermInputs& in, const TermSettings& settings,
+cv::Mat half_grid_back_layer(const HalfGrid& h, const TermInputs& in, const TermSettings& settings, bool ao_here,
                              std::vector<ViewUse>& uses, int nthreads) {
   cv::Mat file_back;
   if (in.depth_back_view != nullptr && !in.depth_back_view->empty())
     sample_at_texels(h, *in.depth_back_view, file_back, nthreads);
-  return grid_back_layer(h.depth_view, h.mask, h.camera, file_back, in, settings, uses, nthreads);
+  return grid_back_layer(h.depth_view, h.mask, h.camera, file_back, in, settings, ao_here, uses, nthreads);
 }
 
 // One grid's inputs to AO and SSDO: the half grid's texels or the full-resolution images,
@@ -1056,7 +1066,8 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   TermOutputs grid;
   GridInputs g;
   if (half.ao || half.ssdo) {
-    g = half_grid_inputs(h, in, settings, half_grid_back_layer(h, in, settings, out.views, nthreads), nthreads);
+    g = half_grid_inputs(h, in, settings, half_grid_back_layer(h, in, settings, half.ao, out.views, nthreads),
+                         nthreads);
     extend_grid_with_views(g, in, settings, out.views, nthreads);
   }
   std::vector<UpsampleImage> images;
@@ -1121,8 +1132,8 @@ void compute_terms(const TermInputs& in, const TermSettings& settings, TermOutpu
   cv::Mat back;
   if ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo))
     back = grid_back_layer(in.depth_view, in.mask, in.camera,
-                           in.depth_back_view != nullptr ? *in.depth_back_view : cv::Mat(), in, settings, out.views,
-                           nthreads);
+                           in.depth_back_view != nullptr ? *in.depth_back_view : cv::Mat(), in, settings,
+                           settings.ao && !half.ao, out.views, nthreads);
   if ((settings.ao && !half.ao) || (settings.ssdo && !half.ssdo)) {
     GridInputs g = full_grid_inputs(in, settings, position_view, back);
     extend_grid_with_views(g, in, settings, out.views, nthreads);

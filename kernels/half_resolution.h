@@ -30,7 +30,6 @@
 #include "kernels/denoise.h"
 #include "kernels/multiview.h"
 #include "kernels/ssdo.h"
-#include "kernels/thickness.h"
 
 namespace ssdo {
 
@@ -165,10 +164,6 @@ struct TermSettings {
   // denoises and upsamples them. (The bent normal and the confidence are upsampled as usual.)
   // For the whole frame only (an empty roi).
   bool keep_grid_terms = false;
-  // A frame without a back layer (TermInputs::depth_back_view) gets one estimated from its
-  // silhouettes on each grid it runs on (kernels/thickness.h), in place of the AO and SSDO
-  // settings' constant thickness; null = that constant.
-  const SilhouetteThicknessSettings* silhouette_thickness = nullptr;
 };
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth

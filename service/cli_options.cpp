@@ -356,17 +356,20 @@ bool resolve_settings(const ComputeOptionArgs& a, FrameRequest& request, std::st
     error = "unknown method or preset: " + a.method + " / " + a.preset;
     return false;
   }
-  request.silhouette_thickness.reset();
-  if (a.thickness_model == "silhouettes") {
-    if (a.thickness_world > 0) {
-      error = "give --thickness (a constant thickness) or --thickness-model silhouettes, not both";
-      return false;
-    }
-    request.silhouette_thickness = SilhouetteThicknessSettings{};
+  if (a.thickness_model == "silhouettes" && a.thickness_world > 0) {
+    error = "give --thickness (a constant thickness) or --thickness-model silhouettes, not both";
+    return false;
   }
   request.ao = ao_preset(*method, *preset);
   if (a.radius_world > 0) request.ao.radius_world = a.radius_world;
-  if (a.thickness_world > 0) request.ao.thickness_world = a.thickness_world;
+  // A thickness given is a constant one; otherwise the model asked for, else the preset's.
+  if (a.thickness_world > 0) {
+    request.ao.thickness_world = a.thickness_world;
+    request.ao.thickness_model = ThicknessModel::constant;
+  } else if (!a.thickness_model.empty()) {
+    request.ao.thickness_model =
+        a.thickness_model == "silhouettes" ? ThicknessModel::silhouettes : ThicknessModel::constant;
+  }
   request.ao.multibounce = a.multibounce;
   if (const std::string e = validate(request.ao); !e.empty()) {
     error = "AO settings: " + e;

@@ -60,11 +60,13 @@ std::vector<FrameOption> compute_options() {
        .zero_unset = true,
        .field = +[](A& a) -> float& { return a.compute.thickness_world; }},
       {.name = "thickness-model", .kind = OptionKind::choice, .set = OptionSet::compute, .group = "Compute",
-       .help = "How deep a surface is taken to be behind what the frame shows, where it has no back-face depth: "
-               "constant (--thickness) or silhouettes (as deep as it is wide from its nearest silhouette: thin "
-               "things thin, walls and floors solid; less error against ray-traced AO on most frames, a little "
-               "more under objects that float free)",
-       .choices = {"constant", "silhouettes"},
+       .help = "How deep a surface is taken to be behind what the frame shows, where it has no back-face depth, "
+               "for GTAO and raymarch AO: constant (--thickness) or silhouettes (as deep as it is wide from its "
+               "nearest silhouette: thin things thin, walls and floors solid; a third less error against "
+               "ray-traced AO on most frames, a little more under objects that float free). SSDO keeps the "
+               "constant",
+       .unset = "silhouettes for gtao, constant for raymarch; constant when --thickness is given",
+       .choices = {"", "constant", "silhouettes"},
        .field = +[](A& a) -> std::string& { return a.compute.thickness_model; }},
       {.name = "threads", .kind = OptionKind::integer, .set = OptionSet::compute, .group = "Compute",
        .help = "Threads per frame (at most the cores); without --jobs, process and serve then run cores / THREADS "

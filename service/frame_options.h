@@ -44,7 +44,7 @@ struct ComputeOptionArgs {
   std::string preset = "medium";
   float radius_world = 0;  // 0 = preset / frame default
   float thickness_world = 0;
-  std::string thickness_model = "constant";  // constant (thickness_world) | silhouettes
+  std::string thickness_model;  // "" (the preset's) | constant (thickness_world) | silhouettes
   int threads = 0;
   std::string terms = "ao,composite";
   bool multibounce = false;       // AO: Jimenez et al. 2016's multi-bounce fit with the albedo

@@ -153,7 +153,6 @@ TermOutputs compute_raw_terms(const GBuffer& g, const FrameRequest& request, con
                         confidence_wanted ? &confidence : nullptr, denoise_on_grid ? &request.denoise : nullptr};
   selected.stored_in_half = kOutputsInHalf;
   selected.keep_grid_terms = !denoise_on_grid;
-  if (request.silhouette_thickness) selected.silhouette_thickness = &*request.silhouette_thickness;
   TermOutputs out;
   compute_terms(in, selected, out, {}, request.threads, inputs_read);
   return out;

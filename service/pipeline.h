@@ -20,7 +20,6 @@
 #include "core/gbuffer.h"
 #include "kernels/ssdo.h"
 #include "kernels/temporal.h"
-#include "kernels/thickness.h"
 #include "service/quality.h"
 #include "service/sequence.h"
 
@@ -53,10 +52,6 @@ struct FrameRequest {
   // --quality auto's choice of ao's method and preset; nullopt = --method and --preset.
   std::optional<QualityChoice> quality;
   SsdoSettings ssdo;
-  // --thickness-model silhouettes: a frame without a back-face pass gets its occluders'
-  // thickness from its silhouettes (kernels/thickness.h) instead of ao's and ssdo's constant
-  // thickness_world; nullopt = that constant.
-  std::optional<SilhouetteThicknessSettings> silhouette_thickness;
   DenoiseSettings denoise;
   // The environment light of the SSDO terms and the composite's background (world space,
   // built once per batch and shared by its frames). Null = constant radiance 1.

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <functional>
 #include <string>
 #include <vector>
@@ -60,11 +61,14 @@ struct Measured {
   ErrorStats border;      // over the compared pixels of the border band (when one is given)
 };
 
-// AO only (no composite), the method's preset at radius_world.
-inline FrameRequest ao_request(AoMethod method, Preset preset, float radius_world) {
+// AO only (no composite), the method's preset at radius_world (with `thickness_model` in
+// place of the preset's when given).
+inline FrameRequest ao_request(AoMethod method, Preset preset, float radius_world,
+                               std::optional<ThicknessModel> thickness_model = std::nullopt) {
   FrameRequest request;
   request.ao = ao_preset(method, preset);
   request.ao.radius_world = radius_world;
+  if (thickness_model) request.ao.thickness_model = *thickness_model;
   request.terms.composite = false;
   return request;
 }
@@ -73,9 +77,10 @@ inline FrameRequest ao_request(AoMethod method, Preset preset, float radius_worl
 // `mask` and over `border_mask` (CV_8UC1, may be empty).
 inline Measured measure_denoised_ao(const GBuffer& g, AoMethod method, Preset preset, float radius_world,
                                     const cv::Mat& reference, const cv::Mat& mask,
-                                    const cv::Mat& border_mask = {}) {
+                                    const cv::Mat& border_mask = {},
+                                    std::optional<ThicknessModel> thickness_model = std::nullopt) {
   const auto t0 = std::chrono::steady_clock::now();
-  const ComputedFrame out = compute_frame(g, ao_request(method, preset, radius_world));
+  const ComputedFrame out = compute_frame(g, ao_request(method, preset, radius_world, thickness_model));
   Measured m;
   m.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   const cv::Mat& ao = *out.find("ao_denoised");

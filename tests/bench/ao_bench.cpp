@@ -4,8 +4,9 @@
 // frame (`compute_frame`, terms ao,ssdo: AO, SSDO, three denoise passes), at 640x360 (the shared cornell dump) and
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
-// Args: width, method, preset, threads (BM_Ao); width, preset, threads (BM_Ssdo, BM_SsdoEnv, BM_Frame);
-// width, threads (denoisers, BM_Confidence, BM_HalfGrid, BM_SilhouetteThickness); width, spacing, threads (BM_DenoiseHalfGridTerms);
+// Args: width, method, preset, threads (BM_Ao, BM_AoConstantThickness); width, preset, threads
+// (BM_Ssdo, BM_SsdoEnv, BM_Frame); width, threads (denoisers, BM_Confidence, BM_HalfGrid,
+// BM_SilhouetteThickness); width, spacing, threads (BM_DenoiseHalfGridTerms);
 // width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
@@ -40,22 +41,20 @@ void BM_Ao(benchmark::State& state) {
                  " " + std::to_string(threads) + "t");
 }
 
-// BM_Ao with the occluders' thickness estimated from the frame's silhouettes on the grid
-// the method runs on (TermSettings::silhouette_thickness), the estimate included.
-void BM_AoSilhouettes(benchmark::State& state) {
+// BM_Ao with the constant thickness in place of the preset's model (the GTAO presets
+// estimate a back layer from the silhouettes on the grid they run on; BM_SilhouetteThickness).
+void BM_AoConstantThickness(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   const auto method = ssdo::AoMethod(state.range(1));
   const auto preset = ssdo::Preset(state.range(2));
   const int threads = int(state.range(3));
-  const ssdo::AoSettings s = ssdo::ao_preset(method, preset);
-  const ssdo::SilhouetteThicknessSettings thickness;
-  ssdo::TermSettings settings{&s};
-  settings.silhouette_thickness = &thickness;
-  const ssdo::TermInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera};
-  ssdo::TermOutputs out;
-  for (auto _ : state) ssdo::compute_terms(in, settings, out, {}, threads);
+  ssdo::AoSettings s = ssdo::ao_preset(method, preset);
+  s.thickness_model = ssdo::ThicknessModel::constant;
+  const ssdo::AoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, nullptr};
+  ssdo::AoOutput out;
+  for (auto _ : state) ssdo::compute_ao_at_resolution(in, s, out, {}, threads);
   state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
-                 " silhouettes " + std::to_string(threads) + "t");
+                 " constant " + std::to_string(threads) + "t");
 }
 
 void BM_Denoise(benchmark::State& state) {
@@ -332,7 +331,7 @@ void image_args(benchmark::internal::Benchmark* b) {
 }  // namespace
 
 BENCHMARK(BM_Ao)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_AoSilhouettes)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_AoConstantThickness)->Apply(ao_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Denoise3)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_DenoiseHalfGridTerms)->ArgsProduct({{640, 1920}, {1, 2}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -39,17 +39,19 @@ TEST(ConfidenceEval, LowConfidenceErrsMoreOnTheOrbitAndTheSharedFrames) {
   if (!fs::exists(dir / "orbit_f6.exr")) GTEST_SKIP() << "no shared frames at " << dir;
   std::string orbit;
   for (int i = 0; i <= 6; ++i) orbit.append(" ").append((dir / numbered("orbit_f", i)).string()).append(".exr");
-  // Measured (2026-11-25, gtao medium): orbit with views 0.19 | 0.018, alone 0.12 | 0.017;
-  // shared frames 0.085 | 0.020.
+  // Measured (2026-12-06, gtao medium, its thickness from silhouettes), MAE of the lower half
+  // | the top decile: orbit with views 0.033 | 0.016, alone 0.029 | 0.014; shared frames
+  // 0.048 | 0.019. (With the constant thickness the lower half erred 0.19, 0.12 and 0.085:
+  // the silhouettes removed most of the error the confidence flags, thin occluders'.)
   const Deciles with_views = eval_deciles(orbit + " --views 2");
   const Deciles alone = eval_deciles(orbit + " --views 0");
   std::string shared_frames;
   for (const char* name : {"cornell.exr", "greeble.exr", "depthgap.exr"})
     shared_frames.append(" ").append((dir / name).string());
   const Deciles shared = eval_deciles(shared_frames);
-  EXPECT_GT(with_views.low_mae, 4.0 * with_views.high_mae);
-  EXPECT_GT(alone.low_mae, 3.0 * alone.high_mae);
-  EXPECT_GT(shared.low_mae, 2.5 * shared.high_mae);
+  EXPECT_GT(with_views.low_mae, 1.8 * with_views.high_mae);
+  EXPECT_GT(alone.low_mae, 1.8 * alone.high_mae);
+  EXPECT_GT(shared.low_mae, 2.0 * shared.high_mae);
   // What the views observe moves pixels up to the top decile (28% -> 65%), whose error
   // stays that of the pixels the frame alone saw whole.
   EXPECT_GT(with_views.high_share, 2.0 * alone.high_share);

@@ -52,17 +52,21 @@ TEST(EvalTerms, ALightTermWithoutTheRendersEnvironmentIsNoted) {
   EXPECT_EQ(ao.output.find("note: no --env"), std::string::npos) << ao.output;
 }
 
-// --thickness-model silhouettes (kernels/thickness.h) through the product: the AO of the
-// greeble frame and of cornell against Cycles, and the option's conflict with --thickness.
+// The GTAO presets' thickness from silhouettes (kernels/thickness.h) through the product:
+// the AO of the greeble frame and of cornell against Cycles, by default and with
+// --thickness-model constant or a --thickness, and the option's conflict with --thickness.
 TEST(EvalTerms, ThicknessFromSilhouettesAgainstCycles) {
   const fs::path dir = shared_dir() / "gbuffers";
   if (!fs::exists(dir / "greeble.exr")) GTEST_SKIP() << "no shared frames at " << dir;
   // Measured (2026-12-06, gtao low): greeble 0.0595 -> 0.0360, cornell 0.1013 -> 0.0905.
   for (const std::string name : {"greeble.exr", "cornell.exr"}) {
-    const double constant = eval_mae(dir / name, "--reference AO");
-    const double silhouettes = eval_mae(dir / name, "--reference AO --thickness-model silhouettes");
+    const double constant = eval_mae(dir / name, "--reference AO --thickness-model constant");
+    const double silhouettes = eval_mae(dir / name, "--reference AO");
     EXPECT_GT(silhouettes, 0.0) << name;
     EXPECT_LT(silhouettes, 0.95 * constant) << name;
+    EXPECT_EQ(eval_mae(dir / name, "--reference AO --thickness-model silhouettes"), silhouettes) << name;
+    // A thickness given is a constant one: the automatic constant, 0.5 x the radius of 1.
+    EXPECT_EQ(eval_mae(dir / name, "--reference AO --thickness 0.5"), constant) << name;
   }
   const RunResult both = run_ssdo("eval " + (dir / "cornell.exr").string() +
                                   " --reference AO --thickness 0.3 --thickness-model silhouettes");
