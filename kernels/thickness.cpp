@@ -122,7 +122,7 @@ void nearest_in_column(const cv::Mat& representative, cv::Mat& row_of, int nthre
         out[i] = below_nearer ? last[i] : out[i];
       }
     }
-  }, 64);
+  }, 128);
 }
 
 // Second phase along one row: for each pixel x, the column of the nearest silhouette pixel
