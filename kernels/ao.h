@@ -124,10 +124,11 @@ struct AoInputs {
   const cv::Mat& mask;           // CV_8UC1, 255 = foreground
   const Camera& camera;
   const cv::Mat* albedo = nullptr;  // CV_32FC3 or null (multi-bounce only)
-  // CV_32FC1 second depth layer (GBuffer::depth_back_view) or null. When given, the
-  // methods that model occluder thickness (raymarch; GTAO's visibility mask at full
-  // resolution) take each tap's own thickness depth_back_view - depth_view instead of
-  // thickness_world (+inf back = solid behind).
+  // CV_32FC1 second depth layer (GBuffer::depth_back_view, or one estimated) or null. When
+  // given, the methods that model occluder thickness (reads_back_layer: raymarch, GTAO's
+  // visibility mask) take each tap's own thickness depth_back_view - depth_view instead of
+  // thickness_world (+inf back = solid behind). Null with ThicknessModel::silhouettes:
+  // compute_ao estimates it.
   const cv::Mat* depth_back_view = nullptr;
   // Where the picture's pixel (0, 0) lies in these images: (0, 0) for a whole frame; plus the
   // widths of the left and top sides of a guard band of off-screen texels
