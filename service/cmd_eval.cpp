@@ -50,7 +50,8 @@ cv::Mat error_heatmap(const cv::Mat& estimate, const cv::Mat& reference, const c
   return heat;
 }
 
-// The term computed by the screen-space oracle with the request's radius and thickness.
+// The term computed by the screen-space oracle with the request's radius and thickness (its
+// model too: the estimate from silhouettes when the request's AO makes one).
 cv::Mat oracle_term(const GBuffer& g, const FrameRequest& request, const std::string& term,
                     const std::string& preset_name) {
   const Preset preset = parse_preset(preset_name).value_or(Preset::medium);
@@ -59,6 +60,9 @@ cv::Mat oracle_term(const GBuffer& g, const FrameRequest& request, const std::st
     oracle.ao = ao_preset(AoMethod::raymarch, preset);
     oracle.ao.radius_world = request.ao.radius_world;
     oracle.ao.thickness_world = effective_thickness_world(request.ao);
+    oracle.ao.thickness_model =
+        estimates_back_layer(request.ao) ? ThicknessModel::silhouettes : ThicknessModel::constant;
+    oracle.ao.silhouettes = request.ao.silhouettes;
     oracle.ao.depth_bias_relative = request.ao.depth_bias_relative;
   } else {
     oracle.ssdo = ssdo_preset(SsdoMethod::oracle, preset);

@@ -64,7 +64,7 @@ std::vector<FrameOption> compute_options() {
                "for GTAO and raymarch AO: constant (--thickness) or silhouettes (as deep as it is wide from its "
                "nearest silhouette: thin things thin, walls and floors solid; a third less error against "
                "ray-traced AO on most frames, a little more under objects that float free). SSDO keeps the "
-               "constant",
+               "constant, but for what --views decide",
        .unset = "silhouettes for gtao, constant for raymarch; constant when --thickness is given",
        .choices = {"", "constant", "silhouettes"},
        .field = +[](A& a) -> std::string& { return a.compute.thickness_model; }},
