@@ -1,8 +1,8 @@
 #include "kernels/thickness.h"
 
+#include <algorithm>
 #include <cassert>
 #include <cmath>
-#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -42,13 +42,11 @@ void neighbour_depth(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& sh
   });
 }
 
-// The silhouette pixels of row y among columns [x0, x1) into edge[x - x0] (1 = on a
-// silhouette): foreground pixels with a 4-neighbour whose shown depth (neighbour_depth) is
-// farther than them by more than edge_depth_ratio of their depth, background included.
-// Neighbours outside the image are unknown, not background: the frame's border is no
-// silhouette.
-void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_depth_ratio, int y, int x0, int x1,
-                        uint8_t* edge) {
+// The silhouette pixels of row y into edge (1 = on a silhouette): foreground pixels with a
+// 4-neighbour whose shown depth (neighbour_depth) is farther than them by more than
+// edge_depth_ratio of their depth, background included. Neighbours outside the image are
+// unknown, not background: the frame's border is no silhouette.
+void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_depth_ratio, int y, uint8_t* edge) {
   const int w = shown.cols, h = shown.rows;
   const float* d = shown.ptr<float>(y);
   const uint8_t* m = mask.ptr<uint8_t>(y);
@@ -59,12 +57,11 @@ void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_de
   const auto test = [&](int x, int xl, int xr) {
     const float farther = d[x] * step;
     const bool behind = (d[xl] > farther) | (d[xr] > farther) | (d_up[x] > farther) | (d_down[x] > farther);
-    edge[x - x0] = uint8_t((m[x] != 0) & behind);
+    edge[x] = uint8_t((m[x] != 0) & behind);
   };
-  const int inner0 = std::max(x0, 1), inner1 = std::min(x1, w - 1);
-  for (int x = x0; x < std::min(inner0, x1); ++x) test(x, x, std::min(x + 1, w - 1));
-  for (int x = inner0; x < inner1; ++x) test(x, x - 1, x + 1);  // the interior, without clamps
-  for (int x = std::max(inner1, x0); x < x1; ++x) test(x, std::max(x - 1, 0), x);
+  test(0, 0, std::min(1, w - 1));
+  for (int x = 1; x < w - 1; ++x) test(x, x - 1, x + 1);  // the interior, without clamps
+  if (w > 1) test(w - 1, w - 2, w - 1);
 }
 
 // The silhouette pixels (edge = 1) of the image, and for each cell of 2 x 2 pixels the
@@ -80,8 +77,8 @@ void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge
   parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& cell_rows) {
     for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
       const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
-      silhouettes_of_row(shown, mask, edge_depth_ratio, y0, 0, w, edge.ptr<uint8_t>(y0));
-      if (y1 != y0) silhouettes_of_row(shown, mask, edge_depth_ratio, y1, 0, w, edge.ptr<uint8_t>(y1));
+      silhouettes_of_row(shown, mask, edge_depth_ratio, y0, edge.ptr<uint8_t>(y0));
+      if (y1 != y0) silhouettes_of_row(shown, mask, edge_depth_ratio, y1, edge.ptr<uint8_t>(y1));
       cv::Point* rep = representative.ptr<cv::Point>(cy);
       for (int cx = 0; cx < representative.cols; ++cx) {
         const int x0 = 2 * cx, x1 = std::min(x0 + 1, w - 1);
