@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "kernels/distance_transform.h"
 #include "kernels/mask_lanes.h"
 #include "kernels/reprojection.h"
 #include "kernels/reprojection_lanes.h"
@@ -309,34 +310,6 @@ cv::Mat seen_through(const TemporalFrame& from, const TemporalFrame& to, float t
   return marks;
 }
 
-// d[q] = min over p with finite f[p] of f[p] + (q - p)^2, q in [0, n) (+inf when no f[p] is
-// finite): the lower envelope of the parabolas rooted at (p, f[p]) (Felzenszwalb and
-// Huttenlocher 2012, algorithm DT(f)). v (n), z (n + 1): scratch.
-void lower_envelope(const float* f, int n, float* d, std::vector<int>& v, std::vector<double>& z) {
-  int k = -1;
-  auto rooted = [&](int p) { return double(f[p]) + double(p) * double(p); };
-  for (int q = 0; q < n; ++q) {
-    if (!(f[q] < kInf)) continue;
-    if (k < 0) {
-      k = 0, v[0] = q, z[0] = -std::numeric_limits<double>::infinity(), z[1] = std::numeric_limits<double>::infinity();
-      continue;
-    }
-    // Where q's parabola meets the envelope's last one; those it passes under are dropped.
-    double s = (rooted(q) - rooted(v[k])) / (2.0 * double(q - v[k]));
-    while (s <= z[k]) --k, s = (rooted(q) - rooted(v[k])) / (2.0 * double(q - v[k]));
-    ++k, v[k] = q, z[k] = s, z[k + 1] = std::numeric_limits<double>::infinity();
-  }
-  if (k < 0) {
-    std::fill(d, d + n, kInf);
-    return;
-  }
-  k = 0;
-  for (int q = 0; q < n; ++q) {
-    while (z[k + 1] < double(q)) ++k;
-    d[q] = float(double(q - v[k]) * double(q - v[k]) + double(f[v[k]]));
-  }
-}
-
 }  // namespace
 
 cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads) {
@@ -347,22 +320,20 @@ cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads) {
   // squared Euclidean distance is separable.
   parallel_rows(cv::Range(0, marks.cols), nthreads, [&](const cv::Range& cols) {
     std::vector<float> f(size_t(marks.rows)), out(size_t(marks.rows));
-    std::vector<int> v(size_t(marks.rows));
-    std::vector<double> z(size_t(marks.rows) + 1);
+    EnvelopeScratch scratch(marks.rows);
     for (int x = cols.start; x < cols.end; ++x) {
       for (int y = 0; y < marks.rows; ++y) f[size_t(y)] = marks.at<uint8_t>(y, x) ? 0.0f : kInf;
-      lower_envelope(f.data(), marks.rows, out.data(), v, z);
+      lower_envelope(f.data(), marks.rows, out.data(), nullptr, scratch);
       for (int y = 0; y < marks.rows; ++y) d.at<float>(y, x) = out[size_t(y)];
     }
   }, 16);
   parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
     std::vector<float> f(size_t(marks.cols));
-    std::vector<int> v(size_t(marks.cols));
-    std::vector<double> z(size_t(marks.cols) + 1);
+    EnvelopeScratch scratch(marks.cols);
     for (int y = rows.start; y < rows.end; ++y) {
       float* row = d.ptr<float>(y);
       std::copy(row, row + marks.cols, f.begin());
-      lower_envelope(f.data(), marks.cols, row, v, z);
+      lower_envelope(f.data(), marks.cols, row, nullptr, scratch);
     }
   }, 16);
   return d;

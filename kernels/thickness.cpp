@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "kernels/distance_transform.h"
 #include "kernels/settings_check.h"
 
 namespace ssdo {
@@ -90,101 +91,43 @@ void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge
   });
 }
 
-// First phase of the separable exact Euclidean distance transform (Meijster, Roerdink &
-// Hesselink 2000, "A general algorithm for computing distance transforms in linear time"),
-// over cells (a representative: a silhouette cell): for each cell, the row of the
-// nearest silhouette cell in its column (kNone: the column has none), by a sweep down and a
-// sweep up each column. Columns are independent: the threads take strips of them.
-void nearest_in_column(const cv::Mat& representative, cv::Mat& row_of, int nthreads) {
-  const int w = representative.cols, h = representative.rows;
-  row_of.create(representative.size(), CV_32SC1);
-  parallel_rows(cv::Range(0, w), nthreads, [&](const cv::Range& cols) {
-    const int n = cols.size();
-    std::vector<int32_t> nearest(size_t(n), kNone);
-    int32_t* last = nearest.data();
-    for (int y = 0; y < h; ++y) {
-      const cv::Point* rep = representative.ptr<cv::Point>(y) + cols.start;
-      int32_t* out = row_of.ptr<int32_t>(y) + cols.start;
-      for (int i = 0; i < n; ++i) {
-        last[i] = rep[i].x != kNone ? y : last[i];  // the nearest silhouette cell above or on the row
-        out[i] = last[i];
-      }
-    }
-    std::fill(nearest.begin(), nearest.end(), kNone);
-    for (int y = h - 1; y >= 0; --y) {
-      int32_t* out = row_of.ptr<int32_t>(y) + cols.start;
-      for (int i = 0; i < n; ++i) {
-        last[i] = out[i] == y ? y : last[i];  // the nearest below or on the row (marked by the sweep down)
-        const bool below_nearer = last[i] != kNone && (out[i] == kNone || last[i] - y < y - out[i]);
-        out[i] = below_nearer ? last[i] : out[i];
-      }
-    }
-  }, 128);
-}
-
-// Second phase along one row: for each pixel x, the column of the nearest silhouette pixel
-// over the row's columns (each column's own nearest at squared height g2[i]), by the lower
-// envelope of the parabolas (x - i)^2 + g2[i] (Meijster et al., section 4). A row whose
-// columns have no silhouette keeps g2 = kFar and a column whose g2 is kFar.
-// kFar exceeds every squared distance in an image (sides below 2^26 pixels: int64_t holds
-// every sum below without overflow).
-constexpr int64_t kFar = int64_t(1) << 53;
-void nearest_in_row(const std::vector<int64_t>& g2, std::vector<int32_t>& s, std::vector<int32_t>& t,
-                    std::vector<int32_t>& column_of) {
-  const int n = int(g2.size());
-  const int64_t* g = g2.data();
-  const auto f = [g](int64_t x, int32_t i) { return (x - i) * (x - i) + g[i]; };
-  // Sep(i, u): the last x at which column i is nearer than column u (i < u): a floor division.
-  const auto sep = [g](int32_t i, int32_t u) {
-    const int64_t num = int64_t(u) * u - int64_t(i) * i + g[u] - g[i];
-    const int64_t den = 2 * int64_t(u - i);
-    return num >= 0 ? num / den : -((-num + den - 1) / den);
-  };
-  int q = 0;
-  s[0] = 0;
-  t[0] = 0;
-  for (int32_t u = 1; u < n; ++u) {
-    while (q >= 0 && f(t[size_t(q)], s[size_t(q)]) > f(t[size_t(q)], u)) --q;
-    if (q < 0) {
-      q = 0;
-      s[0] = u;
-    } else {
-      const int64_t start = 1 + sep(s[size_t(q)], u);
-      if (start < n) {
-        ++q;
-        s[size_t(q)] = u;
-        t[size_t(q)] = int32_t(start);
-      }
-    }
-  }
-  for (int32_t u = n - 1; u >= 0; --u) {
-    column_of[size_t(u)] = s[size_t(q)];
-    if (u == t[size_t(q)]) --q;
-  }
-}
-
-// For each cell, the representative of the nearest silhouette cell (kNone: there is none):
-// the transform's second phase, row by row of cells.
+// For each cell, the representative of the nearest silhouette cell (x = kNone: there is
+// none): the separable distance transform (kernels/distance_transform.h) keeping each pass's
+// nearest sample, along each column of cells (the row of the nearest silhouette cell in it),
+// then along each row over the columns' squared distances (the column of the nearest).
 void nearest_representative(const cv::Mat& representative, cv::Mat& nearest, int nthreads) {
-  cv::Mat row_of;
-  nearest_in_column(representative, row_of, nthreads);
-  const int w = representative.cols;
-  nearest.create(representative.size(), CV_32SC2);
-  parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& rows) {
+  const int w = representative.cols, h = representative.rows;
+  cv::Mat row_of(h, w, CV_32SC1), column_d2(h, w, CV_32FC1);
+  parallel_rows(cv::Range(0, w), nthreads, [&](const cv::Range& cols) {
+    const size_t n = size_t(h);
+    std::vector<float> f(n), d2(n);
+    std::vector<int> at(n);
+    EnvelopeScratch scratch(h);
+    for (int x = cols.start; x < cols.end; ++x) {
+      for (int y = 0; y < h; ++y) f[size_t(y)] = representative.at<cv::Point>(y, x).x != kNone ? 0.0f : kInf;
+      lower_envelope(f.data(), h, d2.data(), at.data(), scratch);
+      for (int y = 0; y < h; ++y) {
+        row_of.at<int32_t>(y, x) = at[size_t(y)];
+        column_d2.at<float>(y, x) = d2[size_t(y)];
+      }
+    }
+  }, 16);
+  nearest.create(h, w, CV_32SC2);
+  parallel_rows(cv::Range(0, h), nthreads, [&](const cv::Range& rows) {
     const size_t n = size_t(w);
-    std::vector<int64_t> g2(n);
-    std::vector<int32_t> s_col(n), t(n), column_of(n);
+    std::vector<float> d2(n);
+    std::vector<int> at(n);
+    EnvelopeScratch scratch(w);
     for (int y = rows.start; y < rows.end; ++y) {
+      lower_envelope(column_d2.ptr<float>(y), w, d2.data(), at.data(), scratch);
       const int32_t* row = row_of.ptr<int32_t>(y);
-      for (int x = 0; x < w; ++x) g2[size_t(x)] = row[x] == kNone ? kFar : int64_t(row[x] - y) * (row[x] - y);
-      nearest_in_row(g2, s_col, t, column_of);
       cv::Point* out = nearest.ptr<cv::Point>(y);
       for (int x = 0; x < w; ++x) {
-        const int32_t xs = column_of[size_t(x)];
-        out[x] = row[xs] == kNone ? cv::Point(kNone, kNone) : representative.at<cv::Point>(row[xs], xs);
+        const int xs = at[size_t(x)];
+        out[x] = xs < 0 ? cv::Point(kNone, kNone) : representative.at<cv::Point>(row[xs], xs);
       }
     }
-  });
+  }, 16);
 }
 
 }  // namespace

@@ -40,8 +40,9 @@ std::string validate(const SilhouetteThicknessSettings& s);
 // with mask != 0; +inf (solid behind) on background, where no silhouette is in the picture,
 // and where the nearest silhouette lies in front of the pixel (another object's rim). The
 // distance to a silhouette is Euclidean, in pixels of these images, to a silhouette pixel
-// found by an exact distance transform over cells of 2 x 2 pixels (Meijster et al. 2000;
-// each cell's first silhouette pixel stands for the cell): 0 on silhouette pixels, else at
+// found by an exact distance transform over cells of 2 x 2 pixels (Felzenszwalb &
+// Huttenlocher 2012, kernels/distance_transform.h; each cell's first silhouette pixel stands
+// for the cell): 0 on silhouette pixels, else at
 // most 2 sqrt(2) pixels more than the exact distance (0.24 px more on average over a disc),
 // for a quarter of the transform's work. Times the world size of a pixel at the pixel's
 // depth (Camera::pixels_per_unit), plus half a pixel: a silhouette pixel is half a pixel
