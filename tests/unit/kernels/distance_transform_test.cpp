@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-namespace ssdo {
+namespace ssdo::distance_transform_test {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -56,4 +56,4 @@ TEST(DistanceTransform, ALineWithoutSamplesIsInfinitelyFar) {
 }
 
 }  // namespace
-}  // namespace ssdo
+}  // namespace ssdo::distance_transform_test

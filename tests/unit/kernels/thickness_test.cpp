@@ -11,7 +11,7 @@
 
 #include <gtest/gtest.h>
 
-namespace ssdo {
+namespace ssdo::thickness_test {
 namespace {
 
 constexpr int kSize = 101;
@@ -173,4 +173,4 @@ TEST(Thickness, SettingsAreChecked) {
 }
 
 }  // namespace
-}  // namespace ssdo
+}  // namespace ssdo::thickness_test
