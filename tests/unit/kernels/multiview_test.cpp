@@ -13,7 +13,7 @@
 #include "kernels/positions.h"
 #include "tests/support/raycast.h"
 
-namespace ssdo {
+namespace ssdo::multiview_test {  // its own names in a unity batch of test files
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
@@ -457,4 +457,4 @@ TEST(GuardBand, PixelsWhoseTapsStayOnScreenKeepTheirValues) {
 }
 
 }  // namespace
-}  // namespace ssdo
+}  // namespace ssdo::multiview_test
