@@ -1,12 +1,15 @@
 // Squared Euclidean distance transforms of sampled functions: the lower envelope of the
 // parabolas rooted at the samples (Felzenszwalb & Huttenlocher 2012, "Distance Transforms of
 // Sampled Functions", algorithm DT(f)), along one line; separable over an image (a pass
-// along its columns, then one along its rows over the columns' results). The temporal
-// filter's distances to its marks and the thickness estimate's nearest silhouette take it.
+// along its columns, then one along its rows over the columns' results: squared_distance_
+// to_marks). The temporal filter's distances to its marks and the thickness estimate's
+// nearest silhouette take it.
 #pragma once
 
 #include <cstddef>
 #include <vector>
+
+#include <opencv2/core.hpp>
 
 namespace ssdo {
 
@@ -20,5 +23,11 @@ struct EnvelopeScratch {
 // d[q] = min over p with finite f[p] of f[p] + (q - p)^2, q in [0, n) (+inf when no f[p] is
 // finite); `nearest` (may be null) receives the p attaining it (-1 when none).
 void lower_envelope(const float* f, int n, float* d, int* nearest, EnvelopeScratch& scratch);
+
+// Squared Euclidean distance, in pixels, from each pixel to the nearest nonzero pixel of
+// `marks` (CV_8UC1); CV_32FC1, +inf everywhere when there is no mark. With `nearest`, that
+// mark's position too (CV_32SC2, (-1, -1) when there is none). A pass along the columns,
+// then one along the rows over their results; the same bits for any nthreads.
+cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads = 0, cv::Mat* nearest = nullptr);
 
 }  // namespace ssdo

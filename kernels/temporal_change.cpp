@@ -312,33 +312,6 @@ cv::Mat seen_through(const TemporalFrame& from, const TemporalFrame& to, float t
 
 }  // namespace
 
-cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads) {
-  CV_Assert(marks.type() == CV_8UC1);
-  cv::Mat d(marks.size(), CV_32FC1, cv::Scalar::all(kInf));
-  if (cv::countNonZero(marks) == 0) return d;
-  // Columns first (0 on a mark, +inf elsewhere), then rows over the columns' results: the
-  // squared Euclidean distance is separable.
-  parallel_rows(cv::Range(0, marks.cols), nthreads, [&](const cv::Range& cols) {
-    std::vector<float> f(size_t(marks.rows)), out(size_t(marks.rows));
-    EnvelopeScratch scratch(marks.rows);
-    for (int x = cols.start; x < cols.end; ++x) {
-      for (int y = 0; y < marks.rows; ++y) f[size_t(y)] = marks.at<uint8_t>(y, x) ? 0.0f : kInf;
-      lower_envelope(f.data(), marks.rows, out.data(), nullptr, scratch);
-      for (int y = 0; y < marks.rows; ++y) d.at<float>(y, x) = out[size_t(y)];
-    }
-  }, 16);
-  parallel_rows(cv::Range(0, marks.rows), nthreads, [&](const cv::Range& rows) {
-    std::vector<float> f(size_t(marks.cols));
-    EnvelopeScratch scratch(marks.cols);
-    for (int y = rows.start; y < rows.end; ++y) {
-      float* row = d.ptr<float>(y);
-      std::copy(row, row + marks.cols, f.begin());
-      lower_envelope(f.data(), marks.cols, row, nullptr, scratch);
-    }
-  }, 16);
-  return d;
-}
-
 cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& neighbour, const TemporalSettings& s,
                              int64_t& changed_px, int nthreads) {
   int64_t in_frame_px = 0, in_neighbour_px = 0;

@@ -59,8 +59,4 @@ namespace ssdo {
 cv::Mat changed_surroundings(const TemporalFrame& frame, const TemporalFrame& neighbour, const TemporalSettings& s,
                              int64_t& changed_px, int nthreads = 0);
 
-// Squared Euclidean distance, in pixels, from each pixel to the nearest nonzero pixel of
-// `marks` (CV_8UC1); CV_32FC1, +inf everywhere when there is no mark.
-cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads = 0);
-
 }  // namespace ssdo

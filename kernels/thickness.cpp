@@ -67,14 +67,16 @@ void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_de
 
 // The silhouette pixels (edge = 1) of the image, and for each cell of 2 x 2 pixels the
 // first of its silhouette pixels in row-major order (x = kNone: none): the cell's
-// representative. Cells are independent: the threads take rows of them.
+// representative; `silhouette_cell` 255 where it has one. Cells are independent: the
+// threads take rows of them.
 void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& edge,
-                      cv::Mat& representative, int nthreads) {
+                      cv::Mat& representative, cv::Mat& silhouette_cell, int nthreads) {
   const int w = depth_view.cols, h = depth_view.rows;
   cv::Mat shown;
   neighbour_depth(depth_view, mask, shown, nthreads);
   edge.create(depth_view.size(), CV_8UC1);
   representative.create((h + 1) / 2, (w + 1) / 2, CV_32SC2);
+  silhouette_cell.create(representative.size(), CV_8UC1);
   parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& cell_rows) {
     for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
       const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
@@ -86,48 +88,10 @@ void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge
         rep[cx] = {kNone, kNone};
         for (const cv::Point p : {cv::Point(x0, y0), cv::Point(x1, y0), cv::Point(x0, y1), cv::Point(x1, y1)})
           if (rep[cx].x == kNone && edge.at<uint8_t>(p)) rep[cx] = p;
+        silhouette_cell.at<uint8_t>(cy, cx) = rep[cx].x == kNone ? 0 : 255;
       }
     }
   });
-}
-
-// For each cell, the representative of the nearest silhouette cell (x = kNone: there is
-// none): the separable distance transform (kernels/distance_transform.h) keeping each pass's
-// nearest sample, along each column of cells (the row of the nearest silhouette cell in it),
-// then along each row over the columns' squared distances (the column of the nearest).
-void nearest_representative(const cv::Mat& representative, cv::Mat& nearest, int nthreads) {
-  const int w = representative.cols, h = representative.rows;
-  cv::Mat row_of(h, w, CV_32SC1), column_d2(h, w, CV_32FC1);
-  parallel_rows(cv::Range(0, w), nthreads, [&](const cv::Range& cols) {
-    const size_t n = size_t(h);
-    std::vector<float> f(n), d2(n);
-    std::vector<int> at(n);
-    EnvelopeScratch scratch(h);
-    for (int x = cols.start; x < cols.end; ++x) {
-      for (int y = 0; y < h; ++y) f[size_t(y)] = representative.at<cv::Point>(y, x).x != kNone ? 0.0f : kInf;
-      lower_envelope(f.data(), h, d2.data(), at.data(), scratch);
-      for (int y = 0; y < h; ++y) {
-        row_of.at<int32_t>(y, x) = at[size_t(y)];
-        column_d2.at<float>(y, x) = d2[size_t(y)];
-      }
-    }
-  }, 16);
-  nearest.create(h, w, CV_32SC2);
-  parallel_rows(cv::Range(0, h), nthreads, [&](const cv::Range& rows) {
-    const size_t n = size_t(w);
-    std::vector<float> d2(n);
-    std::vector<int> at(n);
-    EnvelopeScratch scratch(w);
-    for (int y = rows.start; y < rows.end; ++y) {
-      lower_envelope(column_d2.ptr<float>(y), w, d2.data(), at.data(), scratch);
-      const int32_t* row = row_of.ptr<int32_t>(y);
-      cv::Point* out = nearest.ptr<cv::Point>(y);
-      for (int x = 0; x < w; ++x) {
-        const int xs = at[size_t(x)];
-        out[x] = xs < 0 ? cv::Point(kNone, kNone) : representative.at<cv::Point>(row[xs], xs);
-      }
-    }
-  }, 16);
 }
 
 }  // namespace
@@ -150,23 +114,25 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   // division per pixel.
   const float units_per_px_0 = 1.0f / camera.pixels_per_unit(0.0f).y;
   const float units_per_px_slope = 1.0f / camera.pixels_per_unit(1.0f).y - units_per_px_0;
-  cv::Mat edge, representative, nearest;
-  mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, nthreads);
-  nearest_representative(representative, nearest, nthreads);
+  cv::Mat edge, representative, silhouette_cell, nearest_cell;
+  mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, silhouette_cell, nthreads);
+  squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell);
   back_depth_view.create(depth_view.size(), CV_32FC1);
   parallel_rows(cv::Range(0, depth_view.rows), nthreads, [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const float* d = depth_view.ptr<float>(y);
       const uint8_t* m = mask.ptr<uint8_t>(y);
       const uint8_t* on_edge = edge.ptr<uint8_t>(y);
-      const cv::Point* cell_nearest = nearest.ptr<cv::Point>(y / 2);
+      const cv::Point* cell_nearest = nearest_cell.ptr<cv::Point>(y / 2);
       float* back = back_depth_view.ptr<float>(y);
       for (int x = 0; x < w; ++x) {
         back[x] = kInf;
+        if (!m[x]) continue;  // background
         // A silhouette pixel is its own nearest; any other takes its cell's nearest silhouette
         // cell's representative.
-        const cv::Point rep = on_edge[x] ? cv::Point(x, y) : cell_nearest[x / 2];
-        if (!m[x] || rep.x == kNone) continue;  // background, or no silhouette in the picture
+        const cv::Point cell = cell_nearest[x / 2];
+        if (!on_edge[x] && cell.x < 0) continue;  // no silhouette in the picture
+        const cv::Point rep = on_edge[x] ? cv::Point(x, y) : representative.at<cv::Point>(cell);
         const int xs = rep.x, ys = rep.y;
         // A nearest silhouette in front of the pixel is another object's rim (a pole before a
         // wall): it says nothing of this surface's depth, which stays solid.

@@ -1,7 +1,9 @@
 // The lower envelope of parabolas (kernels/distance_transform.h) on lines whose distances and
-// nearest samples are known exactly.
+// nearest samples are known exactly, and the image transform against brute force.
 #include "kernels/distance_transform.h"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -53,6 +55,43 @@ TEST(DistanceTransform, ALineWithoutSamplesIsInfinitelyFar) {
   f[4] = 0.0f;
   lower_envelope(f.data(), 5, d.data(), nullptr, scratch);
   EXPECT_EQ(d[0], 16.0f);
+}
+
+// The image transform against the minimum written out over every mark; the nearest mark it
+// gives is a mark at that distance.
+TEST(DistanceTransform, SquaredDistanceIsTheNearestMarks) {
+  cv::Mat marks = cv::Mat::zeros(37, 53, CV_8UC1);
+  cv::RNG rng(5);
+  for (int i = 0; i < 12; ++i) marks.at<uint8_t>(rng.uniform(0, marks.rows), rng.uniform(0, marks.cols)) = 255;
+  marks(cv::Rect(40, 3, 6, 4)).setTo(255);
+  for (const int threads : {1, 3}) {
+    cv::Mat nearest;
+    const cv::Mat d = squared_distance_to_marks(marks, threads, &nearest);
+    ASSERT_EQ(d.type(), CV_32FC1);
+    ASSERT_EQ(nearest.type(), CV_32SC2);
+    for (int y = 0; y < marks.rows; ++y)
+      for (int x = 0; x < marks.cols; ++x) {
+        float best = std::numeric_limits<float>::infinity();
+        for (int my = 0; my < marks.rows; ++my)
+          for (int mx = 0; mx < marks.cols; ++mx)
+            if (marks.at<uint8_t>(my, mx)) best = std::min(best, float((x - mx) * (x - mx) + (y - my) * (y - my)));
+        ASSERT_EQ(d.at<float>(y, x), best) << x << "," << y;
+        const cv::Point p = nearest.at<cv::Point>(y, x);
+        ASSERT_NE(marks.at<uint8_t>(p), 0) << x << "," << y;
+        ASSERT_EQ(float((x - p.x) * (x - p.x) + (y - p.y) * (y - p.y)), best) << x << "," << y;
+      }
+    EXPECT_EQ(cv::norm(d, squared_distance_to_marks(marks, threads), cv::NORM_INF), 0.0);
+  }
+}
+
+TEST(DistanceTransform, NoMarkIsInfinitelyFar) {
+  cv::Mat nearest;
+  const cv::Mat d = squared_distance_to_marks(cv::Mat::zeros(8, 9, CV_8UC1), 0, &nearest);
+  for (int y = 0; y < d.rows; ++y)
+    for (int x = 0; x < d.cols; ++x) {
+      EXPECT_TRUE(std::isinf(d.at<float>(y, x)));
+      EXPECT_EQ(nearest.at<cv::Point>(y, x), cv::Point(-1, -1));
+    }
 }
 
 }  // namespace
