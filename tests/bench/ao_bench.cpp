@@ -12,6 +12,7 @@
 #include <benchmark/benchmark.h>
 
 #include <map>
+#include <optional>
 
 #include "kernels/ao.h"
 #include "kernels/confidence.h"
@@ -28,34 +29,27 @@ namespace {
 
 using ssdo::bench::frame;
 
-void BM_Ao(benchmark::State& state) {
-  const ssdo::GBuffer& g = frame(int(state.range(0)));
-  const auto method = ssdo::AoMethod(state.range(1));
-  const auto preset = ssdo::Preset(state.range(2));
-  const int threads = int(state.range(3));
-  const ssdo::AoSettings s = ssdo::ao_preset(method, preset);
-  const ssdo::AoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, nullptr};
-  ssdo::AoOutput out;
-  for (auto _ : state) ssdo::compute_ao_at_resolution(in, s, out, {}, threads);
-  state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
-                 " " + std::to_string(threads) + "t");
-}
-
-// BM_Ao with the constant thickness in place of the preset's model (the GTAO presets
-// estimate a back layer from the silhouettes on the grid they run on; BM_SilhouetteThickness).
-void BM_AoConstantThickness(benchmark::State& state) {
+// The method's preset on the frame, through compute_ao_at_resolution, with `model` in place
+// of the preset's thickness model when given; labelled "METHOD PRESET [MODEL] Nt".
+void run_ao(benchmark::State& state, std::optional<ssdo::ThicknessModel> model, const char* model_label) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
   const auto method = ssdo::AoMethod(state.range(1));
   const auto preset = ssdo::Preset(state.range(2));
   const int threads = int(state.range(3));
   ssdo::AoSettings s = ssdo::ao_preset(method, preset);
-  s.thickness_model = ssdo::ThicknessModel::constant;
+  if (model) s.thickness_model = *model;
   const ssdo::AoInputs in{g.depth_view, g.normal_view, g.position_view, g.mask, g.camera, nullptr};
   ssdo::AoOutput out;
   for (auto _ : state) ssdo::compute_ao_at_resolution(in, s, out, {}, threads);
-  state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) +
-                 " constant " + std::to_string(threads) + "t");
+  state.SetLabel(std::string(ssdo::to_string(method)) + " " + std::string(ssdo::to_string(preset)) + model_label +
+                 " " + std::to_string(threads) + "t");
 }
+
+void BM_Ao(benchmark::State& state) { run_ao(state, std::nullopt, ""); }
+
+// BM_Ao with the constant thickness in place of the preset's model (the GTAO presets
+// estimate a back layer from the silhouettes on the grid they run on; BM_SilhouetteThickness).
+void BM_AoConstantThickness(benchmark::State& state) { run_ao(state, ssdo::ThicknessModel::constant, " constant"); }
 
 void BM_Denoise(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
