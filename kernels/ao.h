@@ -44,9 +44,10 @@ struct AoSettings {
   // Radius of the occlusion sphere, scene units, (0, inf). Occluders farther than this
   // from the shaded point do not count. 1.0 matches the Cycles AO distance default.
   float radius_world = 1.0f;
-  // Largest projected radius, pixels of the grid the method runs on, [2, 4096]: bounds
-  // the cost of close-up pixels.
-  float max_radius_px = 256.0f;
+  // Largest projected radius, pixels of the picture, [2, 4096]: bounds the cost of
+  // close-up pixels, and reaches as far on every grid (compute_ao counts pixels of the
+  // images it gets; compute_terms gives a method on the half grid half as many texels).
+  float max_radius_px = 512.0f;
   // Hemisphere: samples per pixel, [1, 1024].
   int samples = 16;
   // HBAO directions / GTAO slices (each slice = 2 directions) / raymarch directions, [1, 4096].

@@ -46,9 +46,10 @@ struct ConfidenceSettings {
   // Radius of the sampled neighbourhood, scene units, (0, inf): the estimator's radius
   // (AoSettings::radius_world or SsdoSettings::radius_world).
   float radius_world = 1.0f;
-  // Largest projected radius, pixels, [2, 4096]: the estimator's own bound (its taps do not
-  // reach farther, so neither do these).
-  float max_radius_px = 256.0f;
+  // Largest projected radius, pixels of the picture, [2, 4096]: the estimator's own bound
+  // (its taps do not reach farther, so neither do these; on the half grid half as many
+  // texels, as AoSettings::max_radius_px).
+  float max_radius_px = 512.0f;
   // Taps per pixel on the projected disk, [4, 256]. One tap of 16 is ~6% of the fraction;
   // the taps are a Vogel spiral rotated per pixel, so neighbours sample it differently and
   // the smoothing below averages their taps.

@@ -1046,6 +1046,24 @@ void denoise_grid_terms(const HalfGridTerms& terms, const DenoiseSettings& setti
     denoise_bilateral(noisy, h.depth_view, h.normal_view, h.mask, settings, denoised, half_roi, nthreads);
 }
 
+// The settings of the kernels on the half grid: the pixel bounds of the picture
+// (max_radius_px) in the grid's texels, half as many, so that a method reaches as far on
+// either grid. Holds what its terms point to: not copied.
+struct HalfGridSettings {
+  AoSettings ao;
+  SsdoSettings ssdo;
+  ConfidenceSettings confidence;
+  TermSettings terms;
+
+  explicit HalfGridSettings(const TermSettings& s) : terms(s) {
+    if (s.ao) ao = *s.ao, ao.max_radius_px *= 0.5f, terms.ao = &ao;
+    if (s.ssdo) ssdo = *s.ssdo, ssdo.max_radius_px *= 0.5f, terms.ssdo = &ssdo;
+    if (s.confidence) confidence = *s.confidence, confidence.max_radius_px *= 0.5f, terms.confidence = &confidence;
+  }
+  HalfGridSettings(const HalfGridSettings&) = delete;
+  HalfGridSettings& operator=(const HalfGridSettings&) = delete;
+};
+
 // The terms that run on the half grid: the grid (with positions when AO or SSDO runs on
 // it), each kernel on the texels the upsample of r reads (and, with the denoise, the texels
 // its taps read around them), the denoise of AO and SSDO on the grid, then one upsample of
@@ -1053,9 +1071,11 @@ void denoise_grid_terms(const HalfGridTerms& terms, const DenoiseSettings& setti
 // normal 0 (set to the normal by its unit_vector finish), SSDO 0 (nothing known of the
 // light), confidence 1. AO is clamped and the bent normals renormalised in the upsample's
 // pass. With keep_grid_terms, the raw AO and SSDO terms stay on the grid (out.grid).
-void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& settings,
+void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const TermSettings& picture_settings,
                           const HalfTerms& half, TermOutputs& out, const cv::Rect& r, int nthreads,
                           const std::function<void()>& inputs_read) {
+  const HalfGridSettings on_grid(picture_settings);
+  const TermSettings& settings = on_grid.terms;
   // finish_half_grid_terms upsamples the whole frame from the kept terms.
   CV_Assert(!settings.keep_grid_terms || r == cv::Rect(cv::Point(), full.depth_view.size()));
   HalfGrid h;

@@ -101,9 +101,10 @@ struct SsdoSettings {
   // r_max: radius of the sampled hemisphere, scene units, (0, inf). Occluders and senders
   // farther than this from P are not seen. 1.0 = the Cycles AO distance of the reference dumps.
   float radius_world = 1.0f;
-  // Largest projected radius, pixels, [2, 4096]: close to the camera r shrinks so that
-  // r x pixels_per_unit <= max_radius_px (bounds the spread of the taps in memory).
-  float max_radius_px = 256.0f;
+  // Largest projected radius, pixels of the picture, [2, 4096]: close to the camera r
+  // shrinks so that r x pixels_per_unit <= max_radius_px (bounds the spread of the taps in
+  // memory; on the half grid half as many texels, as AoSettings::max_radius_px).
+  float max_radius_px = 512.0f;
   // N: samples (directions) per pixel (method ssdo), [1, 1024].
   int samples = 16;
   // k: points tested per sample direction (method ssdo), [1, 64]. 1 = the paper's single

@@ -73,9 +73,9 @@ struct TemporalSettings {
   // The terms' reach, scene units, (0, inf): the largest radius_world of the terms filtered
   // (AoSettings, SsdoSettings; the pipeline passes the frame's). 1 is theirs by default.
   float radius_world = 1.0f;
-  // The most pixels the terms' reach covers, [2, 4096]: the estimators' max_radius_px (their
-  // taps go no farther from the pixel), 256 as theirs by default.
-  float max_radius_px = 256.0f;
+  // The most pixels of the picture the terms' reach covers, [2, 4096]: the estimators'
+  // max_radius_px (their taps go no farther from the pixel), 512 as theirs by default.
+  float max_radius_px = 512.0f;
 };
 
 // Returns an empty string when valid, else the field, value and range.

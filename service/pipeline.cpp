@@ -120,11 +120,12 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
 
 // The temporal filter's settings: the request's, with the reach of the terms it filters
 // (TemporalSettings::radius_world): the larger of the AO and SSDO radii and pixel bounds
-// (one radius for both, resolve_frame_radius, unless set apart).
-TemporalSettings temporal_settings(const FrameRequest& request) {
+// (one radius for both, resolve_frame_radius, unless set apart), the bound in pixels of the
+// grid filtered (resolution_divisor 2: the half grid's texels, as the kernels' on it).
+TemporalSettings temporal_settings(const FrameRequest& request, int resolution_divisor) {
   TemporalSettings s = request.temporal;
   s.radius_world = std::max(request.ao.radius_world, request.ssdo.radius_world);
-  s.max_radius_px = std::max(request.ao.max_radius_px, request.ssdo.max_radius_px);
+  s.max_radius_px = std::max(request.ao.max_radius_px, request.ssdo.max_radius_px) / float(resolution_divisor);
   return s;
 }
 
@@ -208,7 +209,7 @@ void filter_over_time(const GBuffer& g, const TermOutputs& raw, std::span<const 
                       neighbour_terms.back()});
   }
   const std::vector<cv::Mat*> results = on_full_grid(term_slots(filtered, computed), request, computed);
-  uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, temporal_settings(request),
+  uses = filter_temporal({g.camera, g.depth_view, g.normal_view, g.mask, terms}, frames, temporal_settings(request, 1),
                          results, {}, request.threads);
 }
 
@@ -244,7 +245,7 @@ HalfGridTerms filter_grid_over_time(const HalfGridTerms& own, std::span<const Ra
   if (!own.ao.empty()) results.push_back(&filtered.ao);
   if (!own.direct.empty()) results.push_back(&filtered.direct), results.push_back(&filtered.indirect);
   const HalfGrid& h = own.grid;
-  uses = filter_temporal({h.camera, h.depth_view, h.normal_view, h.mask, terms}, frames, temporal_settings(request),
+  uses = filter_temporal({h.camera, h.depth_view, h.normal_view, h.mask, terms}, frames, temporal_settings(request, 2),
                          results, {}, request.threads);
   return filtered;
 }

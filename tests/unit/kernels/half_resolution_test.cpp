@@ -484,6 +484,31 @@ TEST(HalfResolution, KeptGridTermsFinishedLaterGiveTheBitsOfComputeTerms) {
   EXPECT_EQ(hi, 1.0);
 }
 
+// max_radius_px counts pixels of the picture on either grid: a method on the half grid
+// gets half as many texels, so it reaches as far as on the full grid. The bound here (6 px)
+// is below the radius' projection on every pixel, so the texels it gives change the bits.
+TEST(HalfResolution, RadiusBoundCountsPixelsOfThePicture) {
+  FrameGrids f;
+  const GBuffer& g = f.g;
+  AoSettings ao_settings = ao_preset(AoMethod::gtao, Preset::low);
+  ao_settings.max_radius_px = 6.0f;
+  TermSettings keep{&ao_settings};
+  keep.keep_grid_terms = true;
+  TermOutputs kept;
+  compute_terms({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera}, keep, kept, {}, 2);
+  ASSERT_FALSE(kept.grid.ao.empty());
+  const AoInputs grid{f.h.depth_view, f.h.normal_view, f.h.position_view, f.h.mask, f.h.camera};
+  AoOutput in_texels, in_pixels;
+  AoSettings on_grid = ao_settings;
+  on_grid.max_radius_px = 3.0f;
+  compute_ao(grid, on_grid, in_texels, {}, 2);
+  compute_ao(grid, ao_settings, in_pixels, {}, 2);
+  EXPECT_EQ(cv::norm(kept.grid.ao, in_texels.ao, cv::NORM_INF), 0.0);
+  EXPECT_GT(cv::norm(kept.grid.ao, in_pixels.ao, cv::NORM_INF), 0.01);
+  // Farther taps find more occluders: the grid's 6 texels would reach 12 pixels.
+  EXPECT_LT(cv::mean(in_pixels.ao, f.h.mask)[0], cv::mean(in_texels.ao, f.h.mask)[0] - 0.01);
+}
+
 // Without full-resolution positions the grid computes its texels' own from depth: the
 // bits of view_positions_from_depth at the source pixels, so kernels on the grid return
 // the bits they return given the full-resolution positions computed from depth.
