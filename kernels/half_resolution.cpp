@@ -293,25 +293,27 @@ inline bool nearest_in_depth(const HalfGrid& h, const Footprint& f, float d, int
   return bi >= 0;
 }
 
-// out = sum_k w_k v_k / sum_k w_k over the texels of nonzero weight, in k order (masked
-// texels, weight 0, are skipped: their values may be anything).
+// out = sum_k w_k v_k x (1 / sum_k w_k) over the texels of nonzero weight, in k order
+// (masked texels, weight 0, are skipped: their values may be anything). One division per
+// pixel for all its channels (inv_wsum): in the vector code a division costs as much as a
+// channel's whole blend.
 template <int C>
-inline void blend(const cv::Mat& half, const Footprint& f, const float w[4], float wsum, float* out) {
+inline void blend(const cv::Mat& half, const Footprint& f, const float w[4], float inv_wsum, float* out) {
   float acc[C] = {};
   for (int k = 0; k < 4; ++k) {
     if (w[k] == 0.0f) continue;
     const float* v = half.ptr<float>(f.y.t[k >> 1]) + size_t(f.x.t[k & 1]) * C;
     for (int ch = 0; ch < C; ++ch) acc[ch] += w[k] * v[ch];
   }
-  for (int ch = 0; ch < C; ++ch) out[ch] = acc[ch] / wsum;
+  for (int ch = 0; ch < C; ++ch) out[ch] = acc[ch] * inv_wsum;
 }
 
-inline void blend_any(const cv::Mat& half, const Footprint& f, const float w[4], float wsum, float* out) {
+inline void blend_any(const cv::Mat& half, const Footprint& f, const float w[4], float inv_wsum, float* out) {
   switch (half.channels()) {
-    case 1: blend<1>(half, f, w, wsum, out); break;
-    case 2: blend<2>(half, f, w, wsum, out); break;
-    case 3: blend<3>(half, f, w, wsum, out); break;
-    default: blend<4>(half, f, w, wsum, out); break;
+    case 1: blend<1>(half, f, w, inv_wsum, out); break;
+    case 2: blend<2>(half, f, w, inv_wsum, out); break;
+    case 3: blend<3>(half, f, w, inv_wsum, out); break;
+    default: blend<4>(half, f, w, inv_wsum, out); break;
   }
 }
 // The row the upsample writes of each image (`rows[i]` for images[i]): the image's own
@@ -340,8 +342,9 @@ void upsample_pixel(const HalfGrid& h, std::span<const UpsampleImage> images, Ro
     }
     return;
   }
+  const float inv_wsum = 1.0f / wsum;
   for (size_t i = 0; i < images.size(); ++i)
-    blend_any(images[i].half, f, w, wsum, rows[i] + size_t(x) * size_t(images[i].half.channels()));
+    blend_any(images[i].half, f, w, inv_wsum, rows[i] + size_t(x) * size_t(images[i].half.channels()));
 }
 
 // Pixels [x0, x1) of row y of every image.
@@ -561,6 +564,7 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
   const Lanes zero = hn::Zero(d);
   hn::Mask<FloatLanes> used[4];  // texels of nonzero weight (blend skips the others)
   for (int k = 0; k < 4; ++k) used[k] = hn::Ne(w[k], zero);
+  const Lanes inv_wsum = hn::Div(hn::Set(d, 1.0f), wsum);
   for (size_t i = 0; i < images.size(); ++i) {
     const UpsampleImage& im = images[i];
     const int cn = im.half.channels();
@@ -572,7 +576,7 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
         const Lanes v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, p, k & 1);
         acc = hn::IfThenElse(used[k], hn::Add(acc, hn::Mul(w[k], v)), acc);
       }
-      value[ch] = hn::IfThenElse(fg, hn::Div(acc, wsum), hn::Set(d, float(im.background[ch])));
+      value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, float(im.background[ch])));
     }
     float* out = rows[i] + size_t(x) * size_t(cn);
     if (cn == 1) {
@@ -621,28 +625,18 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
 }
 
 // Pixels [x0, x1) of a row of 3-vectors v, normalised where the mask is set: v / |v|, or
-// the normal n where |v| <= 1e-12. |v| as cv::norm computes it (the squares summed in
-// double, in x, y, z order), a vector of pixels at a time.
+// the normal n where |v| <= 1e-12, |v| = sqrt((x^2 + y^2) + z^2) in float (IEEE square root
+// and products: the same bits in every lane width), a vector of pixels at a time.
 void unit_vectors(float* v, const float* n, const uint8_t* mask, int x0, int x1) {
   int x = x0;
-#if HWY_TARGET != HWY_SCALAR  // a vector holds two halves
   const FloatLanes d;
-  const hn::Half<FloatLanes> dh;
-  const hn::Rebind<double, decltype(dh)> dd;
   const size_t lanes = hn::Lanes(d);
   const auto tiny = hn::Set(d, 1e-12f), one = hn::Set(d, 1.0f);
-  auto length = [&](Lanes vx, Lanes vy, Lanes vz, bool upper) {
-    const auto half = [&](Lanes a) { return hn::PromoteTo(dd, upper ? hn::UpperHalf(dh, a) : hn::LowerHalf(dh, a)); };
-    const auto sx = half(vx);
-    const auto sy = half(vy);
-    const auto sz = half(vz);
-    return hn::DemoteTo(dh, hn::Sqrt(hn::Add(hn::Add(hn::Mul(sx, sx), hn::Mul(sy, sy)), hn::Mul(sz, sz))));
-  };
   for (; x + int(lanes) <= x1; x += int(lanes)) {
     Lanes vx, vy, vz, nx, ny, nz;
     hn::LoadInterleaved3(d, v + size_t(3) * size_t(x), vx, vy, vz);
     hn::LoadInterleaved3(d, n + size_t(3) * size_t(x), nx, ny, nz);
-    const Lanes len = hn::Combine(d, length(vx, vy, vz, true), length(vx, vy, vz, false));
+    const Lanes len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(vx, vx), hn::Mul(vy, vy)), hn::Mul(vz, vz)));
     const auto fg = foreground_lanes(mask + x);
     const auto unit = hn::And(fg, hn::Gt(len, tiny)), normal = hn::AndNot(hn::Gt(len, tiny), fg);
     const Lanes inv = hn::Div(one, len);
@@ -651,11 +645,10 @@ void unit_vectors(float* v, const float* n, const uint8_t* mask, int x0, int x1)
                           hn::IfThenElse(unit, hn::Mul(vz, inv), hn::IfThenElse(normal, nz, vz)), d,
                           v + size_t(3) * size_t(x));
   }
-#endif
   for (; x < x1; ++x) {
     if (!mask[x]) continue;
     float* p = v + size_t(3) * size_t(x);
-    const float len = float(std::sqrt(double(p[0]) * p[0] + double(p[1]) * p[1] + double(p[2]) * p[2]));
+    const float len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
     for (int c = 0; c < 3; ++c) p[c] = len > 1e-12f ? p[c] * (1.0f / len) : n[size_t(3) * size_t(x) + size_t(c)];
   }
 }

@@ -14,9 +14,10 @@
 //
 // Upsample (joint bilateral over the 2x2 nearest texels; Kopf et al. 2007, "Joint
 // Bilateral Upsampling", SIGGRAPH): bilinear weights x exp(-|dz| / (tol z)) x
-// max(0, n . n_texel)^4, tol = kUpsampleDepthRelative. When all four weigh ~0 (a pixel
-// whose surface no nearby texel took), the texel of the 4x4 neighbourhood closest in depth
-// is copied; with no foreground texel there, the image's fallback value is written.
+// max(0, n . n_texel)^4, tol = kUpsampleDepthRelative; the weighted sum times the inverse
+// of the weights' sum. When all four weigh ~0 (a pixel whose surface no nearby texel
+// took), the texel of the 4x4 neighbourhood closest in depth is copied; with no foreground
+// texel there, the image's fallback value is written.
 #pragma once
 
 #include <functional>
@@ -79,8 +80,9 @@ cv::Rect half_grid_roi(const cv::Rect& full_roi, const cv::Size& full_size);
 // - none: the values as blended;
 // - clamp_unit_interval: each value clamped to [0, 1] (a weighted mean of values in [0, 1]
 //   is, up to rounding);
-// - unit_vector: 3 channels; each foreground pixel's vector divided by its length (a
-//   weighted mean of unit vectors is shorter), or, at zero length, the pixel's normal
+// - unit_vector: 3 channels; each foreground pixel's vector times the inverse of its length
+//   sqrt((x^2 + y^2) + z^2) in float (a weighted mean of unit vectors is shorter), or, at
+//   zero length (<= 1e-12), the pixel's normal
 //   (FullGrid::normal_view); background pixels keep `background`.
 enum class UpsampleFinish { none, clamp_unit_interval, unit_vector };
 
