@@ -39,7 +39,8 @@ void lower_envelope(const float* f, int n, float* d, int* nearest, EnvelopeScrat
   }
 }
 
-cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads, cv::Mat* nearest) {
+cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads, cv::Mat* nearest,
+                                  const std::function<void(int)>& row_done) {
   CV_Assert(marks.type() == CV_8UC1);
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const int w = marks.cols, h = marks.rows;
@@ -71,13 +72,15 @@ cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads, cv::Mat* n
       float* row = d.ptr<float>(y);
       std::copy(row, row + w, f.begin());
       lower_envelope(f.data(), w, row, nearest ? at.data() : nullptr, scratch);
-      if (!nearest) continue;
-      const int32_t* column_row = row_of.ptr<int32_t>(y);
-      cv::Point* out = nearest->ptr<cv::Point>(y);
-      for (int x = 0; x < w; ++x) {
-        const int xs = at[size_t(x)];
-        out[x] = xs < 0 ? cv::Point(-1, -1) : cv::Point(xs, column_row[xs]);
+      if (nearest) {
+        const int32_t* column_row = row_of.ptr<int32_t>(y);
+        cv::Point* out = nearest->ptr<cv::Point>(y);
+        for (int x = 0; x < w; ++x) {
+          const int xs = at[size_t(x)];
+          out[x] = xs < 0 ? cv::Point(-1, -1) : cv::Point(xs, column_row[xs]);
+        }
       }
+      if (row_done) row_done(y);
     }
   }, 16);
   return d;

@@ -18,42 +18,35 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr int32_t kNone = -1;
 
-// The depth a neighbour shows to the silhouette test: the foreground's own, +inf where the
-// pixel shows background (mask 0 with a 4-neighbour of mask 0), -inf on a lone background
-// pixel inside the foreground: that is a dropped sample (a non-finite value the reader
-// masked), not a view past an object, and makes no silhouette.
-void neighbour_depth(const cv::Mat& depth_view, const cv::Mat& mask, cv::Mat& shown, int nthreads) {
+// Row y of the depth a neighbour shows to the silhouette test, into out (w floats): the
+// foreground's own, +inf where the pixel shows background (mask 0 with a 4-neighbour of
+// mask 0), -inf on a lone background pixel inside the foreground: that is a dropped sample
+// (a non-finite value the reader masked), not a view past an object, and makes no
+// silhouette.
+void shown_row(const cv::Mat& depth_view, const cv::Mat& mask, int y, float* out) {
   const int w = mask.cols, h = mask.rows;
-  shown.create(mask.size(), CV_32FC1);
-  parallel_rows(cv::Range(0, h), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const float* d = depth_view.ptr<float>(y);
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      // Off-image neighbours count as foreground (unknown): the pixel's own row stands in.
-      const uint8_t* m_up = mask.ptr<uint8_t>(y > 0 ? y - 1 : y);
-      const uint8_t* m_down = mask.ptr<uint8_t>(y + 1 < h ? y + 1 : y);
-      const uint8_t up = y > 0, down = y + 1 < h;
-      float* out = shown.ptr<float>(y);
-      for (int x = 0; x < w; ++x) {
-        const int xl = x > 0 ? x - 1 : x, xr = x + 1 < w ? x + 1 : x;
-        const bool open = (xl != x && !m[xl]) | (xr != x && !m[xr]) | (up & !m_up[x]) | (down & !m_down[x]);
-        out[x] = m[x] ? d[x] : open ? kInf : -kInf;
-      }
-    }
-  });
+  const float* d = depth_view.ptr<float>(y);
+  const uint8_t* m = mask.ptr<uint8_t>(y);
+  // Off-image neighbours count as foreground (unknown): the pixel's own row stands in.
+  const uint8_t* m_up = mask.ptr<uint8_t>(y > 0 ? y - 1 : y);
+  const uint8_t* m_down = mask.ptr<uint8_t>(y + 1 < h ? y + 1 : y);
+  const uint8_t up = y > 0, down = y + 1 < h;
+  const auto shown = [&](int x, bool left_open, bool right_open) {
+    const bool open = left_open | right_open | (up & !m_up[x]) | (down & !m_down[x]);
+    out[x] = m[x] ? d[x] : open ? kInf : -kInf;
+  };
+  shown(0, false, w > 1 && !m[std::min(1, w - 1)]);
+  for (int x = 1; x < w - 1; ++x) shown(x, !m[x - 1], !m[x + 1]);  // the interior, without clamps
+  if (w > 1) shown(w - 1, !m[w - 2], false);
 }
 
-// The silhouette pixels of row y into edge (1 = on a silhouette): foreground pixels with a
-// 4-neighbour whose shown depth (neighbour_depth) is farther than them by more than
-// edge_depth_ratio of their depth, background included. Neighbours outside the image are
-// unknown, not background: the frame's border is no silhouette.
-void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_depth_ratio, int y, uint8_t* edge) {
-  const int w = shown.cols, h = shown.rows;
-  const float* d = shown.ptr<float>(y);
-  const uint8_t* m = mask.ptr<uint8_t>(y);
-  // Off-image neighbours read the pixel itself: never behind it.
-  const float* d_up = shown.ptr<float>(y > 0 ? y - 1 : y);
-  const float* d_down = shown.ptr<float>(y + 1 < h ? y + 1 : y);
+// The silhouette pixels of a row into edge (1 = on a silhouette): foreground pixels (mask
+// m) with a 4-neighbour whose shown depth (shown_row: d of the row, d_up and d_down of the
+// rows above and below) is farther than them by more than edge_depth_ratio of their depth,
+// background included. Neighbours outside the image are unknown, not background: the
+// frame's border is no silhouette (off-image rows are the row itself).
+void silhouettes_of_row(const float* d_up, const float* d, const float* d_down, const uint8_t* m, int w,
+                        float edge_depth_ratio, uint8_t* edge) {
   const float step = 1.0f + edge_depth_ratio;
   const auto test = [&](int x, int xl, int xr) {
     const float farther = d[x] * step;
@@ -68,20 +61,27 @@ void silhouettes_of_row(const cv::Mat& shown, const cv::Mat& mask, float edge_de
 // The silhouette pixels (edge = 1) of the image, and for each cell of 2 x 2 pixels the
 // first of its silhouette pixels in row-major order (x = kNone: none): the cell's
 // representative; `silhouette_cell` 255 where it has one. Cells are independent: the
-// threads take rows of them.
+// threads take rows of them, each with the shown depth of the rows it reads in a ring of
+// three (a row's neighbours above and below), computed again for the row above a strip.
 void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& edge,
                       cv::Mat& representative, cv::Mat& silhouette_cell, int nthreads) {
   const int w = depth_view.cols, h = depth_view.rows;
-  cv::Mat shown;
-  neighbour_depth(depth_view, mask, shown, nthreads);
   edge.create(depth_view.size(), CV_8UC1);
   representative.create((h + 1) / 2, (w + 1) / 2, CV_32SC2);
   silhouette_cell.create(representative.size(), CV_8UC1);
   parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& cell_rows) {
+    std::vector<float> ring(size_t(3) * size_t(w));
+    const auto shown = [&](int y) { return ring.data() + size_t(y % 3) * size_t(w); };
+    const int y_first = 2 * cell_rows.start, y_end = std::min(2 * cell_rows.end, h);
+    if (y_first > 0) shown_row(depth_view, mask, y_first - 1, shown(y_first - 1));
+    shown_row(depth_view, mask, y_first, shown(y_first));
+    for (int y = y_first; y < y_end; ++y) {
+      if (y + 1 < h) shown_row(depth_view, mask, y + 1, shown(y + 1));
+      silhouettes_of_row(shown(y > 0 ? y - 1 : y), shown(y), shown(y + 1 < h ? y + 1 : y), mask.ptr<uint8_t>(y), w,
+                         edge_depth_ratio, edge.ptr<uint8_t>(y));
+    }
     for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
       const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
-      silhouettes_of_row(shown, mask, edge_depth_ratio, y0, edge.ptr<uint8_t>(y0));
-      if (y1 != y0) silhouettes_of_row(shown, mask, edge_depth_ratio, y1, edge.ptr<uint8_t>(y1));
       cv::Point* rep = representative.ptr<cv::Point>(cy);
       for (int cx = 0; cx < representative.cols; ++cx) {
         const int x0 = 2 * cx, x1 = std::min(x0 + 1, w - 1);
@@ -116,10 +116,11 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   const float units_per_px_slope = 1.0f / camera.pixels_per_unit(1.0f).y - units_per_px_0;
   cv::Mat edge, representative, silhouette_cell, nearest_cell;
   mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, silhouette_cell, nthreads);
-  squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell);
   back_depth_view.create(depth_view.size(), CV_32FC1);
-  parallel_rows(cv::Range(0, depth_view.rows), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
+  // The pixel rows of cell row cy, as soon as the transform's row pass has written its
+  // nearest silhouette cells.
+  squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell, [&](int cy) {
+    for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y) {
       const float* d = depth_view.ptr<float>(y);
       const uint8_t* m = mask.ptr<uint8_t>(y);
       const uint8_t* on_edge = edge.ptr<uint8_t>(y);

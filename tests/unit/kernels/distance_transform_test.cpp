@@ -84,6 +84,26 @@ TEST(DistanceTransform, SquaredDistanceIsTheNearestMarks) {
   }
 }
 
+// row_done sees each row once, its nearest marks already final.
+TEST(DistanceTransform, RowDoneSeesEachFinishedRowOnce) {
+  cv::Mat marks = cv::Mat::zeros(29, 41, CV_8UC1);
+  marks.at<uint8_t>(3, 5) = marks.at<uint8_t>(20, 33) = 255;
+  for (const int threads : {1, 3}) {
+    cv::Mat nearest;
+    std::vector<cv::Mat> seen(size_t(marks.rows));  // each row written by one call only
+    const cv::Mat d = squared_distance_to_marks(marks, threads, &nearest, [&](int y) {
+      ASSERT_TRUE(seen[size_t(y)].empty()) << y;
+      seen[size_t(y)] = nearest.row(y).clone();
+    });
+    for (int y = 0; y < marks.rows; ++y) {
+      ASSERT_FALSE(seen[size_t(y)].empty()) << y;
+      EXPECT_EQ(cv::norm(seen[size_t(y)], nearest.row(y), cv::NORM_INF), 0.0) << y;
+    }
+    EXPECT_EQ(nearest.at<cv::Point>(0, 0), cv::Point(5, 3));
+    EXPECT_EQ(d.at<float>(0, 0), 34.0f);
+  }
+}
+
 TEST(DistanceTransform, NoMarkIsInfinitelyFar) {
   cv::Mat nearest;
   const cv::Mat d = squared_distance_to_marks(cv::Mat::zeros(8, 9, CV_8UC1), 0, &nearest);
