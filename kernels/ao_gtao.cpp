@@ -177,15 +177,19 @@ const SectorTables& sector_tables() {
   return tables;
 }
 
-// What a tap reads from the pixel it lands in, in two planes: the view-space position
-// (planar depth -z) and the inverse of its distance from the eye (1 through an orthographic
-// camera; negative on masked pixels: no occluder there; the direction of its occluder
-// segment, once per texel rather than a square root and a division per tap) in 16 bytes
-// (one load, four texels per cache line), read by every tap; the normal and its tangent
-// plane, read only by the connection rule's coplanar test. Taps land anywhere within the
-// radius, so the bytes per tap set how much of the frame stays in cache.
+// What a tap reads from the pixel it lands in, in two planes: the view-space position p
+// (planar depth -z) and the extent of its occluder segment (negative on masked pixels: no
+// occluder there) in 16 bytes (one load, four texels per cache line), read by every tap;
+// the normal and its tangent plane, read only by the connection rule's coplanar test. Taps
+// land anywhere within the radius, so the bytes per tap set how much of the frame stays in
+// cache. The segment runs from p away from the eye along its view ray for the occluder's
+// thickness: in perspective p (1 + s), s in [0, extent], extent = thickness along the ray /
+// |p| (from a second depth layer (back - front) / front in planar depth, the same ratio);
+// through an orthographic camera p + t r, t in [0, extent], extent the thickness itself.
+// Once per texel, so that a tap reads its segment with its position (no second plane, no
+// square root and division per tap).
 struct Texel {
-  float x, y, z, inv_distance;
+  float x, y, z, extent;
 };
 struct TexelPlane {
   float nx, ny, nz, plane_c;  // unit normal and its tangent plane dot(n, x) = plane_c
@@ -301,8 +305,10 @@ void build_coarse_levels(const TapGrid& g, int nthreads, Record*... records) {
   });
 }
 
-void build_texels(const AoInputs& in, const TapGrid& g, UninitializedVector<Texel>& texels,
-                  UninitializedVector<TexelPlane>& planes, int nthreads) {
+// The texels and planes of level 0 and their coarser levels; each segment's thickness from
+// `back` (the second depth layer) where given, else thickness_world.
+void build_texels(const AoInputs& in, const cv::Mat* back, float thickness_world, const TapGrid& g,
+                  UninitializedVector<Texel>& texels, UninitializedVector<TexelPlane>& planes, int nthreads) {
   const int width = in.depth_view.cols;
   const bool perspective = in.camera.is_perspective();
   // Before the parallel loops, which write every element (not zeroed first).
@@ -313,13 +319,19 @@ void build_texels(const AoInputs& in, const TapGrid& g, UninitializedVector<Texe
       const uint8_t* mask_row = in.mask.ptr<uint8_t>(y);
       const cv::Vec3f* pos_row = in.position_view.ptr<cv::Vec3f>(y);
       const cv::Vec3f* nor_row = in.normal_view.ptr<cv::Vec3f>(y);
+      const float* depth_row = in.depth_view.ptr<float>(y);
+      const float* back_row = back != nullptr ? back->ptr<float>(y) : nullptr;
       Texel* out = texels.data() + size_t(y) * size_t(width);
       TexelPlane* out_plane = planes.data() + size_t(y) * size_t(width);
       for (int x = 0; x < width; ++x) {
         const cv::Vec3f& p = pos_row[x];
         const cv::Vec3f& n = nor_row[x];
-        const float inv_distance = perspective ? 1.0f / std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) : 1.0f;
-        out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], inv_distance} : Texel{0.0f, 0.0f, 0.0f, -1.0f};
+        const float depth = depth_row[x];
+        const float planar = back_row == nullptr ? 0.0f : back_row[x] > depth ? back_row[x] - depth : 0.0f;
+        const float extent = back_row != nullptr ? (perspective ? planar / depth : planar)
+                             : perspective ? thickness_world / std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+                                           : thickness_world;
+        out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], extent} : Texel{0.0f, 0.0f, 0.0f, -1.0f};
         out_plane[x] = mask_row[x] ? TexelPlane{n[0], n[1], n[2], n.dot(p)} : TexelPlane{0.0f, 0.0f, 0.0f, 0.0f};
       }
     }
@@ -363,32 +375,6 @@ inline int group_lanes(int pixels) { return (pixels + kLanes - 1) / kLanes * kLa
 // rounds to (0, 0): the side's last tap stays).
 constexpr int32_t kOffScreen = -1;
 constexpr int32_t kNoTap = -2;
-
-// Each texel's occluder segment length from the second depth layer (AoInputs::
-// depth_back_view), once per texel rather than per tap: back - front in planar depth, as a
-// length along its view ray, i.e. divided by |r.z| (= depth / |tap| in perspective, 1
-// orthographic). Background texels are never read.
-void build_texel_thickness(const AoInputs& in, const cv::Mat& back, const TapGrid& g,
-                           const UninitializedVector<Texel>& texels, bool perspective,
-                           UninitializedVector<float>& thickness, int nthreads) {
-  const int width = in.depth_view.cols;
-  thickness.resize(texels.size());  // before the parallel loops, which write every element
-  parallel_rows(cv::Range(0, in.depth_view.rows), nthreads, [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y) {
-      const float* back_row = back.ptr<float>(y);
-      const float* depth_row = in.depth_view.ptr<float>(y);
-      for (int x = 0; x < width; ++x) {
-        const size_t index = size_t(y) * size_t(width) + size_t(x);
-        const Texel& tx = texels[index];
-        const float depth = depth_row[x];
-        const float planar = back_row[x] > depth ? back_row[x] - depth : 0.0f;
-        const float tap_length = std::sqrt(tx.x * tx.x + tx.y * tx.y + tx.z * tx.z);
-        thickness[index] = perspective ? planar * tap_length / depth : planar;
-      }
-    }
-  });
-  build_coarse_levels(g, nthreads, thickness.data());
-}
 
 // The settings turned into what the passes read, once per call (XeGTAO's GTAOConstants).
 struct Constants {
@@ -436,15 +422,11 @@ struct Constants {
   }
 };
 
-// The frame as the taps read it: the G-buffer views, their texels, and the second depth
-// layer when the visibility mask's segments take their thickness from it.
+// The frame as the taps read it: the G-buffer views and their texels.
 struct Frame {
   const AoInputs& in;
   UninitializedVector<Texel> texels;
   UninitializedVector<TexelPlane> planes;
-  // Per texel, its occluder segment's length from the second depth layer; empty without one
-  // (or with height-field occluders, which have no thickness).
-  UninitializedVector<float> thickness;
 };
 
 const cv::Mat* back_layer(const AoInputs& in, const Constants& k) {
@@ -675,7 +657,7 @@ struct SliceLanes {
 // back), and the occluded interval [u0, u1] of its segment in the mask (u0 > u1: none).
 struct StepLanes {
   alignas(64) int32_t index[kLanes];
-  alignas(64) float x[kLanes], y[kLanes], z[kLanes], inv_distance[kLanes];
+  alignas(64) float x[kLanes], y[kLanes], z[kLanes], extent[kLanes];
   alignas(64) float dv[kLanes], dd[kLanes], da[kLanes];
   alignas(64) float height[kLanes], dist_slice2[kLanes], dist2[kLanes], tap_cos_sq[kLanes];
   alignas(64) float u0[kLanes], u1[kLanes];
@@ -706,7 +688,7 @@ inline void gather_records(const Record* records, const int32_t* index, float* c
 
 // The taps' texels in lanes.
 inline void gather_texels(const Texel* texels, StepLanes& t) {
-  float* const field[4] = {t.x, t.y, t.z, t.inv_distance};
+  float* const field[4] = {t.x, t.y, t.z, t.extent};
   gather_records(texels, t.index, field);
 }
 
@@ -717,7 +699,7 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
   int occluders = 0;
   for (int l = 0; l < kLanes; ++l) {
     const int32_t index = t.index[l];
-    const Texel tx{t.x[l], t.y[l], t.z[l], t.inv_distance[l]};
+    const Texel tx{t.x[l], t.y[l], t.z[l], t.extent[l]};
     const float ex = tx.x - s.ox[l], ey = tx.y - s.oy[l], ez = tx.z - s.oz[l];
     const float height = ex * s.nx[l] + ey * s.ny[l] + ez * s.nz[l];
     // The tap in the slice's orthonormal frame (view, direction, axis): the slice plane
@@ -735,7 +717,7 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
     t.dist2[l] = dist_slice2 + da * da;
     // The tap's angle in the slice: of its projection onto the slice plane.
     t.tap_cos_sq[l] = dv * std::abs(dv) / dist_slice2;
-    t.occluder[l] = (index >= 0) & (tx.inv_distance >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f);
+    t.occluder[l] = (index >= 0) & (tx.extent >= 0.0f) & (height > 0.0f) & (dist_slice2 > 0.0f);
     occluders |= t.occluder[l];
   }
   return occluders != 0;
@@ -746,11 +728,9 @@ inline void gather_texels(const Texel* texels, StepLanes& t) {
 // ordered pass reads the intervals of a step with some occluder, and of its occluders only
 // (visibility_mask_step): a vector of lanes without an occluder gets (1, 0) without the
 // arithmetic.
-template <bool perspective, bool per_texel_thickness>
-[[gnu::noinline]] void step_intervals(const Constants& k, const Frame& f, const SliceLanes& s, int side,
-                                      StepLanes& __restrict t) {
-  const float* texel_thickness = per_texel_thickness ? f.thickness.data() : nullptr;
-  const float thickness_world = k.thickness_world, r2 = k.r2;
+template <bool perspective>
+[[gnu::noinline]] void step_intervals(const Constants& k, const SliceLanes& s, int side, StepLanes& __restrict t) {
+  const float r2 = k.r2;
   // The side's sign of the direction coordinate, and its limit in the mask.
   const float sign = side == 0 ? 1.0f : -1.0f, side_u = side == 0 ? 1.0f : 0.0f;
   // A vector of lanes, but at least 8: GCC unrolls a loop of 4 lanes (SSE2, NEON)
@@ -767,28 +747,25 @@ template <bool perspective, bool per_texel_thickness>
     for (int l = l0; l < l0 + kChunk; ++l) {
       const float dv = t.dv[l], dd = t.dd[l], da = t.da[l], dist2 = t.dist2[l];
       const float cos_n = s.cos_n[l], sin_n = s.sin_n[l];
-      // Occluder segment tap + t r, t in [0, thickness], r = the tap's view ray direction
-      // (away from the eye), clipped to |delta + t r| <= radius; r in the slice frame too:
-      // orthographic, the view axis; perspective, the tap's frame coordinates (the origin's
-      // plus delta's) over its distance.
+      // The occluder segment (Texel) delta + t r, t in [0, extent], clipped to the radius
+      // sphere |delta + t r| <= radius: a t^2 + 2 b t + c <= 0 with a = |r|^2, b = delta . r,
+      // c = |delta|^2 - radius^2; r in the slice frame: orthographic, the unit view axis
+      // (a = 1); perspective, the tap's position p itself (the origin's frame coordinates
+      // plus delta's), a = |p|^2. Lanes without a texel read texel 0's extent, for nobody.
       float rv = -s.vz[l], rd = -s.dz[l], ra = -s.az[l];
-      if constexpr (perspective) {
-        const float inv_distance = t.inv_distance[l];
-        rv = (s.origin_v[l] + dv) * inv_distance;
-        rd = (s.origin_d[l] + dd) * inv_distance;
-        ra = (s.origin_a[l] + da) * inv_distance;
-      }
+      if constexpr (perspective) rv = s.origin_v[l] + dv, rd = s.origin_d[l] + dd, ra = s.origin_a[l] + da;
       const float b = dv * rv + dd * rd + da * ra;
       const float c = dist2 - r2;
-      const float disc = b * b - c;
+      float disc = b * b - c, inv_a = 1.0f;
+      if constexpr (perspective) {
+        const float a = rv * rv + rd * rd + ra * ra;
+        disc = b * b - a * c;
+        inv_a = 1.0f / a;
+      }
       // disc < 0 (the ray misses the sphere): root is NaN, the lane is not hit below.
       const float root = std::sqrt(disc);
-      // Lanes without a texel read texel 0's, for nobody (no conditional load: the loop
-      // stays vectorised).
-      float thickness = thickness_world;
-      if constexpr (per_texel_thickness) thickness = texel_thickness[std::max(t.index[l], 0)];
-      const float t0 = std::max(0.0f, -b - root);
-      const float t1 = std::min(thickness, -b + root);
+      const float t0 = std::max(0.0f, (-b - root) * inv_a);
+      const float t1 = std::min(t.extent[l], (-b + root) * inv_a);
       // The segment's two ends in the slice plane, on the tap's side of the view vector
       // (|direction coordinate| with the side's sign), as positions in the mask.
       const float e0v = dv + t0 * rv, e0d = sign * std::abs(dd + t0 * rd);
@@ -886,7 +863,7 @@ inline bool connections(const Constants& k, const Frame& f, const StepLanes& __r
     for (int l = 0; l < kLanes; ++l) {
       const TexelPlane a{last[0][l], last[1][l], last[2][l], last[3][l]};
       const TexelPlane b{tap[0][l], tap[1][l], tap[2][l], tap[3][l]};
-      const Texel tx{t.x[l], t.y[l], t.z[l], t.inv_distance[l]};
+      const Texel tx{t.x[l], t.y[l], t.z[l], t.extent[l]};
       connect[l] |= plane[l] & coplanar(a, b, tx, thickness);
     }
   }
@@ -915,7 +892,7 @@ inline void update_side(const Constants& k, const StepLanes& __restrict t, int s
     const auto index = hn::Load(di, t.index + l);
     const auto depth = hn::Neg(hn::Load(d, t.z + l));  // planar
     const auto foreground =
-        hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(hn::Load(d, t.inv_distance + l), zero));
+        hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(hn::Load(d, t.extent + l), zero));
     // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
     // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
     // first matters: rounding taps to pixel centres moves them off the slice, and their
@@ -1080,7 +1057,6 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
       side[sd].horizon[l] = k.height_field ? low : low * std::abs(low);
     }
   alignas(64) uint64_t occupied[kLanes] = {};
-  const bool per_texel_thickness = !f.thickness.empty();
   for (int j = 0; j < k.steps; ++j) {
     StepLanes t[2];
     group_step_indices(k, row, s.screen_x, s.screen_y, x0, y, xi0, i, j, t[0].index, t[1].index);
@@ -1091,12 +1067,7 @@ void shade_slice(const Constants& k, const Frame& f, const TileRow& row, const S
         continue;
       }
       // Without an occluder nothing reads the step's intervals (visibility_mask_step).
-      if (occluders) {
-        if (k.perspective)
-          per_texel_thickness ? step_intervals<true, true>(k, f, s, sd, t[sd]) : step_intervals<true, false>(k, f, s, sd, t[sd]);
-        else
-          per_texel_thickness ? step_intervals<false, true>(k, f, s, sd, t[sd]) : step_intervals<false, false>(k, f, s, sd, t[sd]);
-      }
+      if (occluders) k.perspective ? step_intervals<true>(k, s, sd, t[sd]) : step_intervals<false>(k, s, sd, t[sd]);
       visibility_mask_step(k, f, t[sd], sd, occluders, side[sd], occupied);
     }
   }
@@ -1211,10 +1182,8 @@ void ao_gtao(const AoInputs& in, const AoSettings& s, AoOutput& out, const cv::R
   const Constants k(in, s);
   // Texel indices are 32-bit, and so are the texels' float offsets (gather_texels).
   CV_Assert(k.grid.texels <= int64_t(INT32_MAX / 4));
-  Frame f{in, {}, {}, {}};
-  build_texels(in, k.grid, f.texels, f.planes, nthreads);
-  if (const cv::Mat* back = back_layer(in, k))
-    build_texel_thickness(in, *back, k.grid, f.texels, k.perspective, f.thickness, nthreads);
+  Frame f{in, {}, {}};
+  build_texels(in, back_layer(in, k), k.thickness_world, k.grid, f.texels, f.planes, nthreads);
   // Tiles of kTileWidthPx x kTileHeightPx pixels: a pixel's taps land anywhere within its
   // radius, so the texels a tile reads are its footprint grown by the radius, which stays
   // in cache while the tile runs; row by row, the band of rows within the radius of a
