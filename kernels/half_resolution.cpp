@@ -1040,8 +1040,8 @@ void denoise_grid_terms(const HalfGridTerms& terms, const DenoiseSettings& setti
 }
 
 // The settings of the kernels on the half grid: the pixel bounds of the picture
-// (max_radius_px) in the grid's texels, half as many, so that a method reaches as far on
-// either grid. Holds what its terms point to: not copied.
+// (max_radius_px) in the grid's texels (max_radius_on_grid), so that a method reaches as far
+// on either grid. Holds what its terms point to: not copied.
 struct HalfGridSettings {
   AoSettings ao;
   SsdoSettings ssdo;
@@ -1049,9 +1049,13 @@ struct HalfGridSettings {
   TermSettings terms;
 
   explicit HalfGridSettings(const TermSettings& s) : terms(s) {
-    if (s.ao) ao = *s.ao, ao.max_radius_px *= 0.5f, terms.ao = &ao;
-    if (s.ssdo) ssdo = *s.ssdo, ssdo.max_radius_px *= 0.5f, terms.ssdo = &ssdo;
-    if (s.confidence) confidence = *s.confidence, confidence.max_radius_px *= 0.5f, terms.confidence = &confidence;
+    if (s.ao) ao = *s.ao, ao.max_radius_px = max_radius_on_grid(ao.max_radius_px, 2), terms.ao = &ao;
+    if (s.ssdo) ssdo = *s.ssdo, ssdo.max_radius_px = max_radius_on_grid(ssdo.max_radius_px, 2), terms.ssdo = &ssdo;
+    if (s.confidence) {
+      confidence = *s.confidence;
+      confidence.max_radius_px = max_radius_on_grid(confidence.max_radius_px, 2);
+      terms.confidence = &confidence;
+    }
   }
   HalfGridSettings(const HalfGridSettings&) = delete;
   HalfGridSettings& operator=(const HalfGridSettings&) = delete;

@@ -20,6 +20,7 @@
 // texel there, the image's fallback value is written.
 #pragma once
 
+#include <algorithm>
 #include <functional>
 #include <span>
 
@@ -167,6 +168,14 @@ struct TermSettings {
   // For the whole frame only (an empty roi).
   bool keep_grid_terms = false;
 };
+
+// A radius bound in pixels of the picture (the settings' max_radius_px) in texels of a grid
+// at 1 / resolution_divisor of its resolution, as compute_terms gives it to the kernels on
+// that grid (and the pipeline to the temporal filter there): divided, and at least 2, the
+// bound's least valid value.
+inline float max_radius_on_grid(float max_radius_px, int resolution_divisor) {
+  return std::max(2.0f, max_radius_px / float(resolution_divisor));
+}
 
 // The multi-view occupancy settings of the selected terms: AO's thickness, radius and depth
 // bias (else SSDO's, else the confidence's radius), decided as far as twice the radius

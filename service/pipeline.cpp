@@ -121,11 +121,12 @@ ConfidenceSettings confidence_settings(const FrameRequest& request) {
 // The temporal filter's settings: the request's, with the reach of the terms it filters
 // (TemporalSettings::radius_world): the larger of the AO and SSDO radii and pixel bounds
 // (one radius for both, resolve_frame_radius, unless set apart), the bound in pixels of the
-// grid filtered (resolution_divisor 2: the half grid's texels, as the kernels' on it).
+// grid filtered (max_radius_on_grid: on the half grid its texels, as the kernels' there).
 TemporalSettings temporal_settings(const FrameRequest& request, int resolution_divisor) {
   TemporalSettings s = request.temporal;
   s.radius_world = std::max(request.ao.radius_world, request.ssdo.radius_world);
-  s.max_radius_px = std::max(request.ao.max_radius_px, request.ssdo.max_radius_px) / float(resolution_divisor);
+  s.max_radius_px =
+      max_radius_on_grid(std::max(request.ao.max_radius_px, request.ssdo.max_radius_px), resolution_divisor);
   return s;
 }
 

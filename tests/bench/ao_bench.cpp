@@ -263,7 +263,7 @@ void BM_Confidence(benchmark::State& state) {
   ssdo::HalfGrid half;
   ssdo::build_half_grid(full, half, threads, /*with_positions=*/false);
   ssdo::ConfidenceSettings s;
-  s.max_radius_px *= 0.5f;  // the picture's bound in the half grid's texels, as compute_terms gives it
+  s.max_radius_px = ssdo::max_radius_on_grid(s.max_radius_px, 2);  // as compute_terms gives it
   cv::Mat half_confidence, confidence(g.depth_view.size(), CV_32FC1);
   const ssdo::UpsampleImage images[] = {{half_confidence, confidence, cv::Scalar(1.0), cv::Scalar(1.0)}};
   for (auto _ : state) {

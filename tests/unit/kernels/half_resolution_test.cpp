@@ -509,6 +509,16 @@ TEST(HalfResolution, RadiusBoundCountsPixelsOfThePicture) {
   EXPECT_GT(cv::norm(kept.grid.ao, in_pixels.ao, cv::NORM_INF), 0.01);
   // Farther taps find more occluders: the grid's 6 texels would reach 12 pixels.
   EXPECT_LT(cv::mean(in_pixels.ao, f.h.mask)[0], cv::mean(in_texels.ao, f.h.mask)[0] - 0.01);
+  // The least valid bound, 2 pixels, stays 2 texels on the grid (a valid setting there).
+  EXPECT_EQ(max_radius_on_grid(2.0f, 2), 2.0f);
+  EXPECT_EQ(max_radius_on_grid(512.0f, 2), 256.0f);
+  EXPECT_EQ(max_radius_on_grid(512.0f, 1), 512.0f);
+  ao_settings.max_radius_px = 2.0f;
+  TermOutputs smallest;
+  compute_terms({g.depth_view, g.normal_view, g.position_view, g.mask, g.camera}, keep, smallest, {}, 2);
+  on_grid.max_radius_px = 2.0f;
+  compute_ao(grid, on_grid, in_texels, {}, 2);
+  EXPECT_EQ(cv::norm(smallest.grid.ao, in_texels.ao, cv::NORM_INF), 0.0);
 }
 
 // Without full-resolution positions the grid computes its texels' own from depth: the
