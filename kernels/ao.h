@@ -54,6 +54,13 @@ struct AoSettings {
   int directions = 4;
   // Steps per direction (HBAO, GTAO, raymarch), [1, 1024].
   int steps = 8;
+  // GTAO: a pixel's estimate also takes the slices of the 3x3 texels around it on its
+  // surface, as a control variate: AO = R + (v - R o) / slices, R their ratio of visible to
+  // open measure, v and o the pixel's own sums (ao_gtao.cpp). The neighbours' slice angles
+  // take out most of the noise and the bias of a ratio over few slices; the pixel's own
+  // term keeps the expectation its own (no blur across the texels). For presets of one
+  // slice (low); from two slices on it changes little (docs/accuracy.md).
+  bool pool_slices = false;
   // Assumed thickness of every surface seen in the depth buffer, scene units, [0, inf]:
   // a point farther than this behind the stored depth is free space (infinity = height
   // field: everything behind a visible surface is solid). 0 (default) = automatic:

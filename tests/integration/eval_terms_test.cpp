@@ -58,7 +58,7 @@ TEST(EvalTerms, ALightTermWithoutTheRendersEnvironmentIsNoted) {
 TEST(EvalTerms, ThicknessFromSilhouettesAgainstCycles) {
   const fs::path dir = shared_dir() / "gbuffers";
   if (!fs::exists(dir / "greeble.exr")) GTEST_SKIP() << "no shared frames at " << dir;
-  // Measured (2026-12-06, gtao low): greeble 0.0595 -> 0.0360, cornell 0.1013 -> 0.0905.
+  // Measured (2026-12-07, gtao low, its slices pooled): greeble 0.0501 -> 0.0238, cornell 0.0959 -> 0.0840.
   for (const std::string name : {"greeble.exr", "cornell.exr"}) {
     const double constant = eval_mae(dir / name, "--reference AO --thickness-model constant");
     const double silhouettes = eval_mae(dir / name, "--reference AO");
@@ -68,13 +68,17 @@ TEST(EvalTerms, ThicknessFromSilhouettesAgainstCycles) {
     // A thickness given is a constant one: the automatic constant, 0.5 x the radius of 1.
     EXPECT_EQ(eval_mae(dir / name, "--reference AO --thickness 0.5"), constant) << name;
   }
-  // Against the oracle, which takes the request's thickness model: GTAO's estimator error is
-  // the same with either model (measured on greeble, gtao low against raymarch low: 0.0383
-  // with the silhouettes, 0.0382 with the constant; 0.0443 had the oracle kept the constant).
+  // Against the oracle, which takes the request's thickness model: GTAO with the silhouettes
+  // errs no more against it than with the constant against its own; an oracle that kept the
+  // constant would add the models' difference (measured on greeble, gtao low against
+  // raymarch low: 0.0251 with the silhouettes, 0.0296 with the constant; gtao medium 0.0194
+  // and 0.0237; with low's slices alone, not pooled, 0.0383 and 0.0382, and 0.0443 had the
+  // oracle kept the constant).
   const fs::path greeble = dir / "greeble.exr";
   const double silhouettes_vs_oracle = eval_mae(greeble, "--against-oracle low");
   const double constant_vs_oracle = eval_mae(greeble, "--against-oracle low --thickness-model constant");
-  EXPECT_NEAR(silhouettes_vs_oracle, constant_vs_oracle, 0.003);
+  EXPECT_GT(silhouettes_vs_oracle, 0.0);
+  EXPECT_LT(silhouettes_vs_oracle, constant_vs_oracle + 0.003);
   const RunResult both = run_ssdo("eval " + (dir / "cornell.exr").string() +
                                   " --reference AO --thickness 0.3 --thickness-model silhouettes");
   EXPECT_EQ(both.exit_code, 2) << both.output;
