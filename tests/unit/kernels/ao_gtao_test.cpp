@@ -26,10 +26,10 @@ TEST(AoGtao, InvariantsWithPooledSlices) {
   // On the full grid (the half grid's roi has a margin wider than the ring): a roi's
   // pixels, its edges too, are the whole frame's, its ring of neighbours shaded with it.
   const Frame f = render(raycast::sphere_over_plane(0.5f, 1.5f), raycast::sphere_over_plane_camera(0.5f, 1.5f, 96, 64));
-  AoSettings s = ao_preset(AoMethod::gtao, Preset::low), alone;
+  AoSettings s = ao_preset(AoMethod::gtao, Preset::low);
   s.resolution_divisor = 1;
   s.radius_world = 2.0f;  // the sphere occludes the floor
-  alone = s;
+  AoSettings alone = s;
   alone.pool_slices = false;
   const cv::Rect roi(13, 9, 40, 31);
   const AoOutput whole = run(f, s, 2), part = run(f, s, 2, roi);
