@@ -61,7 +61,7 @@ AoSettings ao_preset(AoMethod method, Preset preset) {
       // slices' visible measure over their open measure is a ratio, unbiased only as the
       // slices grow in number). Low's one slice is pooled with its neighbours' (the ratio's
       // bias and most of its noise gone: ten frames 0.040 -> 0.032, the 1080p frame 0.037
-      // -> 0.027); a pooled 1 x 10 for medium erred 3% more than 2 x 8 in 13% less time
+      // -> 0.027); a pooled 1 x 10 for medium erred 3% more than 2 x 8 in 0.84 of its time
       // (docs/accuracy.md, "Pooled slices").
       constexpr int kSlices[] = {1, 2, 3, 6};
       constexpr int kSteps[] = {6, 8, 16, 16};
