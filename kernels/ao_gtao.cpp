@@ -50,8 +50,8 @@
 // on a crease line reads 0.58 for 0.5). A slice's open measure averages 1 over slice angles
 // uniform about the view vector (GTAO eq. 10's normalisation: |pn| (cos n + n sin n)
 // integrates the cosine lobe over the hemisphere), so for any R, R + (v - R o) / slices
-// has the expectation of v, the AO: a control variate (Owen 2013, "Monte Carlo theory,
-// methods and examples", ch. 8). R is the ratio of the sums of the 3x3 texels on the
+// has the expectation of v / slices (one slice's visible measure), the AO: a control
+// variate (Owen 2013, "Monte Carlo theory, methods and examples", ch. 8). R is the ratio of the sums of the 3x3 texels on the
 // pixel's surface (pooled_sums): near the pixel's own AO, it leaves little of v's change
 // with the slice angle. An open neighbourhood gives R = 1 and v = o: exactly 1. The
 // screen's slice angles are uniform about the view vector only on the axis; off it the
