@@ -51,9 +51,9 @@
 // uniform about the view vector (GTAO eq. 10's normalisation: |pn| (cos n + n sin n)
 // integrates the cosine lobe over the hemisphere), so for any R, R + (v - R o) / slices
 // has the expectation of v / slices (one slice's visible measure), the AO: a control
-// variate (Owen 2013, "Monte Carlo theory, methods and examples", ch. 8). R is the ratio of the sums of the 3x3 texels on the
-// pixel's surface (pooled_sums): near the pixel's own AO, it leaves little of v's change
-// with the slice angle. An open neighbourhood gives R = 1 and v = o: exactly 1. The
+// variate (Owen 2013, "Monte Carlo theory, methods and examples", ch. 8). R is the ratio of
+// the sums of the 3x3 texels on the pixel's surface (pooled_sums): near the pixel's own
+// AO, it leaves little of v's change with the slice angle. An open neighbourhood gives R = 1 and v = o: exactly 1. The
 // screen's slice angles are uniform about the view vector only on the axis; off it the
 // open measure's mean departs from 1 slightly, and R's error with it.
 //
@@ -317,6 +317,18 @@ void build_coarse_levels(const TapGrid& g, int nthreads, Record*... records) {
   });
 }
 
+// A texel's occluder segment extent (Texel): from the second depth layer's back - front in
+// planar depth where there is one (in perspective over the planar depth: the same ratio
+// as along the view ray), else thickness_world (in perspective over |p|).
+inline float segment_extent(const cv::Vec3f& p, float depth, const float* back_row, int x, float thickness_world,
+                            bool perspective) {
+  if (back_row != nullptr) {
+    const float planar = back_row[x] > depth ? back_row[x] - depth : 0.0f;
+    return perspective ? planar / depth : planar;
+  }
+  return perspective ? thickness_world / std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) : thickness_world;
+}
+
 // The texels and planes of level 0 and their coarser levels; each segment's thickness from
 // `back` (the second depth layer) where given, else thickness_world.
 void build_texels(const AoInputs& in, const cv::Mat* back, float thickness_world, const TapGrid& g,
@@ -338,11 +350,7 @@ void build_texels(const AoInputs& in, const cv::Mat* back, float thickness_world
       for (int x = 0; x < width; ++x) {
         const cv::Vec3f& p = pos_row[x];
         const cv::Vec3f& n = nor_row[x];
-        const float depth = depth_row[x];
-        const float planar = back_row == nullptr ? 0.0f : back_row[x] > depth ? back_row[x] - depth : 0.0f;
-        const float extent = back_row != nullptr ? (perspective ? planar / depth : planar)
-                             : perspective ? thickness_world / std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
-                                           : thickness_world;
+        const float extent = segment_extent(p, depth_row[x], back_row, x, thickness_world, perspective);
         out[x] = mask_row[x] ? Texel{p[0], p[1], p[2], extent} : Texel{0.0f, 0.0f, 0.0f, -1.0f};
         out_plane[x] = mask_row[x] ? TexelPlane{n[0], n[1], n[2], n.dot(p)} : TexelPlane{0.0f, 0.0f, 0.0f, 0.0f};
       }
