@@ -1,5 +1,7 @@
 #include "core/sample_planes.h"
 
+#include <algorithm>
+
 #include "core/simd_targets.h"  // before Highway
 
 #undef HWY_TARGET_INCLUDE
@@ -22,6 +24,10 @@ void split_lanes(const T* pixels, int64_t n, int channels, T* const* planes) {
   const int64_t lanes = int64_t(hn::Lanes(d));
   int64_t x = 0;
   using V = hn::Vec<decltype(d)>;
+  if (channels == 1) {
+    std::copy_n(pixels, n, planes[0]);
+    return;
+  }
   if (channels == 2) {
     for (; x + lanes <= n; x += lanes) {
       V a, b;
