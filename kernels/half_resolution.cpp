@@ -383,32 +383,45 @@ constexpr int kBlockGranularity = 4;
 namespace lanes {
 
 constexpr int kMaxWidth = 1 << 22;
-// Floats past a TexelRows array's last texel, so that a full vector loads from any column.
+// Floats past a texel row's last texel, so that a full vector loads from any column.
 constexpr int kPadding = 64;
 static_assert(HWY_MAX_BYTES / sizeof(float) <= kPadding);
 
 // Texel rows of the half grid laid out for a vector of pixels at a time: per row, one
-// array per quantity (the depth, the normal's x, y, z and the mask as all-ones or zero
-// bits; then each image's channels), indexed by texel column + 1, the edge texels repeated
-// at 0 and hw + 1 (axis_footprint's clamp). The texels of pixels x .. x + N - 1 are then
-// lanes 0 .. N / 2 of each array from m + 1, and a strip fills each row it reads once.
+// array per quantity (the depth, the normal's x, y, z; then each image's channels), indexed
+// by pixel column p and holding the first texel of p's footprint, column
+// clamp(floor((p - 1) / 2)) (axis_footprint); its second texel is then at p + 2. Each texel
+// stands twice (pixels 2t + 1 and 2t + 2 start at texel t), so the texels of pixels
+// x .. x + N - 1 are two plain loads from x and x + 2, and a strip fills each row it reads
+// once. A masked texel is stored with depth 0, normal 0 and values 0: its weight
+// max(0, n . 0)^4 is then +0 exactly, as texel_weights gives it, and it adds +0 to every
+// blend, so the lanes need neither its mask nor a test of its weight (a foreground texel's
+// values are finite; a sum of floats that is zero is +0).
 class TexelRows {
  public:
-  static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kMask = 4;
+  static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kImages = 4;
 
   TexelRows(const HalfGrid& h, std::span<const UpsampleImage> images)
-      : h_(h), images_(images), hw_(h.depth_view.cols), length_(hw_ + 2 + kPadding) {
-    int arrays = kMask + 1;
+      : h_(h),
+        images_(images),
+        hw_(h.depth_view.cols),
+        texel_length_(hw_ + 2 + kPadding),
+        length_(2 * texel_length_) {
+    int arrays = kImages;
     for (const UpsampleImage& im : images) {
       image_first_.push_back(arrays);
+      for (int ch = 0; ch < im.half.channels(); ++ch) background_.push_back(float(im.background[ch]));
       arrays += im.half.channels();
     }
     arrays_ = arrays;
+    texels_.assign(size_t(arrays_) * size_t(texel_length_), 0.0f);
     data_.assign(size_t(2) * size_t(arrays_) * size_t(length_), 0.0f);
   }
 
   int length() const { return length_; }
   int image_first(size_t i) const { return image_first_[i]; }
+  // Channel ch of image i's background, as a float.
+  float background(size_t i, int ch) const { return background_[size_t(image_first_[i] - kImages + ch)]; }
 
   // Rows j0 and j1, filled unless the strip's previous pixel row read them.
   void rows(int j0, int j1, const float*& r0, const float*& r1) {
@@ -423,57 +436,63 @@ class TexelRows {
  private:
   int slot_of(int j) const { return row_[0] == j ? 0 : row_[1] == j ? 1 : -1; }
   float* slot(int s) { return data_.data() + size_t(s) * size_t(arrays_) * size_t(length_); }
+  float* texel_plane(int a) { return texels_.data() + size_t(a) * size_t(texel_length_); }
 
-  // The `channels` channels of an interleaved row into the consecutive arrays from a
-  // (sample_planes::split: a vector of texels at a time), each with its edge texels repeated.
-  void fill_arrays(float* a, const float* src, int channels) {
+  // The `channels` channels of an interleaved texel row into the consecutive texel planes
+  // from a, at column + 1 (sample_planes::split: a vector of texels at a time).
+  void split_texels(int a, const float* src, int channels) {
     float* planes[kMaxChannels];  // channels <= kMaxChannels (upsample_from_half_grid checks)
-    for (int c = 0; c < channels; ++c) planes[c] = a + c * length_ + 1;
+    for (int c = 0; c < channels; ++c) planes[c] = texel_plane(a + c) + 1;
     sample_planes::split(src, hw_, channels, planes);
-    for (int c = 0; c < channels; ++c) {
-      float* plane = a + c * length_;
-      plane[0] = plane[1];
-      plane[hw_ + 1] = plane[hw_];
-    }
   }
 
+  // Texel row j into slot s: its planes by texel (column + 1, masked texels cleared, the
+  // edge texels repeated at 0 and hw + 1), then each plane's texel t + 1 at pixels 2t + 1
+  // and 2t + 2, its texel 0 at pixel 0.
   void fill(int s, int j) {
-    float* base = slot(s);
-    fill_arrays(base + kDepth * length_, h_.depth_view.ptr<float>(j), 1);
-    fill_arrays(base + kNormalX * length_, h_.normal_view.ptr<float>(j), 3);
+    split_texels(kDepth, h_.depth_view.ptr<float>(j), 1);
+    split_texels(kNormalX, h_.normal_view.ptr<float>(j), 3);
+    for (size_t k = 0; k < images_.size(); ++k)
+      split_texels(image_first_[k], images_[k].half.ptr<float>(j), images_[k].half.channels());
     const uint8_t* m = h_.mask.ptr<uint8_t>(j);
-    float* a = base + kMask * length_;
-    for (int i = 0; i < hw_; ++i) a[i + 1] = std::bit_cast<float>(m[i] ? ~uint32_t(0) : uint32_t(0));
-    a[0] = a[1];
-    a[hw_ + 1] = a[hw_];
-    for (size_t k = 0; k < images_.size(); ++k) {
-      const int cn = images_[k].half.channels();
-      fill_arrays(base + image_first_[k] * length_, images_[k].half.ptr<float>(j), cn);
+    for (int i = 0; i < hw_; ++i) {
+      if (m[i]) continue;
+      for (int a = 0; a < arrays_; ++a) texel_plane(a)[i + 1] = 0.0f;
+    }
+    const FloatLanes d;
+    const int n = int(hn::Lanes(d));
+    for (int a = 0; a < arrays_; ++a) {
+      float* t = texel_plane(a);
+      t[0] = t[1];
+      t[hw_ + 1] = t[hw_];
+      float* pixels = slot(s) + size_t(a) * size_t(length_);
+      pixels[0] = t[0];
+      // Texels 1 .. hw + 1, each twice, from pixel 1 (a vector's tail reads the padding).
+      for (int i = 0; i < hw_ + 1; i += n) {
+        const Lanes v = hn::LoadU(d, t + 1 + i);
+        hn::StoreInterleaved2(v, v, d, pixels + 1 + 2 * i);
+      }
     }
     row_[s] = j;
   }
 
   const HalfGrid& h_;
   std::span<const UpsampleImage> images_;
-  int hw_, length_, arrays_ = 0;
+  int hw_, texel_length_, length_, arrays_ = 0;
   std::vector<int> image_first_;
+  std::vector<float> background_;
+  std::vector<float> texels_;  // the row being filled, by texel
   std::vector<float> data_;
   int row_[2] = {-1, -1};
 };
 
-// Per lane l: which texel column of the loaded ones it reads (l / 2 for the first texel
-// of its footprint, l / 2 + 1 for the second) and its horizontal bilinear weights.
-using LaneIndices = decltype(hn::SetTableIndices(FloatLanes(), static_cast<const int32_t*>(nullptr)));
+// Per lane l: its horizontal bilinear weights (the fraction 0.25 for even l, 0.75 for odd).
 struct LanePattern {
-  LaneIndices column[2];
   Lanes wx[2];
 
   LanePattern() {
     const FloatLanes d;
     const hn::RebindToSigned<FloatLanes> di;
-    const auto half_lane = hn::ShiftRight<1>(hn::Iota(di, 0));
-    column[0] = hn::IndicesFromVec(d, half_lane);
-    column[1] = hn::IndicesFromVec(d, hn::Add(half_lane, hn::Set(di, 1)));
     const auto odd = hn::RebindMask(d, hn::Eq(hn::And(hn::Iota(di, 0), hn::Set(di, 1)), hn::Set(di, 1)));
     const Lanes frac_x = hn::IfThenElse(odd, hn::Set(d, 0.75f), hn::Set(d, 0.25f));
     wx[0] = hn::Sub(hn::Set(d, 1.0f), frac_x);
@@ -481,12 +500,9 @@ struct LanePattern {
   }
 };
 
-
-// The texels of pixels x .. x + N - 1 (x odd) from one array of TexelRows: column t[0] of
-// each pixel's footprint (k = 0) or t[1] (k = 1).
-inline Lanes texel_lanes(const float* array, int x, const LanePattern& p, int k) {
-  return hn::TableLookupLanes(hn::LoadU(FloatLanes(), array + (x - 1) / 2 + 1), p.column[k]);
-}
+// The texels of pixels x .. x + N - 1 from one array of TexelRows: the first of each
+// pixel's footprint columns (k = 0) or the second (k = 1).
+inline Lanes texel_lanes(const float* array, int x, int k) { return hn::LoadU(FloatLanes(), array + x + 2 * k); }
 
 // What the vector code of pixel row y reads: its two texel rows (from `texels`), their
 // vertical bilinear weights and the row's full-resolution guides.
@@ -508,7 +524,8 @@ struct PixelRow {
     texels.rows(fy.t[0], fy.t[1], r0, r1);
   }
 
-  // texel_weights of pixels x .. x + N - 1 (x odd), 0 where `fg` is not.
+  // texel_weights of pixels x .. x + N - 1 (x odd), 0 where `fg` is not (and, through
+  // their zero normals, on masked texels: TexelRows).
   void weights(int x, const LanePattern& p, hn::Mask<FloatLanes> fg, Lanes w[4]) const {
     const FloatLanes d;
     const Lanes zero = hn::Zero(d);
@@ -519,19 +536,17 @@ struct PixelRow {
     for (int k = 0; k < 4; ++k) {
       const float* row = (k >> 1) ? r1 : r0;
       const int c = k & 1;
-      const auto valid =
-          hn::And(fg, hn::MaskFromVec(texel_lanes(row + TexelRows::kMask * length, x, p, c)));
       const Lanes wb = hn::Mul(p.wx[c], hn::Set(d, wy[k >> 1]));
-      const Lanes texel_depth = texel_lanes(row + TexelRows::kDepth * length, x, p, c);
+      const Lanes texel_depth = texel_lanes(row + TexelRows::kDepth * length, x, c);
       const Lanes dz = hn::Mul(hn::Abs(hn::Sub(texel_depth, depth_px)), inv_tol);
-      // exp(-dz); exp(0) where the weight is 0 anyway (set below).
-      const Lanes e = depth_falloff_lanes(hn::IfThenElseZero(valid, hn::Neg(dz)));
-      Lanes cos = hn::Add(zero, hn::Mul(nx, texel_lanes(row + TexelRows::kNormalX * length, x, p, c)));
-      cos = hn::Add(cos, hn::Mul(ny, texel_lanes(row + TexelRows::kNormalY * length, x, p, c)));
-      cos = hn::Add(cos, hn::Mul(nz, texel_lanes(row + TexelRows::kNormalZ * length, x, p, c)));
+      // exp(-dz); exp(0) on background pixels, whose weight is 0 anyway (set below).
+      const Lanes e = depth_falloff_lanes(hn::IfThenElseZero(fg, hn::Neg(dz)));
+      Lanes cos = hn::Add(zero, hn::Mul(nx, texel_lanes(row + TexelRows::kNormalX * length, x, c)));
+      cos = hn::Add(cos, hn::Mul(ny, texel_lanes(row + TexelRows::kNormalY * length, x, c)));
+      cos = hn::Add(cos, hn::Mul(nz, texel_lanes(row + TexelRows::kNormalZ * length, x, c)));
       cos = hn::Max(cos, zero);  // as std::max(0, c)
       cos = hn::Mul(cos, cos);
-      w[k] = hn::IfThenElseZero(valid, hn::Mul(hn::Mul(hn::Mul(wb, e), cos), cos));
+      w[k] = hn::IfThenElseZero(fg, hn::Mul(hn::Mul(hn::Mul(wb, e), cos), cos));
     }
   }
 };
@@ -556,14 +571,11 @@ inline LaneSpan lane_span(int x0, int x1, int width) {
 // The images' values of pixels x .. x + N - 1 of a row (x odd, the row's texels in `row`),
 // from weights w and their sum: the blend where a pixel is foreground, the background
 // elsewhere (pixels whose weights are too small are redone one by one after).
-void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p,
-                 std::span<const UpsampleImage> images, RowPointers rows, const Lanes w[4], Lanes wsum,
-                 hn::Mask<FloatLanes> fg, int x) {
+void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, std::span<const UpsampleImage> images,
+                 RowPointers rows, const Lanes w[4], Lanes wsum, hn::Mask<FloatLanes> fg, int x) {
   const FloatLanes d;
   const size_t n = hn::Lanes(d);
   const Lanes zero = hn::Zero(d);
-  hn::Mask<FloatLanes> used[4];  // texels of nonzero weight (blend skips the others)
-  for (int k = 0; k < 4; ++k) used[k] = hn::Ne(w[k], zero);
   const Lanes inv_wsum = hn::Div(hn::Set(d, 1.0f), wsum);
   for (size_t i = 0; i < images.size(); ++i) {
     const UpsampleImage& im = images[i];
@@ -573,10 +585,10 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
       const int a = (texels.image_first(i) + ch) * row.length;
       Lanes acc = zero;
       for (int k = 0; k < 4; ++k) {
-        const Lanes v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, p, k & 1);
-        acc = hn::IfThenElse(used[k], hn::Add(acc, hn::Mul(w[k], v)), acc);
+        const Lanes v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, k & 1);
+        acc = hn::Add(acc, hn::Mul(w[k], v));  // + 0 where blend skips the texel (TexelRows)
       }
-      value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, float(im.background[ch])));
+      value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, texels.background(i, ch)));
     }
     float* out = rows[i] + size_t(x) * size_t(cn);
     if (cn == 1) {
@@ -605,7 +617,7 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
     row.weights(x, p, fg, w);
     Lanes wsum = hn::Zero(d);
     for (int k = 0; k < 4; ++k) wsum = hn::Add(wsum, w[k]);
-    blend_lanes(texels, row, p, images, rows, w, wsum, fg, x);
+    blend_lanes(texels, row, images, rows, w, wsum, fg, x);
     // Foreground pixels whose weights are too small go pixel by pixel.
     const auto low = hn::AndNot(hn::Gt(wsum, hn::Set(d, kMinUpsampleWeight)), fg);
     if (hn::AllFalse(d, low)) continue;

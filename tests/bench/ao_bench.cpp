@@ -5,7 +5,7 @@
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao, BM_AoConstantThickness); width, preset, threads
-// (BM_Ssdo, BM_SsdoEnv, BM_Frame); width, threads (denoisers, BM_Confidence, BM_HalfGrid,
+// (BM_Ssdo, BM_SsdoEnv, BM_Frame); width, threads (denoisers, BM_Confidence, BM_HalfGrid, BM_Upsample,
 // BM_SilhouetteThickness); width, spacing, threads (BM_DenoiseHalfGridTerms);
 // width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
@@ -285,6 +285,27 @@ void BM_HalfGrid(benchmark::State& state) {
   state.SetLabel(std::to_string(threads) + "t");
 }
 
+// The upsample of GTAO's two outputs from the frame's half grid to full resolution: its AO
+// (clamped) and bent normal (renormalised), in float, as compute_ao_at_resolution writes them.
+// The texels' values are uniform noise (the weights depend on the guides only).
+void BM_Upsample(benchmark::State& state) {
+  const ssdo::GBuffer& g = frame(int(state.range(0)));
+  const int threads = int(state.range(1));
+  const ssdo::FullGrid full{g.depth_view, g.normal_view, cv::Mat(), g.mask, g.camera};
+  ssdo::HalfGrid half;
+  ssdo::build_half_grid(full, half, threads, /*with_positions=*/false);
+  cv::Mat ao_half(half.depth_view.size(), CV_32FC1), bent_half(half.depth_view.size(), CV_32FC3);
+  cv::randu(ao_half, 0.0f, 1.0f);
+  cv::randu(bent_half, -1.0f, 1.0f);
+  cv::Mat ao(g.depth_view.size(), CV_32FC1), bent(g.depth_view.size(), CV_32FC3);
+  const ssdo::UpsampleImage images[] = {
+      {bent_half, bent, cv::Scalar::all(0), cv::Scalar::all(0), ssdo::UpsampleFinish::unit_vector},
+      {ao_half, ao, cv::Scalar(1.0), cv::Scalar(1.0), ssdo::UpsampleFinish::clamp_unit_interval}};
+  const cv::Rect all(cv::Point(), g.depth_view.size());
+  for (auto _ : state) ssdo::upsample_from_half_grid(full, half, images, all, threads);
+  state.SetLabel(std::to_string(threads) + "t");
+}
+
 // The back layer estimated from the silhouettes of the frame's half grid (what low and
 // medium run on when the frame has no back-face pass).
 void BM_SilhouetteThickness(benchmark::State& state) {
@@ -341,6 +362,7 @@ BENCHMARK(BM_TemporalMoving)->ArgsProduct({{1920}, {2}, {1, 2}})->Unit(benchmark
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Upsample)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HalfGrid)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SilhouetteThickness)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
