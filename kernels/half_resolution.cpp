@@ -388,40 +388,45 @@ constexpr int kPadding = 64;
 static_assert(HWY_MAX_BYTES / sizeof(float) <= kPadding);
 
 // Texel rows of the half grid laid out for a vector of pixels at a time: per row, one
-// array per quantity (the depth, the normal's x, y, z; then each image's channels), indexed
-// by pixel column p and holding the first texel of p's footprint, column
-// clamp(floor((p - 1) / 2)) (axis_footprint); its second texel is then at p + 2. Each texel
-// stands twice (pixels 2t + 1 and 2t + 2 start at texel t), so the texels of pixels
-// x .. x + N - 1 are two plain loads from x and x + 2, and a strip fills each row it reads
-// once. A masked texel is stored with depth 0, normal 0 and values 0: its weight
-// max(0, n . 0)^4 is then +0 exactly, as texel_weights gives it, and it adds +0 to every
-// blend, so the lanes need neither its mask nor a test of its weight (a foreground texel's
-// values are finite; a sum of floats that is zero is +0).
+// array per quantity, the weights' guides first (the depth, the normal's x, y, z), then
+// each image's channels. The guides, read for every pixel, are indexed by pixel column p
+// and hold the first texel of p's footprint, column clamp(floor((p - 1) / 2))
+// (axis_footprint), its second at p + 2: each texel stands twice (pixels 2t + 1 and 2t + 2
+// start at texel t), and the texels of pixels x .. x + N - 1 are two plain loads from x and
+// x + 2. The images' channels, as many as a frame has terms, are indexed by texel column +
+// 1, the edge texels repeated at 0 and hw + 1 (axis_footprint's clamp), so that a row stays
+// small in cache: their texels of pixels x .. x + N - 1 are lanes 0 .. N / 2 from m + 1
+// (LanePattern). A strip fills each row it reads once. A masked texel is stored with depth 0,
+// normal 0 and values 0: its weight max(0, n . 0)^4 is then +0 exactly, as texel_weights
+// gives it, and it adds +0 to every blend, so the lanes need neither its mask nor a test of
+// its weight (a foreground texel's values are finite; a sum of floats that is zero is +0).
 class TexelRows {
  public:
-  static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kImages = 4;
+  static constexpr int kDepth = 0, kNormalX = 1, kNormalY = 2, kNormalZ = 3, kGuides = 4;
 
   TexelRows(const HalfGrid& h, std::span<const UpsampleImage> images)
-      : h_(h),
-        images_(images),
-        hw_(h.depth_view.cols),
-        texel_length_(hw_ + 2 + kPadding),
-        length_(2 * texel_length_) {
-    int arrays = kImages;
+      : h_(h), images_(images), hw_(h.depth_view.cols), texel_length_(hw_ + 2 + kPadding) {
+    int arrays = kGuides;
     for (const UpsampleImage& im : images) {
       image_first_.push_back(arrays);
       for (int ch = 0; ch < im.half.channels(); ++ch) background_.push_back(float(im.background[ch]));
       arrays += im.half.channels();
     }
     arrays_ = arrays;
-    texels_.assign(size_t(arrays_) * size_t(texel_length_), 0.0f);
-    data_.assign(size_t(2) * size_t(arrays_) * size_t(length_), 0.0f);
+    slot_length_ = size_t(kGuides) * size_t(guide_length()) + size_t(arrays_ - kGuides) * size_t(texel_length_);
+    guide_texels_.assign(size_t(kGuides) * size_t(texel_length_), 0.0f);
+    data_.assign(2 * slot_length_, 0.0f);
   }
 
-  int length() const { return length_; }
+  // Where array a starts in a row (from rows()): a guide's by pixel, an image channel's by
+  // texel.
+  size_t array_offset(int a) const {
+    return a < kGuides ? size_t(a) * size_t(guide_length())
+                       : size_t(kGuides) * size_t(guide_length()) + size_t(a - kGuides) * size_t(texel_length_);
+  }
   int image_first(size_t i) const { return image_first_[i]; }
   // Channel ch of image i's background, as a float.
-  float background(size_t i, int ch) const { return background_[size_t(image_first_[i] - kImages + ch)]; }
+  float background(size_t i, int ch) const { return background_[size_t(image_first_[i] - kGuides + ch)]; }
 
   // Rows j0 and j1, filled unless the strip's previous pixel row read them.
   void rows(int j0, int j1, const float*& r0, const float*& r1) {
@@ -434,43 +439,59 @@ class TexelRows {
   }
 
  private:
+  int guide_length() const { return 2 * texel_length_; }
   int slot_of(int j) const { return row_[0] == j ? 0 : row_[1] == j ? 1 : -1; }
-  float* slot(int s) { return data_.data() + size_t(s) * size_t(arrays_) * size_t(length_); }
-  float* texel_plane(int a) { return texels_.data() + size_t(a) * size_t(texel_length_); }
+  float* slot(int s) { return data_.data() + size_t(s) * slot_length_; }
 
-  // The `channels` channels of an interleaved texel row into the consecutive texel planes
-  // from a, at column + 1 (sample_planes::split: a vector of texels at a time).
-  void split_texels(int a, const float* src, int channels) {
-    float* planes[kMaxChannels];  // channels <= kMaxChannels (upsample_from_half_grid checks)
-    for (int c = 0; c < channels; ++c) planes[c] = texel_plane(a + c) + 1;
-    sample_planes::split(src, hw_, channels, planes);
+  // The `channels` channels of an interleaved texel row into the consecutive planes from
+  // `planes` (texel_length_ apart), at column + 1 (sample_planes::split: a vector of texels
+  // at a time).
+  void split_texels(float* planes, const float* src, int channels) {
+    float* plane[kMaxChannels];  // channels <= kMaxChannels (upsample_from_half_grid checks)
+    for (int c = 0; c < channels; ++c) plane[c] = planes + size_t(c) * size_t(texel_length_) + 1;
+    sample_planes::split(src, hw_, channels, plane);
   }
 
-  // Texel row j into slot s: its planes by texel (column + 1, masked texels cleared, the
-  // edge texels repeated at 0 and hw + 1), then each plane's texel t + 1 at pixels 2t + 1
+  // Texel row j into slot s: every array by texel (column + 1), masked texels cleared, the
+  // edge texels repeated at 0 and hw + 1; then each guide's texel t + 1 at pixels 2t + 1
   // and 2t + 2, its texel 0 at pixel 0.
   void fill(int s, int j) {
-    split_texels(kDepth, h_.depth_view.ptr<float>(j), 1);
-    split_texels(kNormalX, h_.normal_view.ptr<float>(j), 3);
+    float* base = slot(s);
+    const auto plane = [&](int a) {
+      return a < kGuides ? guide_texels_.data() + size_t(a) * size_t(texel_length_) : base + array_offset(a);
+    };
+    split_texels(plane(kDepth), h_.depth_view.ptr<float>(j), 1);
+    split_texels(plane(kNormalX), h_.normal_view.ptr<float>(j), 3);
     for (size_t k = 0; k < images_.size(); ++k)
-      split_texels(image_first_[k], images_[k].half.ptr<float>(j), images_[k].half.channels());
-    const uint8_t* m = h_.mask.ptr<uint8_t>(j);
-    for (int i = 0; i < hw_; ++i) {
-      if (m[i]) continue;
-      for (int a = 0; a < arrays_; ++a) texel_plane(a)[i + 1] = 0.0f;
-    }
+      split_texels(plane(image_first_[k]), images_[k].half.ptr<float>(j), images_[k].half.channels());
     const FloatLanes d;
     const int n = int(hn::Lanes(d));
+    const uint8_t* m = h_.mask.ptr<uint8_t>(j);
+    int i = 0;
+    for (; i + n <= hw_; i += n) {
+      const auto fg = foreground_lanes(m + i);
+      if (hn::AllTrue(d, fg)) continue;
+      for (int a = 0; a < arrays_; ++a) {
+        float* t = plane(a) + 1 + i;
+        hn::StoreU(hn::IfThenElseZero(fg, hn::LoadU(d, t)), d, t);
+      }
+    }
+    for (; i < hw_; ++i)
+      if (!m[i])
+        for (int a = 0; a < arrays_; ++a) plane(a)[i + 1] = 0.0f;
     for (int a = 0; a < arrays_; ++a) {
-      float* t = texel_plane(a);
+      float* t = plane(a);
       t[0] = t[1];
       t[hw_ + 1] = t[hw_];
-      float* pixels = slot(s) + size_t(a) * size_t(length_);
+    }
+    for (int a = 0; a < kGuides; ++a) {
+      const float* t = plane(a);
+      float* pixels = base + array_offset(a);
       pixels[0] = t[0];
       // Texels 1 .. hw + 1, each twice, from pixel 1 (a vector's tail reads the padding).
-      for (int i = 0; i < hw_ + 1; i += n) {
-        const Lanes v = hn::LoadU(d, t + 1 + i);
-        hn::StoreInterleaved2(v, v, d, pixels + 1 + 2 * i);
+      for (int c = 0; c < hw_ + 1; c += n) {
+        const Lanes v = hn::LoadU(d, t + 1 + c);
+        hn::StoreInterleaved2(v, v, d, pixels + 1 + 2 * c);
       }
     }
     row_[s] = j;
@@ -478,21 +499,28 @@ class TexelRows {
 
   const HalfGrid& h_;
   std::span<const UpsampleImage> images_;
-  int hw_, texel_length_, length_, arrays_ = 0;
+  int hw_, texel_length_, arrays_ = 0;
+  size_t slot_length_ = 0;
   std::vector<int> image_first_;
   std::vector<float> background_;
-  std::vector<float> texels_;  // the row being filled, by texel
+  std::vector<float> guide_texels_;  // the guides of the row being filled, by texel
   std::vector<float> data_;
   int row_[2] = {-1, -1};
 };
 
-// Per lane l: its horizontal bilinear weights (the fraction 0.25 for even l, 0.75 for odd).
+// Per lane l: which texel column of an image's loaded ones it reads (l / 2 for the first
+// texel of its footprint, l / 2 + 1 for the second) and its horizontal bilinear weights.
+using LaneIndices = decltype(hn::SetTableIndices(FloatLanes(), static_cast<const int32_t*>(nullptr)));
 struct LanePattern {
+  LaneIndices column[2];
   Lanes wx[2];
 
   LanePattern() {
     const FloatLanes d;
     const hn::RebindToSigned<FloatLanes> di;
+    const auto half_lane = hn::ShiftRight<1>(hn::Iota(di, 0));
+    column[0] = hn::IndicesFromVec(d, half_lane);
+    column[1] = hn::IndicesFromVec(d, hn::Add(half_lane, hn::Set(di, 1)));
     const auto odd = hn::RebindMask(d, hn::Eq(hn::And(hn::Iota(di, 0), hn::Set(di, 1)), hn::Set(di, 1)));
     const Lanes frac_x = hn::IfThenElse(odd, hn::Set(d, 0.75f), hn::Set(d, 0.25f));
     wx[0] = hn::Sub(hn::Set(d, 1.0f), frac_x);
@@ -500,29 +528,35 @@ struct LanePattern {
   }
 };
 
-// The texels of pixels x .. x + N - 1 from one array of TexelRows: the first of each
-// pixel's footprint columns (k = 0) or the second (k = 1).
-inline Lanes texel_lanes(const float* array, int x, int k) { return hn::LoadU(FloatLanes(), array + x + 2 * k); }
+// The texels of pixels x .. x + N - 1 (x odd): the first of each pixel's footprint columns
+// (k = 0) or the second (k = 1), from a guide (by pixel) or an image's channel (by texel).
+inline Lanes guide_lanes(const float* guide, int x, int k) { return hn::LoadU(FloatLanes(), guide + x + 2 * k); }
+inline Lanes image_lanes(const float* texels, int x, const LanePattern& p, int k) {
+  return hn::TableLookupLanes(hn::LoadU(FloatLanes(), texels + (x - 1) / 2 + 1), p.column[k]);
+}
 
 // What the vector code of pixel row y reads: its two texel rows (from `texels`), their
 // vertical bilinear weights and the row's full-resolution guides.
 struct PixelRow {
+  const TexelRows& texels;
   const float* r0;
   const float* r1;
-  int length;  // TexelRows::length()
   float wy[2];
   const float* depth;
   const float* normal;
   const uint8_t* mask;
 
-  PixelRow(TexelRows& texels, const FullGrid& full, int y, const AxisFootprint& fy)
-      : length(texels.length()),
+  PixelRow(TexelRows& rows, const FullGrid& full, int y, const AxisFootprint& fy)
+      : texels(rows),
         wy{1.0f - fy.frac, fy.frac},
         depth(full.depth_view.ptr<float>(y)),
         normal(full.normal_view.ptr<float>(y)),
         mask(full.mask.ptr<uint8_t>(y)) {
-    texels.rows(fy.t[0], fy.t[1], r0, r1);
+    rows.rows(fy.t[0], fy.t[1], r0, r1);
   }
+
+  // The array at `offset` (TexelRows::array_offset) of texel row k >> 1 of the footprint.
+  const float* array(int k, size_t offset) const { return ((k >> 1) ? r1 : r0) + offset; }
 
   // texel_weights of pixels x .. x + N - 1 (x odd), 0 where `fg` is not (and, through
   // their zero normals, on masked texels: TexelRows).
@@ -534,16 +568,15 @@ struct PixelRow {
     hn::LoadInterleaved3(d, normal + size_t(3) * size_t(x), nx, ny, nz);
     const Lanes inv_tol = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, kUpsampleDepthRelative), depth_px));
     for (int k = 0; k < 4; ++k) {
-      const float* row = (k >> 1) ? r1 : r0;
       const int c = k & 1;
       const Lanes wb = hn::Mul(p.wx[c], hn::Set(d, wy[k >> 1]));
-      const Lanes texel_depth = texel_lanes(row + TexelRows::kDepth * length, x, c);
+      const Lanes texel_depth = guide_lanes(array(k, texels.array_offset(TexelRows::kDepth)), x, c);
       const Lanes dz = hn::Mul(hn::Abs(hn::Sub(texel_depth, depth_px)), inv_tol);
       // exp(-dz); exp(0) on background pixels, whose weight is 0 anyway (set below).
       const Lanes e = depth_falloff_lanes(hn::IfThenElseZero(fg, hn::Neg(dz)));
-      Lanes cos = hn::Add(zero, hn::Mul(nx, texel_lanes(row + TexelRows::kNormalX * length, x, c)));
-      cos = hn::Add(cos, hn::Mul(ny, texel_lanes(row + TexelRows::kNormalY * length, x, c)));
-      cos = hn::Add(cos, hn::Mul(nz, texel_lanes(row + TexelRows::kNormalZ * length, x, c)));
+      Lanes cos = hn::Add(zero, hn::Mul(nx, guide_lanes(array(k, texels.array_offset(TexelRows::kNormalX)), x, c)));
+      cos = hn::Add(cos, hn::Mul(ny, guide_lanes(array(k, texels.array_offset(TexelRows::kNormalY)), x, c)));
+      cos = hn::Add(cos, hn::Mul(nz, guide_lanes(array(k, texels.array_offset(TexelRows::kNormalZ)), x, c)));
       cos = hn::Max(cos, zero);  // as std::max(0, c)
       cos = hn::Mul(cos, cos);
       w[k] = hn::IfThenElseZero(fg, hn::Mul(hn::Mul(hn::Mul(wb, e), cos), cos));
@@ -571,8 +604,9 @@ inline LaneSpan lane_span(int x0, int x1, int width) {
 // The images' values of pixels x .. x + N - 1 of a row (x odd, the row's texels in `row`),
 // from weights w and their sum: the blend where a pixel is foreground, the background
 // elsewhere (pixels whose weights are too small are redone one by one after).
-void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, std::span<const UpsampleImage> images,
-                 RowPointers rows, const Lanes w[4], Lanes wsum, hn::Mask<FloatLanes> fg, int x) {
+void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p,
+                 std::span<const UpsampleImage> images, RowPointers rows, const Lanes w[4], Lanes wsum,
+                 hn::Mask<FloatLanes> fg, int x) {
   const FloatLanes d;
   const size_t n = hn::Lanes(d);
   const Lanes zero = hn::Zero(d);
@@ -582,10 +616,10 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, std
     const int cn = im.half.channels();
     Lanes value[kMaxChannels];
     for (int ch = 0; ch < cn; ++ch) {
-      const int a = (texels.image_first(i) + ch) * row.length;
+      const size_t offset = texels.array_offset(texels.image_first(i) + ch);
       Lanes acc = zero;
       for (int k = 0; k < 4; ++k) {
-        const Lanes v = lanes::texel_lanes(((k >> 1) ? row.r1 : row.r0) + a, x, k & 1);
+        const Lanes v = lanes::image_lanes(row.array(k, offset), x, p, k & 1);
         acc = hn::Add(acc, hn::Mul(w[k], v));  // + 0 where blend skips the texel (TexelRows)
       }
       value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, texels.background(i, ch)));
@@ -617,7 +651,7 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
     row.weights(x, p, fg, w);
     Lanes wsum = hn::Zero(d);
     for (int k = 0; k < 4; ++k) wsum = hn::Add(wsum, w[k]);
-    blend_lanes(texels, row, images, rows, w, wsum, fg, x);
+    blend_lanes(texels, row, p, images, rows, w, wsum, fg, x);
     // Foreground pixels whose weights are too small go pixel by pixel.
     const auto low = hn::AndNot(hn::Gt(wsum, hn::Set(d, kMinUpsampleWeight)), fg);
     if (hn::AllFalse(d, low)) continue;

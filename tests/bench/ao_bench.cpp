@@ -5,8 +5,9 @@
 // 1920x1080 (the shared perf1080 dump), with 1 and 2 threads. Without ../shared the
 // Cornell-like scene of the reference ray caster is rendered at both sizes instead.
 // Args: width, method, preset, threads (BM_Ao, BM_AoConstantThickness); width, preset, threads
-// (BM_Ssdo, BM_SsdoEnv, BM_Frame); width, threads (denoisers, BM_Confidence, BM_HalfGrid, BM_Upsample,
-// BM_SilhouetteThickness); width, spacing, threads (BM_DenoiseHalfGridTerms);
+// (BM_Ssdo, BM_SsdoEnv, BM_Frame); width, threads (denoisers, BM_Confidence, BM_HalfGrid,
+// BM_SilhouetteThickness); width, spacing, threads (BM_DenoiseHalfGridTerms); width, images,
+// threads (BM_Upsample);
 // width, K, threads (BM_Temporal, BM_TemporalMoving, BM_TemporalSsdo); width, K, with SSDO, threads
 // (BM_ShotFinish). The thread count is always last (tests/bench/thread_scaling.sh).
 #include <benchmark/benchmark.h>
@@ -285,25 +286,38 @@ void BM_HalfGrid(benchmark::State& state) {
   state.SetLabel(std::to_string(threads) + "t");
 }
 
-// The upsample of GTAO's two outputs from the frame's half grid to full resolution: its AO
-// (clamped) and bent normal (renormalised), in float, as compute_ao_at_resolution writes them.
-// The texels' values are uniform noise (the weights depend on the guides only).
+// The upsample from the frame's half grid to full resolution of the images of range(1): 0,
+// GTAO's AO (clamped) and bent normal (renormalised) in float, as compute_ao_at_resolution
+// writes them; 1, a `--terms ao,ssdo` frame's, as the pipeline stores them: those two, SSDO's
+// direct and indirect light and the confidence in half floats, the denoised AO, direct and
+// indirect in float (18 channels). The texels' values are uniform noise (the weights depend
+// on the guides only). Args: width, images, threads.
 void BM_Upsample(benchmark::State& state) {
   const ssdo::GBuffer& g = frame(int(state.range(0)));
-  const int threads = int(state.range(1));
+  const bool whole_frame = state.range(1) == 1;
+  const int threads = int(state.range(2));
   const ssdo::FullGrid full{g.depth_view, g.normal_view, cv::Mat(), g.mask, g.camera};
   ssdo::HalfGrid half;
   ssdo::build_half_grid(full, half, threads, /*with_positions=*/false);
-  cv::Mat ao_half(half.depth_view.size(), CV_32FC1), bent_half(half.depth_view.size(), CV_32FC3);
-  cv::randu(ao_half, 0.0f, 1.0f);
-  cv::randu(bent_half, -1.0f, 1.0f);
-  cv::Mat ao(g.depth_view.size(), CV_32FC1), bent(g.depth_view.size(), CV_32FC3);
-  const ssdo::UpsampleImage images[] = {
-      {bent_half, bent, cv::Scalar::all(0), cv::Scalar::all(0), ssdo::UpsampleFinish::unit_vector},
-      {ao_half, ao, cv::Scalar(1.0), cv::Scalar(1.0), ssdo::UpsampleFinish::clamp_unit_interval}};
-  const cv::Rect all(cv::Point(), g.depth_view.size());
+  const cv::Size size = g.depth_view.size(), half_size = half.depth_view.size();
+  constexpr int kImages = 8;
+  cv::Mat texels[kImages], pixels[kImages];
+  const int channels[kImages] = {3, 1, 3, 3, 1, 1, 3, 3};
+  const bool in_half[kImages] = {whole_frame, whole_frame, true, true, true, false, false, false};
+  std::vector<ssdo::UpsampleImage> images;
+  for (int i = 0; i < (whole_frame ? kImages : 2); ++i) {
+    texels[i].create(half_size, CV_32FC(channels[i]));
+    cv::randu(texels[i], i == 0 ? -1.0f : 0.0f, 1.0f);
+    pixels[i].create(size, CV_MAKETYPE(in_half[i] ? CV_16F : CV_32F, channels[i]));
+    const cv::Scalar fill = channels[i] == 1 ? cv::Scalar(1.0) : cv::Scalar::all(0);
+    const ssdo::UpsampleFinish finish = i == 0   ? ssdo::UpsampleFinish::unit_vector
+                                        : i == 1 ? ssdo::UpsampleFinish::clamp_unit_interval
+                                                 : ssdo::UpsampleFinish::none;
+    images.push_back({texels[i], pixels[i], fill, fill, finish});
+  }
+  const cv::Rect all(cv::Point(), size);
   for (auto _ : state) ssdo::upsample_from_half_grid(full, half, images, all, threads);
-  state.SetLabel(std::to_string(threads) + "t");
+  state.SetLabel(std::string(whole_frame ? "ao,ssdo frame" : "gtao") + " " + std::to_string(threads) + "t");
 }
 
 // The back layer estimated from the silhouettes of the frame's half grid (what low and
@@ -362,7 +376,7 @@ BENCHMARK(BM_TemporalMoving)->ArgsProduct({{1920}, {2}, {1, 2}})->Unit(benchmark
 BENCHMARK(BM_TemporalSsdo)->Args({1920, 2, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_ShotFinish)->ArgsProduct({{1920}, {2}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Confidence)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_Upsample)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Upsample)->ArgsProduct({{640, 1920}, {0, 1}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_HalfGrid)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SilhouetteThickness)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_BoxBlur)->Apply(image_args)->Unit(benchmark::kMillisecond)->UseRealTime();
