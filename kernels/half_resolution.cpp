@@ -414,7 +414,6 @@ class TexelRows {
     }
     arrays_ = arrays;
     slot_length_ = size_t(kGuides) * size_t(guide_length()) + size_t(arrays_ - kGuides) * size_t(texel_length_);
-    guide_texels_.assign(size_t(kGuides) * size_t(texel_length_), 0.0f);
     data_.assign(2 * slot_length_, 0.0f);
   }
 
@@ -452,49 +451,66 @@ class TexelRows {
     sample_planes::split(src, hw_, channels, plane);
   }
 
-  // Texel row j into slot s: every array by texel (column + 1), masked texels cleared, the
-  // edge texels repeated at 0 and hw + 1; then each guide's texel t + 1 at pixels 2t + 1
-  // and 2t + 2, its texel 0 at pixel 0.
+  // Texel row j into slot s: the guides (fill_guides), then the images' channels by texel
+  // (column + 1), masked texels cleared, the edge texels repeated at 0 and hw + 1.
   void fill(int s, int j) {
     float* base = slot(s);
-    const auto plane = [&](int a) {
-      return a < kGuides ? guide_texels_.data() + size_t(a) * size_t(texel_length_) : base + array_offset(a);
-    };
-    split_texels(plane(kDepth), h_.depth_view.ptr<float>(j), 1);
-    split_texels(plane(kNormalX), h_.normal_view.ptr<float>(j), 3);
+    const uint8_t* m = h_.mask.ptr<uint8_t>(j);
+    fill_guides(base, j, m);
     for (size_t k = 0; k < images_.size(); ++k)
-      split_texels(plane(image_first_[k]), images_[k].half.ptr<float>(j), images_[k].half.channels());
+      split_texels(base + array_offset(image_first_[k]), images_[k].half.ptr<float>(j), images_[k].half.channels());
     const FloatLanes d;
     const int n = int(hn::Lanes(d));
-    const uint8_t* m = h_.mask.ptr<uint8_t>(j);
     int i = 0;
     for (; i + n <= hw_; i += n) {
       const auto fg = foreground_lanes(m + i);
       if (hn::AllTrue(d, fg)) continue;
-      for (int a = 0; a < arrays_; ++a) {
-        float* t = plane(a) + 1 + i;
+      for (int a = kGuides; a < arrays_; ++a) {
+        float* t = base + array_offset(a) + 1 + i;
         hn::StoreU(hn::IfThenElseZero(fg, hn::LoadU(d, t)), d, t);
       }
     }
     for (; i < hw_; ++i)
       if (!m[i])
-        for (int a = 0; a < arrays_; ++a) plane(a)[i + 1] = 0.0f;
-    for (int a = 0; a < arrays_; ++a) {
-      float* t = plane(a);
+        for (int a = kGuides; a < arrays_; ++a) base[array_offset(a) + size_t(i) + 1] = 0.0f;
+    for (int a = kGuides; a < arrays_; ++a) {
+      float* t = base + array_offset(a);
       t[0] = t[1];
       t[hw_ + 1] = t[hw_];
     }
-    for (int a = 0; a < kGuides; ++a) {
-      const float* t = plane(a);
-      float* pixels = base + array_offset(a);
-      pixels[0] = t[0];
-      // Texels 1 .. hw + 1, each twice, from pixel 1 (a vector's tail reads the padding).
-      for (int c = 0; c < hw_ + 1; c += n) {
-        const Lanes v = hn::LoadU(d, t + 1 + c);
-        hn::StoreInterleaved2(v, v, d, pixels + 1 + 2 * c);
+    row_[s] = j;
+  }
+
+  // The guides of texel row j (mask m) by pixel: texel t at pixels 2t + 1 and 2t + 2 (0
+  // where masked), texel 0 again at pixel 0 and texel hw - 1 at 2 hw + 1 and 2 hw + 2 (the
+  // edge repeats); a vector of texels at a time from the grid's rows, the row's tail one by
+  // one.
+  void fill_guides(float* base, int j, const uint8_t* m) {
+    const float* depth = h_.depth_view.ptr<float>(j);
+    const float* normal = h_.normal_view.ptr<float>(j);
+    float* guide[kGuides];
+    for (int a = 0; a < kGuides; ++a) guide[a] = base + array_offset(a);
+    const FloatLanes d;
+    const int n = int(hn::Lanes(d));
+    int i = 0;
+    for (; i + n <= hw_; i += n) {
+      const auto fg = foreground_lanes(m + i);
+      Lanes v[kGuides];
+      v[kDepth] = hn::LoadU(d, depth + i);
+      hn::LoadInterleaved3(d, normal + size_t(3) * size_t(i), v[kNormalX], v[kNormalY], v[kNormalZ]);
+      for (int a = 0; a < kGuides; ++a) {
+        const Lanes kept = hn::IfThenElseZero(fg, v[a]);
+        hn::StoreInterleaved2(kept, kept, d, guide[a] + 1 + 2 * i);
       }
     }
-    row_[s] = j;
+    for (; i < hw_; ++i) {
+      const float v[kGuides] = {depth[i], normal[3 * i], normal[3 * i + 1], normal[3 * i + 2]};
+      for (int a = 0; a < kGuides; ++a) guide[a][1 + 2 * i] = guide[a][2 + 2 * i] = m[i] ? v[a] : 0.0f;
+    }
+    for (int a = 0; a < kGuides; ++a) {
+      guide[a][0] = guide[a][1];
+      guide[a][2 * hw_ + 1] = guide[a][2 * hw_ + 2] = guide[a][2 * hw_];
+    }
   }
 
   const HalfGrid& h_;
@@ -503,7 +519,6 @@ class TexelRows {
   size_t slot_length_ = 0;
   std::vector<int> image_first_;
   std::vector<float> background_;
-  std::vector<float> guide_texels_;  // the guides of the row being filled, by texel
   std::vector<float> data_;
   int row_[2] = {-1, -1};
 };
