@@ -53,8 +53,8 @@
 // has the expectation of v / slices (one slice's visible measure), the AO: a control
 // variate (Owen 2013, "Monte Carlo theory, methods and examples", ch. 8). R is the ratio of
 // the sums of the 3x3 texels on the pixel's surface (pooled_sums): near the pixel's own
-// AO, it leaves little of v's change with the slice angle. An open neighbourhood gives R = 1 and v = o: exactly 1. The
-// screen's slice angles are uniform about the view vector only on the axis; off it the
+// AO, it leaves little of v's change with the slice angle. An open neighbourhood gives
+// R = 1 and v = o: exactly 1. The screen's slice angles are uniform about the view vector only on the axis; off it the
 // open measure's mean departs from 1 slightly, and R's error with it.
 //
 // Bent normal: the cosine-weighted mean visible direction of each slice between its

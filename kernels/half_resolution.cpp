@@ -553,21 +553,23 @@ inline Lanes image_lanes(const float* texels, int x, const LanePattern& p, int k
 // What the vector code of pixel row y reads: its two texel rows (from `texels`), their
 // vertical bilinear weights and the row's full-resolution guides.
 struct PixelRow {
-  const TexelRows& texels;
   const float* r0;
   const float* r1;
+  // Guide a of texel row r (TexelRows::kDepth .. kNormalZ), by pixel.
+  const float* guide[2][TexelRows::kGuides];
   float wy[2];
   const float* depth;
   const float* normal;
   const uint8_t* mask;
 
-  PixelRow(TexelRows& rows, const FullGrid& full, int y, const AxisFootprint& fy)
-      : texels(rows),
-        wy{1.0f - fy.frac, fy.frac},
+  PixelRow(TexelRows& texels, const FullGrid& full, int y, const AxisFootprint& fy)
+      : wy{1.0f - fy.frac, fy.frac},
         depth(full.depth_view.ptr<float>(y)),
         normal(full.normal_view.ptr<float>(y)),
         mask(full.mask.ptr<uint8_t>(y)) {
-    rows.rows(fy.t[0], fy.t[1], r0, r1);
+    texels.rows(fy.t[0], fy.t[1], r0, r1);
+    for (int a = 0; a < TexelRows::kGuides; ++a)
+      guide[0][a] = r0 + texels.array_offset(a), guide[1][a] = r1 + texels.array_offset(a);
   }
 
   // The array at `offset` (TexelRows::array_offset) of texel row k >> 1 of the footprint.
@@ -585,13 +587,13 @@ struct PixelRow {
     for (int k = 0; k < 4; ++k) {
       const int c = k & 1;
       const Lanes wb = hn::Mul(p.wx[c], hn::Set(d, wy[k >> 1]));
-      const Lanes texel_depth = guide_lanes(array(k, texels.array_offset(TexelRows::kDepth)), x, c);
+      const Lanes texel_depth = guide_lanes(guide[k >> 1][TexelRows::kDepth], x, c);
       const Lanes dz = hn::Mul(hn::Abs(hn::Sub(texel_depth, depth_px)), inv_tol);
       // exp(-dz); exp(0) on background pixels, whose weight is 0 anyway (set below).
       const Lanes e = depth_falloff_lanes(hn::IfThenElseZero(fg, hn::Neg(dz)));
-      Lanes cos = hn::Add(zero, hn::Mul(nx, guide_lanes(array(k, texels.array_offset(TexelRows::kNormalX)), x, c)));
-      cos = hn::Add(cos, hn::Mul(ny, guide_lanes(array(k, texels.array_offset(TexelRows::kNormalY)), x, c)));
-      cos = hn::Add(cos, hn::Mul(nz, guide_lanes(array(k, texels.array_offset(TexelRows::kNormalZ)), x, c)));
+      Lanes cos = hn::Add(zero, hn::Mul(nx, guide_lanes(guide[k >> 1][TexelRows::kNormalX], x, c)));
+      cos = hn::Add(cos, hn::Mul(ny, guide_lanes(guide[k >> 1][TexelRows::kNormalY], x, c)));
+      cos = hn::Add(cos, hn::Mul(nz, guide_lanes(guide[k >> 1][TexelRows::kNormalZ], x, c)));
       cos = hn::Max(cos, zero);  // as std::max(0, c)
       cos = hn::Mul(cos, cos);
       w[k] = hn::IfThenElseZero(fg, hn::Mul(hn::Mul(hn::Mul(wb, e), cos), cos));
