@@ -86,6 +86,7 @@
 
 #include "kernels/ao_common.h"
 #include "kernels/ao_methods.h"
+#include "kernels/iota_lanes.h"
 #include "kernels/noise.h"
 #include "kernels/record_lanes.h"
 #include "core/parallel.h"
@@ -260,38 +261,17 @@ inline int32_t levels_reached(float value, int unit) {
 // the spacing (spacing_px >= 2^(L + 1)), so that consecutive taps keep their order.
 inline int32_t level_cap(float spacing_px) { return levels_reached(spacing_px, 2); }
 
-// The level a tap at dist_px from its pixel reads: the largest L <= cap with dist_px >=
-// 2^L kFineTapsPx.
-inline int tap_level(float dist_px, int32_t cap) { return std::min(levels_reached(dist_px, kFineTapsPx), cap); }
-
-// A tap's texel index in its level: level 0's offset and width plus each reached level's
-// step from the one below, so that a loop over lanes vectorises on every target (a select
-// per level merges into one five-way choice, which GCC's if-conversion leaves as branches
-// where the target has no mask registers: on AVX2 the loop would run a lane at a time).
+// A tap's texel index in its level: index = offset[L] + (y' >> L) width[L] + (x' >> L) with
+// x' = x - origin.x, y' = y - origin.y (the picture's pixel (0, 0) at 0).
 struct LevelSelect {
   cv::Point origin;
-  // Level L's index = offset + by width + bx, with offset = the sum of offset_step[0 .. L]
-  // and width = the sum of width_step[0 .. L].
-  int offset_step[kCoarseLevels + 1], width_step[kCoarseLevels + 1];
+  int32_t offset[kCoarseLevels + 1], width[kCoarseLevels + 1];
 
   explicit LevelSelect(const TapGrid& g) : origin(g.origin) {
-    int below_offset = 0, below_width = 0;
     for (int l = 0; l <= kCoarseLevels; ++l) {
-      const int offset = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
-      offset_step[l] = offset - below_offset;
-      width_step[l] = g.level_width[l] - below_width;
-      below_offset = offset, below_width = g.level_width[l];
+      offset[l] = g.level_base[l] - g.block_y0[l] * g.level_width[l] - g.block_x0[l];
+      width[l] = g.level_width[l];
     }
-  }
-  // The index of the texel of level `level` holding grid texel (x, y).
-  int32_t index(int level, int x, int y) const {
-    int o = offset_step[0], w = width_step[0];
-    for (int l = 1; l <= kCoarseLevels; ++l) {
-      const int reached = -int(level >= l);  // all bits set or none
-      o += offset_step[l] & reached;
-      w += width_step[l] & reached;
-    }
-    return o + ((y - origin.y) >> level) * w + ((x - origin.x) >> level);
   }
 };
 
@@ -515,38 +495,73 @@ inline void pixel_taps(const Constants& k, const AoInputs& in, int x0, int n, in
 // Texel indices of the taps of step j of slice i, both sides, of the row's pixels xi0 ..
 // xi0 + kLanes - 1 (x = x0 + xi), in lanes: pos[l] and neg[l] for pixel xi0 + l. dir_x,
 // dir_y: the pixels' screen directions of the slice, by lane. `coarse`: some pixel's taps may
-// read a coarse level (else every tap reads level 0, without the level's selects).
+// read a coarse level (else every tap reads level 0, without the level's selects). In
+// explicit vectors: the level's offset and width are a select per level, where GCC's
+// vectorised scalar code spent five operations per level and array.
 template <bool coarse>
 inline void step_indices(const Constants& k, const TileRow& row, const float* dir_x, const float* dir_y, int x0,
                          int y, int xi0, int i, int j, int32_t* __restrict pos, int32_t* __restrict neg) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const hn::RebindToUnsigned<decltype(d)> du;
   const TapGrid& g = k.grid;
-  // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
-  const float step_shift = float(i + j * g.slices) * 0.618033988749895f;
   const LevelSelect levels(g);
-  for (int l = 0; l < kLanes; ++l) {
-    const int xi = xi0 + l;
-    float t = row.step_noise[xi] + step_shift;
-    t -= std::floor(t);
+  // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
+  const auto step_shift = hn::Set(d, float(i + j * g.slices) * 0.618033988749895f);
+  const auto step = hn::Set(d, float(j)), min_dist = hn::Set(d, kMinTapDistancePx), half = hn::Set(d, 0.5f);
+  const auto zero = hn::Zero(di), no_tap = hn::Set(di, kNoTap), off_screen = hn::Set(di, kOffScreen);
+  const auto width = hn::Set(du, uint32_t(g.width)), height = hn::Set(du, uint32_t(g.height));
+  const auto yv = hn::Set(di, y);
+  // round_to_int in lanes.
+  const auto round = [&](auto v) { return hn::ConvertTo(di, hn::Add(v, hn::CopySign(half, v))); };
+  // 0 <= p < size as one unsigned compare per axis.
+  const auto on_screen = [&](auto px, auto py) {
+    return hn::RebindMask(di, hn::And(hn::Lt(hn::BitCast(du, px), width), hn::Lt(hn::BitCast(du, py), height)));
+  };
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
+    const size_t xi = size_t(xi0) + l;
+    auto t = hn::Add(hn::Load(d, row.step_noise + xi), step_shift);
+    t = hn::Sub(t, hn::Floor(t));
     // Uniform in screen distance (distribution power 1). XeGTAO's power 2 puts taps near
     // the centre; against the ray-marched reference on the shared frames (cornell,
     // greeble, depthgap) power 1 halved the error at 8 steps (MAE 0.057 -> 0.040 on
     // cornell): far taps carry walls seen at grazing angles, whose occlusion the dense
     // near taps never see.
-    const float dist_px = kMinTapDistancePx + (float(j) + t) * row.spacing_px[xi];
+    const auto dist_px = hn::Add(min_dist, hn::Mul(hn::Add(step, t), hn::Load(d, row.spacing_px + xi)));
     // The positive side's offset; the negative side's is its negation.
-    const int ox = round_to_int(dir_x[l] * dist_px), oy = round_to_int(dir_y[l] * dist_px);
-    const bool tap = (row.has_taps[xi] != 0) & !((ox == 0) & (oy == 0));
-    const int x = x0 + xi;
-    const int px = x + ox, py = y + oy, nx = x - ox, ny = y - oy;
-    // 0 <= p < size as one unsigned compare.
-    const bool pos_on = (unsigned(px) < unsigned(g.width)) & (unsigned(py) < unsigned(g.height));
-    const bool neg_on = (unsigned(nx) < unsigned(g.width)) & (unsigned(ny) < unsigned(g.height));
-    const int level = coarse ? tap_level(dist_px, row.level_cap[xi]) : 0;
-    const int32_t centre = y * g.width + x, offset = oy * g.width + ox;
-    const int32_t pos_index = coarse ? levels.index(level, px, py) : centre + offset;
-    const int32_t neg_index = coarse ? levels.index(level, nx, ny) : centre - offset;
-    pos[l] = !tap ? kNoTap : pos_on ? pos_index : kOffScreen;
-    neg[l] = !tap ? kNoTap : neg_on ? neg_index : kOffScreen;
+    const auto ox = round(hn::Mul(hn::Load(d, dir_x + l), dist_px));
+    const auto oy = round(hn::Mul(hn::Load(d, dir_y + l), dist_px));
+    const auto tap = hn::And(hn::Ne(hn::Load(di, row.has_taps + xi), zero), hn::Ne(hn::Or(ox, oy), zero));
+    const auto x = ssdo::HWY_NAMESPACE::iota_lanes(di, x0 + int(xi));
+    const auto px = hn::Add(x, ox), py = hn::Add(yv, oy), nx = hn::Sub(x, ox), ny = hn::Sub(yv, oy);
+    hn::Vec<decltype(di)> pos_index, neg_index;
+    if constexpr (coarse) {
+      // The largest L <= the pixel's cap with dist_px >= 2^L kFineTapsPx: floor(log2 dist_px)
+      // from the float's exponent (dist_px >= kMinTapDistancePx, a normal float), less 3.
+      static_assert(kFineTapsPx == 8);
+      const auto exponent = hn::ShiftRight<23>(hn::BitCast(di, dist_px));
+      const auto cap = hn::Load(di, row.level_cap + xi);
+      const auto level = hn::Max(hn::Min(hn::Sub(exponent, hn::Set(di, 127 + 3)), cap), zero);
+      auto offset = hn::Set(di, levels.offset[0]), w = hn::Set(di, levels.width[0]);
+      for (int lv = 1; lv <= kCoarseLevels; ++lv) {
+        const auto reached = hn::Gt(level, hn::Set(di, lv - 1));
+        offset = hn::IfThenElse(reached, hn::Set(di, levels.offset[lv]), offset);
+        w = hn::IfThenElse(reached, hn::Set(di, levels.width[lv]), w);
+      }
+      const auto index = [&](auto tx, auto ty) {
+        const auto bx = hn::Sub(tx, hn::Set(di, levels.origin.x)) >> level;
+        const auto by = hn::Sub(ty, hn::Set(di, levels.origin.y)) >> level;
+        return hn::Add(hn::Add(offset, hn::Mul(by, w)), bx);
+      };
+      pos_index = index(px, py), neg_index = index(nx, ny);
+    } else {
+      const auto centre = ssdo::HWY_NAMESPACE::iota_lanes(di, y * g.width + x0 + int(xi));
+      const auto offset = hn::Add(hn::Mul(oy, hn::Set(di, g.width)), ox);
+      pos_index = hn::Add(centre, offset), neg_index = hn::Sub(centre, offset);
+    }
+    hn::Store(hn::IfThenElse(tap, hn::IfThenElse(on_screen(px, py), pos_index, off_screen), no_tap), di, pos + l);
+    hn::Store(hn::IfThenElse(tap, hn::IfThenElse(on_screen(nx, ny), neg_index, off_screen), no_tap), di, neg + l);
   }
 }
 

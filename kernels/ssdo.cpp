@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "kernels/hemisphere_sampling.h"
+#include "kernels/iota_lanes.h"
 #include "kernels/noise.h"
 #include "kernels/record_lanes.h"
 #include "core/enum_names.h"
@@ -578,7 +579,7 @@ struct LocateQueue {
       const RayLanes<V> ray{hn::Load(d, clip_x + k), hn::Load(d, clip_y + k), hn::Load(d, clip_w + k),
                             hn::Load(d, p_z + k),    hn::Load(d, dir_x + k),  hn::Load(d, dir_y + k),
                             hn::Load(d, dir_w + k),  hn::Load(d, dir_z + k)};
-      const auto queued = hn::RebindMask(d, hn::Lt(hn::Iota(di, int32_t(k)), hn::Set(di, count)));
+      const auto queued = hn::RebindMask(d, hn::Lt(iota_lanes(di, int32_t(k)), hn::Set(di, count)));
       auto found = hn::FirstN(d, 0);
       auto qx = hn::Zero(di), qy = hn::Zero(di);
       bisect_lanes(d, c, ray, queued, hn::Load(d, lo + k), hn::Load(d, hi + k), found, qx, qy);
@@ -651,7 +652,7 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
   const int32_t* taps = reinterpret_cast<const int32_t*>(b.tap_at);
   for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
     // Lanes past the batch's count never start.
-    M active = hn::RebindMask(d, hn::Lt(hn::Iota(di, int32_t(s0)), hn::Set(di, b.count)));
+    M active = hn::RebindMask(d, hn::Lt(iota_lanes(di, int32_t(s0)), hn::Set(di, b.count)));
     const M none = hn::FirstN(d, 0);
     const M locate_sender_m = locate_sender ? active : none;
     M after_front = active, occluded = none, locate = none;
@@ -919,7 +920,7 @@ bool oracle_march(const Constants& c, const Receiver& rcv, const RayFrame& f, co
   const glm::vec4 cw = c.clip_from_view * glm::vec4(w, 0.0f);
   for (int k0 = 0; k0 < steps; k0 += int(hn::Lanes(d))) {
     // lambda = (k + step_jitter) step + 1e-7 r: > 0 always.
-    const auto k = hn::ConvertTo(d, hn::Iota(di, k0));
+    const auto k = hn::ConvertTo(d, iota_lanes(di, k0));
     const auto lambda = hn::Add(hn::Mul(hn::Add(k, hn::Set(d, step_jitter)), hn::Set(d, step)), hn::Set(d, 1e-7f * rcv.r));
     auto lane_x = hn::Zero(di), lane_y = hn::Zero(di);
     const auto ray = receiver_rays(d, rcv, f, hn::Set(d, cw.x), hn::Set(d, cw.y), hn::Set(d, cw.w), hn::Set(d, w.z));

@@ -14,6 +14,7 @@
 
 #include "core/parallel.h"
 #include "kernels/integer_power.h"
+#include "kernels/iota_lanes.h"
 #include "kernels/mask_lanes.h"
 #include "kernels/record_lanes.h"
 #include "kernels/reprojection.h"
@@ -236,7 +237,7 @@ void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const
                           int x0, VF depth, const Vec3L& normal, MF foreground, const TemporalSettings& s,
                           GroupSums& sums) {
   const DF d;
-  const VF px = hn::Add(hn::ConvertTo(d, hn::Iota(DI(), x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
+  const VF px = hn::Add(hn::ConvertTo(d, iota_lanes(DI(), x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
   const VF inverse_tolerance = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, s.depth_tolerance_relative), depth));
   for (size_t i = 0; i < neighbours.size(); ++i) {
     const Neighbour& n = neighbours[i];
