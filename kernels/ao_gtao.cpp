@@ -105,16 +105,6 @@ constexpr int kTileWidthPx = 64;
 constexpr int kTileHeightPx = 32;
 
 
-// The sectors whose centres lie in [u0, u1] (u = (p + 1) / 2 of the pseudo-angle p): the first,
-// k0, and how many (0 when none), in two steps without branches (float to int, then the
-// 64-bit run), so that the ordered pass runs each in vector lanes.
-inline void sector_range(float u0, float u1, int32_t& k0, int32_t& count) {
-  const int first = std::max(0, int(std::ceil(u0 * kSectors - 0.5f)));
-  const int last = std::min(kSectors - 1, int(std::floor(u1 * kSectors - 0.5f)));
-  count = std::max(last - first + 1, 0);
-  k0 = std::min(first, kSectors - 1);  // only an empty range starts past the last sector
-}
-
 // occupied[l] |= the run of count[l] sectors from k0[l], for kLanes lanes (64-bit lanes
 // with per-lane shifts: GCC does not vectorise a constant shifted by a vector).
 inline void add_sector_runs(const int32_t* k0, const int32_t* count, uint64_t* occupied, size_t lanes) {
@@ -344,13 +334,6 @@ void build_texels(const AoInputs& in, const cv::Mat* back, float thickness_world
 // of reconstructed normals; creases of a box (90 deg) and floor-vs-underside (180 deg) are
 // never connected this way.
 constexpr float kCoplanarMinCos = 0.95f;
-
-// b lies on a's tangent plane within tol, and their normals agree: the same surface.
-// Both tests are evaluated (no short circuit), so that a loop over lanes vectorises.
-inline bool coplanar(const TexelPlane& a, const TexelPlane& b, const Texel& b_pos, float tol) {
-  return (a.nx * b.nx + a.ny * b.ny + a.nz * b.nz >= kCoplanarMinCos) &
-         (std::abs(a.nx * b_pos.x + a.ny * b_pos.y + a.nz * b_pos.z - a.plane_c) <= tol);
-}
 
 // Pixels shaded together, one per vector lane: four vector registers' worth per value (64
 // on AVX-512, 32 on AVX2, 16 on NEON and the baseline; a tile row at most). Every loop over
@@ -705,28 +688,29 @@ struct StepLanes {
 
 [[gnu::always_inline]] inline bool occluder(const StepLanes& t, int l) { return t.occluder[l] != 0; }
 
-// The 16-byte records (Texel, TexelPlane) at index[l] of `records`, one load each,
-// transposed to their four fields in lanes (a vector of lanes per field, load_records4):
-// field[f][l] = field f of record index[l]. Lanes with index < 0 read record 0's, for
-// nobody.
-template <class Record>
-inline void gather_records(const Record* records, const int32_t* index, float* const field[4]) {
+// The 16-byte records (Texel, TexelPlane) at index[l] of `records` for a vector's lanes (from
+// index[0]), one load each, transposed to their four fields (load_records4): field[f] lane l
+// = field f of record index[l]. Lanes with index < 0 read record 0's, for nobody.
+template <class D, class Record>
+HWY_INLINE void record_lanes(D d, const Record* records, const int32_t* index, hwy::HWY_NAMESPACE::Vec<D>* field) {
   namespace hn = hwy::HWY_NAMESPACE;
   static_assert(sizeof(Record) == 4 * sizeof(float));
-  const hn::CappedTag<float, kLanes> d;
-  alignas(64) int32_t offset[kLanes];
-  for (int l = 0; l < kLanes; ++l) offset[l] = 4 * std::max(index[l], 0);
-  for (size_t l0 = 0; l0 < size_t(kLanes); l0 += hn::Lanes(d)) {
-    hn::Vec<decltype(d)> v[4];
-    ssdo::HWY_NAMESPACE::load_records4(d, reinterpret_cast<const float*>(records), offset + l0, v);
-    for (int f = 0; f < 4; ++f) hn::Store(v[f], d, field[f] + l0);
-  }
+  const hn::RebindToSigned<D> di;
+  HWY_ALIGN int32_t offset[hn::MaxLanes(d)];
+  hn::Store(hn::ShiftLeft<2>(hn::Max(hn::Load(di, index), hn::Zero(di))), di, offset);
+  ssdo::HWY_NAMESPACE::load_records4(d, reinterpret_cast<const float*>(records), offset, field);
 }
 
 // The taps' texels in lanes.
 inline void gather_texels(const Texel* texels, StepLanes& t) {
-  float* const field[4] = {t.x, t.y, t.z, t.extent};
-  gather_records(texels, t.index, field);
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
+    hn::Vec<decltype(d)> v[4];
+    record_lanes(d, texels, t.index + l, v);
+    hn::Store(v[0], d, t.x + l), hn::Store(v[1], d, t.y + l), hn::Store(v[2], d, t.z + l);
+    hn::Store(v[3], d, t.extent + l);
+  }
 }
 
 // The taps' texels and coordinates in the slice frame (no branches: the loop vectorises).
@@ -845,150 +829,149 @@ struct SideLanes {
   alignas(64) float horizon[kLanes];
 };
 
-// Which lanes' taps continue their side's last tap (the connection rule): the depths
-// within the thickness; from the tangent plane, the two points within the thickness in 3D
-// (a wall standing on the floor, never the gap under a floating object); or the two taps on
-// one plane. Each of the last two tests runs only when some lane needs it. Returns whether
-// some lane has an interval.
-inline bool connections(const Constants& k, const Frame& f, const StepLanes& __restrict t,
-                        const SideLanes& __restrict st, int32_t* __restrict interval, int32_t* __restrict connect) {
+// Which of a vector's lanes (from lane l) that have an interval (`has`) continue their
+// side's last tap (the connection rule): the depths within the thickness; from the tangent
+// plane, the two points within the thickness in 3D (a wall standing on the floor, never the
+// gap under a floating object); or the two taps on one plane. Each of the last two tests
+// gathers its records only when some lane of the vector needs it.
+template <class D>
+HWY_INLINE hwy::HWY_NAMESPACE::Mask<D> connected_lanes(D d, const Constants& k, const Frame& f,
+                                                       const StepLanes& __restrict t, const SideLanes& __restrict st,
+                                                       size_t l, hwy::HWY_NAMESPACE::Mask<D> has) {
   namespace hn = hwy::HWY_NAMESPACE;
+  const hn::RebindToSigned<D> di;
   const float thickness = k.thickness_world;
-  alignas(64) int32_t near[kLanes], plane[kLanes];
-  // In vector masks, so that "some lane needs the test" is one test of a mask per vector
-  // rather than a reduction of each lane's flag. Flags are stored as 1 or 0.
-  const hn::CappedTag<float, kLanes> d;
-  const hn::RebindToSigned<decltype(d)> di;
-  const auto one = hn::Set(di, 1), zero = hn::Zero(di);
-  bool any_interval = false, any_near = false, any_plane = false;
-  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
-    const auto has = hn::AndNot(hn::RebindMask(di, hn::Gt(hn::Load(d, t.u0 + l), hn::Load(d, t.u1 + l))),
-                                hn::Ne(hn::Load(di, t.occluder + l), zero));
-    const auto st_depth = hn::Load(d, st.depth_view + l);
-    const auto has_last = hn::And(has, hn::RebindMask(di, hn::Ge(st_depth, hn::Zero(d))));
-    const auto below = hn::Ne(hn::Load(di, st.below + l), zero);
-    const auto by_depth = hn::RebindMask(
-        di, hn::Le(hn::Abs(hn::Sub(hn::Neg(hn::Load(d, t.z + l)), st_depth)), hn::Set(d, thickness)));
-    const auto above_last = hn::AndNot(below, has_last);
-    const auto near_lanes = hn::And(has_last, below);
-    const auto plane_lanes = hn::AndNot(by_depth, above_last);
-    hn::Store(hn::IfThenElseZero(has, one), di, interval + l);
-    hn::Store(hn::IfThenElseZero(hn::And(above_last, by_depth), one), di, connect + l);
-    hn::Store(hn::IfThenElseZero(near_lanes, one), di, near + l);
-    hn::Store(hn::IfThenElseZero(plane_lanes, one), di, plane + l);
-    any_interval |= !hn::AllFalse(di, has);
-    any_near |= !hn::AllFalse(di, near_lanes);
-    any_plane |= !hn::AllFalse(di, plane_lanes);
+  const auto st_depth = hn::Load(d, st.depth_view + l);
+  const auto has_last = hn::And(has, hn::Ge(st_depth, hn::Zero(d)));
+  const auto below = hn::RebindMask(d, hn::Ne(hn::Load(di, st.below + l), hn::Zero(di)));
+  const auto by_depth = hn::Le(hn::Abs(hn::Sub(hn::Neg(hn::Load(d, t.z + l)), st_depth)), hn::Set(d, thickness));
+  const auto above_last = hn::AndNot(below, has_last);
+  const auto near_lanes = hn::And(has_last, below);
+  const auto plane_lanes = hn::AndNot(by_depth, above_last);
+  auto connect = hn::And(above_last, by_depth);
+  if (!hn::AllFalse(d, near_lanes)) {
+    hn::Vec<D> last[4];
+    record_lanes(d, f.texels.data(), st.texel + l, last);
+    const auto ddx = hn::Sub(hn::Load(d, t.x + l), last[0]), ddy = hn::Sub(hn::Load(d, t.y + l), last[1]);
+    const auto ddz = hn::Sub(hn::Load(d, t.z + l), last[2]);
+    const auto dist2 = hn::Add(hn::Add(hn::Mul(ddx, ddx), hn::Mul(ddy, ddy)), hn::Mul(ddz, ddz));
+    connect = hn::Or(connect, hn::And(near_lanes, hn::Le(dist2, hn::Set(d, thickness * thickness))));
   }
-  // The last taps' texels and planes, and the taps' planes, gathered in lanes (the lanes
-  // that do not need them read them for nobody).
-  if (any_near) {
-    alignas(64) float last[4][kLanes];
-    float* const field[4] = {last[0], last[1], last[2], last[3]};
-    gather_records(f.texels.data(), st.texel, field);
-    for (int l = 0; l < kLanes; ++l) {
-      const float ddx = t.x[l] - last[0][l], ddy = t.y[l] - last[1][l], ddz = t.z[l] - last[2][l];
-      connect[l] |= near[l] & (ddx * ddx + ddy * ddy + ddz * ddz <= thickness * thickness);
-    }
+  if (!hn::AllFalse(d, plane_lanes)) {
+    // The tap on the last tap's tangent plane within the thickness, and their normals
+    // agreeing: the same surface.
+    hn::Vec<D> a[4], b[4];
+    record_lanes(d, f.planes.data(), st.texel + l, a);
+    record_lanes(d, f.planes.data(), t.index + l, b);
+    const auto cos = hn::Add(hn::Add(hn::Mul(a[0], b[0]), hn::Mul(a[1], b[1])), hn::Mul(a[2], b[2]));
+    const auto on_plane =
+        hn::Sub(hn::Add(hn::Add(hn::Mul(a[0], hn::Load(d, t.x + l)), hn::Mul(a[1], hn::Load(d, t.y + l))),
+                        hn::Mul(a[2], hn::Load(d, t.z + l))),
+                a[3]);
+    const auto coplanar =
+        hn::And(hn::Ge(cos, hn::Set(d, kCoplanarMinCos)), hn::Le(hn::Abs(on_plane), hn::Set(d, thickness)));
+    connect = hn::Or(connect, hn::And(plane_lanes, coplanar));
   }
-  if (any_plane) {
-    alignas(64) float last[4][kLanes], tap[4][kLanes];
-    float* const last_field[4] = {last[0], last[1], last[2], last[3]};
-    float* const tap_field[4] = {tap[0], tap[1], tap[2], tap[3]};
-    gather_records(f.planes.data(), st.texel, last_field);
-    gather_records(f.planes.data(), t.index, tap_field);
-    for (int l = 0; l < kLanes; ++l) {
-      const TexelPlane a{last[0][l], last[1][l], last[2][l], last[3][l]};
-      const TexelPlane b{tap[0][l], tap[1][l], tap[2][l], tap[3][l]};
-      const Texel tx{t.x[l], t.y[l], t.z[l], t.extent[l]};
-      connect[l] |= plane[l] & coplanar(a, b, tx, thickness);
-    }
-  }
-  return any_interval;
+  return connect;
 }
 
-// The ordered pass's update of a side from its step, per lane: the occluded range
-// [h0, h1] the step adds to the mask (the tap's interval, joined with the side's last one
-// where they connect; (1, 0) without one), the side's horizon (the taps within the
-// radius), and its last tap. In explicit vectors: written per lane, GCC turns the updates
-// that keep a lane's value into masked stores, which AMD's cores run as microcode.
-// std::min and std::max as selects (their operand order on ties and zeros). interval and
-// connect: per lane, whether the tap has an interval and whether it connects; null: none,
-// and neither the taps' intervals (t.u0, t.u1) are read nor h0, h1 written.
-inline void update_side(const Constants& k, const StepLanes& __restrict t, int side, const int32_t* interval,
-                        const int32_t* connect, SideLanes& __restrict st, float* h0, float* h1) {
+// The ordered pass's update of a side from its step, for a vector's lanes from lane l:
+// the occluded range [h0, h1] the step adds to the mask (the tap's interval where `has`,
+// joined with the side's last one where `joined`; (1, 0) without one), the side's horizon
+// (the taps within the radius), and its last tap. std::min and std::max as selects (their
+// operand order on ties and zeros). The taps' intervals (t.u0, t.u1) are read only where
+// some lane has one.
+template <class D>
+HWY_INLINE void update_side_lanes(D d, const Constants& k, const StepLanes& __restrict t, int side, size_t l,
+                                  hwy::HWY_NAMESPACE::Mask<D> has, hwy::HWY_NAMESPACE::Mask<D> joined,
+                                  SideLanes& __restrict st, hwy::HWY_NAMESPACE::Vec<D>& h0,
+                                  hwy::HWY_NAMESPACE::Vec<D>& h1) {
   namespace hn = hwy::HWY_NAMESPACE;
-  const hn::CappedTag<float, kLanes> d;
-  const hn::RebindToSigned<decltype(d)> di;
+  const hn::RebindToSigned<D> di;
   const auto zero = hn::Zero(d);
   const auto zero_i = hn::Zero(di);
   // A tap on or below the tangent plane connects at the tangent limit: u = 1 on the
   // positive side, 0 on the other.
   const auto u_lim = hn::Set(d, side == 0 ? 1.0f : 0.0f);
-  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
-    const auto index = hn::Load(di, t.index + l);
-    const auto depth = hn::Neg(hn::Load(d, t.z + l));  // planar
-    const auto foreground =
-        hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(hn::Load(d, t.extent + l), zero));
-    // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
-    // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
-    // first matters: rounding taps to pixel centres moves them off the slice, and their
-    // slice angle alone would put tilted planes above their own tangent line.
-    const auto up = hn::Gt(hn::Load(d, t.height + l), zero);
-    const auto above = hn::And(foreground, up);
-    const auto below = hn::AndNot(up, foreground);
-    const auto centre = hn::AndNot(hn::Gt(hn::Load(d, t.dist_slice2 + l), zero), above);  // on the centre line
-    const auto in_radius = hn::And(hn::RebindMask(d, hn::Ne(hn::Load(di, t.occluder + l), zero_i)),
-                                   hn::Le(hn::Load(d, t.dist2 + l), hn::Set(d, k.r2)));
-    const auto horizon = hn::Load(d, st.horizon + l), tap = hn::Load(d, t.tap_cos_sq + l);
-    hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap)), tap, horizon), d, st.horizon + l);
-    const auto none = hn::FirstN(d, 0);
-    const auto has = interval ? hn::RebindMask(d, hn::Ne(hn::Load(di, interval + l), zero_i)) : none;
-    const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
-    auto tu0 = u_lim, tu1 = u_lim;  // read only where `has`
-    if (interval) {
-      tu0 = hn::Load(d, t.u0 + l);
-      tu1 = hn::Load(d, t.u1 + l);
-      const auto joined = connect ? hn::RebindMask(d, hn::Ne(hn::Load(di, connect + l), zero_i)) : none;
-      // The occluded range, as an empty one (1, 0) without an interval.
-      const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
-      const auto hi = hn::IfThenElse(hn::And(joined, hn::Lt(tu1, su1)), su1, tu1);  // std::max(tu1, su1)
-      hn::Store(hn::IfThenElse(has, lo, hn::Set(d, 1.0f)), d, h0 + l);
-      hn::Store(hn::IfThenElseZero(has, hi), d, h1 + l);
-    }
-    // The side's last tap: unchanged without a tap or on the centre line; else this one,
-    // with nothing to connect to off screen, on background and beyond the radius.
-    const auto keep = hn::Or(hn::RebindMask(d, hn::Eq(index, hn::Set(di, kNoTap))), centre);
-    const auto last_depth = hn::IfThenElse(hn::Or(has, below), depth, hn::Set(d, -1.0f));
-    hn::Store(hn::IfThenElse(keep, hn::Load(d, st.depth_view + l), last_depth), d, st.depth_view + l);
-    hn::Store(hn::IfThenElse(keep, su0, hn::IfThenElse(has, tu0, u_lim)), d, st.u0 + l);
-    hn::Store(hn::IfThenElse(keep, su1, hn::IfThenElse(has, tu1, u_lim)), d, st.u1 + l);
-    const auto keep_i = hn::RebindMask(di, keep);
-    hn::Store(hn::IfThenElse(keep_i, hn::Load(di, st.texel + l), hn::Max(index, zero_i)), di, st.texel + l);
-    const auto below_i = hn::IfThenElseZero(hn::RebindMask(di, below), hn::Set(di, 1));
-    hn::Store(hn::IfThenElse(keep_i, hn::Load(di, st.below + l), below_i), di, st.below + l);
-  }
+  const auto index = hn::Load(di, t.index + l);
+  const auto depth = hn::Neg(hn::Load(d, t.z + l));  // planar
+  const auto foreground =
+      hn::And(hn::RebindMask(d, hn::Gt(index, hn::Set(di, -1))), hn::Ge(hn::Load(d, t.extent + l), zero));
+  // A tap on or below the tangent plane cannot occlude the hemisphere (nor can the rest
+  // of its segment, which runs away from the eye, i.e. further down). Testing in 3D
+  // first matters: rounding taps to pixel centres moves them off the slice, and their
+  // slice angle alone would put tilted planes above their own tangent line.
+  const auto up = hn::Gt(hn::Load(d, t.height + l), zero);
+  const auto above = hn::And(foreground, up);
+  const auto below = hn::AndNot(up, foreground);
+  const auto centre = hn::AndNot(hn::Gt(hn::Load(d, t.dist_slice2 + l), zero), above);  // on the centre line
+  const auto in_radius = hn::And(hn::RebindMask(d, hn::Ne(hn::Load(di, t.occluder + l), zero_i)),
+                                 hn::Le(hn::Load(d, t.dist2 + l), hn::Set(d, k.r2)));
+  const auto horizon = hn::Load(d, st.horizon + l), tap = hn::Load(d, t.tap_cos_sq + l);
+  hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap)), tap, horizon), d, st.horizon + l);
+  const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
+  const bool some = !hn::AllFalse(d, has);
+  const auto tu0 = some ? hn::Load(d, t.u0 + l) : u_lim, tu1 = some ? hn::Load(d, t.u1 + l) : u_lim;
+  // The occluded range, as an empty one (1, 0) without an interval.
+  const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
+  const auto hi = hn::IfThenElse(hn::And(joined, hn::Lt(tu1, su1)), su1, tu1);  // std::max(tu1, su1)
+  h0 = hn::IfThenElse(has, lo, hn::Set(d, 1.0f));
+  h1 = hn::IfThenElseZero(has, hi);
+  // The side's last tap: unchanged without a tap or on the centre line; else this one,
+  // with nothing to connect to off screen, on background and beyond the radius.
+  const auto keep = hn::Or(hn::RebindMask(d, hn::Eq(index, hn::Set(di, kNoTap))), centre);
+  const auto last_depth = hn::IfThenElse(hn::Or(has, below), depth, hn::Set(d, -1.0f));
+  hn::Store(hn::IfThenElse(keep, hn::Load(d, st.depth_view + l), last_depth), d, st.depth_view + l);
+  hn::Store(hn::IfThenElse(keep, su0, hn::IfThenElse(has, tu0, u_lim)), d, st.u0 + l);
+  hn::Store(hn::IfThenElse(keep, su1, hn::IfThenElse(has, tu1, u_lim)), d, st.u1 + l);
+  const auto keep_i = hn::RebindMask(di, keep);
+  hn::Store(hn::IfThenElse(keep_i, hn::Load(di, st.texel + l), hn::Max(index, zero_i)), di, st.texel + l);
+  const auto below_i = hn::IfThenElseZero(hn::RebindMask(di, below), hn::Set(di, 1));
+  hn::Store(hn::IfThenElse(keep_i, hn::Load(di, st.below + l), below_i), di, st.below + l);
+}
+
+// The sectors whose centres lie in [u0, u1] of each lane (u = (p + 1) / 2 of the pseudo-angle
+// p) set in its mask, occupied[l] for the vector's lanes: the first sector and how many
+// (none where u1 < u0), then their 64-bit runs.
+template <class D>
+HWY_INLINE void add_sector_range(D d, hwy::HWY_NAMESPACE::Vec<D> u0, hwy::HWY_NAMESPACE::Vec<D> u1,
+                                 uint64_t* occupied) {
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::RebindToSigned<D> di;
+  const auto sectors = hn::Set(d, float(kSectors)), half = hn::Set(d, 0.5f);
+  const auto last_sector = hn::Set(di, kSectors - 1);
+  const auto first = hn::Max(hn::Zero(di), hn::ConvertTo(di, hn::Ceil(hn::Sub(hn::Mul(u0, sectors), half))));
+  const auto last = hn::Min(last_sector, hn::ConvertTo(di, hn::Floor(hn::Sub(hn::Mul(u1, sectors), half))));
+  HWY_ALIGN int32_t k0[hn::MaxLanes(d)], count[hn::MaxLanes(d)];
+  hn::Store(hn::Max(hn::Add(hn::Sub(last, first), hn::Set(di, 1)), hn::Zero(di)), di, count);
+  hn::Store(hn::Min(first, last_sector), di, k0);  // only an empty range starts past the last sector
+  add_sector_runs(k0, count, occupied, hn::Lanes(d));
 }
 
 // One step of side `side` of the visibility mask (Therrien et al. 2023; finite
-// thickness_world) of each lane: the sectors the tap's segment occludes, with the side's
-// last tap's when they connect, into `occupied`; the side's last tap and its horizon (the
-// taps within the radius) updated. `occluders`: some lane's tap is one (step_coordinates);
-// without one (half of a frame's steps, on open surfaces) or without an interval, only the
-// side's last tap changes.
+// thickness_world) of each lane, a vector of lanes at a time: the sectors the tap's segment
+// occludes, with the side's last tap's when they connect, into `occupied`; the side's last
+// tap and its horizon (the taps within the radius) updated. `occluders`: some lane's tap is
+// one (step_coordinates); without one (half of a frame's steps, on open surfaces) the
+// intervals are not read, and a vector without an interval neither tests connections nor
+// adds sectors: only its side's last taps change.
 [[gnu::noinline]] void visibility_mask_step(const Constants& k, const Frame& f, const StepLanes& __restrict t, int side,
                                             bool occluders, SideLanes& __restrict st, uint64_t* __restrict occupied) {
-  alignas(64) int32_t interval[kLanes], connect[kLanes];
-  const bool intervals = occluders && connections(k, f, t, st, interval, connect);
-  alignas(64) float h0[kLanes], h1[kLanes];
-  // Without an interval no lane connects either (connections), and update_side reads
-  // neither, nor the taps' intervals, and writes no range: a step without an occluder has
-  // none to compute.
-  update_side(k, t, side, intervals ? interval : nullptr, intervals ? connect : nullptr, st, h0, h1);
-  if (!intervals) return;  // no lane has a range: no sector
-  alignas(64) int32_t k0[kLanes], count[kLanes];
-  for (int l = 0; l < kLanes; ++l) sector_range(h0[l], h1[l], k0[l], count[l]);
-  add_sector_runs(k0, count, occupied, kLanes);
+  namespace hn = hwy::HWY_NAMESPACE;
+  const hn::CappedTag<float, kLanes> d;
+  const hn::RebindToSigned<decltype(d)> di;
+  const auto none = hn::FirstN(d, 0);
+  for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
+    auto has = none, joined = none;
+    if (occluders) {
+      const auto occluder = hn::RebindMask(d, hn::Ne(hn::Load(di, t.occluder + l), hn::Zero(di)));
+      has = hn::AndNot(hn::Gt(hn::Load(d, t.u0 + l), hn::Load(d, t.u1 + l)), occluder);
+      if (!hn::AllFalse(d, has)) joined = connected_lanes(d, k, f, t, st, l, has);
+    }
+    hn::Vec<decltype(d)> h0, h1;
+    update_side_lanes(d, k, t, side, l, has, joined, st, h0, h1);
+    if (!hn::AllFalse(d, has)) add_sector_range(d, h0, h1, occupied + l);
+  }
 }
 
 // The height-field slice integral: the visible measure between the two horizons (GTAO
