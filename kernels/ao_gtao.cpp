@@ -376,6 +376,7 @@ struct Constants {
   Falloff falloff;
   ScreenToView screen_to_view;
   TapGrid grid;
+  LevelSelect levels;  // of grid
   const SectorTables* sectors;  // the visibility mask's sector measures
   // Slice angles i pi / slices as (cos, sin), rotated per pixel by one angle: no trig per
   // slice in the pixel loop.
@@ -397,6 +398,7 @@ struct Constants {
         falloff(s.radius_world, s.falloff_fraction),
         screen_to_view(in.camera),
         grid{in.depth_view.cols, in.depth_view.rows, in.frame_origin_px, s.directions, s.steps},
+        levels(grid),
         sectors(&sector_tables()),
         slice_rot(size_t(s.directions)) {
     for (int i = 0; i < slices; ++i) {
@@ -489,7 +491,7 @@ inline void step_indices(const Constants& k, const TileRow& row, const float* di
   const hn::RebindToSigned<decltype(d)> di;
   const hn::RebindToUnsigned<decltype(d)> du;
   const TapGrid& g = k.grid;
-  const LevelSelect levels(g);
+  const LevelSelect& levels = k.levels;
   // R1 sequence per step (Roberts 2018) on top of the pixel's noise.
   const auto step_shift = hn::Set(d, float(i + j * g.slices) * 0.618033988749895f);
   const auto step = hn::Set(d, float(j)), min_dist = hn::Set(d, kMinTapDistancePx), half = hn::Set(d, 0.5f);
@@ -880,10 +882,10 @@ HWY_INLINE hwy::HWY_NAMESPACE::Mask<D> connected_lanes(D d, const Constants& k, 
 // joined with the side's last one where `joined`; (1, 0) without one), the side's horizon
 // (the taps within the radius), and its last tap. std::min and std::max as selects (their
 // operand order on ties and zeros). The taps' intervals (t.u0, t.u1) are read only where
-// some lane has one.
+// some lane has one (`some`).
 template <class D>
 HWY_INLINE void update_side_lanes(D d, const Constants& k, const StepLanes& __restrict t, int side, size_t l,
-                                  hwy::HWY_NAMESPACE::Mask<D> has, hwy::HWY_NAMESPACE::Mask<D> joined,
+                                  hwy::HWY_NAMESPACE::Mask<D> has, bool some, hwy::HWY_NAMESPACE::Mask<D> joined,
                                   SideLanes& __restrict st, hwy::HWY_NAMESPACE::Vec<D>& h0,
                                   hwy::HWY_NAMESPACE::Vec<D>& h1) {
   namespace hn = hwy::HWY_NAMESPACE;
@@ -910,7 +912,6 @@ HWY_INLINE void update_side_lanes(D d, const Constants& k, const StepLanes& __re
   const auto horizon = hn::Load(d, st.horizon + l), tap = hn::Load(d, t.tap_cos_sq + l);
   hn::Store(hn::IfThenElse(hn::And(in_radius, hn::Lt(horizon, tap)), tap, horizon), d, st.horizon + l);
   const auto su0 = hn::Load(d, st.u0 + l), su1 = hn::Load(d, st.u1 + l);
-  const bool some = !hn::AllFalse(d, has);
   const auto tu0 = some ? hn::Load(d, t.u0 + l) : u_lim, tu1 = some ? hn::Load(d, t.u1 + l) : u_lim;
   // The occluded range, as an empty one (1, 0) without an interval.
   const auto lo = hn::IfThenElse(hn::And(joined, hn::Lt(su0, tu0)), su0, tu0);  // std::min(tu0, su0)
@@ -963,14 +964,16 @@ HWY_INLINE void add_sector_range(D d, hwy::HWY_NAMESPACE::Vec<D> u0, hwy::HWY_NA
   const auto none = hn::FirstN(d, 0);
   for (size_t l = 0; l < size_t(kLanes); l += hn::Lanes(d)) {
     auto has = none, joined = none;
+    bool some = false;  // some lane has an interval
     if (occluders) {
       const auto occluder = hn::RebindMask(d, hn::Ne(hn::Load(di, t.occluder + l), hn::Zero(di)));
       has = hn::AndNot(hn::Gt(hn::Load(d, t.u0 + l), hn::Load(d, t.u1 + l)), occluder);
-      if (!hn::AllFalse(d, has)) joined = connected_lanes(d, k, f, t, st, l, has);
+      some = !hn::AllFalse(d, has);
+      if (some) joined = connected_lanes(d, k, f, t, st, l, has);
     }
     hn::Vec<decltype(d)> h0, h1;
-    update_side_lanes(d, k, t, side, l, has, joined, st, h0, h1);
-    if (!hn::AllFalse(d, has)) add_sector_range(d, h0, h1, occupied + l);
+    update_side_lanes(d, k, t, side, l, has, some, joined, st, h0, h1);
+    if (some) add_sector_range(d, h0, h1, occupied + l);
   }
 }
 
