@@ -203,11 +203,11 @@ struct TexelPlane {
 // 4^L times smaller. A level's texel is a point sample, its block's centre texel: an average
 // of a depth edge's two sides would be a point on neither surface, and the block's nearest
 // texel would widen every near object by up to a block (occlusion that is not there). A
-// tap reads level L from 2^L kFineTapsPx texels away, its texel then within 1/8 of its
+// tap reads level L from 2^(L + kFineTapsLog2) texels away, its texel then within 1/8 of its
 // distance from where the pattern put it, and only where its pattern's steps are at least
 // two blocks apart (level_cap), so that consecutive taps keep their order.
 constexpr int kCoarseLevels = 4;
-constexpr int kFineTapsPx = 8;
+constexpr int kFineTapsLog2 = 3;  // taps within 8 texels read level 0
 
 // The grid the taps land on, its levels, and the pattern's counts.
 struct TapGrid {
@@ -239,17 +239,16 @@ struct TapGrid {
   }
 };
 
-// How many of the levels 1 .. kCoarseLevels value reaches: the largest L <= kCoarseLevels
-// with value >= 2^L unit, by compares (so that a loop over lanes vectorises).
-inline int32_t levels_reached(float value, int unit) {
-  int32_t level = 0;
-  for (int l = 1; l <= kCoarseLevels; ++l) level += value >= float(unit << l);
-  return level;
-}
+// floor(log2 value) of a positive normal float, from its exponent bits: negative for 0,
+// subnormals and negative values, which reach no coarse level. The levels below are this
+// less the log2 of their unit, clamped to [0, kCoarseLevels]; step_indices reads the same
+// bits in lanes (floor_log2_lanes).
+inline int32_t floor_log2(float value) { return (std::bit_cast<int32_t>(value) >> 23) - 127; }
 
 // The coarsest level a pixel's taps read, their steps spacing_px apart: a block at most half
-// the spacing (spacing_px >= 2^(L + 1)), so that consecutive taps keep their order.
-inline int32_t level_cap(float spacing_px) { return levels_reached(spacing_px, 2); }
+// the spacing (the largest L with spacing_px >= 2^(L + 1)), so that consecutive taps keep
+// their order.
+inline int32_t level_cap(float spacing_px) { return std::clamp(floor_log2(spacing_px) - 1, 0, kCoarseLevels); }
 
 // A tap's texel index in its level: index = offset[L] + (y' >> L) width[L] + (x' >> L) with
 // x' = x - origin.x, y' = y - origin.y (the picture's pixel (0, 0) at 0).
@@ -522,12 +521,11 @@ inline void step_indices(const Constants& k, const TileRow& row, const float* di
     const auto px = hn::Add(x, ox), py = hn::Add(yv, oy), nx = hn::Sub(x, ox), ny = hn::Sub(yv, oy);
     hn::Vec<decltype(di)> pos_index, neg_index;
     if constexpr (coarse) {
-      // The largest L <= the pixel's cap with dist_px >= 2^L kFineTapsPx: floor(log2 dist_px)
-      // from the float's exponent (dist_px >= kMinTapDistancePx, a normal float), less 3.
-      static_assert(kFineTapsPx == 8);
-      const auto exponent = hn::ShiftRight<23>(hn::BitCast(di, dist_px));
+      // The largest L <= the pixel's cap with dist_px >= 2^(L + kFineTapsLog2) (dist_px >=
+      // kMinTapDistancePx, a normal float).
+      const auto floor_log2_lanes = hn::Sub(hn::ShiftRight<23>(hn::BitCast(di, dist_px)), hn::Set(di, 127));
       const auto cap = hn::Load(di, row.level_cap + xi);
-      const auto level = hn::Max(hn::Min(hn::Sub(exponent, hn::Set(di, 127 + 3)), cap), zero);
+      const auto level = hn::Max(hn::Min(hn::Sub(floor_log2_lanes, hn::Set(di, kFineTapsLog2)), cap), zero);
       auto offset = hn::Set(di, levels.offset[0]), w = hn::Set(di, levels.width[0]);
       for (int lv = 1; lv <= kCoarseLevels; ++lv) {
         const auto reached = hn::Gt(level, hn::Set(di, lv - 1));

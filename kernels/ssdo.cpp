@@ -579,7 +579,7 @@ struct LocateQueue {
       const RayLanes<V> ray{hn::Load(d, clip_x + k), hn::Load(d, clip_y + k), hn::Load(d, clip_w + k),
                             hn::Load(d, p_z + k),    hn::Load(d, dir_x + k),  hn::Load(d, dir_y + k),
                             hn::Load(d, dir_w + k),  hn::Load(d, dir_z + k)};
-      const auto queued = hn::RebindMask(d, hn::Lt(iota_lanes(di, int32_t(k)), hn::Set(di, count)));
+      const auto queued = hn::FirstN(d, size_t(count) - k);
       auto found = hn::FirstN(d, 0);
       auto qx = hn::Zero(di), qy = hn::Zero(di);
       bisect_lanes(d, c, ray, queued, hn::Load(d, lo + k), hn::Load(d, hi + k), found, qx, qy);
@@ -652,7 +652,7 @@ void march_batch(const Constants& c, const Receiver& rcv, const RayFrame& f, con
   const int32_t* taps = reinterpret_cast<const int32_t*>(b.tap_at);
   for (size_t s0 = 0; s0 < size_t(kSampleBatch); s0 += hn::Lanes(d)) {
     // Lanes past the batch's count never start.
-    M active = hn::RebindMask(d, hn::Lt(iota_lanes(di, int32_t(s0)), hn::Set(di, b.count)));
+    M active = hn::FirstN(d, size_t(std::max(b.count - int(s0), 0)));
     const M none = hn::FirstN(d, 0);
     const M locate_sender_m = locate_sender ? active : none;
     M after_front = active, occluded = none, locate = none;
