@@ -618,39 +618,45 @@ inline LaneSpan lane_span(int x0, int x1, int width) {
   return {x1, x1};
 }
 
-// The images' values of pixels x .. x + N - 1 of a row (x odd, the row's texels in `row`),
-// from weights w and their sum: the blend where a pixel is foreground, the background
-// elsewhere (pixels whose weights are too small are redone one by one after).
+// Image i's values (C channels) of pixels x .. x + N - 1 of a row (x odd, the row's texels
+// in `row`), from weights w and the inverse of their sum: the blend where a pixel is
+// foreground, the background elsewhere, stored interleaved at `out`. C at compile time, so
+// that a channel's texel offsets and sums stay in registers.
+template <int C>
+void blend_image(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p, size_t i,
+                 const Lanes w[4], Lanes inv_wsum, hn::Mask<FloatLanes> fg, int x, float* out) {
+  const FloatLanes d;
+  const Lanes zero = hn::Zero(d);
+  Lanes value[C];
+  for (int ch = 0; ch < C; ++ch) {
+    const size_t offset = texels.array_offset(texels.image_first(i) + ch);
+    Lanes acc = zero;
+    for (int k = 0; k < 4; ++k) {
+      const Lanes v = lanes::image_lanes(row.array(k, offset), x, p, k & 1);
+      acc = hn::Add(acc, hn::Mul(w[k], v));  // + 0 where blend skips the texel (TexelRows)
+    }
+    value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, texels.background(i, ch)));
+  }
+  if constexpr (C == 1) hn::StoreU(value[0], d, out);
+  if constexpr (C == 2) hn::StoreInterleaved2(value[0], value[1], d, out);
+  if constexpr (C == 3) hn::StoreInterleaved3(value[0], value[1], value[2], d, out);
+  if constexpr (C == 4) hn::StoreInterleaved4(value[0], value[1], value[2], value[3], d, out);
+}
+
+// The images' values of pixels x .. x + N - 1 of a row (blend_image) from weights w and
+// their sum (pixels whose weights are too small are redone one by one after).
 void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p,
                  std::span<const UpsampleImage> images, RowPointers rows, const Lanes w[4], Lanes wsum,
                  hn::Mask<FloatLanes> fg, int x) {
-  const FloatLanes d;
-  const size_t n = hn::Lanes(d);
-  const Lanes zero = hn::Zero(d);
-  const Lanes inv_wsum = hn::Div(hn::Set(d, 1.0f), wsum);
+  const Lanes inv_wsum = hn::Div(hn::Set(FloatLanes(), 1.0f), wsum);
   for (size_t i = 0; i < images.size(); ++i) {
-    const UpsampleImage& im = images[i];
-    const int cn = im.half.channels();
-    Lanes value[kMaxChannels];
-    for (int ch = 0; ch < cn; ++ch) {
-      const size_t offset = texels.array_offset(texels.image_first(i) + ch);
-      Lanes acc = zero;
-      for (int k = 0; k < 4; ++k) {
-        const Lanes v = lanes::image_lanes(row.array(k, offset), x, p, k & 1);
-        acc = hn::Add(acc, hn::Mul(w[k], v));  // + 0 where blend skips the texel (TexelRows)
-      }
-      value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, texels.background(i, ch)));
-    }
+    const int cn = images[i].half.channels();
     float* out = rows[i] + size_t(x) * size_t(cn);
-    if (cn == 1) {
-      hn::StoreU(value[0], d, out);
-    } else if (cn == 3) {
-      hn::StoreInterleaved3(value[0], value[1], value[2], d, out);
-    } else {
-      HWY_ALIGN float v[kMaxChannels][lanes::kPadding];
-      for (int ch = 0; ch < cn; ++ch) hn::Store(value[ch], d, v[ch]);
-      for (size_t l = 0; l < n; ++l)
-        for (int ch = 0; ch < cn; ++ch) out[l * size_t(cn) + size_t(ch)] = v[ch][l];
+    switch (cn) {
+      case 1: blend_image<1>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
+      case 2: blend_image<2>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
+      case 3: blend_image<3>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
+      default: blend_image<4>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
     }
   }
 }
