@@ -644,7 +644,9 @@ void blend_image(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
 }
 
 // The images' values of pixels x .. x + N - 1 of a row (blend_image) from weights w and
-// their sum (pixels whose weights are too small are redone one by one after).
+// their sum (pixels whose weights are too small are redone one by one after). An image has
+// 1 to kMaxChannels channels (upsample_from_half_grid checks).
+static_assert(kMaxChannels == 4, "blend_lanes has a case per channel count");
 void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p,
                  std::span<const UpsampleImage> images, RowPointers rows, const Lanes w[4], Lanes wsum,
                  hn::Mask<FloatLanes> fg, int x) {

@@ -239,12 +239,32 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
   const FullGrid full{depth, normal, no_positions, mask, camera};
   HalfGrid h;
   build_half_grid(full, h, 2);
+  // One image of each channel count the upsample takes (1 to 4), their channels' texels
+  // side by side in `texel` (channels 0, 1-3, 4-5, 6-9).
   cv::Mat gray(h.depth_view.size(), CV_32FC1), color(h.depth_view.size(), CV_32FC3);
-  cv::randu(gray, -1.0f, 2.0f);
-  cv::randu(color, -1.0f, 2.0f);
-  cv::Mat up_gray(size, CV_32FC1), up_color(size, CV_32FC3);
+  cv::Mat pair(h.depth_view.size(), CV_32FC2), quad(h.depth_view.size(), CV_32FC4);
+  for (cv::Mat* m : {&gray, &color, &pair, &quad}) cv::randu(*m, -1.0f, 2.0f);
+  cv::Mat up_gray(size, CV_32FC1), up_color(size, CV_32FC3), up_pair(size, CV_32FC2), up_quad(size, CV_32FC4);
   const UpsampleImage images[] = {{gray, up_gray, cv::Scalar(7.0), cv::Scalar(9.0)},
-                                  {color, up_color, cv::Scalar(1, 2, 3), cv::Scalar(4, 5, 6)}};
+                                  {color, up_color, cv::Scalar(1, 2, 3), cv::Scalar(4, 5, 6)},
+                                  {pair, up_pair, cv::Scalar(1, 2), cv::Scalar(3, 4)},
+                                  {quad, up_quad, cv::Scalar(1, 2, 3, 4), cv::Scalar(5, 6, 7, 8)}};
+  const cv::Mat half_images[] = {gray, color, pair, quad}, full_images[] = {up_gray, up_color, up_pair, up_quad};
+  const auto texel = [&](int j, int i, int c) {
+    for (const cv::Mat& m : half_images) {
+      if (c < m.channels()) return m.ptr<float>(j)[i * m.channels() + c];
+      c -= m.channels();
+    }
+    return 0.0f;
+  };
+  const auto pixel = [&](int y, int x, int c) {
+    for (const cv::Mat& m : full_images) {
+      if (c < m.channels()) return m.ptr<float>(y)[x * m.channels() + c];
+      c -= m.channels();
+    }
+    return 0.0f;
+  };
+  constexpr int kChannels = 10;
   upsample_from_half_grid(full, h, images, cv::Rect(0, 0, size.width, size.height), 2);
 
   const int hw = h.depth_view.cols, hh = h.depth_view.rows;
@@ -261,7 +281,7 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
       const float d = depth.at<float>(y, x);
       const cv::Vec3f n = normal.at<cv::Vec3f>(y, x);
       const float inv_tol = 1.0f / (0.05f * d);
-      float ref[4], wsum = 0.0f, acc[4] = {};
+      float ref[4], wsum = 0.0f, acc[kChannels] = {};
       for (int k = 0; k < 4; ++k) {
         const int i = std::clamp(tx + (k & 1), 0, hw - 1), j = std::clamp(ty + (k >> 1), 0, hh - 1);
         ref[k] = 0.0f;
@@ -279,14 +299,11 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
       for (int k = 0; k < 4; ++k) {
         if (ref[k] == 0.0f) continue;
         const int i = std::clamp(tx + (k & 1), 0, hw - 1), j = std::clamp(ty + (k >> 1), 0, hh - 1);
-        acc[0] += ref[k] * gray.at<float>(j, i);
-        for (int ch = 0; ch < 3; ++ch) acc[1 + ch] += ref[k] * color.at<cv::Vec3f>(j, i)[ch];
+        for (int c = 0; c < kChannels; ++c) acc[c] += ref[k] * texel(j, i, c);
       }
       const float inv_wsum = 1.0f / wsum;  // one division per pixel, every channel multiplied
-      EXPECT_EQ(std::bit_cast<uint32_t>(up_gray.at<float>(y, x)), std::bit_cast<uint32_t>(acc[0] * inv_wsum));
-      for (int ch = 0; ch < 3; ++ch)
-        EXPECT_EQ(std::bit_cast<uint32_t>(up_color.at<cv::Vec3f>(y, x)[ch]),
-                  std::bit_cast<uint32_t>(acc[1 + ch] * inv_wsum));
+      for (int c = 0; c < kChannels; ++c)
+        EXPECT_EQ(std::bit_cast<uint32_t>(pixel(y, x, c)), std::bit_cast<uint32_t>(acc[c] * inv_wsum)) << c;
     }
   EXPECT_GT(blended, size.area() / 4);
   EXPECT_GT(underflowed, 100);
