@@ -69,10 +69,10 @@ bool use_simd_target(std::string_view name) {
   for (int64_t targets = runnable_targets(); targets != 0; targets &= targets - 1) {
     const int64_t bit = targets & -targets;
     const std::string_view target = hwy::TargetName(bit);
-    const bool same = target.size() == name.size() &&
-                      std::equal(target.begin(), target.end(), name.begin(), [](char a, char b) {
-                        return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
-                      });
+    const bool same =
+        target.size() == name.size() && std::equal(target.begin(), target.end(), name.begin(), [](char a, char b) {
+          return std::tolower(static_cast<unsigned char>(a)) == std::tolower(static_cast<unsigned char>(b));
+        });
     if (!same) continue;
     disable_targets(bit - 1);  // the better targets are the lower bits
     return true;
@@ -93,8 +93,8 @@ bool apply_simd_choice(const char* value, std::string& error) {
   if (use_simd_target(value)) return true;
   std::string names;
   for (const std::string& n : simd_targets_runnable()) names += (names.empty() ? "" : ", ") + n;
-  error = std::string("SSDO_SIMD='") + value + "': expected best, baseline or an instruction set this build and CPU run (" +
-          names + ")";
+  error = std::string("SSDO_SIMD='") + value +
+          "': expected best, baseline or an instruction set this build and CPU run (" + names + ")";
   return false;
 }
 

@@ -125,7 +125,8 @@ std::string sidecar_values_error(const SidecarCamera& s, bool has_far) {
   if (has_far && !(c.far_view > c.near_view))
     return "\"clip_far\" (" + std::to_string(c.far_view) + ") must lie beyond \"clip_near\" (" +
            std::to_string(c.near_view) + ")";
-  for (const auto& [key, value] : {std::pair{"ao_distance", s.ao_distance_world}, std::pair{"background_depth", s.background_depth}})
+  for (const auto& [key, value] :
+       {std::pair{"ao_distance", s.ao_distance_world}, std::pair{"background_depth", s.background_depth}})
     if (value && !(std::isfinite(*value) && *value > 0.0f))
       return std::string("\"") + key + "\" must be a positive distance in scene units, not " + std::to_string(*value);
   const glm::mat4& p = c.view_to_clip;
@@ -246,7 +247,8 @@ std::optional<SidecarCamera> read_camera_sidecar(const std::string& path, std::s
     return fail("\"depth_kind\" must be \"planar\" or \"radial\", not \"" + *s.depth_kind + "\"");
   s.normal_space = text("normal_space");
   s.position_space = text("position_space");
-  for (const auto& [key, space] : {std::pair{"normal_space", s.normal_space}, std::pair{"position_space", s.position_space}})
+  for (const auto& [key, space] :
+       {std::pair{"normal_space", s.normal_space}, std::pair{"position_space", s.position_space}})
     if (space && *space != "world" && *space != "view" && *space != "camera")
       return fail(std::string("\"") + key + "\" must be \"world\", \"view\" or \"camera\" (= view), not \"" + *space +
                   "\"");
@@ -362,8 +364,8 @@ std::string check_optical_axis(glm::dmat4& camera_to_ndc, double forward_z, cons
   std::ostringstream e;
   e << "worldToNDC puts the optical axis at NDC (" << rounded(axis.x, 1e-3) << ", " << rounded(axis.y, 1e-3)
     << "), pixel (" << rounded(display.min_x + axis.x * double(display.width()), 0.1) << ", "
-    << rounded(display.min_y + axis.y * double(display.height()), 0.1) << "): at or outside the display window (" << display.width() << " x " << display.height() << " at ("
-    << display.min_x << ", " << display.min_y
+    << rounded(display.min_y + axis.y * double(display.height()), 0.1) << "): at or outside the display window ("
+    << display.width() << " x " << display.height() << " at (" << display.min_x << ", " << display.min_y
     << "); OpenEXR's NDC spans it from (0, 0) to (1, 1)), which no camera of a whole frame does (a matrix of "
        "another convention?)";
   return e.str();

@@ -61,7 +61,8 @@ std::string check_exr(const std::string& path, long long max_pixels, const Imf::
     names = {"Y", "Y", "Y"};
   else {
     std::string found;
-    for (auto it = channels.begin(); it != channels.end(); ++it) found += (found.empty() ? "" : ", ") + std::string(it.name());
+    for (auto it = channels.begin(); it != channels.end(); ++it)
+      found += (found.empty() ? "" : ", ") + std::string(it.name());
     return path + ": the environment map needs channels R, G and B, or Y (it has " + found + ")";
   }
   return {};

@@ -58,9 +58,9 @@ inline glm::vec3 eye_ray(const ForegroundPass& pass, const glm::vec3& ray_row, i
 }
 
 // A stored depth sample as planar depth, or +inf when it is background: non-finite, below
-// kMinForegroundDepth (0 and negative included), >= kBackgroundDepth, beyond the far clip or the sidecar's background value. Radial
-// distance from the eye -> planar depth along -Z: d_planar = d cos(angle to the axis) =
-// d / |ray| for a ray with z = -1.
+// kMinForegroundDepth (0 and negative included), >= kBackgroundDepth, beyond the far clip
+// or the sidecar's background value. Radial distance from the eye -> planar depth along
+// -Z: d_planar = d cos(angle to the axis) = d / |ray| for a ray with z = -1.
 inline float planar_depth(const ForegroundPass& pass, const glm::vec3& ray, float stored) {
   const float inf = std::numeric_limits<float>::infinity();
   if (!std::isfinite(stored)) return inf;

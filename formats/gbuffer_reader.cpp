@@ -286,7 +286,8 @@ bool check_used_parts(const std::string& path, const ReadOptions& options, ReadR
                                 describe_box(prep.data));
     return true;
   });
-  prep.lighting_from_passes = prep.lighting_from_passes && prep.channels.find("albedo") && prep.channels.find("diffdir");
+  prep.lighting_from_passes =
+      prep.lighting_from_passes && prep.channels.find("albedo") && prep.channels.find("diffdir");
   for (const auto& r : prep.channels.inputs) {
     if (!wanted(r, options, prep.lighting_from_passes)) continue;
     const Imf::Header& h = prep.file->header(r.part);
@@ -429,8 +430,9 @@ bool camera_from_header(const std::string& path, const std::string& sidecar, int
 bool camera_from_fov(const std::string& path, const std::string& sidecar, const std::string& partial_header,
                      const ReadOptions& options, ReadResult& result, Prepared& prep) {
   if (!options.fov_x_deg && !partial_header.empty())
-    return fail(result, path + ": no camera: " + partial_header + ": store the missing attribute, give a JSON sidecar (" +
-                            sidecar + " or an explicit camera JSON path), or pass a horizontal field of view (--fov DEGREES)");
+    return fail(result, path + ": no camera: " + partial_header +
+                            ": store the missing attribute, give a JSON sidecar (" + sidecar +
+                            " or an explicit camera JSON path), or pass a horizontal field of view (--fov DEGREES)");
   if (!options.fov_x_deg)
     return fail(result, path + ": no camera: give a JSON sidecar (" + sidecar +
                             " or an explicit camera JSON path), store worldToCamera and "
@@ -449,7 +451,8 @@ bool camera_from_fov(const std::string& path, const std::string& sidecar, const 
                                   square ? 1.0f : pixel_aspect);
   if (!square) {
     std::ostringstream note;
-    note << "pixels " << pixel_aspect << " times as wide as tall (pixelAspectRatio): the vertical field of view follows";
+    note << "pixels " << pixel_aspect
+         << " times as wide as tall (pixelAspectRatio): the vertical field of view follows";
     result.info.notes.push_back(note.str());
   }
   cam.view_to_clip = projection_for_data_window(cam.view_to_clip, prep.display, prep.data);

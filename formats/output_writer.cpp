@@ -811,7 +811,8 @@ class OpenedExr {
   exr_core::Context file_;
 };
 
-std::vector<std::optional<std::string>> string_attributes(const OpenedExr& file, const std::vector<std::string>& names) {
+std::vector<std::optional<std::string>> string_attributes(const OpenedExr& file,
+                                                          const std::vector<std::string>& names) {
   std::vector<std::optional<std::string>> values(names.size());
   if (!file.context()) return values;
   for (size_t i = 0; i < names.size(); ++i) {

@@ -159,7 +159,8 @@ struct SectorTables {
     for (int k = 0; k <= kSectors; ++k) {
       const double p = -1.0 + 2.0 * double(k) / kSectors;
       // tan f = p / (1 - |p|); the limits are +-pi / 2.
-      const double f = std::abs(p) == 1.0 ? std::copysign(std::numbers::pi / 2.0, p) : std::atan(p / (1.0 - std::abs(p)));
+      const double f =
+          std::abs(p) == 1.0 ? std::copysign(std::numbers::pi / 2.0, p) : std::atan(p / (1.0 - std::abs(p)));
       gd[k][0] = 0.5 * std::sin(f) * std::sin(f);
       gd[k][1] = 0.5 * f + 0.25 * std::sin(2.0 * f);
       g1[k] = float(gd[k][0]), g2[k] = float(gd[k][1]);
@@ -1029,8 +1030,8 @@ inline void visibility_mask_integrals(const SectorTables& t, const uint64_t* occ
     }
     const auto split_on = hn::BitCast(df, hn::TruncateTo(du32, hn::VecFromMask(du, hn::TestBit(occ, split_bit))));
     const auto split_part = hn::And(split_on, hn::Load(df, s.split_measure + l));
-    const auto occluded = hn::Add(hn::Add(hn::Mul(hn::Load(df, s.cos_n + l), g1), hn::Mul(hn::Load(df, s.sin_n + l), g2)),
-                                  split_part);
+    const auto occluded =
+        hn::Add(hn::Add(hn::Mul(hn::Load(df, s.cos_n + l), g1), hn::Mul(hn::Load(df, s.sin_n + l), g2)), split_part);
     const auto total = hn::Load(df, s.weight_total + l);
     const auto v = hn::Sub(total, occluded);
     const auto low = hn::IfThenElse(hn::Lt(v, zero), zero, v);

@@ -313,7 +313,8 @@ void raymarch_rows(const AoInputs& in, const Constants& k, AoOutput& out, cv::Ma
       float* conf_row = confidence ? confidence->ptr<float>(y) : nullptr;
       for (int x = roi.x; x < roi.x + roi.width; ++x) {
         // Background: AO 1, no bent normal, confidence 1.
-        const PixelResult r = mask_row[x] ? shade_pixel(k, in, taps, x, y, steps) : PixelResult{1.0f, glm::vec3(0.0f), 1.0f};
+        const PixelResult r =
+            mask_row[x] ? shade_pixel(k, in, taps, x, y, steps) : PixelResult{1.0f, glm::vec3(0.0f), 1.0f};
         ao_row[x] = r.ao;
         bent_row[x] = cv::Vec3f(r.bent_normal.x, r.bent_normal.y, r.bent_normal.z);
         if (conf_row) conf_row[x] = r.confidence;

@@ -226,7 +226,8 @@ void add_decided_behind_surfaces(const TapFrame& frame, const TapLanes& __restri
         const auto overlap = hn::Sub(hn::Min(hn::Add(lo, w), s1), hn::Max(lo, begin));
         const auto bin = hn::Set(di, i);
         const auto outside_part = hn::RebindMask(d, hn::Or(hn::Gt(first, bin), hn::Gt(bin, last)));
-        const auto bit_set = hn::RebindMask(d, hn::Ne(hn::And(hn::ShiftRightSame(tap_bits, i), hn::Set(di, 1)), hn::Zero(di)));
+        const auto bit_set =
+            hn::RebindMask(d, hn::Ne(hn::And(hn::ShiftRightSame(tap_bits, i), hn::Set(di, 1)), hn::Zero(di)));
         const auto adds = hn::AndNot(outside_part, hn::And(hn::And(counted, hn::Gt(overlap, zero)), bit_set));
         decided = hn::Add(decided, hn::IfThenElseZero(adds, overlap));
       }
@@ -267,7 +268,8 @@ void add_unknown_chords_decided(const TapFrame& frame, const TapLanes& __restric
       const auto length = hn::IfThenElseZero(is_unknown, hn::Mul(hn::Sub(s1, s0), hn::Load(d, &tap.len_scale[k][j0])));
       unknown_sum = hn::Add(unknown_sum, length);
       const auto is_unknown_i = hn::RebindMask(di, is_unknown);
-      const auto asks = hn::RebindMask(d, hn::And(is_unknown_i, hn::Eq(hn::And(n_unknown, hn::Set(di, kUnknownTapStride - 1)), hn::Zero(di))));
+      const auto asks = hn::RebindMask(
+          d, hn::And(is_unknown_i, hn::Eq(hn::And(n_unknown, hn::Set(di, kUnknownTapStride - 1)), hn::Zero(di))));
       n_unknown = hn::Add(n_unknown, hn::IfThenElseZero(is_unknown_i, hn::Set(di, 1)));
       asked_sum = hn::Add(asked_sum, hn::IfThenElseZero(asks, length));
       if (hn::AllFalse(d, asks)) continue;
@@ -302,7 +304,8 @@ void add_observed_by_views(const TapFrame& frame, const TapLanes& tap, double (&
   add_decided_behind_surfaces(frame, tap, behind_surface);
   add_unknown_chords_decided(frame, tap, unknown, unknown_asked, unknown_decided);
   for (int j = 0; j < kLanes; ++j) {
-    const float unknown_observed = unknown_asked[j] > 0.0f ? unknown[j] * (unknown_decided[j] / unknown_asked[j]) : 0.0f;
+    const float unknown_observed =
+        unknown_asked[j] > 0.0f ? unknown[j] * (unknown_decided[j] / unknown_asked[j]) : 0.0f;
     observed[j] += double(behind_surface[j] + unknown_observed);
   }
 }
@@ -501,8 +504,8 @@ void compute_confidence(const cv::Mat& depth_view, const cv::Mat& normal_view,
   const UninitializedVector<float> surface = surface_plane(depth_view, mask, s.depth_bias_relative, nthreads);
   std::unique_ptr<PointVerdicts> verdicts;
   if (!views.views.empty()) verdicts = std::make_unique<PointVerdicts>(camera, views.views, views.settings);
-  TapFrame taps{pixel_rays(camera), spiral.x.data(), spiral.y.data(), s.taps, size.width, size.height,
-                surface.data(), verdicts.get(), nullptr, nullptr, s.view_bins, 2.0f * s.radius_world / float(s.view_bins)};
+  TapFrame taps{pixel_rays(camera), spiral.x.data(), spiral.y.data(), s.taps, size.width, size.height, surface.data(),
+                verdicts.get(), nullptr, nullptr, s.view_bins, 2.0f * s.radius_world / float(s.view_bins)};
   cv::Mat decided_bins;  // contiguous: created whole
   std::vector<float> chord_offsets;
   if (verdicts) {

@@ -68,7 +68,8 @@ cv::Mat irradiance_table(const cv::Mat& source, int nthreads) {
       }
       cv::Vec3f* out = table.ptr<cv::Vec3f>(jn);
       const float inv = float(1.0 / weight_sum);
-      for (int i = 0; i < w; ++i) out[i] = cv::Vec3f(acc[size_t(i)] * inv, acc[size_t(w + i)] * inv, acc[size_t(2 * w + i)] * inv);
+      for (int i = 0; i < w; ++i)
+        out[i] = cv::Vec3f(acc[size_t(i)] * inv, acc[size_t(w + i)] * inv, acc[size_t(2 * w + i)] * inv);
     }
   }, 1);
   return table;

@@ -1020,8 +1020,9 @@ void extend_grid_with_views(GridInputs& g, const TermInputs& in, const TermSetti
   pad(g.albedo);
   pad(g.lighting);
   const int w = band.camera.width_px, h = band.camera.height_px;
-  for (const cv::Rect& side : {cv::Rect(0, 0, w, m.top), cv::Rect(0, h - m.bottom, w, m.bottom),
-                               cv::Rect(0, m.top, m.left, inside.height), cv::Rect(w - m.right, m.top, m.right, inside.height)}) {
+  for (const cv::Rect& side :
+       {cv::Rect(0, 0, w, m.top), cv::Rect(0, h - m.bottom, w, m.bottom), cv::Rect(0, m.top, m.left, inside.height),
+        cv::Rect(w - m.right, m.top, m.right, inside.height)}) {
     if (side.empty()) continue;  // an empty roi would mean the whole image
     reconstruct_normals_from_depth(band.depth_view, band.mask, band.camera, g.normal_view, side, nthreads);
     if (!g.position_view.empty())
@@ -1168,7 +1169,8 @@ void compute_on_half_grid(const FullGrid& full, const TermInputs& in, const Term
   if (half.ssdo) ssdo_on_grid(g, in, *settings.ssdo, term_roi, grid.ssdo, nthreads);
   HalfGridTerms raw{h, grid.ao.ao, grid.ssdo.direct, grid.ssdo.indirect};
   if (!settings.keep_grid_terms) add_raw_grid_terms(raw, out, images);
-  if (settings.denoise) denoise_grid_terms(raw, *settings.denoise, half_roi, grid.denoised, out.denoised, images, nthreads);
+  if (settings.denoise)
+    denoise_grid_terms(raw, *settings.denoise, half_roi, grid.denoised, out.denoised, images, nthreads);
   if (half.confidence) {
     // The views at the grid's density: the confidence's scattered asks read a quarter of
     // the memory for a fraction the grid's taps cannot resolve finer.

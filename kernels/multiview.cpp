@@ -128,7 +128,8 @@ void band_reach_of_rows(const cv::Mat& depth_view, const cv::Mat& mask, const Ca
     float reach = 0.0f;
     for (int x = 0; x < depth_view.cols; ++x) {
       if (!mask_row[x] || !(depth_row[x] > 0.0f && std::isfinite(depth_row[x]))) continue;
-      const glm::vec2 radius_px = glm::min(glm::vec2(max_radius_px), radius_world * camera.pixels_per_unit(depth_row[x]));
+      const glm::vec2 radius_px =
+          glm::min(glm::vec2(max_radius_px), radius_world * camera.pixels_per_unit(depth_row[x]));
       const float to_edge_x = std::min(float(x) + 0.5f, w - float(x) - 0.5f);
       reach = std::max({reach, radius_px.x - to_edge_x, radius_px.y - to_edge_y});
     }

@@ -137,8 +137,10 @@ void set_up_rays(const Constants& k, const PixelRays& rays, Group& g) {
     // The ray's points are affine in planar depth: p(d) = a + d b (PixelRays).
     hn::Vec<GroupTag> a[3], b[3];
     for (int c = 0; c < 3; ++c) {
-      a[c] = hn::Add(hn::Add(hn::Set(d, rays.o0[c]), hn::Mul(px, hn::Set(d, rays.ox[c]))), hn::Mul(py, hn::Set(d, rays.oy[c])));
-      b[c] = hn::Add(hn::Add(hn::Set(d, rays.u0[c]), hn::Mul(px, hn::Set(d, rays.ux[c]))), hn::Mul(py, hn::Set(d, rays.uy[c])));
+      a[c] = hn::Add(hn::Add(hn::Set(d, rays.o0[c]), hn::Mul(px, hn::Set(d, rays.ox[c]))),
+                     hn::Mul(py, hn::Set(d, rays.oy[c])));
+      b[c] = hn::Add(hn::Add(hn::Set(d, rays.u0[c]), hn::Mul(px, hn::Set(d, rays.ux[c]))),
+                     hn::Mul(py, hn::Set(d, rays.uy[c])));
     }
     for (size_t v = 0; v < k.views.size(); ++v) {
       const glm::mat4& m = k.views[v].clip_from_frame_view;
@@ -297,7 +299,8 @@ void write_decided_bins(const MultiViewInputs& in, const Constants& k, float sur
       uint8_t* out = decided.ptr<uint8_t>(y);
       for_each_group(in, k, rays, y, 1, g, [&](Group& group) {
         alignas(32) int32_t bits[kGroup];
-        for (int j = 0; j < kGroup; ++j) group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
+        for (int j = 0; j < kGroup; ++j)
+          group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
         for (size_t j0 = 0; j0 < size_t(kGroup); j0 += hn::Lanes(d)) {
           const auto surface = hn::Mul(hn::Load(d, group.front + j0), hn::Set(d, surface_scale));
           auto lane_bits = hn::Zero(di);
@@ -367,13 +370,15 @@ void count_view_verdicts(const MultiViewInputs& in, const Constants& k, int stri
     const GroupTag d;
     for (int y = range.start * stride_px; y < range.end * stride_px && y < in.depth_view.rows; y += stride_px) {
       for_each_group(in, k, rays, y, stride_px, g, [&](Group& group) {
-        for (int j = 0; j < kGroup; ++j) group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
+        for (int j = 0; j < kGroup; ++j)
+          group.front[j] = in.depth_view.ptr<float>(y)[group.x[std::min(j, group.n - 1)]];
         for (size_t j0 = 0; j0 < size_t(group.n); j0 += hn::Lanes(d)) {
           const auto pixels = hn::FirstN(d, size_t(group.n) - j0);  // not the repeated lanes
           for (size_t v = 0; v < nv; ++v) {
             hn::Mask<GroupTag> free, occupied;
-            const auto known = classify_lanes(d, k.views[v], ray_vectors(d, group.rays[v], j0), hn::Load(d, group.front + j0),
-                                              k.s.depth_bias_relative, k.s.thickness_world, free, occupied);
+            const auto known =
+                classify_lanes(d, k.views[v], ray_vectors(d, group.rays[v], j0), hn::Load(d, group.front + j0),
+                               k.s.depth_bias_relative, k.s.thickness_world, free, occupied);
             seen[size_t(y) * nv + v] += int64_t(hn::CountTrue(d, hn::And(pixels, known)));
             contradicted[size_t(y) * nv + v] += int64_t(hn::CountTrue(d, hn::And(pixels, free)));
           }

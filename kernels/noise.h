@@ -115,7 +115,8 @@ inline void sincos_turns(float t, float& cos_out, float& sin_out) {
   const float quarter = std::nearbyint(4.0f * t);
   const float x = (4.0f * t - quarter) * 1.57079632679489662f;  // [-pi/4, pi/4]
   const float x2 = x * x;
-  const float s = x * (1.0f + x2 * (-1.0f / 6.0f + x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
+  const float s =
+      x * (1.0f + x2 * (-1.0f / 6.0f + x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
   const float c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24.0f + x2 * (-1.0f / 720.0f +
                                                                  x2 * (1.0f / 40320.0f + x2 * (-1.0f / 3628800.0f)))));
   // Rotated by the quarter turns taken out (selects, not a switch: callers run it in

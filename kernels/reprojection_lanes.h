@@ -61,7 +61,8 @@ inline ProjectedLanes project(const Camera& camera, const Vec3L& p) {
   const DF d;
   const glm::mat4& m = camera.view_to_clip;  // m[column][row]
   auto clip_row = [&](int row) {
-    return hn::Add(dot({hn::Set(d, m[0][row]), hn::Set(d, m[1][row]), hn::Set(d, m[2][row])}, p), hn::Set(d, m[3][row]));
+    return hn::Add(dot({hn::Set(d, m[0][row]), hn::Set(d, m[1][row]), hn::Set(d, m[2][row])}, p),
+                   hn::Set(d, m[3][row]));
   };
   const VF clip_w = clip_row(3);
   const MF valid = hn::Gt(clip_w, hn::Zero(d));

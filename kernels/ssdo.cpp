@@ -406,8 +406,9 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
     // is rho2 in [1, 4), exponent 0..1, level 1; [32, 64) px level 2; ...
     const VI exponent =
         hn::Sub(hn::And(hn::ShiftRight<23>(hn::BitCast(di, rho2)), hn::Set(di, 0xFF)), hn::Set(di, 127));
-    const VI level = hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
-                                        hn::Min(hn::Set(di, c.n_levels - 1), hn::Add(hn::ShiftRight<1>(exponent), hn::Set(di, 1))));
+    const VI level =
+        hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
+                           hn::Min(hn::Set(di, c.n_levels - 1), hn::Add(hn::ShiftRight<1>(exponent), hn::Set(di, 1))));
     const VI rows_2h = hn::Set(di, c.pyramid_rows_2h);
     const VI texel_x = hn::operator>>(qx, level), texel_y = hn::operator>>(qy, level);
     const VI row = hn::Add(hn::Sub(rows_2h, hn::operator>>(rows_2h, level)), texel_y);
@@ -442,8 +443,9 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
   const M within_thickness = hn::Lt(behind, thickness);
   static_assert(int(Tap::visible) == 0 && int(Tap::occluded) == 1 && int(Tap::behind) == 2 &&
                 int(Tap::off_screen) == 3);
-  const VI in_view = hn::IfThenElseZero(hn::RebindMask(di, hn::AndNot(background, beyond_bias)),
-                                        hn::IfThenElse(hn::RebindMask(di, within_thickness), hn::Set(di, 1), hn::Set(di, 2)));
+  const VI in_view =
+      hn::IfThenElseZero(hn::RebindMask(di, hn::AndNot(background, beyond_bias)),
+                         hn::IfThenElse(hn::RebindMask(di, within_thickness), hn::Set(di, 1), hn::Set(di, 2)));
   return hn::IfThenElse(hn::RebindMask(di, on_screen), in_view, hn::Set(di, 3));
 }
 
@@ -921,7 +923,8 @@ bool oracle_march(const Constants& c, const Receiver& rcv, const RayFrame& f, co
   for (int k0 = 0; k0 < steps; k0 += int(hn::Lanes(d))) {
     // lambda = (k + step_jitter) step + 1e-7 r: > 0 always.
     const auto k = hn::ConvertTo(d, iota_lanes(di, k0));
-    const auto lambda = hn::Add(hn::Mul(hn::Add(k, hn::Set(d, step_jitter)), hn::Set(d, step)), hn::Set(d, 1e-7f * rcv.r));
+    const auto lambda =
+        hn::Add(hn::Mul(hn::Add(k, hn::Set(d, step_jitter)), hn::Set(d, step)), hn::Set(d, 1e-7f * rcv.r));
     auto lane_x = hn::Zero(di), lane_y = hn::Zero(di);
     const auto ray = receiver_rays(d, rcv, f, hn::Set(d, cw.x), hn::Set(d, cw.y), hn::Set(d, cw.w), hn::Set(d, w.z));
     const auto tap = test_along(d, c, f.origin_px, ray, lambda, true, lane_x, lane_y);
@@ -968,7 +971,8 @@ void oracle_pixel(const Constants& c, int x, int y, bool want_direct, bool want_
       }
       if (!want_indirect) continue;
       const SenderTexel& sender = c.senders[size_t(qy) * size_t(c.width_px) + size_t(qx)];
-      if (glm::dot(sender.normal_view, p - sender.position_view) > 0.0f) indirect_sum += sender_radiance(c, sender_direct, qx, qy);
+      if (glm::dot(sender.normal_view, p - sender.position_view) > 0.0f)
+        indirect_sum += sender_radiance(c, sender_direct, qx, qy);
     }
   }
   const float inv_k = 1.0f / float(g * g);
@@ -1403,7 +1407,8 @@ std::string validate(const SsdoSettings& s) {
   if (s.resolution_divisor < 1 || s.resolution_divisor > 2)
     return detail::out_of_range("resolution_divisor", s.resolution_divisor, "[1, 2]");
   if (s.oracle_grid < 1 || s.oracle_grid > 256) return detail::out_of_range("oracle_grid", s.oracle_grid, "[1, 256]");
-  if (s.oracle_steps < 1 || s.oracle_steps > 4096) return detail::out_of_range("oracle_steps", s.oracle_steps, "[1, 4096]");
+  if (s.oracle_steps < 1 || s.oracle_steps > 4096)
+    return detail::out_of_range("oracle_steps", s.oracle_steps, "[1, 4096]");
   return {};
 }
 

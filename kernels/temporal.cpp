@@ -201,7 +201,8 @@ void add_texel_lanes(const NeighbourPlanes& u, const CarriedLanes& c, MF inside,
   const DI di;
   MF ok;
   VI sx, sy;
-  const VF w = texel_weight_lanes(u, c, inside, x0, y0, bilinear, inverse_tolerance, normal_power, cols, rows, ok, sx, sy);
+  const VF w =
+      texel_weight_lanes(u, c, inside, x0, y0, bilinear, inverse_tolerance, normal_power, cols, rows, ok, sx, sy);
   sums.total = hn::IfThenElse(ok, hn::Add(sums.total, w), sums.total);
   auto add_channel = [&](int k, VF v) {
     const VF sum = hn::Load(d, sums.channel[k]);
@@ -251,7 +252,8 @@ void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const
     inside = hn::And(inside, hn::And(hn::Lt(fx, hn::Set(d, float(cols))), hn::Lt(fy, hn::Set(d, float(rows)))));
     const VF ax = hn::IfThenElseZero(inside, hn::Sub(gx, fx)), ay = hn::IfThenElseZero(inside, hn::Sub(gy, fy));
     const DI di;
-    const VI x0 = hn::ConvertTo(di, hn::IfThenElseZero(inside, fx)), y0 = hn::ConvertTo(di, hn::IfThenElseZero(inside, fy));
+    const VI x0 = hn::ConvertTo(di, hn::IfThenElseZero(inside, fx)),
+             y0 = hn::ConvertTo(di, hn::IfThenElseZero(inside, fy));
     const VI one_i = hn::Set(di, 1);
     const VF one = hn::Set(d, 1.0f);
     const VF bx[2] = {hn::Sub(one, ax), ax}, by[2] = {hn::Sub(one, ay), ay};
@@ -283,7 +285,8 @@ FrameLanes frame_lanes(const TemporalFrame& f, int y, int x0, int step_px, int x
     nz[i] = in ? normal_row[3 * x + 2] : 0.0f;
     fg[i] = in ? 1.0f : 0.0f;
   }
-  return {hn::Load(d, depth), {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)}, hn::Gt(hn::Load(d, fg), hn::Zero(d))};
+  return {
+      hn::Load(d, depth), {hn::Load(d, nx), hn::Load(d, ny), hn::Load(d, nz)}, hn::Gt(hn::Load(d, fg), hn::Zero(d))};
 }
 
 // One row of the roi: each pixel's terms filtered (temporal.h), or copied where nothing
@@ -327,8 +330,9 @@ void measure_lanes(const TemporalFrame& f, const Neighbour& n, const NeighbourPl
   const DF d;
   const DI di;
   const FrameLanes pixels = frame_lanes(f, y, x0, kMeasureStridePx, f.depth_view.cols);
-  const VF px = hn::Add(hn::ConvertTo(d, hn::Add(hn::Mul(hn::Iota(di, 0), hn::Set(di, kMeasureStridePx)), hn::Set(di, x0))),
-                        hn::Set(d, 0.5f));
+  const VF px =
+      hn::Add(hn::ConvertTo(d, hn::Add(hn::Mul(hn::Iota(di, 0), hn::Set(di, kMeasureStridePx)), hn::Set(di, x0))),
+              hn::Set(d, 0.5f));
   const VF depth_v = pixels.depth;
   const MF foreground = pixels.foreground;
   const CarriedLanes c = carry_lanes(n.reprojection, px, hn::Set(d, float(y) + 0.5f), depth_v, pixels.normal);

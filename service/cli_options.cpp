@@ -127,10 +127,11 @@ bool frame_options_over_config(const CLI::App& app, const std::string& config, F
   if (TermSelection terms; !c.composite.empty() && parse_terms(c.terms, terms, error) && !terms.composite)
     std::fprintf(stderr, "ssdo: note: --composite has no effect: --terms %s writes no composite\n", c.terms.c_str());
   if (const std::string note = quality_choice_note(check); !note.empty())
-    std::fprintf(stderr, "ssdo: %s%s\n", note.c_str(),
-                 given(app, "method") || given(app, "preset")
-                     ? " (AO's --method and --preset give way to --quality auto; SSDO keeps --ssdo-preset, else --preset)"
-                     : "");
+    std::fprintf(
+        stderr, "ssdo: %s%s\n", note.c_str(),
+        given(app, "method") || given(app, "preset")
+            ? " (AO's --method and --preset give way to --quality auto; SSDO keeps --ssdo-preset, else --preset)"
+            : "");
   return true;
 }
 
@@ -420,7 +421,8 @@ bool resolve_environment(const ComputeOptionArgs& a, FrameRequest& request, std:
   } else if (!a.sky.empty()) {
     SkyGradient sky;
     if (!parse_sky(a.sky, sky.top, sky.bottom, error)) return false;
-    if (build_environment) request.environment = std::make_shared<const Environment>(Environment::sky(sky, env_settings));
+    if (build_environment)
+      request.environment = std::make_shared<const Environment>(Environment::sky(sky, env_settings));
   } else if (a.env_constant > 0 && build_environment) {
     request.environment =
         std::make_shared<const Environment>(Environment::constant(glm::vec3(a.env_constant), env_settings));

@@ -414,14 +414,16 @@ Command register_bench(CLI::App& app) {
   cmd->add_option("--runs", b.runs, "Runs per configuration (median time)")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
-  cmd->add_option("--methods", st->methods, "Methods to run (default hemisphere hbao gtao; raymarch is minutes per frame)")
+  cmd->add_option("--methods", st->methods,
+                  "Methods to run (default hemisphere hbao gtao; raymarch is minutes per frame)")
       ->check(CLI::IsMember({"hemisphere", "hbao", "gtao", "raymarch"}));
   cmd->add_flag("--no-sweep", st->no_sweep, "Presets only, no sample-count sweep");
   cmd->add_option("--external", b.external_csv,
                   "CSV of an external reference's cost (series,label,ms,mae), e.g. a ray "
                   "tracer at several sample counts, plotted beside the methods")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores; at most the cores)")->check(CLI::Range(0, 1024));
+  cmd->add_option("--threads", b.request.threads, "Threads for the kernels (0 = all cores; at most the cores)")
+      ->check(CLI::Range(0, 1024));
   cmd->add_option("--temporal", b.temporal,
                   "Also each preset computed as a shot, with --temporal K: the frames of a sequence among the files "
                   "(names that differ in a frame number) filtered over K frames each side, their time including the "

@@ -256,7 +256,8 @@ Command register_client(CLI::App& app) {
       ->required()
       ->check(CLI::IsMember({"ping", "stats", "process"}));
   cmd->add_option("files", c.files, "process: frames (paths the service may read, or sent with --inline)");
-  cmd->add_flag("--inline", c.inline_data, "Send the frames' bytes (and NAME.camera.json) and receive the outputs' bytes");
+  cmd->add_flag("--inline", c.inline_data,
+                "Send the frames' bytes (and NAME.camera.json) and receive the outputs' bytes");
   cmd->add_option("-o,--out", c.out_dir, "--inline: folder for the outputs")->capture_default_str();
   cmd->add_option("--max-inline-mb", c.max_inline_mb, "--inline: largest output the service may send back, MiB")
       ->check(CLI::Range(size_t(1), size_t(1) << 20))

@@ -212,8 +212,8 @@ std::string window_note(const FrameRequest& asked, const FrameRequest& used, int
            "memory than " + limit;
   return "computed with fewer neighbours (--views " + std::to_string(used.views_per_side) + " --temporal " +
          std::to_string(used.temporal_per_side) + " instead of " + std::to_string(asked.views_per_side) + " and " +
-         std::to_string(asked.temporal_per_side) + "): with more of its shot's neighbours the frame needs more memory than " +
-         limit;
+         std::to_string(asked.temporal_per_side) +
+         "): with more of its shot's neighbours the frame needs more memory than " + limit;
 }
 
 // A frame computed within the worker's memory, and the window it was computed with.
@@ -228,7 +228,8 @@ struct FittedFrame {
 FrameResult process_with_window(FrameRequest& used, SequenceContext& context) {
   std::vector<std::pair<std::string, std::string>>& attributes = used.write.string_attributes;
   std::erase_if(attributes, [](const auto& a) { return a.first == kWindowAttribute; });
-  attributes.push_back({kWindowAttribute, window_attribute(used.neighbours, used.views_per_side, used.temporal_per_side)});
+  attributes.push_back(
+      {kWindowAttribute, window_attribute(used.neighbours, used.views_per_side, used.temporal_per_side)});
   return process_frame(used, &context);
 }
 
@@ -260,7 +261,8 @@ FittedFrame process_frame_within_memory(const FrameRequest& request, int64_t pix
   }
   f.views_per_side = used.views_per_side;
   f.temporal_per_side = used.temporal_per_side;
-  const bool reduced = used.views_per_side != request.views_per_side || used.temporal_per_side != request.temporal_per_side;
+  const bool reduced =
+      used.views_per_side != request.views_per_side || used.temporal_per_side != request.temporal_per_side;
   if (f.result.ok() && reduced) f.window_note = window_note(request, used, args.memory_limit_mb);
   return f;
 }

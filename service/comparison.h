@@ -14,8 +14,9 @@ namespace ssdo {
 // pixels. Empty when some pixel was compared.
 inline std::string no_comparison_reason(int64_t compared, int64_t foreground) {
   if (compared > 0) return {};
-  return "no pixel to compare: " + (foreground == 0 ? "the frame has no foreground: " + std::string(kNoForeground)
-                                                     : std::string("the reference is not finite on any foreground pixel"));
+  return "no pixel to compare: " + (foreground == 0
+                                        ? "the frame has no foreground: " + std::string(kNoForeground)
+                                        : std::string("the reference is not finite on any foreground pixel"));
 }
 
 // The note for foreground pixels the comparison left out; empty when none were.

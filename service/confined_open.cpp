@@ -128,7 +128,8 @@ bool open_confined_file(const std::string& path, const std::vector<std::string>&
   if (!fd) return false;
   struct stat st {};
   if (::fstat(fd.get(), &st) != 0 || !S_ISREG(st.st_mode)) {
-    error = path + (S_ISDIR(st.st_mode) ? ": a folder, not a file" : ": not a regular file (a FIFO, socket or device is refused)");
+    error = path + (S_ISDIR(st.st_mode) ? ": a folder, not a file"
+                                        : ": not a regular file (a FIFO, socket or device is refused)");
     fd.reset();
     return false;
   }

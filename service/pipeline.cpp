@@ -604,7 +604,8 @@ void note_environment(const FrameRequest& request, const TermsComputed& computed
                       const FrameInfo& info, std::vector<std::string>& notes) {
   if (!request.environment || !(computed.ssdo || request.terms.composite)) return;
   if (computed.ssdo && !g.lighting.empty()) {
-    const auto use = std::find_if(info.uses.begin(), info.uses.end(), [](const ChannelUse& u) { return u.input == "lighting"; });
+    const auto use =
+        std::find_if(info.uses.begin(), info.uses.end(), [](const ChannelUse& u) { return u.input == "lighting"; });
     notes.push_back("ssdo_indirect: its source light is the frame's own direct light" +
                     (use != info.uses.end() ? " (" + use->channels + ")" : std::string()) +
                     ", not the environment given, which lights ssdo_direct and the composite");
@@ -647,8 +648,8 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
     Camera camera = frame.gbuffer.camera;
     t0 = std::chrono::steady_clock::now();
     ComputedFrame computed = request.io_only ? io_only_frame(frame.gbuffer, request)
-                             : source        ? source->compute(request, read, std::move(frame.gbuffer), result.info.notes)
-                                             : compute_frame(std::move(frame.gbuffer), request);
+                             : source ? source->compute(request, read, std::move(frame.gbuffer), result.info.notes)
+                                      : compute_frame(std::move(frame.gbuffer), request);
     result.times.compute_ms = ms_since(t0);
     note_view_uses(computed.views, result.info.notes);
     if (std::string e = crop_guard_band(computed, camera, request.guard_band_px); !e.empty()) {
@@ -676,7 +677,8 @@ FrameResult process_frame(const FrameRequest& given, FrameSource* source) {
         return result;
       }
       for (const OutputTerm& t : computed.terms) result.terms_written.push_back(t.name);
-      remove_previews_except(request.output_path, write.png_previews ? result.terms_written : std::vector<std::string>{});
+      remove_previews_except(request.output_path,
+                             write.png_previews ? result.terms_written : std::vector<std::string>{});
     }
   } catch (const std::exception& e) {
     result.error = request.input_path + ": " + e.what();

@@ -253,7 +253,8 @@ bool parse_input(const nlohmann::json& j, const ProtocolLimits& limits, SocketRe
     r.inline_size = size_t(n.get<uint64_t>());
     if (j.contains("name")) {
       if (!j["name"].is_string() || !is_safe_name(j["name"].get<std::string>())) {
-        error = "\"name\" must be a plain file stem: letters, digits, '.', '_', '-' (at most 128, not starting with '.')";
+        error =
+            "\"name\" must be a plain file stem: letters, digits, '.', '_', '-' (at most 128, not starting with '.')";
         return false;
       }
       r.name = j["name"].get<std::string>();

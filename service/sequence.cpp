@@ -123,7 +123,8 @@ std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std:
   std::vector<NeighbourFrame> out;
   for (const std::string& view : views) {
     // The frame itself, or a view named twice, would count as views that agree with it.
-    const bool named_before = std::any_of(out.begin(), out.end(), [&](const NeighbourFrame& n) { return n.path == view; });
+    const bool named_before =
+        std::any_of(out.begin(), out.end(), [&](const NeighbourFrame& n) { return n.path == view; });
     if (view == path || named_before) continue;
     const auto other = sequence_place(view);
     const bool same = place && other && other->sequence == place->sequence && other->number != place->number;
@@ -133,7 +134,8 @@ std::vector<NeighbourFrame> named_neighbours(const std::string& path, const std:
   // the request named them in: the temporal filter sums the neighbours in list order, so a
   // request and the batch give the same bits.
   std::stable_sort(out.begin(), out.end(), [](const NeighbourFrame& a, const NeighbourFrame& b) {
-    return std::make_pair(std::abs(a.frame_offset), a.frame_offset) < std::make_pair(std::abs(b.frame_offset), b.frame_offset);
+    return std::make_pair(std::abs(a.frame_offset), a.frame_offset) <
+           std::make_pair(std::abs(b.frame_offset), b.frame_offset);
   });
   return out;
 }
@@ -151,7 +153,8 @@ std::vector<NeighbourFrame> within_places(const std::vector<NeighbourFrame>& nei
   return out;
 }
 
-std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours,
+std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self,
+                                                    const std::vector<NeighbourFrame>& neighbours,
                                                     const NeighbourFrame& of, int places) {
   std::vector<const NeighbourFrame*> all{&self};
   bool found = false;

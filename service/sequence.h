@@ -58,7 +58,8 @@ std::vector<NeighbourFrame> within_places(const std::vector<NeighbourFrame>& nei
 // frame_offset 0): the frames of the list and the frame itself within `places` places of
 // `of`, offsets relative to `of`, nearest first per side. Complete when the frame's list
 // spans `places` places beyond `of` on each side (neighbour_places).
-std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self, const std::vector<NeighbourFrame>& neighbours,
+std::vector<NeighbourFrame> neighbours_of_neighbour(const NeighbourFrame& self,
+                                                    const std::vector<NeighbourFrame>& neighbours,
                                                     const NeighbourFrame& of, int places);
 
 // The frames of `path`'s sequence in its folder (frame files, service/frame_list.h) within

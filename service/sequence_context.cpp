@@ -288,7 +288,8 @@ void SequenceContext::remember_failed_read(const NeighbourFrame& n, ReadResult&&
 
 void SequenceContext::attach_views(const FrameRequest& request, const ReadOptions& read, ReadResult& frame) {
   FrameInfo& info = frame.info;
-  const std::vector<NeighbourFrame> within = within_places(request.neighbours, view_candidate_places(request.views_per_side));
+  const std::vector<NeighbourFrame> within =
+      within_places(request.neighbours, view_candidate_places(request.views_per_side));
   const GBuffer& g = frame.gbuffer;
   ViewSelectionSettings settings;
   settings.views_per_side = request.views_per_side;
@@ -382,7 +383,8 @@ std::optional<TermOutputs> RawTermsStore::take_terms(const std::string& key) {
   return terms;
 }
 
-void RawTermsStore::put(const std::string& key, std::shared_ptr<const RawFrame> part, std::optional<TermOutputs> terms) {
+void RawTermsStore::put(const std::string& key, std::shared_ptr<const RawFrame> part,
+                        std::optional<TermOutputs> terms) {
   if (const auto it = find(key); it != items_.end()) items_.erase(it);
   items_.push_front({key, std::move(part), std::move(terms)});
 }

@@ -472,7 +472,9 @@ bool SocketServer::send_reply(int fd, const json& response, const std::string& i
   struct stat st {};
   if (in < 0 || ::fstat(in, &st) != 0) {
     if (in >= 0) ::close(in);
-    return write_message(fd, to_wire(error_response("internal", "the output vanished before it was sent", response.value("id", json()))),
+    return write_message(fd,
+                         to_wire(error_response("internal", "the output vanished before it was sent",
+                                                response.value("id", json()))),
                          deadline) == IoStatus::ok;
   }
   json header = response;
@@ -567,7 +569,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
                                        std::to_string(options_.max_spool_bytes >> 20) + ")");
     if (!take(spool_bytes_, options_.max_spool_bytes, request.inline_size))
       return refuse("busy", "the spool holds as many inline frames as it may (" +
-                                std::to_string(options_.max_spool_bytes >> 20) + " MiB, --max-spool-mb); try again later");
+                                std::to_string(options_.max_spool_bytes >> 20) +
+                                " MiB, --max-spool-mb); try again later");
     spool_bytes.bytes = request.inline_size;
     std::error_code ec;
     make_spool_folder(spool, ec);
@@ -576,7 +579,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     input = (spool / (request.name + ".exr")).string();
     if (!stream_to_file(fd, input, request.inline_size, deadline_in(options_.client_timeout_s), error)) {
       // A stop shuts the connections' reading side: the client did not cut its upload short.
-      if (is_stopping()) reply(fd, error_response("busy", "the service is stopping: the inline frame was not received whole", id));
+      if (is_stopping())
+        reply(fd, error_response("busy", "the service is stopping: the inline frame was not received whole", id));
       else reply(fd, error_response("bad_request", error, id));
       return false;
     }
@@ -629,7 +633,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     if (std::error_code ec; fs::exists(output, ec)) {
       for (const std::string& frame : views)
         if (fs::equivalent(output, frame, ec))
-          return refuse("bad_request", request.output + ": is one of the frame's views; an output never replaces a frame");
+          return refuse("bad_request",
+                        request.output + ": is one of the frame's views; an output never replaces a frame");
       if (fs::equivalent(output, input, ec))
         return refuse("bad_request", request.output + ": is the input frame; an output never replaces a frame");
       if (!read_string_attribute(output, kVersionAttribute))
@@ -641,7 +646,8 @@ bool SocketServer::handle_process(int fd, SocketRequest& request) {
     error_path = error_path_for(input, options_.out_dir);
   }
   // Refused rather than renamed: a client finds its result where it expects it, or is told.
-  if (std::string owner; !request.reply_inline && !frames_.claim_output(output, inline_input ? "inline upload " + request.name : input, owner))
+  if (std::string owner; !request.reply_inline &&
+                         !frames_.claim_output(output, inline_input ? "inline upload " + request.name : input, owner))
     return refuse("conflict", output + " is already the output of " + owner + "; give this frame another \"output\"");
   if (!request.reply_inline && !frames_.begin_output(output))
     return refuse("conflict", output + " is being computed for another request now; try again when it is done, or give "

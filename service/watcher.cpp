@@ -127,7 +127,8 @@ void DirectoryWatcher::run() {
   for (;;) {
     int timeout_ms = watching_ ? -1 : kLostRetryMs;
     if (poll_s_ > 0) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(next_poll - std::chrono::steady_clock::now());
+      const auto left =
+          std::chrono::duration_cast<std::chrono::milliseconds>(next_poll - std::chrono::steady_clock::now());
       const int poll_ms = int(std::max<long long>(0, left.count()));
       timeout_ms = timeout_ms < 0 ? poll_ms : std::min(timeout_ms, poll_ms);
     }

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The product's sources read without side scrolling: no line longer than MAX_COLUMNS
+# characters in core/, kernels/, formats/ and service/. Lists the offenders and fails when
+# there are any.
+# Usage: line_length.sh SOURCE_DIR [MAX_COLUMNS]
+set -euo pipefail
+src=${1:?source dir}
+max=${2:-120}
+cd "$src"
+files=$(ls core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp} service/*.{h,cpp} 2>/dev/null)
+long=$(awk -v n="$max" 'length($0) > n { printf "%4d columns  %s:%d\n", length($0), FILENAME, FNR }' $files)
+count=$(echo "$files" | wc -w)
+if [ -n "$long" ]; then
+  echo "lines over $max columns in core/, kernels/, formats/ and service/:"
+  echo "$long"
+  exit 1
+fi
+echo "no line over $max columns in $count files of core/, kernels/, formats/ and service/"
