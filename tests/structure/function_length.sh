@@ -11,13 +11,14 @@ if ! ctags --version 2>/dev/null | grep -q 'Universal Ctags'; then
   exit 77
 fi
 cd "$src"
-files=$(ls core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp} 2>/dev/null)
-long=$(ctags --c++-kinds=f --fields=+ne --extras=-q -f - $files | awk -F'\t' -v n="$max" '{
+shopt -s nullglob  # a pattern that matches nothing is left out, not passed on as a name
+files=(core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp})
+long=$(ctags --c++-kinds=f --fields=+ne --extras=-q -f - "${files[@]}" | awk -F'\t' -v n="$max" '{
   start = ""; end = ""
   for (i = 4; i <= NF; i++) { if ($i ~ /^line:/) start = substr($i, 6); if ($i ~ /^end:/) end = substr($i, 5) }
   if (start != "" && end != "" && end - start + 1 > n) printf "%5d lines  %s:%s  %s\n", end - start + 1, $2, start, $1
 }' | sort -rn)
-count=$(echo "$files" | wc -w)
+count=${#files[@]}
 if [ -n "$long" ]; then
   echo "functions over $max lines in core/, kernels/ and formats/:"
   echo "$long"

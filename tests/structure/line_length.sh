@@ -7,9 +7,10 @@ set -euo pipefail
 src=${1:?source dir}
 max=${2:-120}
 cd "$src"
-files=$(ls core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp} service/*.{h,cpp} 2>/dev/null)
-long=$(awk -v n="$max" 'length($0) > n { printf "%4d columns  %s:%d\n", length($0), FILENAME, FNR }' $files)
-count=$(echo "$files" | wc -w)
+shopt -s nullglob  # a pattern that matches nothing is left out, not passed on as a name
+files=(core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp} service/*.{h,cpp})
+long=$(awk -v n="$max" 'length($0) > n { printf "%4d columns  %s:%d\n", length($0), FILENAME, FNR }' "${files[@]}")
+count=${#files[@]}
 if [ -n "$long" ]; then
   echo "lines over $max columns in core/, kernels/, formats/ and service/:"
   echo "$long"
