@@ -4,6 +4,8 @@
 # formats/. Lists the offenders and fails when there are any; skips (77) without ctags.
 # Usage: function_length.sh SOURCE_DIR [MAX_LINES]
 set -euo pipefail
+# shellcheck source=tests/structure/report.sh
+source "$(dirname "$0")/report.sh"  # report
 src=${1:?source dir}
 max=${2:-80}
 if ! ctags --version 2>/dev/null | grep -q 'Universal Ctags'; then
@@ -18,10 +20,5 @@ long=$(ctags --c++-kinds=f --fields=+ne --extras=-q -f - "${files[@]}" | awk -F'
   for (i = 4; i <= NF; i++) { if ($i ~ /^line:/) start = substr($i, 6); if ($i ~ /^end:/) end = substr($i, 5) }
   if (start != "" && end != "" && end - start + 1 > n) printf "%5d lines  %s:%s  %s\n", end - start + 1, $2, start, $1
 }' | sort -rn)
-count=${#files[@]}
-if [ -n "$long" ]; then
-  echo "functions over $max lines in core/, kernels/ and formats/:"
-  echo "$long"
-  exit 1
-fi
-echo "no function over $max lines in $count files of core/, kernels/ and formats/"
+report "$long" "functions over $max lines in core/, kernels/ and formats/" \
+  "no function over $max lines in ${#files[@]} files of core/, kernels/ and formats/"
