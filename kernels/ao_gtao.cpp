@@ -243,7 +243,7 @@ struct TapGrid {
 // floor(log2 value) of a positive normal float, from its exponent bits: negative for 0,
 // subnormals and negative values, which reach no coarse level. The levels below are this
 // less the log2 of their unit, clamped to [0, kCoarseLevels]; step_indices reads the same
-// bits in lanes (floor_log2_lanes).
+// bits in lanes (kernels/iota_lanes.h, floor_log2_lanes).
 inline int32_t floor_log2(float value) { return (std::bit_cast<int32_t>(value) >> 23) - 127; }
 
 // The coarsest level a pixel's taps read, their steps spacing_px apart: a block at most half
@@ -524,9 +524,9 @@ inline void step_indices(const Constants& k, const TileRow& row, const float* di
     if constexpr (coarse) {
       // The largest L <= the pixel's cap with dist_px >= 2^(L + kFineTapsLog2) (dist_px >=
       // kMinTapDistancePx, a normal float).
-      const auto floor_log2_lanes = hn::Sub(hn::ShiftRight<23>(hn::BitCast(di, dist_px)), hn::Set(di, 127));
+      const auto log2_dist = ssdo::HWY_NAMESPACE::floor_log2_lanes(di, dist_px);
       const auto cap = hn::Load(di, row.level_cap + xi);
-      const auto level = hn::Max(hn::Min(hn::Sub(floor_log2_lanes, hn::Set(di, kFineTapsLog2)), cap), zero);
+      const auto level = hn::Max(hn::Min(hn::Sub(log2_dist, hn::Set(di, kFineTapsLog2)), cap), zero);
       auto offset = hn::Set(di, levels.offset[0]), w = hn::Set(di, levels.width[0]);
       for (int lv = 1; lv <= kCoarseLevels; ++lv) {
         const auto reached = hn::Gt(level, hn::Set(di, lv - 1));

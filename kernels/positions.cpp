@@ -38,7 +38,7 @@ void view_positions_from_depth(const cv::Mat& depth_view, const cv::Mat& mask,
       const auto py = hn::Set(d, float(y) + 0.5f);
       int x = r.x;
       for (; x + lanes <= r.x + r.width; x += lanes) {
-        const auto px = hn::Add(hn::ConvertTo(d, iota_lanes(hn::RebindToSigned<decltype(d)>(), x)), hn::Set(d, 0.5f));
+        const auto px = pixel_centres_lanes(d, x);
         hn::Vec<decltype(d)> px_view, py_view, pz_view;
         solve(px, py, hn::LoadU(d, depth + x), px_view, py_view, pz_view);
         const auto fg = foreground_lanes(m + x);

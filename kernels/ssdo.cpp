@@ -403,9 +403,9 @@ HWY_INLINE VI test_lanes(D d, const Constants& c, const glm::vec2& origin_px, V 
     const V dx = hn::Sub(px, hn::Set(d, origin_px.x)), dy = hn::Sub(py, hn::Set(d, origin_px.y));
     const V rho2 = hn::Mul(hn::Add(hn::Mul(dx, dx), hn::Mul(dy, dy)), hn::Set(d, 1.0f / (kMipStartPx * kMipStartPx)));
     // min(top level, (exponent of rho2) / 2 + 1), or 0 below kMipStartPx: rho in [16, 32) px
-    // is rho2 in [1, 4), exponent 0..1, level 1; [32, 64) px level 2; ...
-    const VI exponent =
-        hn::Sub(hn::And(hn::ShiftRight<23>(hn::BitCast(di, rho2)), hn::Set(di, 0xFF)), hn::Set(di, 127));
+    // is rho2 in [1, 4), exponent 0..1, level 1; [32, 64) px level 2; ... (a NaN rho2, whose
+    // exponent may read negative, is below kMipStartPx by the compare).
+    const VI exponent = floor_log2_lanes(di, rho2);
     const VI level =
         hn::IfThenElseZero(hn::RebindMask(di, hn::Ge(rho2, one)),
                            hn::Min(hn::Set(di, c.n_levels - 1), hn::Add(hn::ShiftRight<1>(exponent), hn::Set(di, 1))));

@@ -238,7 +238,7 @@ void neighbour_taps_lanes(std::span<const Neighbour> neighbours, std::span<const
                           int x0, VF depth, const Vec3L& normal, MF foreground, const TemporalSettings& s,
                           GroupSums& sums) {
   const DF d;
-  const VF px = hn::Add(hn::ConvertTo(d, iota_lanes(DI(), x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
+  const VF px = pixel_centres_lanes(d, x0), py = hn::Set(d, float(y) + 0.5f);
   const VF inverse_tolerance = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, s.depth_tolerance_relative), depth));
   for (size_t i = 0; i < neighbours.size(); ++i) {
     const Neighbour& n = neighbours[i];
@@ -330,9 +330,7 @@ void measure_lanes(const TemporalFrame& f, const Neighbour& n, const NeighbourPl
   const DF d;
   const DI di;
   const FrameLanes pixels = frame_lanes(f, y, x0, kMeasureStridePx, f.depth_view.cols);
-  const VF px =
-      hn::Add(hn::ConvertTo(d, hn::Add(hn::Mul(hn::Iota(di, 0), hn::Set(di, kMeasureStridePx)), hn::Set(di, x0))),
-              hn::Set(d, 0.5f));
+  const VF px = pixel_centres_lanes(d, x0, kMeasureStridePx);
   const VF depth_v = pixels.depth;
   const MF foreground = pixels.foreground;
   const CarriedLanes c = carry_lanes(n.reprojection, px, hn::Set(d, float(y) + 0.5f), depth_v, pixels.normal);

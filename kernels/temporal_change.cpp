@@ -119,7 +119,7 @@ struct ChangedPass {
     }
     const MF fg = foreground_lanes(frame.mask.ptr<uint8_t>(y) + x0, count);
     const VF depth = hn::IfThenElse(fg, hn::LoadU(d, depth_row), hn::Set(d, 1.0f));
-    const VF px = hn::Add(iota_lanes(d, float(x0)), hn::Set(d, 0.5f)), py = hn::Set(d, float(y) + 0.5f);
+    const VF px = pixel_centres_lanes(d, x0), py = hn::Set(d, float(y) + 0.5f);
     MF near = hn::FirstN(d, 0);
     if (!to_frame_marks.squared.empty())
       near = to_frame_marks.within(px, py, changed_radius_lanes(frame.camera, depth, s), fg);
@@ -187,7 +187,7 @@ struct SeenThroughPass {
     std::fill(depth_at_points + count, depth_at_points + n, 1.0f);
     const MF fg = foreground_lanes(mask_at_points);
     const VF depth = hn::IfThenElse(fg, hn::Load(d, depth_at_points), hn::Set(d, 1.0f));
-    const VF px = hn::Add(hn::ConvertTo(d, hn::Mul(iota_lanes(di, i0), hn::Set(di, step))), hn::Set(d, 0.5f));
+    const VF px = pixel_centres_lanes(d, i0 * step, step);
     const VF py = hn::Set(d, float(y) + 0.5f);
     const reprojection_lanes::Vec3L p = reprojection_lanes::ray_point(rays, px, py, depth);
     const VF point_depth = hn::Neg(p.z);
