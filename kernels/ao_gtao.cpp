@@ -254,8 +254,12 @@ inline int32_t level_cap(float spacing_px) { return std::clamp(floor_log2(spacin
 // A tap's texel index in its level: index = offset[L] + (y' >> L) width[L] + (x' >> L) with
 // x' = x - origin.x, y' = y - origin.y (the picture's pixel (0, 0) at 0).
 struct LevelSelect {
+  // The levels' entries, then zeros to a whole vector of 32-bit lanes: a vector with as
+  // many lanes as levels looks them up by a permutation (step_indices).
+  static constexpr int kEntries = std::max(kCoarseLevels + 1, int(HWY_MAX_BYTES / sizeof(int32_t)));
   cv::Point origin;
-  int32_t offset[kCoarseLevels + 1], width[kCoarseLevels + 1];
+  alignas(HWY_MAX_BYTES) int32_t offset[kEntries] = {};
+  alignas(HWY_MAX_BYTES) int32_t width[kEntries] = {};
 
   explicit LevelSelect(const TapGrid& g) : origin(g.origin) {
     for (int l = 0; l <= kCoarseLevels; ++l) {
@@ -527,11 +531,18 @@ inline void step_indices(const Constants& k, const TileRow& row, const float* di
       const auto log2_dist = ssdo::HWY_NAMESPACE::floor_log2_lanes(di, dist_px);
       const auto cap = hn::Load(di, row.level_cap + xi);
       const auto level = hn::Max(hn::Min(hn::Sub(log2_dist, hn::Set(di, kFineTapsLog2)), cap), zero);
-      auto offset = hn::Set(di, levels.offset[0]), w = hn::Set(di, levels.width[0]);
-      for (int lv = 1; lv <= kCoarseLevels; ++lv) {
-        const auto reached = hn::Gt(level, hn::Set(di, lv - 1));
-        offset = hn::IfThenElse(reached, hn::Set(di, levels.offset[lv]), offset);
-        w = hn::IfThenElse(reached, hn::Set(di, levels.width[lv]), w);
+      hn::Vec<decltype(di)> offset, w;
+      if constexpr (hn::MaxLanes(di) > kCoarseLevels) {  // the level's entries by permutation
+        const auto entry = hn::IndicesFromVec(di, level);
+        offset = hn::TableLookupLanes(hn::Load(di, levels.offset), entry);
+        w = hn::TableLookupLanes(hn::Load(di, levels.width), entry);
+      } else {  // a select per level
+        offset = hn::Set(di, levels.offset[0]), w = hn::Set(di, levels.width[0]);
+        for (int lv = 1; lv <= kCoarseLevels; ++lv) {
+          const auto reached = hn::Gt(level, hn::Set(di, lv - 1));
+          offset = hn::IfThenElse(reached, hn::Set(di, levels.offset[lv]), offset);
+          w = hn::IfThenElse(reached, hn::Set(di, levels.width[lv]), w);
+        }
       }
       const auto index = [&](auto tx, auto ty) {
         const auto bx = hn::Sub(tx, hn::Set(di, levels.origin.x)) >> level;
