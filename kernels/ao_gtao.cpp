@@ -240,16 +240,13 @@ struct TapGrid {
   }
 };
 
-// floor(log2 value) of a positive normal float, from its exponent bits: negative for 0,
-// subnormals and negative values, which reach no coarse level. The levels below are this
-// less the log2 of their unit, clamped to [0, kCoarseLevels]; step_indices reads the same
-// bits in lanes (kernels/iota_lanes.h, floor_log2_lanes).
-inline int32_t floor_log2(float value) { return (std::bit_cast<int32_t>(value) >> 23) - 127; }
-
 // The coarsest level a pixel's taps read, their steps spacing_px apart: a block at most half
 // the spacing (the largest L with spacing_px >= 2^(L + 1)), so that consecutive taps keep
-// their order.
-inline int32_t level_cap(float spacing_px) { return std::clamp(floor_log2(spacing_px) - 1, 0, kCoarseLevels); }
+// their order. floor_log2 (kernels/iota_lanes.h) is negative for a spacing of 0, which
+// reaches no coarse level; step_indices reads the same bits in lanes (floor_log2_lanes).
+inline int32_t level_cap(float spacing_px) {
+  return std::clamp(ssdo::HWY_NAMESPACE::floor_log2(spacing_px) - 1, 0, kCoarseLevels);
+}
 
 // A tap's texel index in its level: index = offset[L] + (y' >> L) width[L] + (x' >> L) with
 // x' = x - origin.x, y' = y - origin.y (the picture's pixel (0, 0) at 0).

@@ -1,5 +1,6 @@
 // Lane coordinates: lanes first, first + 1, ... (Highway's Iota) for a `first` known only at
-// run time, the pixel centres they stand for, and floor(log2) of floats from their bits.
+// run time, the pixel centres they stand for, and floor(log2) of floats from their bits (a
+// float and its lanes alike).
 //
 // Iota: lanes first, first + 1, ... for a `first` known only at run time.
 // Highway's x86 Iota writes the lanes to memory one by one and loads the vector: a load
@@ -15,6 +16,9 @@
 #else
 #define SSDO_KERNELS_IOTA_LANES_H_
 #endif
+
+#include <bit>
+#include <cstdint>
 
 #include <hwy/highway.h>
 
@@ -39,9 +43,12 @@ HWY_INLINE hwy::HWY_NAMESPACE::Vec<DF> pixel_centres_lanes(DF df, int32_t first,
   return hn::Add(hn::ConvertTo(df, x), hn::Set(df, 0.5f));
 }
 
-// floor(log2 v) of positive normal floats v, lane by lane: the biased exponent less 127
-// (the scalar form is ao_gtao.cpp's floor_log2). Other lanes (zero, subnormal, negative,
-// inf, NaN) give values their callers clamp or mask.
+// floor(log2 v) of a positive normal float v: its biased exponent less 127. Zero,
+// subnormal and negative values give negative results, inf and NaN 128 or more (and a
+// negative NaN a negative one): values their callers clamp or mask.
+inline int32_t floor_log2(float v) { return (std::bit_cast<int32_t>(v) >> 23) - 127; }
+
+// floor_log2 of floats, lane by lane: the same bits.
 template <class DI, class VF>
 HWY_INLINE hwy::HWY_NAMESPACE::Vec<DI> floor_log2_lanes(DI di, VF v) {
   namespace hn = hwy::HWY_NAMESPACE;
