@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <span>
 
 #include <gtest/gtest.h>
 
@@ -250,20 +251,16 @@ TEST(HalfResolution, WeightsAndUpsampleGiveTheBitsOfThePerPixelFormulas) {
                                   {pair, up_pair, cv::Scalar(1, 2), cv::Scalar(3, 4)},
                                   {quad, up_quad, cv::Scalar(1, 2, 3, 4), cv::Scalar(5, 6, 7, 8)}};
   const cv::Mat half_images[] = {gray, color, pair, quad}, full_images[] = {up_gray, up_color, up_pair, up_quad};
-  const auto texel = [&](int j, int i, int c) {
-    for (const cv::Mat& m : half_images) {
-      if (c < m.channels()) return m.ptr<float>(j)[i * m.channels() + c];
-      c -= m.channels();
-    }
-    return 0.0f;
-  };
-  const auto pixel = [&](int y, int x, int c) {
-    for (const cv::Mat& m : full_images) {
+  // Channel c of the images side by side (texel or pixel (x, y) of each image).
+  const auto channel = [](std::span<const cv::Mat> side_by_side, int y, int x, int c) {
+    for (const cv::Mat& m : side_by_side) {
       if (c < m.channels()) return m.ptr<float>(y)[x * m.channels() + c];
       c -= m.channels();
     }
     return 0.0f;
   };
+  const auto texel = [&](int j, int i, int c) { return channel(half_images, j, i, c); };
+  const auto pixel = [&](int y, int x, int c) { return channel(full_images, y, x, c); };
   constexpr int kChannels = 10;
   upsample_from_half_grid(full, h, images, cv::Rect(0, 0, size.width, size.height), 2);
 
