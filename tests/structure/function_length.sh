@@ -5,7 +5,7 @@
 # Usage: function_length.sh SOURCE_DIR [MAX_LINES]
 set -euo pipefail
 # shellcheck source=tests/structure/report.sh
-source "$(dirname "$0")/report.sh"  # report
+source "$(dirname "$0")/report.sh"  # layer_sources, report
 src=${1:?source dir}
 max=${2:-80}
 if ! ctags --version 2>/dev/null | grep -q 'Universal Ctags'; then
@@ -13,12 +13,11 @@ if ! ctags --version 2>/dev/null | grep -q 'Universal Ctags'; then
   exit 77
 fi
 cd "$src"
-shopt -s nullglob  # a pattern that matches nothing is left out, not passed on as a name
-files=(core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp})
+layer_sources core kernels formats
 long=$(ctags --c++-kinds=f --fields=+ne --extras=-q -f - "${files[@]}" | awk -F'\t' -v n="$max" '{
   start = ""; end = ""
   for (i = 4; i <= NF; i++) { if ($i ~ /^line:/) start = substr($i, 6); if ($i ~ /^end:/) end = substr($i, 5) }
   if (start != "" && end != "" && end - start + 1 > n) printf "%5d lines  %s:%s  %s\n", end - start + 1, $2, start, $1
 }' | sort -rn)
-report "$long" "functions over $max lines in core/, kernels/ and formats/" \
-  "no function over $max lines in ${#files[@]} files of core/, kernels/ and formats/"
+report "$long" "functions over $max lines in $layer_names" \
+  "no function over $max lines in ${#files[@]} files of $layer_names"

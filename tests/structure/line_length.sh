@@ -5,12 +5,11 @@
 # Usage: line_length.sh SOURCE_DIR [MAX_COLUMNS]
 set -euo pipefail
 # shellcheck source=tests/structure/report.sh
-source "$(dirname "$0")/report.sh"  # report
+source "$(dirname "$0")/report.sh"  # layer_sources, report
 src=${1:?source dir}
 max=${2:-120}
 cd "$src"
-shopt -s nullglob  # a pattern that matches nothing is left out, not passed on as a name
-files=(core/*.{h,cpp} kernels/*.{h,cpp} formats/*.{h,cpp} formats/*/*.{h,cpp} service/*.{h,cpp})
+layer_sources core kernels formats service
 long=$(awk -v n="$max" 'length($0) > n { printf "%4d columns  %s:%d\n", length($0), FILENAME, FNR }' "${files[@]}")
-report "$long" "lines over $max columns in core/, kernels/, formats/ and service/" \
-  "no line over $max columns in ${#files[@]} files of core/, kernels/, formats/ and service/"
+report "$long" "lines over $max columns in $layer_names" \
+  "no line over $max columns in ${#files[@]} files of $layer_names"
