@@ -1,3 +1,4 @@
+# shellcheck shell=bash
 # Sourced by the structure checks.
 
 # layer_sources LAYER...: the layers' C++ sources (.h and .cpp in each layer's directory and
