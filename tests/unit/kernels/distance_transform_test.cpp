@@ -104,6 +104,25 @@ TEST(DistanceTransform, RowDoneSeesEachFinishedRowOnce) {
   }
 }
 
+// Two marks of a column equally near a pixel between them: the one above, as the lower
+// envelope takes the earlier of two samples at a tie (the thickness estimate's bits depend
+// on which). The columns beside them take the same rows.
+TEST(DistanceTransform, OfTwoMarksEquallyNearInAColumnTheOneAbove) {
+  cv::Mat marks = cv::Mat::zeros(9, 5, CV_8UC1);
+  marks.at<uint8_t>(1, 2) = marks.at<uint8_t>(5, 2) = 255;
+  for (const int threads : {1, 2}) {
+    cv::Mat nearest;
+    const cv::Mat d = squared_distance_to_marks(marks, threads, &nearest);
+    EXPECT_EQ(nearest.at<cv::Point>(3, 2), cv::Point(2, 1));
+    EXPECT_EQ(d.at<float>(3, 2), 4.0f);
+    EXPECT_EQ(nearest.at<cv::Point>(3, 0), cv::Point(2, 1));
+    EXPECT_EQ(d.at<float>(3, 0), 8.0f);
+    EXPECT_EQ(nearest.at<cv::Point>(4, 2), cv::Point(2, 5));
+    EXPECT_EQ(nearest.at<cv::Point>(8, 4), cv::Point(2, 5));
+    EXPECT_EQ(d.at<float>(8, 4), 13.0f);
+  }
+}
+
 TEST(DistanceTransform, NoMarkIsInfinitelyFar) {
   cv::Mat nearest;
   const cv::Mat d = squared_distance_to_marks(cv::Mat::zeros(8, 9, CV_8UC1), 0, &nearest);
