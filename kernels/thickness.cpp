@@ -61,18 +61,28 @@ void silhouettes_of_row(const float* d_up, const float* d, const float* d_down, 
   if (w > 1) test(w - 1, w - 2, w - 1);
 }
 
-// The silhouette pixels (edge = 1) of the image, and for each cell of 2 x 2 pixels the
-// first of its silhouette pixels in row-major order (x = kNone: none): the cell's
-// representative; `silhouette_cell` 255 where it has one. Cells are independent: the
-// threads take rows of them, each with the shown depth of the rows it reads in a ring of
-// three (a row's neighbours above and below), computed again for the row above a strip.
+// A cell's representative: the first of its silhouette pixels in row-major order (x = kNone:
+// the cell has none), and the depth beyond which a pixel lies behind it (its depth times 1 +
+// edge_depth_ratio; a pixel nearer than that whose nearest silhouette it is sees another
+// object's rim).
+struct Representative {
+  int32_t x, y;
+  float behind_depth;
+};
+
+// The silhouette pixels (edge = 1) of the image, and each cell of 2 x 2 pixels' representative
+// (`representative`, row-major over the cells); `silhouette_cell` 255 where the cell has one.
+// Cells are independent: the threads take rows of them, each with the shown depth of the rows
+// it reads in a ring of three (a row's neighbours above and below), computed again for the row
+// above a strip.
 void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& edge,
-                      cv::Mat& representative, cv::Mat& silhouette_cell, int nthreads) {
+                      std::vector<Representative>& representative, cv::Mat& silhouette_cell, int nthreads) {
   const int w = depth_view.cols, h = depth_view.rows;
   edge.create(depth_view.size(), CV_8UC1);
-  representative.create((h + 1) / 2, (w + 1) / 2, CV_32SC2);
-  silhouette_cell.create(representative.size(), CV_8UC1);
-  parallel_rows(cv::Range(0, representative.rows), nthreads, [&](const cv::Range& cell_rows) {
+  silhouette_cell.create((h + 1) / 2, (w + 1) / 2, CV_8UC1);
+  const int cells_x = silhouette_cell.cols;
+  representative.resize(silhouette_cell.total());
+  parallel_rows(cv::Range(0, silhouette_cell.rows), nthreads, [&](const cv::Range& cell_rows) {
     std::vector<float> ring(size_t(3) * size_t(w));
     const auto shown = [&](int y) { return ring.data() + size_t(y % 3) * size_t(w); };
     const int y_first = 2 * cell_rows.start, y_end = std::min(2 * cell_rows.end, h);
@@ -85,16 +95,60 @@ void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge
     }
     for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
       const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
-      cv::Point* rep = representative.ptr<cv::Point>(cy);
-      for (int cx = 0; cx < representative.cols; ++cx) {
+      Representative* rep = representative.data() + size_t(cy) * size_t(cells_x);
+      uint8_t* has_silhouette = silhouette_cell.ptr<uint8_t>(cy);
+      for (int cx = 0; cx < cells_x; ++cx) {
         const int x0 = 2 * cx, x1 = std::min(x0 + 1, w - 1);
-        rep[cx] = {kNone, kNone};
+        rep[cx] = {kNone, kNone, 0.0f};
         for (const cv::Point p : {cv::Point(x0, y0), cv::Point(x1, y0), cv::Point(x0, y1), cv::Point(x1, y1)})
-          if (rep[cx].x == kNone && edge.at<uint8_t>(p)) rep[cx] = p;
-        silhouette_cell.at<uint8_t>(cy, cx) = rep[cx].x == kNone ? 0 : 255;
+          if (rep[cx].x == kNone && edge.at<uint8_t>(p))
+            rep[cx] = {p.x, p.y, depth_view.at<float>(p) * (1.0f + edge_depth_ratio)};
+        has_silhouette[cx] = rep[cx].x == kNone ? 0 : 255;
       }
     }
   }, kStripCellRows);
+}
+
+// The representative of each pixel column's nearest silhouette cell, for a cell row's pixels
+// (x = kNone and behind_depth -inf where there is none).
+struct NearestByColumn {
+  std::vector<int32_t> x, y;
+  std::vector<float> behind_depth;
+  explicit NearestByColumn(int w) : x(size_t(w)), y(size_t(w)), behind_depth(size_t(w)) {}
+};
+
+// What a pixel's thickness takes: scene units per pixel at depth d, units_per_px_0 +
+// units_per_px_slope d; the thickness per unit of distance; 1 + edge_depth_ratio.
+struct PixelThickness {
+  float units_per_px_0, units_per_px_slope, thickness_per_distance, behind_step;
+};
+
+// Row y of back_depth_view (estimate_back_depth) from its depth d, mask m, silhouette pixels
+// on_edge and its nearest silhouettes' representatives: d + thickness_per_distance x (the
+// distance to the representative, a silhouette pixel's to itself 0, + 1/2) x the scene units
+// per pixel, or +inf on background, with no silhouette in the picture, or behind the nearest
+// silhouette's pixel (another object's rim). Without a branch, so that the loop vectorises.
+// The squared distance is exact in Int and rounded once to float: int32_t where both sides of
+// the image are below 2^15 (so that it stays below 2^31), else int64_t, the same value.
+template <class Int>
+void pixel_thickness_row(const float* d, const uint8_t* m, const uint8_t* on_edge, const NearestByColumn& nearest,
+                         const PixelThickness& k, int y, int w, float* back) {
+  const int32_t* nearest_x = nearest.x.data();
+  const int32_t* nearest_y = nearest.y.data();
+  const float* nearest_behind = nearest.behind_depth.data();
+  for (int x = 0; x < w; ++x) {
+    // Every value loaded, then selected (a load under a condition would keep the branch).
+    const float depth = d[x], nearest_behind_depth = nearest_behind[x];
+    const Int to_x = Int(x) - nearest_x[x], to_y = Int(y) - nearest_y[x];
+    const bool edge = on_edge[x] != 0;
+    const Int dx = edge ? 0 : to_x, dy = edge ? 0 : to_y;
+    const float behind_depth = edge ? depth * k.behind_step : nearest_behind_depth;
+    const bool has = (m[x] != 0) & (edge | (nearest_x[x] != kNone)) & !(behind_depth < depth);
+    const float distance_px = std::sqrt(float(dx * dx + dy * dy));
+    const float units_per_px = k.units_per_px_0 + k.units_per_px_slope * depth;
+    const float thick = depth + k.thickness_per_distance * (distance_px + 0.5f) * units_per_px;
+    back[x] = has ? thick : kInf;
+  }
 }
 
 }  // namespace
@@ -117,35 +171,30 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   // division per pixel.
   const float units_per_px_0 = 1.0f / camera.pixels_per_unit(0.0f).y;
   const float units_per_px_slope = 1.0f / camera.pixels_per_unit(1.0f).y - units_per_px_0;
-  cv::Mat edge, representative, silhouette_cell, nearest_cell;
+  const PixelThickness pixel_rows{units_per_px_0, units_per_px_slope, s.thickness_per_distance,
+                                  1.0f + s.edge_depth_ratio};
+  cv::Mat edge, silhouette_cell, nearest_cell;
+  std::vector<Representative> representative;
   mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, silhouette_cell, nthreads);
+  const int cells_x = silhouette_cell.cols;
+  const bool small_image = w < (1 << 15) && depth_view.rows < (1 << 15);
   back_depth_view.create(depth_view.size(), CV_32FC1);
   // The pixel rows of cell row cy, as soon as the transform's row pass has written its
-  // nearest silhouette cells.
+  // nearest silhouette cells: the representatives of those cells by pixel column, then the
+  // rows without a branch (pixel_thickness_row).
   squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell, [&](int cy) {
-    for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y) {
-      const float* d = depth_view.ptr<float>(y);
-      const uint8_t* m = mask.ptr<uint8_t>(y);
-      const uint8_t* on_edge = edge.ptr<uint8_t>(y);
-      const cv::Point* cell_nearest = nearest_cell.ptr<cv::Point>(y / 2);
-      float* back = back_depth_view.ptr<float>(y);
-      for (int x = 0; x < w; ++x) {
-        back[x] = kInf;
-        if (!m[x]) continue;  // background
-        // A silhouette pixel is its own nearest; any other takes its cell's nearest silhouette
-        // cell's representative.
-        const cv::Point cell = cell_nearest[x / 2];
-        if (!on_edge[x] && cell.x < 0) continue;  // no silhouette in the picture
-        const cv::Point rep = on_edge[x] ? cv::Point(x, y) : representative.at<cv::Point>(cell);
-        const int xs = rep.x, ys = rep.y;
-        // A nearest silhouette in front of the pixel is another object's rim (a pole before a
-        // wall): it says nothing of this surface's depth, which stays solid.
-        if (depth_view.at<float>(ys, xs) * (1.0f + s.edge_depth_ratio) < d[x]) continue;
-        const float distance_px = std::sqrt(float(int64_t(x - xs) * (x - xs) + int64_t(y - ys) * (y - ys)));
-        const float units_per_px = units_per_px_0 + units_per_px_slope * d[x];
-        back[x] = d[x] + s.thickness_per_distance * (distance_px + 0.5f) * units_per_px;
-      }
+    NearestByColumn nearest(w);
+    const cv::Point* cell_nearest = nearest_cell.ptr<cv::Point>(cy);
+    for (int x = 0; x < w; ++x) {
+      const cv::Point cell = cell_nearest[x / 2];
+      const Representative rep = cell.x < 0 ? Representative{kNone, kNone, -kInf}
+                                            : representative[size_t(cell.y) * size_t(cells_x) + size_t(cell.x)];
+      nearest.x[size_t(x)] = rep.x, nearest.y[size_t(x)] = rep.y, nearest.behind_depth[size_t(x)] = rep.behind_depth;
     }
+    for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y)
+      (small_image ? pixel_thickness_row<int32_t> : pixel_thickness_row<int64_t>)(
+          depth_view.ptr<float>(y), mask.ptr<uint8_t>(y), edge.ptr<uint8_t>(y), nearest, pixel_rows, y, w,
+          back_depth_view.ptr<float>(y));
   });
 }
 

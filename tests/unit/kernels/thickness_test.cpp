@@ -101,6 +101,24 @@ TEST(Thickness, NoSilhouetteIsSolidAndThreadsDoNotMatter) {
   EXPECT_EQ(cv::norm(one != two, cv::NORM_L1), 0.0);
 }
 
+// An image wider than 2^15 pixels, whose squared distances pass 2^31: a strip of 3 rows in
+// front of background at its two left columns. Its silhouette is column 2; the far end, 49997
+// pixels from it, is as thick as the distance says (to the representative of its nearest
+// cell, pixel (2, 0)).
+TEST(Thickness, AWideImageKeepsItsLongDistances) {
+  constexpr int kWide = 50000;
+  cv::Mat depth(3, kWide, CV_32FC1, cv::Scalar(5.0f)), mask(3, kWide, CV_8UC1, cv::Scalar(255));
+  depth.colRange(0, 2).setTo(kInf);
+  mask.colRange(0, 2).setTo(0);
+  const Camera camera = Camera::from_fov_x(kWide, 3, 60.0f);
+  cv::Mat back;
+  estimate_back_depth(depth, mask, camera, {}, back, 2);
+  const double distance = std::sqrt(double(kWide - 1 - 2) * double(kWide - 1 - 2) + 1.0);
+  const double expected = 5.0 + 4.0 * (distance + 0.5) * double(units_per_px(camera, 5.0f));
+  EXPECT_NEAR(back.at<float>(1, kWide - 1), expected, 1e-5 * expected);
+  EXPECT_NEAR(back.at<float>(0, 2), 5.0 + 4.0 * 0.5 * double(units_per_px(camera, 5.0f)), 1e-5);
+}
+
 // A disc, whose silhouette pixels lie at every angle: each pixel's distance (read back from
 // its thickness) is at least the exact Euclidean distance to the nearest silhouette pixel
 // (brute force here) and at most 2 sqrt(2) pixels more (the transform runs over cells of
