@@ -2,8 +2,9 @@
 // parabolas rooted at the samples (Felzenszwalb & Huttenlocher 2012, "Distance Transforms of
 // Sampled Functions", algorithm DT(f)), along one line; separable over an image (a pass
 // along its columns, then one along its rows over the columns' results: squared_distance_
-// to_marks, whose column pass over binary marks is two sweeps along each column). The temporal filter's distances to its marks and the thickness estimate's
-// nearest silhouette take it.
+// to_marks, whose column pass over binary marks is two sweeps along each column). The
+// temporal filter's distances to its marks and the thickness estimate's nearest silhouette
+// take it.
 #pragma once
 
 #include <cstddef>
