@@ -36,7 +36,8 @@ void shown_row(const cv::Mat& depth_view, const cv::Mat& mask, int y, float* out
   const uint8_t up = y > 0, down = y + 1 < h;
   const auto shown = [&](int x, bool left_open, bool right_open) {
     const bool open = left_open | right_open | (up & !m_up[x]) | (down & !m_down[x]);
-    out[x] = m[x] ? d[x] : open ? kInf : -kInf;
+    const float depth = d[x];  // loaded whatever the mask, so that the loop has no branch
+    out[x] = m[x] ? depth : open ? kInf : -kInf;
   };
   shown(0, false, w > 1 && !m[std::min(1, w - 1)]);
   for (int x = 1; x < w - 1; ++x) shown(x, !m[x - 1], !m[x + 1]);  // the interior, without clamps
@@ -61,14 +62,44 @@ void silhouettes_of_row(const float* d_up, const float* d, const float* d_down, 
   if (w > 1) test(w - 1, w - 2, w - 1);
 }
 
-// A cell's representative: the first of its silhouette pixels in row-major order (x = kNone:
-// the cell has none), and the depth beyond which a pixel lies behind it (its depth times 1 +
-// edge_depth_ratio; a pixel nearer than that whose nearest silhouette it is sees another
-// object's rim).
-struct Representative {
-  int32_t x, y;
-  float behind_depth;
+// Silhouette pixels standing for cells: a cell's representative is the first of its
+// silhouette pixels in row-major order, x = kNone where it has none; behind_depth is the depth
+// beyond which a pixel lies behind it (its depth times 1 + edge_depth_ratio: a pixel nearer
+// than that whose nearest silhouette it is sees another object's rim).
+struct Representatives {
+  std::vector<int32_t> x, y;
+  std::vector<float> behind_depth;
+  explicit Representatives(size_t n = 0) : x(n), y(n), behind_depth(n) {}
 };
+
+// Cell row cy's representatives (from `first` in each array) and their marks in
+// silhouette_cell's row: pixel rows y0 and y1 (the same row at the image's last odd row), a
+// cell's columns 2 cx and 2 cx + 1 (the same column at the last odd column). Without a
+// branch over the whole cells, so that the loop vectorises.
+void cell_representatives(const cv::Mat& depth_view, const cv::Mat& edge, int y0, int y1, float behind_step,
+                          Representatives& rep, size_t first, uint8_t* has_silhouette) {
+  const int w = edge.cols, cells_x = (w + 1) / 2;
+  const uint8_t* e0 = edge.ptr<uint8_t>(y0);
+  const uint8_t* e1 = edge.ptr<uint8_t>(y1);
+  const float* d0 = depth_view.ptr<float>(y0);
+  const float* d1 = depth_view.ptr<float>(y1);
+  int32_t* rep_x = rep.x.data() + first;
+  int32_t* rep_y = rep.y.data() + first;
+  float* rep_behind = rep.behind_depth.data() + first;
+  const auto cell = [&](int cx, int x0, int x1) {
+    const bool a = e0[x0] != 0, b = e0[x1] != 0, c = e1[x0] != 0, d = e1[x1] != 0;
+    const float depth_a = d0[x0], depth_b = d0[x1], depth_c = d1[x0], depth_d = d1[x1];
+    // The first of a, b, c, d: in the top row where a or b, in the left column where a, or
+    // c without b.
+    const bool any = a | b | c | d, top = a | b, left = a | (!b & c);
+    rep_x[cx] = any ? (left ? x0 : x1) : kNone;
+    rep_y[cx] = any ? (top ? y0 : y1) : kNone;
+    rep_behind[cx] = any ? (top ? (a ? depth_a : depth_b) : (c ? depth_c : depth_d)) * behind_step : 0.0f;
+    has_silhouette[cx] = any ? 255 : 0;
+  };
+  for (int cx = 0; cx < w / 2; ++cx) cell(cx, 2 * cx, 2 * cx + 1);
+  if (w % 2 != 0) cell(cells_x - 1, w - 1, w - 1);
+}
 
 // The silhouette pixels (edge = 1) of the image, and each cell of 2 x 2 pixels' representative
 // (`representative`, row-major over the cells); `silhouette_cell` 255 where the cell has one.
@@ -76,12 +107,12 @@ struct Representative {
 // it reads in a ring of three (a row's neighbours above and below), computed again for the row
 // above a strip.
 void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge_depth_ratio, cv::Mat& edge,
-                      std::vector<Representative>& representative, cv::Mat& silhouette_cell, int nthreads) {
+                      Representatives& representative, cv::Mat& silhouette_cell, int nthreads) {
   const int w = depth_view.cols, h = depth_view.rows;
   edge.create(depth_view.size(), CV_8UC1);
   silhouette_cell.create((h + 1) / 2, (w + 1) / 2, CV_8UC1);
   const int cells_x = silhouette_cell.cols;
-  representative.resize(silhouette_cell.total());
+  representative = Representatives(silhouette_cell.total());
   parallel_rows(cv::Range(0, silhouette_cell.rows), nthreads, [&](const cv::Range& cell_rows) {
     std::vector<float> ring(size_t(3) * size_t(w));
     const auto shown = [&](int y) { return ring.data() + size_t(y % 3) * size_t(w); };
@@ -93,29 +124,11 @@ void mark_silhouettes(const cv::Mat& depth_view, const cv::Mat& mask, float edge
       silhouettes_of_row(shown(y > 0 ? y - 1 : y), shown(y), shown(y + 1 < h ? y + 1 : y), mask.ptr<uint8_t>(y), w,
                          edge_depth_ratio, edge.ptr<uint8_t>(y));
     }
-    for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
-      const int y0 = 2 * cy, y1 = std::min(y0 + 1, h - 1);
-      Representative* rep = representative.data() + size_t(cy) * size_t(cells_x);
-      uint8_t* has_silhouette = silhouette_cell.ptr<uint8_t>(cy);
-      for (int cx = 0; cx < cells_x; ++cx) {
-        const int x0 = 2 * cx, x1 = std::min(x0 + 1, w - 1);
-        rep[cx] = {kNone, kNone, 0.0f};
-        for (const cv::Point p : {cv::Point(x0, y0), cv::Point(x1, y0), cv::Point(x0, y1), cv::Point(x1, y1)})
-          if (rep[cx].x == kNone && edge.at<uint8_t>(p))
-            rep[cx] = {p.x, p.y, depth_view.at<float>(p) * (1.0f + edge_depth_ratio)};
-        has_silhouette[cx] = rep[cx].x == kNone ? 0 : 255;
-      }
-    }
+    for (int cy = cell_rows.start; cy < cell_rows.end; ++cy)
+      cell_representatives(depth_view, edge, 2 * cy, std::min(2 * cy + 1, h - 1), 1.0f + edge_depth_ratio,
+                           representative, size_t(cy) * size_t(cells_x), silhouette_cell.ptr<uint8_t>(cy));
   }, kStripCellRows);
 }
-
-// The representative of each pixel column's nearest silhouette cell, for a cell row's pixels
-// (x = kNone and behind_depth -inf where there is none).
-struct NearestByColumn {
-  std::vector<int32_t> x, y;
-  std::vector<float> behind_depth;
-  explicit NearestByColumn(int w) : x(size_t(w)), y(size_t(w)), behind_depth(size_t(w)) {}
-};
 
 // What a pixel's thickness takes: scene units per pixel at depth d, units_per_px_0 +
 // units_per_px_slope d; the thickness per unit of distance; 1 + edge_depth_ratio.
@@ -131,7 +144,7 @@ struct PixelThickness {
 // The squared distance is exact in Int and rounded once to float: int32_t where both sides of
 // the image are below 2^15 (so that it stays below 2^31), else int64_t, the same value.
 template <class Int>
-void pixel_thickness_row(const float* d, const uint8_t* m, const uint8_t* on_edge, const NearestByColumn& nearest,
+void pixel_thickness_row(const float* d, const uint8_t* m, const uint8_t* on_edge, const Representatives& nearest,
                          const PixelThickness& k, int y, int w, float* back) {
   const int32_t* nearest_x = nearest.x.data();
   const int32_t* nearest_y = nearest.y.data();
@@ -174,7 +187,7 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   const PixelThickness pixel_rows{units_per_px_0, units_per_px_slope, s.thickness_per_distance,
                                   1.0f + s.edge_depth_ratio};
   cv::Mat edge, silhouette_cell, nearest_cell;
-  std::vector<Representative> representative;
+  Representatives representative;
   mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, silhouette_cell, nthreads);
   const int cells_x = silhouette_cell.cols;
   const bool small_image = w < (1 << 15) && depth_view.rows < (1 << 15);
@@ -183,13 +196,17 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   // nearest silhouette cells: the representatives of those cells by pixel column, then the
   // rows without a branch (pixel_thickness_row).
   squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell, [&](int cy) {
-    NearestByColumn nearest(w);
+    // The representative of each pixel column's nearest silhouette cell (x = kNone and
+    // behind_depth -inf where there is none).
+    Representatives nearest(static_cast<size_t>(w));
     const cv::Point* cell_nearest = nearest_cell.ptr<cv::Point>(cy);
     for (int x = 0; x < w; ++x) {
       const cv::Point cell = cell_nearest[x / 2];
-      const Representative rep = cell.x < 0 ? Representative{kNone, kNone, -kInf}
-                                            : representative[size_t(cell.y) * size_t(cells_x) + size_t(cell.x)];
-      nearest.x[size_t(x)] = rep.x, nearest.y[size_t(x)] = rep.y, nearest.behind_depth[size_t(x)] = rep.behind_depth;
+      const size_t c = size_t(cell.y) * size_t(cells_x) + size_t(cell.x);
+      const bool none = cell.x < 0;
+      nearest.x[size_t(x)] = none ? kNone : representative.x[c];
+      nearest.y[size_t(x)] = none ? kNone : representative.y[c];
+      nearest.behind_depth[size_t(x)] = none ? -kInf : representative.behind_depth[c];
     }
     for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y)
       (small_image ? pixel_thickness_row<int32_t> : pixel_thickness_row<int64_t>)(
