@@ -74,8 +74,8 @@ struct Representatives {
 
 // Cell row cy's representatives (from `first` in each array) and their marks in
 // silhouette_cell's row: pixel rows y0 and y1 (the same row at the image's last odd row), a
-// cell's columns 2 cx and 2 cx + 1 (the same column at the last odd column). Without a
-// branch over the whole cells, so that the loop vectorises.
+// cell's columns 2 cx and 2 cx + 1 (the same column at the last odd column). A cell's four
+// pixels decide by selects, without branches.
 void cell_representatives(const cv::Mat& depth_view, const cv::Mat& edge, int y0, int y1, float behind_step,
                           Representatives& rep, size_t first, uint8_t* has_silhouette) {
   const int w = edge.cols, cells_x = (w + 1) / 2;
