@@ -157,7 +157,7 @@ struct AoOutput {
 // grid of the inputs (resolution_divisor is compute_terms' to apply). Output images are
 // allocated at the input size when empty; only roi is written. Without a second depth
 // layer and with estimates_back_layer(settings), the layer is first estimated over the
-// whole grid (estimate_back_depth; ~2.4 ms for a 960 x 540 grid on two cores).
+// whole grid (estimate_back_depth; about 2 ms for a 960 x 540 grid on two cores).
 void compute_ao(const AoInputs& in, const AoSettings& settings, AoOutput& out,
                 cv::Rect roi = {}, int nthreads = 0);
 
