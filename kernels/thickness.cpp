@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "core/uninitialized.h"
 #include "kernels/distance_transform.h"
 #include "kernels/settings_check.h"
 
@@ -66,9 +67,10 @@ void silhouettes_of_row(const float* d_up, const float* d, const float* d_down, 
 // silhouette pixels in row-major order, x = kNone where it has none; behind_depth is the depth
 // beyond which a pixel lies behind it (its depth times 1 + edge_depth_ratio: a pixel nearer
 // than that whose nearest silhouette it is sees another object's rim).
+// Unzeroed: every entry is written before it is read.
 struct Representatives {
-  std::vector<int32_t> x, y;
-  std::vector<float> behind_depth;
+  UninitializedVector<int32_t> x, y;
+  UninitializedVector<float> behind_depth;
   explicit Representatives(size_t n = 0) : x(n), y(n), behind_depth(n) {}
 };
 
