@@ -79,7 +79,7 @@ void nearest_in_columns(const cv::Mat& marks, int x0, int x1, cv::Mat& d, cv::Ma
 }  // namespace
 
 cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads, cv::Mat* nearest,
-                                  const std::function<void(int)>& row_done) {
+                                  const std::function<void(const cv::Range&)>& rows_done) {
   CV_Assert(marks.type() == CV_8UC1);
   const int w = marks.cols, h = marks.rows;
   cv::Mat d(marks.size(), CV_32FC1), row_of(marks.size(), CV_32SC1);
@@ -108,8 +108,8 @@ cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads, cv::Mat* n
           out[x] = xs < 0 ? cv::Point(-1, -1) : cv::Point(xs, column_row[xs]);
         }
       }
-      if (row_done) row_done(y);
     }
+    if (rows_done) rows_done(rows);
   }, 16);
   return d;
 }

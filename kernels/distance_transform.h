@@ -29,11 +29,12 @@ void lower_envelope(const float* f, int n, float* d, int* nearest, EnvelopeScrat
 // Squared Euclidean distance, in pixels, from each pixel to the nearest nonzero pixel of
 // `marks` (CV_8UC1); CV_32FC1, +inf everywhere when there is no mark. With `nearest`, that
 // mark's position too (CV_32SC2, (-1, -1) when there is none). A pass along the columns,
-// then one along the rows over their results; the same bits for any nthreads. row_done,
-// when given, is called with each row y as soon as its distances and nearest marks are
-// written, on the thread that wrote them: a caller's pass over the rows runs within the
-// transform's last instead of after it (one pass over the threads fewer).
+// then one along the rows over their results; the same bits for any nthreads. rows_done,
+// when given, is called with each strip of rows as soon as their distances and nearest marks
+// are written, on the thread that wrote them, each row in one call: a caller's pass over the
+// rows runs within the transform's last instead of after it (one pass over the threads
+// fewer), with its scratch taken once per strip.
 cv::Mat squared_distance_to_marks(const cv::Mat& marks, int nthreads = 0, cv::Mat* nearest = nullptr,
-                                  const std::function<void(int)>& row_done = {});
+                                  const std::function<void(const cv::Range&)>& rows_done = {});
 
 }  // namespace ssdo

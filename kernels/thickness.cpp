@@ -194,26 +194,28 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   const int cells_x = silhouette_cell.cols;
   const bool small_image = w < (1 << 15) && depth_view.rows < (1 << 15);
   back_depth_view.create(depth_view.size(), CV_32FC1);
-  // The pixel rows of cell row cy, as soon as the transform's row pass has written its
-  // nearest silhouette cells: the representatives of those cells by pixel column, then the
-  // rows without a branch (pixel_thickness_row).
-  squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell, [&](int cy) {
+  // The pixel rows of a strip of cell rows, as soon as the transform's row pass has written
+  // their nearest silhouette cells: per cell row, the representatives of those cells by pixel
+  // column, then the rows without a branch (pixel_thickness_row).
+  squared_distance_to_marks(silhouette_cell, nthreads, &nearest_cell, [&](const cv::Range& cell_rows) {
     // The representative of each pixel column's nearest silhouette cell (x = kNone and
     // behind_depth -inf where there is none).
     Representatives nearest(static_cast<size_t>(w));
-    const cv::Point* cell_nearest = nearest_cell.ptr<cv::Point>(cy);
-    for (int x = 0; x < w; ++x) {
-      const cv::Point cell = cell_nearest[x / 2];
-      const size_t c = size_t(cell.y) * size_t(cells_x) + size_t(cell.x);
-      const bool none = cell.x < 0;
-      nearest.x[size_t(x)] = none ? kNone : representative.x[c];
-      nearest.y[size_t(x)] = none ? kNone : representative.y[c];
-      nearest.behind_depth[size_t(x)] = none ? -kInf : representative.behind_depth[c];
+    for (int cy = cell_rows.start; cy < cell_rows.end; ++cy) {
+      const cv::Point* cell_nearest = nearest_cell.ptr<cv::Point>(cy);
+      for (int x = 0; x < w; ++x) {
+        const cv::Point cell = cell_nearest[x / 2];
+        const size_t c = size_t(cell.y) * size_t(cells_x) + size_t(cell.x);
+        const bool none = cell.x < 0;
+        nearest.x[size_t(x)] = none ? kNone : representative.x[c];
+        nearest.y[size_t(x)] = none ? kNone : representative.y[c];
+        nearest.behind_depth[size_t(x)] = none ? -kInf : representative.behind_depth[c];
+      }
+      for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y)
+        (small_image ? pixel_thickness_row<int32_t> : pixel_thickness_row<int64_t>)(
+            depth_view.ptr<float>(y), mask.ptr<uint8_t>(y), edge.ptr<uint8_t>(y), nearest, pixel_rows, y, w,
+            back_depth_view.ptr<float>(y));
     }
-    for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y)
-      (small_image ? pixel_thickness_row<int32_t> : pixel_thickness_row<int64_t>)(
-          depth_view.ptr<float>(y), mask.ptr<uint8_t>(y), edge.ptr<uint8_t>(y), nearest, pixel_rows, y, w,
-          back_depth_view.ptr<float>(y));
   });
 }
 

@@ -84,16 +84,18 @@ TEST(DistanceTransform, SquaredDistanceIsTheNearestMarks) {
   }
 }
 
-// row_done sees each row once, its nearest marks already final.
-TEST(DistanceTransform, RowDoneSeesEachFinishedRowOnce) {
+// rows_done sees each row once, its nearest marks already final.
+TEST(DistanceTransform, RowsDoneSeesEachFinishedRowOnce) {
   cv::Mat marks = cv::Mat::zeros(29, 41, CV_8UC1);
   marks.at<uint8_t>(3, 5) = marks.at<uint8_t>(20, 33) = 255;
   for (const int threads : {1, 3}) {
     cv::Mat nearest;
     std::vector<cv::Mat> seen(size_t(marks.rows));  // each row written by one call only
-    const cv::Mat d = squared_distance_to_marks(marks, threads, &nearest, [&](int y) {
-      ASSERT_TRUE(seen[size_t(y)].empty()) << y;
-      seen[size_t(y)] = nearest.row(y).clone();
+    const cv::Mat d = squared_distance_to_marks(marks, threads, &nearest, [&](const cv::Range& rows) {
+      for (int y = rows.start; y < rows.end; ++y) {
+        ASSERT_TRUE(seen[size_t(y)].empty()) << y;
+        seen[size_t(y)] = nearest.row(y).clone();
+      }
     });
     for (int y = 0; y < marks.rows; ++y) {
       ASSERT_FALSE(seen[size_t(y)].empty()) << y;
