@@ -192,7 +192,9 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
   Representatives representative;
   mark_silhouettes(depth_view, mask, s.edge_depth_ratio, edge, representative, silhouette_cell, nthreads);
   const int cells_x = silhouette_cell.cols;
+  // Squared distances in int32_t below 2^15 pixels a side (pixel_thickness_row).
   const bool small_image = w < (1 << 15) && depth_view.rows < (1 << 15);
+  const auto pixel_row = small_image ? pixel_thickness_row<int32_t> : pixel_thickness_row<int64_t>;
   back_depth_view.create(depth_view.size(), CV_32FC1);
   // The pixel rows of a strip of cell rows, as soon as the transform's row pass has written
   // their nearest silhouette cells: per cell row, the representatives of those cells by pixel
@@ -212,9 +214,8 @@ void estimate_back_depth(const cv::Mat& depth_view, const cv::Mat& mask, const C
         nearest.behind_depth[size_t(x)] = none ? -kInf : representative.behind_depth[c];
       }
       for (int y = 2 * cy; y < std::min(2 * cy + 2, depth_view.rows); ++y)
-        (small_image ? pixel_thickness_row<int32_t> : pixel_thickness_row<int64_t>)(
-            depth_view.ptr<float>(y), mask.ptr<uint8_t>(y), edge.ptr<uint8_t>(y), nearest, pixel_rows, y, w,
-            back_depth_view.ptr<float>(y));
+        pixel_row(depth_view.ptr<float>(y), mask.ptr<uint8_t>(y), edge.ptr<uint8_t>(y), nearest, pixel_rows, y, w,
+                  back_depth_view.ptr<float>(y));
     }
   });
 }
