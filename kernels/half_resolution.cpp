@@ -3,6 +3,7 @@
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "kernels/half_resolution.cpp"
 #include <hwy/foreach_target.h>  // this file once per instruction set (core/simd.h)
+#include <hwy/cache_control.h>
 #include <hwy/highway.h>
 
 #include <algorithm>
@@ -24,6 +25,7 @@
 
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
+
 
 namespace {
 
@@ -77,7 +79,8 @@ namespace hn = hwy::HWY_NAMESPACE;
 using FloatLanes = hn::ScalableTag<float>;
 using Lanes = hn::Vec<FloatLanes>;
 
-// depth_falloff of every lane, by the same operations.
+// depth_falloff of every lane, by the same operations; the range reduction only for a
+// vector with a lane that needs it.
 inline Lanes depth_falloff_lanes(Lanes x) {
   const FloatLanes d;
   const hn::RebindToSigned<FloatLanes> di;
@@ -94,6 +97,24 @@ inline Lanes depth_falloff_lanes(Lanes x) {
   const Lanes e = hn::Add(hn::Add(hn::Mul(p, hn::Mul(r, r)), r), hn::Set(d, 1.0f));
   const auto bits = hn::ShiftLeft<23>(hn::Add(hn::ConvertTo(di, n), hn::Set(di, 127)));
   return hn::IfThenElse(near_zero, taylor, hn::Mul(e, hn::BitCast(d, bits)));
+}
+
+// depth_falloff_lanes of four vectors in place: where every lane of the four is near 0
+// (most of a frame), their Taylor polynomials side by side, one test for all four.
+inline void depth_falloff_lanes(Lanes x[4]) {
+  const FloatLanes d;
+  const Lanes from = hn::Set(d, kExpTaylorFrom);
+  const auto near_zero = hn::And(hn::And(hn::Gt(x[0], from), hn::Gt(x[1], from)),
+                                 hn::And(hn::Gt(x[2], from), hn::Gt(x[3], from)));
+  if (!hn::AllTrue(d, near_zero)) {
+    for (int k = 0; k < 4; ++k) x[k] = depth_falloff_lanes(x[k]);
+    return;
+  }
+  Lanes q[4];
+  for (int k = 0; k < 4; ++k) q[k] = hn::Set(d, kExpTaylor[0]);
+  for (int i = 1; i < 5; ++i)
+    for (int k = 0; k < 4; ++k) q[k] = hn::Add(hn::Mul(q[k], x[k]), hn::Set(d, kExpTaylor[i]));
+  for (int k = 0; k < 4; ++k) x[k] = hn::Add(hn::Mul(x[k], q[k]), hn::Set(d, 1.0f));
 }
 
 // A half-grid row's view-space positions, as view_positions_from_depth at each texel's
@@ -385,6 +406,10 @@ namespace lanes {
 constexpr int kMaxWidth = 1 << 22;
 // Floats past a texel row's last texel, so that a full vector loads from any column.
 constexpr int kPadding = 64;
+// How far ahead of the pixels being blended their full-resolution guides are fetched into
+// cache, in pixels (3 KiB of normals): the hardware's prefetch alone leaves the blend
+// waiting on these rows' loads. 128 and 512 were slower than 256 on a Zen 4 core.
+constexpr int kPrefetchPx = 256;
 static_assert(HWY_MAX_BYTES / sizeof(float) <= kPadding);
 
 // Texel rows of the half grid laid out for a vector of pixels at a time: per row, one
@@ -575,6 +600,14 @@ struct PixelRow {
   // The array at `offset` (TexelRows::array_offset) of texel row k >> 1 of the footprint.
   const float* array(int k, size_t offset) const { return ((k >> 1) ? r1 : r0) + offset; }
 
+  // The cache lines of the row's depth, normal and mask from pixel x on: a vector's share
+  // (16 pixels at most, 64 bytes of depth, 192 of normals).
+  void prefetch_guides(int x) const {
+    hwy::Prefetch(depth + x);
+    for (int c = 0; c < 3; ++c) hwy::Prefetch(normal + size_t(3) * size_t(x) + size_t(16 * c));
+    hwy::Prefetch(mask + x);
+  }
+
   // texel_weights of pixels x .. x + N - 1 (x odd), 0 where `fg` is not (and, through
   // their zero normals, on masked texels: TexelRows).
   void weights(int x, const LanePattern& p, hn::Mask<FloatLanes> fg, Lanes w[4]) const {
@@ -583,20 +616,27 @@ struct PixelRow {
     const Lanes depth_px = hn::LoadU(d, depth + x);
     Lanes nx, ny, nz;
     hn::LoadInterleaved3(d, normal + size_t(3) * size_t(x), nx, ny, nz);
+    prefetch_guides(x + kPrefetchPx);
     const Lanes inv_tol = hn::Div(hn::Set(d, 1.0f), hn::Mul(hn::Set(d, kUpsampleDepthRelative), depth_px));
+    // exp(-dz) of the four texels; exp(0) on background pixels, whose weight is 0 anyway
+    // (set below).
+    Lanes e[4];
+    HWY_UNROLL(4)
+    for (int k = 0; k < 4; ++k) {
+      const Lanes texel_depth = guide_lanes(guide[k >> 1][TexelRows::kDepth], x, k & 1);
+      e[k] = hn::IfThenElseZero(fg, hn::Neg(hn::Mul(hn::Abs(hn::Sub(texel_depth, depth_px)), inv_tol)));
+    }
+    depth_falloff_lanes(e);
+    HWY_UNROLL(4)
     for (int k = 0; k < 4; ++k) {
       const int c = k & 1;
       const Lanes wb = hn::Mul(p.wx[c], hn::Set(d, wy[k >> 1]));
-      const Lanes texel_depth = guide_lanes(guide[k >> 1][TexelRows::kDepth], x, c);
-      const Lanes dz = hn::Mul(hn::Abs(hn::Sub(texel_depth, depth_px)), inv_tol);
-      // exp(-dz); exp(0) on background pixels, whose weight is 0 anyway (set below).
-      const Lanes e = depth_falloff_lanes(hn::IfThenElseZero(fg, hn::Neg(dz)));
       Lanes cos = hn::Add(zero, hn::Mul(nx, guide_lanes(guide[k >> 1][TexelRows::kNormalX], x, c)));
       cos = hn::Add(cos, hn::Mul(ny, guide_lanes(guide[k >> 1][TexelRows::kNormalY], x, c)));
       cos = hn::Add(cos, hn::Mul(nz, guide_lanes(guide[k >> 1][TexelRows::kNormalZ], x, c)));
       cos = hn::Max(cos, zero);  // as std::max(0, c)
       cos = hn::Mul(cos, cos);
-      w[k] = hn::IfThenElseZero(fg, hn::Mul(hn::Mul(hn::Mul(wb, e), cos), cos));
+      w[k] = hn::IfThenElseZero(fg, hn::Mul(hn::Mul(hn::Mul(wb, e[k]), cos), cos));
     }
   }
 };
@@ -704,17 +744,21 @@ void unit_vectors(float* v, const float* n, const uint8_t* mask, int x0, int x1)
   const size_t lanes = hn::Lanes(d);
   const auto tiny = hn::Set(d, 1e-12f), one = hn::Set(d, 1.0f);
   for (; x + int(lanes) <= x1; x += int(lanes)) {
-    Lanes vx, vy, vz, nx, ny, nz;
+    Lanes vx, vy, vz;
     hn::LoadInterleaved3(d, v + size_t(3) * size_t(x), vx, vy, vz);
-    hn::LoadInterleaved3(d, n + size_t(3) * size_t(x), nx, ny, nz);
     const Lanes len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(vx, vx), hn::Mul(vy, vy)), hn::Mul(vz, vz)));
     const auto fg = foreground_lanes(mask + x);
     const auto unit = hn::And(fg, hn::Gt(len, tiny)), normal = hn::AndNot(hn::Gt(len, tiny), fg);
     const Lanes inv = hn::Div(one, len);
-    hn::StoreInterleaved3(hn::IfThenElse(unit, hn::Mul(vx, inv), hn::IfThenElse(normal, nx, vx)),
-                          hn::IfThenElse(unit, hn::Mul(vy, inv), hn::IfThenElse(normal, ny, vy)),
-                          hn::IfThenElse(unit, hn::Mul(vz, inv), hn::IfThenElse(normal, nz, vz)), d,
-                          v + size_t(3) * size_t(x));
+    vx = hn::IfThenElse(unit, hn::Mul(vx, inv), vx);
+    vy = hn::IfThenElse(unit, hn::Mul(vy, inv), vy);
+    vz = hn::IfThenElse(unit, hn::Mul(vz, inv), vz);
+    if (!hn::AllFalse(d, normal)) {  // a vanishing bent normal (rare): the pixel's normal
+      Lanes nx, ny, nz;
+      hn::LoadInterleaved3(d, n + size_t(3) * size_t(x), nx, ny, nz);
+      vx = hn::IfThenElse(normal, nx, vx), vy = hn::IfThenElse(normal, ny, vy), vz = hn::IfThenElse(normal, nz, vz);
+    }
+    hn::StoreInterleaved3(vx, vy, vz, d, v + size_t(3) * size_t(x));
   }
   for (; x < x1; ++x) {
     if (!mask[x]) continue;
