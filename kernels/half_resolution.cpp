@@ -40,6 +40,11 @@ constexpr float kMinUpsampleWeight = 1e-4f;
 
 constexpr int kMaxChannels = 4;
 
+// How far ahead of the pixels being blended their full-resolution guides are fetched into
+// cache, in pixels (3 KiB of normals): the hardware's prefetch alone leaves the blend
+// waiting on these rows' loads. 128 and 512 were slower than 256 on a Zen 4 core.
+constexpr int kPrefetchPx = 256;
+
 // exp(x) of the weights' depth term, x <= 0: Cephes' expf (Moshier 1984-2000, "cephes
 // math library", expf.c): n = floor(x log2(e) + 1/2), r = x - n ln 2 in two parts
 // (Cody & Waite), e^r by its degree-7 minimax polynomial on [-ln 2 / 2, ln 2 / 2], times
@@ -158,6 +163,12 @@ bool half_grid_lanes(const FullGrid& full, HalfGrid& h, int j, int i, bool copy_
   const int n = int(hn::Lanes(d)), x = 2 * i, y = 2 * j;
   hn::Vec<decltype(d8)> even_mask, odd_mask;
   hn::LoadInterleaved2(d8, full.mask.ptr<uint8_t>(y) + x, even_mask, odd_mask);
+  {
+    const int ahead = x + kPrefetchPx;
+    hwy::Prefetch(full.mask.ptr<uint8_t>(y) + ahead);
+    for (int c = 0; c < 2 * n; c += 16) hwy::Prefetch(full.depth_view.ptr<float>(y) + ahead + c);
+    for (int c = 0; c < 6 * n; c += 16) hwy::Prefetch(full.normal_view.ptr<float>(y) + 3 * ahead + c);
+  }
   if (!hn::AllFalse(d8, hn::Eq(even_mask, hn::Zero(d8)))) return false;
   Lanes even, odd;
   hn::LoadInterleaved2(d, full.depth_view.ptr<float>(y) + x, even, odd);
@@ -406,10 +417,7 @@ namespace lanes {
 constexpr int kMaxWidth = 1 << 22;
 // Floats past a texel row's last texel, so that a full vector loads from any column.
 constexpr int kPadding = 64;
-// How far ahead of the pixels being blended their full-resolution guides are fetched into
-// cache, in pixels (3 KiB of normals): the hardware's prefetch alone leaves the blend
-// waiting on these rows' loads. 128 and 512 were slower than 256 on a Zen 4 core.
-constexpr int kPrefetchPx = 256;
+
 static_assert(HWY_MAX_BYTES / sizeof(float) <= kPadding);
 
 // Texel rows of the half grid laid out for a vector of pixels at a time: per row, one
@@ -658,13 +666,60 @@ inline LaneSpan lane_span(int x0, int x1, int width) {
   return {x1, x1};
 }
 
+// std::clamp(v, 0, 1) of every lane, by its comparisons.
+inline Lanes clamp_unit_lanes(Lanes v) {
+  const FloatLanes d;
+  const Lanes zero = hn::Zero(d), one = hn::Set(d, 1.0f);
+  return hn::IfThenElse(hn::Lt(v, zero), zero, hn::IfThenElse(hn::Lt(one, v), one, v));
+}
+
+// The 3-vectors v of a vector of pixels normalised where `fg`: v / |v|, or the pixel's
+// normal (n, interleaved) where |v| <= 1e-12, |v| = sqrt((x^2 + y^2) + z^2) in float (IEEE
+// square root and products: the same bits in every lane width and as unit_vector).
+inline void unit_vector_lanes(Lanes v[3], const float* n, hn::Mask<FloatLanes> fg) {
+  const FloatLanes d;
+  const Lanes len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(v[0], v[0]), hn::Mul(v[1], v[1])), hn::Mul(v[2], v[2])));
+  const auto long_enough = hn::Gt(len, hn::Set(d, 1e-12f));
+  const auto unit = hn::And(fg, long_enough), normal = hn::AndNot(long_enough, fg);
+  const Lanes inv = hn::Div(hn::Set(d, 1.0f), len);
+  for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(unit, hn::Mul(v[c], inv), v[c]);
+  if (hn::AllFalse(d, normal)) return;  // a vanishing bent normal is rare
+  Lanes nv[3];
+  hn::LoadInterleaved3(d, n, nv[0], nv[1], nv[2]);
+  for (int c = 0; c < 3; ++c) v[c] = hn::IfThenElse(normal, nv[c], v[c]);
+}
+
+// A foreground pixel's 3-vector p normalised (unit_vector_lanes), its normal n in place of
+// a vanishing one.
+inline void unit_vector(float* p, const float* n) {
+  const float len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+  for (int c = 0; c < 3; ++c) p[c] = len > 1e-12f ? p[c] * (1.0f / len) : n[c];
+}
+
+// The images' finish (UpsampleFinish) on pixels [x0, x1) of row y, once they are
+// upsampled pixel by pixel (the vector code finishes its lanes in registers: blend_image).
+void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, RowPointers rows, int y, int x0,
+                int x1) {
+  const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
+  for (size_t i = 0; i < images.size(); ++i) {
+    float* row = rows[i];
+    if (images[i].finish == UpsampleFinish::clamp_unit_interval) {
+      for (int x = x0; x < x1; ++x) row[x] = std::clamp(row[x], 0.0f, 1.0f);
+    } else if (images[i].finish == UpsampleFinish::unit_vector) {
+      const float* normal_row = full.normal_view.ptr<float>(y);
+      for (int x = x0; x < x1; ++x)
+        if (mask_row[x]) unit_vector(row + size_t(3) * size_t(x), normal_row + size_t(3) * size_t(x));
+    }
+  }
+}
+
 // Image i's values (C channels) of pixels x .. x + N - 1 of a row (x odd, the row's texels
 // in `row`), from weights w and the inverse of their sum: the blend where a pixel is
 // foreground, the background elsewhere, stored interleaved at `out`. C at compile time, so
 // that a channel's texel offsets and sums stay in registers.
 template <int C>
 void blend_image(const lanes::TexelRows& texels, const lanes::PixelRow& row, const lanes::LanePattern& p, size_t i,
-                 const Lanes w[4], Lanes inv_wsum, hn::Mask<FloatLanes> fg, int x, float* out) {
+                 UpsampleFinish finish, const Lanes w[4], Lanes inv_wsum, hn::Mask<FloatLanes> fg, int x, float* out) {
   const FloatLanes d;
   const Lanes zero = hn::Zero(d);
   Lanes value[C];
@@ -677,6 +732,10 @@ void blend_image(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
     }
     value[ch] = hn::IfThenElse(fg, hn::Mul(acc, inv_wsum), hn::Set(d, texels.background(i, ch)));
   }
+  if constexpr (C == 1)
+    if (finish == UpsampleFinish::clamp_unit_interval) value[0] = clamp_unit_lanes(value[0]);
+  if constexpr (C == 3)
+    if (finish == UpsampleFinish::unit_vector) unit_vector_lanes(value, row.normal + size_t(3) * size_t(x), fg);
   if constexpr (C == 1) hn::StoreU(value[0], d, out);
   if constexpr (C == 2) hn::StoreInterleaved2(value[0], value[1], d, out);
   if constexpr (C == 3) hn::StoreInterleaved3(value[0], value[1], value[2], d, out);
@@ -695,10 +754,10 @@ void blend_lanes(const lanes::TexelRows& texels, const lanes::PixelRow& row, con
     const int cn = images[i].half.channels();
     float* out = rows[i] + size_t(x) * size_t(cn);
     switch (cn) {
-      case 1: blend_image<1>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
-      case 2: blend_image<2>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
-      case 3: blend_image<3>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
-      default: blend_image<4>(texels, row, p, i, w, inv_wsum, fg, x, out); break;
+      case 1: blend_image<1>(texels, row, p, i, images[i].finish, w, inv_wsum, fg, x, out); break;
+      case 2: blend_image<2>(texels, row, p, i, images[i].finish, w, inv_wsum, fg, x, out); break;
+      case 3: blend_image<3>(texels, row, p, i, images[i].finish, w, inv_wsum, fg, x, out); break;
+      default: blend_image<4>(texels, row, p, i, images[i].finish, w, inv_wsum, fg, x, out); break;
     }
   }
 }
@@ -731,55 +790,7 @@ void upsample_lanes(const FullGrid& full, const HalfGrid& h, std::span<const Ups
       f.x = axis_footprint(xl, h.depth_view.cols);
       const float wp[4] = {wl[0][l], wl[1][l], wl[2][l], wl[3][l]};
       upsample_pixel(h, images, rows, f, row.depth[xl], wp, xl);
-    }
-  }
-}
-
-// Pixels [x0, x1) of a row of 3-vectors v, normalised where the mask is set: v / |v|, or
-// the normal n where |v| <= 1e-12, |v| = sqrt((x^2 + y^2) + z^2) in float (IEEE square root
-// and products: the same bits in every lane width), a vector of pixels at a time.
-void unit_vectors(float* v, const float* n, const uint8_t* mask, int x0, int x1) {
-  int x = x0;
-  const FloatLanes d;
-  const size_t lanes = hn::Lanes(d);
-  const auto tiny = hn::Set(d, 1e-12f), one = hn::Set(d, 1.0f);
-  for (; x + int(lanes) <= x1; x += int(lanes)) {
-    Lanes vx, vy, vz;
-    hn::LoadInterleaved3(d, v + size_t(3) * size_t(x), vx, vy, vz);
-    const Lanes len = hn::Sqrt(hn::Add(hn::Add(hn::Mul(vx, vx), hn::Mul(vy, vy)), hn::Mul(vz, vz)));
-    const auto fg = foreground_lanes(mask + x);
-    const auto unit = hn::And(fg, hn::Gt(len, tiny)), normal = hn::AndNot(hn::Gt(len, tiny), fg);
-    const Lanes inv = hn::Div(one, len);
-    vx = hn::IfThenElse(unit, hn::Mul(vx, inv), vx);
-    vy = hn::IfThenElse(unit, hn::Mul(vy, inv), vy);
-    vz = hn::IfThenElse(unit, hn::Mul(vz, inv), vz);
-    if (!hn::AllFalse(d, normal)) {  // a vanishing bent normal (rare): the pixel's normal
-      Lanes nx, ny, nz;
-      hn::LoadInterleaved3(d, n + size_t(3) * size_t(x), nx, ny, nz);
-      vx = hn::IfThenElse(normal, nx, vx), vy = hn::IfThenElse(normal, ny, vy), vz = hn::IfThenElse(normal, nz, vz);
-    }
-    hn::StoreInterleaved3(vx, vy, vz, d, v + size_t(3) * size_t(x));
-  }
-  for (; x < x1; ++x) {
-    if (!mask[x]) continue;
-    float* p = v + size_t(3) * size_t(x);
-    const float len = std::sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-    for (int c = 0; c < 3; ++c) p[c] = len > 1e-12f ? p[c] * (1.0f / len) : n[size_t(3) * size_t(x) + size_t(c)];
-  }
-}
-
-// The images' finish (UpsampleFinish) on pixels [x0, x1) of row y, after the row's
-// upsample.
-void finish_row(const FullGrid& full, std::span<const UpsampleImage> images, RowPointers rows, int y, int x0,
-                int x1) {
-  const uint8_t* mask_row = full.mask.ptr<uint8_t>(y);
-  for (size_t i = 0; i < images.size(); ++i) {
-    float* row = rows[i];
-    if (images[i].finish == UpsampleFinish::clamp_unit_interval) {
-      for (int x = x0; x < x1; ++x) row[x] = std::clamp(row[x], 0.0f, 1.0f);
-    } else if (images[i].finish == UpsampleFinish::unit_vector) {
-      const float* normal_row = full.normal_view.ptr<float>(y);
-      unit_vectors(row, normal_row, mask_row, x0, x1);
+      finish_row(full, images, rows, y, xl, xl + 1);
     }
   }
 }
@@ -862,7 +873,10 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
       upsample_span(full, h, images, out, y, fy, r.x, span.begin);
       if (pattern) upsample_lanes(full, h, images, out, texels, *pattern, fy, span, y);
       upsample_span(full, h, images, out, y, fy, span.end, r.x + r.width);
-      if (finished) finish_row(full, images, out, y, r.x, r.x + r.width);
+      if (finished) {
+        finish_row(full, images, out, y, r.x, span.begin);
+        finish_row(full, images, out, y, span.end, r.x + r.width);
+      }
       outputs.store(y, r.x, r.x + r.width);
     }
   }, kBlockGranularity);
