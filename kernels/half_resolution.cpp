@@ -26,7 +26,6 @@
 HWY_BEFORE_NAMESPACE();
 namespace ssdo::HWY_NAMESPACE {
 
-
 namespace {
 
 // Depth tolerance of the upsample, relative to the pixel's depth: a texel whose depth
@@ -412,7 +411,6 @@ namespace lanes {
 constexpr int kMaxWidth = 1 << 22;
 // Floats past a texel row's last texel, so that a full vector loads from any column.
 constexpr int kPadding = 64;
-
 static_assert(HWY_MAX_BYTES / sizeof(float) <= kPadding);
 
 // Texel rows of the half grid laid out for a vector of pixels at a time: per row, one
