@@ -84,15 +84,21 @@ namespace hn = hwy::HWY_NAMESPACE;
 using FloatLanes = hn::ScalableTag<float>;
 using Lanes = hn::Vec<FloatLanes>;
 
+// depth_falloff's Taylor polynomial (its form near 0) of every lane, by the same operations.
+inline Lanes exp_taylor_lanes(Lanes x) {
+  const FloatLanes d;
+  Lanes q = hn::Set(d, kExpTaylor[0]);
+  for (int i = 1; i < 5; ++i) q = hn::Add(hn::Mul(q, x), hn::Set(d, kExpTaylor[i]));
+  return hn::Add(hn::Mul(x, q), hn::Set(d, 1.0f));
+}
+
 // depth_falloff of every lane, by the same operations; the range reduction only for a
 // vector with a lane that needs it.
 inline Lanes depth_falloff_lanes(Lanes x) {
   const FloatLanes d;
   const hn::RebindToSigned<FloatLanes> di;
   const auto near_zero = hn::Gt(x, hn::Set(d, kExpTaylorFrom));
-  Lanes q = hn::Set(d, kExpTaylor[0]);
-  for (int i = 1; i < 5; ++i) q = hn::Add(hn::Mul(q, x), hn::Set(d, kExpTaylor[i]));
-  const Lanes taylor = hn::Add(hn::Mul(x, q), hn::Set(d, 1.0f));
+  const Lanes taylor = exp_taylor_lanes(x);
   if (hn::AllTrue(d, near_zero)) return taylor;
   x = hn::Max(x, hn::Set(d, kExpMinArgument));
   const Lanes n = hn::Floor(hn::Add(hn::Mul(x, hn::Set(d, kLog2e)), hn::Set(d, 0.5f)));
@@ -105,21 +111,14 @@ inline Lanes depth_falloff_lanes(Lanes x) {
 }
 
 // depth_falloff_lanes of four vectors in place: where every lane of the four is near 0
-// (most of a frame), their Taylor polynomials side by side, one test for all four.
+// (most of a frame), their Taylor polynomials, one test for all four.
 inline void depth_falloff_lanes(Lanes x[4]) {
   const FloatLanes d;
   const Lanes from = hn::Set(d, kExpTaylorFrom);
   const auto near_zero = hn::And(hn::And(hn::Gt(x[0], from), hn::Gt(x[1], from)),
                                  hn::And(hn::Gt(x[2], from), hn::Gt(x[3], from)));
-  if (!hn::AllTrue(d, near_zero)) {
-    for (int k = 0; k < 4; ++k) x[k] = depth_falloff_lanes(x[k]);
-    return;
-  }
-  Lanes q[4];
-  for (int k = 0; k < 4; ++k) q[k] = hn::Set(d, kExpTaylor[0]);
-  for (int i = 1; i < 5; ++i)
-    for (int k = 0; k < 4; ++k) q[k] = hn::Add(hn::Mul(q[k], x[k]), hn::Set(d, kExpTaylor[i]));
-  for (int k = 0; k < 4; ++k) x[k] = hn::Add(hn::Mul(x[k], q[k]), hn::Set(d, 1.0f));
+  const bool taylor = hn::AllTrue(d, near_zero);
+  for (int k = 0; k < 4; ++k) x[k] = taylor ? exp_taylor_lanes(x[k]) : depth_falloff_lanes(x[k]);
 }
 
 // A half-grid row's view-space positions, as view_positions_from_depth at each texel's
