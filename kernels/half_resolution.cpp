@@ -854,8 +854,6 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
     CV_Assert(im.finish != UpsampleFinish::clamp_unit_interval || im.half.channels() == 1);
     CV_Assert(im.finish != UpsampleFinish::unit_vector || im.half.channels() == 3);
   }
-  const bool finished = std::any_of(images.begin(), images.end(),
-                                    [](const UpsampleImage& im) { return im.finish != UpsampleFinish::none; });
   const LaneSpan span = lane_span(r.x, r.x + r.width, full.depth_view.cols);
   parallel_row_blocks(cv::Range(r.y, r.y + r.height), nthreads, [&](const cv::Range& rows) {
     lanes::TexelRows texels(h, images);
@@ -868,10 +866,9 @@ void upsample_from_half_grid(const FullGrid& full, const HalfGrid& h, std::span<
       upsample_span(full, h, images, out, y, fy, r.x, span.begin);
       if (pattern) upsample_lanes(full, h, images, out, texels, *pattern, fy, span, y);
       upsample_span(full, h, images, out, y, fy, span.end, r.x + r.width);
-      if (finished) {
-        finish_row(full, images, out, y, r.x, span.begin);
-        finish_row(full, images, out, y, span.end, r.x + r.width);
-      }
+      // The vector code finished its pixels in registers; the row's ends are finished here.
+      finish_row(full, images, out, y, r.x, span.begin);
+      finish_row(full, images, out, y, span.end, r.x + r.width);
       outputs.store(y, r.x, r.x + r.width);
     }
   }, kBlockGranularity);
